@@ -1,0 +1,513 @@
+//! The bus: iceoryx2 publish-subscribe services, each paired with an event service of the same
+//! name, under a prefix and root path of the session's own.
+//!
+//! * [`BusConfig`] isolates one session (or one test) from every other: its own file prefix in
+//!   /dev/shm and its own root directory for iceoryx2's bookkeeping, removed by
+//!   [`BusConfig::remove_resources`] when the session ends.
+//! * [`Bus`] is one process's node. [`Bus::outlet`] gives an [`Outlet`] (publisher + notifier)
+//!   that stamps `seq` and `publish_ns` and counts what it sent; [`Bus::inlet`] gives an
+//!   [`Inlet`] (subscriber + listener) that counts what it received and the sequence gaps.
+//! * Service limits (subscribers, publishers, buffer depth) are fixed when a service is
+//!   created, so [`Bus::create_services`] creates every topic with the same sizing before any
+//!   process attaches; every later open must agree.
+
+use std::fmt;
+use std::path::{Path as StdPath, PathBuf};
+use std::time::Duration;
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::sample::Sample;
+
+use crate::samples::*;
+use crate::stamp::{monotonic_ns, Stamp};
+use crate::topic::Topic;
+
+/// Ports of one service type; a sample read from an [`Inlet`].
+pub type Received<T> = Sample<ipc::Service, T, ()>;
+
+/// Most processes that attach to one topic (a recorder, a monitor and the `iox2` tool included).
+const MAX_SUBSCRIBERS: usize = 4;
+const MAX_NODES: usize = 16;
+
+/// Something went wrong on the bus; each variant says which operation and which topic.
+#[derive(Debug)]
+pub enum BusError {
+    /// The session's prefix or root path is not usable by iceoryx2.
+    Config(String),
+    /// This process's node could not be created.
+    Node(String),
+    /// A service could not be created or opened (e.g. another build with a different sample
+    /// layout is attached: `IncompatibleTypes`).
+    Service { topic: &'static str, reason: String },
+    /// A publisher, subscriber, notifier or listener could not be created.
+    Port { topic: &'static str, reason: String },
+    /// A sample could not be loaned or sent.
+    Send { topic: &'static str, reason: String },
+    /// A sample could not be received.
+    Receive { topic: &'static str, reason: String },
+    /// Waiting for samples failed.
+    Wait(String),
+}
+
+impl fmt::Display for BusError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BusError::Config(r) => write!(f, "bus configuration: {r}"),
+            BusError::Node(r) => write!(f, "cannot create the iceoryx2 node: {r}"),
+            BusError::Service { topic, reason } => write!(
+                f,
+                "cannot open the `{topic}` service: {reason} (a process of another build may be attached; stop it or use another session id)"
+            ),
+            BusError::Port { topic, reason } => {
+                write!(f, "cannot attach to the `{topic}` service: {reason}")
+            }
+            BusError::Send { topic, reason } => write!(f, "cannot send on `{topic}`: {reason}"),
+            BusError::Receive { topic, reason } => {
+                write!(f, "cannot receive on `{topic}`: {reason}")
+            }
+            BusError::Wait(r) => write!(f, "waiting for samples failed: {r}"),
+        }
+    }
+}
+
+impl std::error::Error for BusError {}
+
+/// Where one session's iceoryx2 resources live.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BusConfig {
+    /// The session id: letters, digits, `_` and `-`.
+    pub id: String,
+    /// Prefix of every file in /dev/shm (`hb_<id>_`).
+    pub prefix: String,
+    /// iceoryx2's root directory for this session (service and node bookkeeping).
+    pub root: PathBuf,
+}
+
+impl BusConfig {
+    /// The resources of session `id`: prefix `hb_<id>_`, root `<tmp>/handblocks-iox2/<id>/`.
+    pub fn for_session(id: &str) -> Result<BusConfig, BusError> {
+        if id.is_empty()
+            || id.len() > 48
+            || !id
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        {
+            return Err(BusError::Config(format!(
+                "session id {id:?} must be 1 to 48 letters, digits, `_` or `-`"
+            )));
+        }
+        Ok(BusConfig {
+            id: id.to_string(),
+            prefix: format!("hb_{id}_"),
+            root: std::env::temp_dir().join("handblocks-iox2").join(id),
+        })
+    }
+
+    /// A fresh id for a new session: unique per process and moment.
+    pub fn fresh_id() -> String {
+        format!("s{}_{:x}", std::process::id(), monotonic_ns() & 0xffff_ffff)
+    }
+
+    /// The iceoryx2 configuration for this session.
+    pub fn iceoryx(&self) -> Result<Config, BusError> {
+        let mut config = Config::default();
+        let mut root = self.root.to_string_lossy().into_owned();
+        if !root.ends_with('/') {
+            root.push('/');
+        }
+        let root = iceoryx2::prelude::Path::new(root.as_bytes())
+            .map_err(|e| BusError::Config(format!("root path {root:?}: {e:?}")))?;
+        config.global.set_root_path(&root);
+        config.global.prefix = FileName::new(self.prefix.as_bytes())
+            .map_err(|e| BusError::Config(format!("prefix {:?}: {e:?}", self.prefix)))?;
+        Ok(config)
+    }
+
+    /// Files of this session still in /dev/shm.
+    pub fn leftover_shm_files(&self) -> Vec<PathBuf> {
+        leftover_files(StdPath::new("/dev/shm"), &self.prefix)
+    }
+
+    /// Removes what this session's iceoryx2 nodes leave behind once every one of them has
+    /// exited: files of its prefix in /dev/shm and its root directory. Call it only when no
+    /// process of the session lives (iceoryx2 0.10 keeps one management file per prefix).
+    /// Returns how many entries were removed.
+    pub fn remove_resources(&self) -> std::io::Result<usize> {
+        let mut removed = 0;
+        for f in self.leftover_shm_files() {
+            std::fs::remove_file(&f)?;
+            removed += 1;
+        }
+        if self.root.exists() {
+            std::fs::remove_dir_all(&self.root)?;
+            removed += 1;
+        }
+        Ok(removed)
+    }
+}
+
+fn leftover_files(dir: &StdPath, prefix: &str) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    entries
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(prefix))
+        .map(|e| e.path())
+        .collect()
+}
+
+/// A sample type that starts with a [`Stamp`].
+pub trait Stamped: Copy + std::fmt::Debug + ZeroCopySend + 'static {
+    fn stamp(&self) -> &Stamp;
+    fn stamp_mut(&mut self) -> &mut Stamp;
+}
+
+macro_rules! stamped {
+    ($($t:ty),*) => {$(
+        impl Stamped for $t {
+            fn stamp(&self) -> &Stamp { &self.stamp }
+            fn stamp_mut(&mut self) -> &mut Stamp { &mut self.stamp }
+        }
+    )*};
+}
+stamped!(
+    GloveSample,
+    TrackerSample,
+    JointsSample,
+    HandSample,
+    WorldSample,
+    FrameSample,
+    LatencySample
+);
+
+/// One process's attachment to the session's bus.
+pub struct Bus {
+    node: Node<ipc::Service>,
+}
+
+impl Bus {
+    /// Creates this process's node, named e.g. after its stage.
+    pub fn open(config: &BusConfig, node_name: &str) -> Result<Bus, BusError> {
+        let iox = config.iceoryx()?;
+        let name = NodeName::new(node_name).map_err(|e| BusError::Node(format!("{e:?}")))?;
+        let node = NodeBuilder::new()
+            .name(&name)
+            .config(&iox)
+            // Processes handle SIGINT/SIGTERM themselves (crate::shutdown), so that a stage can
+            // finish its final report before it exits.
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| BusError::Node(format!("{e:?}")))?;
+        Ok(Bus { node })
+    }
+
+    pub fn node(&self) -> &Node<ipc::Service> {
+        &self.node
+    }
+
+    /// Creates every topic of the session with its fixed sizing. The launcher calls this once
+    /// before it starts any process, and keeps the returned handles until the session ends.
+    pub fn create_services(&self) -> Result<Services, BusError> {
+        Ok(Services {
+            glove: self.pubsub::<GloveSample>(Topic::Glove)?,
+            tracker: self.pubsub::<TrackerSample>(Topic::Tracker)?,
+            joints: self.pubsub::<JointsSample>(Topic::Joints)?,
+            hand: self.pubsub::<HandSample>(Topic::Hand)?,
+            world: self.pubsub::<WorldSample>(Topic::World)?,
+            frame: self.pubsub::<FrameSample>(Topic::Frame)?,
+            latency: self.pubsub::<LatencySample>(Topic::Latency)?,
+            events: Topic::ALL
+                .iter()
+                .map(|t| self.event(*t))
+                .collect::<Result<_, _>>()?,
+        })
+    }
+
+    fn pubsub<T: Stamped>(&self, topic: Topic) -> Result<PubSub<T>, BusError> {
+        let name = service_name(topic)?;
+        let max_publishers = if topic == Topic::Latency { 8 } else { 2 };
+        self.node
+            .service_builder(&name)
+            .publish_subscribe::<T>()
+            .max_publishers(max_publishers)
+            .max_subscribers(MAX_SUBSCRIBERS)
+            .max_nodes(MAX_NODES)
+            .subscriber_max_buffer_size(topic.subscriber_buffer())
+            .subscriber_max_borrowed_samples(4)
+            .history_size(0)
+            // A slow reader loses its oldest unread sample instead of stalling the publisher.
+            .enable_safe_overflow(true)
+            .open_or_create()
+            .map_err(|e| BusError::Service {
+                topic: topic.name(),
+                reason: format!("{e:?}"),
+            })
+    }
+
+    fn event(&self, topic: Topic) -> Result<EventService, BusError> {
+        let name = service_name(topic)?;
+        self.node
+            .service_builder(&name)
+            .event()
+            .max_listeners(8)
+            .max_notifiers(8)
+            .max_nodes(MAX_NODES)
+            .open_or_create()
+            .map_err(|e| BusError::Service {
+                topic: topic.name(),
+                reason: format!("{e:?}"),
+            })
+    }
+
+    /// A publisher on `topic` with its notifier.
+    pub fn outlet<T: Stamped>(&self, topic: Topic) -> Result<Outlet<T>, BusError> {
+        let port_err = |e: String| BusError::Port {
+            topic: topic.name(),
+            reason: e,
+        };
+        let publisher = self
+            .pubsub::<T>(topic)?
+            .publisher_builder()
+            .max_loaned_samples(2)
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        let notifier = self
+            .event(topic)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        Ok(Outlet {
+            topic,
+            publisher,
+            notifier,
+            next_seq: 0,
+        })
+    }
+
+    /// A subscriber on `topic` with its listener.
+    pub fn inlet<T: Stamped>(&self, topic: Topic) -> Result<Inlet<T>, BusError> {
+        let port_err = |e: String| BusError::Port {
+            topic: topic.name(),
+            reason: e,
+        };
+        let subscriber = self
+            .pubsub::<T>(topic)?
+            .subscriber_builder()
+            .buffer_size(topic.subscriber_buffer())
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        let listener = self
+            .event(topic)?
+            .listener_builder()
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        Ok(Inlet {
+            topic,
+            subscriber,
+            listener,
+            received: 0,
+            gaps: 0,
+            last_seq: None,
+        })
+    }
+
+    /// A WaitSet for sleeping on several inlets at once. Signals are handled by
+    /// [`crate::shutdown`], not by the WaitSet.
+    pub fn waitset(&self) -> Result<WaitSet<ipc::Service>, BusError> {
+        WaitSetBuilder::new()
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| BusError::Wait(format!("{e:?}")))
+    }
+}
+
+fn service_name(topic: Topic) -> Result<ServiceName, BusError> {
+    ServiceName::new(topic.name()).map_err(|e| BusError::Config(format!("{e:?}")))
+}
+
+type PubSub<T> =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>;
+type EventService = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
+
+/// Every service of a session, created once by the launcher; it also reads how many ports are
+/// attached, to start the source only when every reader is there.
+pub struct Services {
+    pub glove: PubSub<GloveSample>,
+    pub tracker: PubSub<TrackerSample>,
+    pub joints: PubSub<JointsSample>,
+    pub hand: PubSub<HandSample>,
+    pub world: PubSub<WorldSample>,
+    pub frame: PubSub<FrameSample>,
+    pub latency: PubSub<LatencySample>,
+    events: Vec<EventService>,
+}
+
+impl Services {
+    /// Subscribers attached to `topic` now.
+    pub fn subscribers(&self, topic: Topic) -> usize {
+        match topic {
+            Topic::Glove => self.glove.dynamic_config().number_of_subscribers(),
+            Topic::Tracker => self.tracker.dynamic_config().number_of_subscribers(),
+            Topic::Joints => self.joints.dynamic_config().number_of_subscribers(),
+            Topic::Hand => self.hand.dynamic_config().number_of_subscribers(),
+            Topic::World => self.world.dynamic_config().number_of_subscribers(),
+            Topic::Frame => self.frame.dynamic_config().number_of_subscribers(),
+            Topic::Latency => self.latency.dynamic_config().number_of_subscribers(),
+        }
+    }
+
+    /// Publishers attached to `topic` now.
+    pub fn publishers(&self, topic: Topic) -> usize {
+        match topic {
+            Topic::Glove => self.glove.dynamic_config().number_of_publishers(),
+            Topic::Tracker => self.tracker.dynamic_config().number_of_publishers(),
+            Topic::Joints => self.joints.dynamic_config().number_of_publishers(),
+            Topic::Hand => self.hand.dynamic_config().number_of_publishers(),
+            Topic::World => self.world.dynamic_config().number_of_publishers(),
+            Topic::Frame => self.frame.dynamic_config().number_of_publishers(),
+            Topic::Latency => self.latency.dynamic_config().number_of_publishers(),
+        }
+    }
+
+    /// Event listeners attached to `topic` now.
+    pub fn listeners(&self, topic: Topic) -> usize {
+        self.events[topic as usize]
+            .dynamic_config()
+            .number_of_listeners()
+    }
+}
+
+/// A publisher with its notifier: stamps `seq` and `publish_ns`, sends, wakes the readers.
+pub struct Outlet<T: Stamped> {
+    topic: Topic,
+    publisher: Publisher<ipc::Service, T, ()>,
+    notifier: Notifier<ipc::Service>,
+    next_seq: u64,
+}
+
+impl<T: Stamped> Outlet<T> {
+    /// Sends `value` with the next seq and `publish_ns` = now; returns the stamp it went with.
+    /// `value`'s `source_time_ns` and `origin_ns` travel as given.
+    pub fn publish(&mut self, value: &T) -> Result<Stamp, BusError> {
+        let send_err = |e: String| BusError::Send {
+            topic: self.topic.name(),
+            reason: e,
+        };
+        let sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(|e| send_err(format!("{e:?}")))?;
+        let mut sample = sample.write_payload(*value);
+        let stamp = sample.payload_mut().stamp_mut();
+        stamp.seq = self.next_seq;
+        stamp.publish_ns = monotonic_ns();
+        let sent = *stamp;
+        sample.send().map_err(|e| send_err(format!("{e:?}")))?;
+        self.notifier
+            .notify()
+            .map_err(|e| send_err(format!("{e:?}")))?;
+        self.next_seq += 1;
+        Ok(sent)
+    }
+
+    /// Samples sent so far.
+    pub fn published(&self) -> u64 {
+        self.next_seq
+    }
+
+    pub fn topic(&self) -> Topic {
+        self.topic
+    }
+
+    /// This outlet's counter for the latency report.
+    pub fn counter(&self) -> TopicCounter {
+        TopicCounter {
+            topic: self.topic as u32,
+            role: 0,
+            count: self.next_seq,
+            gaps: 0,
+            last_seq: self.next_seq.wrapping_sub(1),
+        }
+    }
+}
+
+/// A subscriber with its listener: counts what arrives and the gaps in `seq`.
+pub struct Inlet<T: Stamped> {
+    topic: Topic,
+    subscriber: Subscriber<ipc::Service, T, ()>,
+    listener: Listener<ipc::Service>,
+    received: u64,
+    gaps: u64,
+    last_seq: Option<u64>,
+}
+
+impl<T: Stamped> Inlet<T> {
+    /// The next unread sample, zero-copy (it reads the publisher's memory), or None.
+    pub fn receive(&mut self) -> Result<Option<Received<T>>, BusError> {
+        let sample = self.subscriber.receive().map_err(|e| BusError::Receive {
+            topic: self.topic.name(),
+            reason: format!("{e:?}"),
+        })?;
+        if let Some(s) = &sample {
+            let seq = s.payload().stamp().seq;
+            // A seq that jumps ahead means samples were lost (overwritten unread, or never sent
+            // to us); a seq that goes back means the publisher restarted.
+            if let Some(last) = self.last_seq {
+                if seq > last + 1 {
+                    self.gaps += seq - last - 1;
+                }
+            } else if seq > 0 {
+                self.gaps += seq;
+            }
+            self.last_seq = Some(seq);
+            self.received += 1;
+        }
+        Ok(sample)
+    }
+
+    /// Sleeps until a sample may have arrived, or `timeout` passes; consumes the wake-ups.
+    pub fn wait(&self, timeout: Duration) -> Result<(), BusError> {
+        self.listener
+            .timed_wait(|_| {}, timeout)
+            .map(|_| ())
+            .map_err(|e| BusError::Wait(format!("{e:?}")))
+    }
+
+    /// Consumes pending wake-ups without sleeping (after a WaitSet woke on this listener).
+    pub fn clear_wakeups(&self) {
+        let _ = self.listener.try_wait(|_| {});
+    }
+
+    /// The listener, to attach to a WaitSet.
+    pub fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
+    }
+
+    pub fn received(&self) -> u64 {
+        self.received
+    }
+
+    pub fn gaps(&self) -> u64 {
+        self.gaps
+    }
+
+    pub fn topic(&self) -> Topic {
+        self.topic
+    }
+
+    /// This inlet's counter for the latency report.
+    pub fn counter(&self) -> TopicCounter {
+        TopicCounter {
+            topic: self.topic as u32,
+            role: 1,
+            count: self.received,
+            gaps: self.gaps,
+            last_seq: self.last_seq.unwrap_or(u64::MAX),
+        }
+    }
+}

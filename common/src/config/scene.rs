@@ -1,0 +1,583 @@
+//! Scene files: the world's settings, the effects it simulates, its blocks and the scripted
+//! hand (DESIGN.md, "Effects"). This module checks the file's form and ranges; geometric
+//! checks (a block inside another or below the floor) belong to the stepper, which knows the
+//! shapes.
+
+use std::path::{Path, PathBuf};
+
+use toml::Value;
+
+use super::reader::{parse_file, vector, Reader};
+use super::ConfigError;
+use crate::samples::{MAX_BLOCKS, MAX_FINGERS, MAX_FINGER_POINTS};
+
+/// Positions are limited to 100 km from the origin: beyond that f64 metres still work, but no
+/// hand reaches there and a typo is more likely than intent.
+const POSITION_RANGE: std::ops::RangeInclusive<f64> = -1.0e5..=1.0e5;
+
+/// A whole scene file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// The file it was read from (for messages).
+    pub file: PathBuf,
+    pub world: WorldSettings,
+    pub effects: Effects,
+    pub blocks: Vec<BlockSpec>,
+    /// The scripted hand; None when the scene has no `[hand]`.
+    pub hand: Option<HandScript>,
+}
+
+/// `[world]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorldSettings {
+    /// Fixed steps per second (dt = 1 / step_hz).
+    pub step_hz: f64,
+    /// g in m/s^2 (MODEL.md g_step = (0, -g dt^2, 0)).
+    pub gravity: f64,
+    pub model: ModelKind,
+    /// MODEL.md tolerances.
+    pub contact_eps: f64,
+    pub hull_eps: f64,
+    pub angle_eps: f64,
+    /// R3: the largest angle between pseudo-normals above which the hand grasps, radians.
+    pub grasp_angle: f64,
+    /// R3 [extension]: below this angle a grasp ends; equal to grasp_angle in the paper.
+    pub release_angle: f64,
+    /// R13 [extension]: steps averaged for the throw velocity; 1 in the paper.
+    pub throw_window: u32,
+}
+
+impl Default for WorldSettings {
+    fn default() -> Self {
+        WorldSettings {
+            step_hz: 120.0,
+            gravity: 9.81,
+            model: ModelKind::Paper,
+            contact_eps: 1e-4,
+            hull_eps: 1e-6,
+            angle_eps: 1e-9,
+            grasp_angle: 120f64.to_radians(),
+            release_angle: 120f64.to_radians(),
+            throw_window: 1,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelKind {
+    /// MODEL.md's rules R1-R14: the product.
+    Paper,
+    /// The rigid-body reference (rapier3d).
+    Precise,
+}
+
+/// `[effects]`: what the stepper simulates; an effect that is off costs nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Effects {
+    /// R7 gravity.
+    pub gravity: bool,
+    /// R7, R13 inertia.
+    pub inertia: bool,
+    pub floor: FloorEffect,
+    pub hand: HandEffect,
+    /// R10.
+    pub carry: bool,
+    pub stacking: Stacking,
+}
+
+impl Default for Effects {
+    fn default() -> Self {
+        Effects {
+            gravity: true,
+            inertia: true,
+            floor: FloorEffect::Tipping,
+            hand: HandEffect::Grasp,
+            carry: true,
+            stacking: Stacking::Paper,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FloorEffect {
+    None,
+    /// R8 only.
+    Rest,
+    /// R8 and R9.
+    Tipping,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HandEffect {
+    None,
+    /// R4, R6.
+    Push,
+    /// R4-R6.
+    Grasp,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stacking {
+    /// R11.
+    Paper,
+    /// R14 [extension].
+    Supported,
+}
+
+/// `[[block]]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockSpec {
+    pub name: String,
+    pub shape: ShapeSpec,
+    /// Where the centre of gravity starts, metres.
+    pub position: [f64; 3],
+    /// Unit quaternion `[x, y, z, w]` (normalised on load).
+    pub rotation: [f64; 4],
+    /// Initial inertia, m/s (MODEL.md v is this times dt).
+    pub velocity: [f64; 3],
+}
+
+/// A block's shape in its own frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ShapeSpec {
+    /// Full extents x, y, z.
+    Box { size: [f64; 3] },
+    /// A triangular prism filling half the `size` box: the right triangle with legs along +x
+    /// and +y, extruded along z.
+    Wedge { size: [f64; 3] },
+    /// The corner tetrahedron of the `size` box: its origin corner and the three corners one
+    /// edge away along x, y and z.
+    Tetra { size: [f64; 3] },
+    /// The convex hull of these vertices.
+    Hull { vertices: Vec<[f64; 3]> },
+}
+
+/// `[hand]`: keyframes, linearly interpolated (rotation by slerp); after the last key the
+/// hand holds still.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandScript {
+    pub keys: Vec<HandKey>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandKey {
+    /// Seconds from the start; strictly increasing.
+    pub t: f64,
+    pub wrist: [f64; 3],
+    pub wrist_rotation: [f64; 4],
+    pub pose: HandPoseSpec,
+}
+
+/// How a key shapes the fingers. Every key of a scene uses the same kind.
+#[derive(Debug, Clone, PartialEq)]
+pub enum HandPoseSpec {
+    /// 0 open .. 1 fist, through the hand model.
+    Grip(f64),
+    /// Glove angles in radians, CyberGlove sensor order (18 or 22), through the hand model.
+    Angles(Vec<f64>),
+    /// Bare check points per finger, knuckle to tip, in the wrist's frame: no hand model, no
+    /// palm. Every key has the same number of fingers and points per finger.
+    Fingers(Vec<Vec<[f64; 3]>>),
+}
+
+impl Scene {
+    /// Reads and checks a scene file.
+    pub fn load(file: &Path) -> Result<Scene, ConfigError> {
+        let table = parse_file(file)?;
+        let root = Reader::new(file, "", &table);
+        let scene = Scene {
+            file: file.to_path_buf(),
+            world: world(root.table("world")?)?,
+            effects: effects(root.table("effects")?)?,
+            blocks: blocks(&root)?,
+            hand: match root.table("hand")? {
+                Some(h) => Some(hand(h)?),
+                None => None,
+            },
+        };
+        root.finish()?;
+        Ok(scene)
+    }
+
+    /// The index of the block named `name`.
+    pub fn block_index(&self, name: &str) -> Option<usize> {
+        self.blocks.iter().position(|b| b.name == name)
+    }
+}
+
+fn world(r: Option<Reader>) -> Result<WorldSettings, ConfigError> {
+    let d = WorldSettings::default();
+    let Some(r) = r else { return Ok(d) };
+    let grasp_deg = r
+        .f64_in("grasp_angle", Some(d.grasp_angle.to_degrees()), 0.0..=180.0)?
+        .unwrap_or(120.0);
+    let release_deg = r
+        .f64_in("release_angle", Some(grasp_deg), 0.0..=180.0)?
+        .unwrap_or(grasp_deg);
+    if release_deg > grasp_deg {
+        return Err(r.err(
+            "release_angle",
+            format!("{release_deg} is above grasp_angle {grasp_deg}; allowed: 0 to grasp_angle"),
+        ));
+    }
+    let w = WorldSettings {
+        step_hz: r
+            .f64_in("step_hz", Some(d.step_hz), 1.0..=100_000.0)?
+            .unwrap_or(d.step_hz),
+        gravity: r
+            .f64_in("gravity", Some(d.gravity), 0.0..=1000.0)?
+            .unwrap_or(d.gravity),
+        model: match r.choice("model", &["paper", "precise"])? {
+            "precise" => ModelKind::Precise,
+            _ => ModelKind::Paper,
+        },
+        contact_eps: r
+            .f64_in("contact_eps", Some(d.contact_eps), 1e-9..=0.1)?
+            .unwrap_or(d.contact_eps),
+        hull_eps: r
+            .f64_in("hull_eps", Some(d.hull_eps), 1e-12..=0.1)?
+            .unwrap_or(d.hull_eps),
+        angle_eps: r
+            .f64_in("angle_eps", Some(d.angle_eps), 1e-15..=0.1)?
+            .unwrap_or(d.angle_eps),
+        grasp_angle: grasp_deg.to_radians(),
+        release_angle: release_deg.to_radians(),
+        throw_window: r.u64_in("throw_window", 1, 1..=1000)? as u32,
+    };
+    r.finish()?;
+    Ok(w)
+}
+
+fn effects(r: Option<Reader>) -> Result<Effects, ConfigError> {
+    let d = Effects::default();
+    let Some(r) = r else { return Ok(d) };
+    let e = Effects {
+        gravity: r.bool("gravity", d.gravity)?,
+        inertia: r.bool("inertia", d.inertia)?,
+        floor: match r.choice("floor", &["tipping", "rest", "none"])? {
+            "none" => FloorEffect::None,
+            "rest" => FloorEffect::Rest,
+            _ => FloorEffect::Tipping,
+        },
+        hand: match r.choice("hand", &["grasp", "push", "none"])? {
+            "none" => HandEffect::None,
+            "push" => HandEffect::Push,
+            _ => HandEffect::Grasp,
+        },
+        carry: r.bool("carry", d.carry)?,
+        stacking: match r.choice("stacking", &["paper", "supported"])? {
+            "supported" => Stacking::Supported,
+            _ => Stacking::Paper,
+        },
+    };
+    r.finish()?;
+    Ok(e)
+}
+
+fn unit_quaternion(r: &Reader, key: &'static str) -> Result<[f64; 4], ConfigError> {
+    let Some(q) = r.array::<4>(key, -2.0..=2.0)? else {
+        return Ok([0.0, 0.0, 0.0, 1.0]);
+    };
+    let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if (norm - 1.0).abs() > 1e-3 {
+        return Err(r.err(
+            key,
+            format!("quaternion [x, y, z, w] has length {norm:.6}; it must be a unit quaternion (length 1 within 0.001)"),
+        ));
+    }
+    Ok(q.map(|v| v / norm))
+}
+
+fn blocks(root: &Reader) -> Result<Vec<BlockSpec>, ConfigError> {
+    let tables = root.tables("block")?;
+    if tables.len() > MAX_BLOCKS {
+        return Err(root.err(
+            "block",
+            format!("{} blocks; allowed: at most {MAX_BLOCKS}", tables.len()),
+        ));
+    }
+    let mut out: Vec<BlockSpec> = Vec::with_capacity(tables.len());
+    for (i, r) in tables.into_iter().enumerate() {
+        let name = r.string("name")?.unwrap_or_else(|| format!("block{i}"));
+        if out.iter().any(|b| b.name == name) {
+            return Err(r.err(
+                "name",
+                format!("{name:?} is used by another block; names must be unique"),
+            ));
+        }
+        let shape_kind = r.choice("shape", &["box", "wedge", "tetra", "hull"])?;
+        let size = || -> Result<[f64; 3], ConfigError> {
+            Ok(r.array::<3>("size", 1e-4..=1e3)?.unwrap_or([0.1, 0.1, 0.1]))
+        };
+        let shape = match shape_kind {
+            "wedge" => ShapeSpec::Wedge { size: size()? },
+            "tetra" => ShapeSpec::Tetra { size: size()? },
+            "hull" => {
+                if r.has("size") {
+                    return Err(r.err("size", "a hull block takes `vertices`, not `size`"));
+                }
+                ShapeSpec::Hull {
+                    vertices: hull_vertices(&r)?,
+                }
+            }
+            _ => ShapeSpec::Box { size: size()? },
+        };
+        let block = BlockSpec {
+            name,
+            shape,
+            position: r.array::<3>("position", POSITION_RANGE)?.ok_or_else(|| {
+                r.err(
+                    "position",
+                    "required: the centre of gravity [x, y, z] in metres",
+                )
+            })?,
+            rotation: unit_quaternion(&r, "rotation")?,
+            velocity: r
+                .array::<3>("velocity", -1.0e4..=1.0e4)?
+                .unwrap_or([0.0; 3]),
+        };
+        r.finish()?;
+        out.push(block);
+    }
+    Ok(out)
+}
+
+fn hull_vertices(r: &Reader) -> Result<Vec<[f64; 3]>, ConfigError> {
+    let Some(v) = r.raw("vertices") else {
+        return Err(r.err(
+            "vertices",
+            "required for shape = \"hull\": [[x, y, z], ...] in the block's frame",
+        ));
+    };
+    let Value::Array(items) = v else {
+        return Err(r.err(
+            "vertices",
+            format!("expected a list of [x, y, z], found {}", v.type_str()),
+        ));
+    };
+    if items.len() < 4 || items.len() > 256 {
+        return Err(r.err(
+            "vertices",
+            format!(
+                "{} vertices; allowed: 4 to 256 (a solid needs at least 4)",
+                items.len()
+            ),
+        ));
+    }
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            vector::<3>(p, &(-1e3..=1e3)).map_err(|e| r.err("vertices", format!("vertex {i}: {e}")))
+        })
+        .collect()
+}
+
+fn hand(r: Reader) -> Result<HandScript, ConfigError> {
+    let keys = r.tables("key")?;
+    if keys.is_empty() {
+        return Err(r.err("key", "a [hand] needs at least one [[hand.key]]"));
+    }
+    let mut out: Vec<HandKey> = Vec::with_capacity(keys.len());
+    for k in keys {
+        let t = k.f64_required("t", 0.0..=1.0e6)?;
+        if let Some(prev) = out.last() {
+            if t <= prev.t {
+                return Err(k.err(
+                    "t",
+                    format!(
+                        "{t} is not after the previous key's {}; keys must be in increasing time",
+                        prev.t
+                    ),
+                ));
+            }
+        }
+        let given: Vec<&str> = ["grip", "angles", "fingers"]
+            .into_iter()
+            .filter(|key| k.has(key))
+            .collect();
+        if given.len() > 1 {
+            return Err(k.err(
+                given[1],
+                format!(
+                    "give one of grip, angles or fingers, not {}",
+                    given.join(" and ")
+                ),
+            ));
+        }
+        let pose = if k.has("fingers") {
+            HandPoseSpec::Fingers(fingers(&k)?)
+        } else if let Some(a) = k.numbers("angles", -std::f64::consts::PI..=std::f64::consts::PI)? {
+            if a.len() != 18 && a.len() != 22 {
+                return Err(k.err(
+                    "angles",
+                    format!("{} angles; a CyberGlove has 18 or 22 sensors", a.len()),
+                ));
+            }
+            HandPoseSpec::Angles(a)
+        } else {
+            HandPoseSpec::Grip(k.f64_in("grip", Some(0.0), 0.0..=1.0)?.unwrap_or(0.0))
+        };
+        if let Some(first) = out.first() {
+            let same = match (&first.pose, &pose) {
+                (HandPoseSpec::Fingers(a), HandPoseSpec::Fingers(b)) => {
+                    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.len() == y.len())
+                }
+                (HandPoseSpec::Fingers(_), _) | (_, HandPoseSpec::Fingers(_)) => false,
+                (HandPoseSpec::Angles(a), HandPoseSpec::Angles(b)) => a.len() == b.len(),
+                _ => true,
+            };
+            if !same {
+                return Err(k.err(
+                    "fingers",
+                    "every key must shape the hand the same way: all grip/angles (with the same sensor count), or all fingers with the same number of fingers and points",
+                ));
+            }
+        }
+        out.push(HandKey {
+            t,
+            wrist: k.array::<3>("wrist", POSITION_RANGE)?.ok_or_else(|| {
+                k.err("wrist", "required: the wrist position [x, y, z] in metres")
+            })?,
+            wrist_rotation: unit_quaternion(&k, "wrist_rotation")?,
+            pose,
+        });
+        k.finish()?;
+    }
+    r.finish()?;
+    Ok(HandScript { keys: out })
+}
+
+fn fingers(k: &Reader) -> Result<Vec<Vec<[f64; 3]>>, ConfigError> {
+    let bad = |p: String| k.err("fingers", p);
+    let Some(Value::Array(list)) = k.raw("fingers") else {
+        return Err(bad(
+            "expected a list of fingers, each a list of [x, y, z] points".into(),
+        ));
+    };
+    if list.is_empty() || list.len() > MAX_FINGERS {
+        return Err(bad(format!(
+            "{} fingers; allowed: 1 to {MAX_FINGERS}",
+            list.len()
+        )));
+    }
+    list.iter()
+        .enumerate()
+        .map(|(f, finger)| {
+            let Value::Array(points) = finger else {
+                return Err(bad(format!(
+                    "finger {f}: expected a list of [x, y, z] points"
+                )));
+            };
+            if points.is_empty() || points.len() > MAX_FINGER_POINTS {
+                return Err(bad(format!(
+                    "finger {f}: {} points; allowed: 1 to {MAX_FINGER_POINTS}",
+                    points.len()
+                )));
+            }
+            points
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    vector::<3>(p, &(-10.0..=10.0))
+                        .map_err(|e| bad(format!("finger {f} point {i}: {e}")))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(text: &str) -> Result<Scene, ConfigError> {
+        let dir = std::env::temp_dir().join(format!("hb-scene-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join(format!("s{}.toml", crate::monotonic_ns()));
+        std::fs::write(&file, text).unwrap();
+        let r = Scene::load(&file);
+        std::fs::remove_file(&file).unwrap();
+        r
+    }
+
+    #[test]
+    fn a_full_scene_loads_with_defaults() {
+        let s = load(
+            r#"
+            [[block]]
+            name = "red"
+            position = [0.0, 0.05, 0.0]
+            [[block]]
+            shape = "hull"
+            vertices = [[0,0,0],[1,0,0],[0,1,0],[0,0,1]]
+            position = [1.0, 0.5, 0.0]
+            [hand]
+            [[hand.key]]
+            t = 0.0
+            wrist = [0.0, 0.3, -0.3]
+            grip = 0.5
+            "#,
+        )
+        .unwrap();
+        assert_eq!(s.world.step_hz, 120.0);
+        assert_eq!(s.blocks.len(), 2);
+        assert_eq!(s.blocks[1].name, "block1");
+        assert_eq!(s.blocks[0].shape, ShapeSpec::Box { size: [0.1; 3] });
+        assert_eq!(s.hand.unwrap().keys[0].pose, HandPoseSpec::Grip(0.5));
+    }
+
+    #[test]
+    fn unknown_key_is_named_with_what_is_allowed() {
+        let e = load("[world]\nstep_hz = 120\nstephz = 3\n").unwrap_err();
+        assert_eq!(e.key, "world.stephz");
+        assert!(
+            e.problem.contains("unknown key") && e.problem.contains("step_hz"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn out_of_range_value_names_the_range() {
+        let e = load("[world]\nstep_hz = 0\n").unwrap_err();
+        assert_eq!(e.key, "world.step_hz");
+        assert!(e.problem.contains("allowed: 1 to"), "{e}");
+        let e = load("[[block]]\nposition = [0, 0.05]\n").unwrap_err();
+        assert_eq!(e.key, "block[0].position");
+    }
+
+    #[test]
+    fn wrong_type_and_bad_choice_are_named() {
+        let e = load("[effects]\nfloor = \"bouncy\"\n").unwrap_err();
+        assert_eq!(e.key, "effects.floor");
+        assert!(e.problem.contains("\"tipping\""), "{e}");
+        let e = load("[effects]\ngravity = 1\n").unwrap_err();
+        assert!(e.problem.contains("true or false"), "{e}");
+    }
+
+    #[test]
+    fn nan_and_non_unit_quaternions_are_refused() {
+        let e = load("[[block]]\nposition = [nan, 0, 0]\n").unwrap_err();
+        assert!(e.problem.contains("not a finite"), "{e}");
+        let e = load("[[block]]\nposition = [0, 0.05, 0]\nrotation = [0, 0, 0, 2]\n").unwrap_err();
+        assert!(e.problem.contains("unit quaternion"), "{e}");
+    }
+
+    #[test]
+    fn hand_keys_must_increase_and_agree() {
+        let e = load("[hand]\n[[hand.key]]\nt = 1\nwrist = [0,0,0]\n[[hand.key]]\nt = 0.5\nwrist = [0,0,0]\n").unwrap_err();
+        assert_eq!(e.key, "hand.key[1].t");
+        let e = load("[hand]\n[[hand.key]]\nt = 0\nwrist = [0,0,0]\nfingers = [[[0,0,0]]]\n[[hand.key]]\nt = 1\nwrist = [0,0,0]\n").unwrap_err();
+        assert!(e.problem.contains("same way"), "{e}");
+    }
+
+    #[test]
+    fn a_missing_file_is_named() {
+        let e = Scene::load(Path::new("/nonexistent/x.toml")).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("/nonexistent/x.toml: cannot read"),
+            "{e}"
+        );
+    }
+}

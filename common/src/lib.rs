@@ -1,0 +1,19 @@
+//! The contract between handblocks processes, and nothing else.
+//!
+//! Every process links this crate and only this crate of the project's own: the sample type of
+//! every topic (fixed `#[repr(C)]` layouts that travel zero-copy through iceoryx2), the
+//! [`Stamp`] every sample starts with, topic names, the bus helpers that pair each
+//! publish-subscribe service with an event service, latency histograms, and the session and
+//! scene configuration files with errors that name the file, the key and the allowed values.
+
+pub mod bus;
+pub mod config;
+pub mod latency;
+pub mod samples;
+pub mod shutdown;
+pub mod stamp;
+pub mod topic;
+
+pub use samples::*;
+pub use stamp::{monotonic_ns, Stamp};
+pub use topic::{Stage, Topic};

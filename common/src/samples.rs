@@ -1,0 +1,351 @@
+//! The sample type of every topic: fixed `#[repr(C)]` layouts that travel zero-copy.
+//!
+//! Each type has a stable `type_name`: processes that disagree on a layout fail to connect
+//! (`IncompatibleTypes`) instead of reading garbage. Geometry is f64 in metres, world frame,
+//! y up; rotations are unit quaternions `[x, y, z, w]`.
+
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::stamp::Stamp;
+
+/// Most sensors a CyberGlove reports (the 22-sensor model).
+pub const MAX_GLOVE_SENSORS: usize = 22;
+/// Fingers a hand sample can carry (a scene's bare `fingers` hand may use fewer).
+pub const MAX_FINGERS: usize = 5;
+/// Check points per finger, ordered knuckle to tip (MODEL.md, "Hand input per step").
+pub const MAX_FINGER_POINTS: usize = 5;
+/// Vertices of the palm polyhedron.
+pub const MAX_PALM_VERTICES: usize = 16;
+/// Blocks a world sample can carry.
+pub const MAX_BLOCKS: usize = 128;
+/// Joints of an OpenXR hand (XR_EXT_hand_tracking order).
+pub const OPENXR_JOINTS: usize = 26;
+
+/// A rigid pose: position in metres and rotation as a unit quaternion `[x, y, z, w]`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("handblocks::Pose")]
+pub struct Pose {
+    pub position: [f64; 3],
+    pub rotation: [f64; 4],
+}
+
+impl Pose {
+    pub const IDENTITY: Pose = Pose {
+        position: [0.0; 3],
+        rotation: [0.0, 0.0, 0.0, 1.0],
+    };
+
+    /// True when every component is finite (no NaN or infinity).
+    pub fn is_finite(&self) -> bool {
+        self.position
+            .iter()
+            .chain(self.rotation.iter())
+            .all(|v| v.is_finite())
+    }
+}
+
+impl Default for Pose {
+    fn default() -> Self {
+        Pose::IDENTITY
+    }
+}
+
+/// `glove`: one reading of the data glove, calibrated to radians.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("handblocks::GloveSample")]
+pub struct GloveSample {
+    pub stamp: Stamp,
+    /// 18 or 22 (CyberGlove models).
+    pub sensor_count: u32,
+    pub _reserved: u32,
+    /// Joint angles in radians, in the CyberGlove's sensor order.
+    pub angles: [f64; MAX_GLOVE_SENSORS],
+}
+
+impl Default for GloveSample {
+    fn default() -> Self {
+        GloveSample {
+            stamp: Stamp::default(),
+            sensor_count: 22,
+            _reserved: 0,
+            angles: [0.0; 22],
+        }
+    }
+}
+
+/// `tracker`: one wrist pose from the 6-DoF tracker, already in the world frame, metres.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("handblocks::TrackerSample")]
+pub struct TrackerSample {
+    pub stamp: Stamp,
+    pub station: u32,
+    pub _reserved: u32,
+    pub wrist: Pose,
+}
+
+/// `joints`: one hand from a hand tracker (e.g. OpenXR), 26 joints in OpenXR order.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("handblocks::JointsSample")]
+pub struct JointsSample {
+    pub stamp: Stamp,
+    /// 1 when the hand is tracked; 0 when lost (the poses are then the last known ones).
+    pub tracked: u32,
+    pub _reserved: u32,
+    pub wrist: Pose,
+    pub joints: [Pose; OPENXR_JOINTS],
+}
+
+impl Default for JointsSample {
+    fn default() -> Self {
+        JointsSample {
+            stamp: Stamp::default(),
+            tracked: 0,
+            _reserved: 0,
+            wrist: Pose::IDENTITY,
+            joints: [Pose::IDENTITY; OPENXR_JOINTS],
+        }
+    }
+}
+
+/// `hand`: the hand as the block world sees it (MODEL.md R1-R2): check points per finger
+/// (knuckle to tip), finger radii, the palm polyhedron and the wrist pose, all in the world frame.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("handblocks::HandSample")]
+pub struct HandSample {
+    pub stamp: Stamp,
+    pub wrist: Pose,
+    /// 1 when the hand is tracked; 0 when lost (it then holds its last pose).
+    pub tracked: u32,
+    pub finger_count: u32,
+    pub finger_point_count: [u32; MAX_FINGERS],
+    /// 0 for a hand of bare check points (no palm).
+    pub palm_vertex_count: u32,
+    pub finger_points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
+    pub finger_radius: [f64; MAX_FINGERS],
+    pub palm_vertices: [[f64; 3]; MAX_PALM_VERTICES],
+}
+
+impl Default for HandSample {
+    fn default() -> Self {
+        HandSample {
+            stamp: Stamp::default(),
+            wrist: Pose::IDENTITY,
+            tracked: 0,
+            finger_count: 0,
+            finger_point_count: [0; MAX_FINGERS],
+            palm_vertex_count: 0,
+            finger_points: [[[0.0; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
+            finger_radius: [0.0; MAX_FINGERS],
+            palm_vertices: [[0.0; 3]; MAX_PALM_VERTICES],
+        }
+    }
+}
+
+impl HandSample {
+    /// The check points of finger `f`, knuckle to tip.
+    pub fn finger(&self, f: usize) -> &[[f64; 3]] {
+        &self.finger_points[f][..self.finger_point_count[f] as usize]
+    }
+    /// The palm polyhedron's vertices (empty for a bare check-point hand).
+    pub fn palm(&self) -> &[[f64; 3]] {
+        &self.palm_vertices[..self.palm_vertex_count as usize]
+    }
+}
+
+/// What a block is doing (MODEL.md, "Per block the stepper keeps ... a mode").
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BlockMode {
+    #[default]
+    Free = 0,
+    Resting = 1,
+    Tipping = 2,
+    Pushed = 3,
+    Grasped = 4,
+    Carried = 5,
+    Supported = 6,
+}
+
+impl BlockMode {
+    pub const ALL: [BlockMode; 7] = [
+        BlockMode::Free,
+        BlockMode::Resting,
+        BlockMode::Tipping,
+        BlockMode::Pushed,
+        BlockMode::Grasped,
+        BlockMode::Carried,
+        BlockMode::Supported,
+    ];
+
+    pub fn from_u32(v: u32) -> Option<BlockMode> {
+        BlockMode::ALL.get(v as usize).copied()
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            BlockMode::Free => "free",
+            BlockMode::Resting => "resting",
+            BlockMode::Tipping => "tipping",
+            BlockMode::Pushed => "pushed",
+            BlockMode::Grasped => "grasped",
+            BlockMode::Carried => "carried",
+            BlockMode::Supported => "supported",
+        }
+    }
+}
+
+/// One block in a world sample.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("handblocks::BlockState")]
+pub struct BlockState {
+    /// Centre of gravity and orientation.
+    pub pose: Pose,
+    /// A [`BlockMode`] as u32.
+    pub mode: u32,
+    pub _reserved: u32,
+}
+
+impl BlockState {
+    pub fn mode(&self) -> BlockMode {
+        BlockMode::from_u32(self.mode).unwrap_or_default()
+    }
+}
+
+/// `world`: the block world after the steps one hand sample brought (MODEL.md conventions).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("handblocks::WorldSample")]
+pub struct WorldSample {
+    pub stamp: Stamp,
+    /// Fixed steps taken since the world began.
+    pub step: u64,
+    /// The `hand` sample this state answers (its seq).
+    pub hand_seq: u64,
+    pub block_count: u32,
+    /// Index of the grasped block, or -1.
+    pub grasped_block: i32,
+    pub blocks: [BlockState; MAX_BLOCKS],
+    /// Check points as drawn: moved to the grasped block's surface where they ended inside it
+    /// (MODEL.md R5), otherwise the hand's own. Same layout as the hand sample's.
+    pub finger_count: u32,
+    pub finger_point_count: [u32; MAX_FINGERS],
+    pub finger_points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
+}
+
+impl Default for WorldSample {
+    fn default() -> Self {
+        WorldSample {
+            stamp: Stamp::default(),
+            step: 0,
+            hand_seq: 0,
+            block_count: 0,
+            grasped_block: -1,
+            blocks: [BlockState::default(); MAX_BLOCKS],
+            finger_count: 0,
+            finger_point_count: [0; MAX_FINGERS],
+            finger_points: [[[0.0; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
+        }
+    }
+}
+
+impl WorldSample {
+    pub fn blocks(&self) -> &[BlockState] {
+        &self.blocks[..(self.block_count as usize).min(MAX_BLOCKS)]
+    }
+}
+
+/// `frame`: statistics of one rendered frame.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("handblocks::FrameSample")]
+pub struct FrameSample {
+    pub stamp: Stamp,
+    /// The world sample drawn (its seq).
+    pub world_seq: u64,
+    /// CPU + GPU time to produce the frame.
+    pub render_ns: u64,
+    /// Origin of the drawn data to the frame's GPU work complete.
+    pub origin_to_photon_ns: u64,
+    /// World samples that arrived since the last frame but were superseded by a newer one.
+    pub skipped_worlds: u64,
+}
+
+/// Bytes one encoded latency histogram may take on the wire.
+pub const HISTOGRAM_BYTES: usize = 16 * 1024;
+/// Histograms per latency sample: hop, process, origin, photon.
+pub const METRICS: usize = 4;
+/// Topic counters per latency sample.
+pub const MAX_TOPIC_COUNTERS: usize = 8;
+
+/// One histogram, encoded with hdrhistogram's V2 format.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, ZeroCopySend)]
+#[type_name("handblocks::EncodedHistogram")]
+pub struct EncodedHistogram {
+    pub len: u32,
+    pub _reserved: u32,
+    pub bytes: [u8; HISTOGRAM_BYTES],
+}
+
+impl Default for EncodedHistogram {
+    fn default() -> Self {
+        EncodedHistogram {
+            len: 0,
+            _reserved: 0,
+            bytes: [0; HISTOGRAM_BYTES],
+        }
+    }
+}
+
+/// What a stage counted on one topic: as publisher, samples sent; as subscriber, samples
+/// received and sequence gaps (samples that never arrived).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("handblocks::TopicCounter")]
+pub struct TopicCounter {
+    /// A [`crate::Topic`] as u32; `u32::MAX` marks an unused slot.
+    pub topic: u32,
+    /// 0 = publisher, 1 = subscriber.
+    pub role: u32,
+    pub count: u64,
+    pub gaps: u64,
+    /// Last seq seen or sent (u64::MAX before the first).
+    pub last_seq: u64,
+}
+
+/// `latency`: a stage's cumulative histograms and topic counters, published about once a
+/// second and once more, marked final, when the stage stops.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, ZeroCopySend)]
+#[type_name("handblocks::LatencySample")]
+pub struct LatencySample {
+    pub stamp: Stamp,
+    /// A [`crate::Stage`] as u32.
+    pub stage: u32,
+    /// 1 on the stage's last report.
+    pub final_report: u32,
+    pub counters: [TopicCounter; MAX_TOPIC_COUNTERS],
+    /// Indexed by [`crate::latency::Metric`].
+    pub histograms: [EncodedHistogram; METRICS],
+}
+
+impl Default for LatencySample {
+    fn default() -> Self {
+        LatencySample {
+            stamp: Stamp::default(),
+            stage: 0,
+            final_report: 0,
+            counters: [TopicCounter {
+                topic: u32::MAX,
+                ..Default::default()
+            }; MAX_TOPIC_COUNTERS],
+            histograms: [EncodedHistogram::default(); METRICS],
+        }
+    }
+}
