@@ -11,11 +11,12 @@
 //!   created, so [`Bus::create_services`] creates every topic with the same sizing before any
 //!   process attaches; every later open must agree.
 
+use std::cell::Cell;
 use std::fmt;
 use std::path::{Path as StdPath, PathBuf};
 use std::time::Duration;
 
-use iceoryx2::port::listener::Listener;
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -145,6 +146,10 @@ impl BusConfig {
         if self.root.exists() {
             std::fs::remove_dir_all(&self.root)?;
             removed += 1;
+        }
+        // The shared parent folder goes too once the last session has left it.
+        if let Some(parent) = self.root.parent() {
+            let _ = std::fs::remove_dir(parent);
         }
         Ok(removed)
     }
@@ -310,9 +315,9 @@ impl Bus {
             topic,
             subscriber,
             listener,
-            received: 0,
-            gaps: 0,
-            last_seq: None,
+            received: Cell::new(0),
+            gaps: Cell::new(0),
+            last_seq: Cell::new(None),
         })
     }
 
@@ -441,14 +446,15 @@ pub struct Inlet<T: Stamped> {
     topic: Topic,
     subscriber: Subscriber<ipc::Service, T, ()>,
     listener: Listener<ipc::Service>,
-    received: u64,
-    gaps: u64,
-    last_seq: Option<u64>,
+    // Cells, so that an inlet can be read while its listener is attached to a WaitSet.
+    received: Cell<u64>,
+    gaps: Cell<u64>,
+    last_seq: Cell<Option<u64>>,
 }
 
 impl<T: Stamped> Inlet<T> {
     /// The next unread sample, zero-copy (it reads the publisher's memory), or None.
-    pub fn receive(&mut self) -> Result<Option<Received<T>>, BusError> {
+    pub fn receive(&self) -> Result<Option<Received<T>>, BusError> {
         let sample = self.subscriber.receive().map_err(|e| BusError::Receive {
             topic: self.topic.name(),
             reason: format!("{e:?}"),
@@ -457,25 +463,25 @@ impl<T: Stamped> Inlet<T> {
             let seq = s.payload().stamp().seq;
             // A seq that jumps ahead means samples were lost (overwritten unread, or never sent
             // to us); a seq that goes back means the publisher restarted.
-            if let Some(last) = self.last_seq {
-                if seq > last + 1 {
-                    self.gaps += seq - last - 1;
-                }
-            } else if seq > 0 {
-                self.gaps += seq;
-            }
-            self.last_seq = Some(seq);
-            self.received += 1;
+            let missed = match self.last_seq.get() {
+                Some(last) if seq > last + 1 => seq - last - 1,
+                Some(_) => 0,
+                None => seq,
+            };
+            self.gaps.set(self.gaps.get() + missed);
+            self.last_seq.set(Some(seq));
+            self.received.set(self.received.get() + 1);
         }
         Ok(sample)
     }
 
     /// Sleeps until a sample may have arrived, or `timeout` passes; consumes the wake-ups.
     pub fn wait(&self, timeout: Duration) -> Result<(), BusError> {
-        self.listener
-            .timed_wait(|_| {}, timeout)
-            .map(|_| ())
-            .map_err(|e| BusError::Wait(format!("{e:?}")))
+        match self.listener.timed_wait(|_| {}, timeout) {
+            // A signal (the stop request) woke us: the caller checks its stop flag next.
+            Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
+            Err(e) => Err(BusError::Wait(format!("{e:?}"))),
+        }
     }
 
     /// Consumes pending wake-ups without sleeping (after a WaitSet woke on this listener).
@@ -489,11 +495,11 @@ impl<T: Stamped> Inlet<T> {
     }
 
     pub fn received(&self) -> u64 {
-        self.received
+        self.received.get()
     }
 
     pub fn gaps(&self) -> u64 {
-        self.gaps
+        self.gaps.get()
     }
 
     pub fn topic(&self) -> Topic {
@@ -505,9 +511,9 @@ impl<T: Stamped> Inlet<T> {
         TopicCounter {
             topic: self.topic as u32,
             role: 1,
-            count: self.received,
-            gaps: self.gaps,
-            last_seq: self.last_seq.unwrap_or(u64::MAX),
+            count: self.received.get(),
+            gaps: self.gaps.get(),
+            last_seq: self.last_seq.get().unwrap_or(u64::MAX),
         }
     }
 }

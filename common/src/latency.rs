@@ -19,6 +19,9 @@ use crate::samples::{LatencySample, TopicCounter, HISTOGRAM_BYTES, MAX_TOPIC_COU
 use crate::stamp::{monotonic_ns, Stamp};
 use crate::topic::Stage;
 
+/// How long a stopping stage waits for the launcher to read its final report.
+const RELEASE_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
+
 /// Highest latency a histogram holds (one hour); larger values are clamped to it.
 const HIGHEST_NS: u64 = 3_600_000_000_000;
 /// Two significant digits: 1 % resolution, and an encoding that fits one sample.
@@ -221,6 +224,14 @@ impl Reporter {
         }
         self.next_report_ns = now + self.period_ns;
         self.report(counters, false)
+    }
+
+    /// Publishes the final report, then holds this process's ports until the launcher has read
+    /// it and releases the process (see [`crate::shutdown`]), at most `RELEASE_WAIT`.
+    pub fn finish(&mut self, counters: &[TopicCounter]) -> Result<(), BusError> {
+        self.report(counters, true)?;
+        crate::shutdown::wait_for_release(RELEASE_WAIT);
+        Ok(())
     }
 
     /// Publishes a report now.

@@ -8,6 +8,7 @@
 
 pub mod bus;
 pub mod config;
+pub mod glove;
 pub mod latency;
 pub mod samples;
 pub mod shutdown;

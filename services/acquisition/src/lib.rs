@@ -1,1 +1,10 @@
-//! acquisition
+//! Acquisition: turns a hand source into `glove` and `tracker` samples at the source's rate.
+//!
+//! Today's source is the built-in scripted hand ([`scripted`]): a scene's `[hand]` keyframes,
+//! interpolated and sampled like a device would be. The real CyberGlove and FASTRAK drivers
+//! are issue 4.
+
+pub mod scripted;
+pub mod service;
+
+pub use scripted::{HandTarget, ScriptedHand};

@@ -1,1 +1,305 @@
-//! launcher
+//! The launcher: starts a session's processes, supervises them, stops them in order, and
+//! judges the merged latency report against the session's budget.
+//!
+//! One launch, in order:
+//! 1. load the session (and its scene) — errors name the file and key;
+//! 2. create every service of the session under its own iceoryx2 prefix and root path;
+//! 3. start the readers (recorder, renderer, stepper, kinematics), each as
+//!    `handblocks service NAME`, and wait until every one is attached;
+//! 4. start the source last, so no sample is lost at start-up;
+//! 5. run for `--duration` or until Ctrl-C / SIGTERM, printing progress;
+//! 6. stop the processes in pipeline order: each drains its inputs, sends its final report,
+//!    and is released and reaped once the launcher has read that report;
+//! 7. remove the session's iceoryx2 resources, print the table, write the JSON report.
+
+mod process;
+pub mod report;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use common::bus::{Bus, BusConfig, Inlet, Services};
+use common::config::session::RenderMode;
+use common::config::Session;
+use common::latency::Metric;
+use common::{shutdown, LatencySample, Stage, Topic};
+
+use process::ServiceProcess;
+use report::{Report, StageReport};
+
+/// How long the processes may take to attach to the bus.
+const CONNECT_TIMEOUT: Duration = Duration::from_secs(20);
+/// How long a stopping process may take to send its final report.
+const FINAL_REPORT_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// What `handblocks launch` was asked to do.
+#[derive(Debug, Clone)]
+pub struct LaunchOptions {
+    pub session: PathBuf,
+    /// None: until Ctrl-C or SIGTERM.
+    pub duration: Option<Duration>,
+    pub report: Option<PathBuf>,
+    /// None: a fresh id.
+    pub bus_id: Option<String>,
+    /// The executable that holds the services (normally this one).
+    pub exe: PathBuf,
+    /// Print progress once a second.
+    pub progress: bool,
+}
+
+/// How a launch ended.
+pub struct LaunchOutcome {
+    pub report: Report,
+    pub bus: BusConfig,
+}
+
+/// Why a launch could not run (as opposed to running and violating the budget).
+#[derive(Debug)]
+pub struct LaunchError(pub String);
+
+impl std::fmt::Display for LaunchError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for LaunchError {}
+
+fn err(e: impl std::fmt::Display) -> LaunchError {
+    LaunchError(e.to_string())
+}
+
+/// The readers of a session, in the order they stop (after the source): pipeline order.
+fn readers(session: &Session) -> Vec<Stage> {
+    let mut v = vec![Stage::Kinematics, Stage::Stepper];
+    if session.renderer.mode != RenderMode::Off {
+        v.push(Stage::Renderer);
+    }
+    v.push(Stage::Recorder);
+    v
+}
+
+/// Subscribers each topic must have before the source may start.
+fn expected_subscribers(stages: &[Stage]) -> Vec<(Topic, usize)> {
+    let has = |s| stages.contains(&s) as usize;
+    vec![
+        (Topic::Glove, has(Stage::Kinematics) + has(Stage::Recorder)),
+        (
+            Topic::Tracker,
+            has(Stage::Kinematics) + has(Stage::Recorder),
+        ),
+        (
+            Topic::Hand,
+            has(Stage::Stepper) + has(Stage::Renderer) + has(Stage::Recorder),
+        ),
+        (Topic::World, has(Stage::Renderer) + has(Stage::Recorder)),
+        (Topic::Frame, has(Stage::Recorder)),
+    ]
+}
+
+/// Runs one session. The resources of its bus are removed whatever happens.
+pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
+    let session = Session::load(&opts.session).map_err(err)?;
+    let id = opts.bus_id.clone().unwrap_or_else(BusConfig::fresh_id);
+    let bus_config = BusConfig::for_session(&id).map_err(err)?;
+    shutdown::install_signal_handlers();
+
+    let result = run_session(opts, &session, &bus_config);
+    // Every process is reaped and every port dropped by now: the files are ours to remove.
+    let cleanup = bus_config.remove_resources();
+    let report = result?;
+    cleanup.map_err(|e| {
+        err(format!(
+            "cannot remove the session's iceoryx2 files ({}): {e}",
+            bus_config.prefix
+        ))
+    })?;
+    Ok(LaunchOutcome {
+        report,
+        bus: bus_config,
+    })
+}
+
+fn run_session(
+    opts: &LaunchOptions,
+    session: &Session,
+    bus_config: &BusConfig,
+) -> Result<Report, LaunchError> {
+    let bus = Bus::open(bus_config, "launcher").map_err(err)?;
+    let services = bus.create_services().map_err(err)?;
+    let latency = bus.inlet::<LatencySample>(Topic::Latency).map_err(err)?;
+    let session_file = std::path::absolute(&opts.session).unwrap_or_else(|_| opts.session.clone());
+
+    let start = |stage| {
+        ServiceProcess::start(&opts.exe, stage, &session_file, &bus_config.id).map_err(|e| {
+            err(format!(
+                "cannot start the {} process ({}): {e}",
+                stage.name(),
+                opts.exe.display()
+            ))
+        })
+    };
+    let reader_stages = readers(session);
+    let mut procs: Vec<ServiceProcess> = Vec::new();
+    for stage in reader_stages.iter().rev() {
+        procs.push(start(*stage)?);
+    }
+    let mut reports: BTreeMap<Stage, StageReport> = BTreeMap::new();
+    let mut failures = Vec::new();
+
+    wait_until_connected(&services, &reader_stages, &mut procs)?;
+    procs.push(start(Stage::Acquisition)?);
+    // Pipeline order: source first, recorder last.
+    procs.reverse();
+
+    // Run.
+    let started = Instant::now();
+    let mut next_progress = Duration::from_secs(1);
+    loop {
+        std::thread::sleep(Duration::from_millis(20));
+        collect(&latency, &mut reports);
+        if shutdown::requested() || opts.duration.is_some_and(|d| started.elapsed() >= d) {
+            break;
+        }
+        if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
+            failures.push(format!(
+                "the {} process exited during the session ({})",
+                p.stage.name(),
+                describe(p.exit)
+            ));
+            break;
+        }
+        if opts.progress && started.elapsed() >= next_progress {
+            next_progress += Duration::from_secs(1);
+            eprintln!("{}", progress_line(started.elapsed(), &reports));
+        }
+    }
+
+    // Stop in pipeline order; each stage drains what the one before it sent.
+    for p in procs.iter_mut() {
+        p.request_stop();
+        let deadline = Instant::now() + FINAL_REPORT_TIMEOUT;
+        while !reports.get(&p.stage).is_some_and(|r| r.final_report) {
+            collect(&latency, &mut reports);
+            if Instant::now() > deadline
+                || (p.poll_exit().is_some() && !has_final(&reports, p.stage))
+            {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        collect(&latency, &mut reports);
+        let status = p.release_and_reap(Duration::from_secs(5));
+        if !has_final(&reports, p.stage) {
+            failures.push(format!(
+                "the {} process sent no final report ({})",
+                p.stage.name(),
+                describe(status)
+            ));
+        } else if !status.is_some_and(|s| s.success())
+            && !failures.iter().any(|f| f.contains(p.stage.name()))
+        {
+            failures.push(format!(
+                "the {} process failed ({})",
+                p.stage.name(),
+                describe(status)
+            ));
+        }
+    }
+    drop(procs);
+    drop(latency);
+    drop(services);
+    drop(bus);
+    Ok(Report::build(
+        reports.into_values().collect(),
+        &session.budget,
+        failures,
+    ))
+}
+
+fn has_final(reports: &BTreeMap<Stage, StageReport>, stage: Stage) -> bool {
+    reports.get(&stage).is_some_and(|r| r.final_report)
+}
+
+fn describe(status: Option<std::process::ExitStatus>) -> String {
+    match status {
+        Some(s) => s.to_string(),
+        None => "still running; killed".into(),
+    }
+}
+
+fn wait_until_connected(
+    services: &Services,
+    stages: &[Stage],
+    procs: &mut [ServiceProcess],
+) -> Result<(), LaunchError> {
+    let expected = expected_subscribers(stages);
+    let deadline = Instant::now() + CONNECT_TIMEOUT;
+    loop {
+        let missing: Vec<String> = expected
+            .iter()
+            .filter(|(t, n)| services.subscribers(*t) < *n)
+            .map(|(t, n)| format!("{} ({} of {n} readers)", t.name(), services.subscribers(*t)))
+            .collect();
+        // Each reader's latency publisher attaches last: all of them there means all are ready.
+        let reporting = services.publishers(Topic::Latency);
+        if missing.is_empty() && reporting >= stages.len() {
+            return Ok(());
+        }
+        if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
+            return Err(err(format!(
+                "the {} process exited during start-up ({})",
+                p.stage.name(),
+                describe(p.exit)
+            )));
+        }
+        if Instant::now() > deadline {
+            return Err(err(format!(
+                "the processes did not attach within {} s; still missing: {}",
+                CONNECT_TIMEOUT.as_secs(),
+                missing.join(", ")
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// Reads every latency report waiting; the newest of each stage replaces the older one
+/// (histograms are cumulative).
+fn collect(latency: &Inlet<LatencySample>, reports: &mut BTreeMap<Stage, StageReport>) {
+    while let Ok(Some(s)) = latency.receive() {
+        match StageReport::decode(s.payload()) {
+            Ok(r) => {
+                reports.insert(r.stage, r);
+            }
+            Err(e) => eprintln!("handblocks: ignoring a malformed latency report: {e}"),
+        }
+    }
+}
+
+fn progress_line(elapsed: Duration, reports: &BTreeMap<Stage, StageReport>) -> String {
+    let mut line = format!("handblocks: {:5.1} s", elapsed.as_secs_f64());
+    if let Some(s) = reports.get(&Stage::Stepper) {
+        let o = s.summary(Metric::Origin);
+        line.push_str(&format!(
+            "  world states {}  origin->world p99 {:.1} us",
+            o.count, o.p99
+        ));
+    }
+    if let Some(s) = reports.get(&Stage::Renderer) {
+        line.push_str(&format!("  frames {}", s.summary(Metric::Photon).count));
+    }
+    line
+}
+
+/// Writes the report JSON to `path`, creating its folder.
+pub fn write_report(report: &Report, path: &Path) -> Result<(), LaunchError> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| err(format!("cannot create {}: {e}", dir.display())))?;
+    }
+    let text = serde_json::to_string_pretty(&report.json()).map_err(err)?;
+    std::fs::write(path, text + "\n")
+        .map_err(|e| err(format!("cannot write the report {}: {e}", path.display())))
+}

@@ -1,0 +1,272 @@
+//! A simple hand model (the paper's Fig. 1(a)): fingers as chains of cylinders with check
+//! points at the knuckle, the joints and the tip, and the palm as a box-like polyhedron.
+//!
+//! Frame of the hand (the wrist's local frame): the wrist at the origin, fingers extended along
+//! -z, the palm facing -y (down), the thumb on the -x side (a right hand). Flexing a finger
+//! curls it toward the palm (-y, then back toward +z). The thumb swings from beside the hand
+//! (thumb rotation 0) to under the palm, opposed to the fingers (thumb rotation 1 rad), and
+//! its MCP and IP joints bend it forward, toward the fingers.
+
+use common::glove::{angle, GloveJoint};
+use common::{GloveSample, HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS};
+use glam::{DQuat, DVec3};
+
+/// One finger: where its knuckle sits in the hand frame and the length of each bone.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FingerSpec {
+    pub knuckle: [f64; 3],
+    /// Proximal, middle, distal phalanx lengths, metres.
+    pub bones: [f64; 3],
+    pub radius: f64,
+}
+
+/// Bone lengths, finger radii and palm shape; data, not code (an adult hand by default).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandModel {
+    /// Index, middle, ring, little.
+    pub fingers: [FingerSpec; 4],
+    /// The thumb's base (its CMC joint) in the hand frame.
+    pub thumb_base: [f64; 3],
+    /// Metacarpal, proximal, distal.
+    pub thumb_bones: [f64; 3],
+    pub thumb_radius: f64,
+    /// Half extents of the palm box: x (width), y (thickness); it spans z from 0 to the knuckles.
+    pub palm_half_width: f64,
+    pub palm_half_thickness: f64,
+}
+
+impl Default for HandModel {
+    fn default() -> Self {
+        let finger = |x: f64, z: f64, bones: [f64; 3], radius| FingerSpec {
+            knuckle: [x, 0.0, z],
+            bones,
+            radius,
+        };
+        HandModel {
+            fingers: [
+                finger(-0.028, -0.090, [0.045, 0.025, 0.020], 0.0090),
+                finger(-0.009, -0.095, [0.050, 0.030, 0.020], 0.0090),
+                finger(0.010, -0.090, [0.046, 0.028, 0.020], 0.0085),
+                finger(0.028, -0.080, [0.036, 0.021, 0.018], 0.0075),
+            ],
+            thumb_base: [-0.030, -0.012, -0.025],
+            thumb_bones: [0.040, 0.032, 0.027],
+            thumb_radius: 0.010,
+            palm_half_width: 0.042,
+            palm_half_thickness: 0.014,
+        }
+    }
+}
+
+/// The direction of a finger bone after a cumulative flexion `phi` (0: straight along -z).
+fn flexed(phi: f64) -> DVec3 {
+    DVec3::new(0.0, -phi.sin(), -phi.cos())
+}
+
+impl HandModel {
+    /// Check points of the thumb in the hand frame: MCP, IP, tip.
+    fn thumb(&self, rotation: f64, mcp: f64, ip: f64) -> [DVec3; 3] {
+        let open = DVec3::new(-0.8, 0.0, -0.6);
+        let opposed =
+            |flex: f64| DVec3::new(0.0, -(0.9 - flex).cos(), -(0.9 - flex).sin()).normalize();
+        let s = rotation.clamp(0.0, 1.0);
+        let dir = |flex: f64| open.lerp(opposed(flex), s).normalize_or(open);
+        let base = DVec3::from_array(self.thumb_base);
+        let [l0, l1, l2] = self.thumb_bones;
+        let mcp_point = base + dir(0.0) * l0;
+        let ip_point = mcp_point + dir(mcp) * l1;
+        let tip = ip_point + dir(mcp + ip) * l2;
+        [mcp_point, ip_point, tip]
+    }
+
+    /// Check points of finger `spec` in the hand frame: knuckle, PIP, DIP, tip.
+    fn finger(spec: &FingerSpec, mcp: f64, pip: f64, dip: f64) -> [DVec3; 4] {
+        let knuckle = DVec3::from_array(spec.knuckle);
+        let [l0, l1, l2] = spec.bones;
+        let pip_point = knuckle + flexed(mcp) * l0;
+        let dip_point = pip_point + flexed(mcp + pip) * l1;
+        let tip = dip_point + flexed(mcp + pip + dip) * l2;
+        [knuckle, pip_point, dip_point, tip]
+    }
+
+    /// The hand of a glove reading and a wrist pose, in the world frame. `out.stamp` is left
+    /// for the caller. Fingers are thumb, index, middle, ring, little.
+    pub fn solve(&self, glove: &GloveSample, wrist: &Pose, out: &mut HandSample) {
+        let a = |j: GloveJoint| angle(glove, j).filter(|v| v.is_finite()).unwrap_or(0.0);
+        // An 18-sensor glove has no DIP sensor: the DIP follows the PIP (about 2/3).
+        let dip = |d: GloveJoint, p: GloveJoint| angle(glove, d).unwrap_or(a(p) * 2.0 / 3.0);
+        let position = DVec3::from_array(wrist.position);
+        let rotation = DQuat::from_array(wrist.rotation).normalize();
+        let to_world = |p: DVec3| (position + rotation * p).to_array();
+
+        out.wrist = Pose {
+            position: position.to_array(),
+            rotation: rotation.to_array(),
+        };
+        out.tracked = 1;
+        out.finger_count = MAX_FINGERS as u32;
+
+        let thumb = self.thumb(
+            a(GloveJoint::ThumbRotation),
+            a(GloveJoint::ThumbMcp),
+            a(GloveJoint::ThumbIp),
+        );
+        out.finger_point_count[0] = 3;
+        for (slot, p) in out.finger_points[0].iter_mut().zip(thumb) {
+            *slot = to_world(p);
+        }
+        out.finger_radius[0] = self.thumb_radius;
+
+        let joints = [
+            (
+                GloveJoint::IndexMcp,
+                GloveJoint::IndexPip,
+                GloveJoint::IndexDip,
+            ),
+            (
+                GloveJoint::MiddleMcp,
+                GloveJoint::MiddlePip,
+                GloveJoint::MiddleDip,
+            ),
+            (
+                GloveJoint::RingMcp,
+                GloveJoint::RingPip,
+                GloveJoint::RingDip,
+            ),
+            (
+                GloveJoint::LittleMcp,
+                GloveJoint::LittlePip,
+                GloveJoint::LittleDip,
+            ),
+        ];
+        for (f, (spec, (m, p, d))) in self.fingers.iter().zip(joints).enumerate() {
+            let points = Self::finger(spec, a(m), a(p), dip(d, p));
+            out.finger_point_count[f + 1] = 4;
+            for (slot, p) in out.finger_points[f + 1].iter_mut().zip(points) {
+                *slot = to_world(p);
+            }
+            out.finger_radius[f + 1] = spec.radius;
+        }
+        debug_assert!(out
+            .finger_point_count
+            .iter()
+            .all(|&n| n as usize <= MAX_FINGER_POINTS));
+
+        // The palm: a box from the wrist to the knuckles.
+        let (w, t) = (self.palm_half_width, self.palm_half_thickness);
+        let z = self
+            .fingers
+            .iter()
+            .map(|f| f.knuckle[2])
+            .fold(0.0, f64::min);
+        out.palm_vertex_count = 8;
+        let mut i = 0;
+        for x in [-w, w] {
+            for y in [-t, t] {
+                for zz in [0.0, z] {
+                    out.palm_vertices[i] = to_world(DVec3::new(x, y, zz));
+                    i += 1;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn glove(f: impl Fn(GloveJoint) -> f64) -> GloveSample {
+        let mut g = GloveSample::default();
+        for (i, j) in common::glove::SENSORS_22.iter().enumerate() {
+            g.angles[i] = f(*j);
+        }
+        g
+    }
+
+    fn close(a: [f64; 3], b: [f64; 3]) -> bool {
+        a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12)
+    }
+
+    #[test]
+    fn flat_hand_has_straight_fingers_along_minus_z() {
+        let m = HandModel::default();
+        let mut h = HandSample::default();
+        m.solve(&glove(|_| 0.0), &Pose::IDENTITY, &mut h);
+        // Index: knuckle at (-0.028, 0, -0.09), tip 0.09 further along -z.
+        assert!(close(h.finger(1)[0], [-0.028, 0.0, -0.090]));
+        assert!(close(h.finger(1)[3], [-0.028, 0.0, -0.180]));
+        assert_eq!(h.finger_count, 5);
+        assert_eq!(h.palm().len(), 8);
+    }
+
+    #[test]
+    fn a_right_angle_mcp_bend_points_the_finger_down() {
+        let m = HandModel::default();
+        let mut h = HandSample::default();
+        m.solve(
+            &glove(|j| {
+                if j == GloveJoint::IndexMcp {
+                    std::f64::consts::FRAC_PI_2
+                } else {
+                    0.0
+                }
+            }),
+            &Pose::IDENTITY,
+            &mut h,
+        );
+        // Every bone after the knuckle hangs straight down: the tip is 0.09 below the knuckle.
+        assert!(close(h.finger(1)[3], [-0.028, -0.090, -0.090]));
+        // The middle finger did not move.
+        assert!(close(h.finger(2)[3], [-0.009, 0.0, -0.195]));
+    }
+
+    #[test]
+    fn a_fist_curls_tips_back_under_the_palm() {
+        let m = HandModel::default();
+        let mut h = HandSample::default();
+        m.solve(
+            &glove(|j| match j {
+                GloveJoint::IndexMcp => std::f64::consts::FRAC_PI_2,
+                GloveJoint::IndexPip => std::f64::consts::FRAC_PI_2,
+                _ => 0.0,
+            }),
+            &Pose::IDENTITY,
+            &mut h,
+        );
+        // MCP 90 deg then PIP 90 deg: the middle bone points back (+z), and the DIP (0 here)
+        // keeps that direction: tip = knuckle + (0,-0.045,0) + (0,0,+0.045).
+        assert!(close(h.finger(1)[3], [-0.028, -0.045, -0.045]));
+    }
+
+    #[test]
+    fn the_wrist_pose_moves_and_turns_the_whole_hand() {
+        let m = HandModel::default();
+        let mut h = HandSample::default();
+        let q = DQuat::from_rotation_y(std::f64::consts::PI);
+        let wrist = Pose {
+            position: [1.0, 2.0, 3.0],
+            rotation: q.to_array(),
+        };
+        m.solve(&glove(|_| 0.0), &wrist, &mut h);
+        // Turned half around y, -z becomes +z and -x becomes +x.
+        let tip = h.finger(1)[3];
+        assert!(close(tip, [1.028, 2.0, 3.18]), "{tip:?}");
+    }
+
+    #[test]
+    fn an_eighteen_sensor_glove_bends_dip_with_pip() {
+        let m = HandModel::default();
+        let mut g = GloveSample {
+            sensor_count: 18,
+            ..Default::default()
+        };
+        g.angles[5] = 0.9; // index PIP in the 18-sensor order
+        let mut h = HandSample::default();
+        m.solve(&g, &Pose::IDENTITY, &mut h);
+        let f = h.finger(1);
+        let last = DVec3::from_array(f[3]) - DVec3::from_array(f[2]);
+        // Distal direction = flexed(0.9 + 0.6).
+        assert!((last.normalize() - flexed(1.5)).length() < 1e-12);
+    }
+}

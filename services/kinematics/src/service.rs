@@ -1,0 +1,63 @@
+//! The kinematics process: one `hand` sample per `tracker` sample, with the newest glove
+//! reading (DESIGN.md, "Stamps and latency"); the hand keeps the older of the two origins.
+
+use std::time::Duration;
+
+use common::bus::Bus;
+use common::config::Session;
+use common::latency::Reporter;
+use common::{monotonic_ns, shutdown, GloveSample, HandSample, Stage, Stamp, Topic, TrackerSample};
+
+use crate::model::HandModel;
+
+/// How long to sleep without a sample before re-checking for a stop request.
+const IDLE_WAIT: Duration = Duration::from_millis(50);
+
+/// Runs until asked to stop, then drains what its inputs still hold.
+pub fn run(_session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
+    let model = HandModel::default();
+    let glove_in = bus.inlet::<GloveSample>(Topic::Glove)?;
+    let tracker_in = bus.inlet::<TrackerSample>(Topic::Tracker)?;
+    let mut hand_out = bus.outlet::<HandSample>(Topic::Hand)?;
+    let mut reporter = Reporter::new(Stage::Kinematics, bus.outlet(Topic::Latency)?);
+
+    let mut glove = GloveSample::default();
+    let mut have_glove = false;
+    let mut hand = HandSample::default();
+    loop {
+        let stopping = shutdown::requested();
+        if !stopping {
+            tracker_in.wait(IDLE_WAIT)?;
+        }
+        // The glove is sent before the tracker of the same instant: read it first, keep the newest.
+        while let Some(s) = glove_in.receive()? {
+            reporter.recorder.hop(&s.stamp, monotonic_ns());
+            glove = *s.payload();
+            have_glove = true;
+        }
+        while let Some(s) = tracker_in.receive()? {
+            let received = monotonic_ns();
+            reporter.recorder.hop(&s.stamp, received);
+            if !s.wrist.is_finite() {
+                continue;
+            }
+            if have_glove {
+                model.solve(&glove, &s.wrist, &mut hand);
+            } else {
+                model.solve(&GloveSample::default(), &s.wrist, &mut hand);
+            }
+            let mut stamp = Stamp::derived(0, &s.stamp);
+            if have_glove {
+                stamp.origin_ns = stamp.origin_ns.min(glove.stamp.origin_ns);
+            }
+            hand.stamp = stamp;
+            let sent = hand_out.publish(&hand)?;
+            reporter.recorder.output(received, &sent);
+        }
+        let counters = [glove_in.counter(), tracker_in.counter(), hand_out.counter()];
+        if stopping {
+            return Ok(reporter.finish(&counters)?);
+        }
+        reporter.maybe_report(&counters)?;
+    }
+}

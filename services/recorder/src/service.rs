@@ -1,0 +1,111 @@
+//! The recorder process: sleeps in a WaitSet on every topic's event, writes each sample as it
+//! comes, and reports per topic what it received and the gaps in sequence numbers.
+
+use std::time::Duration;
+
+use common::bus::{Bus, Inlet, Stamped};
+use common::config::Session;
+use common::latency::Reporter;
+use common::{
+    monotonic_ns, shutdown, FrameSample, GloveSample, HandSample, JointsSample, Stage, Topic,
+    TrackerSample, WorldSample,
+};
+use iceoryx2::prelude::CallbackProgression;
+
+use crate::log::LogWriter;
+
+const IDLE_WAIT: Duration = Duration::from_millis(50);
+
+fn drain<T: Stamped>(
+    inlet: &Inlet<T>,
+    log: &mut Option<LogWriter>,
+    reporter: &mut Reporter,
+) -> Result<(), Box<dyn std::error::Error>> {
+    while let Some(s) = inlet.receive()? {
+        let received = monotonic_ns();
+        reporter.recorder.hop(s.stamp(), received);
+        if let Some(log) = log {
+            log.write(inlet.topic(), s.payload())?;
+        }
+        let done = monotonic_ns();
+        reporter
+            .recorder
+            .record(common::latency::Metric::Process, done - received);
+        reporter.recorder.record(
+            common::latency::Metric::Origin,
+            done.saturating_sub(s.stamp().origin_ns),
+        );
+    }
+    Ok(())
+}
+
+/// Runs until asked to stop, then drains every input.
+pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
+    let mut log = match &session.recorder.file {
+        Some(path) => Some(
+            LogWriter::create(path)
+                .map_err(|e| format!("recorder: cannot create {}: {e}", path.display()))?,
+        ),
+        None => None,
+    };
+    let glove = bus.inlet::<GloveSample>(Topic::Glove)?;
+    let tracker = bus.inlet::<TrackerSample>(Topic::Tracker)?;
+    let joints = bus.inlet::<JointsSample>(Topic::Joints)?;
+    let hand = bus.inlet::<HandSample>(Topic::Hand)?;
+    let world = bus.inlet::<WorldSample>(Topic::World)?;
+    let frame = bus.inlet::<FrameSample>(Topic::Frame)?;
+    let mut reporter = Reporter::new(Stage::Recorder, bus.outlet(Topic::Latency)?);
+
+    let waitset = bus.waitset()?;
+    let _guards = [
+        waitset.attach_notification(glove.listener()),
+        waitset.attach_notification(tracker.listener()),
+        waitset.attach_notification(joints.listener()),
+        waitset.attach_notification(hand.listener()),
+        waitset.attach_notification(world.listener()),
+        waitset.attach_notification(frame.listener()),
+    ]
+    .into_iter()
+    .collect::<Result<Vec<_>, _>>()
+    .map_err(|e| format!("recorder: cannot attach to the WaitSet: {e:?}"))?;
+
+    loop {
+        let stopping = shutdown::requested();
+        if !stopping {
+            waitset
+                .wait_and_process_once_with_timeout(|_| CallbackProgression::Continue, IDLE_WAIT)
+                .map_err(|e| format!("recorder: waiting failed: {e:?}"))?;
+        }
+        for l in [
+            glove.listener(),
+            tracker.listener(),
+            joints.listener(),
+            hand.listener(),
+            world.listener(),
+            frame.listener(),
+        ] {
+            let _ = l.try_wait(|_| {});
+        }
+        drain(&glove, &mut log, &mut reporter)?;
+        drain(&tracker, &mut log, &mut reporter)?;
+        drain(&joints, &mut log, &mut reporter)?;
+        drain(&hand, &mut log, &mut reporter)?;
+        drain(&world, &mut log, &mut reporter)?;
+        drain(&frame, &mut log, &mut reporter)?;
+        let counters = [
+            glove.counter(),
+            tracker.counter(),
+            joints.counter(),
+            hand.counter(),
+            world.counter(),
+            frame.counter(),
+        ];
+        if stopping {
+            if let Some(log) = &mut log {
+                log.flush()?;
+            }
+            return Ok(reporter.finish(&counters)?);
+        }
+        reporter.maybe_report(&counters)?;
+    }
+}
