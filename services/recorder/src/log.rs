@@ -46,35 +46,49 @@ impl LogWriter {
     }
 }
 
-/// Counts the samples per topic in a log file (for tests and `handblocks` tooling).
-pub fn count_samples(path: &Path) -> std::io::Result<[u64; Topic::ALL.len()]> {
-    let bytes = std::fs::read(path)?;
-    let bad = |what: String| {
-        std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!("{}: {what}", path.display()),
-        )
-    };
-    if bytes.len() < 8 || bytes[..8] != MAGIC {
-        return Err(bad("not a handblocks sample log (wrong magic)".into()));
+/// One record of a log: its topic and the sample's bytes.
+pub struct Record<'a> {
+    pub topic: Topic,
+    pub bytes: &'a [u8],
+}
+
+impl Record<'_> {
+    /// The record as sample type `T`, if it has exactly `T`'s size.
+    pub fn sample<T: Stamped>(&self) -> Option<T> {
+        if self.bytes.len() != std::mem::size_of::<T>() {
+            return None;
+        }
+        // SAFETY: the length matches and every sample type is plain old data (#[repr(C)],
+        // Copy, only numbers); read_unaligned copes with the byte buffer's alignment.
+        Some(unsafe { std::ptr::read_unaligned(self.bytes.as_ptr() as *const T) })
     }
-    let mut counts = [0u64; Topic::ALL.len()];
+}
+
+/// Splits a log's bytes into records; the error names the offset of the first bad byte.
+pub fn records(bytes: &[u8]) -> Result<Vec<Record<'_>>, String> {
+    if bytes.len() < 8 || bytes[..8] != MAGIC {
+        return Err("not a handblocks sample log (wrong magic)".into());
+    }
+    let mut out = Vec::new();
     let mut at = 8;
     while at < bytes.len() {
         if at + 8 > bytes.len() {
-            return Err(bad(format!("record header cut off at offset {at}")));
+            return Err(format!("record header cut off at offset {at}"));
         }
-        let topic = u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
-        let len = u32::from_le_bytes([bytes[at + 4], bytes[at + 5], bytes[at + 6], bytes[at + 7]])
-            as usize;
-        let Some(t) = Topic::from_u32(topic) else {
-            return Err(bad(format!("unknown topic {topic} at offset {at}")));
+        let word =
+            |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+        let (topic, len) = (word(at), word(at + 4) as usize);
+        let Some(topic) = Topic::from_u32(topic) else {
+            return Err(format!("unknown topic {topic} at offset {at}"));
         };
-        if at + 8 + len > bytes.len() {
-            return Err(bad(format!("record of {len} bytes cut off at offset {at}")));
+        if len > bytes.len() - at - 8 {
+            return Err(format!("record of {len} bytes cut off at offset {at}"));
         }
-        counts[t as usize] += 1;
+        out.push(Record {
+            topic,
+            bytes: &bytes[at + 8..at + 8 + len],
+        });
         at += 8 + len;
     }
-    Ok(counts)
+    Ok(out)
 }

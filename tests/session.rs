@@ -1,0 +1,275 @@
+//! End-to-end: `handblocks launch` starts the real process set (separate OS processes over
+//! iceoryx2), each test under its own bus id (its own /dev/shm prefix and root path), and checks
+//! what flowed, what the report says, and that nothing of the session is left behind.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use common::bus::BusConfig;
+use common::{HandSample, Topic, TrackerSample, WorldSample};
+use serde_json::Value;
+
+const EXE: &str = env!("CARGO_BIN_EXE_handblocks");
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A scratch folder for one test, removed when dropped.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(tag: &str) -> Scratch {
+        let d = std::env::temp_dir().join(format!("hb-it-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        Scratch(d)
+    }
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A session over the repository's grasp-throw scene with the given extra tables.
+fn session(dir: &Scratch, name: &str, rest: &str) -> PathBuf {
+    let scene = repo().join("config/scenes/grasp-throw.toml");
+    let text = format!("scene = {:?}\n{rest}", scene.to_string_lossy());
+    let p = dir.path(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn launch(session: &Path, bus_id: &str, seconds: f64, report: &Path) -> Output {
+    Command::new(EXE)
+        .current_dir(repo())
+        .args([
+            "launch",
+            "--quiet",
+            "--duration",
+            &seconds.to_string(),
+            "--bus-id",
+            bus_id,
+            "--report",
+        ])
+        .arg(report)
+        .arg(session)
+        .output()
+        .expect("run handblocks")
+}
+
+fn assert_nothing_left(bus_id: &str) {
+    let bus = BusConfig::for_session(bus_id).unwrap();
+    assert!(
+        bus.leftover_shm_files().is_empty(),
+        "left in /dev/shm: {:?}",
+        bus.leftover_shm_files()
+    );
+    assert!(!bus.root.exists(), "left behind: {}", bus.root.display());
+}
+
+fn unique_id(tag: &str) -> String {
+    format!("it{tag}{}", std::process::id())
+}
+
+#[test]
+fn samples_flow_through_every_stage_in_order_with_no_drops() {
+    let dir = Scratch::new("flow");
+    let log = dir.path("session.log");
+    let s = session(
+        &dir,
+        "flow.toml",
+        &format!(
+            "[source]\nkind = \"scripted\"\nrate_hz = 120\n[renderer]\nmode = \"headless\"\n\
+             [recorder]\nfile = {:?}\n[budget]\nframe_hz = 60\nmax_dropped = 0\n",
+            log.to_string_lossy()
+        ),
+    );
+    let report_file = dir.path("report.json");
+    let id = unique_id("flow");
+    let out = launch(&s, &id, 3.0, &report_file);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "launch failed: {}\n{stdout}\n{stderr}",
+        out.status
+    );
+    assert_nothing_left(&id);
+
+    // The report names every stage, and the counts agree along the pipeline.
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(&report_file).unwrap()).unwrap();
+    for stage in [
+        "acquisition",
+        "kinematics",
+        "stepper",
+        "renderer",
+        "recorder",
+    ] {
+        assert!(
+            report["stages"][stage]["final_report"].as_bool().unwrap(),
+            "{stage} sent no final report"
+        );
+    }
+    let topic = |t: &str, k: &str| {
+        report["topics"][t][k]
+            .as_u64()
+            .unwrap_or_else(|| panic!("topics.{t}.{k}"))
+    };
+    let tracker = topic("tracker", "published");
+    assert!(
+        tracker >= 300,
+        "3 s at 120 Hz gave only {tracker} tracker samples"
+    );
+    assert_eq!(topic("glove", "published"), tracker);
+    assert_eq!(
+        topic("hand", "published"),
+        tracker,
+        "one hand per tracker sample"
+    );
+    assert_eq!(
+        topic("world", "published"),
+        tracker,
+        "one world per hand sample"
+    );
+    for t in ["glove", "tracker", "hand", "world", "frame"] {
+        assert_eq!(topic(t, "dropped"), 0, "{t} dropped samples");
+        assert_eq!(
+            topic(t, "received"),
+            topic(t, "published"),
+            "{t}: received != published"
+        );
+    }
+    let count =
+        |stage: &str, metric: &str| report["stages"][stage][metric]["count"].as_u64().unwrap();
+    assert_eq!(count("kinematics", "process_us"), tracker);
+    assert_eq!(count("stepper", "origin_us"), tracker);
+    assert_eq!(count("stepper", "hop_us"), tracker);
+    assert_eq!(count("renderer", "photon_us"), topic("frame", "published"));
+    assert!(topic("frame", "published") > 0);
+
+    // Origin stamps propagate: at every stage, origin latency >= hop latency > 0.
+    for stage in ["kinematics", "stepper", "renderer", "recorder"] {
+        let m = |metric: &str, q: &str| report["stages"][stage][metric][q].as_f64().unwrap();
+        assert!(m("hop_us", "p50") > 0.0, "{stage}: hop p50 is 0");
+        assert!(
+            m("origin_us", "p50") >= m("hop_us", "p50"),
+            "{stage}: origin p50 < hop p50"
+        );
+        assert!(m("origin_us", "max") >= m("hop_us", "max") || stage == "recorder");
+    }
+
+    // And per sample, from the recording: world k answers hand k answers tracker k, each
+    // carrying the same origin and published later than the stage before it.
+    let bytes = std::fs::read(&log).unwrap();
+    let records = recorder::log::records(&bytes).unwrap();
+    let of = |t: Topic| records.iter().filter(move |r| r.topic == t);
+    let trackers: Vec<TrackerSample> = of(Topic::Tracker).map(|r| r.sample().unwrap()).collect();
+    let hands: Vec<HandSample> = of(Topic::Hand).map(|r| r.sample().unwrap()).collect();
+    let worlds: Vec<WorldSample> = of(Topic::World).map(|r| r.sample().unwrap()).collect();
+    assert_eq!(trackers.len() as u64, tracker);
+    assert_eq!(hands.len(), trackers.len());
+    assert_eq!(worlds.len(), hands.len());
+    for (k, ((t, h), w)) in trackers.iter().zip(&hands).zip(&worlds).enumerate() {
+        let k = k as u64;
+        assert_eq!(
+            (t.stamp.seq, h.stamp.seq, w.stamp.seq, w.hand_seq),
+            (k, k, k, k),
+            "sample {k} out of order"
+        );
+        assert!(
+            h.stamp.origin_ns <= t.stamp.origin_ns,
+            "hand {k} lost its origin"
+        );
+        assert_eq!(
+            w.stamp.origin_ns, h.stamp.origin_ns,
+            "world {k} lost its origin"
+        );
+        assert_eq!(w.stamp.source_time_ns, t.stamp.source_time_ns);
+        assert!(t.stamp.origin_ns <= t.stamp.publish_ns);
+        assert!(
+            t.stamp.publish_ns < h.stamp.publish_ns,
+            "hand {k} published before its tracker"
+        );
+        assert!(
+            h.stamp.publish_ns < w.stamp.publish_ns,
+            "world {k} published before its hand"
+        );
+        assert_eq!(w.step, k, "at equal rates, world k has taken k steps");
+    }
+}
+
+#[test]
+fn an_impossible_budget_fails_the_session_and_a_generous_one_passes() {
+    let dir = Scratch::new("budget");
+    let tight = session(
+        &dir,
+        "tight.toml",
+        "[renderer]\nmode = \"off\"\n[budget]\norigin_to_world_p99_us = 0.001\n",
+    );
+    let id = unique_id("tight");
+    let out = launch(&tight, &id, 1.0, &dir.path("tight.json"));
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("budget: VIOLATED") && stdout.contains("origin_to_world_p99_us"),
+        "{stdout}"
+    );
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path("tight.json")).unwrap()).unwrap();
+    assert_eq!(report["budget"]["ok"], Value::Bool(false));
+    assert_nothing_left(&id);
+
+    let generous = session(
+        &dir,
+        "generous.toml",
+        "[renderer]\nmode = \"off\"\n[budget]\norigin_to_world_p99_us = 10000000\nmax_dropped = 0\n",
+    );
+    let id = unique_id("generous");
+    let out = launch(&generous, &id, 1.0, &dir.path("generous.json"));
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_nothing_left(&id);
+}
+
+#[test]
+fn a_bad_session_file_is_refused_with_its_file_and_key() {
+    let dir = Scratch::new("badcfg");
+    let bad = session(&dir, "bad.toml", "[budget]\nframe_hz = 0\n");
+    let id = unique_id("bad");
+    let out = launch(&bad, &id, 1.0, &dir.path("bad.json"));
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("bad.toml")
+            && stderr.contains("budget.frame_hz")
+            && stderr.contains("allowed: 1 to 1000"),
+        "{stderr}"
+    );
+    assert_nothing_left(&id);
+}
+
+#[test]
+fn a_missing_session_file_is_named() {
+    let out = Command::new(EXE)
+        .args(["launch", "--quiet", "/nonexistent/session.toml"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/session.toml: cannot read"));
+}
