@@ -22,7 +22,7 @@ use common::{shutdown, Stage};
         A session runs as independent processes (acquisition, kinematics, stepper, renderer, \
         recorder) exchanging zero-copy samples over iceoryx2; the launcher measures every \
         stage's latency and judges it against the session's [budget].\n\n\
-        Start with:  handblocks launch            (the scripted hand, 10 s)\n\
+        Start with:  handblocks launch            (the scripted hand, until Ctrl-C)\n\
         \x20            handblocks launch --help     (options and the report)"
 )]
 struct Cli {
