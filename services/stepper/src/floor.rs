@@ -231,12 +231,10 @@ impl World {
         for i in 0..self.blocks.len() {
             {
                 let b = &self.blocks[i];
-                let moved = b.moved != Moved::No;
-                if !moved
-                    && (b.floor.is_empty()
-                        || b.mode == BlockMode::Resting
-                        || b.mode == BlockMode::Supported)
-                {
+                // Resting and untouched: skipped entirely. Every other block is looked at, also
+                // one that did not move: a block that starts on the floor has its first impact
+                // on step 1, and a block R11 held may be resting on the floor.
+                if b.moved == Moved::No && b.mode == BlockMode::Resting {
                     continue;
                 }
             }
@@ -289,6 +287,11 @@ impl World {
                     &mut self.hull_in,
                     &mut self.hull_out,
                 ) {
+                    // R11 holds a block that touches another: R9 may find it resting on the
+                    // floor, but never tips it (it "stays where it is").
+                    Stability::Tipping { .. } if b.mode == BlockMode::Supported => {
+                        b.v = DVec3::ZERO;
+                    }
                     Stability::Resting => {
                         b.v = DVec3::ZERO;
                         if !by_hand {

@@ -13,3 +13,12 @@ fn drop_blocks_fall_and_rest() {
         assert_eq!(b.mode, common::BlockMode::Resting, "{}", b.name);
     }
 }
+
+#[test]
+fn tip_and_balance_print() {
+    for name in ["tip", "balance", "push", "carry", "stack-paper", "drop"] {
+        let s = scene_file(name);
+        let r = run(&s, 600);
+        print!("{name}: {}", r.to_text());
+    }
+}
