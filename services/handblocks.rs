@@ -53,6 +53,27 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Run a scene's block world alone, in one process, deterministically.
+    ///
+    /// The scene's [hand] keyframes drive the hand, sampled once per step: `grip`/`angles` keys
+    /// through the hand model, `fingers` keys as bare check points. Two runs print identical
+    /// bytes. Exit status 2 when the scene is refused (the message names file, key and range).
+    Simulate {
+        /// The scene file (DESIGN.md, "Effects").
+        scene: PathBuf,
+        /// Steps to run (default: the hand's last key plus 3 s).
+        #[arg(long, value_name = "N")]
+        frames: Option<u64>,
+        /// Override the scene's [world] model.
+        #[arg(long, value_parser = ["paper", "precise"])]
+        model: Option<String>,
+        /// Drive the hand from a recording or a CARL trace instead of the scene's [hand].
+        #[arg(long, value_name = "TRACE")]
+        hand: Option<PathBuf>,
+        /// Print {"frames", "blocks": [{"name", "position", "rotation", "mode"}], "events"}.
+        #[arg(long)]
+        json: bool,
+    },
     /// Run one process of a session (the launcher starts each one this way).
     Service {
         /// acquisition, kinematics, stepper, renderer or recorder.
@@ -95,6 +116,13 @@ fn main() -> ExitCode {
             bus_id,
             quiet,
         }) => launch(session, duration, report, bus_id, quiet),
+        Some(Command::Simulate {
+            scene,
+            frames,
+            model,
+            hand,
+            json,
+        }) => simulate(&scene, frames, model.as_deref(), hand.as_deref(), json),
         Some(Command::Service { name, session, bus }) => service(&name, &session, &bus),
     }
 }
@@ -146,6 +174,83 @@ fn launch(
             eprintln!("handblocks: {e}");
             ExitCode::from(2)
         }
+    }
+}
+
+fn simulate(
+    scene_file: &std::path::Path,
+    frames: Option<u64>,
+    model: Option<&str>,
+    trace: Option<&std::path::Path>,
+    json: bool,
+) -> ExitCode {
+    use common::config::scene::{HandPoseSpec, ModelKind};
+    use common::config::Scene;
+    let fail = |e: &dyn std::fmt::Display| {
+        eprintln!("handblocks simulate: {e}");
+        ExitCode::from(2)
+    };
+    let mut scene = match Scene::load(scene_file) {
+        Ok(s) => s,
+        Err(e) => return fail(&e),
+    };
+    match model {
+        Some("precise") => scene.world.model = ModelKind::Precise,
+        Some(_) => scene.world.model = ModelKind::Paper,
+        None => {}
+    }
+    if let Some(t) = trace {
+        return fail(&format!(
+            "--hand {}: driving the hand from a trace is not available yet (issue 5)",
+            t.display()
+        ));
+    }
+    let frames = frames.unwrap_or_else(|| stepper::default_frames(&scene));
+    let bare = scene.hand.as_ref().is_some_and(|h| {
+        h.keys
+            .iter()
+            .any(|k| matches!(k.pose, HandPoseSpec::Fingers(_)))
+    });
+    let report = if bare {
+        let mut hand = stepper::BareFingersHand::from_scene(&scene);
+        stepper::simulate(
+            &scene,
+            frames,
+            hand.as_mut().map(|h| h as &mut dyn stepper::HandSource),
+        )
+    } else if let Some(script) = &scene.hand {
+        // The same path as a live session: keyframes -> glove + tracker -> the hand model.
+        let scripted = match acquisition::ScriptedHand::new(script) {
+            Ok(s) => s,
+            Err(e) => return fail(&format!("{}: {e}", scene.file.display())),
+        };
+        let model = kinematics::HandModel::default();
+        let mut hand = common::HandSample::default();
+        let mut source = |step: u64, t: f64| {
+            let (glove, tracker) = scripted.samples_at(
+                t,
+                common::Stamp {
+                    seq: step,
+                    ..Default::default()
+                },
+            );
+            model.solve(&glove, &tracker.wrist, &mut hand);
+            Some(hand)
+        };
+        stepper::simulate(&scene, frames, Some(&mut source))
+    } else {
+        stepper::simulate(&scene, frames, None)
+    };
+    match report {
+        Ok(r) if json => {
+            println!("{}", r.to_json());
+            ExitCode::SUCCESS
+        }
+        Ok(r) => {
+            print!("{}", r.to_text());
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail(&e),
     }
 }
 

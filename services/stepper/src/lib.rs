@@ -1,6 +1,34 @@
-//! The block world (MODEL.md) as a library, and the stepper process that runs it.
+//! The block world of MODEL.md: rules R1-R13 of Funahashi et al. (1996), "Block manipulation
+//! with hand in virtual space", for any convex polyhedron.
+//!
+//! A [`World`] is built from a scene ([`World::new`]) and advanced one fixed step at a time
+//! with the hand of that step ([`World::step`]); [`World::write_sample`] fills the `world`
+//! topic's sample. [`simulate`] runs a scene for N steps from a [`HandSource`] and renders the
+//! report (`handblocks simulate`). No shared memory is needed for any of it: the stepper
+//! process (module [`service`]) wraps this library in the IPC loop.
+//!
+//! Modules, named for the concept as in dimforge's parry/rapier:
+//! - [`geometry`]: convex polyhedra with G at the origin, and the exact queries the rules use;
+//! - [`body`]: one block's state (pose, v, floor contact set, mode);
+//! - [`hand`]: R1-R3 contacts, R5/R4/R6 hand-driven motion, R13 release detection;
+//! - [`interference`]: R10 carry, R11 support, R12 shape casts;
+//! - [`motion`]: R4's decomposition, R7 free motion;
+//! - [`floor`]: R8 impact, R9 stability;
+//! - [`world`]: the world and its step, in MODEL.md's order;
+//! - [`simulate`](mod@simulate): `handblocks simulate`, the bare check-point hand.
 
+pub mod body;
+pub mod floor;
+pub mod geometry;
+pub mod hand;
+pub mod interference;
+pub mod motion;
 pub mod service;
+pub mod simulate;
 pub mod world;
 
-pub use world::{Event, World, WorldError};
+pub use motion::{push_one_point, PushOutcome};
+pub use simulate::{
+    default_frames, simulate, BareFingersHand, BlockReport, EventReport, HandSource, Report,
+};
+pub use world::{BlockView, Event, EventKind, World, WorldError};

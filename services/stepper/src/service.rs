@@ -40,6 +40,11 @@ impl Timeline {
         }
     }
 
+    /// True once the first hand sample has set world time 0.
+    pub fn started(&self) -> bool {
+        self.origin_ns.is_some()
+    }
+
     /// Fixed steps whose time is at or before `source_time_ns` (world time 0 at the first sample).
     fn steps_due(&self, source_time_ns: u64) -> u64 {
         let origin = self.origin_ns.unwrap_or(source_time_ns);
@@ -133,6 +138,10 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             reporter.recorder.hop(&s.stamp, received);
             let hand: &HandSample = s.payload();
             if hand_is_finite(hand) {
+                if !timeline.started() {
+                    // The first hand is the previous one of the first step (P- of R1, R2).
+                    world.set_previous_hand(Some(hand));
+                }
                 timeline.advance(hand, |h| world.step(h));
             }
             world.write_sample(&mut out);

@@ -1,0 +1,356 @@
+//! Hand contact and hand-driven motion (paper 2.2-2.3): R1 point loci, R2 segment loci, R3
+//! classification, then R5 grasp, R4 one-point push and R6 multi-point push, and R13's
+//! release detection.
+//!
+//! Contacts are found in each block's body frame (the hand's few points are moved into it) and
+//! kept relative to G in world orientation, which is what R4 needs.
+//!
+//! The hand is its check points and finger segments (MODEL.md R1, R2). The palm polyhedron and
+//! the finger radius of a hand sample are not part of these rules and are not used.
+
+use glam::{DQuat, DVec3};
+
+use common::{BlockMode, HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS};
+
+use crate::body::{Block, HandAction, Moved};
+use crate::geometry::{segment_segment, segment_triangle};
+use crate::motion::push_one_point;
+use crate::world::World;
+
+/// Contacts kept per block and step (after merging; more are dropped, never allocated).
+pub const MAX_CONTACTS: usize = 64;
+
+/// One hand contact with a block, relative to G in world orientation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// The contact point C.
+    pub c: DVec3,
+    /// The pseudo-normal (unit).
+    pub n: DVec3,
+    /// Where the touching hand point is now (R4's B).
+    pub b: DVec3,
+}
+
+/// A hand sample the rules can use: counts in range and every used value finite. A hand with
+/// NaN (a device glitch) is treated as absent for that step.
+pub fn is_usable(h: &HandSample) -> bool {
+    if !h.wrist.is_finite() || h.finger_count as usize > MAX_FINGERS {
+        return false;
+    }
+    for f in 0..h.finger_count as usize {
+        let n = h.finger_point_count[f] as usize;
+        if n > MAX_FINGER_POINTS {
+            return false;
+        }
+        if !h.finger_points[f][..n]
+            .iter()
+            .flatten()
+            .all(|v| v.is_finite())
+        {
+            return false;
+        }
+    }
+    true
+}
+
+fn wrist_of(p: &Pose) -> (DVec3, DQuat) {
+    let q = DQuat::from_array(p.rotation);
+    let q = if q.length_squared() > 0.0 {
+        q.normalize()
+    } else {
+        DQuat::IDENTITY
+    };
+    (DVec3::from_array(p.position), q)
+}
+
+/// Adds a contact unless one closer than `eps` is already there (R3: merged).
+fn add(contacts: &mut Vec<Contact>, c: Contact, eps: f64) {
+    if contacts.iter().any(|o| (o.c - c.c).length() < eps) || contacts.len() >= MAX_CONTACTS {
+        return;
+    }
+    contacts.push(c);
+}
+
+/// R1 and R2 for one block: appends its contacts (relative to G, world orientation).
+/// `prev(f, k)` and `now(f, k)` are the check points in the world frame.
+pub(crate) fn block_contacts(
+    b: &Block,
+    hand: &HandSample,
+    prev: Option<&HandSample>,
+    contact_eps: f64,
+    hull_eps: f64,
+    contacts: &mut Vec<Contact>,
+) {
+    let inv = b.rot.conjugate();
+    let to_body = |p: [f64; 3]| inv * (DVec3::from_array(p) - b.pos);
+    let poly = &b.poly;
+    let out = |c: DVec3, n: DVec3, bb: DVec3| Contact {
+        c: b.rot * c,
+        n: b.rot * n,
+        b: b.rot * bb,
+    };
+    let fc = (hand.finger_count as usize).min(MAX_FINGERS);
+    for f in 0..fc {
+        let np = (hand.finger_point_count[f] as usize).min(MAX_FINGER_POINTS);
+        let pm = |k: usize| -> [f64; 3] {
+            match prev {
+                Some(p) if (f as u32) < p.finger_count && (k as u32) < p.finger_point_count[f] => {
+                    p.finger_points[f][k]
+                }
+                _ => hand.finger_points[f][k],
+            }
+        };
+        // R1: point loci.
+        for k in 0..np {
+            let a0 = to_body(pm(k));
+            let a1 = to_body(hand.finger_points[f][k]);
+            let (s, face) = poly.max_face_distance(a0);
+            if s <= contact_eps {
+                // Already inside at P-, or within contact_eps of the surface: a contact at
+                // the nearest surface point, with that face's normal.
+                let (cpt, dist, _) = poly.nearest_surface_point(a0);
+                if dist <= contact_eps {
+                    add(contacts, out(cpt, poly.faces[face].normal, a1), contact_eps);
+                    continue;
+                }
+            }
+            if let Some((t, n)) = poly.locus_entry(a0, a1, hull_eps) {
+                add(contacts, out(a0 + (a1 - a0) * t, n, a1), contact_eps);
+            }
+        }
+        // R2: segment loci between neighbouring check points.
+        for k in 0..np.saturating_sub(1) {
+            let (am, bm) = (to_body(pm(k)), to_body(pm(k + 1)));
+            let (a, bn) = (
+                to_body(hand.finger_points[f][k]),
+                to_body(hand.finger_points[f][k + 1]),
+            );
+            for (e, [i, j]) in poly.edges.iter().enumerate() {
+                let (e0, e1) = (poly.vertices[*i], poly.vertices[*j]);
+                // Quad (a-, b-, b, a) as triangles (a-, b-, b) and (a-, b, a). On the quad,
+                // Q(s, t) = (1-t) lerp(a-, b-, s) + t lerp(a, b, s).
+                let hit = segment_triangle(e0, e1, am, bm, bn)
+                    .map(|(se, w1, w2)| (se, w1 + w2))
+                    .or_else(|| segment_triangle(e0, e1, am, bn, a).map(|(se, w1, _)| (se, w1)));
+                if let Some((se, s)) = hit {
+                    let c = e0 + (e1 - e0) * se;
+                    let bb = a + (bn - a) * s;
+                    add(
+                        contacts,
+                        out(c, poly.edge_pseudo_normal(e), bb),
+                        contact_eps,
+                    );
+                }
+            }
+            // A finger segment already passing through the block at the start of the step
+            // (both check points outside): a contact at the nearest block edge.
+            if poly.max_face_distance(am).0 > contact_eps
+                && poly.max_face_distance(bm).0 > contact_eps
+            {
+                if let Some((t0, t1)) = poly.segment_clip(am, bm) {
+                    if (t1 - t0) * (bm - am).length() > contact_eps {
+                        let mut best = (f64::INFINITY, 0usize, 0.0f64, 0.0f64);
+                        for (e, [i, j]) in poly.edges.iter().enumerate() {
+                            let (s, te, d2) =
+                                segment_segment(am, bm, poly.vertices[*i], poly.vertices[*j]);
+                            if d2 < best.0 {
+                                best = (d2, e, s, te);
+                            }
+                        }
+                        let (_, e, s, te) = best;
+                        let [i, j] = poly.edges[e];
+                        let c = poly.vertices[i] + (poly.vertices[j] - poly.vertices[i]) * te;
+                        let bb = a + (bn - a) * s;
+                        add(
+                            contacts,
+                            out(c, poly.edge_pseudo_normal(e), bb),
+                            contact_eps,
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// R3: the largest angle between any two pseudo-normals (radians).
+pub fn largest_angle(contacts: &[Contact]) -> f64 {
+    let mut min_dot = 1.0f64;
+    for (i, a) in contacts.iter().enumerate() {
+        for b in &contacts[i + 1..] {
+            min_dot = min_dot.min(a.n.dot(b.n));
+        }
+    }
+    min_dot.clamp(-1.0, 1.0).acos()
+}
+
+impl World {
+    /// Stage 1: R1-R3 for every block near the hand; decides each block's hand action and
+    /// notices grasps that end (R13).
+    pub(crate) fn hand_contacts(&mut self, hand: Option<&HandSample>) {
+        let eps = self.params.contact_eps;
+        if let Some(h) = hand {
+            // Broad phase: the box around every check point now and before.
+            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            let mut grow = |p: [f64; 3]| {
+                let p = DVec3::from_array(p);
+                lo = lo.min(p);
+                hi = hi.max(p);
+            };
+            for hs in [Some(h), self.prev_hand.as_ref()].into_iter().flatten() {
+                for f in 0..(hs.finger_count as usize).min(MAX_FINGERS) {
+                    for k in 0..(hs.finger_point_count[f] as usize).min(MAX_FINGER_POINTS) {
+                        grow(hs.finger_points[f][k]);
+                    }
+                }
+            }
+            lo -= DVec3::splat(eps);
+            hi += DVec3::splat(eps);
+            for i in 0..self.blocks.len() {
+                let b = &self.blocks[i];
+                let nearest = b.pos.clamp(lo, hi);
+                if (nearest - b.pos).length() > b.poly.radius + eps {
+                    continue;
+                }
+                self.contacts.clear();
+                block_contacts(
+                    b,
+                    h,
+                    self.prev_hand.as_ref(),
+                    eps,
+                    self.params.hull_eps,
+                    &mut self.contacts,
+                );
+                let action = match self.contacts.len() {
+                    0 => HandAction::None,
+                    1 => HandAction::Push {
+                        c: self.contacts[0].c,
+                        b: self.contacts[0].b,
+                    },
+                    _ => {
+                        let threshold = if b.mode == BlockMode::Grasped {
+                            self.params.release_angle
+                        } else {
+                            self.params.grasp_angle
+                        };
+                        if self.passes.grasp && largest_angle(&self.contacts) > threshold {
+                            HandAction::Grasp
+                        } else {
+                            // R6: the mean of the contacts' T vectors, leaving ones excluded.
+                            let mut sum = DVec3::ZERO;
+                            let mut n = 0usize;
+                            for c in &self.contacts {
+                                if let Some(p) =
+                                    push_one_point(c.c, c.b, DVec3::ZERO, self.params.hull_eps, eps)
+                                {
+                                    sum += p.t;
+                                    n += 1;
+                                }
+                            }
+                            if n > 0 {
+                                HandAction::Translate(sum / n as f64)
+                            } else {
+                                HandAction::None
+                            }
+                        }
+                    }
+                };
+                self.blocks[i].action = action;
+            }
+        }
+        // R13: a grasp that R3 no longer confirms ends; the block flies on with its last
+        // grasped displacement (the mean over throw_window steps).
+        let inertia = self.params.inertia;
+        for b in &mut self.blocks {
+            if b.mode == BlockMode::Grasped && b.action != HandAction::Grasp {
+                b.released = true;
+                b.mode = BlockMode::Free;
+                b.v = if inertia {
+                    b.throw_displacement()
+                } else {
+                    DVec3::ZERO
+                };
+            }
+        }
+    }
+
+    /// Stage 2: R5 grasp (rigidly with the wrist), R4 one-point push, R6 translation.
+    pub(crate) fn hand_motion(&mut self, hand: Option<&HandSample>) {
+        let Some(h) = hand else { return };
+        let (w_pos, w_rot) = wrist_of(&h.wrist);
+        let (wm_pos, wm_rot) = match &self.prev_hand {
+            Some(p) => wrist_of(&p.wrist),
+            None => (w_pos, w_rot),
+        };
+        let dq = (w_rot * wm_rot.conjugate()).normalize();
+        let eps = self.params.contact_eps;
+        let hull_eps = self.params.hull_eps;
+        let mut any_grasp = false;
+        for b in &mut self.blocks {
+            match b.action {
+                HandAction::None => {}
+                HandAction::Grasp => {
+                    // R5: pose <- W W-^-1 pose.
+                    if b.mode_before != BlockMode::Grasped {
+                        b.grasp_history_len = 0;
+                    }
+                    let new_pos = w_pos + dq * (b.pos - wm_pos);
+                    let d = new_pos - b.pos;
+                    b.pos = new_pos;
+                    b.rot = (dq * b.rot).normalize();
+                    b.refresh_rel();
+                    b.push_grasp_displacement(d);
+                    b.v = d;
+                    b.moved = Moved::Hand;
+                    b.mode = BlockMode::Grasped;
+                    any_grasp = true;
+                }
+                HandAction::Push { c, b: bp } => {
+                    // R4.
+                    if let Some(p) = push_one_point(c, bp, DVec3::ZERO, hull_eps, eps) {
+                        b.translate(p.t);
+                        if let Some(axis) = p.axis {
+                            b.rotate_about(DQuat::from_axis_angle(axis, p.theta), DVec3::ZERO);
+                        }
+                        b.v = p.t;
+                        b.moved = Moved::Hand;
+                        b.mode = BlockMode::Pushed;
+                    }
+                }
+                HandAction::Translate(t) => {
+                    // R6.
+                    b.translate(t);
+                    b.v = t;
+                    b.moved = Moved::Hand;
+                    b.mode = BlockMode::Pushed;
+                }
+            }
+        }
+        if any_grasp {
+            self.relocate_fingers(h);
+        }
+    }
+
+    /// R5: check points that end inside a grasped block are moved to its surface (nearest
+    /// point), for drawing; P- stays the hand's own sample.
+    fn relocate_fingers(&mut self, h: &HandSample) {
+        let fc = (h.finger_count as usize).min(MAX_FINGERS);
+        for f in 0..fc {
+            for k in 0..(h.finger_point_count[f] as usize).min(MAX_FINGER_POINTS) {
+                let p = DVec3::from_array(self.fingers.points[f][k]);
+                for b in &self.blocks {
+                    if b.mode != BlockMode::Grasped {
+                        continue;
+                    }
+                    let local = b.rot.conjugate() * (p - b.pos);
+                    let (s, face) = b.poly.max_face_distance(local);
+                    if s < 0.0 {
+                        let on = local - b.poly.faces[face].normal * s;
+                        self.fingers.points[f][k] = (b.pos + b.rot * on).to_array();
+                        break;
+                    }
+                }
+            }
+        }
+    }
+}

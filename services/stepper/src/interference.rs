@@ -1,0 +1,148 @@
+//! Block against block (paper 3.3): R10 carry, R11 support (paper mode), R12 no tunnelling.
+//!
+//! Two different notions of "interfere", both from MODEL.md:
+//! - R11: touching within contact_eps counts (a block resting on another is held by it). This
+//!   is parry's GJK distance, which is exact for separated convex shapes.
+//! - R10: the blocks a hand-moved block *then* interferes with, i.e. that it now overlaps.
+//!   Touching alone does not carry (**judgment call**): otherwise a block could never be lifted
+//!   off a stack, because the block below touches it. Overlap is the SAT depth (exact for
+//!   convex polyhedra and allocation-free, unlike EPA) above hull_eps, so that two faces that
+//!   merely coincide are not an overlap by rounding.
+
+use glam::DVec3;
+use parry3d_f64::math::Pose;
+use parry3d_f64::query::{self, ShapeCastOptions};
+
+use common::BlockMode;
+
+use crate::body::{Block, Moved};
+use crate::geometry::sat_depth;
+use crate::world::World;
+
+/// The pair's poses with block `a`'s G as the origin (precision far from the world origin).
+fn rel_poses(a: &Block, b: &Block) -> (Pose, Pose) {
+    (
+        Pose::from_parts(DVec3::ZERO, a.rot),
+        Pose::from_parts(b.pos - a.pos, b.rot),
+    )
+}
+
+/// Whether the bounding spheres of a and b come within `margin`.
+#[inline]
+fn near(a: &Block, b: &Block, margin: f64) -> bool {
+    (b.pos - a.pos).length() <= a.poly.radius + b.poly.radius + margin
+}
+
+/// R11: a and b touch or overlap (distance <= contact_eps).
+pub(crate) fn touching(a: &Block, b: &Block, eps: f64) -> bool {
+    if !near(a, b, eps) {
+        return false;
+    }
+    let (pa, pb) = rel_poses(a, b);
+    match query::distance(&pa, &a.poly.shape, &pb, &b.poly.shape) {
+        Ok(d) => d.distance <= eps,
+        Err(_) => false,
+    }
+}
+
+/// R10: a and b overlap by more than `tol` (SAT depth).
+pub(crate) fn overlapping(a: &Block, b: &Block, tol: f64) -> bool {
+    if !near(a, b, 0.0) {
+        return false;
+    }
+    sat_depth(
+        &a.poly,
+        a.rot,
+        &a.rel,
+        &b.poly,
+        b.rot,
+        &b.rel,
+        b.pos - a.pos,
+    ) > tol
+}
+
+impl World {
+    /// R10: every block that a hand-moved block now overlaps is translated by the same
+    /// translation (G's displacement of the hand-moved block), transitively, breadth first
+    /// from each hand-moved block; each block moves at most once per step; no rotation.
+    pub(crate) fn carry(&mut self) {
+        let n = self.blocks.len();
+        for root in 0..n {
+            if self.blocks[root].moved != Moved::Hand {
+                continue;
+            }
+            let t = self.blocks[root].pos - self.blocks[root].start_pos;
+            if t == DVec3::ZERO {
+                continue;
+            }
+            self.queue.clear();
+            self.queue.push(root);
+            let mut head = 0;
+            while head < self.queue.len() {
+                let i = self.queue[head];
+                head += 1;
+                for j in 0..n {
+                    if j == i || self.blocks[j].moved != Moved::No {
+                        continue;
+                    }
+                    if overlapping(&self.blocks[i], &self.blocks[j], self.params.hull_eps) {
+                        let b = &mut self.blocks[j];
+                        b.translate(t);
+                        b.moved = Moved::Carried;
+                        b.mode = BlockMode::Carried;
+                        self.queue.push(j);
+                    }
+                }
+            }
+        }
+    }
+
+    /// R11 (paper mode): block i touches another block (within contact_eps).
+    pub(crate) fn supported_by_block(&self, i: usize) -> bool {
+        let a = &self.blocks[i];
+        self.blocks
+            .iter()
+            .enumerate()
+            .any(|(j, b)| j != i && touching(a, b, self.params.contact_eps))
+    }
+
+    /// R12: the fraction in [0, 1] of the step `d` block i can take before it first touches the
+    /// floor (when there is one) or another block: a shape cast, so no speed tunnels through.
+    pub(crate) fn cast_fraction(&self, i: usize, d: DVec3) -> f64 {
+        let a = &self.blocks[i];
+        let mut toi = 1.0f64;
+        if self.passes.floor && d.y < 0.0 {
+            // Translation only: the lowest vertex leads; exact.
+            let bottom = a.pos.y + a.lowest_rel_y();
+            toi = toi.min((bottom / -d.y).max(0.0));
+        }
+        if self.passes.blocks {
+            let len = d.length();
+            let opts = ShapeCastOptions {
+                max_time_of_impact: 1.0,
+                target_distance: 0.0,
+                stop_at_penetration: false,
+                compute_impact_geometry_on_penetration: false,
+            };
+            let mid = a.pos + d * 0.5;
+            for (j, b) in self.blocks.iter().enumerate() {
+                if j == i {
+                    continue;
+                }
+                // Broad phase: the swept sphere against b's sphere.
+                if (b.pos - mid).length() > a.poly.radius + b.poly.radius + 0.5 * len {
+                    continue;
+                }
+                let (pa, pb) = rel_poses(a, b);
+                if let Ok(Some(hit)) =
+                    query::cast_shapes(&pa, d, &a.poly.shape, &pb, DVec3::ZERO, &b.poly.shape, opts)
+                {
+                    if hit.time_of_impact.is_finite() {
+                        toi = toi.min(hit.time_of_impact.clamp(0.0, 1.0));
+                    }
+                }
+            }
+        }
+        toi
+    }
+}

@@ -1,0 +1,132 @@
+//! Motion without the floor: R4's one-point push (the paper's equations 1-2), R7 gravity and
+//! inertia with R11's hold and R12's cut, and R13's throw velocity.
+
+use glam::DVec3;
+
+use common::BlockMode;
+
+use crate::body::Moved;
+use crate::world::World;
+
+/// R4's decomposition of a one-point push (the paper's Fig. 5).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PushOutcome {
+    /// T = ((B - C) . u) u with u = (G - C) / |G - C|: the translation.
+    pub t: DVec3,
+    /// R = (B - C) - T.
+    pub r: DVec3,
+    /// theta = atan(|R| / |CG|).
+    pub theta: f64,
+    /// X = (C - G) x R, normalised: the axis through G that moves the contact point along R.
+    /// None when |R| or |T| is below contact_eps (R4: skip the rotation).
+    pub axis: Option<DVec3>,
+}
+
+/// R4: the check point moved to B after touching the block at C; G is the block's centre of
+/// gravity (any common origin: pass them relative to G for precision). None when the finger
+/// is leaving or resting ((B - C) . u <= hull_eps): nothing happens.
+pub fn push_one_point(
+    c: DVec3,
+    b: DVec3,
+    g: DVec3,
+    hull_eps: f64,
+    contact_eps: f64,
+) -> Option<PushOutcome> {
+    let cg = g - c;
+    let l = cg.length();
+    if !(l > 0.0) {
+        return None;
+    }
+    let u = cg / l;
+    let cb = b - c;
+    let along = cb.dot(u);
+    if along <= hull_eps {
+        return None;
+    }
+    let t = u * along;
+    let r = cb - t;
+    let rl = r.length();
+    let theta = (rl / l).atan();
+    let axis = if rl < contact_eps || t.length() < contact_eps {
+        None
+    } else {
+        let x = (c - g).cross(r);
+        let xl = x.length();
+        (xl > 0.0).then(|| x / xl)
+    };
+    Some(PushOutcome { t, r, theta, axis })
+}
+
+impl World {
+    /// Stage 3: R7 (with R12) for every block the hand did not move and that is not grasped,
+    /// resting, tipping or in floor contact (the floor stage moves those), except blocks R11
+    /// holds. A released block (R13) flies from this very step with its throw displacement.
+    pub(crate) fn free_motion(&mut self) {
+        for i in 0..self.blocks.len() {
+            {
+                let b = &self.blocks[i];
+                if b.moved != Moved::No
+                    || b.mode == BlockMode::Grasped
+                    || b.mode == BlockMode::Resting
+                {
+                    continue;
+                }
+            }
+            // R11 (paper): a block that touches another is not affected by gravity or inertia.
+            if self.passes.blocks && self.supported_by_block(i) {
+                let b = &mut self.blocks[i];
+                b.mode = BlockMode::Supported;
+                b.v = DVec3::ZERO;
+                continue;
+            }
+            let floor = self.passes.floor;
+            let g_step = self.params.g_step;
+            let inertia = self.params.inertia;
+            {
+                let b = &mut self.blocks[i];
+                if b.mode == BlockMode::Supported {
+                    b.mode = BlockMode::Free;
+                }
+                // In floor contact: the floor stage decides (R9's Gm = v + g_step).
+                if floor && !b.floor.is_empty() {
+                    continue;
+                }
+                if !self.passes.free_motion {
+                    continue;
+                }
+            }
+            // R7: d = v + g_step; no rotation.
+            let v = if inertia {
+                self.blocks[i].v
+            } else {
+                DVec3::ZERO
+            };
+            let d = v + g_step;
+            if d == DVec3::ZERO {
+                continue;
+            }
+            // R12: stop at the first time of impact; v is the actual displacement.
+            let f = self.cast_fraction(i, d);
+            let b = &mut self.blocks[i];
+            b.intended = d;
+            let actual = d * f;
+            b.translate(actual);
+            b.v = if inertia { actual } else { DVec3::ZERO };
+            b.moved = Moved::Free;
+            b.mode = BlockMode::Free;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn r4_leaving_finger_does_nothing() {
+        let g = DVec3::ZERO;
+        let c = DVec3::new(-0.05, 0.0, 0.0);
+        assert!(push_one_point(c, c + DVec3::new(-0.01, 0.0, 0.0), g, 1e-6, 1e-4).is_none());
+        assert!(push_one_point(c, c + DVec3::new(0.0, 0.01, 0.0), g, 1e-6, 1e-4).is_none());
+    }
+}

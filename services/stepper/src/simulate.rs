@@ -1,0 +1,347 @@
+//! `handblocks simulate`: run a world for N steps from a hand source, deterministically, and
+//! render the result as DESIGN.md states (text, or JSON with `--json`).
+//!
+//! The scene's `[hand]` drives the hand, sampled once per step: the n-th step (1-based) gets
+//! the hand at t = n * dt and takes the hand at t = (n - 1) * dt as its previous one, so after
+//! k steps the world and the hand are both at t = k * dt. Keys with `fingers` need no hand
+//! model: [`BareFingersHand`] interpolates them. Keys with `grip`/`angles` go through the hand
+//! model, which the caller supplies as a [`HandSource`].
+
+use std::fmt::Write as _;
+
+use glam::{DQuat, DVec3};
+
+use common::config::scene::{HandPoseSpec, HandScript};
+use common::config::Scene;
+use common::{BlockMode, HandSample, Pose, Stamp, MAX_FINGERS, MAX_FINGER_POINTS};
+
+use crate::world::{EventKind, World, WorldError};
+
+/// Where `simulate` gets the hand of each step.
+pub trait HandSource {
+    /// The hand at `step` (0 = before the first step) and time `t = step * dt`; None when
+    /// there is no hand.
+    fn hand_at(&mut self, step: u64, t: f64) -> Option<HandSample>;
+}
+
+impl<F: FnMut(u64, f64) -> Option<HandSample>> HandSource for F {
+    fn hand_at(&mut self, step: u64, t: f64) -> Option<HandSample> {
+        self(step, t)
+    }
+}
+
+/// One key of a bare check-point hand, in the wrist frame.
+#[derive(Debug, Clone)]
+struct BareKey {
+    t: f64,
+    wrist: DVec3,
+    rot: DQuat,
+    points: [[DVec3; MAX_FINGER_POINTS]; MAX_FINGERS],
+}
+
+/// The scripted hand of a scene whose keys give `fingers`: no hand model, no palm, finger
+/// radius 0. Between keys: the wrist position linearly, its rotation by slerp, and every check
+/// point linearly in the wrist's frame, then into the world. Before the first key and after the
+/// last the hand holds still.
+#[derive(Debug, Clone)]
+pub struct BareFingersHand {
+    keys: Vec<BareKey>,
+    finger_count: u32,
+    point_count: [u32; MAX_FINGERS],
+}
+
+impl BareFingersHand {
+    /// None unless every key of the script gives `fingers`.
+    pub fn from_script(script: &HandScript) -> Option<BareFingersHand> {
+        let mut keys = Vec::with_capacity(script.keys.len());
+        let mut finger_count = 0;
+        let mut point_count = [0u32; MAX_FINGERS];
+        for k in &script.keys {
+            let HandPoseSpec::Fingers(fingers) = &k.pose else {
+                return None;
+            };
+            let mut points = [[DVec3::ZERO; MAX_FINGER_POINTS]; MAX_FINGERS];
+            finger_count = fingers.len().min(MAX_FINGERS) as u32;
+            for (f, finger) in fingers.iter().take(MAX_FINGERS).enumerate() {
+                point_count[f] = finger.len().min(MAX_FINGER_POINTS) as u32;
+                for (j, p) in finger.iter().take(MAX_FINGER_POINTS).enumerate() {
+                    points[f][j] = DVec3::from_array(*p);
+                }
+            }
+            keys.push(BareKey {
+                t: k.t,
+                wrist: DVec3::from_array(k.wrist),
+                rot: DQuat::from_array(k.wrist_rotation).normalize(),
+                points,
+            });
+        }
+        if keys.is_empty() {
+            return None;
+        }
+        Some(BareFingersHand {
+            keys,
+            finger_count,
+            point_count,
+        })
+    }
+
+    /// The scene's bare check-point hand, if its `[hand]` uses `fingers`.
+    pub fn from_scene(scene: &Scene) -> Option<BareFingersHand> {
+        scene.hand.as_ref().and_then(BareFingersHand::from_script)
+    }
+
+    /// The hand at time t.
+    pub fn sample(&self, t: f64) -> HandSample {
+        let n = self.keys.len();
+        let (a, b, s) = if t <= self.keys[0].t {
+            (0, 0, 0.0)
+        } else if t >= self.keys[n - 1].t {
+            (n - 1, n - 1, 0.0)
+        } else {
+            let j = self.keys.partition_point(|k| k.t <= t);
+            let (k0, k1) = (&self.keys[j - 1], &self.keys[j]);
+            (j - 1, j, (t - k0.t) / (k1.t - k0.t))
+        };
+        let (ka, kb) = (&self.keys[a], &self.keys[b]);
+        let wrist = ka.wrist.lerp(kb.wrist, s);
+        let rot = if a == b {
+            ka.rot
+        } else {
+            ka.rot.slerp(kb.rot, s).normalize()
+        };
+        let mut h = HandSample {
+            stamp: Stamp::default(),
+            wrist: Pose {
+                position: wrist.to_array(),
+                rotation: rot.to_array(),
+            },
+            tracked: 1,
+            finger_count: self.finger_count,
+            finger_point_count: self.point_count,
+            palm_vertex_count: 0,
+            ..HandSample::default()
+        };
+        for f in 0..self.finger_count as usize {
+            for j in 0..self.point_count[f] as usize {
+                let local = ka.points[f][j].lerp(kb.points[f][j], s);
+                h.finger_points[f][j] = (wrist + rot * local).to_array();
+            }
+        }
+        h
+    }
+
+    /// The time of the last key (the hand holds still after it).
+    pub fn end_time(&self) -> f64 {
+        self.keys.last().map_or(0.0, |k| k.t)
+    }
+}
+
+impl HandSource for BareFingersHand {
+    fn hand_at(&mut self, step: u64, t: f64) -> Option<HandSample> {
+        let mut h = self.sample(t);
+        h.stamp.seq = step;
+        Some(h)
+    }
+}
+
+/// One block's final state in a report.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockReport {
+    pub name: String,
+    pub position: [f64; 3],
+    pub rotation: [f64; 4],
+    pub mode: BlockMode,
+}
+
+/// One event in a report.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EventReport {
+    pub step: u64,
+    pub kind: EventKind,
+    pub block: String,
+}
+
+/// What `simulate` returns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Report {
+    pub frames: u64,
+    pub blocks: Vec<BlockReport>,
+    pub events: Vec<EventReport>,
+}
+
+/// Steps `simulate` takes when the command line gives no `--frames`: the scripted hand's
+/// duration plus three seconds to settle (at least three seconds), at the scene's step rate.
+pub fn default_frames(scene: &Scene) -> u64 {
+    let hand_end = scene
+        .hand
+        .as_ref()
+        .and_then(|h| h.keys.last())
+        .map_or(0.0, |k| k.t);
+    ((hand_end + 3.0) * scene.world.step_hz).ceil() as u64
+}
+
+/// Runs the scene's world for `frames` steps with the hand from `hand` (None: no hand; a scene
+/// whose hand uses `fingers` can pass a [`BareFingersHand`]). Deterministic.
+pub fn simulate(
+    scene: &Scene,
+    frames: u64,
+    mut hand: Option<&mut dyn HandSource>,
+) -> Result<Report, WorldError> {
+    let mut world = World::new(scene)?;
+    let dt = 1.0 / scene.world.step_hz;
+    let mut events = Vec::new();
+    if let Some(h) = hand.as_deref_mut() {
+        let first = h.hand_at(0, 0.0);
+        world.set_previous_hand(first.as_ref());
+    }
+    for n in 1..=frames {
+        let sample = hand
+            .as_deref_mut()
+            .and_then(|h| h.hand_at(n, n as f64 * dt));
+        world.step(sample.as_ref());
+        for e in world.events() {
+            events.push(EventReport {
+                step: e.step,
+                kind: e.kind,
+                block: scene.blocks[e.block].name.clone(),
+            });
+        }
+    }
+    let blocks = (0..world.block_count())
+        .filter_map(|i| world.block(i).map(|b| (i, b)))
+        .map(|(i, b)| BlockReport {
+            name: scene.blocks[i].name.clone(),
+            position: b.position.to_array(),
+            rotation: b.rotation.to_array(),
+            mode: b.mode,
+        })
+        .collect();
+    Ok(Report {
+        frames,
+        blocks,
+        events,
+    })
+}
+
+/// A JSON string literal.
+fn json_str(s: &str) -> String {
+    let mut o = String::with_capacity(s.len() + 2);
+    o.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => o.push_str("\\\""),
+            '\\' => o.push_str("\\\\"),
+            c if (c as u32) < 0x20 => {
+                let _ = write!(o, "\\u{:04x}", c as u32);
+            }
+            c => o.push(c),
+        }
+    }
+    o.push('"');
+    o
+}
+
+/// A JSON number: Rust's shortest round-trip form (deterministic; finite by construction).
+fn json_num(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:?}")
+    } else {
+        "null".into()
+    }
+}
+
+fn json_list(v: &[f64]) -> String {
+    let items: Vec<String> = v.iter().map(|x| json_num(*x)).collect();
+    format!("[{}]", items.join(", "))
+}
+
+impl Report {
+    /// DESIGN.md's `--json`: `{"frames": N, "blocks": [{"name", "position", "rotation",
+    /// "mode"}], "events": [{"step", "kind", "block"}]}`.
+    pub fn to_json(&self) -> String {
+        let mut o = String::new();
+        let _ = write!(o, "{{\"frames\": {}, \"blocks\": [", self.frames);
+        for (i, b) in self.blocks.iter().enumerate() {
+            if i > 0 {
+                o.push_str(", ");
+            }
+            let _ = write!(
+                o,
+                "{{\"name\": {}, \"position\": {}, \"rotation\": {}, \"mode\": {}}}",
+                json_str(&b.name),
+                json_list(&b.position),
+                json_list(&b.rotation),
+                json_str(b.mode.name())
+            );
+        }
+        o.push_str("], \"events\": [");
+        for (i, e) in self.events.iter().enumerate() {
+            if i > 0 {
+                o.push_str(", ");
+            }
+            let _ = write!(
+                o,
+                "{{\"step\": {}, \"kind\": {}, \"block\": {}}}",
+                e.step,
+                json_str(e.kind.name()),
+                json_str(&e.block)
+            );
+        }
+        o.push_str("]}\n");
+        o
+    }
+
+    /// The readable summary: each block's final mode and pose, then the events.
+    pub fn to_text(&self) -> String {
+        let mut o = String::new();
+        let _ = writeln!(o, "after {} steps:", self.frames);
+        let w = self.blocks.iter().map(|b| b.name.len()).max().unwrap_or(0);
+        for b in &self.blocks {
+            let [x, y, z] = b.position;
+            let q = DQuat::from_array(b.rotation);
+            let (axis, angle) = q.to_axis_angle();
+            let _ = writeln!(
+                o,
+                "  {:w$}  {:9}  G = ({x:.6}, {y:.6}, {z:.6}) m  rotation {:.3} deg about ({:.3}, {:.3}, {:.3})",
+                b.name,
+                b.mode.name(),
+                angle.to_degrees(),
+                axis.x,
+                axis.y,
+                axis.z,
+            );
+        }
+        if self.events.is_empty() {
+            o.push_str("events: none\n");
+        } else {
+            let _ = writeln!(o, "events ({}):", self.events.len());
+            // Runs of the same event of the same block on consecutive steps are folded.
+            let mut i = 0;
+            while i < self.events.len() {
+                let e = &self.events[i];
+                let mut j = i + 1;
+                while j < self.events.len()
+                    && self.events[j].kind == e.kind
+                    && self.events[j].block == e.block
+                    && self.events[j].step == self.events[j - 1].step + 1
+                {
+                    j += 1;
+                }
+                if j - i > 1 {
+                    let _ = writeln!(
+                        o,
+                        "  steps {}-{}  {:8} {}",
+                        e.step,
+                        self.events[j - 1].step,
+                        e.kind.name(),
+                        e.block
+                    );
+                } else {
+                    let _ = writeln!(o, "  step {:6}  {:8} {}", e.step, e.kind.name(), e.block);
+                }
+                i = j;
+            }
+        }
+        o
+    }
+}
