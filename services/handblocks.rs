@@ -74,6 +74,21 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Benchmarks, each reported against a peer measured in the same run.
+    Bench {
+        #[command(subcommand)]
+        which: BenchKind,
+    },
+    /// The publishing half of the latency benchmark's peer (started by `bench latency`).
+    #[command(hide = true)]
+    BenchPeer {
+        #[arg(long)]
+        bus: String,
+        #[arg(long)]
+        rate: f64,
+        #[arg(long)]
+        count: u64,
+    },
     /// Run one process of a session (the launcher starts each one this way).
     Service {
         /// acquisition, kinematics, stepper, renderer or recorder.
@@ -84,6 +99,23 @@ enum Command {
         /// The session's bus id, as the launcher chose it.
         #[arg(long)]
         bus: String,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchKind {
+    /// Per-hop and origin -> world latency of the whole process set, against a bare
+    /// two-process iceoryx2 hop measured in the same run.
+    Latency {
+        /// The session to measure.
+        #[arg(long, default_value = "config/sessions/live.toml")]
+        session: PathBuf,
+        /// Seconds for the peer, and again for the session.
+        #[arg(long, default_value = "10", value_parser = parse_seconds)]
+        seconds: Duration,
+        /// Where latency.json goes.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
     },
 }
 
@@ -124,6 +156,44 @@ fn main() -> ExitCode {
             json,
         }) => simulate(&scene, frames, model.as_deref(), hand.as_deref(), json),
         Some(Command::Service { name, session, bus }) => service(&name, &session, &bus),
+        Some(Command::Bench {
+            which:
+                BenchKind::Latency {
+                    session,
+                    seconds,
+                    out,
+                },
+        }) => {
+            let exe = match std::env::current_exe() {
+                Ok(e) => e,
+                Err(e) => {
+                    eprintln!("handblocks: cannot find my own executable: {e}");
+                    return ExitCode::from(2);
+                }
+            };
+            let b = handblocks_bench::latency::LatencyBench {
+                exe,
+                session,
+                seconds: seconds.as_secs_f64(),
+                out_dir: out,
+            };
+            match handblocks_bench::latency::run(&b) {
+                Ok(_) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("handblocks bench latency: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
+        Some(Command::BenchPeer { bus, rate, count }) => {
+            match handblocks_bench::latency::peer_publisher(&bus, rate, count) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("handblocks bench-peer: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
     }
 }
 

@@ -1,0 +1,179 @@
+//! `handblocks bench latency`: what the pipeline adds to the transport.
+//!
+//! The peer is the floor any stage could reach on this machine at this moment: a second
+//! process publishes hand-sized samples at the session's rate and notifies, and this process
+//! sleeps on the listener, wakes, receives and records the hop — no processing at all. Then the
+//! real session runs (five processes, scripted hand at 120 Hz), and each stage's hop is reported
+//! as a ratio to the peer's. Origin -> world is reported with its absolute target, and as a
+//! ratio to the peer hop (it spans three hops and two stages' work).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::bus::{Bus, BusConfig};
+use common::latency::{new_histogram, Metric, Summary};
+use common::{monotonic_ns, HandSample, Stage, Stamp, Topic};
+use serde_json::{json, Value};
+
+/// Options of `handblocks bench latency`.
+pub struct LatencyBench {
+    pub exe: PathBuf,
+    pub session: PathBuf,
+    pub seconds: f64,
+    pub out_dir: PathBuf,
+}
+
+/// The publishing half of the peer, run as its own process by the benchmark.
+pub fn peer_publisher(
+    bus_id: &str,
+    rate_hz: f64,
+    count: u64,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let bus = Bus::open(&BusConfig::for_session(bus_id)?, "peer-publisher")?;
+    let mut out = bus.outlet::<HandSample>(Topic::Hand)?;
+    let period = 1e9 / rate_hz;
+    let start = monotonic_ns();
+    let sample = HandSample::default();
+    for k in 0..count {
+        common::stamp::sleep_until_ns(start + (k as f64 * period) as u64);
+        let mut s = sample;
+        s.stamp = Stamp::at_origin(0, 0);
+        out.publish(&s)?;
+    }
+    // Stay until the reader has everything (it holds our samples' memory until then).
+    common::shutdown::watch_parent_pipe();
+    common::shutdown::wait_for_release(Duration::from_secs(5));
+    Ok(())
+}
+
+fn peer(exe: &Path, seconds: f64) -> Result<Summary, Box<dyn std::error::Error>> {
+    let id = format!("peer{}", std::process::id());
+    let config = BusConfig::for_session(&id)?;
+    let count = (seconds * 120.0) as u64;
+    let result = (|| -> Result<Summary, Box<dyn std::error::Error>> {
+        let bus = Bus::open(&config, "peer-subscriber")?;
+        let _services = bus.create_services()?;
+        let inlet = bus.inlet::<HandSample>(Topic::Hand)?;
+        let mut child = Command::new(exe)
+            .args([
+                "bench-peer",
+                "--bus",
+                &id,
+                "--rate",
+                "120",
+                "--count",
+                &count.to_string(),
+            ])
+            .stdin(Stdio::piped())
+            .spawn()?;
+        let mut hop = new_histogram();
+        let deadline = Instant::now() + Duration::from_secs_f64(seconds + 10.0);
+        let mut received = 0;
+        while received < count && Instant::now() < deadline {
+            inlet.wait(Duration::from_millis(50))?;
+            while let Some(s) = inlet.receive()? {
+                hop.saturating_record(monotonic_ns().saturating_sub(s.stamp.publish_ns).max(1));
+                received += 1;
+            }
+        }
+        drop(child.stdin.take());
+        let _ = child.wait();
+        if received < count {
+            return Err(format!("the peer received {received} of {count} samples").into());
+        }
+        Ok(Summary::of(&hop))
+    })();
+    let _ = config.remove_resources();
+    result
+}
+
+fn summary_json(s: Summary) -> Value {
+    json!({"p50": s.p50, "p90": s.p90, "p99": s.p99, "p999": s.p999, "max": s.max, "count": s.count})
+}
+
+fn ratio(a: f64, b: f64) -> f64 {
+    if b > 0.0 {
+        (a / b * 100.0).round() / 100.0
+    } else {
+        f64::NAN
+    }
+}
+
+/// Runs the benchmark; prints a table and writes `latency.json` into the output folder.
+pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
+    eprintln!(
+        "bench latency: peer (bare two-process hop, 120 Hz) for {:.0} s ...",
+        b.seconds
+    );
+    let peer = peer(&b.exe, b.seconds)?;
+    eprintln!(
+        "bench latency: the session {} for {:.0} s ...",
+        b.session.display(),
+        b.seconds
+    );
+    let outcome = launcher::launch(&launcher::LaunchOptions {
+        session: b.session.clone(),
+        duration: Some(Duration::from_secs_f64(b.seconds)),
+        report: None,
+        bus_id: None,
+        exe: b.exe.clone(),
+        progress: false,
+    })?;
+    let report = &outcome.report;
+    let mut stages = serde_json::Map::new();
+    let mut table = format!(
+        "{:<12} {:>10} {:>10} {:>12}   (microseconds; peer = bare hop measured in this run)\n",
+        "hop into", "p50", "p99", "p99 / peer"
+    );
+    table.push_str(&format!(
+        "{:<12} {:>10.1} {:>10.1} {:>12}\n",
+        "peer", peer.p50, peer.p99, "1.00"
+    ));
+    for s in &report.stages {
+        let hop = s.summary(Metric::Hop);
+        if hop.count == 0 {
+            continue;
+        }
+        table.push_str(&format!(
+            "{:<12} {:>10.1} {:>10.1} {:>12.2}\n",
+            s.stage.name(),
+            hop.p50,
+            hop.p99,
+            ratio(hop.p99, peer.p99)
+        ));
+        stages.insert(
+            s.stage.name().into(),
+            json!({"hop_us": summary_json(hop), "hop_p99_over_peer_p99": ratio(hop.p99, peer.p99)}),
+        );
+    }
+    let world = report
+        .stages
+        .iter()
+        .find(|s| s.stage == Stage::Stepper)
+        .map(|s| s.summary(Metric::Origin))
+        .unwrap_or_default();
+    table.push_str(&format!(
+        "\norigin -> world  p50 {:.1} us  p99 {:.1} us  (target p99 <= 200 us; p99 / peer hop p99 = {:.2})\n",
+        world.p50,
+        world.p99,
+        ratio(world.p99, peer.p99)
+    ));
+    let dropped: u64 = report.topics.values().map(|f| f.dropped()).sum();
+    table.push_str(&format!("dropped samples: {dropped}\n"));
+    print!("{table}");
+    let value = json!({
+        "seconds": b.seconds,
+        "peer_hop_us": summary_json(peer),
+        "stages": stages,
+        "origin_to_world_us": summary_json(world),
+        "origin_to_world_p99_over_peer_hop_p99": ratio(world.p99, peer.p99),
+        "dropped": dropped,
+        "session": report.json(),
+    });
+    std::fs::create_dir_all(&b.out_dir)?;
+    let file = b.out_dir.join("latency.json");
+    std::fs::write(&file, serde_json::to_string_pretty(&value)? + "\n")?;
+    eprintln!("bench latency: wrote {}", file.display());
+    Ok(value)
+}
