@@ -273,3 +273,99 @@ fn a_missing_session_file_is_named() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/session.toml: cannot read"));
 }
+
+/// The pid of a running `handblocks service NAME` of session `bus_id`, waiting up to 10 s.
+fn find_service(name: &str, bus_id: &str) -> Option<u32> {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while std::time::Instant::now() < deadline {
+        if let Some(pid) = find_service_now(name, bus_id) {
+            return Some(pid);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    None
+}
+
+#[test]
+fn a_crashed_stage_fails_the_session_and_leaves_nothing_behind() {
+    let dir = Scratch::new("crash");
+    let s = session(&dir, "crash.toml", "[renderer]\nmode = \"off\"\n");
+    let id = unique_id("crash");
+    let started = std::time::Instant::now();
+    let child = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--duration", "30", "--bus-id", &id])
+        .arg(&s)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = find_service("stepper", &id).expect("the stepper process never started");
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    assert!(Command::new("kill")
+        .args(["-KILL", &pid.to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("FAILED: the stepper process exited during the session"),
+        "{stdout}"
+    );
+    assert!(
+        started.elapsed() < std::time::Duration::from_secs(20),
+        "the launcher did not notice the crash promptly"
+    );
+    assert!(
+        find_service_now("kinematics", &id).is_none(),
+        "a process of the session outlived the launcher"
+    );
+    assert_nothing_left(&id);
+}
+
+fn find_service_now(name: &str, bus_id: &str) -> Option<u32> {
+    std::fs::read_dir("/proc")
+        .ok()?
+        .flatten()
+        .find_map(|entry| {
+            let pid = entry.file_name().to_string_lossy().parse::<u32>().ok()?;
+            let cmdline = std::fs::read(entry.path().join("cmdline")).ok()?;
+            let args: Vec<&[u8]> = cmdline.split(|b| *b == 0).collect();
+            let has = |word: &str| args.iter().any(|a| *a == word.as_bytes());
+            (has("service") && has(name) && has(bus_id)).then_some(pid)
+        })
+}
+
+#[test]
+fn the_latency_benchmark_reports_ratios_to_its_peer() {
+    let dir = Scratch::new("bench");
+    let out = Command::new(EXE)
+        .current_dir(repo())
+        .args(["bench", "latency", "--seconds", "1", "--out"])
+        .arg(dir.path("bench"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path("bench/latency.json")).unwrap())
+            .unwrap();
+    assert!(v["peer_hop_us"]["count"].as_u64().unwrap() >= 100);
+    for stage in ["kinematics", "stepper", "recorder"] {
+        let r = v["stages"][stage]["hop_p99_over_peer_p99"]
+            .as_f64()
+            .unwrap();
+        assert!(r.is_finite() && r > 0.0, "{stage}: {r}");
+    }
+    assert_eq!(v["dropped"].as_u64(), Some(0));
+}
