@@ -33,6 +33,8 @@ pub type Received<T> = Sample<ipc::Service, T, ()>;
 /// Most processes that attach to one topic (a recorder, a monitor and the `iox2` tool included).
 const MAX_SUBSCRIBERS: usize = 4;
 const MAX_NODES: usize = 16;
+/// How long a session folder must be untouched before a launcher may judge it abandoned.
+const ABANDONED_AFTER: Duration = Duration::from_secs(10);
 
 /// Something went wrong on the bus; each variant says which operation and which topic.
 #[derive(Debug)]
@@ -126,6 +128,56 @@ impl BusConfig {
         config.global.prefix = FileName::new(self.prefix.as_bytes())
             .map_err(|e| BusError::Config(format!("prefix {:?}: {e:?}", self.prefix)))?;
         Ok(config)
+    }
+
+    /// True while some process of this session still runs (an iceoryx2 node of it is alive,
+    /// or cannot be judged).
+    pub fn has_live_processes(&self) -> bool {
+        let Ok(config) = self.iceoryx() else {
+            return false;
+        };
+        let mut live = false;
+        let listed = Node::<ipc::Service>::list(&config, |state| {
+            if matches!(state, NodeState::Alive(_) | NodeState::Inaccessible(_)) {
+                live = true;
+                return CallbackProgression::Stop;
+            }
+            CallbackProgression::Continue
+        });
+        // If the node list cannot be read, assume the worst and leave the session alone.
+        live || listed.is_err()
+    }
+
+    /// Removes what sessions of other launchers left behind when those launchers were killed
+    /// (SIGKILL leaves no chance to clean up): every session folder whose processes are all
+    /// gone. Their processes notice the launcher's death themselves (their stdin pipe closes)
+    /// and exit. Returns the ids of the sessions removed.
+    pub fn sweep_abandoned() -> Vec<String> {
+        let base = std::env::temp_dir().join("handblocks-iox2");
+        let Ok(entries) = std::fs::read_dir(&base) else {
+            return Vec::new();
+        };
+        let mut removed = Vec::new();
+        for entry in entries.flatten() {
+            let id = entry.file_name().to_string_lossy().into_owned();
+            let Ok(session) = BusConfig::for_session(&id) else {
+                continue;
+            };
+            // A session being set up right now has its folder before its first node: only
+            // folders untouched for a while can be abandoned.
+            let age = entry
+                .metadata()
+                .and_then(|m| m.modified())
+                .ok()
+                .and_then(|t| t.elapsed().ok());
+            if age.is_none_or(|a| a < ABANDONED_AFTER) {
+                continue;
+            }
+            if !session.has_live_processes() && session.remove_resources().is_ok() {
+                removed.push(id);
+            }
+        }
+        removed
     }
 
     /// Files of this session still in /dev/shm.

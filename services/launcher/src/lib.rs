@@ -104,6 +104,9 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     let id = opts.bus_id.clone().unwrap_or_else(BusConfig::fresh_id);
     let bus_config = BusConfig::for_session(&id).map_err(err)?;
     shutdown::install_signal_handlers();
+    for stale in BusConfig::sweep_abandoned() {
+        eprintln!("handblocks: removed the shared memory of abandoned session {stale}");
+    }
 
     let result = run_session(opts, &session, &bus_config);
     // Every process is reaped and every port dropped by now: the files are ours to remove.
