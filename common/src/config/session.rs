@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::hand::HandModelSpec;
 use super::reader::{parse_file, Reader};
 use super::scene::Scene;
 use super::ConfigError;
@@ -18,6 +19,8 @@ pub struct Session {
     pub renderer: RendererSettings,
     pub recorder: RecorderSettings,
     pub budget: Budget,
+    /// The hand model (`hand_model = "../hand.toml"`); the built-in adult hand when absent.
+    pub hand_model: HandModelSpec,
 }
 
 /// `[source]`: what feeds the pipeline.
@@ -119,6 +122,10 @@ impl Session {
             renderer: renderer(r.table("renderer")?)?,
             recorder: recorder(r.table("recorder")?, dir)?,
             budget: budget(r.table("budget")?)?,
+            hand_model: match r.string("hand_model")? {
+                Some(f) => HandModelSpec::load(&dir.join(f))?,
+                None => HandModelSpec::default(),
+            },
         };
         r.finish()?;
         Ok(session)

@@ -7,54 +7,21 @@
 //! (thumb rotation 0) to under the palm, opposed to the fingers (thumb rotation 1 rad), and
 //! its MCP and IP joints bend it forward, toward the fingers.
 
+use common::config::hand::{FingerSpec, HandModelSpec};
 use common::glove::{angle, GloveJoint};
 use common::{GloveSample, HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS};
 use glam::{DQuat, DVec3};
 
-/// One finger: where its knuckle sits in the hand frame and the length of each bone.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FingerSpec {
-    pub knuckle: [f64; 3],
-    /// Proximal, middle, distal phalanx lengths, metres.
-    pub bones: [f64; 3],
-    pub radius: f64,
-}
-
-/// Bone lengths, finger radii and palm shape; data, not code (an adult hand by default).
-#[derive(Debug, Clone, PartialEq)]
+/// The hand model: bone lengths, finger radii and palm shape, from a hand model file
+/// (`config/hand.toml`) or the built-in adult hand.
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct HandModel {
-    /// Index, middle, ring, little.
-    pub fingers: [FingerSpec; 4],
-    /// The thumb's base (its CMC joint) in the hand frame.
-    pub thumb_base: [f64; 3],
-    /// Metacarpal, proximal, distal.
-    pub thumb_bones: [f64; 3],
-    pub thumb_radius: f64,
-    /// Half extents of the palm box: x (width), y (thickness); it spans z from 0 to the knuckles.
-    pub palm_half_width: f64,
-    pub palm_half_thickness: f64,
+    pub spec: HandModelSpec,
 }
 
-impl Default for HandModel {
-    fn default() -> Self {
-        let finger = |x: f64, z: f64, bones: [f64; 3], radius| FingerSpec {
-            knuckle: [x, 0.0, z],
-            bones,
-            radius,
-        };
-        HandModel {
-            fingers: [
-                finger(-0.028, -0.090, [0.045, 0.025, 0.020], 0.0090),
-                finger(-0.009, -0.095, [0.050, 0.030, 0.020], 0.0090),
-                finger(0.010, -0.090, [0.046, 0.028, 0.020], 0.0085),
-                finger(0.028, -0.080, [0.036, 0.021, 0.018], 0.0075),
-            ],
-            thumb_base: [-0.030, -0.012, -0.025],
-            thumb_bones: [0.040, 0.032, 0.027],
-            thumb_radius: 0.010,
-            palm_half_width: 0.042,
-            palm_half_thickness: 0.014,
-        }
+impl HandModel {
+    pub fn new(spec: HandModelSpec) -> Self {
+        HandModel { spec }
     }
 }
 
@@ -71,8 +38,8 @@ impl HandModel {
             |flex: f64| DVec3::new(0.0, -(0.9 - flex).cos(), -(0.9 - flex).sin()).normalize();
         let s = rotation.clamp(0.0, 1.0);
         let dir = |flex: f64| open.lerp(opposed(flex), s).normalize_or(open);
-        let base = DVec3::from_array(self.thumb_base);
-        let [l0, l1, l2] = self.thumb_bones;
+        let base = DVec3::from_array(self.spec.thumb_base);
+        let [l0, l1, l2] = self.spec.thumb_bones;
         let mcp_point = base + dir(0.0) * l0;
         let ip_point = mcp_point + dir(mcp) * l1;
         let tip = ip_point + dir(mcp + ip) * l2;
@@ -115,7 +82,7 @@ impl HandModel {
         for (slot, p) in out.finger_points[0].iter_mut().zip(thumb) {
             *slot = to_world(p);
         }
-        out.finger_radius[0] = self.thumb_radius;
+        out.finger_radius[0] = self.spec.thumb_radius;
 
         let joints = [
             (
@@ -139,7 +106,7 @@ impl HandModel {
                 GloveJoint::LittleDip,
             ),
         ];
-        for (f, (spec, (m, p, d))) in self.fingers.iter().zip(joints).enumerate() {
+        for (f, (spec, (m, p, d))) in self.spec.fingers.iter().zip(joints).enumerate() {
             let points = Self::finger(spec, a(m), a(p), dip(d, p));
             out.finger_point_count[f + 1] = 4;
             for (slot, p) in out.finger_points[f + 1].iter_mut().zip(points) {
@@ -153,8 +120,9 @@ impl HandModel {
             .all(|&n| n as usize <= MAX_FINGER_POINTS));
 
         // The palm: a box from the wrist to the knuckles.
-        let (w, t) = (self.palm_half_width, self.palm_half_thickness);
+        let (w, t) = (self.spec.palm_half_width, self.spec.palm_half_thickness);
         let z = self
+            .spec
             .fingers
             .iter()
             .map(|f| f.knuckle[2])

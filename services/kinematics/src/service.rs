@@ -14,8 +14,8 @@ use crate::model::HandModel;
 const IDLE_WAIT: Duration = Duration::from_millis(50);
 
 /// Runs until asked to stop, then drains what its inputs still hold.
-pub fn run(_session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
-    let model = HandModel::default();
+pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
+    let model = HandModel::new(session.hand_model.clone());
     let glove_in = bus.inlet::<GloveSample>(Topic::Glove)?;
     let tracker_in = bus.inlet::<TrackerSample>(Topic::Tracker)?;
     let mut hand_out = bus.outlet::<HandSample>(Topic::Hand)?;
