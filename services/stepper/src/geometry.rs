@@ -165,11 +165,22 @@ impl Polyhedron {
                 offset,
             });
         }
-        let edges: Vec<[usize; 2]> = shape
-            .edges()
-            .iter()
-            .map(|e| [e.vertices[0] as usize, e.vertices[1] as usize])
-            .collect();
+        // parry keeps the triangulation's diagonals of merged (coplanar) faces among its
+        // edges; a real edge of the solid lies on two distinct face planes.
+        let tol = 1e-9 * extent.max(1e-9);
+        let on = |f: &Plane, v: DVec3| f.distance(v).abs() <= tol;
+        let mut edges: Vec<[usize; 2]> = Vec::new();
+        for e in shape.edges() {
+            let (i, j) = (e.vertices[0] as usize, e.vertices[1] as usize);
+            let planes = faces
+                .iter()
+                .filter(|f| on(f, vertices[i]) && on(f, vertices[j]))
+                .count();
+            let key = [i.min(j), i.max(j)];
+            if planes >= 2 && !edges.contains(&key) {
+                edges.push(key);
+            }
+        }
         let mut edge_dirs: Vec<DVec3> = Vec::new();
         for e in &edges {
             let d = (vertices[e[1]] - vertices[e[0]]).normalize_or_zero();

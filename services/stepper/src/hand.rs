@@ -149,23 +149,30 @@ pub(crate) fn block_contacts(
             {
                 if let Some((t0, t1)) = poly.segment_clip(am, bm) {
                     if (t1 - t0) * (bm - am).length() > contact_eps {
-                        let mut best = (f64::INFINITY, 0usize, 0.0f64, 0.0f64);
+                        // The nearest edge; edges equally near (within contact_eps) all count,
+                        // so that a finger lying symmetrically across a block pushes it
+                        // symmetrically (R3 then classifies them together).
+                        let mut best = f64::INFINITY;
+                        for [i, j] in &poly.edges {
+                            let (_, _, d2) =
+                                segment_segment(am, bm, poly.vertices[*i], poly.vertices[*j]);
+                            best = best.min(d2.sqrt());
+                        }
                         for (e, [i, j]) in poly.edges.iter().enumerate() {
                             let (s, te, d2) =
                                 segment_segment(am, bm, poly.vertices[*i], poly.vertices[*j]);
-                            if d2 < best.0 {
-                                best = (d2, e, s, te);
+                            if d2.sqrt() > best + contact_eps {
+                                continue;
                             }
+                            let c =
+                                poly.vertices[*i] + (poly.vertices[*j] - poly.vertices[*i]) * te;
+                            let bb = a + (bn - a) * s;
+                            add(
+                                contacts,
+                                out(c, poly.edge_pseudo_normal(e), bb),
+                                contact_eps,
+                            );
                         }
-                        let (_, e, s, te) = best;
-                        let [i, j] = poly.edges[e];
-                        let c = poly.vertices[i] + (poly.vertices[j] - poly.vertices[i]) * te;
-                        let bb = a + (bn - a) * s;
-                        add(
-                            contacts,
-                            out(c, poly.edge_pseudo_normal(e), bb),
-                            contact_eps,
-                        );
                     }
                 }
             }

@@ -16,7 +16,15 @@ fn drop_blocks_fall_and_rest() {
 
 #[test]
 fn tip_and_balance_print() {
-    for name in ["tip", "balance", "push", "carry", "stack-paper", "drop"] {
+    for name in [
+        "tip",
+        "balance",
+        "push",
+        "carry",
+        "stack-paper",
+        "drop",
+        "grasp-throw-fingers",
+    ] {
         let s = scene_file(name);
         let r = run(&s, 600);
         print!("{name}: {}", r.to_text());
