@@ -416,7 +416,7 @@ fn r2_segment_already_through_the_block_is_a_contact() {
     let v = w.block(0).unwrap();
     assert_eq!(v.mode, BlockMode::Pushed, "{v:?}");
     assert!(
-        close(v.position, DVec3::new(0.0, 0.99, 0.0), 1e-12),
+        close(v.position, DVec3::new(0.0, 0.985, 0.0), 1e-12),
         "{}",
         v.position
     );
