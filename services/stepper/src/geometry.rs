@@ -141,7 +141,7 @@ impl Polyhedron {
             moment += (o + a + b + c) * (v6 / 24.0);
         }
         // `volume` is signed by the hull's winding; the centroid divides it out either way.
-        if !(volume.abs() > 1e-12 * extent.powi(3)) || volume.abs() < 1e-18 {
+        if volume.is_nan() || volume.abs() <= 1e-12 * extent.powi(3) || volume.abs() < 1e-18 {
             return Err("its vertices are flat (no volume): a block must be a solid".into());
         }
         let centroid = known_centroid.unwrap_or(moment / volume);

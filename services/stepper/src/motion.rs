@@ -34,7 +34,7 @@ pub fn push_one_point(
 ) -> Option<PushOutcome> {
     let cg = g - c;
     let l = cg.length();
-    if !(l > 0.0) {
+    if l.is_nan() || l <= 0.0 {
         return None;
     }
     let u = cg / l;

@@ -288,6 +288,7 @@ fn r9_limit_lands_exactly_on_a_face_no_rocking_no_creeping() {
 fn r9_balance_on_the_boundary_stays_and_a_hair_beyond_tips() {
     let s = scene_file("balance");
     let (poses, _, w) = trace(&s, 600);
+    #[allow(clippy::needless_range_loop)]
     for i in 0..2 {
         assert_eq!(w.block(i).unwrap().mode, BlockMode::Resting);
         // Step 1 may lift it by rounding (R8, ~1e-17 m); after that it never moves.
@@ -533,6 +534,7 @@ fn r8_a_falling_block_lands_without_rebound_or_slide() {
 fn r10_transitive_carry_translates_each_block_once_by_the_same_translation() {
     let s = scene_file("carry");
     let (poses, events, w) = trace(&s, 200);
+    #[allow(clippy::needless_range_loop)]
     for i in 0..3 {
         let d = poses[200][i].0 - poses[0][i].0;
         assert!(
@@ -556,7 +558,7 @@ fn r10_transitive_carry_translates_each_block_once_by_the_same_translation() {
 /// overlapping).
 #[test]
 fn r10_lifting_a_block_carries_what_stands_on_it_but_not_what_it_stands_on() {
-    let fingers = |x: f64, y: f64| {
+    let fingers = |x: f64| {
         format!(
             "[[[{}, 0.0, 0.0], [{}, -0.06, 0.0]], [[{}, 0.0, 0.0], [{}, -0.06, 0.0]]]",
             -x, -x, x, x
@@ -589,8 +591,8 @@ fingers = {closed}
 "#,
             y0 = grip_y + 0.06,
             y1 = grip_y + 0.16,
-            open = fingers(0.05, 0.0),
-            closed = fingers(0.0295, 0.0),
+            open = fingers(0.05),
+            closed = fingers(0.0295),
         )
     };
     // Grasp the bottom block (finger tips at its G's height): both rise by 0.1.

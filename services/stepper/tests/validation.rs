@@ -134,8 +134,10 @@ fn world_sample_carries_poses_modes_and_no_grasp() {
     for _ in 0..100 {
         w.step(None);
     }
-    let mut out = common::WorldSample::default();
-    out.hand_seq = 77;
+    let mut out = common::WorldSample {
+        hand_seq: 77,
+        ..Default::default()
+    };
     out.stamp.seq = 5;
     w.write_sample(&mut out);
     assert_eq!(out.hand_seq, 77);

@@ -56,16 +56,12 @@ pub fn hand(fingers: &[&[[f64; 3]]], wrist: [f64; 3]) -> common::HandSample {
     h
 }
 
+/// Every step's block poses (index 0: the initial state).
+pub type Poses = Vec<Vec<(glam::DVec3, glam::DQuat)>>;
+
 /// Runs a scene with its bare hand and returns every step's block poses (after each step;
 /// index 0 is the initial state) and the world.
-pub fn trace(
-    scene: &Scene,
-    frames: u64,
-) -> (
-    Vec<Vec<(glam::DVec3, glam::DQuat)>>,
-    Vec<stepper::Event>,
-    stepper::World,
-) {
+pub fn trace(scene: &Scene, frames: u64) -> (Poses, Vec<stepper::Event>, stepper::World) {
     let mut hand = BareFingersHand::from_scene(scene);
     let mut w = stepper::World::new(scene).unwrap_or_else(|e| panic!("{e}"));
     let dt = 1.0 / scene.world.step_hz;
