@@ -121,6 +121,9 @@ impl Polyhedron {
         points: &[DVec3],
         known_centroid: Option<DVec3>,
     ) -> Result<Polyhedron, String> {
+        if points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
+            return Err("a solid needs at least 4 finite vertices".into());
+        }
         let extent = points
             .iter()
             .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
