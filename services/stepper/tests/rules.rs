@@ -756,3 +756,60 @@ fn far_from_the_origin_the_tip_scene_behaves_the_same() {
         assert!(q[200][i].1.angle_between(p[200][i].1) < 1e-9);
     }
 }
+
+/// R9 consequence: a block thrown so that it lands on an edge tips over in the direction of
+/// flight and settles face down; dropped straight onto the edge (G' on the edge) it stays.
+#[test]
+fn r9_thrown_onto_an_edge_tips_in_the_direction_of_flight() {
+    for (vx, expect_x_sign) in [(1.0, 1.0), (-1.0, -1.0), (0.0, 0.0)] {
+        let s = scene(&format!(
+            "[[block]]\nname = \"c\"\nposition = [0.0, 0.5, 0.0]\nrotation = [0.0, 0.0, 0.3826834323650898, 0.9238795325112867]\nvelocity = [{vx}, 0.0, 0.0]\n"
+        ));
+        let (_, events, w) = trace(&s, 300);
+        let b = w.block(0).unwrap();
+        assert_eq!(b.mode, BlockMode::Resting);
+        let land = events
+            .iter()
+            .find(|e| e.kind == EventKind::Impact)
+            .unwrap()
+            .step as f64;
+        // Where it landed on its edge: x = vx * land * dt; it then tips beyond that edge.
+        let edge_x = vx * land / 120.0;
+        if expect_x_sign == 0.0 {
+            assert!(
+                (b.position.y - 0.05 * 2f64.sqrt()).abs() < 1e-12,
+                "stays on its edge"
+            );
+        } else {
+            assert!((b.position.y - 0.05).abs() < 1e-12, "face down");
+            assert!(
+                (b.position.x - edge_x) * expect_x_sign > 0.0,
+                "{} vs edge {edge_x}",
+                b.position.x
+            );
+        }
+    }
+}
+
+/// R13 [extension]: throw_window = 3 throws with the mean displacement of the last three
+/// grasped steps.
+#[test]
+fn r13_throw_window_averages_the_last_grasped_steps() {
+    let mut s = scene_file("grasp-throw-fingers");
+    s.world.throw_window = 3;
+    // The wrist speeds up while the fingers open, so the last grasped steps differ.
+    s.hand.as_mut().unwrap().keys[5].wrist = [0.0, 0.56, 0.42];
+    let (poses, events, _) = trace(&s, 200);
+    let release = events
+        .iter()
+        .find(|e| e.kind == EventKind::Release)
+        .unwrap()
+        .step as usize;
+    let p = |k: usize| poses[k][0].0;
+    let mean = (p(release - 1) - p(release - 4)) / 3.0;
+    let g = DVec3::new(0.0, -9.81 / (120.0 * 120.0), 0.0);
+    let last = p(release - 1) - p(release - 2);
+    assert!((last - mean).length() > 1e-4, "the window matters here");
+    let flew = p(release) - p(release - 1);
+    assert!(close(flew, mean + g, 1e-12), "{flew} vs {}", mean + g);
+}
