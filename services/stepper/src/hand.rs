@@ -213,9 +213,15 @@ impl World {
             }
             lo -= DVec3::splat(eps);
             hi += DVec3::splat(eps);
-            for i in 0..self.blocks.len() {
+            // A hand without check points touches nothing.
+            let blocks = if lo.cmple(hi).all() {
+                self.blocks.len()
+            } else {
+                0
+            };
+            for i in 0..blocks {
                 let b = &self.blocks[i];
-                let nearest = b.pos.clamp(lo, hi);
+                let nearest = b.pos.max(lo).min(hi);
                 if (nearest - b.pos).length() > b.poly.radius + eps {
                     continue;
                 }

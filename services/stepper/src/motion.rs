@@ -91,9 +91,6 @@ impl World {
                 if floor && !b.floor.is_empty() {
                     continue;
                 }
-                if !self.passes.free_motion {
-                    continue;
-                }
             }
             // R7: d = v + g_step; no rotation.
             let v = if inertia {

@@ -327,8 +327,11 @@ impl World {
                 self.carry();
             }
         }
-        // 3. Free motion (R7, with R12) for the rest, except blocks held by R11.
-        self.free_motion();
+        // 3. Free motion (R7, with R12) for the rest, except blocks held by R11. Without
+        //    gravity and inertia nothing moves freely, and R11 has nothing to hold.
+        if self.passes.free_motion {
+            self.free_motion();
+        }
         // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting.
         if self.passes.floor {
             self.floor_stage();
