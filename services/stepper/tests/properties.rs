@@ -7,9 +7,11 @@ use glam::{DQuat, DVec3};
 use proptest::prelude::*;
 
 use common::config::scene::{
-    BlockSpec, Effects, FloorEffect, HandKey, HandPoseSpec, HandScript, ShapeSpec, WorldSettings,
+    BlockSpec, Effects, FloorEffect, HandEffect, HandKey, HandPoseSpec, HandScript, ShapeSpec,
+    WorldSettings,
 };
 use common::config::Scene;
+use common::BlockMode;
 use stepper::geometry::Polyhedron;
 use stepper::{BareFingersHand, HandSource, World};
 
@@ -161,19 +163,33 @@ fn pinch() -> impl Strategy<Value = Option<HandScript>> {
 
 fn scene() -> impl Strategy<Value = Scene> {
     let hand = prop_oneof![hand(), pinch()];
-    (blocks(), hand, prop::bool::ANY, prop::bool::ANY).prop_map(|(blocks, hand, gravity, carry)| {
-        Scene {
+    let effects = (
+        prop::bool::weighted(0.8),
+        prop::bool::weighted(0.8),
+        prop::bool::ANY,
+        prop::sample::select(vec![
+            FloorEffect::Tipping,
+            FloorEffect::Tipping,
+            FloorEffect::Rest,
+        ]),
+        prop::sample::select(vec![HandEffect::Grasp, HandEffect::Grasp, HandEffect::Push]),
+    );
+    (blocks(), hand, effects).prop_map(
+        |(blocks, hand, (gravity, inertia, carry, floor, hand_effect))| Scene {
             file: PathBuf::from("proptest.toml"),
             world: WorldSettings::default(),
             effects: Effects {
                 gravity: gravity || hand.is_none(),
+                inertia,
                 carry,
+                floor,
+                hand: hand_effect,
                 ..Effects::default()
             },
             blocks,
             hand,
-        }
-    })
+        },
+    )
 }
 
 /// Runs the scene, checking the invariants after every step; returns every pose.
@@ -185,6 +201,7 @@ fn run_checked(s: &Scene, steps: u64) -> Result<Vec<(DVec3, DQuat)>, TestCaseErr
         world.set_previous_hand(h.hand_at(0, 0.0).as_ref());
     }
     let mut poses = Vec::new();
+    let mut last: Vec<(DVec3, DQuat, BlockMode)> = Vec::new();
     for n in 1..=steps {
         let h = hand.as_mut().and_then(|h| h.hand_at(n, n as f64 * dt));
         world.step(h.as_ref());
@@ -209,14 +226,28 @@ fn run_checked(s: &Scene, steps: u64) -> Result<Vec<(DVec3, DQuat)>, TestCaseErr
                     b.mode
                 );
             }
+            // A block resting before and after a step did not move at all.
+            if let Some(&(p, q, m)) = last.get(i) {
+                if m == BlockMode::Resting && b.mode == BlockMode::Resting {
+                    prop_assert!(
+                        p == b.position && q == b.rotation,
+                        "step {n}: resting block {i} moved"
+                    );
+                }
+            }
             poses.push((b.position, b.rotation));
         }
+        last.clear();
+        last.extend((0..world.block_count()).map(|i| {
+            let b = world.block(i).unwrap();
+            (b.position, b.rotation, b.mode)
+        }));
     }
     Ok(poses)
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
 
     #[test]
     fn random_scenes_keep_the_invariants_and_repeat_exactly(s in scene()) {
