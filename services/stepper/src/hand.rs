@@ -271,8 +271,11 @@ impl World {
                 self.blocks[i].action = action;
             }
         }
-        // R13: a grasp that R3 no longer confirms ends; the block flies on with its last
-        // grasped displacement (the mean over throw_window steps).
+        // R13: a grasp that R3 no longer confirms ends. The block is free with v = its last
+        // grasped displacement (the mean over throw_window steps); "releases take effect for
+        // the next step": R7 moves it from the next step on, so that after k more steps it is
+        // at p + k v + g_step k (k + 1) / 2 (the floor stage still looks at it this step, so
+        // a block let go on the floor rests or tips with that inertia as its Gm).
         let inertia = self.params.inertia;
         for b in &mut self.blocks {
             if b.mode == BlockMode::Grasped && b.action != HandAction::Grasp {

@@ -438,27 +438,35 @@ fn r5_r13_r7_grasp_lift_throw_follows_the_closed_form() {
     // While grasped the block moved rigidly with the wrist: lifted 0.2 m by t = 0.9 s.
     let at_09 = poses[108][0].0;
     assert!((at_09.y - (0.03 + 0.2)).abs() < 1e-9, "{at_09}");
-    // R13: v = the displacement of the last grasped step; R7 then gives, after k more steps,
-    // p = p0 + k v + g_step k (k + 1) / 2 (p0 = the pose after the last grasped step).
-    let p0 = poses[release - 1][0].0;
-    let v = p0 - poses[release - 2][0].0;
+    // R13: in the release step the grasp ends and the block becomes free with v = the
+    // displacement of its last grasped step; it flies from the next step on ("Order of one
+    // step" 5), so R7 gives, k steps after the release step, p = p0 + k v + g_step k (k + 1) / 2
+    // with p0 = its pose in the release step.
+    let p0 = poses[release][0].0;
+    assert_eq!(
+        p0,
+        poses[release - 1][0].0,
+        "the release step itself does not move it"
+    );
+    let v = poses[release - 1][0].0 - poses[release - 2][0].0;
     let g = DVec3::new(0.0, -9.81 / (120.0 * 120.0), 0.0);
     let land = events
         .iter()
         .find(|e| e.kind == EventKind::Impact && e.step as usize > release)
         .unwrap()
         .step as usize;
+    assert!(land - release > 20, "a real flight: {}", land - release);
     for k in 1..(land - release) {
         let kf = k as f64;
         let expect = p0 + v * kf + g * (kf * (kf + 1.0) / 2.0);
-        let got = poses[release - 1 + k][0].0;
+        let got = poses[release + k][0].0;
         assert!(
             (got - expect).length() <= 1e-9 * expect.length(),
             "k = {k}: {got} vs {expect}"
         );
         assert_eq!(
-            poses[release - 1 + k][0].1,
-            poses[release - 1][0].1,
+            poses[release + k][0].1,
+            poses[release][0].1,
             "no rotation in flight"
         );
     }
@@ -810,6 +818,6 @@ fn r13_throw_window_averages_the_last_grasped_steps() {
     let g = DVec3::new(0.0, -9.81 / (120.0 * 120.0), 0.0);
     let last = p(release - 1) - p(release - 2);
     assert!((last - mean).length() > 1e-4, "the window matters here");
-    let flew = p(release) - p(release - 1);
+    let flew = p(release + 1) - p(release);
     assert!(close(flew, mean + g, 1e-12), "{flew} vs {}", mean + g);
 }
