@@ -96,12 +96,14 @@ fn push_moves_and_turns_the_cube() {
 #[test]
 fn print_scene_summaries() {
     for name in [
+        "drop",
         "tip",
         "balance",
         "push",
         "carry",
         "stack-paper",
         "wedge-tetra",
+        "grasp-throw-fingers",
     ] {
         let s = scene_file(name);
         let r = run(&s, 600);
