@@ -821,3 +821,49 @@ fn r13_throw_window_averages_the_last_grasped_steps() {
     let flew = p(release + 1) - p(release);
     assert!(close(flew, mean + g, 1e-12), "{flew} vs {}", mean + g);
 }
+
+/// Hard cases (notes/physics.md): a 20-cube tower stands exactly still (R11 holds every cube
+/// above the first, which rests), and a cube falling edge-first onto another cube's edge stops
+/// at first contact (R12) without overlapping it.
+#[test]
+fn r11_r12_tall_stack_stays_exactly_still_and_edge_on_edge_stops_at_contact() {
+    let mut text = String::new();
+    for i in 0..20 {
+        text.push_str(&format!(
+            "[[block]]\nname = \"c{i}\"\nposition = [0.0, {}, 0.0]\n",
+            0.05 + 0.1 * i as f64
+        ));
+    }
+    let s = scene(&text);
+    let (poses, _, w) = trace(&s, 1000);
+    assert_eq!(w.block(0).unwrap().mode, BlockMode::Resting);
+    for i in 1..20 {
+        assert_eq!(w.block(i).unwrap().mode, BlockMode::Supported, "cube {i}");
+    }
+    assert!(poses[1..].iter().all(|p| *p == poses[1]), "nothing moves");
+
+    // Edge on edge: the lower cube turned 45 deg about z, the upper 45 deg about x.
+    let s = scene(
+        r#"
+[[block]]
+name = "low"
+position = [0.0, 0.07071067811865475, 0.0]
+rotation = [0.0, 0.0, 0.3826834323650898, 0.9238795325112867]
+[[block]]
+name = "high"
+position = [0.0, 0.6, 0.0]
+rotation = [0.3826834323650898, 0.0, 0.0, 0.9238795325112867]
+"#,
+    );
+    let (_, _, w) = trace(&s, 200);
+    let high = w.block(1).unwrap();
+    assert_eq!(high.mode, BlockMode::Supported);
+    // Top edge of "low" at y = 0.1414; bottom edge of "high" 0.0707 below its G.
+    let expect = 2.0 * 0.07071067811865475 + 0.07071067811865475;
+    assert!(
+        (high.position.y - expect).abs() < 1e-6,
+        "{} vs {expect}",
+        high.position.y
+    );
+    assert!(high.position.y >= expect - 1e-9, "no overlap");
+}
