@@ -126,7 +126,7 @@ pub fn stability(
 /// atan(|R| / |CG|) about X = (G - C) x R through C (moves G along R).
 fn case_one(c: DVec3, gm: DVec3) -> Option<(DVec3, DVec3, f64)> {
     let l = c.length();
-    if !(l > 0.0) {
+    if l.is_nan() || l <= 0.0 {
         return None;
     }
     let u = c / l;
@@ -134,7 +134,7 @@ fn case_one(c: DVec3, gm: DVec3) -> Option<(DVec3, DVec3, f64)> {
     let r = gm - t;
     let axis = (-c).cross(r);
     let al = axis.length();
-    if !(al > 0.0) {
+    if al.is_nan() || al <= 0.0 {
         return None;
     }
     Some((c, axis / al, (r.length() / l).atan()))
@@ -165,7 +165,7 @@ fn case_two(v1: DVec3, v2: DVec3, g2: DVec2, gm: DVec3) -> Option<(DVec3, DVec3,
     let gm2 = gm - e * gm.dot(e);
     let c = v1 - e * v1.dot(e);
     let l = c.length();
-    if !(l > 0.0) {
+    if l.is_nan() || l <= 0.0 {
         return None;
     }
     let u = c / l;
@@ -201,7 +201,7 @@ fn landing_angle(
         let a = p.y - axis.y * par;
         let b = axis.cross(p).y;
         let m = a.hypot(b);
-        if !(m > 0.0) {
+        if m.is_nan() || m <= 0.0 {
             continue;
         }
         let ratio = -k / m;

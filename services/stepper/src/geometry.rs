@@ -121,6 +121,9 @@ impl Polyhedron {
         points: &[DVec3],
         known_centroid: Option<DVec3>,
     ) -> Result<Polyhedron, String> {
+        if points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
+            return Err("a solid needs at least 4 finite vertices".into());
+        }
         let extent = points
             .iter()
             .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
@@ -141,7 +144,7 @@ impl Polyhedron {
             moment += (o + a + b + c) * (v6 / 24.0);
         }
         // `volume` is signed by the hull's winding; the centroid divides it out either way.
-        if !(volume.abs() > 1e-12 * extent.powi(3)) || volume.abs() < 1e-18 {
+        if volume.is_nan() || volume.abs() <= 1e-12 * extent.powi(3) || volume.abs() < 1e-18 {
             return Err("its vertices are flat (no volume): a block must be a solid".into());
         }
         let centroid = known_centroid.unwrap_or(moment / volume);
@@ -165,11 +168,22 @@ impl Polyhedron {
                 offset,
             });
         }
-        let edges: Vec<[usize; 2]> = shape
-            .edges()
-            .iter()
-            .map(|e| [e.vertices[0] as usize, e.vertices[1] as usize])
-            .collect();
+        // parry keeps the triangulation's diagonals of merged (coplanar) faces among its
+        // edges; a real edge of the solid lies on two distinct face planes.
+        let tol = 1e-9 * extent.max(1e-9);
+        let on = |f: &Plane, v: DVec3| f.distance(v).abs() <= tol;
+        let mut edges: Vec<[usize; 2]> = Vec::new();
+        for e in shape.edges() {
+            let (i, j) = (e.vertices[0] as usize, e.vertices[1] as usize);
+            let planes = faces
+                .iter()
+                .filter(|f| on(f, vertices[i]) && on(f, vertices[j]))
+                .count();
+            let key = [i.min(j), i.max(j)];
+            if planes >= 2 && !edges.contains(&key) {
+                edges.push(key);
+            }
+        }
         let mut edge_dirs: Vec<DVec3> = Vec::new();
         for e in &edges {
             let d = (vertices[e[1]] - vertices[e[0]]).normalize_or_zero();

@@ -149,23 +149,30 @@ pub(crate) fn block_contacts(
             {
                 if let Some((t0, t1)) = poly.segment_clip(am, bm) {
                     if (t1 - t0) * (bm - am).length() > contact_eps {
-                        let mut best = (f64::INFINITY, 0usize, 0.0f64, 0.0f64);
+                        // The nearest edge; edges equally near (within contact_eps) all count,
+                        // so that a finger lying symmetrically across a block pushes it
+                        // symmetrically (R3 then classifies them together).
+                        let mut best = f64::INFINITY;
+                        for [i, j] in &poly.edges {
+                            let (_, _, d2) =
+                                segment_segment(am, bm, poly.vertices[*i], poly.vertices[*j]);
+                            best = best.min(d2.sqrt());
+                        }
                         for (e, [i, j]) in poly.edges.iter().enumerate() {
                             let (s, te, d2) =
                                 segment_segment(am, bm, poly.vertices[*i], poly.vertices[*j]);
-                            if d2 < best.0 {
-                                best = (d2, e, s, te);
+                            if d2.sqrt() > best + contact_eps {
+                                continue;
                             }
+                            let c =
+                                poly.vertices[*i] + (poly.vertices[*j] - poly.vertices[*i]) * te;
+                            let bb = a + (bn - a) * s;
+                            add(
+                                contacts,
+                                out(c, poly.edge_pseudo_normal(e), bb),
+                                contact_eps,
+                            );
                         }
-                        let (_, e, s, te) = best;
-                        let [i, j] = poly.edges[e];
-                        let c = poly.vertices[i] + (poly.vertices[j] - poly.vertices[i]) * te;
-                        let bb = a + (bn - a) * s;
-                        add(
-                            contacts,
-                            out(c, poly.edge_pseudo_normal(e), bb),
-                            contact_eps,
-                        );
                     }
                 }
             }
@@ -206,9 +213,15 @@ impl World {
             }
             lo -= DVec3::splat(eps);
             hi += DVec3::splat(eps);
-            for i in 0..self.blocks.len() {
+            // A hand without check points touches nothing.
+            let blocks = if lo.cmple(hi).all() {
+                self.blocks.len()
+            } else {
+                0
+            };
+            for i in 0..blocks {
                 let b = &self.blocks[i];
-                let nearest = b.pos.clamp(lo, hi);
+                let nearest = b.pos.max(lo).min(hi);
                 if (nearest - b.pos).length() > b.poly.radius + eps {
                     continue;
                 }
@@ -258,8 +271,11 @@ impl World {
                 self.blocks[i].action = action;
             }
         }
-        // R13: a grasp that R3 no longer confirms ends; the block flies on with its last
-        // grasped displacement (the mean over throw_window steps).
+        // R13: a grasp that R3 no longer confirms ends. The block is free with v = its last
+        // grasped displacement (the mean over throw_window steps); "releases take effect for
+        // the next step": R7 moves it from the next step on, so that after k more steps it is
+        // at p + k v + g_step k (k + 1) / 2 (the floor stage still looks at it this step, so
+        // a block let go on the floor rests or tips with that inertia as its Gm).
         let inertia = self.params.inertia;
         for b in &mut self.blocks {
             if b.mode == BlockMode::Grasped && b.action != HandAction::Grasp {

@@ -3,7 +3,7 @@
 //!
 //! A [`World`] is built from a scene ([`World::new`]) and advanced one fixed step at a time
 //! with the hand of that step ([`World::step`]); [`World::write_sample`] fills the `world`
-//! topic's sample. [`simulate`] runs a scene for N steps from a [`HandSource`] and renders the
+//! topic's sample. [`simulate()`] runs a scene for N steps from a [`HandSource`] and renders the
 //! report (`handblocks simulate`). No shared memory is needed for any of it: the stepper
 //! process (module [`service`]) wraps this library in the IPC loop.
 //!

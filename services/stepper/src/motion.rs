@@ -34,7 +34,7 @@ pub fn push_one_point(
 ) -> Option<PushOutcome> {
     let cg = g - c;
     let l = cg.length();
-    if !(l > 0.0) {
+    if l.is_nan() || l <= 0.0 {
         return None;
     }
     let u = cg / l;
@@ -60,12 +60,15 @@ pub fn push_one_point(
 impl World {
     /// Stage 3: R7 (with R12) for every block the hand did not move and that is not grasped,
     /// resting, tipping or in floor contact (the floor stage moves those), except blocks R11
-    /// holds. A released block (R13) flies from this very step with its throw displacement.
+    /// holds. A block released this step (R13) waits for the next.
     pub(crate) fn free_motion(&mut self) {
         for i in 0..self.blocks.len() {
             {
                 let b = &self.blocks[i];
+                // A block released this step starts flying in the next (R13, "Order of one
+                // step" 5).
                 if b.moved != Moved::No
+                    || b.released
                     || b.mode == BlockMode::Grasped
                     || b.mode == BlockMode::Resting
                 {
@@ -89,9 +92,6 @@ impl World {
                 }
                 // In floor contact: the floor stage decides (R9's Gm = v + g_step).
                 if floor && !b.floor.is_empty() {
-                    continue;
-                }
-                if !self.passes.free_motion {
                     continue;
                 }
             }

@@ -199,10 +199,36 @@ impl World {
         let mut blocks = Vec::with_capacity(scene.blocks.len());
         let mut max_vertices = 0;
         for spec in &scene.blocks {
+            // Scenes built in code (benchmarks, tools) skip the loader's checks: repeat the
+            // ones the model relies on.
+            let finite = spec
+                .position
+                .iter()
+                .chain(&spec.velocity)
+                .chain(&spec.rotation)
+                .all(|v| v.is_finite());
+            let q = DQuat::from_array(spec.rotation);
+            if !finite || q.length() < 1e-9 {
+                return Err(err(
+                    scene,
+                    Some(&spec.name),
+                    "position, velocity and rotation must be finite, and the rotation a non-zero quaternion",
+                ));
+            }
+            let q = q.normalize();
             let poly = Polyhedron::from_spec(&spec.shape)
                 .map_err(|p| err(scene, Some(&spec.name), format!("shape: {p}")))?;
+            if poly.vertices.len() > 256 {
+                return Err(err(
+                    scene,
+                    Some(&spec.name),
+                    format!(
+                        "its hull has {} vertices; allowed: at most 256",
+                        poly.vertices.len()
+                    ),
+                ));
+            }
             max_vertices = max_vertices.max(poly.vertices.len());
-            let q = DQuat::from_array(spec.rotation).normalize();
             let v = if e.inertia {
                 DVec3::from_array(spec.velocity) * dt
             } else {
@@ -301,8 +327,11 @@ impl World {
                 self.carry();
             }
         }
-        // 3. Free motion (R7, with R12) for the rest, except blocks held by R11.
-        self.free_motion();
+        // 3. Free motion (R7, with R12) for the rest, except blocks held by R11. Without
+        //    gravity and inertia nothing moves freely, and R11 has nothing to hold.
+        if self.passes.free_motion {
+            self.free_motion();
+        }
         // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting.
         if self.passes.floor {
             self.floor_stage();

@@ -37,3 +37,52 @@ pub fn run(scene: &Scene, frames: u64) -> Report {
     )
     .unwrap_or_else(|e| panic!("{e}"))
 }
+
+/// A bare check-point hand sample: fingers in the world frame, wrist at `wrist` (identity
+/// rotation), no palm, radius 0.
+pub fn hand(fingers: &[&[[f64; 3]]], wrist: [f64; 3]) -> common::HandSample {
+    let mut h = common::HandSample {
+        tracked: 1,
+        finger_count: fingers.len() as u32,
+        ..Default::default()
+    };
+    h.wrist.position = wrist;
+    for (f, pts) in fingers.iter().enumerate() {
+        h.finger_point_count[f] = pts.len() as u32;
+        for (k, p) in pts.iter().enumerate() {
+            h.finger_points[f][k] = *p;
+        }
+    }
+    h
+}
+
+/// Every step's block poses (index 0: the initial state).
+pub type Poses = Vec<Vec<(glam::DVec3, glam::DQuat)>>;
+
+/// Runs a scene with its bare hand and returns every step's block poses (after each step;
+/// index 0 is the initial state) and the world.
+pub fn trace(scene: &Scene, frames: u64) -> (Poses, Vec<stepper::Event>, stepper::World) {
+    let mut hand = BareFingersHand::from_scene(scene);
+    let mut w = stepper::World::new(scene).unwrap_or_else(|e| panic!("{e}"));
+    let dt = 1.0 / scene.world.step_hz;
+    let snap = |w: &stepper::World| {
+        (0..w.block_count())
+            .map(|i| {
+                let b = w.block(i).unwrap();
+                (b.position, b.rotation)
+            })
+            .collect::<Vec<_>>()
+    };
+    let mut out = vec![snap(&w)];
+    let mut events = Vec::new();
+    if let Some(h) = hand.as_mut() {
+        w.set_previous_hand(h.hand_at(0, 0.0).as_ref());
+    }
+    for n in 1..=frames {
+        let s = hand.as_mut().and_then(|h| h.hand_at(n, n as f64 * dt));
+        w.step(s.as_ref());
+        events.extend_from_slice(w.events());
+        out.push(snap(&w));
+    }
+    (out, events, w)
+}
