@@ -296,9 +296,12 @@ fn simulate(
         };
         let model = kinematics::HandModel::default();
         let mut hand = common::HandSample::default();
-        let mut source = |step: u64, t: f64| {
+        let step_hz = scene.world.step_hz;
+        let mut source = |step: u64, _t: f64| {
+            // Sampled exactly as the acquisition process samples it (k / rate), so that a live
+            // session at the step rate computes bit-identical worlds.
             let (glove, tracker) = scripted.samples_at(
-                t,
+                step as f64 / step_hz,
                 common::Stamp {
                     seq: step,
                     ..Default::default()

@@ -369,3 +369,77 @@ fn the_latency_benchmark_reports_ratios_to_its_peer() {
     }
     assert_eq!(v["dropped"].as_u64(), Some(0));
 }
+
+#[test]
+fn a_live_scripted_session_computes_exactly_what_simulate_computes() {
+    // The world of a session follows the hand's source time, never a wall clock (MODEL.md
+    // conventions), so five processes over shared memory must agree with one process, bit
+    // for bit, through a grasp, a throw and a landing.
+    let dir = Scratch::new("same");
+    let log = dir.path("same.log");
+    let s = session(
+        &dir,
+        "same.toml",
+        &format!(
+            "[renderer]\nmode = \"off\"\n[recorder]\nfile = {:?}\n",
+            log.to_string_lossy()
+        ),
+    );
+    let id = unique_id("same");
+    let out = launch(&s, &id, 3.5, &dir.path("same.json"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bytes = std::fs::read(&log).unwrap();
+    let records = recorder::log::records(&bytes).unwrap();
+    let last: WorldSample = records
+        .iter()
+        .rev()
+        .find(|r| r.topic == Topic::World)
+        .unwrap()
+        .sample()
+        .unwrap();
+    assert!(last.step >= 300, "the session ran only {} steps", last.step);
+
+    let sim = Command::new(EXE)
+        .args(["simulate", "--json", "--frames", &last.step.to_string()])
+        .arg(repo().join("config/scenes/grasp-throw.toml"))
+        .output()
+        .unwrap();
+    assert!(sim.status.success());
+    let v: Value = serde_json::from_slice(&sim.stdout).unwrap();
+    let events: Vec<&str> = v["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["kind"].as_str().unwrap())
+        .collect();
+    assert!(
+        events.contains(&"grasp") && events.contains(&"release"),
+        "{events:?}"
+    );
+    for (i, block) in v["blocks"].as_array().unwrap().iter().enumerate() {
+        let live = last.blocks()[i];
+        let nums = |key: &str| -> Vec<f64> {
+            block[key]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        };
+        assert_eq!(
+            nums("position"),
+            live.pose.position.to_vec(),
+            "block {i} position differs"
+        );
+        assert_eq!(
+            nums("rotation"),
+            live.pose.rotation.to_vec(),
+            "block {i} rotation differs"
+        );
+        assert_eq!(block["mode"].as_str().unwrap(), live.mode().name());
+    }
+}

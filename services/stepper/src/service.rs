@@ -45,33 +45,43 @@ impl Timeline {
         self.origin_ns.is_some()
     }
 
+    /// Source time of step `k`, in ns after world time 0: k / step_hz rounded up to a whole
+    /// ns, the same grid a source at the step rate stamps its samples on, so that at equal
+    /// rates each step takes its hand sample exactly, not an interpolation of it.
+    fn step_time_ns(&self, k: u64) -> u64 {
+        (k as f64 * 1e9 / self.step_hz).ceil() as u64
+    }
+
     /// Fixed steps whose time is at or before `source_time_ns` (world time 0 at the first sample).
     fn steps_due(&self, source_time_ns: u64) -> u64 {
         let origin = self.origin_ns.unwrap_or(source_time_ns);
         let elapsed = source_time_ns.saturating_sub(origin);
-        (elapsed as f64 * self.step_hz / 1e9).floor() as u64
+        let mut k = (elapsed as f64 * self.step_hz / 1e9).floor() as u64;
+        // Settle float rounding at the grid's edges.
+        while k > 0 && self.step_time_ns(k) > elapsed {
+            k -= 1;
+        }
+        while self.step_time_ns(k + 1) <= elapsed {
+            k += 1;
+        }
+        k
     }
 
     /// Takes the steps `hand` brings, calling `step` with the hand at each step's time.
     pub fn advance(&mut self, hand: &HandSample, mut step: impl FnMut(Option<&HandSample>)) {
-        if self.origin_ns.is_none() {
-            self.origin_ns = Some(hand.stamp.source_time_ns);
-        }
+        let origin = *self.origin_ns.get_or_insert(hand.stamp.source_time_ns);
         let due = self.steps_due(hand.stamp.source_time_ns);
-        let origin = self.origin_ns.unwrap_or(0);
+        let now = hand.stamp.source_time_ns;
         while self.steps_taken < due {
             let k = self.steps_taken + 1;
-            let t_ns = origin as f64 + k as f64 * 1e9 / self.step_hz;
+            let t_ns = origin + self.step_time_ns(k);
             match &self.previous {
-                Some(prev) if prev.stamp.source_time_ns < hand.stamp.source_time_ns => {
-                    let span = (hand.stamp.source_time_ns - prev.stamp.source_time_ns) as f64;
-                    let s = ((t_ns - prev.stamp.source_time_ns as f64) / span).clamp(0.0, 1.0);
-                    if s >= 1.0 {
-                        step(Some(hand));
-                    } else {
-                        interpolate(prev, hand, s, &mut self.scratch);
-                        step(Some(&self.scratch));
-                    }
+                Some(prev) if prev.stamp.source_time_ns < now && t_ns < now => {
+                    let span = (now - prev.stamp.source_time_ns) as f64;
+                    let s = (t_ns.saturating_sub(prev.stamp.source_time_ns) as f64 / span)
+                        .clamp(0.0, 1.0);
+                    interpolate(prev, hand, s, &mut self.scratch);
+                    step(Some(&self.scratch));
                 }
                 _ => step(Some(hand)),
             }
