@@ -338,7 +338,7 @@ fn find_service_now(name: &str, bus_id: &str) -> Option<u32> {
             let pid = entry.file_name().to_string_lossy().parse::<u32>().ok()?;
             let cmdline = std::fs::read(entry.path().join("cmdline")).ok()?;
             let args: Vec<&[u8]> = cmdline.split(|b| *b == 0).collect();
-            let has = |word: &str| args.iter().any(|a| *a == word.as_bytes());
+            let has = |word: &str| args.contains(&word.as_bytes());
             (has("service") && has(name) && has(bus_id)).then_some(pid)
         })
 }
