@@ -372,15 +372,53 @@ impl Bus {
             last_seq: Cell::new(None),
         })
     }
+}
 
-    /// A WaitSet for sleeping on several inlets at once. Signals are handled by
-    /// [`crate::shutdown`], not by the WaitSet.
-    pub fn waitset(&self) -> Result<WaitSet<ipc::Service>, BusError> {
-        WaitSetBuilder::new()
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<ipc::Service>()
-            .map_err(|e| BusError::Wait(format!("{e:?}")))
+/// Something a process can sleep on: an inlet's wake-up listener.
+pub trait Wakeable {
+    fn listener(&self) -> &Listener<ipc::Service>;
+}
+
+impl<T: Stamped> Wakeable for Inlet<T> {
+    fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
     }
+}
+
+/// Most inlets one [`wait_any`] call can watch.
+pub const MAX_WAIT: usize = 8;
+
+/// Sleeps until any of `inlets` may have a sample, or `timeout` passes, and consumes their
+/// wake-ups. Unlike iceoryx2's WaitSet it allocates nothing per wake-up (it polls the
+/// listeners' descriptors on the stack), so it can sit on the per-sample path.
+pub fn wait_any(inlets: &[&dyn Wakeable], timeout: Duration) -> Result<(), BusError> {
+    use iceoryx2::prelude::FileDescriptorBased;
+    let n = inlets.len().min(MAX_WAIT);
+    let mut fds = [libc::pollfd {
+        fd: -1,
+        events: 0,
+        revents: 0,
+    }; MAX_WAIT];
+    for (slot, inlet) in fds.iter_mut().zip(inlets) {
+        // SAFETY: the descriptor stays owned by the listener, which outlives this call; we only
+        // poll it.
+        slot.fd = unsafe { inlet.listener().file_descriptor().native_handle() };
+        slot.events = libc::POLLIN;
+    }
+    let ms = timeout.as_millis().min(i32::MAX as u128) as libc::c_int;
+    // SAFETY: `fds` holds `n` initialised pollfd entries.
+    let r = unsafe { libc::poll(fds.as_mut_ptr(), n as libc::nfds_t, ms) };
+    if r < 0 {
+        let e = std::io::Error::last_os_error();
+        // A signal (the stop request) woke us: the caller checks its stop flag next.
+        if e.kind() != std::io::ErrorKind::Interrupted {
+            return Err(BusError::Wait(format!("poll: {e}")));
+        }
+    }
+    for inlet in &inlets[..n] {
+        let _ = inlet.listener().try_wait(|_| {});
+    }
+    Ok(())
 }
 
 fn service_name(topic: Topic) -> Result<ServiceName, BusError> {
@@ -534,16 +572,6 @@ impl<T: Stamped> Inlet<T> {
             Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
             Err(e) => Err(BusError::Wait(format!("{e:?}"))),
         }
-    }
-
-    /// Consumes pending wake-ups without sleeping (after a WaitSet woke on this listener).
-    pub fn clear_wakeups(&self) {
-        let _ = self.listener.try_wait(|_| {});
-    }
-
-    /// The listener, to attach to a WaitSet.
-    pub fn listener(&self) -> &Listener<ipc::Service> {
-        &self.listener
     }
 
     pub fn received(&self) -> u64 {

@@ -9,7 +9,7 @@
 
 use common::config::hand::{FingerSpec, HandModelSpec};
 use common::glove::{angle, GloveJoint};
-use common::{GloveSample, HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS};
+use common::{GloveSample, HandSample, JointsSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS};
 use glam::{DQuat, DVec3};
 
 /// The hand model: bone lengths, finger radii and palm shape, from a hand model file
@@ -140,6 +140,77 @@ impl HandModel {
     }
 }
 
+/// OpenXR joints (XR_EXT_hand_tracking order) used as check points, knuckle to tip: the thumb's
+/// proximal (MCP), distal (IP) and tip, then for each finger its proximal (the knuckle),
+/// intermediate, distal and tip. Metacarpal joints lie inside the palm and are not check points.
+pub const OPENXR_CHECK_POINTS: [&[usize]; 5] = [
+    &[3, 4, 5],
+    &[7, 8, 9, 10],
+    &[12, 13, 14, 15],
+    &[17, 18, 19, 20],
+    &[22, 23, 24, 25],
+];
+
+impl HandModel {
+    /// The hand of a hand tracker's joints, in the world frame: check points at the tracked
+    /// joints, radii from the model, and the palm as a box spanning the wrist and the knuckles,
+    /// oriented by the wrist pose (OpenXR's wrist frame is ours: fingers along -z, back of the
+    /// hand +y). The wrist pose comes from `joints.wrist` (some trackers, e.g. the CARL
+    /// recordings, leave the palm and wrist joints as identity). Returns false, leaving `out`
+    /// untouched, when a pose needed is not finite.
+    pub fn from_joints(&self, joints: &JointsSample, out: &mut HandSample) -> bool {
+        let needed = OPENXR_CHECK_POINTS.iter().flat_map(|f| f.iter());
+        if !joints.wrist.is_finite() || needed.clone().any(|&j| !joints.joints[j].is_finite()) {
+            return false;
+        }
+        let rotation = DQuat::from_array(joints.wrist.rotation);
+        // A zero (or NaN-free but degenerate) quaternion carries no orientation.
+        if rotation.length() <= 0.5 {
+            return false;
+        }
+        let rotation = rotation.normalize();
+        let wrist = DVec3::from_array(joints.wrist.position);
+        out.wrist = Pose {
+            position: wrist.to_array(),
+            rotation: rotation.to_array(),
+        };
+        out.tracked = joints.tracked;
+        out.finger_count = MAX_FINGERS as u32;
+        let radii = [
+            self.spec.thumb_radius,
+            self.spec.fingers[0].radius,
+            self.spec.fingers[1].radius,
+            self.spec.fingers[2].radius,
+            self.spec.fingers[3].radius,
+        ];
+        for (f, indices) in OPENXR_CHECK_POINTS.iter().enumerate() {
+            out.finger_point_count[f] = indices.len() as u32;
+            for (slot, &j) in out.finger_points[f].iter_mut().zip(indices.iter()) {
+                *slot = joints.joints[j].position;
+            }
+            out.finger_radius[f] = radii[f];
+        }
+        // The palm: from the wrist to the farthest knuckle along the hand's forward axis.
+        let forward = rotation * DVec3::NEG_Z;
+        let reach = [7, 12, 17, 22]
+            .iter()
+            .map(|&j| (DVec3::from_array(joints.joints[j].position) - wrist).dot(forward))
+            .fold(0.0, f64::max);
+        let (w, t) = (self.spec.palm_half_width, self.spec.palm_half_thickness);
+        let mut i = 0;
+        for x in [-w, w] {
+            for y in [-t, t] {
+                for z in [0.0, -reach] {
+                    out.palm_vertices[i] = (wrist + rotation * DVec3::new(x, y, z)).to_array();
+                    i += 1;
+                }
+            }
+        }
+        out.palm_vertex_count = 8;
+        true
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -236,5 +307,45 @@ mod tests {
         let last = DVec3::from_array(f[3]) - DVec3::from_array(f[2]);
         // Distal direction = flexed(0.9 + 0.6).
         assert!((last.normalize() - flexed(1.5)).length() < 1e-12);
+    }
+
+    #[test]
+    fn joints_become_check_points_knuckle_to_tip_and_a_palm() {
+        let m = HandModel::default();
+        let mut j = JointsSample {
+            tracked: 1,
+            ..Default::default()
+        };
+        j.wrist.position = [0.0, 1.0, 0.0];
+        for (k, joint) in j.joints.iter_mut().enumerate() {
+            // Each joint 1 cm further along -z, so the order is visible.
+            joint.position = [0.0, 1.0, -0.01 * k as f64];
+        }
+        let mut h = HandSample::default();
+        assert!(m.from_joints(&j, &mut h));
+        assert_eq!(
+            h.finger(0),
+            &[[0.0, 1.0, -0.03], [0.0, 1.0, -0.04], [0.0, 1.0, -0.05]]
+        );
+        assert_eq!(h.finger(1)[0], [0.0, 1.0, -0.07]);
+        assert_eq!(h.finger(4)[3], [0.0, 1.0, -0.25]);
+        // The palm reaches the farthest knuckle (joint 22, 0.22 m ahead of the wrist).
+        let min_z = h.palm().iter().map(|p| p[2]).fold(0.0, f64::min);
+        assert!((min_z + 0.22).abs() < 1e-12, "{min_z}");
+        assert_eq!(h.tracked, 1);
+    }
+
+    #[test]
+    fn a_joint_with_nan_leaves_the_hand_untouched() {
+        let m = HandModel::default();
+        let mut j = JointsSample {
+            tracked: 1,
+            ..Default::default()
+        };
+        j.joints[9].position[1] = f64::NAN;
+        let mut h = HandSample::default();
+        h.finger_count = 42;
+        assert!(!m.from_joints(&j, &mut h));
+        assert_eq!(h.finger_count, 42);
     }
 }

@@ -1,12 +1,16 @@
 //! The kinematics process: one `hand` sample per `tracker` sample, with the newest glove
-//! reading (DESIGN.md, "Stamps and latency"); the hand keeps the older of the two origins.
+//! reading (DESIGN.md, "Stamps and latency"), keeping the older of the two origins; or one
+//! `hand` per `joints` sample from a hand tracker.
 
 use std::time::Duration;
 
-use common::bus::Bus;
+use common::bus::{wait_any, Bus};
 use common::config::Session;
 use common::latency::Reporter;
-use common::{monotonic_ns, shutdown, GloveSample, HandSample, Stage, Stamp, Topic, TrackerSample};
+use common::{
+    monotonic_ns, shutdown, GloveSample, HandSample, JointsSample, Stage, Stamp, Topic,
+    TrackerSample,
+};
 
 use crate::model::HandModel;
 
@@ -18,6 +22,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     let model = HandModel::new(session.hand_model.clone());
     let glove_in = bus.inlet::<GloveSample>(Topic::Glove)?;
     let tracker_in = bus.inlet::<TrackerSample>(Topic::Tracker)?;
+    let joints_in = bus.inlet::<JointsSample>(Topic::Joints)?;
     let mut hand_out = bus.outlet::<HandSample>(Topic::Hand)?;
     let mut reporter = Reporter::new(Stage::Kinematics, bus.outlet(Topic::Latency)?);
 
@@ -27,7 +32,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     loop {
         let stopping = shutdown::requested();
         if !stopping {
-            tracker_in.wait(IDLE_WAIT)?;
+            wait_any(&[&tracker_in, &joints_in], IDLE_WAIT)?;
         }
         // The glove is sent before the tracker of the same instant: read it first, keep the newest.
         while let Some(s) = glove_in.receive()? {
@@ -54,7 +59,23 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             let sent = hand_out.publish(&hand)?;
             reporter.recorder.output(received, &sent);
         }
-        let counters = [glove_in.counter(), tracker_in.counter(), hand_out.counter()];
+        // A hand tracker's joints: one hand per joints sample.
+        while let Some(s) = joints_in.receive()? {
+            let received = monotonic_ns();
+            reporter.recorder.hop(&s.stamp, received);
+            if !model.from_joints(&s, &mut hand) {
+                continue;
+            }
+            hand.stamp = Stamp::derived(0, &s.stamp);
+            let sent = hand_out.publish(&hand)?;
+            reporter.recorder.output(received, &sent);
+        }
+        let counters = [
+            glove_in.counter(),
+            tracker_in.counter(),
+            joints_in.counter(),
+            hand_out.counter(),
+        ];
         if stopping {
             return Ok(reporter.finish(&counters)?);
         }

@@ -1,16 +1,15 @@
-//! The recorder process: sleeps in a WaitSet on every topic's event, writes each sample as it
+//! The recorder process: sleeps on every topic's event, writes each sample as it
 //! comes, and reports per topic what it received and the gaps in sequence numbers.
 
 use std::time::Duration;
 
-use common::bus::{Bus, Inlet, Stamped};
+use common::bus::{wait_any, Bus, Inlet, Stamped};
 use common::config::Session;
 use common::latency::Reporter;
 use common::{
     monotonic_ns, shutdown, FrameSample, GloveSample, HandSample, JointsSample, Stage, Topic,
     TrackerSample, WorldSample,
 };
-use iceoryx2::prelude::CallbackProgression;
 
 use crate::log::LogWriter;
 
@@ -56,35 +55,13 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     let frame = bus.inlet::<FrameSample>(Topic::Frame)?;
     let mut reporter = Reporter::new(Stage::Recorder, bus.outlet(Topic::Latency)?);
 
-    let waitset = bus.waitset()?;
-    let _guards = [
-        waitset.attach_notification(glove.listener()),
-        waitset.attach_notification(tracker.listener()),
-        waitset.attach_notification(joints.listener()),
-        waitset.attach_notification(hand.listener()),
-        waitset.attach_notification(world.listener()),
-        waitset.attach_notification(frame.listener()),
-    ]
-    .into_iter()
-    .collect::<Result<Vec<_>, _>>()
-    .map_err(|e| format!("recorder: cannot attach to the WaitSet: {e:?}"))?;
-
     loop {
         let stopping = shutdown::requested();
         if !stopping {
-            waitset
-                .wait_and_process_once_with_timeout(|_| CallbackProgression::Continue, IDLE_WAIT)
-                .map_err(|e| format!("recorder: waiting failed: {e:?}"))?;
-        }
-        for l in [
-            glove.listener(),
-            tracker.listener(),
-            joints.listener(),
-            hand.listener(),
-            world.listener(),
-            frame.listener(),
-        ] {
-            let _ = l.try_wait(|_| {});
+            wait_any(
+                &[&glove, &tracker, &joints, &hand, &world, &frame],
+                IDLE_WAIT,
+            )?;
         }
         drain(&glove, &mut log, &mut reporter)?;
         drain(&tracker, &mut log, &mut reporter)?;
