@@ -127,8 +127,38 @@ impl Polyhedron {
         let extent = points
             .iter()
             .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
-        let (hull_pts, tris) = parry3d_f64::transformation::try_convex_hull(points)
+        // Hull the points scaled to a unit extent per axis, then scale back: an axis scaling
+        // keeps which points and faces form the hull, and parry's tolerances are relative, so a
+        // thin plate (1 m x 0.5 mm) is not collapsed into a flat polygon.
+        let lo = points
+            .iter()
+            .fold(DVec3::splat(f64::INFINITY), |m, p| m.min(*p));
+        let hi = points
+            .iter()
+            .fold(DVec3::splat(f64::NEG_INFINITY), |m, p| m.max(*p));
+        let mid = (lo + hi) / 2.0;
+        let half = (hi - lo) / 2.0;
+        if half.min_element() <= 0.0 {
+            return Err("its vertices are flat (no volume): a block must be a solid".into());
+        }
+        let unit: Vec<DVec3> = points.iter().map(|p| (*p - mid) / half).collect();
+        let (unit_hull, tris) = parry3d_f64::transformation::try_convex_hull(&unit)
             .map_err(|e| format!("its vertices do not span a solid (convex hull failed: {e:?})"))?;
+        // Map the hull's vertices back to the input points they came from (exact values).
+        let hull_pts: Vec<DVec3> = unit_hull
+            .iter()
+            .map(|u| {
+                let i = unit
+                    .iter()
+                    .enumerate()
+                    .min_by(|a, b| {
+                        a.1.distance_squared(*u)
+                            .total_cmp(&b.1.distance_squared(*u))
+                    })
+                    .map_or(0, |(i, _)| i);
+                points[i]
+            })
+            .collect();
         // Volume and centroid by the tetrahedra from one hull point to every triangle.
         let o = hull_pts.first().copied().unwrap_or(DVec3::ZERO);
         let mut volume = 0.0;
