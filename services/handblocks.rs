@@ -67,9 +67,13 @@ enum Command {
         /// Override the scene's [world] model.
         #[arg(long, value_parser = ["paper", "precise"])]
         model: Option<String>,
-        /// Drive the hand from a recording or a CARL trace instead of the scene's [hand].
+        /// Drive the hand from a CARL trace (OpenXR joints) instead of the scene's [hand],
+        /// through the hand model and the stepper's own timeline, as a live replay would.
         #[arg(long, value_name = "TRACE")]
         hand: Option<PathBuf>,
+        /// Move the traced hand by X,Y,Z metres (real traces hold the hand ~1 m above the floor).
+        #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+        hand_offset: Option<[f64; 3]>,
         /// Print {"frames", "blocks": [{"name", "position", "rotation", "mode"}], "events"}.
         #[arg(long)]
         json: bool,
@@ -119,6 +123,23 @@ enum BenchKind {
     },
 }
 
+fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("{s:?}: give three numbers, X,Y,Z (metres)"));
+    }
+    let mut v = [0.0; 3];
+    for (slot, p) in v.iter_mut().zip(&parts) {
+        *slot = p
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && x.abs() <= 1e5)
+            .ok_or_else(|| format!("{p:?} is not a number of metres within 100 km"))?;
+    }
+    Ok(v)
+}
+
 fn parse_seconds(s: &str) -> Result<Duration, String> {
     let v: f64 = s
         .parse()
@@ -153,8 +174,16 @@ fn main() -> ExitCode {
             frames,
             model,
             hand,
+            hand_offset,
             json,
-        }) => simulate(&scene, frames, model.as_deref(), hand.as_deref(), json),
+        }) => simulate(
+            &scene,
+            frames,
+            model.as_deref(),
+            hand.as_deref(),
+            hand_offset.unwrap_or_default(),
+            json,
+        ),
         Some(Command::Service { name, session, bus }) => service(&name, &session, &bus),
         Some(Command::Bench {
             which:
@@ -252,6 +281,7 @@ fn simulate(
     frames: Option<u64>,
     model: Option<&str>,
     trace: Option<&std::path::Path>,
+    hand_offset: [f64; 3],
     json: bool,
 ) -> ExitCode {
     use common::config::scene::{HandPoseSpec, ModelKind};
@@ -270,10 +300,7 @@ fn simulate(
         None => {}
     }
     if let Some(t) = trace {
-        return fail(&format!(
-            "--hand {}: driving the hand from a trace is not available yet (issue 5)",
-            t.display()
-        ));
+        return simulate_trace(&scene, t, hand_offset, frames, json);
     }
     let frames = frames.unwrap_or_else(|| stepper::default_frames(&scene));
     let bare = scene.hand.as_ref().is_some_and(|h| {
@@ -324,6 +351,60 @@ fn simulate(
             ExitCode::SUCCESS
         }
         Err(e) => fail(&e),
+    }
+}
+
+/// `simulate --hand TRACE`: the trace's samples become hands exactly as in a live replay
+/// (kinematics from joints, then the stepper's timeline), then 2 s to settle.
+fn simulate_trace(
+    scene: &common::config::Scene,
+    trace: &std::path::Path,
+    offset: [f64; 3],
+    frames: Option<u64>,
+    json: bool,
+) -> ExitCode {
+    let t = match replay::CarlTrace::load(trace) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("handblocks simulate: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if let Some(d) = &t.damage {
+        eprintln!(
+            "handblocks simulate: warning: {d}; using the {} samples before it",
+            t.samples.len()
+        );
+    }
+    let mut joints = Vec::new();
+    t.joints(offset, &mut joints);
+    let model = kinematics::HandModel::default();
+    let mut hands: Vec<common::HandSample> = Vec::with_capacity(joints.len());
+    let mut hand = common::HandSample::default();
+    for (k, j) in joints.iter().enumerate() {
+        // A joints sample the model cannot use keeps the previous hand, as the process does.
+        model.from_joints(j, &mut hand);
+        hand.stamp = common::Stamp {
+            seq: k as u64,
+            ..j.stamp
+        };
+        hands.push(hand);
+    }
+    let settle = (2.0 * scene.world.step_hz) as u64;
+    match stepper::simulate_samples(scene, &hands, settle) {
+        Ok(r) => {
+            let _ = frames; // the trace sets the length
+            if json {
+                println!("{}", r.to_json());
+            } else {
+                print!("{}", r.to_text());
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("handblocks simulate: {e}");
+            ExitCode::from(2)
+        }
     }
 }
 

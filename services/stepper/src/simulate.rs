@@ -15,6 +15,7 @@ use common::config::scene::{HandPoseSpec, HandScript};
 use common::config::Scene;
 use common::{BlockMode, HandSample, Pose, Stamp, MAX_FINGERS, MAX_FINGER_POINTS};
 
+use crate::service::Timeline;
 use crate::world::{EventKind, World, WorldError};
 
 /// Where `simulate` gets the hand of each step.
@@ -199,14 +200,52 @@ pub fn simulate(
             .as_deref_mut()
             .and_then(|h| h.hand_at(n, n as f64 * dt));
         world.step(sample.as_ref());
-        for e in world.events() {
-            events.push(EventReport {
-                step: e.step,
-                kind: e.kind,
-                block: scene.blocks[e.block].name.clone(),
-            });
-        }
+        collect_events(&world, scene, &mut events);
     }
+    Ok(report(&world, scene, frames, events))
+}
+
+/// Runs the scene's world on a sequence of hand samples with their own source times, exactly
+/// as the stepper process does (MODEL.md conventions: as many steps as bring world time up to
+/// each sample, the hand interpolated between samples), then `settle` more steps with the last
+/// hand held. This is how a recorded trace is tried against a scene in one process.
+pub fn simulate_samples(
+    scene: &Scene,
+    hands: &[HandSample],
+    settle: u64,
+) -> Result<Report, WorldError> {
+    let mut world = World::new(scene)?;
+    let mut events = Vec::new();
+    let mut timeline = Timeline::new(scene.world.step_hz);
+    for hand in hands {
+        if !timeline.started() {
+            world.set_previous_hand(Some(hand));
+        }
+        timeline.advance(hand, |h| {
+            world.step(h);
+            collect_events(&world, scene, &mut events);
+        });
+    }
+    let last = hands.last();
+    for _ in 0..settle {
+        world.step(last);
+        collect_events(&world, scene, &mut events);
+    }
+    let frames = world.steps();
+    Ok(report(&world, scene, frames, events))
+}
+
+fn collect_events(world: &World, scene: &Scene, events: &mut Vec<EventReport>) {
+    for e in world.events() {
+        events.push(EventReport {
+            step: e.step,
+            kind: e.kind,
+            block: scene.blocks[e.block].name.clone(),
+        });
+    }
+}
+
+fn report(world: &World, scene: &Scene, frames: u64, events: Vec<EventReport>) -> Report {
     let blocks = (0..world.block_count())
         .filter_map(|i| world.block(i).map(|b| (i, b)))
         .map(|(i, b)| BlockReport {
@@ -216,11 +255,11 @@ pub fn simulate(
             mode: b.mode,
         })
         .collect();
-    Ok(Report {
+    Report {
         frames,
         blocks,
         events,
-    })
+    }
 }
 
 /// A JSON string literal.
