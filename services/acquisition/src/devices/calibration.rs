@@ -382,15 +382,15 @@ mod tests {
         let msg = Calibration::parse(Path::new("glove.cal"), &text)
             .unwrap_err()
             .to_string();
-        assert!(msg.contains("14 sensor lines"), "{msg}");
+        assert!(msg.contains("13 sensor lines"), "{msg}");
 
-        let text = file_for(&SENSORS_18, "").replace("-0.1 ", "x ");
+        let text = file_for(&SENSORS_18, "").replace("thumb_mcp  0.01", "thumb_mcp  x");
         let msg = Calibration::parse(Path::new("glove.cal"), &text)
             .unwrap_err()
             .to_string();
         assert!(msg.contains("not a number"), "{msg}");
 
-        let text = file_for(&SENSORS_18, "").replace(" 0.01 0\n", " NaN 0\n");
+        let text = file_for(&SENSORS_18, "").replace("thumb_ip  0.01", "thumb_ip  NaN");
         let msg = Calibration::parse(Path::new("glove.cal"), &text)
             .unwrap_err()
             .to_string();
