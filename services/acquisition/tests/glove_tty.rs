@@ -16,7 +16,9 @@ fn cal_file(n: u32) -> PathBuf {
 
 fn config(port: &std::path::Path) -> GloveConfig {
     let mut cfg = GloveConfig::new(port);
-    cfg.silence_timeout = Duration::from_millis(250);
+    // Generous: a loaded test machine must not make a healthy stream look silent. Tests of
+    // silence shorten it.
+    cfg.silence_timeout = Duration::from_millis(1500);
     cfg.backoff = acquisition::devices::serial::Backoff::new(
         Duration::from_millis(50),
         Duration::from_millis(200),
@@ -144,7 +146,9 @@ fn a_glove_that_goes_silent_is_reported_and_reconnected() {
     let mut b = GloveBehaviour::new(22);
     b.faults = vec![(20, Fault::Silence(Duration::from_millis(600)))];
     let emu = glove::spawn(b).unwrap();
-    let mut g = Glove::open(config(emu.path())).unwrap();
+    let mut cfg = config(emu.path());
+    cfg.silence_timeout = Duration::from_millis(250);
+    let mut g = Glove::open(cfg).unwrap();
     let (first, errors) = collect(&mut g, 20, Duration::from_secs(5));
     assert_eq!(first.len(), 20);
     assert!(errors.is_empty());
@@ -211,8 +215,10 @@ fn a_glove_whose_records_do_not_match_its_answer_is_reported_silent() {
     let mut b = GloveBehaviour::new(18);
     b.reported_sensors = 22;
     let emu = glove::spawn(b).unwrap();
-    let mut g = Glove::open(config(emu.path())).unwrap();
-    let (samples, errors) = collect(&mut g, 1, Duration::from_millis(600));
+    let mut cfg = config(emu.path());
+    cfg.silence_timeout = Duration::from_millis(250);
+    let mut g = Glove::open(cfg).unwrap();
+    let (samples, errors) = collect(&mut g, 1, Duration::from_secs(1));
     assert!(samples.is_empty());
     let msg = errors.first().map(|e| e.to_string()).unwrap_or_default();
     assert!(

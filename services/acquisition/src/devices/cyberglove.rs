@@ -385,10 +385,11 @@ impl Glove {
         self.poll_sent = None;
     }
 
+    /// The link is gone: the first reconnection attempt follows after the shortest backoff
+    /// (a glitch heals fast); failures then back off further.
     fn down(&mut self) {
-        let (delay, _) = self.backoff.next_delay();
         self.state = LinkState::Down {
-            retry_at: Instant::now() + delay,
+            retry_at: Instant::now() + self.backoff.first,
         };
         self.stats.link_losses += 1;
         self.parser.clear();

@@ -175,6 +175,17 @@ pub fn serve(
     let mut inbuf = [0u8; 512];
     let result = loop {
         if stop() {
+            // Take in what the driver sent last (e.g. its stop-streaming command on close).
+            if let Some(p) = &pty {
+                while let Ok(n) = p.read(&mut inbuf) {
+                    if n == 0 {
+                        break;
+                    }
+                    report.bytes_in += n as u64;
+                    let room = 4096usize.saturating_sub(report.received.len());
+                    report.received.extend_from_slice(&inbuf[..n.min(room)]);
+                }
+            }
             break Ok(());
         }
         let now = Instant::now();
