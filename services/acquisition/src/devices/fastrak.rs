@@ -72,7 +72,33 @@ pub enum Units {
     Centimetres,
 }
 
+impl Format {
+    /// The names a session file uses.
+    pub const NAMES: [&'static str; 2] = ["ascii", "binary"];
+
+    /// `"ascii"` or `"binary"`.
+    pub fn from_name(name: &str) -> Option<Format> {
+        match name {
+            "ascii" => Some(Format::Ascii),
+            "binary" => Some(Format::Binary),
+            _ => None,
+        }
+    }
+}
+
 impl Units {
+    /// The names a session file uses.
+    pub const NAMES: [&'static str; 4] = ["cm", "centimetres", "in", "inches"];
+
+    /// `"cm"`/`"centimetres"` or `"in"`/`"inches"`.
+    pub fn from_name(name: &str) -> Option<Units> {
+        match name {
+            "cm" | "centimetres" | "centimeters" => Some(Units::Centimetres),
+            "in" | "inches" => Some(Units::Inches),
+            _ => None,
+        }
+    }
+
     pub fn metres_per_unit(self) -> f64 {
         match self {
             Units::Inches => 0.0254,
@@ -88,6 +114,19 @@ pub enum Orientation {
     Quaternion,
     /// Item 4: for firmware or setups that only give Euler angles.
     Euler,
+}
+
+impl Orientation {
+    /// The names a session file uses.
+    pub const NAMES: [&'static str; 2] = ["quaternion", "euler"];
+
+    pub fn from_name(name: &str) -> Option<Orientation> {
+        match name {
+            "quaternion" => Some(Orientation::Quaternion),
+            "euler" => Some(Orientation::Euler),
+            _ => None,
+        }
+    }
 }
 
 /// How records are requested.

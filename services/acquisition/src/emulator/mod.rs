@@ -43,6 +43,50 @@ pub enum Fault {
     Unplug(Duration),
 }
 
+impl Fault {
+    /// Parses a fault as a command line gives it, `KIND@RECORD[:ARG]`:
+    ///
+    /// | spec | fault |
+    /// |---|---|
+    /// | `garbage@100` / `garbage@100:TEXT` | noise bytes (default 16 bytes of junk) before record 100 |
+    /// | `truncate@200:5` | only the first 5 bytes of record 200 |
+    /// | `corrupt@300:7` | byte 7 of record 300 flipped |
+    /// | `silence@400:1500` | quiet for 1500 ms from record 400 (`forever` for good) |
+    /// | `unplug@500:1000` | the cable pulled at record 500, back after 1000 ms |
+    pub fn parse(spec: &str) -> Result<(u64, Fault), String> {
+        let usage = "a fault is KIND@RECORD[:ARG] with KIND one of garbage, truncate, corrupt, \
+                     silence, unplug; e.g. silence@400:1500";
+        let (kind, rest) = spec
+            .split_once('@')
+            .ok_or_else(|| format!("`{spec}`: {usage}"))?;
+        let (record, arg) = match rest.split_once(':') {
+            Some((r, a)) => (r, Some(a)),
+            None => (rest, None),
+        };
+        let record: u64 = record
+            .parse()
+            .map_err(|_| format!("`{spec}`: the record number `{record}` is not a whole number"))?;
+        let number = |what: &str| -> Result<u64, String> {
+            let a = arg.ok_or_else(|| format!("`{spec}`: give {what} after a colon"))?;
+            a.parse()
+                .map_err(|_| format!("`{spec}`: {what} `{a}` is not a whole number"))
+        };
+        let fault = match kind {
+            "garbage" => Fault::Garbage(
+                arg.map(|a| a.as_bytes().to_vec())
+                    .unwrap_or_else(|| b"\xff\x00#junk#\x7fGS01\r\n".to_vec()),
+            ),
+            "truncate" => Fault::Truncate(number("the bytes to keep")? as usize),
+            "corrupt" => Fault::Corrupt(number("the byte index")? as usize),
+            "silence" if arg == Some("forever") => Fault::Silence(Duration::MAX),
+            "silence" => Fault::Silence(Duration::from_millis(number("milliseconds")?)),
+            "unplug" => Fault::Unplug(Duration::from_millis(number("milliseconds")?)),
+            _ => return Err(format!("`{spec}`: unknown fault `{kind}`; {usage}")),
+        };
+        Ok((record, fault))
+    }
+}
+
 /// What an emulator did, for tests and for the program's exit line.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct EmulatorReport {
@@ -223,11 +267,9 @@ pub fn serve(
             }
         }
         loop {
-            let n = match p.read(&mut inbuf) {
-                Ok(n) => n,
-                // EIO: no slave open (cannot happen while we hold one); treat as quiet.
-                Err(_) => 0,
-            };
+            // An error (EIO: no slave open, which cannot happen while we hold one) reads as
+            // quiet.
+            let n = p.read(&mut inbuf).unwrap_or(0);
             if n == 0 {
                 break;
             }
@@ -354,5 +396,57 @@ impl Drop for Emulator {
         if self.thread.is_some() {
             let _ = self.stop_inner();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fault_specs_parse_and_errors_say_the_form() {
+        assert_eq!(
+            Fault::parse("silence@400:1500"),
+            Ok((400, Fault::Silence(Duration::from_millis(1500))))
+        );
+        assert_eq!(
+            Fault::parse("silence@4:forever"),
+            Ok((4, Fault::Silence(Duration::MAX)))
+        );
+        assert_eq!(Fault::parse("truncate@2:5"), Ok((2, Fault::Truncate(5))));
+        assert_eq!(
+            Fault::parse("garbage@1:ab"),
+            Ok((1, Fault::Garbage(b"ab".to_vec())))
+        );
+        assert!(matches!(
+            Fault::parse("garbage@1"),
+            Ok((1, Fault::Garbage(_)))
+        ));
+        assert!(Fault::parse("unplug@x:1")
+            .unwrap_err()
+            .contains("not a whole number"));
+        assert!(Fault::parse("melt@1").unwrap_err().contains("KIND@RECORD"));
+        assert!(Fault::parse("corrupt@1")
+            .unwrap_err()
+            .contains("after a colon"));
+    }
+
+    #[test]
+    fn emit_applies_faults_by_record_number() {
+        let mut e = Emit::new(vec![
+            (1, Fault::Truncate(2)),
+            (2, Fault::Garbage(b"xx".to_vec())),
+            (2, Fault::Corrupt(0)),
+            (3, Fault::Silence(Duration::MAX)),
+        ]);
+        for _ in 0..5 {
+            e.record(b"abcd");
+        }
+        e.reply(b"!");
+        assert_eq!(
+            e.out,
+            [b"abcd".as_slice(), b"ab", b"xx", &[b'a' ^ 0x5a], b"bcd"].concat()
+        );
+        assert_eq!(e.records(), 4);
     }
 }
