@@ -15,6 +15,7 @@ pub mod calibration;
 pub mod cyberglove;
 pub mod fastrak;
 pub mod serial;
+pub mod settings;
 
 use std::fmt;
 use std::path::PathBuf;
