@@ -81,6 +81,16 @@ impl GloveConfig {
     }
 
     fn check(&self) -> Result<(), DeviceError> {
+        super::serial::check_timing(
+            "glove",
+            &[
+                self.answer_timeout,
+                self.silence_timeout,
+                self.read_slice,
+                self.backoff.first,
+                self.backoff.max,
+            ],
+        )?;
         if let Some(n) = self.sensors {
             if n != 18 && n != 22 {
                 return Err(DeviceError::Config {

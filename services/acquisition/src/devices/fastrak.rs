@@ -185,6 +185,16 @@ impl TrackerConfig {
     }
 
     fn check(&self) -> Result<(), DeviceError> {
+        super::serial::check_timing(
+            "tracker",
+            &[
+                self.answer_timeout,
+                self.silence_timeout,
+                self.read_slice,
+                self.backoff.first,
+                self.backoff.max,
+            ],
+        )?;
         if !(1..=4).contains(&self.station) {
             return Err(DeviceError::Config {
                 key: "tracker.station",

@@ -178,6 +178,26 @@ impl Default for Backoff {
     }
 }
 
+/// The longest timeout or backoff a configuration may give: longer is surely a mistake (and
+/// would overflow deadline arithmetic near `Duration::MAX`).
+pub const MAX_WAIT: Duration = Duration::from_secs(3600);
+
+/// Checks a driver's timeouts and backoff delays: each within 1 ms ..= [`MAX_WAIT`].
+pub fn check_timing(device: &'static str, waits: &[Duration]) -> Result<(), DeviceError> {
+    for w in waits {
+        if *w < Duration::from_millis(1) || *w > MAX_WAIT {
+            return Err(DeviceError::Config {
+                key: device,
+                problem: format!(
+                    "a timeout or backoff of {w:?}: allowed 1 ms to {} s",
+                    MAX_WAIT.as_secs()
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Whether a driver has its link, or is waiting to try again.
 pub enum LinkState {
     Up(Link),

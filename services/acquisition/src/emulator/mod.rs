@@ -184,6 +184,17 @@ pub trait Device: Send {
     fn power_up(&mut self) {}
 }
 
+/// The time between records at `rate_hz` (1..=10000 Hz; anything else, NaN included, gives
+/// 100 Hz rather than a panic, since the rate may come from a command line).
+pub fn period(rate_hz: f64) -> Duration {
+    let r = if rate_hz.is_finite() && rate_hz > 0.0 {
+        rate_hz.clamp(1.0, 10_000.0)
+    } else {
+        100.0
+    };
+    Duration::from_secs_f64(1.0 / r)
+}
+
 fn publish_link(pty: &Pty, link: &Path) -> io::Result<()> {
     if let Ok(meta) = std::fs::symlink_metadata(link) {
         if meta.file_type().is_symlink() {

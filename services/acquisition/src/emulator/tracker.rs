@@ -182,7 +182,7 @@ impl Device for TrackerDevice {
                     break;
                 }
             }
-            let period = Duration::from_secs_f64(1.0 / self.b.rate_hz.clamp(1.0, 10_000.0));
+            let period = super::period(self.b.rate_hz);
             self.next_at = (self.next_at + period).max(now);
         }
         Some(self.next_at)
