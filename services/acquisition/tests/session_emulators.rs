@@ -4,24 +4,18 @@
 //! after each fault, every sample is finite and in order, and the errors say what happened.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use acquisition::devices::serial::Backoff;
 use acquisition::devices::{
-    DeviceError, Format, Glove, GloveConfig, ReadOutcome, Tracker, TrackerConfig, Units,
+    DeviceEvent, DeviceReaders, Format, Glove, GloveConfig, ReadOutcome, Tracker, TrackerConfig,
+    Units,
 };
 use acquisition::emulator::glove::GloveBehaviour;
 use acquisition::emulator::tracker::TrackerBehaviour;
 use acquisition::emulator::{glove, tracker, Fault};
 use common::{monotonic_ns, GloveSample, Pose, TrackerSample};
-
-enum Event {
-    Glove(GloveSample, Instant),
-    Tracker(TrackerSample, Instant),
-    Error(DeviceError),
-}
 
 fn backoff() -> Backoff {
     Backoff::new(Duration::from_millis(50), Duration::from_millis(200))
@@ -64,40 +58,11 @@ fn a_devices_session_survives_an_unplugged_glove_and_a_silent_tracker() {
     tc.backoff = backoff();
     tc.epoch_ns = epoch;
 
-    let mut g = Glove::open(gc).unwrap();
-    let mut t = Tracker::open(tc).unwrap();
-    let stop = Arc::new(AtomicBool::new(false));
-    let (tx, rx) = mpsc::channel();
-    let glove_thread = {
-        let (stop, tx) = (stop.clone(), tx.clone());
-        std::thread::spawn(move || {
-            let mut s = GloveSample::default();
-            while !stop.load(Ordering::Relaxed) {
-                let ev = match g.read(&mut s) {
-                    Ok(ReadOutcome::Sample) => Event::Glove(s, Instant::now()),
-                    Ok(ReadOutcome::Pending) => continue,
-                    Err(e) => Event::Error(e),
-                };
-                let _ = tx.send(ev);
-            }
-            g.stats()
-        })
-    };
-    let tracker_thread = {
-        let stop = stop.clone();
-        std::thread::spawn(move || {
-            let mut s = TrackerSample::default();
-            while !stop.load(Ordering::Relaxed) {
-                let ev = match t.read(&mut s) {
-                    Ok(ReadOutcome::Sample) => Event::Tracker(s, Instant::now()),
-                    Ok(ReadOutcome::Pending) => continue,
-                    Err(e) => Event::Error(e),
-                };
-                let _ = tx.send(ev);
-            }
-            t.stats()
-        })
-    };
+    // As the acquisition process runs them: each driver on its own reader thread, one
+    // consumer (which would publish `glove` and `tracker`).
+    let g = Glove::open(gc).unwrap();
+    let t = Tracker::open(tc).unwrap();
+    let readers = DeviceReaders::spawn(Some(g), Some(t)).unwrap();
 
     // Run until both devices have been through their faults and delivered well after them,
     // or a generous limit.
@@ -106,11 +71,11 @@ fn a_devices_session_survives_an_unplugged_glove_and_a_silent_tracker() {
     let mut trackers: Vec<(TrackerSample, Instant)> = Vec::new();
     let mut errors = Vec::new();
     while start.elapsed() < Duration::from_secs(10) {
-        match rx.recv_timeout(Duration::from_millis(100)) {
-            Ok(Event::Glove(s, at)) => gloves.push((s, at)),
-            Ok(Event::Tracker(s, at)) => trackers.push((s, at)),
-            Ok(Event::Error(e)) => errors.push((e, Instant::now())),
-            Err(_) => {}
+        match readers.recv_timeout(Duration::from_millis(100)) {
+            Some(DeviceEvent::Glove(s)) => gloves.push((s, Instant::now())),
+            Some(DeviceEvent::Tracker(s)) => trackers.push((s, Instant::now())),
+            Some(DeviceEvent::Error(e)) => errors.push((e, Instant::now())),
+            None => {}
         }
         let glove_back = errors
             .iter()
@@ -124,9 +89,9 @@ fn a_devices_session_survives_an_unplugged_glove_and_a_silent_tracker() {
             break;
         }
     }
-    stop.store(true, Ordering::Relaxed);
-    let glove_stats = glove_thread.join().unwrap();
-    let tracker_stats = tracker_thread.join().unwrap();
+    let stats = readers.stop();
+    let (glove_stats, tracker_stats) = (stats.glove, stats.tracker);
+    assert_eq!(stats.dropped, 0);
     let glove_report = glove_emu.stop().unwrap();
     let tracker_report = tracker_emu.stop().unwrap();
 

@@ -14,6 +14,7 @@
 pub mod calibration;
 pub mod cyberglove;
 pub mod fastrak;
+pub mod readers;
 pub mod serial;
 pub mod settings;
 
@@ -24,6 +25,7 @@ use std::time::Duration;
 pub use calibration::{Calibration, CalibrationError};
 pub use cyberglove::{Glove, GloveConfig, GloveMode, GloveParser};
 pub use fastrak::{FastrakParser, Format, Orientation, Tracker, TrackerConfig, TrackerMode, Units};
+pub use readers::{DeviceEvent, DeviceReaders, ReaderStats};
 pub use serial::LinkStats;
 
 /// What one `read` call produced.
