@@ -8,6 +8,7 @@
 //! and the caller can notice a shutdown request.
 
 use std::io::{Read, Write};
+use std::os::fd::AsRawFd;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -105,8 +106,13 @@ impl Link {
         if buf.is_empty() {
             return Ok(0);
         }
-        // poll() granularity is a millisecond; never ask for zero, which would spin.
-        self.set_timeout(timeout.max(Duration::from_millis(1)))?;
+        // Wait here rather than in `serialport`'s read: its timeout result is an `io::Error`
+        // built from a string, an allocation per timeout, which on a polled device is one per
+        // sample.
+        if !self.wait_readable(timeout) {
+            return Ok(0);
+        }
+        self.set_timeout(Duration::from_millis(1))?;
         match self.port.read(buf) {
             // A tty read of 0 bytes after poll said readable is a hangup.
             Ok(0) => Err(self.io_error("read", "hang-up (end of file)")),
@@ -115,6 +121,23 @@ impl Link {
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => Ok(0),
             Err(e) => Err(self.io_error("read", e)),
         }
+    }
+
+    /// Whether the port has bytes (or a hang-up to report) within `timeout`.
+    fn wait_readable(&self, timeout: Duration) -> bool {
+        let mut pfd = libc::pollfd {
+            fd: self.port.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        let ts = libc::timespec {
+            tv_sec: timeout.as_secs().min(3600) as libc::time_t,
+            tv_nsec: timeout.subsec_nanos() as libc::c_long,
+        };
+        // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+        let rc = unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) };
+        // An error or a hang-up: let the read report it.
+        rc != 0
     }
 
     /// Throws away what the device sent so far: waits until the line has been quiet for
