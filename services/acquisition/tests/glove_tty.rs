@@ -259,3 +259,23 @@ fn a_glove_switched_on_later_is_picked_up_by_read() {
     drop(g);
     let _ = std::fs::remove_file(&missing);
 }
+
+#[test]
+fn a_glove_detached_from_its_interface_unit_is_named_as_such() {
+    let mut b = GloveBehaviour::new(22);
+    b.glove_detached = true;
+    let emu = glove::spawn(b).unwrap();
+    let mut cfg = config(emu.path());
+    cfg.mode = GloveMode::Polled { rate_hz: 100.0 };
+    cfg.silence_timeout = Duration::from_millis(250);
+    let mut g = Glove::open(cfg).unwrap();
+    let (samples, errors) = collect(&mut g, 1, Duration::from_millis(500));
+    assert!(samples.is_empty());
+    let msg = errors.first().map(|e| e.to_string()).unwrap_or_default();
+    assert!(
+        msg.contains("stopped answering")
+            && msg.contains("no glove is plugged into the interface unit"),
+        "{msg}"
+    );
+    assert!(g.stats().device_errors > 0);
+}

@@ -533,6 +533,7 @@ impl Glove {
                         self.last_record = Instant::now();
                         self.garbage_at_last_record = self.parser.stats.garbage_bytes;
                         self.poll_sent = None;
+                        self.last_device_error = None;
                         return Ok(ReadOutcome::Sample);
                     }
                     GloveEvent::DeviceError(code) => self.last_device_error = Some(code),
@@ -546,6 +547,7 @@ impl Glove {
                     port: self.cfg.port.clone(),
                     waited: now.duration_since(self.last_record),
                     garbage_bytes: self.parser.stats.garbage_bytes - self.garbage_at_last_record,
+                    reported: self.last_device_error.take().map(error_code_meaning),
                 };
                 self.down();
                 return Err(err);

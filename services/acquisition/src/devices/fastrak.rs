@@ -863,6 +863,7 @@ impl Tracker {
                     port: self.cfg.port.clone(),
                     waited: now.duration_since(self.last_record),
                     garbage_bytes: self.parser.stats.garbage_bytes - self.garbage_at_last_record,
+                    reported: None,
                 };
                 self.down();
                 return Err(err);

@@ -69,6 +69,8 @@ pub enum DeviceError {
         waited: Duration,
         /// Bytes that arrived in that time but made no valid record.
         garbage_bytes: u64,
+        /// What the device itself reported meanwhile, if anything (a CyberGlove's `e` code).
+        reported: Option<&'static str>,
     },
     /// The glove has another number of sensors than the configuration or calibration says.
     SensorCount {
@@ -156,6 +158,7 @@ impl fmt::Display for DeviceError {
                 port,
                 waited,
                 garbage_bytes,
+                reported,
             } => {
                 write!(
                     f,
@@ -163,6 +166,9 @@ impl fmt::Display for DeviceError {
                     port.display(),
                     waited.as_millis()
                 )?;
+                if let Some(r) = reported {
+                    write!(f, " (it reported: {r})")?;
+                }
                 if *garbage_bytes > 0 {
                     write!(
                         f,

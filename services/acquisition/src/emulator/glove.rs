@@ -21,6 +21,9 @@ pub struct GloveBehaviour {
     pub rate_hz: f64,
     /// Faults by record number (records counted from 0 across polled and streamed output).
     pub faults: Vec<(u64, Fault)>,
+    /// The glove is not plugged into the interface unit: every sample request is answered
+    /// `eg` instead of a record (the unit still answers `?S`).
+    pub glove_detached: bool,
 }
 
 impl GloveBehaviour {
@@ -31,6 +34,7 @@ impl GloveBehaviour {
             reported_sensors: sensors,
             rate_hz: 100.0,
             faults: Vec::new(),
+            glove_detached: false,
         }
     }
 }
@@ -88,6 +92,10 @@ impl GloveDevice {
     }
 
     fn send(&mut self, header: u8, out: &mut Emit) {
+        if self.b.glove_detached {
+            out.reply(b"eg");
+            return;
+        }
         let n = self.b.sensors as usize;
         self.rec.clear();
         self.rec.push(header);
