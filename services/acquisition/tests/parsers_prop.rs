@@ -10,7 +10,7 @@ use common::MAX_GLOVE_SENSORS;
 use proptest::prelude::*;
 
 fn glove_record(k: u8, n: usize) -> Vec<u8> {
-    let mut r = vec![if k % 2 == 0 { b'S' } else { b'G' }];
+    let mut r = vec![if k.is_multiple_of(2) { b'S' } else { b'G' }];
     r.extend((0..n).map(|i| 1 + ((k as usize * 13 + i * 7) % 255) as u8));
     r.push(0);
     r
