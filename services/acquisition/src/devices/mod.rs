@@ -10,6 +10,24 @@
 //! the following calls. Only `open` (and `Glove::new`/`Tracker::new` for configuration) fails for
 //! good, because what it reports — a wrong port, a calibration file that does not fit, a glove
 //! of another size — needs a person to change the configuration.
+//!
+//! How the acquisition process uses it, for `[source] kind = "devices"`:
+//!
+//! ```text
+//! let epoch = monotonic_ns();                                  // one timeline for both
+//! let gc = settings::glove_config(file, "source.glove", table, dir, epoch)?;
+//! let tc = settings::tracker_config(file, "source.tracker", table, epoch)?;
+//! let readers = DeviceReaders::spawn(Some(Glove::open(gc)?), Some(Tracker::open(tc)?))?;
+//! while !shutdown::requested() {
+//!     match readers.recv_timeout(Duration::from_millis(50)) {
+//!         Some(DeviceEvent::Glove(g)) => glove_outlet.publish(&g)?,
+//!         Some(DeviceEvent::Tracker(t)) => tracker_outlet.publish(&t)?,
+//!         Some(DeviceEvent::Error(e)) => eprintln!("acquisition: {e}"),   // it reconnects
+//!         None => {}
+//!     }
+//! }
+//! let stats = readers.stop();
+//! ```
 
 pub mod calibration;
 pub mod cyberglove;
