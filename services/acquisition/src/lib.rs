@@ -4,6 +4,8 @@
 //! interpolated and sampled like a device would be. The real CyberGlove and FASTRAK drivers
 //! are issue 4.
 
+pub mod devices;
+pub mod emulator;
 pub mod scripted;
 pub mod service;
 
