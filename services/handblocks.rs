@@ -83,6 +83,29 @@ enum Command {
         #[command(subcommand)]
         which: BenchKind,
     },
+    /// Emulate a CyberGlove or a FASTRAK on a pseudo-terminal, for sessions without hardware.
+    ///
+    /// The device appears at --link (a symbolic link to the pty), which a session's
+    /// [source.glove] or [source.tracker] `port` names exactly as it would name /dev/ttyUSB0.
+    /// See config/devices/emulated-session.toml. Ctrl-C stops it.
+    Emulate {
+        /// glove or tracker.
+        #[arg(value_parser = ["glove", "tracker"])]
+        device: String,
+        /// Where the device appears.
+        #[arg(long, value_name = "PATH")]
+        link: PathBuf,
+        /// Glove sensors (18 or 22).
+        #[arg(long, default_value = "22", value_parser = clap::value_parser!(u8).range(18..=22))]
+        sensors: u8,
+        /// Records per second (glove default 100, tracker default 120).
+        #[arg(long, value_name = "HZ")]
+        rate: Option<f64>,
+        /// A fault to inject, KIND@RECORD[:ARG]: garbage@100, truncate@200:5, corrupt@300:7,
+        /// silence@400:1500 (ms, or `forever`), unplug@500:1000. Repeatable.
+        #[arg(long = "fault", value_name = "SPEC")]
+        faults: Vec<String>,
+    },
     /// The publishing half of the latency benchmark's peer (started by `bench latency`).
     #[command(hide = true)]
     BenchPeer {
@@ -214,6 +237,13 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Some(Command::Emulate {
+            device,
+            link,
+            sensors,
+            rate,
+            faults,
+        }) => emulate(&device, &link, sensors, rate, &faults),
         Some(Command::BenchPeer { bus, rate, count }) => {
             match handblocks_bench::latency::peer_publisher(&bus, rate, count) {
                 Ok(()) => ExitCode::SUCCESS,
@@ -245,6 +275,20 @@ fn launch(
             format!("for {:.1} s", d.as_secs_f64())
         });
         eprintln!("handblocks: launching {} {until}", session.display());
+    }
+    // The device settings are the drivers' to read: check them here, before any process starts.
+    if let Ok(s) = common::config::Session::load(&session) {
+        if let common::config::session::Source::Devices {
+            glove,
+            tracker,
+            dir,
+        } = &s.source
+        {
+            if let Err(e) = acquisition::service::device_configs(&s, glove, tracker, dir, 0) {
+                eprintln!("handblocks: {e}");
+                return ExitCode::from(2);
+            }
+        }
     }
     let opts = launcher::LaunchOptions {
         session,
@@ -403,6 +447,65 @@ fn simulate_trace(
         }
         Err(e) => {
             eprintln!("handblocks simulate: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn emulate(
+    device: &str,
+    link: &std::path::Path,
+    sensors: u8,
+    rate: Option<f64>,
+    faults: &[String],
+) -> ExitCode {
+    use acquisition::emulator::{glove, tracker, Fault};
+    let faults = match faults
+        .iter()
+        .map(|f| Fault::parse(f))
+        .collect::<Result<Vec<_>, _>>()
+    {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("handblocks emulate: --fault: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if let Some(r) = rate.filter(|r| !(r.is_finite() && *r > 0.0 && *r <= 10_000.0)) {
+        eprintln!(
+            "handblocks emulate: --rate {r}: allowed: more than 0 up to 10000 records per second"
+        );
+        return ExitCode::from(2);
+    }
+    shutdown::install_signal_handlers();
+    eprintln!(
+        "handblocks emulate: a {device} at {} (Ctrl-C stops it)",
+        link.display()
+    );
+    let stop = || shutdown::requested();
+    let result = if device == "glove" {
+        let mut b = glove::GloveBehaviour::new(sensors);
+        b.rate_hz = rate.unwrap_or(b.rate_hz);
+        b.faults = faults;
+        glove::run(link, b, &stop)
+    } else {
+        let mut b = tracker::TrackerBehaviour::new();
+        b.rate_hz = rate.unwrap_or(b.rate_hz);
+        b.faults = faults;
+        tracker::run(link, b, &stop)
+    };
+    match result {
+        Ok(report) => {
+            eprintln!(
+                "handblocks emulate: stopped after {} records, {} unplugs; commands received: {:?}",
+                report.records,
+                report.unplugs,
+                String::from_utf8_lossy(&report.received)
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("handblocks emulate: {}: {e}", link.display());
             ExitCode::from(2)
         }
     }

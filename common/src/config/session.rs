@@ -28,10 +28,13 @@ pub struct Session {
 pub enum Source {
     /// The scene's `[hand]` keyframes, sampled at `rate_hz`.
     Scripted { rate_hz: f64 },
-    /// A CyberGlove and a FASTRAK on serial ports.
+    /// A CyberGlove and a FASTRAK on serial ports. The tables are the device drivers' own
+    /// settings (acquisition::devices::settings reads and checks them; this crate cannot know
+    /// the drivers), kept as written, with the folder relative paths are resolved against.
     Devices {
-        glove_port: PathBuf,
-        tracker_port: PathBuf,
+        glove: toml::Table,
+        tracker: toml::Table,
+        dir: PathBuf,
     },
     /// A recording of ours or a CARL trace; `speed` 0 = as fast as consumed.
     Replay { file: PathBuf, speed: f64 },
@@ -138,22 +141,20 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<Source, ConfigError> {
     };
     let s = match r.choice("kind", &["scripted", "devices", "replay"])? {
         "devices" => {
-            let port = |key: &'static str| -> Result<PathBuf, ConfigError> {
-                let t = r.table(key)?.ok_or_else(|| {
-                    r.err(
+            let table = |key: &'static str| -> Result<toml::Table, ConfigError> {
+                match r.raw(key) {
+                    Some(toml::Value::Table(t)) => Ok(t.clone()),
+                    Some(v) => Err(r.err(key, format!("expected a table, found {}", v.type_str()))),
+                    None => Err(r.err(
                         key,
-                        "required for kind = \"devices\": { port = \"/dev/ttyUSB0\" }",
-                    )
-                })?;
-                let p = t.string("port")?.ok_or_else(|| {
-                    t.err("port", "required: the serial device, e.g. /dev/ttyUSB0")
-                })?;
-                t.finish()?;
-                Ok(PathBuf::from(p))
+                        "required for kind = \"devices\": { port = \"/dev/ttyUSB0\", ... }",
+                    )),
+                }
             };
             Source::Devices {
-                glove_port: port("glove")?,
-                tracker_port: port("tracker")?,
+                glove: table("glove")?,
+                tracker: table("tracker")?,
+                dir: dir.to_path_buf(),
             }
         }
         "replay" => {

@@ -1,6 +1,9 @@
 //! The acquisition process: samples the source at its rate and publishes `glove` and
 //! `tracker`, stamping each pair with one origin (the moment it entered the pipeline).
 
+use std::path::Path;
+use std::time::Duration;
+
 use common::bus::Bus;
 use common::config::session::Source;
 use common::config::Session;
@@ -8,21 +11,101 @@ use common::latency::{Metric, Reporter};
 use common::stamp::sleep_until_ns;
 use common::{monotonic_ns, shutdown, GloveSample, Stage, Stamp, Topic, TrackerSample};
 
+use crate::devices::{
+    settings, DeviceEvent, DeviceReaders, Glove, GloveConfig, Tracker, TrackerConfig,
+};
 use crate::scripted::{source_time_ns, ScriptedHand};
 
 /// Runs until asked to stop.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
-    let rate_hz = match &session.source {
-        Source::Scripted { rate_hz } => *rate_hz,
-        other => {
-            return Err(format!(
-                "{}: source kind \"{}\" is not available yet; use kind = \"scripted\"",
-                session.file.display(),
-                other.kind()
-            )
-            .into())
+    match &session.source {
+        Source::Scripted { rate_hz } => run_scripted(session, bus, *rate_hz),
+        Source::Devices {
+            glove,
+            tracker,
+            dir,
+        } => run_devices(session, bus, glove, tracker, dir),
+        other => Err(format!(
+            "{}: source kind \"{}\" is not run by the acquisition process",
+            session.file.display(),
+            other.kind()
+        )
+        .into()),
+    }
+}
+
+/// The device drivers' settings from a session's `[source.glove]` and `[source.tracker]`,
+/// checked; errors name the session file and the key. Both devices share one timeline
+/// starting at `epoch_ns`.
+pub fn device_configs(
+    session: &Session,
+    glove: &toml::Table,
+    tracker: &toml::Table,
+    dir: &Path,
+    epoch_ns: u64,
+) -> Result<(GloveConfig, TrackerConfig), common::config::ConfigError> {
+    Ok((
+        settings::glove_config(&session.file, "source.glove", glove, dir, epoch_ns)?,
+        settings::tracker_config(&session.file, "source.tracker", tracker, epoch_ns)?,
+    ))
+}
+
+/// A CyberGlove and a FASTRAK: each driver reads on its own thread; this loop stamps and
+/// publishes what they deliver and reports device errors without stopping (the drivers
+/// reconnect by themselves).
+fn run_devices(
+    session: &Session,
+    bus: &Bus,
+    glove: &toml::Table,
+    tracker: &toml::Table,
+    dir: &Path,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let (gc, tc) = device_configs(session, glove, tracker, dir, monotonic_ns())?;
+    let mut glove_out = bus.outlet::<GloveSample>(Topic::Glove)?;
+    let mut tracker_out = bus.outlet::<TrackerSample>(Topic::Tracker)?;
+    let mut reporter = Reporter::new(Stage::Acquisition, bus.outlet(Topic::Latency)?);
+    // `new` checks the configuration and connects on the first read, so a device that is not
+    // there yet (or is unplugged) is reported and retried instead of failing the session.
+    let readers = DeviceReaders::spawn(Some(Glove::new(gc)?), Some(Tracker::new(tc)?))?;
+    while !shutdown::requested() {
+        match readers.recv_timeout(Duration::from_millis(50)) {
+            Some(DeviceEvent::Glove(g)) => {
+                let sent = glove_out.publish(&g)?;
+                reporter.recorder.record(
+                    Metric::Process,
+                    sent.publish_ns.saturating_sub(sent.origin_ns),
+                );
+            }
+            Some(DeviceEvent::Tracker(t)) => {
+                let sent = tracker_out.publish(&t)?;
+                reporter.recorder.record(
+                    Metric::Process,
+                    sent.publish_ns.saturating_sub(sent.origin_ns),
+                );
+                reporter.recorder.record(
+                    Metric::Origin,
+                    sent.publish_ns.saturating_sub(sent.origin_ns),
+                );
+            }
+            Some(DeviceEvent::Error(e)) => eprintln!("handblocks acquisition: {e}"),
+            None => {}
         }
-    };
+        reporter.maybe_report(&[glove_out.counter(), tracker_out.counter()])?;
+    }
+    let stats = readers.stop();
+    if stats.dropped > 0 {
+        eprintln!("handblocks acquisition: {} device samples arrived faster than they could be published and were dropped", stats.dropped);
+    }
+    reporter.finish(&[glove_out.counter(), tracker_out.counter()])?;
+    Ok(())
+}
+
+/// The scripted hand: the scene's keyframes sampled at `rate_hz` on absolute deadlines.
+fn run_scripted(
+    session: &Session,
+    bus: &Bus,
+    rate_hz: f64,
+) -> Result<(), Box<dyn std::error::Error>> {
     let script = session.scene.hand.as_ref().ok_or_else(|| {
         format!(
             "{}: the scene has no [hand] for the scripted source",
