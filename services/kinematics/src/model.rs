@@ -9,7 +9,7 @@
 
 use common::config::hand::{FingerSpec, HandModelSpec};
 use common::glove::{angle, GloveJoint};
-use common::{GloveSample, HandSample, JointsSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS};
+use common::{GloveSample, HandSample, JointsSample, Pose, MAX_FINGERS, OPENXR_JOINTS};
 use glam::{DQuat, DVec3};
 
 /// The hand model: bone lengths, finger radii and palm shape, from a hand model file
@@ -56,33 +56,45 @@ impl HandModel {
         [knuckle, pip_point, dip_point, tip]
     }
 
-    /// The hand of a glove reading and a wrist pose, in the world frame. `out.stamp` is left
-    /// for the caller. Fingers are thumb, index, middle, ring, little.
-    pub fn solve(&self, glove: &GloveSample, wrist: &Pose, out: &mut HandSample) {
+    /// The 26 OpenXR joints (XR_EXT_hand_tracking order, world frame) of a glove reading and a
+    /// wrist pose. Each joint's orientation is the bone that starts there (OpenXR: -z along the
+    /// bone toward the tip, +y the back of the hand); a tip takes its distal bone's.
+    pub fn glove_joints(&self, glove: &GloveSample, wrist: &Pose, out: &mut [Pose; OPENXR_JOINTS]) {
         let a = |j: GloveJoint| angle(glove, j).filter(|v| v.is_finite()).unwrap_or(0.0);
         // An 18-sensor glove has no DIP sensor: the DIP follows the PIP (about 2/3).
         let dip = |d: GloveJoint, p: GloveJoint| angle(glove, d).unwrap_or(a(p) * 2.0 / 3.0);
         let position = DVec3::from_array(wrist.position);
         let rotation = DQuat::from_array(wrist.rotation).normalize();
-        let to_world = |p: DVec3| (position + rotation * p).to_array();
-
-        out.wrist = Pose {
-            position: position.to_array(),
-            rotation: rotation.to_array(),
+        let pose = |p: DVec3, bone: DQuat| Pose {
+            position: (position + rotation * p).to_array(),
+            rotation: (rotation * bone).normalize().to_array(),
         };
-        out.tracked = 1;
-        out.finger_count = MAX_FINGERS as u32;
+        let along = |d: DVec3| DQuat::from_rotation_arc(DVec3::NEG_Z, d.normalize());
+
+        let knuckle_z = self
+            .spec
+            .fingers
+            .iter()
+            .map(|f| f.knuckle[2])
+            .fold(0.0, f64::min);
+        out[0] = pose(DVec3::new(0.0, 0.0, knuckle_z / 2.0), DQuat::IDENTITY);
+        out[1] = pose(DVec3::ZERO, DQuat::IDENTITY);
 
         let thumb = self.thumb(
             a(GloveJoint::ThumbRotation),
             a(GloveJoint::ThumbMcp),
             a(GloveJoint::ThumbIp),
         );
-        out.finger_point_count[0] = 3;
-        for (slot, p) in out.finger_points[0].iter_mut().zip(thumb) {
-            *slot = to_world(p);
+        let base = DVec3::from_array(self.spec.thumb_base);
+        let chain = [base, thumb[0], thumb[1], thumb[2]];
+        for k in 0..4 {
+            let bone = if k < 3 {
+                chain[k + 1] - chain[k]
+            } else {
+                chain[3] - chain[2]
+            };
+            out[2 + k] = pose(chain[k], along(bone));
         }
-        out.finger_radius[0] = self.spec.thumb_radius;
 
         let joints = [
             (
@@ -107,35 +119,33 @@ impl HandModel {
             ),
         ];
         for (f, (spec, (m, p, d))) in self.spec.fingers.iter().zip(joints).enumerate() {
-            let points = Self::finger(spec, a(m), a(p), dip(d, p));
-            out.finger_point_count[f + 1] = 4;
-            for (slot, p) in out.finger_points[f + 1].iter_mut().zip(points) {
-                *slot = to_world(p);
+            let first = 6 + 5 * f;
+            let (mcp, pip) = (a(m), a(p));
+            let dip = dip(d, p);
+            let points = Self::finger(spec, mcp, pip, dip);
+            // The metacarpal joint: the bone's base, near the wrist.
+            let metacarpal = DVec3::new(spec.knuckle[0] * 0.5, 0.0, spec.knuckle[2] * 0.2);
+            out[first] = pose(metacarpal, along(points[0] - metacarpal));
+            let flex = [mcp, mcp + pip, mcp + pip + dip, mcp + pip + dip];
+            for k in 0..4 {
+                out[first + 1 + k] = pose(points[k], DQuat::from_rotation_x(-flex[k]));
             }
-            out.finger_radius[f + 1] = spec.radius;
         }
-        debug_assert!(out
-            .finger_point_count
-            .iter()
-            .all(|&n| n as usize <= MAX_FINGER_POINTS));
+    }
 
-        // The palm: a box from the wrist to the knuckles.
-        let (w, t) = (self.spec.palm_half_width, self.spec.palm_half_thickness);
-        let z = self
-            .spec
-            .fingers
-            .iter()
-            .map(|f| f.knuckle[2])
-            .fold(0.0, f64::min);
-        out.palm_vertex_count = 8;
-        let mut i = 0;
-        for x in [-w, w] {
-            for y in [-t, t] {
-                for zz in [0.0, z] {
-                    out.palm_vertices[i] = to_world(DVec3::new(x, y, zz));
-                    i += 1;
-                }
-            }
+    /// The hand of a glove reading and a wrist pose, in the world frame: the glove's OpenXR
+    /// joints ([`HandModel::glove_joints`]) made into a hand exactly as a hand tracker's are
+    /// ([`HandModel::from_joints`]). `out.stamp` is left for the caller.
+    pub fn solve(&self, glove: &GloveSample, wrist: &Pose, out: &mut HandSample) {
+        let mut joints = JointsSample {
+            tracked: 1,
+            ..Default::default()
+        };
+        self.glove_joints(glove, wrist, &mut joints.joints);
+        joints.wrist = joints.joints[1];
+        if !self.from_joints(&joints, out) {
+            // Only a non-finite wrist gets here: keep the previous hand, marked lost.
+            out.tracked = 0;
         }
     }
 }
@@ -347,5 +357,102 @@ mod tests {
         h.finger_count = 42;
         assert!(!m.from_joints(&j, &mut h));
         assert_eq!(h.finger_count, 42);
+    }
+
+    fn joints_of(g: &GloveSample, wrist: &Pose) -> [Pose; OPENXR_JOINTS] {
+        let mut j = [Pose::IDENTITY; OPENXR_JOINTS];
+        HandModel::default().glove_joints(g, wrist, &mut j);
+        j
+    }
+
+    fn bone_direction(p: &Pose) -> DVec3 {
+        DQuat::from_array(p.rotation) * DVec3::NEG_Z
+    }
+
+    #[test]
+    fn a_flat_glove_gives_openxr_joints_along_minus_z_with_the_back_of_the_hand_up() {
+        let j = joints_of(&glove(|_| 0.0), &Pose::IDENTITY);
+        // Index: metacarpal (6), proximal = knuckle (7), intermediate (8), distal (9), tip (10).
+        assert!(close(j[7].position, [-0.028, 0.0, -0.090]));
+        assert!(close(j[8].position, [-0.028, 0.0, -0.135]));
+        assert!(close(j[9].position, [-0.028, 0.0, -0.160]));
+        assert!(close(j[10].position, [-0.028, 0.0, -0.180]));
+        // Little tip: knuckle (0.028, 0, -0.08) + 0.075 along -z.
+        assert!(close(j[25].position, [0.028, 0.0, -0.155]));
+        for k in 7..=10 {
+            assert!(
+                (bone_direction(&j[k]) - DVec3::NEG_Z).length() < 1e-12,
+                "joint {k}"
+            );
+            let up = DQuat::from_array(j[k].rotation) * DVec3::Y;
+            assert!(
+                (up - DVec3::Y).length() < 1e-12,
+                "joint {k}: back of the hand is not +y"
+            );
+        }
+        assert!(close(j[1].position, [0.0; 3]), "joint 1 is the wrist");
+    }
+
+    #[test]
+    fn a_single_mcp_bend_turns_every_later_index_bone_down() {
+        let bend = std::f64::consts::FRAC_PI_2;
+        let j = joints_of(
+            &glove(|g| if g == GloveJoint::IndexMcp { bend } else { 0.0 }),
+            &Pose::IDENTITY,
+        );
+        assert!(
+            close(j[7].position, [-0.028, 0.0, -0.090]),
+            "the knuckle does not move"
+        );
+        assert!(close(j[8].position, [-0.028, -0.045, -0.090]));
+        assert!(close(j[10].position, [-0.028, -0.090, -0.090]));
+        for k in 7..=10 {
+            assert!(
+                (bone_direction(&j[k]) - DVec3::NEG_Y).length() < 1e-12,
+                "joint {k}"
+            );
+        }
+        // The middle finger's joints are untouched.
+        assert!((bone_direction(&j[13]) - DVec3::NEG_Z).length() < 1e-12);
+    }
+
+    #[test]
+    fn a_fist_points_the_fingertips_back_toward_the_wrist() {
+        let j = joints_of(
+            &glove(|g| match g {
+                GloveJoint::IndexMcp | GloveJoint::IndexPip => std::f64::consts::FRAC_PI_2,
+                _ => 0.0,
+            }),
+            &Pose::IDENTITY,
+        );
+        // MCP 90 + PIP 90: the middle and distal bones point back along +z.
+        assert!((bone_direction(&j[8]) - DVec3::Z).length() < 1e-12);
+        assert!((bone_direction(&j[10]) - DVec3::Z).length() < 1e-12);
+        assert!(close(j[10].position, [-0.028, -0.045, -0.045]));
+    }
+
+    #[test]
+    fn the_glove_path_and_the_joints_path_give_the_same_hand() {
+        let m = HandModel::default();
+        let g = glove(|j| match j {
+            GloveJoint::ThumbRotation => 0.7,
+            GloveJoint::MiddlePip => 0.9,
+            _ => 0.3,
+        });
+        let wrist = Pose {
+            position: [0.1, 0.3, -0.2],
+            rotation: DQuat::from_rotation_y(0.4).to_array(),
+        };
+        let mut from_glove = HandSample::default();
+        m.solve(&g, &wrist, &mut from_glove);
+        let mut joints = JointsSample {
+            tracked: 1,
+            wrist,
+            ..Default::default()
+        };
+        m.glove_joints(&g, &wrist, &mut joints.joints);
+        let mut from_joints = HandSample::default();
+        assert!(m.from_joints(&joints, &mut from_joints));
+        assert_eq!(from_glove, from_joints);
     }
 }
