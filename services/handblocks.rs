@@ -434,10 +434,8 @@ fn simulate_trace(
         };
         hands.push(hand);
     }
-    let settle = (2.0 * scene.world.step_hz) as u64;
-    match stepper::simulate_samples(scene, &hands, settle) {
+    match stepper::simulate_samples(scene, &hands, frames) {
         Ok(r) => {
-            let _ = frames; // the trace sets the length
             if json {
                 println!("{}", r.to_json());
             } else {
@@ -531,7 +529,7 @@ fn service(name: &str, session_file: &std::path::Path, bus_id: &str) -> ExitCode
             Stage::Stepper => stepper::service::run(&session, &bus),
             Stage::Renderer => renderer::service::run(&session, &bus),
             Stage::Recorder => recorder::service::run(&session, &bus),
-            Stage::Replay => Err("the replay source is not available yet (issue 5)".into()),
+            Stage::Replay => replay::service::run(&session, &bus),
         }
     })();
     match result {

@@ -36,8 +36,13 @@ pub enum Source {
         tracker: toml::Table,
         dir: PathBuf,
     },
-    /// A recording of ours or a CARL trace; `speed` 0 = as fast as consumed.
-    Replay { file: PathBuf, speed: f64 },
+    /// A recorded hand (today a CARL trace); `speed` 0 = as fast as the pipeline consumes;
+    /// `offset` moves the recorded hand, metres (real traces hold it ~1 m above the floor).
+    Replay {
+        file: PathBuf,
+        speed: f64,
+        offset: [f64; 3],
+    },
 }
 
 impl Source {
@@ -167,6 +172,7 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<Source, ConfigError> {
             Source::Replay {
                 file: dir.join(f),
                 speed: r.f64_in("speed", Some(1.0), 0.0..=1000.0)?.unwrap_or(1.0),
+                offset: r.array::<3>("offset", -1.0e5..=1.0e5)?.unwrap_or([0.0; 3]),
             }
         }
         _ => Source::Scripted {

@@ -64,7 +64,8 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             let received = monotonic_ns();
             reporter.recorder.hop(&s.stamp, received);
             if !model.from_joints(&s, &mut hand) {
-                continue;
+                // Keep one hand per joints sample: the previous hand, marked lost.
+                hand.tracked = 0;
             }
             hand.stamp = Stamp::derived(0, &s.stamp);
             let sent = hand_out.publish(&hand)?;

@@ -152,9 +152,15 @@ fn run_session(
     let mut failures = Vec::new();
 
     wait_until_connected(&services, &reader_stages, &mut procs)?;
-    procs.push(start(Stage::Acquisition)?);
+    let source = match session.source {
+        common::config::session::Source::Replay { .. } => Stage::Replay,
+        _ => Stage::Acquisition,
+    };
+    procs.push(start(source)?);
     // Pipeline order: source first, recorder last.
     procs.reverse();
+    // The session's time starts when the source is attached, however long it took to start.
+    wait_for_source(&services, source, &mut procs)?;
 
     // Run.
     let started = Instant::now();
@@ -266,6 +272,36 @@ fn wait_until_connected(
         }
         std::thread::sleep(Duration::from_millis(5));
     }
+}
+
+fn wait_for_source(
+    services: &Services,
+    source: Stage,
+    procs: &mut [ServiceProcess],
+) -> Result<(), LaunchError> {
+    let topics: &[Topic] = match source {
+        Stage::Replay => &[Topic::Joints],
+        _ => &[Topic::Glove, Topic::Tracker],
+    };
+    let deadline = Instant::now() + CONNECT_TIMEOUT;
+    while !topics.iter().all(|t| services.publishers(*t) > 0) {
+        if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
+            return Err(err(format!(
+                "the {} process exited during start-up ({})",
+                p.stage.name(),
+                describe(p.exit)
+            )));
+        }
+        if Instant::now() > deadline {
+            return Err(err(format!(
+                "the {} process did not attach within {} s",
+                source.name(),
+                CONNECT_TIMEOUT.as_secs()
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    Ok(())
 }
 
 /// Reads every latency report waiting; the newest of each stage replaces the older one

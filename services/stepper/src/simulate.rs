@@ -207,32 +207,37 @@ pub fn simulate(
 
 /// Runs the scene's world on a sequence of hand samples with their own source times, exactly
 /// as the stepper process does (MODEL.md conventions: as many steps as bring world time up to
-/// each sample, the hand interpolated between samples), then `settle` more steps with the last
-/// hand held. This is how a recorded trace is tried against a scene in one process.
+/// each sample, the hand interpolated between samples); then, with the last hand held, up to
+/// `frames` steps in all (None: 2 s more). With `frames` below what the trace brings, the world
+/// stops there. This is how a recorded trace is tried against a scene in one process.
 pub fn simulate_samples(
     scene: &Scene,
     hands: &[HandSample],
-    settle: u64,
+    frames: Option<u64>,
 ) -> Result<Report, WorldError> {
     let mut world = World::new(scene)?;
     let mut events = Vec::new();
     let mut timeline = Timeline::new(scene.world.step_hz);
+    let limit = frames.unwrap_or(u64::MAX);
     for hand in hands {
         if !timeline.started() {
             world.set_previous_hand(Some(hand));
         }
         timeline.advance(hand, |h| {
-            world.step(h);
-            collect_events(&world, scene, &mut events);
+            if world.steps() < limit {
+                world.step(h);
+                collect_events(&world, scene, &mut events);
+            }
         });
     }
     let last = hands.last();
-    for _ in 0..settle {
+    let end = frames.unwrap_or(world.steps() + (2.0 * scene.world.step_hz) as u64);
+    while world.steps() < end {
         world.step(last);
         collect_events(&world, scene, &mut events);
     }
-    let frames = world.steps();
-    Ok(report(&world, scene, frames, events))
+    let steps = world.steps();
+    Ok(report(&world, scene, steps, events))
 }
 
 fn collect_events(world: &World, scene: &Scene, events: &mut Vec<EventReport>) {

@@ -1,0 +1,158 @@
+//! Replay of real recorded hands (CARL traces: Meta Quest hand tracking, OpenXR joints) in
+//! place of acquisition (issue 5, in part).
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use common::bus::BusConfig;
+use common::{Topic, WorldSample};
+use serde_json::Value;
+
+const EXE: &str = env!("CARGO_BIN_EXE_handblocks");
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn carl(name: &str) -> PathBuf {
+    repo().join("../shared/data/carl").join(name)
+}
+
+/// Replays `trace` through the five processes at `speed`; returns the last world sample.
+fn replay(tag: &str, trace: &str, speed: f64, seconds: f64) -> WorldSample {
+    let dir = std::env::temp_dir().join(format!("hb-replay-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = dir.join("replay.log");
+    let session = dir.join("replay.toml");
+    std::fs::write(
+        &session,
+        format!(
+            "scene = {:?}\n[source]\nkind = \"replay\"\nfile = {:?}\nspeed = {speed}\noffset = [0.0, -0.85, 0.0]\n\
+             [renderer]\nmode = \"off\"\n[recorder]\nfile = {:?}\n[budget]\nmax_dropped = 0\n",
+            repo().join("config/scenes/drop.toml").to_string_lossy(),
+            carl(trace).to_string_lossy(),
+            log.to_string_lossy(),
+        ),
+    )
+    .unwrap();
+    let id = format!("rp{tag}{}", std::process::id());
+    let out = Command::new(EXE)
+        .args([
+            "launch",
+            "--quiet",
+            "--duration",
+            &seconds.to_string(),
+            "--bus-id",
+            &id,
+        ])
+        .arg(&session)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bus = BusConfig::for_session(&id).unwrap();
+    assert!(bus.leftover_shm_files().is_empty() && !bus.root.exists());
+    let bytes = std::fs::read(&log).unwrap();
+    let records = recorder::log::records(&bytes).unwrap();
+    let joints = records.iter().filter(|r| r.topic == Topic::Joints).count();
+    assert_eq!(joints, 218, "every sample of the trace was replayed");
+    let last = records
+        .iter()
+        .rev()
+        .find(|r| r.topic == Topic::World)
+        .unwrap()
+        .sample()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    last
+}
+
+#[test]
+fn a_replay_is_the_same_world_at_any_speed_and_in_one_process() {
+    // Recorded timing (2.4 s) and as fast as the pipeline consumes: the world follows the
+    // trace's own source times, so both give the same bits, and so does `simulate --hand`.
+    let timed = replay("timed", "example_push_0.carl", 1.0, 3.5);
+    let fast = replay("fast", "example_push_0.carl", 0.0, 2.0);
+    assert_eq!(timed.step, fast.step);
+    assert_eq!(timed.blocks(), fast.blocks());
+    assert_eq!(timed.finger_points, fast.finger_points);
+
+    let sim = Command::new(EXE)
+        .args([
+            "simulate",
+            "--json",
+            "--hand-offset",
+            "0,-0.85,0",
+            "--frames",
+            &timed.step.to_string(),
+            "--hand",
+        ])
+        .arg(carl("example_push_0.carl"))
+        .arg(repo().join("config/scenes/drop.toml"))
+        .output()
+        .unwrap();
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
+    let v: Value = serde_json::from_slice(&sim.stdout).unwrap();
+    assert_eq!(v["frames"].as_u64(), Some(timed.step));
+    for (i, b) in v["blocks"].as_array().unwrap().iter().enumerate() {
+        let nums = |k: &str| -> Vec<f64> {
+            b[k].as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        };
+        assert_eq!(
+            nums("position"),
+            timed.blocks()[i].pose.position.to_vec(),
+            "block {i}"
+        );
+        assert_eq!(
+            nums("rotation"),
+            timed.blocks()[i].pose.rotation.to_vec(),
+            "block {i}"
+        );
+    }
+}
+
+#[test]
+fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
+    let dir = std::env::temp_dir().join(format!("hb-replay-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bytes = std::fs::read(carl("example_lift_0.carl")).unwrap();
+    let cut = dir.join("cut.carl");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let out = Command::new(EXE)
+        .args(["simulate", "--hand"])
+        .arg(&cut)
+        .arg(repo().join("config/scenes/drop.toml"))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("cut.carl: at byte ") && stderr.contains("using the"),
+        "{stderr}"
+    );
+
+    let wrong = dir.join("wrong.carl");
+    std::fs::write(&wrong, b"\x89MCAP0\r\n not a trace").unwrap();
+    let out = Command::new(EXE)
+        .args(["simulate", "--hand"])
+        .arg(&wrong)
+        .arg(repo().join("config/scenes/drop.toml"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("wrong.carl: at byte 0: not a CARL file"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
