@@ -101,6 +101,14 @@ impl LatencyRecorder {
         );
     }
 
+    /// Records a sample a source just published: the time from its origin to its publish is
+    /// both the source's processing and its origin latency.
+    pub fn source_output(&mut self, sent: &Stamp) {
+        let ns = sent.publish_ns.saturating_sub(sent.origin_ns);
+        self.record(Metric::Process, ns);
+        self.record(Metric::Origin, ns);
+    }
+
     pub fn histogram(&self, metric: Metric) -> &Histogram<u64> {
         &self.histograms[metric as usize]
     }

@@ -7,7 +7,7 @@ use std::time::Duration;
 use common::bus::Bus;
 use common::config::session::Source;
 use common::config::Session;
-use common::latency::{Metric, Reporter};
+use common::latency::Reporter;
 use common::stamp::sleep_until_ns;
 use common::{monotonic_ns, shutdown, GloveSample, Stage, Stamp, Topic, TrackerSample};
 
@@ -71,21 +71,11 @@ fn run_devices(
         match readers.recv_timeout(Duration::from_millis(50)) {
             Some(DeviceEvent::Glove(g)) => {
                 let sent = glove_out.publish(&g)?;
-                reporter.recorder.record(
-                    Metric::Process,
-                    sent.publish_ns.saturating_sub(sent.origin_ns),
-                );
+                reporter.recorder.source_output(&sent);
             }
             Some(DeviceEvent::Tracker(t)) => {
                 let sent = tracker_out.publish(&t)?;
-                reporter.recorder.record(
-                    Metric::Process,
-                    sent.publish_ns.saturating_sub(sent.origin_ns),
-                );
-                reporter.recorder.record(
-                    Metric::Origin,
-                    sent.publish_ns.saturating_sub(sent.origin_ns),
-                );
+                reporter.recorder.source_output(&sent);
             }
             Some(DeviceEvent::Error(e)) => eprintln!("handblocks acquisition: {e}"),
             None => {}
@@ -132,14 +122,7 @@ fn run_scripted(
         let (g, t) = hand.samples_at(k as f64 / rate_hz, stamp);
         glove.publish(&g)?;
         let sent = tracker.publish(&t)?;
-        reporter.recorder.record(
-            Metric::Process,
-            sent.publish_ns.saturating_sub(sent.origin_ns),
-        );
-        reporter.recorder.record(
-            Metric::Origin,
-            sent.publish_ns.saturating_sub(sent.origin_ns),
-        );
+        reporter.recorder.source_output(&sent);
         reporter.maybe_report(&[glove.counter(), tracker.counter()])?;
         k += 1;
     }

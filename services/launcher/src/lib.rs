@@ -238,24 +238,14 @@ fn describe(status: Option<std::process::ExitStatus>) -> String {
     }
 }
 
-fn wait_until_connected(
-    services: &Services,
-    stages: &[Stage],
+/// Polls `ready` until it returns None (all attached) or the start-up fails: a process exits,
+/// or CONNECT_TIMEOUT passes (then the error says what `ready` last reported missing).
+fn wait_for_start(
     procs: &mut [ServiceProcess],
+    mut ready: impl FnMut() -> Option<String>,
 ) -> Result<(), LaunchError> {
-    let expected = expected_subscribers(stages);
     let deadline = Instant::now() + CONNECT_TIMEOUT;
-    loop {
-        let missing: Vec<String> = expected
-            .iter()
-            .filter(|(t, n)| services.subscribers(*t) < *n)
-            .map(|(t, n)| format!("{} ({} of {n} readers)", t.name(), services.subscribers(*t)))
-            .collect();
-        // Each reader's latency publisher attaches last: all of them there means all are ready.
-        let reporting = services.publishers(Topic::Latency);
-        if missing.is_empty() && reporting >= stages.len() {
-            return Ok(());
-        }
+    while let Some(missing) = ready() {
         if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
             return Err(err(format!(
                 "the {} process exited during start-up ({})",
@@ -265,15 +255,38 @@ fn wait_until_connected(
         }
         if Instant::now() > deadline {
             return Err(err(format!(
-                "the processes did not attach within {} s; still missing: {}",
-                CONNECT_TIMEOUT.as_secs(),
-                missing.join(", ")
+                "the processes did not attach within {} s; still missing: {missing}",
+                CONNECT_TIMEOUT.as_secs()
             )));
         }
-        std::thread::sleep(Duration::from_millis(5));
+        std::thread::sleep(Duration::from_millis(2));
     }
+    Ok(())
 }
 
+/// Every reader attached: each topic has its subscribers, and each reader's latency publisher
+/// (created last) exists.
+fn wait_until_connected(
+    services: &Services,
+    stages: &[Stage],
+    procs: &mut [ServiceProcess],
+) -> Result<(), LaunchError> {
+    let expected = expected_subscribers(stages);
+    wait_for_start(procs, || {
+        let mut missing: Vec<String> = expected
+            .iter()
+            .filter(|(t, n)| services.subscribers(*t) < *n)
+            .map(|(t, n)| format!("{} ({} of {n} readers)", t.name(), services.subscribers(*t)))
+            .collect();
+        let reporting = services.publishers(Topic::Latency);
+        if reporting < stages.len() {
+            missing.push(format!("latency ({reporting} of {} stages)", stages.len()));
+        }
+        (!missing.is_empty()).then(|| missing.join(", "))
+    })
+}
+
+/// The source attached: its publishers exist, so the session's time can start.
 fn wait_for_source(
     services: &Services,
     source: Stage,
@@ -283,25 +296,15 @@ fn wait_for_source(
         Stage::Replay => &[Topic::Joints],
         _ => &[Topic::Glove, Topic::Tracker],
     };
-    let deadline = Instant::now() + CONNECT_TIMEOUT;
-    while !topics.iter().all(|t| services.publishers(*t) > 0) {
-        if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
-            return Err(err(format!(
-                "the {} process exited during start-up ({})",
-                p.stage.name(),
-                describe(p.exit)
-            )));
-        }
-        if Instant::now() > deadline {
-            return Err(err(format!(
-                "the {} process did not attach within {} s",
-                source.name(),
-                CONNECT_TIMEOUT.as_secs()
-            )));
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    Ok(())
+    wait_for_start(procs, || {
+        let missing: Vec<&str> = topics
+            .iter()
+            .filter(|t| services.publishers(**t) == 0)
+            .map(|t| t.name())
+            .collect();
+        (!missing.is_empty())
+            .then(|| format!("the {} publishers of {}", source.name(), missing.join(", ")))
+    })
 }
 
 /// Reads every latency report waiting; the newest of each stage replaces the older one

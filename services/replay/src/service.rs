@@ -11,7 +11,7 @@ use std::time::Duration;
 use common::bus::Bus;
 use common::config::session::Source;
 use common::config::Session;
-use common::latency::{Metric, Reporter};
+use common::latency::Reporter;
 use common::stamp::sleep_until_ns;
 use common::{monotonic_ns, shutdown, JointsSample, Stage, Topic, WorldSample};
 
@@ -66,14 +66,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         let mut s = *sample;
         s.stamp.origin_ns = monotonic_ns();
         let sent = joints_out.publish(&s)?;
-        reporter.recorder.record(
-            Metric::Process,
-            sent.publish_ns.saturating_sub(sent.origin_ns),
-        );
-        reporter.recorder.record(
-            Metric::Origin,
-            sent.publish_ns.saturating_sub(sent.origin_ns),
-        );
+        reporter.recorder.source_output(&sent);
         while world_in.receive()?.is_some() {}
         reporter.maybe_report(&[joints_out.counter()])?;
     }
