@@ -131,7 +131,8 @@ fn demo() -> (Scene, WorldSample, HandSample) {
             _reserved: 0,
         };
     }
-    // A thumb on the block's near face, four fingers curling over its far face.
+    // Four fingers curling down over the block's near face (towards the viewer), the thumb
+    // on its far face, the palm above it.
     let mut hand = HandSample {
         tracked: 1,
         finger_count: 5,
@@ -142,26 +143,26 @@ fn demo() -> (Scene, WorldSample, HandSample) {
     };
     let (gx, gy, gz) = (0.02, 0.2, 0.0);
     hand.finger_points[0] = [
-        [gx - 0.05, gy + 0.06, gz + 0.02],
-        [gx - 0.045, gy + 0.03, gz + 0.04],
-        [gx - 0.02, gy + 0.01, gz + 0.045],
-        [gx, gy, gz + 0.04],
+        [gx - 0.05, gy + 0.06, gz - 0.02],
+        [gx - 0.045, gy + 0.03, gz - 0.04],
+        [gx - 0.02, gy + 0.01, gz - 0.045],
+        [gx, gy, gz - 0.04],
         [0.0; 3],
     ];
     for f in 1..5 {
         let x = gx - 0.03 + 0.02 * (f - 1) as f64;
         hand.finger_points[f] = [
             [x, gy + 0.07, gz + 0.0],
-            [x, gy + 0.06, gz - 0.03],
-            [x, gy + 0.03, gz - 0.045],
-            [x, gy + 0.005, gz - 0.04],
+            [x, gy + 0.06, gz + 0.03],
+            [x, gy + 0.03, gz + 0.045],
+            [x, gy + 0.005, gz + 0.04],
             [0.0; 3],
         ];
     }
     let mut k = 0;
     for dx in [-0.045, 0.045] {
         for dy in [0.07, 0.095] {
-            for dz in [0.0, 0.09] {
+            for dz in [-0.09, 0.0] {
                 hand.palm_vertices[k] = [gx + dx, gy + dy, gz + dz];
                 k += 1;
             }

@@ -206,7 +206,7 @@ impl DrawList {
 fn segment_matrix(a: DVec3, b: DVec3, r: f64) -> Option<Mat4> {
     let axis = b - a;
     let len = axis.length();
-    if !(len > 1e-9) {
+    if len.is_nan() || len <= 1e-9 {
         return None;
     }
     let y = axis / len;

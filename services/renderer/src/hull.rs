@@ -35,7 +35,7 @@ pub fn convex_hull(points: &[DVec3]) -> Option<Polytope> {
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
     );
     let extent = (hi - lo).max_element();
-    if !(extent > 0.0) {
+    if extent.is_nan() || extent <= 0.0 {
         return None;
     }
     let eps = extent * 1e-9;

@@ -135,7 +135,7 @@ pub fn run_with(
                     let times = r.render(&world, hand)?;
                     done = times.done_ns;
                     if let (Some(w), Some(f)) = (&mut writer, &frames) {
-                        if frame_no % u64::from(f.every_nth.max(1)) == 0 {
+                        if frame_no.is_multiple_of(u64::from(f.every_nth.max(1))) {
                             w.offer(r, frame_no)?;
                         }
                     }
