@@ -1,7 +1,9 @@
 //! Renders a demonstration world (blocks in several modes, a hand grasping one) and writes it
 //! as PNG, to show what the renderer draws.
 //!
-//! `cargo run -p renderer --release --example snapshot -- OUT.png [side-by-side|anaglyph|separate] [WIDTH HEIGHT]`
+//! `cargo run -p renderer --release --example snapshot -- OUT.png [side-by-side|anaglyph|separate] [WIDTH HEIGHT] [--window SECONDS]`
+//!
+//! With `--window SECONDS` it also shows the frame in a window for that long (needs a display).
 
 use std::path::PathBuf;
 
@@ -27,7 +29,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..RenderSettings::default()
     };
     let (scene, world, hand) = demo();
-    let mut r = Renderer::new_headless(&settings, &scene)?;
+    let window_s: Option<f64> = args
+        .iter()
+        .position(|a| a == "--window")
+        .and_then(|i| args.get(i + 1))
+        .map(|s| s.parse())
+        .transpose()?;
+    let mut r = match window_s {
+        Some(seconds) => {
+            let (mut r, mut window) = Renderer::new_window(&settings, &scene)?;
+            let until = std::time::Instant::now() + std::time::Duration::from_secs_f64(seconds);
+            while std::time::Instant::now() < until
+                && window.pump(&mut r) == renderer::window::WindowStatus::Open
+            {
+                r.render(&world, &hand)?;
+                std::thread::sleep(std::time::Duration::from_millis(30));
+            }
+            r
+        }
+        None => Renderer::new_headless(&settings, &scene)?,
+    };
     r.render(&world, &hand)?;
     let img = r.read_back()?;
     let dir = out.parent().map(PathBuf::from).unwrap_or_default();
