@@ -1,5 +1,6 @@
 //! Time of `Renderer::render` (draw both eyes, wait for the GPU) alone, per frame content.
-//! `cargo run -p renderer --release --example frame_cost -- [WIDTH HEIGHT] [FRAMES]`
+//! `cargo run -p renderer --release --example frame_cost -- [WIDTH HEIGHT] [FRAMES] [GAP_MS]`
+//! (GAP_MS: idle time between frames, as a paced loop has)
 
 use std::path::PathBuf;
 
@@ -17,6 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         a.get(1).copied().unwrap_or(480),
     );
     let frames = a.get(2).copied().unwrap_or(200);
+    let gap = std::time::Duration::from_millis(a.get(3).copied().unwrap_or(0) as u64);
     let blocks = 8;
     let scene = Scene {
         file: PathBuf::from("cost"),
@@ -56,6 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for (name, wld) in [("floor only", &empty), ("8 blocks", &world)] {
             let mut t = Vec::new();
             for i in 0..frames + 10 {
+                std::thread::sleep(gap);
                 let f = r.render(wld, &hand)?;
                 if i >= 10 {
                     t.push((f.done_ns - f.started_ns) as f64 / 1e6);

@@ -33,6 +33,8 @@ pub const FLOOR_HALF: f32 = 4.0;
 pub struct Meshes {
     pub vertices: Vec<Vertex>,
     pub floor: Range<u32>,
+    /// The floor grid, as a line list (see [`grid_lines`]).
+    pub grid: Range<u32>,
     pub cylinder: Range<u32>,
     pub sphere: Range<u32>,
     /// One per scene block, in scene order.
@@ -50,6 +52,7 @@ impl Meshes {
     pub fn build(shapes: &[&ShapeSpec]) -> Result<Meshes, ShapeError> {
         let mut vertices = Vec::new();
         let floor = push(&mut vertices, floor_triangles());
+        let grid = push(&mut vertices, grid_lines());
         let cylinder = push(&mut vertices, cylinder_triangles(12));
         let sphere = push(&mut vertices, sphere_triangles(12, 6));
         let mut blocks = Vec::with_capacity(shapes.len());
@@ -63,6 +66,7 @@ impl Meshes {
         Ok(Meshes {
             vertices,
             floor,
+            grid,
             cylinder,
             sphere,
             blocks,
@@ -142,6 +146,35 @@ fn floor_triangles() -> Vec<Vertex> {
     let p = |x: f64, z: f64| v(DVec3::new(x, 0.0, z), 1.0);
     // Counter-clockwise seen from above (+y).
     vec![p(-h, -h), p(-h, h), p(h, h), p(-h, -h), p(h, h), p(h, -h)]
+}
+
+/// Half the grid's side, metres.
+pub const GRID_HALF: f64 = 3.0;
+
+/// Grid lines every 10 cm (every 50 cm stronger: the edge weight carries the strength), as
+/// line geometry 1.5 mm above the floor. Lines rather than a procedural grid in the floor's
+/// fragment shader: the floor covers most of the picture, and on a software rasteriser a
+/// per-pixel grid cost a third of the frame; lines cost only their own pixels.
+fn grid_lines() -> Vec<Vertex> {
+    let mut out = Vec::new();
+    let n = (GRID_HALF / 0.1).round() as i32;
+    for k in -n..=n {
+        let c = k as f64 * 0.1;
+        let strength = if k % 5 == 0 { 0.8 } else { 0.45 };
+        for (a, b) in [
+            (
+                DVec3::new(c, 0.0015, -GRID_HALF),
+                DVec3::new(c, 0.0015, GRID_HALF),
+            ),
+            (
+                DVec3::new(-GRID_HALF, 0.0015, c),
+                DVec3::new(GRID_HALF, 0.0015, c),
+            ),
+        ] {
+            out.extend([v(a, strength), v(b, strength)]);
+        }
+    }
+    out
 }
 
 /// Radius 1, from y = 0 to y = 1, open ends (the joints' spheres close them).

@@ -48,6 +48,7 @@ pub struct CompositeUniform {
 /// What the scene pass needs.
 pub struct ScenePipelines {
     pub floor: wgpu::RenderPipeline,
+    pub grid: wgpu::RenderPipeline,
     pub shadow: wgpu::RenderPipeline,
     pub solid: wgpu::RenderPipeline,
     pub layout: wgpu::BindGroupLayout,
@@ -72,6 +73,9 @@ fn uniform_entry(binding: u32, dynamic: bool, size: u64) -> wgpu::BindGroupLayou
         count: None,
     }
 }
+
+const TRIANGLES: wgpu::PrimitiveTopology = wgpu::PrimitiveTopology::TriangleList;
+const LINES: wgpu::PrimitiveTopology = wgpu::PrimitiveTopology::LineList;
 
 pub fn scene_pipelines(device: &wgpu::Device, module: &wgpu::ShaderModule) -> ScenePipelines {
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -102,7 +106,12 @@ pub fn scene_pipelines(device: &wgpu::Device, module: &wgpu::ShaderModule) -> Sc
             attributes: &instance_attrs,
         }),
     ];
-    let make = |label: &str, vs: &str, fs: &str, cull: bool, depth_write: bool| {
+    let make = |label: &str,
+                vs: &str,
+                fs: &str,
+                topology: wgpu::PrimitiveTopology,
+                cull: bool,
+                depth_write: bool| {
         device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some(label),
             layout: Some(&pl),
@@ -113,7 +122,7 @@ pub fn scene_pipelines(device: &wgpu::Device, module: &wgpu::ShaderModule) -> Sc
                 buffers: &buffers,
             },
             primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
+                topology,
                 front_face: wgpu::FrontFace::Ccw,
                 cull_mode: cull.then_some(wgpu::Face::Back),
                 ..Default::default()
@@ -141,11 +150,12 @@ pub fn scene_pipelines(device: &wgpu::Device, module: &wgpu::ShaderModule) -> Sc
         })
     };
     ScenePipelines {
-        floor: make("floor", "vs_main", "fs_floor", true, true),
+        floor: make("floor", "vs_main", "fs_floor", TRIANGLES, true, true),
+        grid: make("grid", "vs_main", "fs_grid", LINES, false, false),
         // A projected shadow's winding depends on the light; shadows overlap without
         // darkening twice because each writes the same colour and none writes depth.
-        shadow: make("shadow", "vs_shadow", "fs_shadow", false, false),
-        solid: make("solid", "vs_main", "fs_solid", true, true),
+        shadow: make("shadow", "vs_shadow", "fs_shadow", TRIANGLES, false, false),
+        solid: make("solid", "vs_main", "fs_solid", TRIANGLES, true, true),
         layout,
     }
 }

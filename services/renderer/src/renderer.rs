@@ -415,13 +415,18 @@ impl Renderer {
                 let fi = list.floor_instance;
                 pass.draw(self.meshes.floor.clone(), fi..fi + 1);
                 let pipelines: &[&wgpu::RenderPipeline] = if self.settings.shadows {
-                    &[&self.scene.shadow, &self.scene.solid]
+                    &[&self.scene.shadow, &self.scene.grid, &self.scene.solid]
                 } else {
-                    &[&self.scene.solid]
+                    &[&self.scene.grid, &self.scene.solid]
                 };
                 for p in pipelines {
                     pass.set_pipeline(p);
                     pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
+                    if std::ptr::eq(*p, &self.scene.grid) {
+                        // Over the floor and the shadows, under everything else.
+                        pass.draw(self.meshes.grid.clone(), fi..fi + 1);
+                        continue;
+                    }
                     for b in &list.blocks {
                         pass.draw(b.vertices.clone(), b.instance..b.instance + 1);
                     }

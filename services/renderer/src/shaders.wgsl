@@ -66,27 +66,7 @@ fn vs_shadow(v: VIn) -> VOut {
     return o;
 }
 
-// Grid lines every 10 cm, stronger every 50 cm, about a pixel wide (distance to the line in
-// grid units over the grid units per pixel), faded out where minor lines come closer than about
-// 12 pixels (denser lines alias into moire patterns). One derivative serves both grids: the
-// floor is most of the picture, and on a software rasteriser its shader is most of the frame.
-fn floor_color(p: vec3<f32>) -> vec3<f32> {
-    let base = vec3<f32>(0.42, 0.42, 0.40);
-    let g = p.xz * 10.0;
-    let gx = dpdx(g);
-    let gy = dpdy(g);
-    let fw = max(abs(gx) + abs(gy), vec2<f32>(1e-6));
-    // Grid cells per pixel, direction-free (fwidth's |x| + |y| has creases that showed as
-    // faint diagonal lines where the fade-out passes).
-    let dens = max(length(gx), length(gy));
-    let d = abs(fract(g - 0.5) - 0.5) / fw;
-    let g5 = g * 0.2;
-    let d5 = abs(fract(g5 - 0.5) - 0.5) / (fw * 0.2);
-    let minor = (1.0 - clamp(min(d.x, d.y), 0.0, 1.0)) * clamp(1.5 - 6.0 * dens, 0.0, 1.0);
-    let major = (1.0 - clamp(min(d5.x, d5.y) / 1.5, 0.0, 1.0)) * clamp(1.5 - 1.2 * dens, 0.0, 1.0);
-    let line = max(minor * 0.5, major * 0.8);
-    return mix(base, vec3<f32>(0.12, 0.12, 0.13), line);
-}
+const FLOOR: vec3<f32> = vec3<f32>(0.42, 0.42, 0.40);
 
 fn floor_light() -> f32 {
     return 0.45 + 0.55 * max(globals.light_dir.y, 0.0);
@@ -94,12 +74,21 @@ fn floor_light() -> f32 {
 
 @fragment
 fn fs_floor(i: VOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(floor_color(i.world) * floor_light(), 1.0);
+    return vec4<f32>(FLOOR * floor_light(), 1.0);
 }
 
 @fragment
 fn fs_shadow(i: VOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(floor_color(i.world) * floor_light() * (1.0 - globals.params.y), 1.0);
+    return vec4<f32>(FLOOR * floor_light() * (1.0 - globals.params.y), 1.0);
+}
+
+// Grid lines (line geometry; the edge weight is the line's strength), faded out with distance
+// where they crowd into moire patterns.
+@fragment
+fn fs_grid(i: VOut) -> @location(0) vec4<f32> {
+    let dist = length(eye.eye_pos.xyz - i.world);
+    let k = i.edge * clamp(2.0 - dist / 2.0, 0.0, 1.0);
+    return vec4<f32>(mix(FLOOR * floor_light(), vec3<f32>(0.10, 0.10, 0.11), k), 1.0);
 }
 
 @fragment
