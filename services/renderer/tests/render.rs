@@ -209,7 +209,7 @@ fn a_grasped_block_has_the_grasp_colour_and_each_mode_its_own() {
 }
 
 #[test]
-fn fingers_are_drawn_where_the_world_relocated_them_not_where_the_hand_had_them() {
+fn fingers_are_drawn_where_the_world_relocated_them_and_the_palm_where_the_hand_has_it() {
     let s = settings(OutputMode::SideBySide, false);
     let mut r = renderer(&s, 1);
     let block = [0.0, 0.1, 0.3];
@@ -251,6 +251,23 @@ fn fingers_are_drawn_where_the_world_relocated_them_not_where_the_hand_had_them(
     );
     assert!(at_world > 40);
     assert_eq!(at_hand, 0);
+
+    // The palm: the hull of the hand sample's palm box, in skin colour (r > g > b).
+    let mut k = 0;
+    for x in [-0.14, -0.10] {
+        for y in [0.08, 0.12] {
+            for z in [0.28, 0.32] {
+                hand.palm_vertices[k] = [x, y, z];
+                k += 1;
+            }
+        }
+    }
+    hand.palm_vertex_count = 8;
+    let img = draw(&mut r, &w, &hand);
+    let (x, y) = eye.project_px(DVec3::new(-0.12, 0.1, 0.32), W, H).unwrap();
+    let p = img.pixel(x as u32, y as u32);
+    println!("palm front face {p:?}");
+    assert!(p[0] > p[1] && p[1] > p[2] && p[0] > 150, "{p:?}");
 }
 
 /// Reverses the sRGB curve, 0..1.
@@ -407,4 +424,42 @@ fn the_default_camera_sees_the_blocks_around_the_origin_and_the_hand_above() {
         .render(&WorldSample::default(), &HandSample::default())
         .unwrap();
     assert!(t.done_ns >= t.submitted_ns && t.submitted_ns >= t.started_ns);
+}
+
+#[test]
+fn every_shape_kind_is_drawn_centred_on_its_centre_of_gravity() {
+    let s = settings(OutputMode::SideBySide, false);
+    let mut sc = scene(4);
+    sc.blocks[1].shape = ShapeSpec::Wedge {
+        size: [0.05, 0.04, 0.04],
+    };
+    sc.blocks[2].shape = ShapeSpec::Tetra {
+        size: [0.05, 0.05, 0.05],
+    };
+    // An octahedron given far from its own origin: drawn around G all the same.
+    sc.blocks[3].shape = ShapeSpec::Hull {
+        vertices: vec![
+            [10.03, 5.0, 0.0],
+            [9.97, 5.0, 0.0],
+            [10.0, 5.03, 0.0],
+            [10.0, 4.97, 0.0],
+            [10.0, 5.0, 0.03],
+            [10.0, 5.0, -0.03],
+        ],
+    };
+    let mut r = Renderer::new_headless(&s, &sc).unwrap();
+    let xs = [-0.15, -0.05, 0.05, 0.15];
+    let w = world(&xs.map(|x| [x, 0.1, 0.3]), BlockMode::Resting);
+    let img = draw(&mut r, &w, &HandSample::default()).eye(Eye::Left);
+    let eye = r.eye_views()[0];
+    for (i, x) in xs.iter().enumerate() {
+        let (px, py) = eye.project_px(DVec3::new(*x, 0.1, 0.3), W, H).unwrap();
+        let (cx, cy, n) = centroid(&img, |u, v| {
+            (u as f64 - px).abs() < 20.0 && (v as f64 - py).abs() < 20.0 && is_red(img.pixel(u, v))
+        });
+        println!("shape {i}: {n} px, image centre {cx:.1},{cy:.1}, G at {px:.1},{py:.1}");
+        assert!(n > 40, "shape {i}: {n} px");
+        // The image's centre is G's projection up to perspective and the shape's asymmetry.
+        assert!((cx - px).abs() < 5.0 && (cy - py).abs() < 5.0);
+    }
 }
