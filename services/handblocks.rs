@@ -52,6 +52,9 @@ enum Command {
         /// No progress lines while running.
         #[arg(long)]
         quiet: bool,
+        /// Write rendered frames as PNG into DIR (every `[renderer] frames_every`-th frame).
+        #[arg(long, value_name = "DIR")]
+        frames_dir: Option<PathBuf>,
     },
     /// Run a scene's block world alone, in one process, deterministically.
     ///
@@ -126,6 +129,9 @@ enum Command {
         /// The session's bus id, as the launcher chose it.
         #[arg(long)]
         bus: String,
+        /// The renderer only: write PNG frames here.
+        #[arg(long, value_name = "DIR")]
+        frames_dir: Option<PathBuf>,
     },
 }
 
@@ -178,12 +184,14 @@ fn parse_seconds(s: &str) -> Result<Duration, String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        // `cargo run --release`: the live session, until Ctrl-C.
         None => launch(
             PathBuf::from("config/sessions/live.toml"),
-            Some(Duration::from_secs(10)),
+            None,
             None,
             None,
             false,
+            None,
         ),
         Some(Command::Launch {
             session,
@@ -191,7 +199,8 @@ fn main() -> ExitCode {
             report,
             bus_id,
             quiet,
-        }) => launch(session, duration, report, bus_id, quiet),
+            frames_dir,
+        }) => launch(session, duration, report, bus_id, quiet, frames_dir),
         Some(Command::Simulate {
             scene,
             frames,
@@ -207,7 +216,12 @@ fn main() -> ExitCode {
             hand_offset.unwrap_or_default(),
             json,
         ),
-        Some(Command::Service { name, session, bus }) => service(&name, &session, &bus),
+        Some(Command::Service {
+            name,
+            session,
+            bus,
+            frames_dir,
+        }) => service(&name, &session, &bus, frames_dir),
         Some(Command::Bench {
             which:
                 BenchKind::Latency {
@@ -262,6 +276,7 @@ fn launch(
     report: Option<PathBuf>,
     bus_id: Option<String>,
     quiet: bool,
+    frames_dir: Option<PathBuf>,
 ) -> ExitCode {
     let exe = match std::env::current_exe() {
         Ok(e) => e,
@@ -297,6 +312,7 @@ fn launch(
         bus_id,
         exe,
         progress: !quiet,
+        frames_dir,
     };
     match launcher::launch(&opts) {
         Ok(outcome) => {
@@ -509,7 +525,12 @@ fn emulate(
     }
 }
 
-fn service(name: &str, session_file: &std::path::Path, bus_id: &str) -> ExitCode {
+fn service(
+    name: &str,
+    session_file: &std::path::Path,
+    bus_id: &str,
+    frames_dir: Option<PathBuf>,
+) -> ExitCode {
     shutdown::install_signal_handlers();
     shutdown::watch_parent_pipe();
     let Some(stage) = Stage::from_name(name) else {
@@ -527,7 +548,15 @@ fn service(name: &str, session_file: &std::path::Path, bus_id: &str) -> ExitCode
             Stage::Acquisition => acquisition::service::run(&session, &bus),
             Stage::Kinematics => kinematics::service::run(&session, &bus),
             Stage::Stepper => stepper::service::run(&session, &bus),
-            Stage::Renderer => renderer::service::run(&session, &bus),
+            Stage::Renderer => renderer::service::run_with(
+                &session,
+                &bus,
+                renderer::RenderSettings::from_session(&session.renderer),
+                frames_dir.map(|dir| renderer::FramesRequest {
+                    dir,
+                    every_nth: session.renderer.frames_every,
+                }),
+            ),
             Stage::Recorder => recorder::service::run(&session, &bus),
             Stage::Replay => replay::service::run(&session, &bus),
         }

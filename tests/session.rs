@@ -85,7 +85,7 @@ fn samples_flow_through_every_stage_in_order_with_no_drops() {
         &dir,
         "flow.toml",
         &format!(
-            "[source]\nkind = \"scripted\"\nrate_hz = 120\n[renderer]\nmode = \"headless\"\n\
+            "[source]\nkind = \"scripted\"\nrate_hz = 120\n[renderer]\nmode = \"headless\"\nwidth = 160\nheight = 120\n\
              [recorder]\nfile = {:?}\n[budget]\nframe_hz = 60\nmax_dropped = 0\n",
             log.to_string_lossy()
         ),

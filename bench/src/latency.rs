@@ -119,6 +119,7 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         bus_id: None,
         exe: b.exe.clone(),
         progress: false,
+        frames_dir: None,
     })?;
     let report = &outcome.report;
     let mut stages = serde_json::Map::new();

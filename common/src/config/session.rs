@@ -69,6 +69,37 @@ pub struct RendererSettings {
     /// Per eye.
     pub width: u32,
     pub height: u32,
+    /// "side-by-side", "anaglyph" (red-cyan) or "separate" (one image per eye).
+    pub output: String,
+    /// Distance between the eyes, millimetres (adults: 50-75, mean 63).
+    pub ipd_mm: f64,
+    /// The screen plane both eyes' frusta share (zero disparity), metres from the eyes.
+    pub screen_distance_m: f64,
+    pub screen_width_m: f64,
+    /// Where the eyes' midpoint is and what it looks at, world frame.
+    pub eye: [f64; 3],
+    pub target: [f64; 3],
+    pub shadows: bool,
+    /// With `launch --frames-dir`, write every Nth frame.
+    pub frames_every: u32,
+}
+
+impl Default for RendererSettings {
+    fn default() -> Self {
+        RendererSettings {
+            mode: RenderMode::Headless,
+            width: 640,
+            height: 480,
+            output: "side-by-side".into(),
+            ipd_mm: 63.0,
+            screen_distance_m: 0.6,
+            screen_width_m: 0.52,
+            eye: [0.0, 0.75, 1.1],
+            target: [0.0, 0.05, 0.0],
+            shadows: true,
+            frames_every: 1,
+        }
+    }
 }
 
 /// `[recorder]`.
@@ -186,19 +217,40 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<Source, ConfigError> {
 }
 
 fn renderer(r: Option<Reader>) -> Result<RendererSettings, ConfigError> {
-    let mut s = RendererSettings {
-        mode: RenderMode::Headless,
-        width: 640,
-        height: 480,
+    let d = RendererSettings::default();
+    let Some(r) = r else { return Ok(d) };
+    let place = -1.0e5..=1.0e5;
+    let s = RendererSettings {
+        mode: match r.choice("mode", &["headless", "window", "off"])? {
+            "window" => RenderMode::Window,
+            "off" => RenderMode::Off,
+            _ => RenderMode::Headless,
+        },
+        width: r.u64_in("width", 640, 16..=8192)? as u32,
+        height: r.u64_in("height", 480, 16..=8192)? as u32,
+        output: r
+            .choice("output", &["side-by-side", "anaglyph", "separate"])?
+            .to_string(),
+        ipd_mm: r
+            .f64_in("ipd_mm", Some(d.ipd_mm), 0.0..=100.0)?
+            .unwrap_or(d.ipd_mm),
+        screen_distance_m: r
+            .f64_in("screen_distance_m", Some(d.screen_distance_m), 0.05..=100.0)?
+            .unwrap_or(d.screen_distance_m),
+        screen_width_m: r
+            .f64_in("screen_width_m", Some(d.screen_width_m), 0.01..=100.0)?
+            .unwrap_or(d.screen_width_m),
+        eye: r.array::<3>("eye", place.clone())?.unwrap_or(d.eye),
+        target: r.array::<3>("target", place)?.unwrap_or(d.target),
+        shadows: r.bool("shadows", d.shadows)?,
+        frames_every: r.u64_in("frames_every", 1, 1..=1_000_000)? as u32,
     };
-    let Some(r) = r else { return Ok(s) };
-    s.mode = match r.choice("mode", &["headless", "window", "off"])? {
-        "window" => RenderMode::Window,
-        "off" => RenderMode::Off,
-        _ => RenderMode::Headless,
-    };
-    s.width = r.u64_in("width", 640, 16..=8192)? as u32;
-    s.height = r.u64_in("height", 480, 16..=8192)? as u32;
+    if s.eye == s.target {
+        return Err(r.err(
+            "target",
+            "must differ from `eye` (the camera looks from eye to target)",
+        ));
+    }
     r.finish()?;
     Ok(s)
 }

@@ -46,6 +46,8 @@ pub struct LaunchOptions {
     pub exe: PathBuf,
     /// Print progress once a second.
     pub progress: bool,
+    /// Where the renderer writes PNG frames (every `[renderer] frames_every`-th), if anywhere.
+    pub frames_dir: Option<PathBuf>,
 }
 
 /// How a launch ended.
@@ -134,8 +136,22 @@ fn run_session(
     let latency = bus.inlet::<LatencySample>(Topic::Latency).map_err(err)?;
     let session_file = std::path::absolute(&opts.session).unwrap_or_else(|_| opts.session.clone());
 
+    let renderer_args: Vec<std::ffi::OsString> = match &opts.frames_dir {
+        Some(dir) => vec![
+            "--frames-dir".into(),
+            std::path::absolute(dir)
+                .unwrap_or_else(|_| dir.clone())
+                .into(),
+        ],
+        None => Vec::new(),
+    };
     let start = |stage| {
-        ServiceProcess::start(&opts.exe, stage, &session_file, &bus_config.id).map_err(|e| {
+        let extra: &[std::ffi::OsString] = if stage == Stage::Renderer {
+            &renderer_args
+        } else {
+            &[]
+        };
+        ServiceProcess::start(&opts.exe, stage, &session_file, &bus_config.id, extra).map_err(|e| {
             err(format!(
                 "cannot start the {} process ({}): {e}",
                 stage.name(),

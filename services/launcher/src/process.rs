@@ -10,6 +10,9 @@ use std::os::unix::process::CommandExt;
 
 use common::Stage;
 
+/// The nice value of the renderer and recorder processes (the pipeline's own run at 0).
+const CONSUMER_NICE: libc::c_int = 10;
+
 pub struct ServiceProcess {
     pub stage: Stage,
     child: Child,
@@ -23,6 +26,7 @@ impl ServiceProcess {
         stage: Stage,
         session: &Path,
         bus_id: &str,
+        extra: &[std::ffi::OsString],
     ) -> std::io::Result<ServiceProcess> {
         let mut child = Command::new(exe)
             .arg("service")
@@ -31,11 +35,29 @@ impl ServiceProcess {
             .arg(session)
             .arg("--bus")
             .arg(bus_id)
+            .args(extra)
             .stdin(Stdio::piped())
             .stdout(Stdio::inherit())
             .stderr(Stdio::inherit())
             .process_group(0)
             .spawn()?;
+        // Consumers at the end of the pipeline must never delay the world: on a machine without
+        // a GPU the renderer's software rasteriser would otherwise take the cores the stepper
+        // needs. Lower their priority (their threads, started later, inherit it).
+        // The renderer runs SCHED_IDLE: any pipeline stage that wakes takes the core at once,
+        // and the renderer still gets every cycle the pipeline leaves. The recorder, light and
+        // latency-free, runs at a lower nice value.
+        if matches!(stage, Stage::Renderer | Stage::Recorder) {
+            // SAFETY: setpriority/sched_setscheduler on our own child's pid with a valid param;
+            // an unprivileged process may lower its own priority; failure only leaves the default.
+            unsafe {
+                libc::setpriority(libc::PRIO_PROCESS, child.id() as libc::id_t, CONSUMER_NICE);
+                if stage == Stage::Renderer {
+                    let param = libc::sched_param { sched_priority: 0 };
+                    libc::sched_setscheduler(child.id() as libc::pid_t, libc::SCHED_IDLE, &param);
+                }
+            }
+        }
         let release = child.stdin.take();
         Ok(ServiceProcess {
             stage,

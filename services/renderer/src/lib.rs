@@ -1,9 +1,27 @@
-//! The renderer: draws the newest world state at the session's frame rate and measures how old
-//! each frame's data is when its pixels are done (origin -> photon).
+//! The renderer: draws the newest world state in stereo at the session's frame rate and
+//! measures how old each frame's data is when its pixels are done (origin -> photon).
 //!
-//! Drawing (wgpu, off-axis stereo) is issue 6; this process already has the real timing
-//! structure: it takes every `world` sample as it arrives (so the hop latency is the bus's, not
-//! the frame pacing's), keeps only the newest, and at each frame deadline "renders" it and
-//! publishes frame statistics. It never blocks upstream.
+//! The drawing core works without IPC: [`Renderer::new_headless`] takes settings and a scene,
+//! [`Renderer::render`] draws a world and hand sample and waits for the GPU,
+//! [`Renderer::read_back`] returns the pixels. [`service`] is the process around it.
+//!
+//! Modules, by concept: [`camera`] (off-axis stereo), [`hull`] and [`mesh`] (block polyhedra
+//! from the scene's shape specs, centred on G), [`draw_list`] (a frame's instances),
+//! [`pipeline`] (shaders and GPU pipelines), [`renderer`] (device and frame), [`output`]
+//! (side-by-side, anaglyph, separate), [`png`], [`window`] (winit), [`service`].
 
+pub mod camera;
+pub mod draw_list;
+pub mod hull;
+pub mod mesh;
+pub mod output;
+pub mod pipeline;
+pub mod png;
+pub mod renderer;
 pub mod service;
+pub mod settings;
+pub mod window;
+
+pub use output::Image;
+pub use renderer::{FrameTimes, RenderError, Renderer};
+pub use settings::{CameraSettings, FramesRequest, OutputMode, RenderSettings};

@@ -1,5 +1,17 @@
 //! The renderer process loop.
+//!
+//! It takes every `world` sample as it arrives (so the hop latency is the bus's, not the
+//! frame pacing's), keeps only the newest, and at each frame deadline (absolute, at the
+//! session's `frame_hz`) draws it with the hand sample it answers, waits for the GPU to finish
+//! ("photon"), and publishes frame statistics. It never blocks upstream: samples that arrive
+//! during a frame wait in the bus and are drained, newest kept, before the next one.
+//!
+//! PNG frames (`--frames-dir`) are encoded on a writer thread with recycled buffers; when the
+//! writer falls behind, a frame is not written rather than the loop waiting.
 
+use std::path::PathBuf;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError};
+use std::thread::JoinHandle;
 use std::time::Duration;
 
 use common::bus::Bus;
@@ -8,24 +20,84 @@ use common::config::Session;
 use common::latency::{Metric, Reporter};
 use common::{monotonic_ns, shutdown, FrameSample, HandSample, Stage, Stamp, Topic, WorldSample};
 
-/// Runs until asked to stop.
+use crate::output::{write_frame, Image};
+use crate::renderer::{RenderError, Renderer};
+use crate::settings::{FramesRequest, OutputMode, RenderSettings};
+use crate::window::WindowStatus;
+
+/// Hand samples kept to find the one a world sample answers (`hand_seq`): the stepper lags
+/// the hand by a step or two, so its fingers and the newest palm would not match.
+const HAND_HISTORY: usize = 16;
+/// Frames in flight to the PNG writer.
+const WRITER_QUEUE: usize = 2;
+
+/// Runs until asked to stop, with the session's renderer settings and no PNG frames.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
+    run_with(
+        session,
+        bus,
+        RenderSettings::from_session(&session.renderer),
+        None,
+    )
+}
+
+/// Runs until asked to stop. `frames`: write PNG frames (the launcher's `--frames-dir`).
+pub fn run_with(
+    session: &Session,
+    bus: &Bus,
+    settings: RenderSettings,
+    frames: Option<FramesRequest>,
+) -> Result<(), Box<dyn std::error::Error>> {
     let world_in = bus.inlet::<WorldSample>(Topic::World)?;
     let hand_in = bus.inlet::<HandSample>(Topic::Hand)?;
     let mut frame_out = bus.outlet::<FrameSample>(Topic::Frame)?;
     let mut reporter = Reporter::new(Stage::Renderer, bus.outlet(Topic::Latency)?);
-    let drawing = session.renderer.mode != RenderMode::Off;
+
+    let (mut renderer, mut window) = match session.renderer.mode {
+        RenderMode::Off => (None, None),
+        RenderMode::Headless => (
+            Some(Renderer::new_headless(&settings, &session.scene)?),
+            None,
+        ),
+        RenderMode::Window => {
+            let (r, w) = Renderer::new_window(&settings, &session.scene)?;
+            (Some(r), Some(w))
+        }
+    };
+    if let Some(r) = &renderer {
+        eprintln!(
+            "renderer: {} x {} per eye, {}, on {}",
+            settings.width,
+            settings.height,
+            settings.output.name(),
+            r.adapter_name()
+        );
+    }
+    let mut writer = match (&frames, &renderer) {
+        (Some(f), Some(_)) => Some(FrameWriter::start(f.clone(), settings.output)?),
+        _ => None,
+    };
 
     let period_ns = (1e9 / session.budget.frame_hz) as u64;
     let mut next_frame = monotonic_ns() + period_ns;
     let mut newest: Option<Stamp> = None; // the newest world's stamp
+    let mut world = Box::<WorldSample>::default();
+    let mut hands = Box::new([HandSample::default(); HAND_HISTORY]);
+    let mut hand_next = 0usize;
     let mut superseded = 0u64;
-    let mut hand = HandSample::default();
+    let mut frame_no = 0u64;
     loop {
         let stopping = shutdown::requested();
         let now = monotonic_ns();
         if !stopping && now < next_frame {
-            world_in.wait(Duration::from_nanos(next_frame - now))?;
+            // A window needs its events handled; wake at least every 10 ms for them.
+            let wait = next_frame - now;
+            let wait = if window.is_some() {
+                wait.min(10_000_000)
+            } else {
+                wait
+            };
+            world_in.wait(Duration::from_nanos(wait))?;
         }
         while let Some(s) = world_in.receive()? {
             let received = monotonic_ns();
@@ -34,10 +106,18 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
                 superseded += 1;
             }
             newest = Some(s.stamp);
+            *world = *s.payload();
         }
         while let Some(s) = hand_in.receive()? {
             reporter.recorder.hop(&s.stamp, monotonic_ns());
-            hand = *s.payload();
+            hands[hand_next % HAND_HISTORY] = *s.payload();
+            hand_next += 1;
+        }
+        if let (Some(w), Some(r)) = (&mut window, &mut renderer) {
+            if w.pump(r) == WindowStatus::Closed {
+                eprintln!("renderer: the window was closed; stopping the session");
+                shutdown::request();
+            }
         }
         let now = monotonic_ns();
         if now >= next_frame || stopping {
@@ -49,14 +129,22 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             };
             if let Some(stamp) = newest.take() {
                 let started = monotonic_ns();
-                if drawing {
-                    draw(&hand);
+                let mut done = started;
+                if let Some(r) = &mut renderer {
+                    let hand = matching_hand(&hands[..hand_next.min(HAND_HISTORY)], &world);
+                    let times = r.render(&world, hand)?;
+                    done = times.done_ns;
+                    if let (Some(w), Some(f)) = (&mut writer, &frames) {
+                        if frame_no.is_multiple_of(u64::from(f.every_nth.max(1))) {
+                            w.offer(r, frame_no)?;
+                        }
+                    }
+                    frame_no += 1;
                 }
-                let done = monotonic_ns();
                 let frame = FrameSample {
                     stamp: Stamp::derived(0, &stamp),
                     world_seq: stamp.seq,
-                    render_ns: done - started,
+                    render_ns: done.saturating_sub(started),
                     origin_to_photon_ns: done.saturating_sub(stamp.origin_ns),
                     skipped_worlds: std::mem::take(&mut superseded),
                 };
@@ -76,11 +164,93 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         }
         let counters = [world_in.counter(), hand_in.counter(), frame_out.counter()];
         if stopping {
+            if let Some(w) = writer.take() {
+                w.finish();
+            }
             return Ok(reporter.finish(&counters)?);
         }
         reporter.maybe_report(&counters)?;
     }
 }
 
-/// Drawing is issue 6 (wgpu); until then a frame costs only its bookkeeping.
-fn draw(_hand: &HandSample) {}
+/// The hand sample the world answers (its `hand_seq`), else the newest one.
+pub fn matching_hand<'a>(hands: &'a [HandSample], world: &WorldSample) -> &'a HandSample {
+    static EMPTY: std::sync::OnceLock<HandSample> = std::sync::OnceLock::new();
+    hands
+        .iter()
+        .find(|h| h.stamp.seq == world.hand_seq)
+        .or_else(|| hands.iter().max_by_key(|h| h.stamp.seq))
+        .unwrap_or_else(|| EMPTY.get_or_init(HandSample::default))
+}
+
+/// Writes PNG frames on its own thread; frames travel in recycled images.
+pub struct FrameWriter {
+    to_writer: Option<SyncSender<(u64, Image)>>,
+    free: Receiver<Image>,
+    thread: Option<JoinHandle<()>>,
+    /// Frames not written because the writer was still busy.
+    pub dropped: u64,
+}
+
+impl FrameWriter {
+    pub fn start(req: FramesRequest, mode: OutputMode) -> Result<FrameWriter, RenderError> {
+        std::fs::create_dir_all(&req.dir)
+            .map_err(|e| RenderError::Io(format!("--frames-dir {}: {e}", req.dir.display())))?;
+        let (to_writer, from_loop) = sync_channel::<(u64, Image)>(WRITER_QUEUE);
+        let (to_free, free) = sync_channel::<Image>(WRITER_QUEUE + 1);
+        for _ in 0..WRITER_QUEUE + 1 {
+            let _ = to_free.try_send(Image::default());
+        }
+        let dir: PathBuf = req.dir;
+        let thread = std::thread::Builder::new()
+            .name("png-writer".into())
+            .spawn(move || {
+                let mut scratch = Image::default();
+                while let Ok((n, img)) = from_loop.recv() {
+                    if let Err(e) = write_frame(&dir, n, mode, &img, &mut scratch) {
+                        eprintln!("renderer: {e}");
+                    }
+                    let _ = to_free.try_send(img);
+                }
+            })
+            .map_err(|e| RenderError::Io(format!("starting the PNG writer: {e}")))?;
+        Ok(FrameWriter {
+            to_writer: Some(to_writer),
+            free,
+            thread: Some(thread),
+            dropped: 0,
+        })
+    }
+
+    /// Reads frame `n` back and hands it to the writer, unless no buffer is free.
+    pub fn offer(&mut self, r: &mut Renderer, n: u64) -> Result<(), RenderError> {
+        let mut img = match self.free.try_recv() {
+            Ok(img) => img,
+            Err(TryRecvError::Empty) | Err(TryRecvError::Disconnected) => {
+                self.dropped += 1;
+                return Ok(());
+            }
+        };
+        r.read_back_into(&mut img)?;
+        if let Some(tx) = &self.to_writer {
+            if tx.try_send((n, img)).is_err() {
+                self.dropped += 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes what is queued and stops the thread.
+    pub fn finish(mut self) {
+        self.to_writer = None;
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+        if self.dropped > 0 {
+            eprintln!(
+                "renderer: {} frames not written (the PNG writer was busy)",
+                self.dropped
+            );
+        }
+    }
+}

@@ -1,0 +1,76 @@
+//! Time of `Renderer::render` (draw both eyes, wait for the GPU) alone, per frame content.
+//! `cargo run -p renderer --release --example frame_cost -- [WIDTH HEIGHT] [FRAMES] [GAP_MS]`
+//! (GAP_MS: idle time between frames, as a paced loop has)
+
+use std::path::PathBuf;
+
+use common::config::scene::{BlockSpec, Effects, Scene, ShapeSpec, WorldSettings};
+use common::{BlockMode, HandSample, WorldSample};
+use renderer::{RenderSettings, Renderer};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let a: Vec<u32> = std::env::args()
+        .skip(1)
+        .map(|s| s.parse::<u32>())
+        .collect::<Result<_, _>>()?;
+    let (w, h) = (
+        a.first().copied().unwrap_or(640),
+        a.get(1).copied().unwrap_or(480),
+    );
+    let frames = a.get(2).copied().unwrap_or(200);
+    let gap = std::time::Duration::from_millis(a.get(3).copied().unwrap_or(0) as u64);
+    let blocks = 8;
+    let scene = Scene {
+        file: PathBuf::from("cost"),
+        world: WorldSettings::default(),
+        effects: Effects::default(),
+        blocks: (0..blocks)
+            .map(|i| BlockSpec {
+                name: format!("b{i}"),
+                shape: ShapeSpec::Box { size: [0.06; 3] },
+                position: [0.0; 3],
+                rotation: [0.0, 0.0, 0.0, 1.0],
+                velocity: [0.0; 3],
+            })
+            .collect(),
+        hand: None,
+    };
+    let mut world = WorldSample {
+        block_count: blocks as u32,
+        ..Default::default()
+    };
+    for (i, b) in world.blocks[..blocks].iter_mut().enumerate() {
+        let a = i as f64 * 0.8;
+        b.pose.position = [0.3 * a.cos(), 0.03, 0.3 * a.sin()];
+        b.pose.rotation = [0.0, 0.0, 0.0, 1.0];
+        b.mode = BlockMode::Resting as u32;
+    }
+    let empty = WorldSample::default();
+    let hand = HandSample::default();
+    for shadows in [true, false] {
+        let settings = RenderSettings {
+            width: w,
+            height: h,
+            shadows,
+            ..RenderSettings::default()
+        };
+        let mut r = Renderer::new_headless(&settings, &scene)?;
+        for (name, wld) in [("floor only", &empty), ("8 blocks", &world)] {
+            let mut t = Vec::new();
+            for i in 0..frames + 10 {
+                std::thread::sleep(gap);
+                let f = r.render(wld, &hand)?;
+                if i >= 10 {
+                    t.push((f.done_ns - f.started_ns) as f64 / 1e6);
+                }
+            }
+            t.sort_by(f64::total_cmp);
+            println!(
+                "{w} x {h} per eye, shadows {shadows}, {name}: p50 {:.2} ms, p99 {:.2} ms",
+                t[t.len() / 2],
+                t[(t.len() - 1) * 99 / 100]
+            );
+        }
+    }
+    Ok(())
+}

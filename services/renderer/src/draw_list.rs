@@ -1,0 +1,329 @@
+//! What one frame draws, from a world and a hand sample: instances (matrices and colours) and
+//! draw ranges, in buffers kept across frames so that a frame allocates nothing once warm.
+//!
+//! Anything non-finite in a sample (a NaN pose from a device or a bug upstream) skips that
+//! block, finger segment or palm for the frame instead of drawing garbage or failing.
+
+use std::ops::Range;
+
+use common::samples::{MAX_BLOCKS, MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
+use common::{BlockMode, HandSample, WorldSample};
+use glam::{DQuat, DVec3, Mat4, Vec3};
+
+use crate::hull::hull_triangles_into;
+use crate::mesh::Vertex;
+use crate::pipeline::Instance;
+
+/// Colour of a block in each mode (linear rgb), chosen to be told apart at a glance and by
+/// the tests: hue carries the mode, shading only brightness.
+pub fn mode_color(mode: BlockMode) -> [f32; 3] {
+    match mode {
+        BlockMode::Free => [0.20, 0.40, 0.95],
+        BlockMode::Resting => [0.80, 0.12, 0.08],
+        BlockMode::Tipping => [0.95, 0.45, 0.02],
+        BlockMode::Pushed => [0.90, 0.80, 0.05],
+        BlockMode::Grasped => [0.08, 0.75, 0.12],
+        BlockMode::Carried => [0.55, 0.15, 0.85],
+        BlockMode::Supported => [0.05, 0.65, 0.70],
+    }
+}
+
+/// Fingers and palm.
+pub const SKIN: [f32; 3] = [0.85, 0.60, 0.45];
+/// Radius used when a hand sample gives none (bare check-point hands).
+pub const DEFAULT_FINGER_RADIUS: f64 = 0.008;
+
+const SEGMENTS: usize = MAX_FINGERS * (MAX_FINGER_POINTS - 1);
+const JOINTS: usize = MAX_FINGERS * MAX_FINGER_POINTS;
+/// Instance slots: floor, palm, blocks, finger segments, finger joints.
+pub const INSTANCE_CAPACITY: usize = 2 + MAX_BLOCKS + SEGMENTS + JOINTS;
+/// The palm's hull: at most one triangle per point triple.
+pub const PALM_VERTEX_CAPACITY: usize =
+    3 * MAX_PALM_VERTICES * (MAX_PALM_VERTICES - 1) * (MAX_PALM_VERTICES - 2) / 6;
+
+const FLOOR_INSTANCE: u32 = 0;
+const PALM_INSTANCE: u32 = 1;
+
+/// One block draw: its mesh's vertex range and its instance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockDraw {
+    pub vertices: Range<u32>,
+    pub instance: u32,
+    pub mode: BlockMode,
+}
+
+/// A frame's draws.
+pub struct DrawList {
+    pub instances: Vec<Instance>,
+    pub blocks: Vec<BlockDraw>,
+    pub floor_instance: u32,
+    pub segments: Range<u32>,
+    pub joints: Range<u32>,
+    pub palm_instance: u32,
+    pub palm_vertices: Vec<Vertex>,
+    palm_points: Vec<DVec3>,
+    palm_tris: Vec<[DVec3; 3]>,
+    segment_scratch: Vec<Instance>,
+}
+
+impl Default for DrawList {
+    fn default() -> Self {
+        DrawList {
+            instances: Vec::with_capacity(INSTANCE_CAPACITY),
+            blocks: Vec::with_capacity(MAX_BLOCKS),
+            floor_instance: FLOOR_INSTANCE,
+            segments: 0..0,
+            joints: 0..0,
+            palm_instance: PALM_INSTANCE,
+            palm_vertices: Vec::with_capacity(PALM_VERTEX_CAPACITY),
+            palm_points: Vec::with_capacity(MAX_PALM_VERTICES),
+            palm_tris: Vec::with_capacity(PALM_VERTEX_CAPACITY / 3),
+            segment_scratch: Vec::with_capacity(SEGMENTS),
+        }
+    }
+}
+
+fn instance(model: Mat4, rgb: [f32; 3], edges: bool) -> Instance {
+    Instance {
+        model: model.to_cols_array_2d(),
+        color: [rgb[0], rgb[1], rgb[2], if edges { 1.0 } else { 0.0 }],
+    }
+}
+
+fn finite3(p: &[f64; 3]) -> Option<DVec3> {
+    let v = DVec3::from_array(*p);
+    v.is_finite().then_some(v)
+}
+
+impl DrawList {
+    /// Fills the list for `world` and `hand`; `block_meshes` are the scene's blocks' vertex
+    /// ranges (blocks beyond them are not drawn).
+    pub fn build(&mut self, world: &WorldSample, hand: &HandSample, block_meshes: &[Range<u32>]) {
+        self.instances.clear();
+        self.blocks.clear();
+        self.instances
+            .push(instance(Mat4::IDENTITY, [0.0; 3], false));
+        self.instances.push(instance(Mat4::IDENTITY, SKIN, false));
+
+        for (i, b) in world.blocks().iter().enumerate() {
+            let Some(mesh) = block_meshes.get(i) else {
+                break;
+            };
+            if !b.pose.is_finite() {
+                continue;
+            }
+            let q = DQuat::from_array(b.pose.rotation);
+            let len = q.length();
+            if !(len > 0.5 && len < 2.0) {
+                continue; // not a rotation: skip rather than draw a sheared block
+            }
+            let model = Mat4::from_rotation_translation(
+                (q / len).as_quat(),
+                DVec3::from_array(b.pose.position).as_vec3(),
+            );
+            let mode = if world.grasped_block == i as i32 {
+                BlockMode::Grasped
+            } else {
+                b.mode()
+            };
+            self.blocks.push(BlockDraw {
+                vertices: mesh.clone(),
+                instance: self.instances.len() as u32,
+                mode,
+            });
+            self.instances.push(instance(model, mode_color(mode), true));
+        }
+
+        // Fingers as drawn: the world's (relocated onto a grasped block's surface, MODEL.md
+        // R5) when it has them, else the hand's own check points.
+        let (count, counts, points) = if world.finger_count > 0 {
+            (
+                world.finger_count,
+                &world.finger_point_count,
+                &world.finger_points,
+            )
+        } else {
+            (
+                hand.finger_count,
+                &hand.finger_point_count,
+                &hand.finger_points,
+            )
+        };
+        self.segment_scratch.clear();
+        let joints_start = self.instances.len() as u32;
+        for f in 0..(count as usize).min(MAX_FINGERS) {
+            let r = hand.finger_radius[f];
+            let r = if r.is_finite() && r > 0.0 && r < 0.1 {
+                r
+            } else {
+                DEFAULT_FINGER_RADIUS
+            };
+            let n = (counts[f] as usize).min(MAX_FINGER_POINTS);
+            let pts = &points[f][..n];
+            for (k, p) in pts.iter().enumerate() {
+                let Some(a) = finite3(p) else { continue };
+                let joint = Mat4::from_scale_rotation_translation(
+                    Vec3::splat(r as f32),
+                    glam::Quat::IDENTITY,
+                    a.as_vec3(),
+                );
+                self.instances.push(instance(joint, SKIN, false));
+                let Some(b) = pts.get(k + 1).and_then(finite3) else {
+                    continue;
+                };
+                if let Some(m) = segment_matrix(a, b, r) {
+                    self.segment_scratch.push(instance(m, SKIN, false));
+                }
+            }
+        }
+        self.joints = joints_start..self.instances.len() as u32;
+        let seg_start = self.instances.len() as u32;
+        self.instances.extend_from_slice(&self.segment_scratch);
+        self.segments = seg_start..self.instances.len() as u32;
+
+        self.palm_points.clear();
+        self.palm_points.extend(
+            hand.palm()
+                .iter()
+                .take(MAX_PALM_VERTICES)
+                .map(|p| DVec3::from_array(*p)),
+        );
+        hull_triangles_into(&self.palm_points, &mut self.palm_tris);
+        self.palm_vertices.clear();
+        for t in &self.palm_tris {
+            for p in t {
+                self.palm_vertices.push(Vertex {
+                    position: p.as_vec3().to_array(),
+                    edge: 1.0,
+                });
+            }
+        }
+    }
+}
+
+/// The unit cylinder (radius 1, y from 0 to 1) stretched from `a` to `b` with radius `r`, as a
+/// right-handed basis so that its triangles keep their winding.
+fn segment_matrix(a: DVec3, b: DVec3, r: f64) -> Option<Mat4> {
+    let axis = b - a;
+    let len = axis.length();
+    if len.is_nan() || len <= 1e-9 {
+        return None;
+    }
+    let y = axis / len;
+    let x = y.any_orthonormal_vector();
+    let z = x.cross(y);
+    Some(
+        glam::DMat4::from_cols(
+            (x * r).extend(0.0),
+            axis.extend(0.0),
+            (z * r).extend(0.0),
+            a.extend(1.0),
+        )
+        .as_mat4(),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use common::BlockState;
+
+    fn world_with(n: usize) -> WorldSample {
+        let mut w = WorldSample {
+            block_count: n as u32,
+            ..Default::default()
+        };
+        for i in 0..n {
+            w.blocks[i] = BlockState {
+                pose: common::Pose {
+                    position: [i as f64 * 0.1, 0.05, 0.0],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                },
+                mode: BlockMode::Resting as u32,
+                _reserved: 0,
+            };
+        }
+        w
+    }
+
+    #[test]
+    fn nan_poses_skip_only_that_block_and_that_finger_point() {
+        let meshes = vec![0..36, 36..72, 72..108];
+        let mut w = world_with(3);
+        w.blocks[1].pose.position[0] = f64::NAN;
+        w.blocks[2].pose.rotation = [0.0; 4];
+        let mut h = HandSample {
+            finger_count: 1,
+            ..Default::default()
+        };
+        h.finger_point_count[0] = 3;
+        h.finger_points[0] = [
+            [0.0, 0.2, 0.0],
+            [f64::NAN, 0.2, 0.0],
+            [0.0, 0.2, 0.05],
+            [0.0; 3],
+            [0.0; 3],
+        ];
+        let mut d = DrawList::default();
+        d.build(&w, &h, &meshes);
+        assert_eq!(d.blocks.len(), 1);
+        assert_eq!(d.blocks[0].vertices, 0..36);
+        assert_eq!(d.joints.len(), 2); // the NaN point is skipped
+        assert_eq!(d.segments.len(), 0); // both segments touch it
+    }
+
+    #[test]
+    fn the_grasped_block_takes_the_grasp_colour_and_world_fingers_win() {
+        let mut w = world_with(2);
+        w.grasped_block = 1;
+        w.finger_count = 1;
+        w.finger_point_count[0] = 2;
+        w.finger_points[0][0] = [0.0, 0.3, 0.0];
+        w.finger_points[0][1] = [0.0, 0.3, 0.04];
+        let mut h = HandSample {
+            finger_count: 2,
+            ..Default::default()
+        };
+        h.finger_point_count = [2, 2, 0, 0, 0];
+        let mut d = DrawList::default();
+        d.build(&w, &h, &[0..3, 3..6]);
+        assert_eq!(d.blocks[1].mode, BlockMode::Grasped);
+        assert_eq!(d.joints.len(), 2);
+        assert_eq!(d.segments.len(), 1);
+        let m = Mat4::from_cols_array_2d(&d.instances[d.segments.start as usize].model);
+        let tip = m.transform_point3(Vec3::Y);
+        assert!(tip.distance(Vec3::new(0.0, 0.3, 0.04)) < 1e-6, "{tip}");
+        assert!(m.determinant() > 0.0);
+    }
+
+    #[test]
+    fn a_frame_allocates_nothing_once_warm() {
+        let w = world_with(MAX_BLOCKS);
+        let mut h = HandSample {
+            finger_count: 5,
+            finger_point_count: [5; 5],
+            palm_vertex_count: 16,
+            ..Default::default()
+        };
+        for (i, p) in h.palm_vertices.iter_mut().enumerate() {
+            *p = [
+                (i % 2) as f64,
+                ((i / 2) % 2) as f64,
+                ((i / 4) % 4) as f64 * 0.3,
+            ];
+        }
+        for f in 0..5 {
+            for k in 0..5 {
+                h.finger_points[f][k] = [f as f64 * 0.02, 0.2, k as f64 * 0.02];
+            }
+        }
+        let meshes: Vec<_> = (0..MAX_BLOCKS as u32).map(|i| i * 3..i * 3 + 3).collect();
+        let mut d = DrawList::default();
+        let caps = (d.instances.capacity(), d.palm_vertices.capacity());
+        d.build(&w, &h, &meshes);
+        d.build(&w, &h, &meshes);
+        assert_eq!((d.instances.capacity(), d.palm_vertices.capacity()), caps);
+        assert!(d.instances.len() <= INSTANCE_CAPACITY);
+        assert!(!d.palm_vertices.is_empty());
+    }
+}

@@ -1,0 +1,294 @@
+//! Static geometry, built once: the floor, a unit cylinder and sphere (finger segments and
+//! joints, placed per frame by instance matrices), and one mesh per scene block.
+//!
+//! Vertices carry only a position and an "edge weight": faces are triangle fans from each
+//! polygon's centre, whose centre vertex has weight 1 and whose rim vertices have 0, so the
+//! interpolated weight is 0 exactly on the polygon's outline. The fragment shader darkens
+//! pixels within about a pixel of 0 (`w / fwidth(w)`), which draws every block edge at a
+//! constant screen width in the same pass, without a line pipeline (lines are 1 px in wgpu
+//! and need their own depth bias). Normals come from screen derivatives in the shader, so
+//! every face is flat-shaded.
+
+use std::ops::Range;
+
+use bytemuck::{Pod, Zeroable};
+use common::config::scene::ShapeSpec;
+use glam::DVec3;
+
+use crate::hull::{convex_hull, Polytope};
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct Vertex {
+    pub position: [f32; 3],
+    /// 1 at a face's centre, 0 on its outline (see the module doc).
+    pub edge: f32,
+}
+
+/// Half the floor's side, metres: blocks stay within ~1 m of the origin; the floor fills the
+/// view behind them.
+pub const FLOOR_HALF: f32 = 4.0;
+
+/// All static meshes in one vertex buffer, and where each lies in it.
+pub struct Meshes {
+    pub vertices: Vec<Vertex>,
+    pub floor: Range<u32>,
+    /// The floor grid, as a line list (see [`grid_lines`]).
+    pub grid: Range<u32>,
+    pub cylinder: Range<u32>,
+    pub sphere: Range<u32>,
+    /// One per scene block, in scene order.
+    pub blocks: Vec<Range<u32>>,
+}
+
+/// Why a block cannot be drawn.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShapeError {
+    pub block: usize,
+    pub problem: String,
+}
+
+impl Meshes {
+    pub fn build(shapes: &[&ShapeSpec]) -> Result<Meshes, ShapeError> {
+        let mut vertices = Vec::new();
+        let floor = push(&mut vertices, floor_triangles());
+        let grid = push(&mut vertices, grid_lines());
+        let cylinder = push(&mut vertices, cylinder_triangles(12));
+        let sphere = push(&mut vertices, sphere_triangles(12, 6));
+        let mut blocks = Vec::with_capacity(shapes.len());
+        for (i, s) in shapes.iter().enumerate() {
+            let p = block_polytope(s).ok_or_else(|| ShapeError {
+                block: i,
+                problem: "its vertices span no volume (all on one plane?)".into(),
+            })?;
+            blocks.push(push(&mut vertices, polytope_triangles(&p)));
+        }
+        Ok(Meshes {
+            vertices,
+            floor,
+            grid,
+            cylinder,
+            sphere,
+            blocks,
+        })
+    }
+}
+
+fn push(out: &mut Vec<Vertex>, tris: Vec<Vertex>) -> Range<u32> {
+    let start = out.len() as u32;
+    out.extend(tris);
+    start..out.len() as u32
+}
+
+fn v(p: DVec3, edge: f32) -> Vertex {
+    Vertex {
+        position: p.as_vec3().to_array(),
+        edge,
+    }
+}
+
+/// A block's polyhedron in its body frame: the hull of the shape's vertices, moved so that its
+/// volume centroid (G, where the world sample's pose puts the block) is the origin. The shape
+/// definitions are scene.rs's (the stepper builds the same ones).
+pub fn block_polytope(spec: &ShapeSpec) -> Option<Polytope> {
+    let points: Vec<DVec3> = match spec {
+        ShapeSpec::Box { size } => {
+            let h = DVec3::from_array(*size) * 0.5;
+            (0..8)
+                .map(|i| {
+                    DVec3::new(
+                        if i & 1 == 0 { -h.x } else { h.x },
+                        if i & 2 == 0 { -h.y } else { h.y },
+                        if i & 4 == 0 { -h.z } else { h.z },
+                    )
+                })
+                .collect()
+        }
+        // The right triangle with legs along +x and +y, extruded along z.
+        ShapeSpec::Wedge { size: [x, y, z] } => vec![
+            DVec3::ZERO,
+            DVec3::new(*x, 0.0, 0.0),
+            DVec3::new(0.0, *y, 0.0),
+            DVec3::new(0.0, 0.0, *z),
+            DVec3::new(*x, 0.0, *z),
+            DVec3::new(0.0, *y, *z),
+        ],
+        // The origin corner and the three corners one edge away along x, y and z.
+        ShapeSpec::Tetra { size: [x, y, z] } => vec![
+            DVec3::ZERO,
+            DVec3::new(*x, 0.0, 0.0),
+            DVec3::new(0.0, *y, 0.0),
+            DVec3::new(0.0, 0.0, *z),
+        ],
+        ShapeSpec::Hull { vertices } => vertices.iter().map(|p| DVec3::from_array(*p)).collect(),
+    };
+    let hull = convex_hull(&points)?;
+    let (_, g) = hull.volume_centroid();
+    Some(hull.shifted(g))
+}
+
+/// Each face as a fan from its centre (edge weight 1) to its outline (edge weight 0).
+pub fn polytope_triangles(p: &Polytope) -> Vec<Vertex> {
+    let mut out = Vec::new();
+    for f in &p.faces {
+        let c = f.iter().map(|&i| p.vertices[i]).sum::<DVec3>() / f.len() as f64;
+        for k in 0..f.len() {
+            let a = p.vertices[f[k]];
+            let b = p.vertices[f[(k + 1) % f.len()]];
+            out.extend([v(c, 1.0), v(a, 0.0), v(b, 0.0)]);
+        }
+    }
+    out
+}
+
+fn floor_triangles() -> Vec<Vertex> {
+    let h = FLOOR_HALF as f64;
+    let p = |x: f64, z: f64| v(DVec3::new(x, 0.0, z), 1.0);
+    // Counter-clockwise seen from above (+y).
+    vec![p(-h, -h), p(-h, h), p(h, h), p(-h, -h), p(h, h), p(h, -h)]
+}
+
+/// Half the grid's side, metres.
+pub const GRID_HALF: f64 = 3.0;
+
+/// Grid lines every 10 cm (every 50 cm stronger: the edge weight carries the strength), as
+/// line geometry 1.5 mm above the floor. Lines rather than a procedural grid in the floor's
+/// fragment shader: the floor covers most of the picture, and on a software rasteriser a
+/// per-pixel grid cost a third of the frame; lines cost only their own pixels.
+fn grid_lines() -> Vec<Vertex> {
+    let mut out = Vec::new();
+    let n = (GRID_HALF / 0.1).round() as i32;
+    for k in -n..=n {
+        let c = k as f64 * 0.1;
+        let strength = if k % 5 == 0 { 0.8 } else { 0.45 };
+        for (a, b) in [
+            (
+                DVec3::new(c, 0.0015, -GRID_HALF),
+                DVec3::new(c, 0.0015, GRID_HALF),
+            ),
+            (
+                DVec3::new(-GRID_HALF, 0.0015, c),
+                DVec3::new(GRID_HALF, 0.0015, c),
+            ),
+        ] {
+            out.extend([v(a, strength), v(b, strength)]);
+        }
+    }
+    out
+}
+
+/// Radius 1, from y = 0 to y = 1, open ends (the joints' spheres close them).
+fn cylinder_triangles(sides: usize) -> Vec<Vertex> {
+    let mut out = Vec::new();
+    let ring = |k: usize, y: f64| {
+        let a = k as f64 / sides as f64 * std::f64::consts::TAU;
+        v(DVec3::new(a.cos(), y, -a.sin()), 1.0)
+    };
+    for k in 0..sides {
+        let (a0, a1, b0, b1) = (
+            ring(k, 0.0),
+            ring(k + 1, 0.0),
+            ring(k, 1.0),
+            ring(k + 1, 1.0),
+        );
+        out.extend([a0, a1, b1, a0, b1, b0]);
+    }
+    out
+}
+
+/// Radius 1, centred on the origin.
+fn sphere_triangles(slices: usize, stacks: usize) -> Vec<Vertex> {
+    let mut out = Vec::new();
+    let p = |i: usize, j: usize| {
+        let theta = j as f64 / stacks as f64 * std::f64::consts::PI; // from +y down
+        let phi = i as f64 / slices as f64 * std::f64::consts::TAU;
+        v(
+            DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                -theta.sin() * phi.sin(),
+            ),
+            1.0,
+        )
+    };
+    for j in 0..stacks {
+        for i in 0..slices {
+            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
+            if j != 0 {
+                out.extend([a, d, c]);
+            }
+            if j + 1 != stacks {
+                out.extend([a, c, b]);
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn outward(tris: &[Vertex], centre: DVec3) -> bool {
+        tris.chunks(3).all(|t| {
+            let [a, b, c] = [0, 1, 2].map(|i| DVec3::from_array(t[i].position.map(|x| x as f64)));
+            let n = (b - a).cross(c - a);
+            n.length() < 1e-12 || n.dot((a + b + c) / 3.0 - centre) > 0.0
+        })
+    }
+
+    #[test]
+    fn every_mesh_faces_outward_counter_clockwise() {
+        assert!(outward(&cylinder_triangles(12), DVec3::new(0.0, 0.5, 0.0)));
+        assert!(outward(&sphere_triangles(12, 6), DVec3::ZERO));
+        for spec in [
+            ShapeSpec::Box {
+                size: [0.1, 0.2, 0.3],
+            },
+            ShapeSpec::Wedge {
+                size: [0.1, 0.2, 0.3],
+            },
+            ShapeSpec::Tetra {
+                size: [0.1, 0.2, 0.3],
+            },
+        ] {
+            let p = block_polytope(&spec).unwrap();
+            assert!(outward(&polytope_triangles(&p), DVec3::ZERO), "{spec:?}");
+        }
+    }
+
+    #[test]
+    fn block_meshes_are_centred_on_g_as_the_stepper_defines_it() {
+        // Tetra: G at a quarter of each leg from the origin corner (scene.rs definition).
+        let p = block_polytope(&ShapeSpec::Tetra {
+            size: [0.4, 0.2, 0.1],
+        })
+        .unwrap();
+        let corner = p
+            .vertices
+            .iter()
+            .copied()
+            .min_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))
+            .unwrap();
+        assert!(
+            corner.distance(DVec3::new(-0.1, -0.05, -0.025)) < 1e-12,
+            "{corner}"
+        );
+        // A hull given off-centre is recentred on its own centroid.
+        let h = ShapeSpec::Hull {
+            vertices: (0..8)
+                .map(|i| {
+                    [
+                        5.0 + (i & 1) as f64,
+                        7.0 + ((i >> 1) & 1) as f64,
+                        ((i >> 2) & 1) as f64,
+                    ]
+                })
+                .collect(),
+        };
+        let p = block_polytope(&h).unwrap();
+        let (_, g) = p.volume_centroid();
+        assert!(g.length() < 1e-9);
+        assert_eq!(p.faces.len(), 6);
+    }
+}

@@ -1,0 +1,611 @@
+//! The GPU side: device, targets, buffers, and one frame's commands.
+//!
+//! Both eyes are drawn into one texture, side by side (two viewports, one pass): this works on
+//! every backend (multiview gave wrong output on the software driver), and it is already the
+//! side-by-side output. The anaglyph is a second, full-screen pass that reads both halves; a
+//! window gets the same pass into its surface. "Photon" is when the frame's GPU work is
+//! complete: after submitting, the renderer waits for that submission on the device.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use common::config::scene::Scene;
+use common::{monotonic_ns, HandSample, WorldSample};
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+use crate::camera::{stereo, EyeView};
+use crate::draw_list::{DrawList, INSTANCE_CAPACITY, PALM_VERTEX_CAPACITY};
+use crate::mesh::{Meshes, Vertex};
+use crate::output::Image;
+use crate::pipeline::{
+    composite_bind_group, composite_pipeline, scene_pipelines, shader, CompositePipeline,
+    CompositeUniform, EyeUniform, Globals, Instance, ScenePipelines, COLOR_FORMAT, DEPTH_FORMAT,
+    EYE_UNIFORM_STRIDE,
+};
+use crate::settings::{OutputMode, RenderSettings};
+
+/// A frame's GPU work should take milliseconds; a device that needs this long is lost.
+const GPU_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Why rendering could not start or go on.
+#[derive(Debug)]
+pub enum RenderError {
+    /// No Vulkan adapter (no GPU driver, no Mesa software driver).
+    NoAdapter(String),
+    Device(String),
+    /// Settings out of range, or a block shape that cannot be drawn.
+    Settings(String),
+    /// The window could not be opened (no display).
+    Window(String),
+    Gpu(String),
+    Io(String),
+}
+
+impl std::fmt::Display for RenderError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RenderError::NoAdapter(e) => write!(
+                f,
+                "no GPU adapter ({e}): install a Vulkan driver, or Mesa's software one \
+                 (Debian/Ubuntu: apt-get install mesa-vulkan-drivers libvulkan1)"
+            ),
+            RenderError::Device(e) => write!(f, "the GPU device could not be opened: {e}"),
+            RenderError::Settings(e) => write!(f, "renderer settings: {e}"),
+            RenderError::Window(e) => write!(f, "{e}"),
+            RenderError::Gpu(e) => write!(f, "GPU error: {e}"),
+            RenderError::Io(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for RenderError {}
+
+/// When a frame's parts happened (CLOCK_MONOTONIC, ns).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FrameTimes {
+    pub started_ns: u64,
+    /// Commands submitted to the GPU.
+    pub submitted_ns: u64,
+    /// The GPU finished the frame: its pixels are done ("photon").
+    pub done_ns: u64,
+}
+
+/// A window's surface and the pass that fills it.
+pub(crate) struct Presenter {
+    pub surface: wgpu::Surface<'static>,
+    pub config: wgpu::SurfaceConfiguration,
+    pub composite: CompositePipeline,
+    pub bind_group: wgpu::BindGroup,
+    pub uniform: wgpu::Buffer,
+}
+
+/// The anaglyph's own target (headless anaglyph output).
+struct AnaglyphTarget {
+    texture: wgpu::Texture,
+    view: wgpu::TextureView,
+    bind_group: wgpu::BindGroup,
+    pipeline: CompositePipeline,
+    _uniform: wgpu::Buffer,
+}
+
+pub struct Renderer {
+    settings: RenderSettings,
+    adapter_name: String,
+    pub(crate) device: wgpu::Device,
+    queue: wgpu::Queue,
+    eyes: wgpu::Texture,
+    eyes_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    scene: ScenePipelines,
+    module: wgpu::ShaderModule,
+    bind_group: wgpu::BindGroup,
+    vertex_buf: wgpu::Buffer,
+    palm_buf: wgpu::Buffer,
+    instance_buf: wgpu::Buffer,
+    meshes: Meshes,
+    list: DrawList,
+    eye_views: [EyeView; 2],
+    anaglyph: Option<AnaglyphTarget>,
+    pub(crate) presenter: Option<Presenter>,
+    readback: Option<wgpu::Buffer>,
+}
+
+/// The scene's light: high and to the right, so shadows fall close to what casts them.
+fn light_dir() -> Vec3 {
+    Vec3::new(0.35, 1.0, 0.25).normalize()
+}
+
+pub(crate) fn instance_descriptor() -> wgpu::InstanceDescriptor {
+    let mut d = wgpu::InstanceDescriptor::new_without_display_handle().with_env();
+    // Vulkan only: it is what the crate is built with (and Mesa's llvmpipe provides it).
+    d.backends = wgpu::Backends::VULKAN;
+    d
+}
+
+pub(crate) fn request_adapter(
+    instance: &wgpu::Instance,
+    surface: Option<&wgpu::Surface<'_>>,
+) -> Result<(wgpu::Adapter, wgpu::Device, wgpu::Queue), RenderError> {
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        force_fallback_adapter: false,
+        compatible_surface: surface,
+        ..Default::default()
+    }))
+    .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("handblocks renderer"),
+        required_features: wgpu::Features::empty(),
+        required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
+        ..Default::default()
+    }))
+    .map_err(|e| RenderError::Device(e.to_string()))?;
+    Ok((adapter, device, queue))
+}
+
+impl Renderer {
+    /// A renderer that draws offscreen (no window, no display needed).
+    pub fn new_headless(settings: &RenderSettings, scene: &Scene) -> Result<Renderer, RenderError> {
+        settings.validate().map_err(RenderError::Settings)?;
+        let instance = wgpu::Instance::new(instance_descriptor());
+        let (adapter, device, queue) = request_adapter(&instance, None)?;
+        Renderer::with_device(settings, scene, &adapter, device, queue)
+    }
+
+    pub(crate) fn with_device(
+        settings: &RenderSettings,
+        scene: &Scene,
+        adapter: &wgpu::Adapter,
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+    ) -> Result<Renderer, RenderError> {
+        settings.validate().map_err(RenderError::Settings)?;
+        let shapes: Vec<_> = scene.blocks.iter().map(|b| &b.shape).collect();
+        let meshes = Meshes::build(&shapes).map_err(|e| {
+            let name = scene
+                .blocks
+                .get(e.block)
+                .map(|b| b.name.as_str())
+                .unwrap_or("?");
+            RenderError::Settings(format!("block {name:?}: {}", e.problem))
+        })?;
+        let (w, h) = (settings.width, settings.height);
+        let max = device.limits().max_texture_dimension_2d;
+        if 2 * w > max || h > max {
+            return Err(RenderError::Settings(format!(
+                "{w} x {h} per eye needs a {} x {h} texture; this GPU allows {max}",
+                2 * w
+            )));
+        }
+        let texture = |label, width, height, format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let eyes = texture(
+            "eyes",
+            2 * w,
+            h,
+            COLOR_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::COPY_SRC
+                | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let eyes_view = eyes.create_view(&Default::default());
+        let depth = texture(
+            "depth",
+            2 * w,
+            h,
+            DEPTH_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        let depth_view = depth.create_view(&Default::default());
+        let module = shader(&device);
+        let scene_p = scene_pipelines(&device, &module);
+
+        let globals = Globals {
+            light_dir: light_dir().extend(0.0).to_array(),
+            params: [0.0008, 0.45, 0.0, 0.0],
+        };
+        let globals_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("globals"),
+            contents: bytemuck::bytes_of(&globals),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let eye_views = stereo(&settings.camera, w, h);
+        let mut eye_bytes = vec![0u8; 2 * EYE_UNIFORM_STRIDE as usize];
+        for (i, e) in eye_views.iter().enumerate() {
+            let u = EyeUniform {
+                view_proj: e.view_projection().to_cols_array_2d(),
+                eye_pos: e.position.as_vec3().extend(1.0).to_array(),
+            };
+            let at = i * EYE_UNIFORM_STRIDE as usize;
+            eye_bytes[at..at + std::mem::size_of::<EyeUniform>()]
+                .copy_from_slice(bytemuck::bytes_of(&u));
+        }
+        let eye_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("eyes"),
+            contents: &eye_bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("scene"),
+            layout: &scene_p.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: globals_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &eye_buf,
+                        offset: 0,
+                        size: std::num::NonZeroU64::new(std::mem::size_of::<EyeUniform>() as u64),
+                    }),
+                },
+            ],
+        });
+        let vertex_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("meshes"),
+            contents: bytemuck::cast_slice(&meshes.vertices),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let palm_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("palm"),
+            size: (PALM_VERTEX_CAPACITY * std::mem::size_of::<Vertex>()) as u64,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let instance_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("instances"),
+            size: (INSTANCE_CAPACITY * std::mem::size_of::<Instance>()) as u64,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let anaglyph = (settings.output == OutputMode::Anaglyph).then(|| {
+            let texture = texture(
+                "anaglyph",
+                w,
+                h,
+                COLOR_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            );
+            let view = texture.create_view(&Default::default());
+            let pipeline = composite_pipeline(&device, &module, COLOR_FORMAT);
+            let (bind_group, uniform) = composite_bind_group(
+                &device,
+                &pipeline,
+                &eyes_view,
+                &CompositeUniform {
+                    mode: [1, w, h, 0],
+                    dst: [w as f32, h as f32, 0.0, 0.0],
+                },
+            );
+            AnaglyphTarget {
+                texture,
+                view,
+                bind_group,
+                pipeline,
+                _uniform: uniform,
+            }
+        });
+        let info = adapter.get_info();
+        Ok(Renderer {
+            settings: settings.clone(),
+            adapter_name: format!("{} ({:?}, {:?})", info.name, info.device_type, info.backend),
+            device,
+            queue,
+            eyes,
+            eyes_view,
+            depth_view,
+            scene: scene_p,
+            module,
+            bind_group,
+            vertex_buf,
+            palm_buf,
+            instance_buf,
+            meshes,
+            list: DrawList::default(),
+            eye_views,
+            anaglyph,
+            presenter: None,
+            readback: None,
+        })
+    }
+
+    /// The adapter in words, e.g. "llvmpipe (LLVM 15.0.6, 256 bits) (Cpu, Vulkan)".
+    pub fn adapter_name(&self) -> &str {
+        &self.adapter_name
+    }
+
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    /// Both eyes' matrices (tests project points with them).
+    pub fn eye_views(&self) -> &[EyeView; 2] {
+        &self.eye_views
+    }
+
+    pub(crate) fn module(&self) -> &wgpu::ShaderModule {
+        &self.module
+    }
+
+    pub(crate) fn eyes_view(&self) -> &wgpu::TextureView {
+        &self.eyes_view
+    }
+
+    pub(crate) fn write_composite_uniform(&self, u: &CompositeUniform) {
+        if let Some(p) = &self.presenter {
+            self.queue
+                .write_buffer(&p.uniform, 0, bytemuck::bytes_of(u));
+        }
+    }
+
+    /// Draws one frame of `world` and `hand` and waits until the GPU has finished it.
+    pub fn render(
+        &mut self,
+        world: &WorldSample,
+        hand: &HandSample,
+    ) -> Result<FrameTimes, RenderError> {
+        let started_ns = monotonic_ns();
+        self.list.build(world, hand, &self.meshes.blocks);
+        let list = &self.list;
+        self.queue
+            .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&list.instances));
+        if !list.palm_vertices.is_empty() {
+            self.queue
+                .write_buffer(&self.palm_buf, 0, bytemuck::cast_slice(&list.palm_vertices));
+        }
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("frame"),
+            });
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("eyes"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &self.eyes_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: 0.30,
+                            g: 0.36,
+                            b: 0.45,
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            let (w, h) = (self.settings.width as f32, self.settings.height as f32);
+            let palm_n = list.palm_vertices.len() as u32;
+            for eye in 0..2u32 {
+                pass.set_viewport(eye as f32 * w, 0.0, w, h, 0.0, 1.0);
+                pass.set_bind_group(0, &self.bind_group, &[eye * EYE_UNIFORM_STRIDE as u32]);
+                pass.set_vertex_buffer(1, self.instance_buf.slice(..));
+                pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
+                pass.set_pipeline(&self.scene.floor);
+                let fi = list.floor_instance;
+                pass.draw(self.meshes.floor.clone(), fi..fi + 1);
+                let pipelines: &[&wgpu::RenderPipeline] = if self.settings.shadows {
+                    &[&self.scene.shadow, &self.scene.grid, &self.scene.solid]
+                } else {
+                    &[&self.scene.grid, &self.scene.solid]
+                };
+                for p in pipelines {
+                    pass.set_pipeline(p);
+                    pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
+                    if std::ptr::eq(*p, &self.scene.grid) {
+                        // Over the floor and the shadows, under everything else.
+                        pass.draw(self.meshes.grid.clone(), fi..fi + 1);
+                        continue;
+                    }
+                    for b in &list.blocks {
+                        pass.draw(b.vertices.clone(), b.instance..b.instance + 1);
+                    }
+                    if !list.segments.is_empty() {
+                        pass.draw(self.meshes.cylinder.clone(), list.segments.clone());
+                    }
+                    if !list.joints.is_empty() {
+                        pass.draw(self.meshes.sphere.clone(), list.joints.clone());
+                    }
+                    if palm_n > 0 {
+                        pass.set_vertex_buffer(0, self.palm_buf.slice(..));
+                        let pi = list.palm_instance;
+                        pass.draw(0..palm_n, pi..pi + 1);
+                    }
+                }
+            }
+        }
+        if let Some(a) = &self.anaglyph {
+            composite_pass(&mut encoder, &a.view, &a.pipeline, &a.bind_group);
+        }
+        let frame = match &self.presenter {
+            Some(p) => match p.surface.get_current_texture() {
+                wgpu::CurrentSurfaceTexture::Success(t)
+                | wgpu::CurrentSurfaceTexture::Suboptimal(t) => {
+                    let view = t.texture.create_view(&Default::default());
+                    composite_pass(&mut encoder, &view, &p.composite, &p.bind_group);
+                    Some(t)
+                }
+                wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                    p.surface.configure(&self.device, &p.config);
+                    None
+                }
+                // Timeout, occluded (minimised) or a validation error: skip presenting.
+                _ => None,
+            },
+            None => None,
+        };
+        let index = self.queue.submit([encoder.finish()]);
+        let submitted_ns = monotonic_ns();
+        if let Some(t) = frame {
+            self.queue.present(t);
+        }
+        self.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(index),
+                timeout: Some(GPU_TIMEOUT),
+            })
+            .map_err(|e| RenderError::Gpu(e.to_string()))?;
+        Ok(FrameTimes {
+            started_ns,
+            submitted_ns,
+            done_ns: monotonic_ns(),
+        })
+    }
+
+    /// The last frame as the output mode shows it: side by side and separate give both eyes
+    /// in one 2W x H image (`Image::eye` splits it), anaglyph a W x H image. Reuses its
+    /// buffers: `out` keeps its allocation across calls.
+    pub fn read_back_into(&mut self, out: &mut Image) -> Result<(), RenderError> {
+        let (texture, width) = match &self.anaglyph {
+            Some(a) => (&a.texture, self.settings.width),
+            None => (&self.eyes, 2 * self.settings.width),
+        };
+        let height = self.settings.height;
+        let padded = (width * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let size = padded as u64 * height as u64;
+        let buffer = match &self.readback {
+            Some(b) if b.size() == size => b.clone(),
+            _ => {
+                let b = self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("readback"),
+                    size,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                self.readback = Some(b.clone());
+                b
+            }
+        };
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("readback"),
+            });
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(height),
+                },
+            },
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
+        let index = self.queue.submit([encoder.finish()]);
+        let mapped = Arc::new(std::sync::Mutex::new(None));
+        let m = mapped.clone();
+        buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            if let Ok(mut slot) = m.lock() {
+                *slot = Some(r);
+            }
+        });
+        self.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(index),
+                timeout: Some(GPU_TIMEOUT),
+            })
+            .map_err(|e| RenderError::Gpu(e.to_string()))?;
+        let result = mapped.lock().ok().and_then(|mut s| s.take());
+        match result {
+            Some(Ok(())) => {}
+            Some(Err(e)) => return Err(RenderError::Gpu(format!("reading the frame back: {e}"))),
+            None => {
+                return Err(RenderError::Gpu(
+                    "reading the frame back: not mapped".into(),
+                ))
+            }
+        }
+        {
+            let view = buffer
+                .slice(..)
+                .get_mapped_range()
+                .map_err(|e| RenderError::Gpu(e.to_string()))?;
+            out.width = width;
+            out.height = height;
+            out.rgba.clear();
+            let row = (width * 4) as usize;
+            for y in 0..height as usize {
+                let at = y * padded as usize;
+                out.rgba.extend_from_slice(&view[at..at + row]);
+            }
+        }
+        buffer.unmap();
+        Ok(())
+    }
+
+    /// [`Self::read_back_into`] into a new image.
+    pub fn read_back(&mut self) -> Result<Image, RenderError> {
+        let mut img = Image::default();
+        self.read_back_into(&mut img)?;
+        Ok(img)
+    }
+}
+
+fn composite_pass(
+    encoder: &mut wgpu::CommandEncoder,
+    target: &wgpu::TextureView,
+    pipeline: &CompositePipeline,
+    bind_group: &wgpu::BindGroup,
+) {
+    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("composite"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    pass.set_pipeline(&pipeline.pipeline);
+    pass.set_bind_group(0, bind_group, &[]);
+    pass.draw(0..3, 0..1);
+}

@@ -1,0 +1,465 @@
+//! Renders known scenes on whatever adapter wgpu finds (Mesa's llvmpipe in CI) and asserts
+//! facts measured in the pixels: where a block appears in each eye, its disparity against the
+//! off-axis stereo formula, its colour by mode, the hand drawn where the world puts it, and the
+//! anaglyph's channels.
+
+use std::path::PathBuf;
+
+use common::config::scene::{BlockSpec, Effects, Scene, ShapeSpec, WorldSettings};
+use common::{BlockMode, BlockState, HandSample, Pose, WorldSample};
+use glam::DVec3;
+use renderer::camera::{expected_disparity_px, Eye, Viewer};
+use renderer::output::{write_frame, Image};
+use renderer::png::read_png;
+use renderer::{CameraSettings, OutputMode, RenderSettings, Renderer};
+
+const W: u32 = 320;
+const H: u32 = 240;
+const SIZE: f64 = 0.04;
+
+/// Looking horizontally along -z from 10 cm above the floor, 1 m from the origin: depth of a
+/// point is 1 - z.
+fn camera() -> CameraSettings {
+    CameraSettings {
+        eye: [0.0, 0.1, 1.0],
+        target: [0.0, 0.1, 0.0],
+        ..CameraSettings::default()
+    }
+}
+
+fn settings(output: OutputMode, shadows: bool) -> RenderSettings {
+    RenderSettings {
+        width: W,
+        height: H,
+        output,
+        camera: camera(),
+        shadows,
+    }
+}
+
+fn scene(n: usize) -> Scene {
+    Scene {
+        file: PathBuf::from("test.toml"),
+        world: WorldSettings::default(),
+        effects: Effects::default(),
+        blocks: (0..n)
+            .map(|i| BlockSpec {
+                name: format!("b{i}"),
+                shape: ShapeSpec::Box {
+                    size: [SIZE, SIZE, SIZE],
+                },
+                position: [0.0; 3],
+                rotation: [0.0, 0.0, 0.0, 1.0],
+                velocity: [0.0; 3],
+            })
+            .collect(),
+        hand: None,
+    }
+}
+
+/// A world of blocks at `positions`, all in `mode`.
+fn world(positions: &[[f64; 3]], mode: BlockMode) -> WorldSample {
+    let mut w = WorldSample {
+        block_count: positions.len() as u32,
+        ..Default::default()
+    };
+    for (b, p) in w.blocks.iter_mut().zip(positions) {
+        *b = BlockState {
+            pose: Pose {
+                position: *p,
+                rotation: [0.0, 0.0, 0.0, 1.0],
+            },
+            mode: mode as u32,
+            _reserved: 0,
+        };
+    }
+    w
+}
+
+fn renderer(s: &RenderSettings, blocks: usize) -> Renderer {
+    match Renderer::new_headless(s, &scene(blocks)) {
+        Ok(r) => r,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+fn draw(r: &mut Renderer, w: &WorldSample, h: &HandSample) -> Image {
+    r.render(w, h).unwrap();
+    r.read_back().unwrap()
+}
+
+/// Red-dominant pixels: a resting block (floor, sky, shadows and skin are not).
+fn is_red(p: [u8; 4]) -> bool {
+    p[0] as i32 > p[1] as i32 + 40 && p[0] as i32 > p[2] as i32 + 40
+}
+
+/// Mean position and count of the pixels that pass `f`.
+fn centroid(img: &Image, f: impl Fn(u32, u32) -> bool) -> (f64, f64, usize) {
+    let (mut sx, mut sy, mut n) = (0.0, 0.0, 0usize);
+    for y in 0..img.height {
+        for x in 0..img.width {
+            if f(x, y) {
+                sx += x as f64 + 0.5;
+                sy += y as f64 + 0.5;
+                n += 1;
+            }
+        }
+    }
+    (sx / n.max(1) as f64, sy / n.max(1) as f64, n)
+}
+
+/// The disparities of a box's front and back faces: the measured one must lie between.
+fn expected_range(depth: f64) -> (f64, f64) {
+    let c = camera();
+    let a = expected_disparity_px(&c, W, depth - SIZE / 2.0);
+    let b = expected_disparity_px(&c, W, depth + SIZE / 2.0);
+    (a.min(b), a.max(b))
+}
+
+#[test]
+fn a_block_appears_in_both_eyes_with_the_disparity_its_depth_gives() {
+    let s = settings(OutputMode::SideBySide, true);
+    let mut r = renderer(&s, 1);
+    let hand = HandSample::default();
+    // Behind the screen plane (0.6 m): uncrossed, right image to the right; in front: crossed.
+    for depth in [1.2, 0.4, 0.6] {
+        let img = draw(
+            &mut r,
+            &world(&[[0.0, 0.1, 1.0 - depth]], BlockMode::Resting),
+            &hand,
+        );
+        assert_eq!((img.width, img.height), (2 * W, H));
+        let (l, rt) = (img.eye(Eye::Left), img.eye(Eye::Right));
+        let (lx, ly, ln) = centroid(&l, |x, y| is_red(l.pixel(x, y)));
+        let (rx, ry, rn) = centroid(&rt, |x, y| is_red(rt.pixel(x, y)));
+        assert!(
+            ln > 50 && rn > 50,
+            "depth {depth}: block pixels left {ln}, right {rn}"
+        );
+        let d = rx - lx;
+        let (lo, hi) = expected_range(depth);
+        println!(
+            "depth {depth} m: {ln}/{rn} px, disparity {d:.2} px, expected {lo:.2}..{hi:.2} px \
+             (ipd * (1 - d/z) at the front and back faces)"
+        );
+        assert!(
+            d >= lo - 1.0 && d <= hi + 1.0,
+            "depth {depth}: {d} not in {lo}..{hi}"
+        );
+        assert!((ly - ry).abs() < 0.5, "vertical disparity {}", ly - ry);
+        if depth > 0.7 {
+            assert!(d > 10.0);
+        } else if depth < 0.5 {
+            assert!(d < -10.0);
+        }
+        // And where the camera model puts it: the projected centre, within a few pixels.
+        let g = DVec3::new(0.0, 0.1, 1.0 - depth);
+        let (px, py) = r.eye_views()[0].project_px(g, W, H).unwrap();
+        assert!(
+            (px - lx).abs() < 3.0 && (py - ly).abs() < 3.0,
+            "{px},{py} vs {lx},{ly}"
+        );
+    }
+}
+
+#[test]
+fn a_grasped_block_has_the_grasp_colour_and_each_mode_its_own() {
+    let s = settings(OutputMode::SideBySide, true);
+    let mut r = renderer(&s, 1);
+    let g = DVec3::new(0.0, 0.1, 0.3);
+    let (px, py) = r.eye_views()[0].project_px(g, W, H).unwrap();
+    // The front face's centre: 5 x 5 pixels around the projected centre of gravity.
+    let patch = |img: &Image| -> [f64; 3] {
+        let mut sum = [0.0; 3];
+        for dy in -2..=2 {
+            for dx in -2..=2 {
+                let p = img.pixel((px as i32 + dx) as u32, (py as i32 + dy) as u32);
+                for c in 0..3 {
+                    sum[c] += p[c] as f64 / 25.0;
+                }
+            }
+        }
+        sum
+    };
+    let hand = HandSample::default();
+    let mut w = world(&[g.to_array()], BlockMode::Resting);
+    let resting = patch(&draw(&mut r, &w, &hand));
+    w.grasped_block = 0;
+    let grasped = patch(&draw(&mut r, &w, &hand));
+    w.grasped_block = -1;
+    w.blocks[0].mode = BlockMode::Grasped as u32;
+    let grasped_by_mode = patch(&draw(&mut r, &w, &hand));
+    println!("front face rgb: resting {resting:?}, grasped {grasped:?}");
+    assert!(grasped[1] > grasped[0] + 60.0 && grasped[1] > grasped[2] + 60.0);
+    assert!(resting[0] > resting[1] + 60.0);
+    for c in 0..3 {
+        assert!((grasped[c] - grasped_by_mode[c]).abs() < 1.0);
+    }
+    // Every mode's colour differs from every other's where the block is.
+    let mut seen: Vec<(BlockMode, [f64; 3])> = Vec::new();
+    for mode in BlockMode::ALL {
+        w.blocks[0].mode = mode as u32;
+        let c = patch(&draw(&mut r, &w, &hand));
+        for (m, o) in &seen {
+            let dist: f64 = (0..3).map(|i| (c[i] - o[i]).abs()).sum();
+            assert!(dist > 60.0, "{mode:?} and {m:?} look alike: {c:?} {o:?}");
+        }
+        seen.push((mode, c));
+    }
+}
+
+#[test]
+fn fingers_are_drawn_where_the_world_relocated_them_and_the_palm_where_the_hand_has_it() {
+    let s = settings(OutputMode::SideBySide, false);
+    let mut r = renderer(&s, 1);
+    let block = [0.0, 0.1, 0.3];
+    let base = world(&[block], BlockMode::Grasped);
+    let mut hand = HandSample {
+        finger_count: 1,
+        finger_point_count: [2, 0, 0, 0, 0],
+        finger_radius: [0.01, 0.0, 0.0, 0.0, 0.0],
+        ..Default::default()
+    };
+    // The hand's own points: 12 cm to the right of the block; the world's, on its left face.
+    hand.finger_points[0][0] = [0.12, 0.09, 0.3];
+    hand.finger_points[0][1] = [0.12, 0.11, 0.3];
+    let mut w = base;
+    w.finger_count = 1;
+    w.finger_point_count[0] = 2;
+    w.finger_points[0][0] = [-0.03, 0.09, 0.3];
+    w.finger_points[0][1] = [-0.03, 0.11, 0.3];
+    let without = draw(&mut r, &base, &HandSample::default());
+    let with = draw(&mut r, &w, &hand);
+    let eye = r.eye_views()[0];
+    let changed_near = |p: [f64; 3]| {
+        let (x, y) = eye.project_px(DVec3::from_array(p), W, H).unwrap();
+        let mut n = 0;
+        for dy in -3..=3 {
+            for dx in -3..=3 {
+                let (xx, yy) = ((x as i32 + dx) as u32, (y as i32 + dy) as u32);
+                if with.pixel(xx, yy) != without.pixel(xx, yy) {
+                    n += 1;
+                }
+            }
+        }
+        n
+    };
+    let at_world = changed_near([-0.03, 0.1, 0.3]);
+    let at_hand = changed_near([0.12, 0.1, 0.3]);
+    println!(
+        "pixels changed near the relocated fingers {at_world}/49, near the hand's own {at_hand}/49"
+    );
+    assert!(at_world > 40);
+    assert_eq!(at_hand, 0);
+
+    // The palm: the hull of the hand sample's palm box, in skin colour (r > g > b).
+    let mut k = 0;
+    for x in [-0.14, -0.10] {
+        for y in [0.08, 0.12] {
+            for z in [0.28, 0.32] {
+                hand.palm_vertices[k] = [x, y, z];
+                k += 1;
+            }
+        }
+    }
+    hand.palm_vertex_count = 8;
+    let img = draw(&mut r, &w, &hand);
+    let (x, y) = eye.project_px(DVec3::new(-0.12, 0.1, 0.32), W, H).unwrap();
+    let p = img.pixel(x as u32, y as u32);
+    println!("palm front face {p:?}");
+    assert!(p[0] > p[1] && p[1] > p[2] && p[0] > 150, "{p:?}");
+}
+
+/// Reverses the sRGB curve, 0..1.
+fn linear(v: u8) -> f64 {
+    let c = v as f64 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+#[test]
+fn the_anaglyph_carries_the_left_eye_in_red_and_the_right_in_cyan() {
+    let mut sbs = renderer(&settings(OutputMode::SideBySide, false), 1);
+    let mut ana = renderer(&settings(OutputMode::Anaglyph, false), 1);
+    let hand = HandSample::default();
+    let empty = world(&[], BlockMode::Resting);
+    let bg = draw(&mut ana, &empty, &hand);
+    assert_eq!((bg.width, bg.height), (W, H));
+    let mut shifts = Vec::new();
+    for depth in [1.2, 0.6] {
+        let w = world(&[[0.0, 0.1, 1.0 - depth]], BlockMode::Resting);
+        let a = draw(&mut ana, &w, &hand);
+        let eyes = draw(&mut sbs, &w, &hand);
+        let (l, r) = (eyes.eye(Eye::Left), eyes.eye(Eye::Right));
+        // Composition: red = the left eye's luminance, green and blue = the right eye's.
+        for (x, y) in [
+            (W / 2, H / 2),
+            (10, 10),
+            (W / 3, H - 20),
+            (W / 2 + 5, H / 2 + 3),
+        ] {
+            let (lp, rp, ap) = (l.pixel(x, y), r.pixel(x, y), a.pixel(x, y));
+            let lum = 0.299 * linear(lp[0]) + 0.587 * linear(lp[1]) + 0.114 * linear(lp[2]);
+            assert!(
+                (linear(ap[0]) - lum).abs() < 0.01,
+                "{x},{y}: {ap:?} vs {lp:?}"
+            );
+            assert!(
+                (ap[1] as i32 - rp[1] as i32).abs() <= 1
+                    && (ap[2] as i32 - rp[2] as i32).abs() <= 1
+            );
+        }
+        // Where the block changes the red channel (left eye) and where it changes green and
+        // blue (right eye): shifted by the disparity, so they disagree only off the screen.
+        let red = |x: u32, y: u32| (a.pixel(x, y)[0] as i32 - bg.pixel(x, y)[0] as i32).abs() > 25;
+        let cyan = |x: u32, y: u32| {
+            let (p, q) = (a.pixel(x, y), bg.pixel(x, y));
+            (p[1] as i32 - q[1] as i32).abs() + (p[2] as i32 - q[2] as i32).abs() > 25
+        };
+        let (rx, _, rn) = centroid(&a, red);
+        let (cx, _, cn) = centroid(&a, cyan);
+        let (_, _, disagree) = centroid(&a, |x, y| red(x, y) != cyan(x, y));
+        let (lo, hi) = expected_range(depth);
+        println!(
+            "anaglyph, depth {depth} m: red {rn} px, cyan {cn} px, shift {:.2} px \
+             (expected {lo:.2}..{hi:.2}), channels disagree at {disagree} px",
+            cx - rx
+        );
+        assert!(rn > 50 && cn > 50);
+        assert!(cx - rx >= lo - 1.0 && cx - rx <= hi + 1.0);
+        shifts.push((cx - rx, disagree));
+    }
+    // Far from the screen plane the channels disagree along both sides of the block; on it,
+    // barely at all.
+    assert!(shifts[0].1 > 4 * shifts[1].1.max(1), "{shifts:?}");
+}
+
+#[test]
+fn output_modes_write_the_files_they_promise() {
+    let dir = std::env::temp_dir().join(format!("hb-renderer-out-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let w = world(&[[0.0, 0.1, 0.0]], BlockMode::Resting);
+    let hand = HandSample::default();
+    let mut scratch = Image::default();
+    for (mode, files, width) in [
+        (OutputMode::SideBySide, 1, 2 * W),
+        (OutputMode::Anaglyph, 1, W),
+        (OutputMode::Separate, 2, W),
+    ] {
+        let mut r = renderer(&settings(mode, true), 1);
+        let img = draw(&mut r, &w, &hand);
+        let paths = write_frame(&dir, 7, mode, &img, &mut scratch).unwrap();
+        assert_eq!(paths.len(), files);
+        for (i, p) in paths.iter().enumerate() {
+            let back = read_png(p).unwrap();
+            assert_eq!((back.width, back.height), (width, H), "{}", p.display());
+            let want = if mode == OutputMode::Separate {
+                img.eye(if i == 0 { Eye::Left } else { Eye::Right })
+            } else {
+                img.clone()
+            };
+            assert!(back == want, "{} differs from the frame", p.display());
+        }
+    }
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn bad_poses_skip_that_block_and_bad_settings_are_errors() {
+    let s = settings(OutputMode::SideBySide, true);
+    let mut r = renderer(&s, 2);
+    let mut w = world(&[[f64::NAN, 0.1, 0.0], [0.0, 0.1, 0.0]], BlockMode::Resting);
+    let img = draw(&mut r, &w, &HandSample::default());
+    let (_, _, n) = centroid(&img, |x, y| is_red(img.pixel(x, y)));
+    assert!(n > 50);
+    w.blocks[1].pose.rotation = [f64::INFINITY, 0.0, 0.0, 1.0];
+    let img = draw(&mut r, &w, &HandSample::default());
+    let (_, _, n) = centroid(&img, |x, y| is_red(img.pixel(x, y)));
+    assert_eq!(n, 0);
+
+    let mut bad = s.clone();
+    bad.camera.target = bad.camera.eye;
+    let e = Renderer::new_headless(&bad, &scene(1))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("target"), "{e}");
+    let mut flat = scene(1);
+    flat.blocks[0].shape = ShapeSpec::Hull {
+        vertices: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0]],
+    };
+    let e = Renderer::new_headless(&s, &flat).err().unwrap().to_string();
+    assert!(e.contains("\"b0\"") && e.contains("no volume"), "{e}");
+}
+
+#[test]
+fn the_default_camera_sees_the_blocks_around_the_origin_and_the_hand_above() {
+    let s = RenderSettings {
+        width: 160,
+        height: 120,
+        ..RenderSettings::default()
+    };
+    let v = Viewer::new(&s.camera);
+    let mut r = renderer(&s, 0);
+    for p in [
+        [0.0, 0.0, 0.0],
+        [0.4, 0.0, 0.3],
+        [-0.4, 0.0, -0.4],
+        [0.0, 0.4, 0.0],
+    ] {
+        let d = DVec3::from_array(p);
+        assert!(v.depth(d) > 0.3);
+        for e in r.eye_views() {
+            let (x, y) = e.project_px(d, 160, 120).unwrap();
+            assert!(
+                (0.0..160.0).contains(&x) && (0.0..120.0).contains(&y),
+                "{p:?}: {x},{y}"
+            );
+        }
+    }
+    let t = r
+        .render(&WorldSample::default(), &HandSample::default())
+        .unwrap();
+    assert!(t.done_ns >= t.submitted_ns && t.submitted_ns >= t.started_ns);
+}
+
+#[test]
+fn every_shape_kind_is_drawn_centred_on_its_centre_of_gravity() {
+    let s = settings(OutputMode::SideBySide, false);
+    let mut sc = scene(4);
+    sc.blocks[1].shape = ShapeSpec::Wedge {
+        size: [0.05, 0.04, 0.04],
+    };
+    sc.blocks[2].shape = ShapeSpec::Tetra {
+        size: [0.05, 0.05, 0.05],
+    };
+    // An octahedron given far from its own origin: drawn around G all the same.
+    sc.blocks[3].shape = ShapeSpec::Hull {
+        vertices: vec![
+            [10.03, 5.0, 0.0],
+            [9.97, 5.0, 0.0],
+            [10.0, 5.03, 0.0],
+            [10.0, 4.97, 0.0],
+            [10.0, 5.0, 0.03],
+            [10.0, 5.0, -0.03],
+        ],
+    };
+    let mut r = Renderer::new_headless(&s, &sc).unwrap();
+    let xs = [-0.15, -0.05, 0.05, 0.15];
+    let w = world(&xs.map(|x| [x, 0.1, 0.3]), BlockMode::Resting);
+    let img = draw(&mut r, &w, &HandSample::default()).eye(Eye::Left);
+    let eye = r.eye_views()[0];
+    for (i, x) in xs.iter().enumerate() {
+        let (px, py) = eye.project_px(DVec3::new(*x, 0.1, 0.3), W, H).unwrap();
+        let (cx, cy, n) = centroid(&img, |u, v| {
+            (u as f64 - px).abs() < 20.0 && (v as f64 - py).abs() < 20.0 && is_red(img.pixel(u, v))
+        });
+        println!("shape {i}: {n} px, image centre {cx:.1},{cy:.1}, G at {px:.1},{py:.1}");
+        assert!(n > 40, "shape {i}: {n} px");
+        // The image's centre is G's projection up to perspective and the shape's asymmetry.
+        assert!((cx - px).abs() < 5.0 && (cy - py).abs() < 5.0);
+    }
+}
