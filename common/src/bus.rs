@@ -16,7 +16,7 @@ use std::fmt;
 use std::path::{Path as StdPath, PathBuf};
 use std::time::Duration;
 
-use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -385,6 +385,32 @@ impl<T: Stamped> Wakeable for Inlet<T> {
     }
 }
 
+/// Sleeps until one of `fds` is readable or `timeout` passes, to the nanosecond (`ppoll`;
+/// iceoryx2's own timed waits round to milliseconds). A signal ends it early, as a wake-up.
+fn poll_readable(fds: &mut [libc::pollfd], timeout: Duration) -> Result<(), BusError> {
+    let ts = libc::timespec {
+        tv_sec: timeout.as_secs().min(i32::MAX as u64) as libc::time_t,
+        tv_nsec: timeout.subsec_nanos() as libc::c_long,
+    };
+    // SAFETY: `fds` is a valid slice of initialised pollfd entries; `ts` outlives the call; a
+    // null signal mask keeps the current one.
+    let r = unsafe {
+        libc::ppoll(
+            fds.as_mut_ptr(),
+            fds.len() as libc::nfds_t,
+            &ts,
+            std::ptr::null(),
+        )
+    };
+    if r < 0 {
+        let e = std::io::Error::last_os_error();
+        if e.kind() != std::io::ErrorKind::Interrupted {
+            return Err(BusError::Wait(format!("ppoll: {e}")));
+        }
+    }
+    Ok(())
+}
+
 /// Most inlets one [`wait_any`] call can watch.
 pub const MAX_WAIT: usize = 8;
 
@@ -405,16 +431,7 @@ pub fn wait_any(inlets: &[&dyn Wakeable], timeout: Duration) -> Result<(), BusEr
         slot.fd = unsafe { inlet.listener().file_descriptor().native_handle() };
         slot.events = libc::POLLIN;
     }
-    let ms = timeout.as_millis().min(i32::MAX as u128) as libc::c_int;
-    // SAFETY: `fds` holds `n` initialised pollfd entries.
-    let r = unsafe { libc::poll(fds.as_mut_ptr(), n as libc::nfds_t, ms) };
-    if r < 0 {
-        let e = std::io::Error::last_os_error();
-        // A signal (the stop request) woke us: the caller checks its stop flag next.
-        if e.kind() != std::io::ErrorKind::Interrupted {
-            return Err(BusError::Wait(format!("poll: {e}")));
-        }
-    }
+    poll_readable(&mut fds[..n], timeout)?;
     for inlet in &inlets[..n] {
         let _ = inlet.listener().try_wait(|_| {});
     }
@@ -565,13 +582,20 @@ impl<T: Stamped> Inlet<T> {
         Ok(sample)
     }
 
-    /// Sleeps until a sample may have arrived, or `timeout` passes; consumes the wake-ups.
+    /// Sleeps until a sample may have arrived, or `timeout` passes, to the nanosecond;
+    /// consumes the wake-ups.
     pub fn wait(&self, timeout: Duration) -> Result<(), BusError> {
-        match self.listener.timed_wait(|_| {}, timeout) {
-            // A signal (the stop request) woke us: the caller checks its stop flag next.
-            Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
-            Err(e) => Err(BusError::Wait(format!("{e:?}"))),
-        }
+        use iceoryx2::prelude::FileDescriptorBased;
+        // SAFETY: the descriptor is owned by our listener, which outlives the call.
+        let fd = unsafe { self.listener.file_descriptor().native_handle() };
+        let mut fds = [libc::pollfd {
+            fd,
+            events: libc::POLLIN,
+            revents: 0,
+        }];
+        poll_readable(&mut fds, timeout)?;
+        let _ = self.listener.try_wait(|_| {});
+        Ok(())
     }
 
     pub fn received(&self) -> u64 {

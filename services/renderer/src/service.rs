@@ -48,11 +48,6 @@ pub fn run_with(
     settings: RenderSettings,
     frames: Option<FramesRequest>,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let world_in = bus.inlet::<WorldSample>(Topic::World)?;
-    let hand_in = bus.inlet::<HandSample>(Topic::Hand)?;
-    let mut frame_out = bus.outlet::<FrameSample>(Topic::Frame)?;
-    let mut reporter = Reporter::new(Stage::Renderer, bus.outlet(Topic::Latency)?);
-
     let (mut renderer, mut window) = match session.renderer.mode {
         RenderMode::Off => (None, None),
         RenderMode::Headless => (
@@ -73,6 +68,16 @@ pub fn run_with(
             r.adapter_name()
         );
     }
+    // Set up the GPU and draw one frame (shaders compile on first use) before attaching to the
+    // bus: the launcher starts the source once every reader is attached, so no world sample
+    // waits behind this.
+    if let Some(r) = renderer.as_mut() {
+        r.render(&WorldSample::default(), &HandSample::default())?;
+    }
+    let world_in = bus.inlet::<WorldSample>(Topic::World)?;
+    let hand_in = bus.inlet::<HandSample>(Topic::Hand)?;
+    let mut frame_out = bus.outlet::<FrameSample>(Topic::Frame)?;
+    let mut reporter = Reporter::new(Stage::Renderer, bus.outlet(Topic::Latency)?);
     let mut writer = match (&frames, &renderer) {
         (Some(f), Some(_)) => Some(FrameWriter::start(f.clone(), settings.output)?),
         _ => None,
