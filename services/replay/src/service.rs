@@ -67,7 +67,10 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         s.stamp.origin_ns = monotonic_ns();
         let sent = joints_out.publish(&s)?;
         reporter.recorder.source_output(&sent);
-        while world_in.receive()?.is_some() {}
+        // Keep up with the world's answers (speed 0 paces on them).
+        while let Some(w) = world_in.receive()? {
+            answered = Some(w.hand_seq);
+        }
         reporter.maybe_report(&[joints_out.counter()])?;
     }
     while !shutdown::requested() {
