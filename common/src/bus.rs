@@ -263,10 +263,6 @@ impl Bus {
         Ok(Bus { node })
     }
 
-    pub fn node(&self) -> &Node<ipc::Service> {
-        &self.node
-    }
-
     /// Creates every topic of the session with its fixed sizing. The launcher calls this once
     /// before it starts any process, and keeps the returned handles until the session ends.
     pub fn create_services(&self) -> Result<Services, BusError> {
@@ -278,7 +274,7 @@ impl Bus {
             world: self.pubsub::<WorldSample>(Topic::World)?,
             frame: self.pubsub::<FrameSample>(Topic::Frame)?,
             latency: self.pubsub::<LatencySample>(Topic::Latency)?,
-            events: Topic::ALL
+            _events: Topic::ALL
                 .iter()
                 .map(|t| self.event(*t))
                 .collect::<Result<_, _>>()?,
@@ -456,7 +452,8 @@ pub struct Services {
     pub world: PubSub<WorldSample>,
     pub frame: PubSub<FrameSample>,
     pub latency: PubSub<LatencySample>,
-    events: Vec<EventService>,
+    /// Held so the event services keep the sizing they were created with.
+    _events: Vec<EventService>,
 }
 
 impl Services {
@@ -484,13 +481,6 @@ impl Services {
             Topic::Frame => self.frame.dynamic_config().number_of_publishers(),
             Topic::Latency => self.latency.dynamic_config().number_of_publishers(),
         }
-    }
-
-    /// Event listeners attached to `topic` now.
-    pub fn listeners(&self, topic: Topic) -> usize {
-        self.events[topic as usize]
-            .dynamic_config()
-            .number_of_listeners()
     }
 }
 
@@ -525,11 +515,6 @@ impl<T: Stamped> Outlet<T> {
             .map_err(|e| send_err(format!("{e:?}")))?;
         self.next_seq += 1;
         Ok(sent)
-    }
-
-    /// Samples sent so far.
-    pub fn published(&self) -> u64 {
-        self.next_seq
     }
 
     pub fn topic(&self) -> Topic {
@@ -600,10 +585,6 @@ impl<T: Stamped> Inlet<T> {
 
     pub fn received(&self) -> u64 {
         self.received.get()
-    }
-
-    pub fn gaps(&self) -> u64 {
-        self.gaps.get()
     }
 
     pub fn topic(&self) -> Topic {

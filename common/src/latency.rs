@@ -109,10 +109,6 @@ impl LatencyRecorder {
         self.record(Metric::Origin, ns);
     }
 
-    pub fn histogram(&self, metric: Metric) -> &Histogram<u64> {
-        &self.histograms[metric as usize]
-    }
-
     /// Writes this recorder's histograms and the given topic counters into `sample`.
     pub fn fill(
         &mut self,

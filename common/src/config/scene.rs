@@ -198,11 +198,6 @@ impl Scene {
         root.finish()?;
         Ok(scene)
     }
-
-    /// The index of the block named `name`.
-    pub fn block_index(&self, name: &str) -> Option<usize> {
-        self.blocks.iter().position(|b| b.name == name)
-    }
 }
 
 fn world(r: Option<Reader>) -> Result<WorldSettings, ConfigError> {

@@ -119,17 +119,6 @@ pub fn interpolate(a: &HandSample, b: &HandSample, s: f64, out: &mut HandSample)
     }
 }
 
-/// True when every number of the hand is finite; a hand with NaN is treated as absent.
-pub fn hand_is_finite(h: &HandSample) -> bool {
-    h.wrist.is_finite()
-        && h.finger_points
-            .iter()
-            .flatten()
-            .flatten()
-            .all(|v| v.is_finite())
-        && h.palm_vertices.iter().flatten().all(|v| v.is_finite())
-}
-
 /// Runs until asked to stop, then drains what its input still holds.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
     let mut world = World::new(&session.scene)?;
@@ -147,7 +136,8 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             let received = monotonic_ns();
             reporter.recorder.hop(&s.stamp, received);
             let hand: &HandSample = s.payload();
-            if hand_is_finite(hand) {
+            // A hand the model cannot use (NaN, bad counts) brings no steps: the world holds.
+            if crate::hand::is_usable(hand) {
                 if !timeline.started() {
                     // The first hand is the previous one of the first step (P- of R1, R2).
                     world.set_previous_hand(Some(hand));
