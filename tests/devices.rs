@@ -2,17 +2,13 @@
 //! pseudo-terminal by `handblocks emulate`, drive a whole session exactly as hardware on
 //! /dev/ttyUSB* would (issue 4).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 
-use common::bus::BusConfig;
 use serde_json::Value;
 
-const EXE: &str = env!("CARGO_BIN_EXE_handblocks");
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+mod support;
+use support::{assert_nothing_left, repo, Scratch, EXE};
 
 struct Emulator(Child);
 
@@ -49,15 +45,13 @@ impl Drop for Emulator {
 }
 
 fn run_session(tag: &str, tracker_args: &[&str]) -> (std::process::Output, Value, String) {
-    let dir = std::env::temp_dir().join(format!("hb-dev-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    let (glove_link, tracker_link) = (dir.join("glove"), dir.join("tracker"));
+    let dir = Scratch::new(&format!("dev-{tag}"));
+    let (glove_link, tracker_link) = (dir.path("glove"), dir.path("tracker"));
     let _glove = Emulator::start(&["glove", "--sensors", "22"], &glove_link);
     let mut args = vec!["tracker"];
     args.extend_from_slice(tracker_args);
     let _tracker = Emulator::start(&args, &tracker_link);
-    let session = dir.join("session.toml");
+    let session = dir.path("session.toml");
     std::fs::write(
         &session,
         format!(
@@ -76,7 +70,7 @@ fn run_session(tag: &str, tracker_args: &[&str]) -> (std::process::Output, Value
     )
     .unwrap();
     let id = format!("dev{tag}{}", std::process::id());
-    let report = dir.join("report.json");
+    let report = dir.path("report.json");
     let out = Command::new(EXE)
         .args([
             "launch",
@@ -91,18 +85,13 @@ fn run_session(tag: &str, tracker_args: &[&str]) -> (std::process::Output, Value
         .arg(&session)
         .output()
         .unwrap();
-    let bus = BusConfig::for_session(&id).unwrap();
-    assert!(
-        bus.leftover_shm_files().is_empty() && !bus.root.exists(),
-        "session resources left behind"
-    );
+    assert_nothing_left(&id);
     let v: Value = serde_json::from_str(
         &std::fs::read_to_string(&report)
             .unwrap_or_else(|_| panic!("no report: {}", String::from_utf8_lossy(&out.stderr))),
     )
     .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    let _ = std::fs::remove_dir_all(&dir);
     (out, v, stderr)
 }
 
@@ -157,9 +146,8 @@ fn a_tracker_that_stops_answering_is_reported_and_the_session_goes_on() {
 
 #[test]
 fn bad_device_settings_are_refused_before_anything_starts() {
-    let dir = std::env::temp_dir().join(format!("hb-dev-bad-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let session = dir.join("bad.toml");
+    let dir = Scratch::new("dev-bad");
+    let session = dir.path("bad.toml");
     std::fs::write(
         &session,
         format!(
@@ -174,7 +162,6 @@ fn bad_device_settings_are_refused_before_anything_starts() {
         .arg(&session)
         .output()
         .unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(

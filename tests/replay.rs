@@ -4,15 +4,11 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use common::bus::BusConfig;
 use common::{Topic, WorldSample};
 use serde_json::Value;
 
-const EXE: &str = env!("CARGO_BIN_EXE_handblocks");
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+mod support;
+use support::{assert_nothing_left, assert_same_poses, repo, Scratch, EXE};
 
 fn carl(name: &str) -> PathBuf {
     repo().join("../shared/data/carl").join(name)
@@ -20,11 +16,9 @@ fn carl(name: &str) -> PathBuf {
 
 /// Replays `trace` through the five processes at `speed`; returns the last world sample.
 fn replay(tag: &str, trace: &str, speed: f64, seconds: f64) -> WorldSample {
-    let dir = std::env::temp_dir().join(format!("hb-replay-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    let log = dir.join("replay.log");
-    let session = dir.join("replay.toml");
+    let dir = Scratch::new(&format!("replay-{tag}"));
+    let log = dir.path("replay.log");
+    let session = dir.path("replay.toml");
     std::fs::write(
         &session,
         format!(
@@ -55,8 +49,7 @@ fn replay(tag: &str, trace: &str, speed: f64, seconds: f64) -> WorldSample {
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
-    let bus = BusConfig::for_session(&id).unwrap();
-    assert!(bus.leftover_shm_files().is_empty() && !bus.root.exists());
+    assert_nothing_left(&id);
     let bytes = std::fs::read(&log).unwrap();
     let records = recorder::log::records(&bytes).unwrap();
     let joints = records.iter().filter(|r| r.topic == Topic::Joints).count();
@@ -73,7 +66,6 @@ fn replay(tag: &str, trace: &str, speed: f64, seconds: f64) -> WorldSample {
         .unwrap()
         .sample()
         .unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
     last
 }
 
@@ -109,33 +101,14 @@ fn a_replay_is_the_same_world_at_any_speed_and_in_one_process() {
     );
     let v: Value = serde_json::from_slice(&sim.stdout).unwrap();
     assert_eq!(v["frames"].as_u64(), Some(timed.step));
-    for (i, b) in v["blocks"].as_array().unwrap().iter().enumerate() {
-        let nums = |k: &str| -> Vec<f64> {
-            b[k].as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        };
-        assert_eq!(
-            nums("position"),
-            timed.blocks()[i].pose.position.to_vec(),
-            "block {i}"
-        );
-        assert_eq!(
-            nums("rotation"),
-            timed.blocks()[i].pose.rotation.to_vec(),
-            "block {i}"
-        );
-    }
+    assert_same_poses(&v, &timed);
 }
 
 #[test]
 fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
-    let dir = std::env::temp_dir().join(format!("hb-replay-bad-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("replay-bad");
     let bytes = std::fs::read(carl("example_lift_0.carl")).unwrap();
-    let cut = dir.join("cut.carl");
+    let cut = dir.path("cut.carl");
     std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
     let out = Command::new(EXE)
         .args(["simulate", "--hand"])
@@ -150,7 +123,7 @@ fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
         "{stderr}"
     );
 
-    let wrong = dir.join("wrong.carl");
+    let wrong = dir.path("wrong.carl");
     std::fs::write(&wrong, b"\x89MCAP0\r\n not a trace").unwrap();
     let out = Command::new(EXE)
         .args(["simulate", "--hand"])
@@ -160,5 +133,4 @@ fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("wrong.carl: at byte 0: not a CARL file"));
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -5,36 +5,11 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use common::bus::BusConfig;
 use common::{HandSample, Topic, TrackerSample, WorldSample};
 use serde_json::Value;
 
-const EXE: &str = env!("CARGO_BIN_EXE_handblocks");
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// A scratch folder for one test, removed when dropped.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(tag: &str) -> Scratch {
-        let d = std::env::temp_dir().join(format!("hb-it-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        Scratch(d)
-    }
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+mod support;
+use support::{assert_nothing_left, assert_same_poses, repo, Scratch, EXE};
 
 /// A session over the repository's grasp-throw scene with the given extra tables.
 fn session(dir: &Scratch, name: &str, rest: &str) -> PathBuf {
@@ -61,16 +36,6 @@ fn launch(session: &Path, bus_id: &str, seconds: f64, report: &Path) -> Output {
         .arg(session)
         .output()
         .expect("run handblocks")
-}
-
-fn assert_nothing_left(bus_id: &str) {
-    let bus = BusConfig::for_session(bus_id).unwrap();
-    assert!(
-        bus.leftover_shm_files().is_empty(),
-        "left in /dev/shm: {:?}",
-        bus.leftover_shm_files()
-    );
-    assert!(!bus.root.exists(), "left behind: {}", bus.root.display());
 }
 
 fn unique_id(tag: &str) -> String {
@@ -420,26 +385,9 @@ fn a_live_scripted_session_computes_exactly_what_simulate_computes() {
         events.contains(&"grasp") && events.contains(&"release"),
         "{events:?}"
     );
+    assert_same_poses(&v, &last);
     for (i, block) in v["blocks"].as_array().unwrap().iter().enumerate() {
         let live = last.blocks()[i];
-        let nums = |key: &str| -> Vec<f64> {
-            block[key]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        };
-        assert_eq!(
-            nums("position"),
-            live.pose.position.to_vec(),
-            "block {i} position differs"
-        );
-        assert_eq!(
-            nums("rotation"),
-            live.pose.rotation.to_vec(),
-            "block {i} rotation differs"
-        );
         assert_eq!(block["mode"].as_str().unwrap(), live.mode().name());
     }
 }
