@@ -55,6 +55,25 @@ enum Command {
         /// Write rendered frames as PNG into DIR (every `[renderer] frames_every`-th frame).
         #[arg(long, value_name = "DIR")]
         frames_dir: Option<PathBuf>,
+        /// Record every topic to this MCAP file (overrides the session's `[recorder] file`);
+        /// list it with `handblocks inspect FILE`, replay it with `[source] kind = "replay"`.
+        #[arg(long, value_name = "FILE")]
+        record: Option<PathBuf>,
+    },
+    /// List a recording's topics: messages, sequence gaps, time span and rate of each.
+    ///
+    /// Reads an MCAP file the recorder wrote (`[recorder] file` in a session). A file cut off
+    /// by a crash is read up to its last complete chunk and the damage is named with its byte
+    /// offset. The file also opens in the standard MCAP tools (`mcap info FILE`, Foxglove).
+    /// Exit status: 0 for an intact recording, 1 when it is damaged (what could be read is
+    /// listed), 2 when it cannot be read at all.
+    Inspect {
+        /// The recording (.mcap).
+        recording: PathBuf,
+        /// Print {"file", "complete", "damage", "foreign_messages", "topics": [{"topic",
+        /// "messages", "gaps", "seconds", "rate_hz", "schema", "bytes"}]}.
+        #[arg(long)]
+        json: bool,
     },
     /// Run a scene's block world alone, in one process, deterministically.
     ///
@@ -70,8 +89,9 @@ enum Command {
         /// Override the scene's [world] model.
         #[arg(long, value_parser = ["paper", "precise"])]
         model: Option<String>,
-        /// Drive the hand from a CARL trace (OpenXR joints) instead of the scene's [hand],
-        /// through the hand model and the stepper's own timeline, as a live replay would.
+        /// Drive the hand from a trace instead of the scene's [hand]: one of our MCAP recordings
+        /// (its glove + tracker or joints topics) or a CARL file (OpenXR joints), through the
+        /// hand model and the stepper's own timeline, exactly as a live replay would.
         #[arg(long, value_name = "TRACE")]
         hand: Option<PathBuf>,
         /// Move the traced hand by X,Y,Z metres (real traces hold the hand ~1 m above the floor).
@@ -132,6 +152,9 @@ enum Command {
         /// The renderer only: write PNG frames here.
         #[arg(long, value_name = "DIR")]
         frames_dir: Option<PathBuf>,
+        /// The recorder only: the file, in place of the session's `[recorder] file`.
+        #[arg(long, value_name = "FILE")]
+        record: Option<PathBuf>,
     },
 }
 
@@ -192,6 +215,7 @@ fn main() -> ExitCode {
             None,
             false,
             None,
+            None,
         ),
         Some(Command::Launch {
             session,
@@ -200,7 +224,8 @@ fn main() -> ExitCode {
             bus_id,
             quiet,
             frames_dir,
-        }) => launch(session, duration, report, bus_id, quiet, frames_dir),
+            record,
+        }) => launch(session, duration, report, bus_id, quiet, frames_dir, record),
         Some(Command::Simulate {
             scene,
             frames,
@@ -216,12 +241,14 @@ fn main() -> ExitCode {
             hand_offset.unwrap_or_default(),
             json,
         ),
+        Some(Command::Inspect { recording, json }) => inspect(&recording, json),
         Some(Command::Service {
             name,
             session,
             bus,
             frames_dir,
-        }) => service(&name, &session, &bus, frames_dir),
+            record,
+        }) => service(&name, &session, &bus, frames_dir, record),
         Some(Command::Bench {
             which:
                 BenchKind::Latency {
@@ -277,6 +304,7 @@ fn launch(
     bus_id: Option<String>,
     quiet: bool,
     frames_dir: Option<PathBuf>,
+    record: Option<PathBuf>,
 ) -> ExitCode {
     let exe = match std::env::current_exe() {
         Ok(e) => e,
@@ -313,6 +341,7 @@ fn launch(
         exe,
         progress: !quiet,
         frames_dir,
+        record,
     };
     match launcher::launch(&opts) {
         Ok(outcome) => {
@@ -415,7 +444,8 @@ fn simulate(
 }
 
 /// `simulate --hand TRACE`: the trace's samples become hands exactly as in a live replay
-/// (kinematics from joints, then the stepper's timeline), then 2 s to settle.
+/// (kinematics: one hand per tracker or joints sample, gloves paired by source time; then the
+/// stepper's timeline), then 2 s to settle. TRACE is one of our MCAP recordings or a CARL file.
 fn simulate_trace(
     scene: &common::config::Scene,
     trace: &std::path::Path,
@@ -423,30 +453,53 @@ fn simulate_trace(
     frames: Option<u64>,
     json: bool,
 ) -> ExitCode {
-    let t = match replay::CarlTrace::load(trace) {
+    let trace = match replay::HandTrace::load(trace, offset) {
         Ok(t) => t,
         Err(e) => {
             eprintln!("handblocks simulate: {e}");
             return ExitCode::from(2);
         }
     };
-    if let Some(d) = &t.damage {
+    for w in &trace.warnings {
+        eprintln!("handblocks simulate: warning: {w}");
+    }
+    if !trace.warnings.is_empty() {
         eprintln!(
-            "handblocks simulate: warning: {d}; using the {} samples before it",
-            t.samples.len()
+            "handblocks simulate: using the {} good samples",
+            trace.samples.len()
         );
     }
-    let mut joints = Vec::new();
-    t.joints(offset, &mut joints);
     let model = kinematics::HandModel::default();
-    let mut hands: Vec<common::HandSample> = Vec::with_capacity(joints.len());
+    let mut hands: Vec<common::HandSample> = Vec::with_capacity(trace.hands());
     let mut hand = common::HandSample::default();
-    for (k, j) in joints.iter().enumerate() {
-        // A joints sample the model cannot use keeps the previous hand, as the process does.
-        model.from_joints(j, &mut hand);
+    let mut gloves = kinematics::GloveHistory::default();
+    for sample in &trace.samples {
+        let stamp = match sample {
+            replay::SourceSample::Glove(g) => {
+                gloves.push(g);
+                continue;
+            }
+            replay::SourceSample::Tracker(t) => {
+                let glove = gloves.at(t.stamp.source_time_ns);
+                model.solve(
+                    glove.unwrap_or(&common::GloveSample::default()),
+                    &t.wrist,
+                    &mut hand,
+                );
+                t.stamp
+            }
+            replay::SourceSample::Joints(j) => {
+                // A joints sample the model cannot use keeps the previous hand, marked lost, as
+                // the process does.
+                if !model.from_joints(j, &mut hand) {
+                    hand.tracked = 0;
+                }
+                j.stamp
+            }
+        };
         hand.stamp = common::Stamp {
-            seq: k as u64,
-            ..j.stamp
+            seq: hands.len() as u64,
+            ..stamp
         };
         hands.push(hand);
     }
@@ -463,6 +516,89 @@ fn simulate_trace(
             eprintln!("handblocks simulate: {e}");
             ExitCode::from(2)
         }
+    }
+}
+
+fn inspect(path: &std::path::Path, json: bool) -> ExitCode {
+    use common::recording::{sample_type, Recording, RECORDED_TOPICS};
+    let rec = match Recording::open(path) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("handblocks inspect: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let stats = rec.stats();
+    let rows: Vec<_> = RECORDED_TOPICS
+        .iter()
+        .map(|&t| {
+            let s = stats[t as usize];
+            let seconds = s.last_publish_ns.saturating_sub(s.first_publish_ns) as f64 * 1e-9;
+            let rate = if s.messages > 1 && seconds > 0.0 {
+                (s.messages - 1) as f64 / seconds
+            } else {
+                0.0
+            };
+            let (schema, bytes) = sample_type(t);
+            (t.name(), s, seconds, rate, schema, bytes)
+        })
+        .collect();
+    let damage = rec.damage.as_ref().map(|d| d.to_string());
+    if json {
+        let topics: Vec<serde_json::Value> = rows
+            .iter()
+            .map(|(name, s, seconds, rate, schema, bytes)| {
+                serde_json::json!({
+                    "topic": name, "messages": s.messages, "gaps": s.gaps,
+                    "seconds": seconds, "rate_hz": rate, "schema": schema, "bytes": bytes,
+                })
+            })
+            .collect();
+        println!(
+            "{}",
+            serde_json::json!({
+                "file": path.display().to_string(),
+                "complete": rec.complete,
+                "damage": damage,
+                "foreign_messages": rec.foreign_messages,
+                "topics": topics,
+            })
+        );
+    } else {
+        println!(
+            "{}: {} messages, {}",
+            path.display(),
+            rec.messages.len(),
+            if rec.complete {
+                "complete"
+            } else {
+                "damaged (read up to the damage)"
+            }
+        );
+        println!(
+            "{:<8} {:>9} {:>6} {:>9} {:>9}  schema",
+            "topic", "messages", "gaps", "seconds", "rate_hz"
+        );
+        for (name, s, seconds, rate, schema, bytes) in &rows {
+            println!(
+                "{name:<8} {:>9} {:>6} {seconds:>9.3} {rate:>9.1}  {schema} ({bytes} bytes)",
+                s.messages, s.gaps
+            );
+        }
+        if rec.foreign_messages > 0 {
+            println!(
+                "{} messages on channels of other tools were skipped",
+                rec.foreign_messages
+            );
+        }
+        if let Some(d) = &damage {
+            println!("damage: {d}");
+        }
+    }
+    if rec.complete {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
     }
 }
 
@@ -530,6 +666,7 @@ fn service(
     session_file: &std::path::Path,
     bus_id: &str,
     frames_dir: Option<PathBuf>,
+    record: Option<PathBuf>,
 ) -> ExitCode {
     shutdown::install_signal_handlers();
     shutdown::watch_parent_pipe();
@@ -542,7 +679,10 @@ fn service(
         return ExitCode::from(2);
     };
     let result = (|| -> Result<(), Box<dyn std::error::Error>> {
-        let session = Session::load(session_file)?;
+        let mut session = Session::load(session_file)?;
+        if record.is_some() {
+            session.recorder.file = record;
+        }
         let bus = Bus::open(&BusConfig::for_session(bus_id)?, stage.name())?;
         match stage {
             Stage::Acquisition => acquisition::service::run(&session, &bus),

@@ -4,7 +4,8 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use common::{Topic, WorldSample};
+use common::recording::Recording;
+use common::{JointsSample, Topic, WorldSample};
 use serde_json::Value;
 
 mod support;
@@ -17,7 +18,7 @@ fn carl(name: &str) -> PathBuf {
 /// Replays `trace` through the five processes at `speed`; returns the last world sample.
 fn replay(tag: &str, trace: &str, speed: f64, seconds: f64) -> WorldSample {
     let dir = Scratch::new(&format!("replay-{tag}"));
-    let log = dir.path("replay.log");
+    let log = dir.path("replay.mcap");
     let session = dir.path("replay.toml");
     std::fs::write(
         &session,
@@ -50,23 +51,15 @@ fn replay(tag: &str, trace: &str, speed: f64, seconds: f64) -> WorldSample {
         String::from_utf8_lossy(&out.stderr)
     );
     assert_nothing_left(&id);
-    let bytes = std::fs::read(&log).unwrap();
-    let records = recorder::log::records(&bytes).unwrap();
-    let joints = records.iter().filter(|r| r.topic == Topic::Joints).count();
+    let rec = Recording::open(&log).unwrap();
+    let joints = rec.samples::<JointsSample>(Topic::Joints).count();
     assert_eq!(
         joints,
         218,
         "{tag}: every sample of the trace was replayed\n{}",
         String::from_utf8_lossy(&out.stdout)
     );
-    let last = records
-        .iter()
-        .rev()
-        .find(|r| r.topic == Topic::World)
-        .unwrap()
-        .sample()
-        .unwrap();
-    last
+    rec.samples(Topic::World).last().unwrap()
 }
 
 #[test]
@@ -123,6 +116,7 @@ fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
         "{stderr}"
     );
 
+    // MCAP's magic and then garbage: read as a recording, damaged right after the magic.
     let wrong = dir.path("wrong.carl");
     std::fs::write(&wrong, b"\x89MCAP0\r\n not a trace").unwrap();
     let out = Command::new(EXE)
@@ -132,5 +126,25 @@ fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("wrong.carl: at byte 0: not a CARL file"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("wrong.carl: no hand samples")
+            && err.contains("wrong.carl: damaged at byte offset 8"),
+        "{err}"
+    );
+    // Neither kind.
+    let junk = dir.path("junk.carl");
+    std::fs::write(&junk, b"JUNKJUNKJUNK").unwrap();
+    let out = Command::new(EXE)
+        .args(["simulate", "--hand"])
+        .arg(&junk)
+        .arg(repo().join("config/scenes/drop.toml"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("junk.carl: at byte 0: not a CARL file"),
+        "{err}"
+    );
 }

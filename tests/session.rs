@@ -5,11 +5,14 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use common::recording::Recording;
 use common::{HandSample, Topic, TrackerSample, WorldSample};
 use serde_json::Value;
 
 mod support;
-use support::{assert_nothing_left, assert_same_poses, repo, Scratch, EXE};
+use support::{
+    assert_nothing_left, assert_same_poses, find_service, find_service_now, repo, Scratch, EXE,
+};
 
 /// A session over the repository's grasp-throw scene with the given extra tables.
 fn session(dir: &Scratch, name: &str, rest: &str) -> PathBuf {
@@ -45,7 +48,7 @@ fn unique_id(tag: &str) -> String {
 #[test]
 fn samples_flow_through_every_stage_in_order_with_no_drops() {
     let dir = Scratch::new("flow");
-    let log = dir.path("session.log");
+    let log = dir.path("session.mcap");
     let s = session(
         &dir,
         "flow.toml",
@@ -132,12 +135,11 @@ fn samples_flow_through_every_stage_in_order_with_no_drops() {
 
     // And per sample, from the recording: world k answers hand k answers tracker k, each
     // carrying the same origin and published later than the stage before it.
-    let bytes = std::fs::read(&log).unwrap();
-    let records = recorder::log::records(&bytes).unwrap();
-    let of = |t: Topic| records.iter().filter(move |r| r.topic == t);
-    let trackers: Vec<TrackerSample> = of(Topic::Tracker).map(|r| r.sample().unwrap()).collect();
-    let hands: Vec<HandSample> = of(Topic::Hand).map(|r| r.sample().unwrap()).collect();
-    let worlds: Vec<WorldSample> = of(Topic::World).map(|r| r.sample().unwrap()).collect();
+    let rec = Recording::open(&log).unwrap();
+    assert!(rec.complete, "{:?}", rec.damage);
+    let trackers: Vec<TrackerSample> = rec.samples(Topic::Tracker).collect();
+    let hands: Vec<HandSample> = rec.samples(Topic::Hand).collect();
+    let worlds: Vec<WorldSample> = rec.samples(Topic::World).collect();
     assert_eq!(trackers.len() as u64, tracker);
     assert_eq!(hands.len(), trackers.len());
     assert_eq!(worlds.len(), hands.len());
@@ -239,18 +241,6 @@ fn a_missing_session_file_is_named() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/session.toml: cannot read"));
 }
 
-/// The pid of a running `handblocks service NAME` of session `bus_id`, waiting up to 10 s.
-fn find_service(name: &str, bus_id: &str) -> Option<u32> {
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
-    while std::time::Instant::now() < deadline {
-        if let Some(pid) = find_service_now(name, bus_id) {
-            return Some(pid);
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    None
-}
-
 #[test]
 fn a_crashed_stage_fails_the_session_and_leaves_nothing_behind() {
     let dir = Scratch::new("crash");
@@ -295,19 +285,6 @@ fn a_crashed_stage_fails_the_session_and_leaves_nothing_behind() {
     assert_nothing_left(&id);
 }
 
-fn find_service_now(name: &str, bus_id: &str) -> Option<u32> {
-    std::fs::read_dir("/proc")
-        .ok()?
-        .flatten()
-        .find_map(|entry| {
-            let pid = entry.file_name().to_string_lossy().parse::<u32>().ok()?;
-            let cmdline = std::fs::read(entry.path().join("cmdline")).ok()?;
-            let args: Vec<&[u8]> = cmdline.split(|b| *b == 0).collect();
-            let has = |word: &str| args.contains(&word.as_bytes());
-            (has("service") && has(name) && has(bus_id)).then_some(pid)
-        })
-}
-
 #[test]
 fn the_latency_benchmark_reports_ratios_to_its_peer() {
     let dir = Scratch::new("bench");
@@ -341,7 +318,7 @@ fn a_live_scripted_session_computes_exactly_what_simulate_computes() {
     // conventions), so five processes over shared memory must agree with one process, bit
     // for bit, through a grasp, a throw and a landing.
     let dir = Scratch::new("same");
-    let log = dir.path("same.log");
+    let log = dir.path("same.mcap");
     let s = session(
         &dir,
         "same.toml",
@@ -357,14 +334,10 @@ fn a_live_scripted_session_computes_exactly_what_simulate_computes() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let bytes = std::fs::read(&log).unwrap();
-    let records = recorder::log::records(&bytes).unwrap();
-    let last: WorldSample = records
-        .iter()
-        .rev()
-        .find(|r| r.topic == Topic::World)
+    let last: WorldSample = Recording::open(&log)
         .unwrap()
-        .sample()
+        .samples(Topic::World)
+        .last()
         .unwrap();
     assert!(last.step >= 300, "the session ran only {} steps", last.step);
 

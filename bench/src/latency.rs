@@ -120,6 +120,7 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         exe: b.exe.clone(),
         progress: false,
         frames_dir: None,
+        record: None,
     })?;
     let report = &outcome.report;
     let mut stages = serde_json::Map::new();

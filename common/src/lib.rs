@@ -10,6 +10,7 @@ pub mod bus;
 pub mod config;
 pub mod glove;
 pub mod latency;
+pub mod recording;
 pub mod samples;
 pub mod shutdown;
 pub mod stamp;

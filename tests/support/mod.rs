@@ -70,3 +70,63 @@ pub fn assert_same_poses(simulated: &Value, world: &WorldSample) {
         );
     }
 }
+
+/// The pid of a running `handblocks service NAME` of session `bus_id`, waiting up to 10 s.
+pub fn find_service(name: &str, bus_id: &str) -> Option<u32> {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while std::time::Instant::now() < deadline {
+        if let Some(pid) = find_service_now(name, bus_id) {
+            return Some(pid);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    None
+}
+
+/// The pid of `handblocks service NAME` of session `bus_id`, if it runs now.
+pub fn find_service_now(name: &str, bus_id: &str) -> Option<u32> {
+    std::fs::read_dir("/proc")
+        .ok()?
+        .flatten()
+        .find_map(|entry| {
+            let pid = entry.file_name().to_string_lossy().parse::<u32>().ok()?;
+            let cmdline = std::fs::read(entry.path().join("cmdline")).ok()?;
+            let args: Vec<&[u8]> = cmdline.split(|b| *b == 0).collect();
+            let has = |word: &str| args.contains(&word.as_bytes());
+            (has("service") && has(name) && has(bus_id)).then_some(pid)
+        })
+}
+
+/// Runs `handblocks launch --quiet --duration SECONDS --bus-id ID [--report REPORT] SESSION`
+/// from the repository, and checks that nothing of the session is left afterwards.
+pub fn launch_session(
+    session: &std::path::Path,
+    bus_id: &str,
+    seconds: f64,
+    report: Option<&std::path::Path>,
+) -> std::process::Output {
+    let mut cmd = std::process::Command::new(EXE);
+    cmd.current_dir(repo()).args([
+        "launch",
+        "--quiet",
+        "--duration",
+        &seconds.to_string(),
+        "--bus-id",
+        bus_id,
+    ]);
+    if let Some(r) = report {
+        cmd.arg("--report").arg(r);
+    }
+    let out = cmd.arg(session).output().expect("run handblocks");
+    assert_nothing_left(bus_id);
+    out
+}
+
+/// The output's stdout and stderr, for assertion messages.
+pub fn both(out: &std::process::Output) -> String {
+    format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
+}

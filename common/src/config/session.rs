@@ -36,7 +36,7 @@ pub enum Source {
         tracker: toml::Table,
         dir: PathBuf,
     },
-    /// A recorded hand (today a CARL trace); `speed` 0 = as fast as the pipeline consumes;
+    /// A recorded hand (one of our MCAP recordings or a CARL trace); `speed` 0 = as fast as the pipeline consumes;
     /// `offset` moves the recorded hand, metres (real traces hold it ~1 m above the floor).
     Replay {
         file: PathBuf,

@@ -3,6 +3,8 @@
 //! (MODEL.md R1-R2), in the world frame.
 
 pub mod model;
+pub mod pairing;
 pub mod service;
 
 pub use model::HandModel;
+pub use pairing::GloveHistory;

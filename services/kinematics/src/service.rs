@@ -1,6 +1,6 @@
 //! The kinematics process: one `hand` sample per `tracker` sample, with the newest glove
-//! reading (DESIGN.md, "Stamps and latency"), keeping the older of the two origins; or one
-//! `hand` per `joints` sample from a hand tracker.
+//! reading at the tracker's source time ([`GloveHistory`]; DESIGN.md, "Stamps and latency"),
+//! keeping the older of the two origins; or one `hand` per `joints` sample from a hand tracker.
 
 use std::time::Duration;
 
@@ -13,6 +13,7 @@ use common::{
 };
 
 use crate::model::HandModel;
+use crate::pairing::GloveHistory;
 
 /// How long to sleep without a sample before re-checking for a stop request.
 const IDLE_WAIT: Duration = Duration::from_millis(50);
@@ -26,34 +27,41 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     let mut hand_out = bus.outlet::<HandSample>(Topic::Hand)?;
     let mut reporter = Reporter::new(Stage::Kinematics, bus.outlet(Topic::Latency)?);
 
-    let mut glove = GloveSample::default();
-    let mut have_glove = false;
+    let mut gloves = GloveHistory::default();
     let mut hand = HandSample::default();
     loop {
         let stopping = shutdown::requested();
         if !stopping {
             wait_any(&[&tracker_in, &joints_in], IDLE_WAIT)?;
         }
-        // The glove is sent before the tracker of the same instant: read it first, keep the newest.
-        while let Some(s) = glove_in.receive()? {
-            reporter.recorder.hop(&s.stamp, monotonic_ns());
-            glove = *s.payload();
-            have_glove = true;
-        }
-        while let Some(s) = tracker_in.receive()? {
+        // A glove is sent before the tracker of the same instant: read the gloves again after
+        // each tracker arrives, so that one published just before it is never missed.
+        loop {
+            while let Some(s) = glove_in.receive()? {
+                reporter.recorder.hop(&s.stamp, monotonic_ns());
+                gloves.push(s.payload());
+            }
+            let Some(s) = tracker_in.receive()? else {
+                break;
+            };
             let received = monotonic_ns();
             reporter.recorder.hop(&s.stamp, received);
+            while let Some(g) = glove_in.receive()? {
+                reporter.recorder.hop(&g.stamp, received);
+                gloves.push(g.payload());
+            }
             if !s.wrist.is_finite() {
                 continue;
             }
-            if have_glove {
-                model.solve(&glove, &s.wrist, &mut hand);
-            } else {
-                model.solve(&GloveSample::default(), &s.wrist, &mut hand);
-            }
+            let glove = gloves.at(s.stamp.source_time_ns);
+            model.solve(
+                glove.unwrap_or(&GloveSample::default()),
+                &s.wrist,
+                &mut hand,
+            );
             let mut stamp = Stamp::derived(0, &s.stamp);
-            if have_glove {
-                stamp.origin_ns = stamp.origin_ns.min(glove.stamp.origin_ns);
+            if let Some(g) = glove {
+                stamp.origin_ns = stamp.origin_ns.min(g.stamp.origin_ns);
             }
             hand.stamp = stamp;
             let sent = hand_out.publish(&hand)?;

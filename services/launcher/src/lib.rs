@@ -48,6 +48,8 @@ pub struct LaunchOptions {
     pub progress: bool,
     /// Where the renderer writes PNG frames (every `[renderer] frames_every`-th), if anywhere.
     pub frames_dir: Option<PathBuf>,
+    /// Record every topic to this MCAP file, in place of the session's `[recorder] file`.
+    pub record: Option<PathBuf>,
 }
 
 /// How a launch ended.
@@ -102,7 +104,10 @@ fn expected_subscribers(stages: &[Stage]) -> Vec<(Topic, usize)> {
 
 /// Runs one session. The resources of its bus are removed whatever happens.
 pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
-    let session = Session::load(&opts.session).map_err(err)?;
+    let mut session = Session::load(&opts.session).map_err(err)?;
+    if let Some(file) = &opts.record {
+        session.recorder.file = Some(std::path::absolute(file).unwrap_or_else(|_| file.clone()));
+    }
     let id = opts.bus_id.clone().unwrap_or_else(BusConfig::fresh_id);
     let bus_config = BusConfig::for_session(&id).map_err(err)?;
     shutdown::install_signal_handlers();
@@ -145,11 +150,15 @@ fn run_session(
         ],
         None => Vec::new(),
     };
+    let recorder_args: Vec<std::ffi::OsString> = match &session.recorder.file {
+        Some(file) if opts.record.is_some() => vec!["--record".into(), file.into()],
+        _ => Vec::new(),
+    };
     let start = |stage| {
-        let extra: &[std::ffi::OsString] = if stage == Stage::Renderer {
-            &renderer_args
-        } else {
-            &[]
+        let extra: &[std::ffi::OsString] = match stage {
+            Stage::Renderer => &renderer_args,
+            Stage::Recorder => &recorder_args,
+            _ => &[],
         };
         ServiceProcess::start(&opts.exe, stage, &session_file, &bus_config.id, extra).map_err(|e| {
             err(format!(
@@ -309,7 +318,7 @@ fn wait_for_source(
     procs: &mut [ServiceProcess],
 ) -> Result<(), LaunchError> {
     let topics: &[Topic] = match source {
-        Stage::Replay => &[Topic::Joints],
+        Stage::Replay => &[Topic::Glove, Topic::Tracker, Topic::Joints],
         _ => &[Topic::Glove, Topic::Tracker],
     };
     wait_for_start(procs, || {

@@ -1,6 +1,4 @@
-//! The recorder: writes every sample of every topic to a file and counts what it missed.
-//!
-//! Today's file is a plain framed log ([`log`]); MCAP with schemas and chunking is issue 5.
+//! The recorder: writes every sample of every topic to an MCAP file
+//! ([`common::recording`]) and counts, per topic, what it missed (gaps in seq).
 
-pub mod log;
 pub mod service;

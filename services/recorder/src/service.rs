@@ -1,5 +1,9 @@
-//! The recorder process: sleeps on every topic's event, writes each sample as it
-//! comes, and reports per topic what it received and the gaps in sequence numbers.
+//! The recorder process: sleeps on every topic's event, writes each sample as it comes into
+//! the session's MCAP recording, and reports per topic what it received and the gaps in
+//! sequence numbers (the launcher puts them in the session report).
+//!
+//! A chunk of the recording is handed to the operating system as soon as it closes (every
+//! 1 MiB or 0.5 s), so a crash of any process, this one included, loses at most the open chunk.
 
 use std::time::Duration;
 
@@ -11,13 +15,13 @@ use common::{
     TrackerSample, WorldSample,
 };
 
-use crate::log::LogWriter;
+use common::recording::RecordingWriter;
 
 const IDLE_WAIT: Duration = Duration::from_millis(50);
 
 fn drain<T: Stamped>(
     inlet: &Inlet<T>,
-    log: &mut Option<LogWriter>,
+    log: &mut Option<RecordingWriter>,
     reporter: &mut Reporter,
 ) -> Result<(), Box<dyn std::error::Error>> {
     while let Some(s) = inlet.receive()? {
@@ -41,10 +45,7 @@ fn drain<T: Stamped>(
 /// Runs until asked to stop, then drains every input.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
     let mut log = match &session.recorder.file {
-        Some(path) => Some(
-            LogWriter::create(path)
-                .map_err(|e| format!("recorder: cannot create {}: {e}", path.display()))?,
-        ),
+        Some(path) => Some(RecordingWriter::create(path).map_err(|e| format!("recorder: {e}"))?),
         None => None,
     };
     let glove = bus.inlet::<GloveSample>(Topic::Glove)?;
@@ -78,8 +79,8 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             frame.counter(),
         ];
         if stopping {
-            if let Some(log) = &mut log {
-                log.flush()?;
+            if let Some(log) = log.take() {
+                log.finish()?;
             }
             return Ok(reporter.finish(&counters)?);
         }

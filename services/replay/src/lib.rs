@@ -1,9 +1,12 @@
 //! Replay: a recorded hand takes the place of acquisition, and downstream cannot tell.
 //!
-//! Today it reads CARL traces ([`carl`]: real Quest hand tracking, OpenXR joints) and
-//! publishes them on `joints` with their recorded timing.
+//! It reads our own MCAP recordings (the `glove` + `tracker` or `joints` topics a live
+//! session recorded) and CARL traces ([`carl`]: real Quest hand tracking, OpenXR joints), as
+//! one [`HandTrace`], and publishes them with their recorded timing ([`service`]).
 
 pub mod carl;
 pub mod service;
+pub mod trace;
 
 pub use carl::{CarlError, CarlTrace};
+pub use trace::{HandTrace, SourceSample, TraceKind};

@@ -1,10 +1,12 @@
-//! The replay process: publishes a recorded hand on `joints`, in place of acquisition.
+//! The replay process: publishes a recorded hand in place of acquisition, on the topics the
+//! recording's source used (`glove` + `tracker` for one of our recordings of a glove session,
+//! `joints` for a hand tracker or a CARL trace).
 //!
 //! Each sample keeps its recorded source time (so the stepper's world is the same however fast
 //! it is replayed) and is stamped with a new origin when it enters the pipeline (so latency
 //! stays meaningful). At `speed` s > 0 the recorded timing is played s times faster; at
 //! speed 0 samples go out as fast as the pipeline consumes them without loss: the replay keeps
-//! at most [`IN_FLIGHT`] samples ahead of the newest world state.
+//! at most [`IN_FLIGHT`] hand-making samples ahead of the newest world state.
 
 use std::time::Duration;
 
@@ -13,11 +15,15 @@ use common::config::session::Source;
 use common::config::Session;
 use common::latency::Reporter;
 use common::stamp::sleep_until_ns;
-use common::{monotonic_ns, shutdown, JointsSample, Stage, Topic, WorldSample};
+use common::{
+    monotonic_ns, shutdown, GloveSample, JointsSample, Stage, Stamp, Topic, TrackerSample,
+    WorldSample,
+};
 
-use crate::carl::CarlTrace;
+use crate::trace::{HandTrace, SourceSample};
 
-/// Samples the replay may be ahead of the stepper at speed 0 (well under every buffer).
+/// Hand-making samples the replay may be ahead of the stepper at speed 0 (well under every
+/// buffer).
 pub const IN_FLIGHT: u64 = 32;
 
 /// Runs until asked to stop; after the trace's end the hand holds still (nothing more is sent).
@@ -34,26 +40,34 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         )
         .into());
     };
-    let trace = CarlTrace::load(file)?;
-    if let Some(d) = &trace.damage {
+    let trace = HandTrace::load(file, *offset)?;
+    for w in &trace.warnings {
+        eprintln!("handblocks replay: warning: {w}");
+    }
+    if !trace.warnings.is_empty() {
         eprintln!(
-            "handblocks replay: warning: {d}; replaying the {} samples before it",
-            trace.samples.len()
+            "handblocks replay: replaying the {} good samples of {}",
+            trace.samples.len(),
+            file.display()
         );
     }
-    let mut samples = Vec::new();
-    trace.joints(*offset, &mut samples);
 
+    let mut glove_out = bus.outlet::<GloveSample>(Topic::Glove)?;
+    let mut tracker_out = bus.outlet::<TrackerSample>(Topic::Tracker)?;
     let mut joints_out = bus.outlet::<JointsSample>(Topic::Joints)?;
     let world_in = bus.inlet::<WorldSample>(Topic::World)?;
     let mut reporter = Reporter::new(Stage::Replay, bus.outlet(Topic::Latency)?);
     let mut answered: Option<u64> = None; // the newest hand seq a world state answered
+    let mut hands_sent: u64 = 0;
+    let t0 = trace.first_source_time_ns();
     let start = monotonic_ns();
-    for (k, sample) in samples.iter().enumerate() {
+    for sample in &trace.samples {
         if *speed > 0.0 {
-            sleep_until_ns(start + (sample.stamp.source_time_ns as f64 / speed) as u64);
-        } else {
-            while answered.map_or(0, |a| a + 1) + IN_FLIGHT <= k as u64 && !shutdown::requested() {
+            let after = (sample.source_time_ns() - t0) as f64 / speed;
+            sleep_until_ns(start + after as u64);
+        } else if sample.makes_a_hand() {
+            while answered.map_or(0, |a| a + 1) + IN_FLIGHT <= hands_sent && !shutdown::requested()
+            {
                 world_in.wait(Duration::from_millis(20))?;
                 while let Some(w) = world_in.receive()? {
                     answered = Some(w.hand_seq);
@@ -63,21 +77,52 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         if shutdown::requested() {
             break;
         }
-        let mut s = *sample;
-        s.stamp.origin_ns = monotonic_ns();
-        let sent = joints_out.publish(&s)?;
-        reporter.recorder.source_output(&sent);
+        let origin = monotonic_ns();
+        let restamp = |s: &Stamp| Stamp {
+            origin_ns: origin,
+            ..*s
+        };
+        let sent = match *sample {
+            SourceSample::Glove(mut g) => {
+                g.stamp = restamp(&g.stamp);
+                glove_out.publish(&g)?
+            }
+            SourceSample::Tracker(mut t) => {
+                t.stamp = restamp(&t.stamp);
+                tracker_out.publish(&t)?
+            }
+            SourceSample::Joints(mut j) => {
+                j.stamp = restamp(&j.stamp);
+                joints_out.publish(&j)?
+            }
+        };
+        if sample.makes_a_hand() {
+            reporter.recorder.source_output(&sent);
+            hands_sent += 1;
+        }
         // Keep up with the world's answers (speed 0 paces on them).
         while let Some(w) = world_in.receive()? {
             answered = Some(w.hand_seq);
         }
-        reporter.maybe_report(&[joints_out.counter()])?;
+        reporter.maybe_report(&[
+            glove_out.counter(),
+            tracker_out.counter(),
+            joints_out.counter(),
+        ])?;
     }
     while !shutdown::requested() {
         std::thread::sleep(Duration::from_millis(20));
         while world_in.receive()?.is_some() {}
-        reporter.maybe_report(&[joints_out.counter()])?;
+        reporter.maybe_report(&[
+            glove_out.counter(),
+            tracker_out.counter(),
+            joints_out.counter(),
+        ])?;
     }
-    reporter.finish(&[joints_out.counter()])?;
+    reporter.finish(&[
+        glove_out.counter(),
+        tracker_out.counter(),
+        joints_out.counter(),
+    ])?;
     Ok(())
 }

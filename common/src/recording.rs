@@ -1,0 +1,868 @@
+//! Recordings: every topic of a session in one MCAP file, and reading them back.
+//!
+//! The file is the contract between the recorder (which writes it), the replay (which reads
+//! the source topics back) and the user's own tools (Foxglove, the `mcap` CLI):
+//!
+//! * one **channel per topic**, named as the topic (`glove`, `tracker`, `joints`, `hand`,
+//!   `world`, `frame`), with message encoding [`MESSAGE_ENCODING`]: each message is the sample's
+//!   `#[repr(C)]` bytes exactly as they travelled (little-endian, no padding);
+//! * one **schema per sample type**, named as its iceoryx2 type name (`handblocks::GloveSample`)
+//!   with encoding [`SCHEMA_ENCODING`]: a text listing every field with its type, byte offset
+//!   and size ([`layout`]), so that a reader in any language can decode the bytes;
+//! * **log time from the stamps**: `log_time` is the sample's `publish_ns`, `publish_time` its
+//!   `origin_ns`, both moved from CLOCK_MONOTONIC to Unix time by one offset taken when the
+//!   recording starts (kept in the `handblocks` metadata record); the MCAP sequence is the
+//!   stamp's `seq` (low 32 bits);
+//! * **chunked** (LZ4), each chunk written whole and handed to the operating system as soon as
+//!   it is complete ([`RecordingWriter`]): a recorder killed mid-session leaves a file that
+//!   [`Recording::open`] reads up to its last complete chunk.
+
+use std::fmt::{self, Write as _};
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::mem::{offset_of, size_of};
+use std::path::{Path, PathBuf};
+
+use crate::bus::Stamped;
+use crate::samples::*;
+use crate::stamp::Stamp;
+use crate::topic::Topic;
+
+/// Message encoding of every channel: the sample's `#[repr(C)]` bytes, little-endian.
+pub const MESSAGE_ENCODING: &str = "handblocks.repr_c";
+/// Schema encoding: the text [`layout`] writes (one field per line with offset and size).
+pub const SCHEMA_ENCODING: &str = "handblocks.layout";
+/// The MCAP profile named in the file header.
+pub const PROFILE: &str = "handblocks";
+/// The topics a recording holds (the latency reports go into the session report instead).
+pub const RECORDED_TOPICS: [Topic; 6] = [
+    Topic::Glove,
+    Topic::Tracker,
+    Topic::Joints,
+    Topic::Hand,
+    Topic::World,
+    Topic::Frame,
+];
+/// A chunk is closed once it holds this many uncompressed bytes...
+pub const CHUNK_BYTES: usize = 1 << 20;
+/// ... or spans this much publish time, whichever comes first: a crash loses at most this much.
+pub const CHUNK_SPAN_NS: u64 = 500_000_000;
+/// Largest chunk a reader accepts (uncompressed); a bigger one is damage, not a recording.
+pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
+
+/// The sample type name and byte size a topic's messages have.
+pub fn sample_type(topic: Topic) -> (&'static str, usize) {
+    match topic {
+        Topic::Glove => ("handblocks::GloveSample", size_of::<GloveSample>()),
+        Topic::Tracker => ("handblocks::TrackerSample", size_of::<TrackerSample>()),
+        Topic::Joints => ("handblocks::JointsSample", size_of::<JointsSample>()),
+        Topic::Hand => ("handblocks::HandSample", size_of::<HandSample>()),
+        Topic::World => ("handblocks::WorldSample", size_of::<WorldSample>()),
+        Topic::Frame => ("handblocks::FrameSample", size_of::<FrameSample>()),
+        Topic::Latency => ("handblocks::LatencySample", size_of::<LatencySample>()),
+    }
+}
+
+/// One field of a sample layout: where it is and what it holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Field {
+    pub name: &'static str,
+    /// Element type and array dimensions, e.g. `float64[5][5][3]`, or a nested struct's name.
+    pub ty: &'static str,
+    pub offset: usize,
+    pub size: usize,
+}
+
+fn field_size<T, F>(_: fn(&T) -> &F) -> usize {
+    size_of::<F>()
+}
+
+macro_rules! fields {
+    ($t:ty { $($f:ident : $ty:literal),* $(,)? }) => {
+        vec![$(Field {
+            name: stringify!($f),
+            ty: $ty,
+            offset: offset_of!($t, $f),
+            size: field_size::<$t, _>(|s| &s.$f),
+        }),*]
+    };
+}
+
+/// The fields of a struct the samples are built from, in memory order.
+pub fn fields(struct_name: &str) -> Option<Vec<Field>> {
+    Some(match struct_name {
+        "Stamp" => fields!(Stamp {
+            seq: "uint64",
+            source_time_ns: "uint64",
+            origin_ns: "uint64",
+            publish_ns: "uint64",
+        }),
+        "Pose" => fields!(Pose {
+            position: "float64[3]",
+            rotation: "float64[4]",
+        }),
+        "BlockState" => fields!(BlockState {
+            pose: "Pose",
+            mode: "uint32",
+            _reserved: "uint32",
+        }),
+        "TopicCounter" => fields!(TopicCounter {
+            topic: "uint32",
+            role: "uint32",
+            count: "uint64",
+            gaps: "uint64",
+            last_seq: "uint64",
+        }),
+        "handblocks::GloveSample" => fields!(GloveSample {
+            stamp: "Stamp",
+            sensor_count: "uint32",
+            _reserved: "uint32",
+            angles: "float64[22]",
+        }),
+        "handblocks::TrackerSample" => fields!(TrackerSample {
+            stamp: "Stamp",
+            station: "uint32",
+            _reserved: "uint32",
+            wrist: "Pose",
+        }),
+        "handblocks::JointsSample" => fields!(JointsSample {
+            stamp: "Stamp",
+            tracked: "uint32",
+            _reserved: "uint32",
+            wrist: "Pose",
+            joints: "Pose[26]",
+        }),
+        "handblocks::HandSample" => fields!(HandSample {
+            stamp: "Stamp",
+            wrist: "Pose",
+            tracked: "uint32",
+            finger_count: "uint32",
+            finger_point_count: "uint32[5]",
+            palm_vertex_count: "uint32",
+            finger_points: "float64[5][5][3]",
+            finger_radius: "float64[5]",
+            palm_vertices: "float64[16][3]",
+        }),
+        "handblocks::WorldSample" => fields!(WorldSample {
+            stamp: "Stamp",
+            step: "uint64",
+            hand_seq: "uint64",
+            block_count: "uint32",
+            grasped_block: "int32",
+            blocks: "BlockState[128]",
+            finger_count: "uint32",
+            finger_point_count: "uint32[5]",
+            finger_points: "float64[5][5][3]",
+        }),
+        "handblocks::FrameSample" => fields!(FrameSample {
+            stamp: "Stamp",
+            world_seq: "uint64",
+            render_ns: "uint64",
+            origin_to_photon_ns: "uint64",
+            skipped_worlds: "uint64",
+        }),
+        _ => return None,
+    })
+}
+
+/// The schema text of a topic's sample type: the type, then every struct it uses, one field per
+/// line as `TYPE NAME  # @OFFSET, SIZE bytes`. Little-endian, `#[repr(C)]`, no padding.
+pub fn layout(topic: Topic) -> String {
+    let (name, size) = sample_type(topic);
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "# handblocks sample layout: little-endian, C layout without padding; geometry in metres \
+         (world frame, y up), rotations as unit quaternions [x, y, z, w], times in nanoseconds."
+    );
+    let mut structs = vec![(name, size)];
+    let mut done = Vec::new();
+    while let Some((name, size)) = structs.pop() {
+        if done.contains(&name) {
+            continue;
+        }
+        done.push(name);
+        let Some(fs) = fields(name) else { continue };
+        let _ = writeln!(out, "struct {name}  # {size} bytes");
+        for f in &fs {
+            let _ = writeln!(
+                out,
+                "  {:<20} {:<20} # @{}, {} bytes",
+                f.ty, f.name, f.offset, f.size
+            );
+            let base = f.ty.split('[').next().unwrap_or(f.ty);
+            let nested = match base {
+                "Stamp" => Some(size_of::<Stamp>()),
+                "Pose" => Some(size_of::<Pose>()),
+                "BlockState" => Some(size_of::<BlockState>()),
+                _ => None,
+            };
+            if let Some(s) = nested {
+                structs.push((base, s));
+            }
+        }
+    }
+    out
+}
+
+/// What went wrong with a recording; every variant names the file, and damage its byte offset.
+#[derive(Debug)]
+pub enum RecordingError {
+    /// The file could not be created, read or written.
+    Io {
+        path: PathBuf,
+        error: std::io::Error,
+    },
+    /// The file does not start with MCAP's magic bytes.
+    NotMcap { path: PathBuf },
+    /// The MCAP library refused a write.
+    Write { path: PathBuf, error: String },
+    /// The file is damaged at `offset`; what comes before it was read.
+    Damaged {
+        path: PathBuf,
+        offset: u64,
+        what: String,
+    },
+}
+
+impl fmt::Display for RecordingError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RecordingError::Io { path, error } => write!(f, "{}: {error}", path.display()),
+            RecordingError::NotMcap { path } => write!(
+                f,
+                "{}: not an MCAP recording (wrong magic at offset 0; expected \\x89MCAP0\\r\\n)",
+                path.display()
+            ),
+            RecordingError::Write { path, error } => {
+                write!(f, "{}: cannot write the recording: {error}", path.display())
+            }
+            RecordingError::Damaged { path, offset, what } => {
+                write!(
+                    f,
+                    "{}: damaged at byte offset {offset}: {what}",
+                    path.display()
+                )
+            }
+        }
+    }
+}
+
+impl std::error::Error for RecordingError {}
+
+fn clock_ns(clock: libc::clockid_t) -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes one timespec into the valid pointer we pass.
+    unsafe { libc::clock_gettime(clock, &mut ts) };
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+/// Appends samples to an MCAP recording in chunks (see the module's description).
+///
+/// Writing a sample copies its bytes into the open chunk: no allocation once the chunk's
+/// buffers have grown to their size.
+pub struct RecordingWriter {
+    path: PathBuf,
+    mcap: mcap::Writer<BufWriter<File>>,
+    channel_ids: [u16; Topic::ALL.len()],
+    unix_offset_ns: u64,
+    chunk_bytes: usize,
+    chunk_first_publish_ns: Option<u64>,
+    messages: u64,
+}
+
+impl RecordingWriter {
+    /// Creates `path` (and its folder) and writes the header, schemas and channels.
+    pub fn create(path: &Path) -> Result<RecordingWriter, RecordingError> {
+        let io = |error| RecordingError::Io {
+            path: path.to_path_buf(),
+            error,
+        };
+        let wr = |e: mcap::McapError| RecordingError::Write {
+            path: path.to_path_buf(),
+            error: e.to_string(),
+        };
+        if let Some(dir) = path.parent() {
+            if !dir.as_os_str().is_empty() {
+                std::fs::create_dir_all(dir).map_err(io)?;
+            }
+        }
+        let file = BufWriter::with_capacity(1 << 16, File::create(path).map_err(io)?);
+        let mut mcap = mcap::WriteOptions::new()
+            .profile(PROFILE)
+            .library(concat!("handblocks ", env!("CARGO_PKG_VERSION")))
+            .compression(Some(mcap::Compression::Lz4))
+            // Chunks are closed by `write` (size or time span) and written whole: never a
+            // half-written chunk header in the file.
+            .chunk_size(None)
+            .disable_seeking(true)
+            .create(file)
+            .map_err(wr)?;
+        let unix_offset_ns =
+            clock_ns(libc::CLOCK_REALTIME).saturating_sub(clock_ns(libc::CLOCK_MONOTONIC));
+        let mut metadata = std::collections::BTreeMap::new();
+        metadata.insert(
+            "log_time".to_string(),
+            "stamp.publish_ns + unix_offset_ns (publish_time: stamp.origin_ns + unix_offset_ns)"
+                .to_string(),
+        );
+        metadata.insert("unix_offset_ns".to_string(), unix_offset_ns.to_string());
+        mcap.write_metadata(&mcap::records::Metadata {
+            name: "handblocks".to_string(),
+            metadata,
+        })
+        .map_err(wr)?;
+        let mut channel_ids = [0u16; Topic::ALL.len()];
+        for topic in RECORDED_TOPICS {
+            let (type_name, _) = sample_type(topic);
+            let schema = mcap
+                .add_schema(type_name, SCHEMA_ENCODING, layout(topic).as_bytes())
+                .map_err(wr)?;
+            channel_ids[topic as usize] = mcap
+                .add_channel(schema, topic.name(), MESSAGE_ENCODING, &Default::default())
+                .map_err(wr)?;
+        }
+        Ok(RecordingWriter {
+            path: path.to_path_buf(),
+            mcap,
+            channel_ids,
+            unix_offset_ns,
+            chunk_bytes: 0,
+            chunk_first_publish_ns: None,
+            messages: 0,
+        })
+    }
+
+    /// Messages written so far.
+    pub fn messages(&self) -> u64 {
+        self.messages
+    }
+
+    fn write_error(&self, e: mcap::McapError) -> RecordingError {
+        RecordingError::Write {
+            path: self.path.clone(),
+            error: e.to_string(),
+        }
+    }
+
+    /// Writes one sample of `topic`; closes the chunk when it is full or old enough.
+    pub fn write<T: Stamped>(&mut self, topic: Topic, sample: &T) -> Result<(), RecordingError> {
+        let channel_id = self.channel_ids[topic as usize];
+        let stamp = *sample.stamp();
+        // SAFETY: every sample type is #[repr(C)], Copy, and laid out without implicit padding
+        // (explicit `_reserved` fields fill it; `layout` lists them), so all bytes are initialised.
+        let bytes =
+            unsafe { std::slice::from_raw_parts(sample as *const T as *const u8, size_of::<T>()) };
+        let header = mcap::records::MessageHeader {
+            channel_id,
+            sequence: stamp.seq as u32,
+            log_time: stamp.publish_ns + self.unix_offset_ns,
+            publish_time: stamp.origin_ns + self.unix_offset_ns,
+        };
+        self.mcap
+            .write_to_known_channel(&header, bytes)
+            .map_err(|e| self.write_error(e))?;
+        self.messages += 1;
+        self.chunk_bytes += bytes.len();
+        let first = *self.chunk_first_publish_ns.get_or_insert(stamp.publish_ns);
+        if self.chunk_bytes >= CHUNK_BYTES
+            || stamp.publish_ns.saturating_sub(first) >= CHUNK_SPAN_NS
+        {
+            self.close_chunk()?;
+        }
+        Ok(())
+    }
+
+    /// Closes the open chunk and hands it to the operating system: from here on it survives a
+    /// crash of this process.
+    pub fn close_chunk(&mut self) -> Result<(), RecordingError> {
+        self.mcap.flush().map_err(|e| self.write_error(e))?;
+        self.chunk_bytes = 0;
+        self.chunk_first_publish_ns = None;
+        Ok(())
+    }
+
+    /// Closes the last chunk and writes the summary (channels, statistics, chunk index).
+    pub fn finish(mut self) -> Result<u64, RecordingError> {
+        self.mcap.finish().map_err(|e| self.write_error(e))?;
+        let messages = self.messages;
+        let path = self.path.clone();
+        self.mcap
+            .into_inner()
+            .flush()
+            .map_err(|error| RecordingError::Io { path, error })?;
+        Ok(messages)
+    }
+}
+
+/// One message of a recording, in file order.
+#[derive(Debug, Clone, Copy)]
+pub struct RecordedMessage {
+    pub topic: Topic,
+    /// The sample's `publish_ns` (CLOCK_MONOTONIC of the recording machine).
+    pub publish_ns: u64,
+    /// Byte offset of the record (the chunk) that holds the message.
+    pub record_offset: u64,
+    start: usize,
+    len: usize,
+}
+
+/// Per topic: messages, sequence gaps, and the span of publish times.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TopicStats {
+    pub messages: u64,
+    /// Samples missing between consecutive recorded seqs (what the recorder never received).
+    pub gaps: u64,
+    pub first_publish_ns: u64,
+    pub last_publish_ns: u64,
+}
+
+/// A recording read back: its messages in file order, and the damage that ended reading early.
+#[derive(Debug)]
+pub struct Recording {
+    pub path: PathBuf,
+    pub messages: Vec<RecordedMessage>,
+    /// Messages on channels that are not ours (a file written or edited by other tools).
+    pub foreign_messages: u64,
+    /// Where reading stopped early, if it did: everything before it is in `messages`.
+    pub damage: Option<RecordingError>,
+    /// True when the file ended with its summary and footer (it was closed properly).
+    pub complete: bool,
+    data: Vec<u8>,
+}
+
+impl Recording {
+    /// True when `bytes` start like an MCAP file.
+    pub fn is_mcap(bytes: &[u8]) -> bool {
+        bytes.starts_with(mcap::MAGIC)
+    }
+
+    /// Reads `path`. A file that cannot be read or is not MCAP is an error; damage further on
+    /// (a cut-off chunk, a bad record, a message whose size does not fit its topic) ends reading
+    /// there and is kept in `damage`, with every complete chunk before it read.
+    pub fn open(path: &Path) -> Result<Recording, RecordingError> {
+        let bytes = std::fs::read(path).map_err(|error| RecordingError::Io {
+            path: path.to_path_buf(),
+            error,
+        })?;
+        Recording::parse(path, &bytes)
+    }
+
+    /// Reads a recording from bytes already in memory; `path` names it in errors.
+    pub fn parse(path: &Path, bytes: &[u8]) -> Result<Recording, RecordingError> {
+        if !Recording::is_mcap(bytes) {
+            return Err(RecordingError::NotMcap {
+                path: path.to_path_buf(),
+            });
+        }
+        let mut rec = Recording {
+            path: path.to_path_buf(),
+            messages: Vec::new(),
+            foreign_messages: 0,
+            damage: None,
+            complete: false,
+            data: Vec::new(),
+        };
+        let mut reader = Reader {
+            channels: Vec::new(),
+            schemas: Vec::new(),
+        };
+        let mut at = mcap::MAGIC.len();
+        let damage = |offset: usize, what: String| RecordingError::Damaged {
+            path: path.to_path_buf(),
+            offset: offset as u64,
+            what,
+        };
+        loop {
+            if at == bytes.len() {
+                rec.damage = Some(damage(
+                    at,
+                    "the file ends here, without its summary and footer (the recorder did not \
+                     finish; every complete chunk before this offset was read)"
+                        .into(),
+                ));
+                break;
+            }
+            if bytes.len() - at < 9 {
+                rec.damage = Some(damage(
+                    at,
+                    format!(
+                        "a record header is cut off ({} of 9 bytes)",
+                        bytes.len() - at
+                    ),
+                ));
+                break;
+            }
+            let opcode = bytes[at];
+            let mut len_bytes = [0u8; 8];
+            len_bytes.copy_from_slice(&bytes[at + 1..at + 9]);
+            let len = u64::from_le_bytes(len_bytes);
+            let left = (bytes.len() - at - 9) as u64;
+            if len > left {
+                rec.damage = Some(damage(
+                    at,
+                    format!(
+                        "a record (opcode {opcode:#04x}) of {len} bytes runs past the end of the \
+                         file ({left} bytes left): the file was cut off"
+                    ),
+                ));
+                break;
+            }
+            let body = &bytes[at + 9..at + 9 + len as usize];
+            let kept = rec.messages.len();
+            let kept_data = rec.data.len();
+            match reader.record(opcode, body, at as u64, &mut rec) {
+                Ok(Flow::Go) => {}
+                Ok(Flow::DataEnd) => {
+                    rec.complete = mcap::read::footer(bytes).is_ok();
+                    if !rec.complete {
+                        rec.damage = Some(damage(
+                            at,
+                            "the data section ends here but the summary or footer after it is \
+                             damaged (every message was read)"
+                                .into(),
+                        ));
+                    }
+                    break;
+                }
+                Err(what) => {
+                    // A damaged chunk counts as a whole: drop what it had added.
+                    rec.messages.truncate(kept);
+                    rec.data.truncate(kept_data);
+                    rec.damage = Some(damage(at, what));
+                    break;
+                }
+            }
+            at += 9 + len as usize;
+        }
+        Ok(rec)
+    }
+
+    /// The message's sample as type `T`, if `T` is its topic's type.
+    pub fn sample<T: Stamped>(&self, m: &RecordedMessage) -> Option<T> {
+        if m.len != size_of::<T>() {
+            return None;
+        }
+        let bytes = self.data.get(m.start..m.start + m.len)?;
+        // SAFETY: the length matches and every sample type is plain old data (#[repr(C)],
+        // Copy, only integers and floats, any bit pattern valid); read_unaligned copes with the
+        // buffer's alignment.
+        Some(unsafe { std::ptr::read_unaligned(bytes.as_ptr() as *const T) })
+    }
+
+    /// The samples of one topic, in file order.
+    pub fn samples<T: Stamped>(&self, topic: Topic) -> impl Iterator<Item = T> + '_ {
+        self.messages
+            .iter()
+            .filter(move |m| m.topic == topic)
+            .filter_map(|m| self.sample::<T>(m))
+    }
+
+    /// Messages, gaps in seq and time span per topic (indexed by `Topic as usize`).
+    pub fn stats(&self) -> [TopicStats; Topic::ALL.len()] {
+        let mut stats = [TopicStats::default(); Topic::ALL.len()];
+        let mut last_seq: [Option<u64>; Topic::ALL.len()] = [None; Topic::ALL.len()];
+        for m in &self.messages {
+            let Some(stamp) = self
+                .data
+                .get(m.start..m.start + size_of::<Stamp>())
+                .map(|b| {
+                    // SAFETY: every sample starts with its Stamp (four u64), and the slice has
+                    // exactly its size.
+                    unsafe { std::ptr::read_unaligned(b.as_ptr() as *const Stamp) }
+                })
+            else {
+                continue;
+            };
+            let s = &mut stats[m.topic as usize];
+            if s.messages == 0 {
+                s.first_publish_ns = m.publish_ns;
+            }
+            s.messages += 1;
+            s.last_publish_ns = m.publish_ns;
+            if let Some(prev) = last_seq[m.topic as usize] {
+                s.gaps += stamp.seq.saturating_sub(prev + 1);
+            }
+            last_seq[m.topic as usize] = Some(stamp.seq);
+        }
+        stats
+    }
+}
+
+enum Flow {
+    Go,
+    DataEnd,
+}
+
+/// Channels and schemas seen so far while reading.
+struct Reader {
+    /// (channel id, our topic if it is one of ours with the right schema)
+    channels: Vec<(u16, Option<Topic>)>,
+    /// (schema id, schema name)
+    schemas: Vec<(u16, String)>,
+}
+
+impl Reader {
+    fn record(
+        &mut self,
+        opcode: u8,
+        body: &[u8],
+        offset: u64,
+        rec: &mut Recording,
+    ) -> Result<Flow, String> {
+        let record = mcap::read::parse_record(opcode, body).map_err(|e| format!("{e}"))?;
+        match record {
+            mcap::records::Record::Chunk { header, data } => {
+                if header.uncompressed_size > MAX_CHUNK_BYTES {
+                    return Err(format!(
+                        "a chunk claims {} uncompressed bytes (at most {MAX_CHUNK_BYTES} \
+                         accepted)",
+                        header.uncompressed_size
+                    ));
+                }
+                let reader = mcap::read::ChunkReader::new(header, &data)
+                    .map_err(|e| format!("chunk: {e}"))?;
+                for inner in reader {
+                    let inner = inner.map_err(|e| format!("inside the chunk: {e}"))?;
+                    self.inner(inner, offset, rec)?;
+                }
+                Ok(Flow::Go)
+            }
+            mcap::records::Record::DataEnd(_) => Ok(Flow::DataEnd),
+            other => {
+                self.inner(other, offset, rec)?;
+                Ok(Flow::Go)
+            }
+        }
+    }
+
+    fn inner(
+        &mut self,
+        record: mcap::records::Record<'_>,
+        offset: u64,
+        rec: &mut Recording,
+    ) -> Result<(), String> {
+        use mcap::records::Record;
+        match record {
+            Record::Schema { header, .. } => {
+                self.schemas.retain(|(id, _)| *id != header.id);
+                self.schemas.push((header.id, header.name));
+            }
+            Record::Channel(c) => {
+                let schema = self
+                    .schemas
+                    .iter()
+                    .find(|(id, _)| *id == c.schema_id)
+                    .map(|(_, name)| name.as_str());
+                let topic = RECORDED_TOPICS
+                    .into_iter()
+                    .find(|t| t.name() == c.topic && c.message_encoding == MESSAGE_ENCODING);
+                if let (Some(t), Some(schema)) = (topic, schema) {
+                    let (expected, _) = sample_type(t);
+                    if schema != expected {
+                        return Err(format!(
+                            "channel {:?} has schema {schema:?}, expected {expected:?}",
+                            c.topic
+                        ));
+                    }
+                }
+                self.channels.retain(|(id, _)| *id != c.id);
+                self.channels.push((c.id, topic));
+            }
+            Record::Message { header, data } => {
+                let Some(&(_, topic)) = self
+                    .channels
+                    .iter()
+                    .find(|(id, _)| *id == header.channel_id)
+                else {
+                    return Err(format!(
+                        "a message on channel {} which was never declared",
+                        header.channel_id
+                    ));
+                };
+                let Some(topic) = topic else {
+                    rec.foreign_messages += 1;
+                    return Ok(());
+                };
+                let (type_name, size) = sample_type(topic);
+                if data.len() != size {
+                    return Err(format!(
+                        "a {} message (seq {}) has {} bytes; {type_name} has {size} (a recording \
+                         from another version of handblocks?)",
+                        topic.name(),
+                        header.sequence,
+                        data.len()
+                    ));
+                }
+                let start = rec.data.len();
+                rec.data.extend_from_slice(&data);
+                let mut publish = [0u8; 8];
+                publish.copy_from_slice(&data[24..32]);
+                rec.messages.push(RecordedMessage {
+                    topic,
+                    publish_ns: u64::from_le_bytes(publish),
+                    record_offset: offset,
+                    start,
+                    len: size,
+                });
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every layout lists every byte of its struct once, in order: no field forgotten, no gap.
+    #[test]
+    fn layouts_cover_every_byte() {
+        for (name, size) in [
+            ("Stamp", size_of::<Stamp>()),
+            ("Pose", size_of::<Pose>()),
+            ("BlockState", size_of::<BlockState>()),
+        ]
+        .into_iter()
+        .chain(RECORDED_TOPICS.into_iter().map(sample_type))
+        {
+            let fs = fields(name).unwrap();
+            let mut at = 0;
+            for f in &fs {
+                assert_eq!(
+                    f.offset, at,
+                    "{name}.{} starts where the last ended",
+                    f.name
+                );
+                at += f.size;
+            }
+            assert_eq!(at, size, "{name}: the fields cover all {size} bytes");
+        }
+        let text = layout(Topic::World);
+        assert!(text.contains("struct handblocks::WorldSample"));
+        assert!(text.contains("struct BlockState"));
+        assert!(text.contains("struct Pose"));
+        assert!(text.contains("struct Stamp"));
+    }
+
+    fn scratch(name: &str) -> PathBuf {
+        std::env::temp_dir().join(format!("hb-recording-{}-{name}.mcap", std::process::id()))
+    }
+
+    fn glove(seq: u64, publish_ns: u64) -> GloveSample {
+        let mut g = GloveSample {
+            stamp: Stamp {
+                seq,
+                source_time_ns: seq * 1000,
+                origin_ns: publish_ns - 10,
+                publish_ns,
+            },
+            ..Default::default()
+        };
+        g.angles[3] = seq as f64 * 0.01;
+        g
+    }
+
+    #[test]
+    fn round_trip_and_stats() {
+        let path = scratch("round-trip");
+        let mut w = RecordingWriter::create(&path).unwrap();
+        for k in 0..2000u64 {
+            if k == 700 {
+                continue; // a gap
+            }
+            w.write(Topic::Glove, &glove(k, 1_000_000 + k * 1_000_000))
+                .unwrap();
+        }
+        let mut world = WorldSample::default();
+        world.stamp.publish_ns = 5;
+        w.write(Topic::World, &world).unwrap();
+        assert_eq!(w.finish().unwrap(), 2000);
+        let rec = Recording::open(&path).unwrap();
+        assert!(rec.complete, "{:?}", rec.damage);
+        assert!(rec.damage.is_none());
+        let gloves: Vec<GloveSample> = rec.samples(Topic::Glove).collect();
+        assert_eq!(gloves.len(), 1999);
+        assert_eq!(gloves[700], glove(701, 1_000_000 + 701 * 1_000_000));
+        let stats = rec.stats();
+        assert_eq!(stats[Topic::Glove as usize].messages, 1999);
+        assert_eq!(stats[Topic::Glove as usize].gaps, 1);
+        assert_eq!(stats[Topic::World as usize].messages, 1);
+        // Two seconds of publish time at most 0.5 s per chunk: several chunks.
+        let chunks: std::collections::BTreeSet<u64> =
+            rec.messages.iter().map(|m| m.record_offset).collect();
+        assert!(chunks.len() >= 4, "{} chunks", chunks.len());
+        let _ = std::fs::remove_file(&path);
+    }
+
+    /// A file cut anywhere reads back up to its last complete chunk, and says where it broke.
+    #[test]
+    fn cut_off_file_reads_to_its_last_complete_chunk() {
+        let path = scratch("cut");
+        let mut w = RecordingWriter::create(&path).unwrap();
+        for k in 0..3000u64 {
+            w.write(Topic::Glove, &glove(k, 1 + k * 1_000_000)).unwrap();
+        }
+        w.finish().unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let whole = Recording::parse(&path, &bytes).unwrap();
+        let chunk_starts: Vec<u64> = {
+            let mut v: Vec<u64> = whole.messages.iter().map(|m| m.record_offset).collect();
+            v.dedup();
+            v
+        };
+        assert!(chunk_starts.len() >= 5);
+        let before = |offset: u64| {
+            whole
+                .messages
+                .iter()
+                .filter(|m| m.record_offset < offset)
+                .count()
+        };
+        // (cut, messages expected): inside chunk 3; inside the footer; inside the header.
+        let cuts = [
+            (chunk_starts[3] as usize + 100, before(chunk_starts[3])),
+            (bytes.len() - 30, whole.messages.len()),
+            (20, 0),
+        ];
+        for (cut, expected) in cuts {
+            let rec = Recording::parse(&path, &bytes[..cut]).unwrap();
+            let msg = rec
+                .damage
+                .as_ref()
+                .map(|d| d.to_string())
+                .unwrap_or_default();
+            assert!(!rec.complete);
+            assert!(msg.contains("damaged at byte offset"), "{msg}");
+            assert!(msg.contains(&path.display().to_string()), "{msg}");
+            assert_eq!(rec.messages.len(), expected, "cut at {cut}: {msg}");
+            for (a, b) in rec.messages.iter().zip(&whole.messages) {
+                assert_eq!(rec.sample::<GloveSample>(a), whole.sample::<GloveSample>(b));
+            }
+        }
+        let _ = std::fs::remove_file(&path);
+    }
+
+    #[test]
+    fn wrong_magic_and_absurd_sizes_are_named() {
+        let path = scratch("bad");
+        let e = Recording::parse(&path, b"HBLOG\0\x01\0 and more").unwrap_err();
+        assert!(e.to_string().contains("not an MCAP recording"), "{e}");
+        assert!(e.to_string().contains("offset 0"), "{e}");
+        // A record claiming 2^60 bytes.
+        let mut bytes = mcap::MAGIC.to_vec();
+        bytes.push(0x06);
+        bytes.extend_from_slice(&(1u64 << 60).to_le_bytes());
+        bytes.extend_from_slice(&[0u8; 64]);
+        let rec = Recording::parse(&path, &bytes).unwrap();
+        let d = rec.damage.unwrap().to_string();
+        assert!(
+            d.contains("offset 8") && d.contains("runs past the end"),
+            "{d}"
+        );
+    }
+}

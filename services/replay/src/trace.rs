@@ -1,0 +1,243 @@
+//! A hand trace of either kind, as the samples a source publishes: one of our MCAP recordings
+//! (its `glove` + `tracker` or `joints` topics) or a CARL file (its right hand as `joints`).
+//!
+//! The file's first bytes decide which reader runs. Whatever the kind, the samples come out
+//! ready to publish: recorded source times (from 0 for CARL), poses moved by the offset, and
+//! never a NaN: a sample that is not finite or claims an impossible count holds the previous
+//! good one (a hand sample also marked lost), with a warning that names file and offset.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use common::recording::Recording;
+use common::{GloveSample, JointsSample, Pose, Topic, TrackerSample, MAX_GLOVE_SENSORS};
+
+use crate::carl::CarlTrace;
+
+/// One sample of a hand source, as it goes onto the bus.
+// Held by value: a trace is one flat Vec read in order, and boxing the joints would cost an
+// allocation per sample for a few KiB saved on the small variants.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SourceSample {
+    Glove(GloveSample),
+    Tracker(TrackerSample),
+    Joints(JointsSample),
+}
+
+impl SourceSample {
+    pub fn source_time_ns(&self) -> u64 {
+        match self {
+            SourceSample::Glove(s) => s.stamp.source_time_ns,
+            SourceSample::Tracker(s) => s.stamp.source_time_ns,
+            SourceSample::Joints(s) => s.stamp.source_time_ns,
+        }
+    }
+
+    /// True for the samples that each make one hand sample downstream (tracker, joints).
+    pub fn makes_a_hand(&self) -> bool {
+        !matches!(self, SourceSample::Glove(_))
+    }
+}
+
+/// Which reader a trace went through.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TraceKind {
+    Mcap,
+    Carl,
+}
+
+/// A loaded trace: its samples in publish order, and what was wrong with the file.
+#[derive(Debug, Clone)]
+pub struct HandTrace {
+    pub file: PathBuf,
+    pub kind: TraceKind,
+    pub samples: Vec<SourceSample>,
+    /// Damage that ended reading early, and bad samples that were replaced: one line each,
+    /// naming the file and the byte offset.
+    pub warnings: Vec<String>,
+}
+
+/// Warnings about bad samples beyond this many are summed up in one line.
+const MAX_SAMPLE_WARNINGS: usize = 5;
+
+fn shift(p: Pose, offset: [f64; 3]) -> Pose {
+    Pose {
+        position: [
+            p.position[0] + offset[0],
+            p.position[1] + offset[1],
+            p.position[2] + offset[2],
+        ],
+        rotation: p.rotation,
+    }
+}
+
+impl HandTrace {
+    /// Reads `file` (MCAP or CARL, by its first bytes) and moves its poses by `offset` metres.
+    /// Fails when the file cannot be read, is neither kind, or holds no hand samples.
+    pub fn load(file: &Path, offset: [f64; 3]) -> Result<HandTrace, String> {
+        let head = {
+            use std::io::Read;
+            let mut head = [0u8; 8];
+            let n = std::fs::File::open(file)
+                .and_then(|mut f| f.read(&mut head))
+                .map_err(|e| format!("{}: cannot read the trace: {e}", file.display()))?;
+            head[..n].to_vec()
+        };
+        let trace = if Recording::is_mcap(&head) {
+            let rec = Recording::open(file).map_err(|e| e.to_string())?;
+            HandTrace::from_recording(&rec, offset)
+        } else {
+            let carl = CarlTrace::load(file).map_err(|e| {
+                format!("{e} (a hand trace is one of our MCAP recordings or a CARL file)")
+            })?;
+            let mut joints = Vec::new();
+            carl.joints(offset, &mut joints);
+            HandTrace {
+                file: file.to_path_buf(),
+                kind: TraceKind::Carl,
+                samples: joints.into_iter().map(SourceSample::Joints).collect(),
+                warnings: carl.damage.iter().map(|d| d.to_string()).collect(),
+            }
+        };
+        if trace.hands() == 0 {
+            let mut why = format!(
+                "{}: no hand samples to replay (an MCAP recording needs a `tracker` or `joints` \
+                 topic)",
+                file.display()
+            );
+            for w in &trace.warnings {
+                let _ = write!(why, "; {w}");
+            }
+            return Err(why);
+        }
+        Ok(trace)
+    }
+
+    /// The source topics of a recording, in the order they were published.
+    pub fn from_recording(rec: &Recording, offset: [f64; 3]) -> HandTrace {
+        let mut trace = HandTrace {
+            file: rec.path.clone(),
+            kind: TraceKind::Mcap,
+            samples: Vec::new(),
+            warnings: rec.damage.iter().map(|d| d.to_string()).collect(),
+        };
+        let mut order: Vec<_> = rec
+            .messages
+            .iter()
+            .filter(|m| matches!(m.topic, Topic::Glove | Topic::Tracker | Topic::Joints))
+            .collect();
+        // Stable: samples published in the same nanosecond keep their file order.
+        order.sort_by_key(|m| m.publish_ns);
+        let mut bad = 0usize;
+        let mut last_glove: Option<GloveSample> = None;
+        let mut last_wrist: Option<Pose> = None;
+        let mut last_joints: Option<JointsSample> = None;
+        let mut warn = |trace: &mut HandTrace, topic: Topic, seq: u64, at: u64, what: &str| {
+            bad += 1;
+            if bad <= MAX_SAMPLE_WARNINGS {
+                trace.warnings.push(format!(
+                    "{}: the {} sample with seq {seq} (in the record at byte offset {at}) {what}; \
+                     it holds the previous sample",
+                    rec.path.display(),
+                    topic.name()
+                ));
+            }
+        };
+        for m in order {
+            let at = m.record_offset;
+            match m.topic {
+                Topic::Glove => {
+                    let Some(mut g) = rec.sample::<GloveSample>(m) else {
+                        continue;
+                    };
+                    let count = g.sensor_count as usize;
+                    let problem = if count > MAX_GLOVE_SENSORS {
+                        Some(format!(
+                            "claims {count} sensors (at most {MAX_GLOVE_SENSORS})"
+                        ))
+                    } else if g.angles.iter().any(|a| !a.is_finite()) {
+                        Some("has an angle that is not a finite number".to_string())
+                    } else {
+                        None
+                    };
+                    if let Some(p) = problem {
+                        warn(&mut trace, m.topic, g.stamp.seq, at, &p);
+                        let prev = last_glove.unwrap_or_default();
+                        g.sensor_count = prev.sensor_count;
+                        g.angles = prev.angles;
+                    }
+                    last_glove = Some(g);
+                    trace.samples.push(SourceSample::Glove(g));
+                }
+                Topic::Tracker => {
+                    let Some(mut t) = rec.sample::<TrackerSample>(m) else {
+                        continue;
+                    };
+                    t.wrist = shift(t.wrist, offset);
+                    if !t.wrist.is_finite() {
+                        warn(
+                            &mut trace,
+                            m.topic,
+                            t.stamp.seq,
+                            at,
+                            "has a pose that is not finite",
+                        );
+                        t.wrist = last_wrist.unwrap_or(Pose::IDENTITY);
+                    }
+                    last_wrist = Some(t.wrist);
+                    trace.samples.push(SourceSample::Tracker(t));
+                }
+                Topic::Joints => {
+                    let Some(mut j) = rec.sample::<JointsSample>(m) else {
+                        continue;
+                    };
+                    j.wrist = shift(j.wrist, offset);
+                    j.joints = j.joints.map(|p| shift(p, offset));
+                    if !j.wrist.is_finite() || j.joints.iter().any(|p| !p.is_finite()) {
+                        warn(
+                            &mut trace,
+                            m.topic,
+                            j.stamp.seq,
+                            at,
+                            "has a pose that is not finite",
+                        );
+                        let prev = last_joints.unwrap_or(JointsSample {
+                            wrist: Pose::IDENTITY,
+                            joints: [Pose::IDENTITY; common::OPENXR_JOINTS],
+                            ..j
+                        });
+                        j.wrist = prev.wrist;
+                        j.joints = prev.joints;
+                        j.tracked = 0;
+                    }
+                    last_joints = Some(j);
+                    trace.samples.push(SourceSample::Joints(j));
+                }
+                _ => {}
+            }
+        }
+        if bad > MAX_SAMPLE_WARNINGS {
+            trace.warnings.push(format!(
+                "{}: {} more bad samples held their previous one",
+                rec.path.display(),
+                bad - MAX_SAMPLE_WARNINGS
+            ));
+        }
+        trace
+    }
+
+    /// Samples that each make one hand downstream (tracker or joints).
+    pub fn hands(&self) -> usize {
+        self.samples.iter().filter(|s| s.makes_a_hand()).count()
+    }
+
+    /// Source time of the first sample: the replay's clock starts there.
+    pub fn first_source_time_ns(&self) -> u64 {
+        self.samples
+            .iter()
+            .map(|s| s.source_time_ns())
+            .min()
+            .unwrap_or(0)
+    }
+}
