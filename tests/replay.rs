@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use common::recording::Recording;
-use common::{JointsSample, Topic, WorldSample};
+use common::{BlockMode, JointsSample, Topic, WorldSample};
 use serde_json::Value;
 
 mod support;
@@ -147,4 +147,133 @@ fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
         err.contains("junk.carl: at byte 0: not a CARL file"),
         "{err}"
     );
+}
+
+/// What a recording's hand must do to its scene's block.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Contact {
+    /// Pushed, never grasped.
+    Push,
+    /// Grasped, and while grasped the block's centre rose at least this high (metres).
+    GraspLiftedTo(f64),
+    /// Grasped, and while grasped the block travelled at least this far horizontally.
+    GraspCarried(f64),
+    /// Grasped.
+    Grasp,
+}
+
+/// Replays `config/sessions/replay-carl-NAME.toml` as shipped (recorded timing), records it,
+/// and checks the kind of contact, that nothing is NaN, and that `simulate --hand` agrees.
+fn carl_session_meets_its_block(name: &str, contact: Contact) {
+    let session_file = repo().join(format!("config/sessions/replay-carl-{name}.toml"));
+    let session = common::config::Session::load(&session_file).unwrap();
+    let common::config::session::Source::Replay { file, offset, .. } = &session.source else {
+        panic!("{name}: not a replay session");
+    };
+    let trace = replay::CarlTrace::load(file).unwrap();
+    let dir = Scratch::new(&format!("carl-{name}"));
+    let rec_file = dir.path("run.mcap");
+    let id = format!("cs{name}{}", std::process::id());
+    let out = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--bus-id", &id, "--duration"])
+        .arg((trace.duration() + 1.5).to_string())
+        .arg("--record")
+        .arg(&rec_file)
+        .arg(&session_file)
+        .output()
+        .unwrap();
+    assert_nothing_left(&id);
+    assert!(
+        out.status.success(),
+        "{name}: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rec = Recording::open(&rec_file).unwrap();
+    let worlds: Vec<WorldSample> = rec.samples(Topic::World).collect();
+    assert_eq!(
+        worlds.len(),
+        trace.samples.len(),
+        "{name}: one world per sample"
+    );
+    for w in &worlds {
+        let finite = w.blocks().iter().all(|b| b.pose.is_finite())
+            && w.finger_points
+                .iter()
+                .flatten()
+                .flatten()
+                .all(|v| v.is_finite());
+        assert!(finite, "{name}: world {} holds a NaN", w.stamp.seq);
+    }
+    let modes: Vec<BlockMode> = worlds.iter().map(|w| w.blocks()[0].mode()).collect();
+    let grasped: Vec<&WorldSample> = worlds.iter().filter(|w| w.grasped_block == 0).collect();
+    match contact {
+        Contact::Push => {
+            assert!(
+                modes.contains(&BlockMode::Pushed),
+                "{name}: never pushed: {modes:?}"
+            );
+            assert!(grasped.is_empty(), "{name}: grasped");
+        }
+        Contact::Grasp => assert!(!grasped.is_empty(), "{name}: never grasped: {modes:?}"),
+        Contact::GraspLiftedTo(height) => {
+            let top = grasped
+                .iter()
+                .map(|w| w.blocks()[0].pose.position[1])
+                .fold(f64::MIN, f64::max);
+            assert!(top >= height, "{name}: lifted only to {top} m: {modes:?}");
+        }
+        Contact::GraspCarried(distance) => {
+            let at = |w: &WorldSample| {
+                let p = w.blocks()[0].pose.position;
+                (p[0], p[2])
+            };
+            let (Some(first), Some(last)) = (grasped.first(), grasped.last()) else {
+                panic!("{name}: never grasped: {modes:?}");
+            };
+            let (a, b) = (at(first), at(last));
+            let moved = ((a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)).sqrt();
+            assert!(moved >= distance, "{name}: carried only {moved} m");
+        }
+    }
+
+    // The same world in one process.
+    let last = worlds.last().unwrap();
+    let sim = Command::new(EXE)
+        .args(["simulate", "--json", "--frames", &last.step.to_string()])
+        .arg("--hand-offset")
+        .arg(format!("{},{},{}", offset[0], offset[1], offset[2]))
+        .arg("--hand")
+        .arg(file)
+        .arg(&session.scene_file)
+        .output()
+        .unwrap();
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
+    let v: Value = serde_json::from_slice(&sim.stdout).unwrap();
+    assert_same_poses(&v, last);
+}
+
+#[test]
+fn the_carl_push_recording_pushes_its_block() {
+    carl_session_meets_its_block("push", Contact::Push);
+}
+
+#[test]
+fn the_carl_pull_recording_closes_the_hand_around_its_block() {
+    carl_session_meets_its_block("pull", Contact::Grasp);
+}
+
+#[test]
+fn the_carl_lift_recording_picks_its_block_up() {
+    carl_session_meets_its_block("lift", Contact::GraspLiftedTo(0.4));
+}
+
+#[test]
+fn the_carl_settle_recording_carries_its_block_and_puts_it_down() {
+    carl_session_meets_its_block("settle", Contact::GraspCarried(0.3));
 }
