@@ -175,6 +175,7 @@ fn the_recorder_keeps_up_with_a_1khz_hand_and_inspect_lists_it() {
         let published = r["topics"][name]["published"].as_u64().unwrap();
         let seen = &r["topics"][name]["readers"]["recorder"];
         assert_eq!(seen["dropped"].as_u64(), Some(0), "{name}: {r}");
+        assert_eq!(seen["gaps"].as_u64(), Some(0), "{name}: {r}");
         assert_eq!(seen["received"].as_u64(), Some(published), "{name}");
         let t = topic(&v, name);
         assert_eq!(t["messages"].as_u64(), Some(published), "{name}: {t}");
@@ -388,4 +389,78 @@ fn bad_recordings_name_the_file_and_offset_and_the_good_part_still_runs() {
         "{}",
         both(&out)
     );
+}
+
+#[test]
+fn recordings_open_in_the_standard_mcap_reader() {
+    // tests/run installs the `mcap` Python package (the reference reader of the MCAP project)
+    // into target/mcap-python and names it here.
+    let Some(python) = std::env::var_os("HB_MCAP_PYTHON") else {
+        eprintln!(
+            "skipped: HB_MCAP_PYTHON is not set (tests/run sets it to a Python with the `mcap` \
+             and `lz4` packages)"
+        );
+        return;
+    };
+    let dir = Scratch::new("rec-mcap-tool");
+    let file = dir.path("tool.mcap");
+    let s = session(&dir, "tool.toml", "[renderer]\nmode = \"off\"\n");
+    let id = format!("rt{}", std::process::id());
+    let out = Command::new(EXE)
+        .current_dir(repo())
+        .args([
+            "launch",
+            "--quiet",
+            "--duration",
+            "2",
+            "--bus-id",
+            &id,
+            "--record",
+        ])
+        .arg(&file)
+        .arg(&s)
+        .output()
+        .unwrap();
+    support::assert_nothing_left(&id);
+    assert!(out.status.success(), "{}", both(&out));
+    let out = Command::new(&python)
+        .arg(repo().join("tests/mcap_check.py"))
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", both(&out));
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["profile"], "handblocks");
+    assert!(v["chunks"].as_u64().unwrap() >= 2, "{}", v["chunks"]);
+    let ours = Recording::open(&file).unwrap();
+    for t in common::recording::RECORDED_TOPICS {
+        let theirs = &v["topics"][t.name()];
+        let (schema, _) = common::recording::sample_type(t);
+        assert_eq!(theirs["schema"], schema);
+        assert_eq!(
+            theirs["schema_encoding"],
+            common::recording::SCHEMA_ENCODING
+        );
+        assert_eq!(
+            theirs["message_encoding"],
+            common::recording::MESSAGE_ENCODING
+        );
+        assert_eq!(theirs["layout"], common::recording::layout(t));
+        let seqs: Vec<u64> = theirs["seqs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s.as_u64().unwrap())
+            .collect();
+        let expected: Vec<u64> = (0..seqs.len() as u64).collect();
+        assert_eq!(seqs, expected, "{}: every seq, in order", t.name());
+        assert_eq!(theirs["statistics_count"].as_u64(), Some(seqs.len() as u64));
+        assert_eq!(
+            ours.stats()[t as usize].messages,
+            seqs.len() as u64,
+            "{}: both readers see the same messages",
+            t.name()
+        );
+    }
+    assert!(v["topics"]["world"]["seqs"].as_array().unwrap().len() >= 200);
 }

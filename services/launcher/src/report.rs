@@ -45,19 +45,32 @@ impl StageReport {
     }
 }
 
-/// Per topic: samples published, and per reading stage, received and dropped.
+/// What one reading stage saw of a topic.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ReaderFlow {
+    pub received: u64,
+    /// Never read: sequence gaps, or published but not received by the end.
+    pub dropped: u64,
+    /// Gaps in the sequence numbers it received (samples overwritten before it read them).
+    pub gaps: u64,
+}
+
+/// Per topic: samples published, and per reading stage, received, dropped and gaps.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TopicFlow {
     pub published: u64,
-    pub readers: BTreeMap<&'static str, (u64, u64)>,
+    pub readers: BTreeMap<&'static str, ReaderFlow>,
 }
 
 impl TopicFlow {
     pub fn received(&self) -> u64 {
-        self.readers.values().map(|r| r.0).min().unwrap_or(0)
+        self.readers.values().map(|r| r.received).min().unwrap_or(0)
     }
     pub fn dropped(&self) -> u64 {
-        self.readers.values().map(|r| r.1).sum()
+        self.readers.values().map(|r| r.dropped).sum()
+    }
+    pub fn gaps(&self) -> u64 {
+        self.readers.values().map(|r| r.gaps).sum()
     }
 }
 
@@ -95,12 +108,19 @@ impl Report {
                     let flow = topics.entry(topic).or_default();
                     // Lost on the way: gaps in seq, and whatever was published but never read.
                     let dropped = c.gaps.max(flow.published.saturating_sub(c.count));
-                    flow.readers.insert(s.stage.name(), (c.count, dropped));
+                    flow.readers.insert(
+                        s.stage.name(),
+                        ReaderFlow {
+                            received: c.count,
+                            dropped,
+                            gaps: c.gaps,
+                        },
+                    );
                 }
             }
         }
         // Topics nobody published on (e.g. joints with a glove source) are not part of the flow.
-        topics.retain(|_, f| f.published > 0 || f.readers.values().any(|r| r.0 > 0));
+        topics.retain(|_, f| f.published > 0 || f.readers.values().any(|r| r.received > 0));
         let mut report = Report {
             stages,
             topics,
@@ -193,16 +213,17 @@ impl Report {
             }
         }
         out.push_str(&format!(
-            "\n{:<12} {:>10} {:>10} {:>8}\n",
-            "topic", "published", "received", "dropped"
+            "\n{:<12} {:>10} {:>10} {:>8} {:>8}\n",
+            "topic", "published", "received", "dropped", "gaps"
         ));
         for (t, f) in &self.topics {
             out.push_str(&format!(
-                "{:<12} {:>10} {:>10} {:>8}\n",
+                "{:<12} {:>10} {:>10} {:>8} {:>8}\n",
                 t.name(),
                 f.published,
                 f.received(),
-                f.dropped()
+                f.dropped(),
+                f.gaps()
             ));
         }
         for f in &self.failures {
@@ -242,16 +263,16 @@ impl Report {
             let readers: Map<String, Value> = f
                 .readers
                 .iter()
-                .map(|(name, (received, dropped))| {
+                .map(|(name, r)| {
                     (
                         (*name).to_string(),
-                        json!({"received": received, "dropped": dropped}),
+                        json!({"received": r.received, "dropped": r.dropped, "gaps": r.gaps}),
                     )
                 })
                 .collect();
             topics.insert(
                 t.name().into(),
-                json!({"published": f.published, "received": f.received(), "dropped": f.dropped(), "readers": readers}),
+                json!({"published": f.published, "received": f.received(), "dropped": f.dropped(), "gaps": f.gaps(), "readers": readers}),
             );
         }
         json!({
