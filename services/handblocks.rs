@@ -321,6 +321,19 @@ fn launch(
     }
     // The device settings are the drivers' to read: check them here, before any process starts.
     if let Ok(s) = common::config::Session::load(&session) {
+        // A replay's trace must be readable: say so now, naming the key, not from a child.
+        if let common::config::session::Source::Replay { file, .. } = &s.source {
+            if let Err(e) = std::fs::File::open(file) {
+                eprintln!(
+                    "handblocks: {}: [source] file = {}: cannot read it: {e} (a recording of \
+                     ours, .mcap, or a CARL trace; relative paths start at the session file's \
+                     folder)",
+                    s.file.display(),
+                    file.display()
+                );
+                return ExitCode::from(2);
+            }
+        }
         if let common::config::session::Source::Devices {
             glove,
             tracker,

@@ -238,6 +238,53 @@ fn carl_session_meets_its_block(name: &str, contact: Contact) {
         }
     }
 
+    // Our recording of it (the `joints` topic, offset already applied) replays to the same
+    // worlds, as fast as the pipeline consumes it.
+    if name == "push" {
+        let again_session = dir.path("again.toml");
+        let again_file = dir.path("again.mcap");
+        std::fs::write(
+            &again_session,
+            format!(
+                "scene = {:?}\n[source]\nkind = \"replay\"\nfile = {:?}\nspeed = 0\n[renderer]\nmode = \"off\"\n[budget]\nmax_dropped = 0\n",
+                session.scene_file.to_string_lossy(),
+                rec_file.to_string_lossy()
+            ),
+        )
+        .unwrap();
+        let id = format!("ca{name}{}", std::process::id());
+        let out = Command::new(EXE)
+            .args([
+                "launch",
+                "--quiet",
+                "--bus-id",
+                &id,
+                "--duration",
+                "3",
+                "--record",
+            ])
+            .arg(&again_file)
+            .arg(&again_session)
+            .output()
+            .unwrap();
+        assert_nothing_left(&id);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let again: Vec<WorldSample> = Recording::open(&again_file)
+            .unwrap()
+            .samples(Topic::World)
+            .collect();
+        assert_eq!(again.len(), worlds.len());
+        for (a, b) in again.iter().zip(&worlds) {
+            assert_eq!((a.stamp.seq, a.step), (b.stamp.seq, b.step));
+            assert_eq!(a.blocks(), b.blocks(), "world {}", a.stamp.seq);
+            assert_eq!(a.finger_points, b.finger_points, "world {}", a.stamp.seq);
+        }
+    }
+
     // The same world in one process.
     let last = worlds.last().unwrap();
     let sim = Command::new(EXE)
