@@ -1,15 +1,16 @@
-"""Reads a handblocks recording with the standard MCAP reader (the `mcap` Python package) and
-prints what it found as JSON: per topic the schema, encodings and message count, and the seq of
-every message (from the first 8 bytes of the sample, the Stamp's seq). Used by
-tests/recording.rs to show that recordings open outside handblocks."""
+"""Reads a handblocks recording with the MCAP project's reference Python reader (`mcap`) and
+decodes every message with its ROS 2 CDR decoder (`mcap-ros2-support`, as Foxglove decodes
+them), knowing nothing of handblocks but the file. Prints JSON: per topic the schema, encodings,
+message count and every message's seq; and the last world sample's step and block poses.
+Used by tests/recording.rs to show that recordings open in the standard tools."""
 import json
-import struct
 import sys
 
 from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 
 with open(sys.argv[1], "rb") as f:
-    reader = make_reader(f)
+    reader = make_reader(f, decoder_factories=[DecoderFactory()])
     header = reader.get_header()
     summary = reader.get_summary()
     topics = {}
@@ -23,6 +24,19 @@ with open(sys.argv[1], "rb") as f:
             "statistics_count": summary.statistics.channel_message_counts.get(channel_id, 0),
             "seqs": [],
         }
-    for schema, channel, message in reader.iter_messages(log_time_order=False):
-        topics[channel.topic]["seqs"].append(struct.unpack_from("<Q", message.data)[0])
-    print(json.dumps({"profile": header.profile, "chunks": len(summary.chunk_indexes), "topics": topics}))
+    last_world = None
+    for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
+        topics[channel.topic]["seqs"].append(decoded.stamp.seq)
+        if channel.topic == "world":
+            last_world = decoded
+    world = {
+        "seq": last_world.stamp.seq,
+        "step": last_world.step,
+        "grasped_block": last_world.grasped_block,
+        "blocks": [
+            {"position": list(b.pose.position), "rotation": list(b.pose.rotation), "mode": b.mode}
+            for b in last_world.blocks[: last_world.block_count]
+        ],
+    }
+    print(json.dumps({"profile": header.profile, "chunks": len(summary.chunk_indexes),
+                      "topics": topics, "last_world": world}))

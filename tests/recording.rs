@@ -196,7 +196,7 @@ fn the_recorder_keeps_up_with_a_1khz_hand_and_inspect_lists_it() {
     for name in ["glove", "tracker", "joints", "hand", "world", "frame"] {
         assert!(text.contains(name), "{text}");
     }
-    assert!(text.contains("handblocks::WorldSample"), "{text}");
+    assert!(text.contains("handblocks/msg/WorldSample"), "{text}");
 }
 
 #[test]
@@ -463,4 +463,26 @@ fn recordings_open_in_the_standard_mcap_reader() {
         );
     }
     assert!(v["topics"]["world"]["seqs"].as_array().unwrap().len() >= 200);
+    // Decoded by the ROS 2 CDR decoder from the schema alone: the same last world.
+    let last: WorldSample = ours.samples(Topic::World).last().unwrap();
+    let theirs = &v["last_world"];
+    assert_eq!(theirs["seq"].as_u64(), Some(last.stamp.seq));
+    assert_eq!(theirs["step"].as_u64(), Some(last.step));
+    assert_eq!(
+        theirs["grasped_block"].as_i64(),
+        Some(last.grasped_block as i64)
+    );
+    for (i, b) in last.blocks().iter().enumerate() {
+        let nums = |key: &str| -> Vec<f64> {
+            theirs["blocks"][i][key]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        };
+        assert_eq!(nums("position"), b.pose.position.to_vec());
+        assert_eq!(nums("rotation"), b.pose.rotation.to_vec());
+        assert_eq!(theirs["blocks"][i]["mode"].as_u64(), Some(b.mode as u64));
+    }
 }

@@ -4,11 +4,15 @@
 //! the source topics back) and the user's own tools (Foxglove, the `mcap` CLI):
 //!
 //! * one **channel per topic**, named as the topic (`glove`, `tracker`, `joints`, `hand`,
-//!   `world`, `frame`), with message encoding [`MESSAGE_ENCODING`]: each message is the sample's
-//!   `#[repr(C)]` bytes exactly as they travelled (little-endian, no padding);
-//! * one **schema per sample type**, named as its iceoryx2 type name (`handblocks::GloveSample`)
-//!   with encoding [`SCHEMA_ENCODING`]: a text listing every field with its type, byte offset
-//!   and size ([`layout`]), so that a reader in any language can decode the bytes;
+//!   `world`, `frame`), with message encoding [`MESSAGE_ENCODING`] (`cdr`, as ROS 2 writes):
+//!   each message is the 4-byte CDR little-endian header followed by the sample's `#[repr(C)]`
+//!   bytes exactly as they travelled. That *is* the sample's CDR serialisation: every field of
+//!   every sample type lies at a multiple of its own size, with no implicit padding, which is
+//!   CDR's alignment rule, and fixed arrays carry no length;
+//! * one **schema per sample type**, a ROS 2 message definition ([`SCHEMA_ENCODING`]
+//!   `ros2msg`, named `handblocks/msg/GloveSample`, ...) listing every field with its byte
+//!   offset and size in a comment ([`layout`]): Foxglove and the ROS 2 tools decode and plot
+//!   every field without knowing handblocks (multi-dimensional arrays appear flattened);
 //! * **log time from the stamps**: `log_time` is the sample's `publish_ns`, `publish_time` its
 //!   `origin_ns`, both moved from CLOCK_MONOTONIC to Unix time by one offset taken when the
 //!   recording starts (kept in the `handblocks` metadata record); the MCAP sequence is the
@@ -28,10 +32,13 @@ use crate::samples::*;
 use crate::stamp::Stamp;
 use crate::topic::Topic;
 
-/// Message encoding of every channel: the sample's `#[repr(C)]` bytes, little-endian.
-pub const MESSAGE_ENCODING: &str = "handblocks.repr_c";
-/// Schema encoding: the text [`layout`] writes (one field per line with offset and size).
-pub const SCHEMA_ENCODING: &str = "handblocks.layout";
+/// Message encoding of every channel: CDR (little-endian), which for our layouts is the 4-byte
+/// [`CDR_LE_HEADER`] and then the sample's `#[repr(C)]` bytes.
+pub const MESSAGE_ENCODING: &str = "cdr";
+/// Schema encoding: ROS 2 message definitions, as [`layout`] writes them.
+pub const SCHEMA_ENCODING: &str = "ros2msg";
+/// The CDR encapsulation header of a little-endian plain CDR payload.
+pub const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
 /// The MCAP profile named in the file header.
 pub const PROFILE: &str = "handblocks";
 /// The topics a recording holds (the latency reports go into the session report instead).
@@ -50,16 +57,16 @@ pub const CHUNK_SPAN_NS: u64 = 500_000_000;
 /// Largest chunk a reader accepts (uncompressed); a bigger one is damage, not a recording.
 pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
 
-/// The sample type name and byte size a topic's messages have.
+/// The schema (message type) name and the sample's byte size of a topic.
 pub fn sample_type(topic: Topic) -> (&'static str, usize) {
     match topic {
-        Topic::Glove => ("handblocks::GloveSample", size_of::<GloveSample>()),
-        Topic::Tracker => ("handblocks::TrackerSample", size_of::<TrackerSample>()),
-        Topic::Joints => ("handblocks::JointsSample", size_of::<JointsSample>()),
-        Topic::Hand => ("handblocks::HandSample", size_of::<HandSample>()),
-        Topic::World => ("handblocks::WorldSample", size_of::<WorldSample>()),
-        Topic::Frame => ("handblocks::FrameSample", size_of::<FrameSample>()),
-        Topic::Latency => ("handblocks::LatencySample", size_of::<LatencySample>()),
+        Topic::Glove => ("handblocks/msg/GloveSample", size_of::<GloveSample>()),
+        Topic::Tracker => ("handblocks/msg/TrackerSample", size_of::<TrackerSample>()),
+        Topic::Joints => ("handblocks/msg/JointsSample", size_of::<JointsSample>()),
+        Topic::Hand => ("handblocks/msg/HandSample", size_of::<HandSample>()),
+        Topic::World => ("handblocks/msg/WorldSample", size_of::<WorldSample>()),
+        Topic::Frame => ("handblocks/msg/FrameSample", size_of::<FrameSample>()),
+        Topic::Latency => ("handblocks/msg/LatencySample", size_of::<LatencySample>()),
     }
 }
 
@@ -67,7 +74,8 @@ pub fn sample_type(topic: Topic) -> (&'static str, usize) {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Field {
     pub name: &'static str,
-    /// Element type and array dimensions, e.g. `float64[5][5][3]`, or a nested struct's name.
+    /// The ROS 2 field type: `float64[75]`, or a nested message such as `handblocks/Pose`.
+    /// Multi-dimensional arrays are flattened (row-major, as in memory).
     pub ty: &'static str,
     pub offset: usize,
     pub size: usize,
@@ -80,7 +88,7 @@ fn field_size<T, F>(_: fn(&T) -> &F) -> usize {
 macro_rules! fields {
     ($t:ty { $($f:ident : $ty:literal),* $(,)? }) => {
         vec![$(Field {
-            name: stringify!($f),
+            name: stringify!($f).trim_start_matches('_'),
             ty: $ty,
             offset: offset_of!($t, $f),
             size: field_size::<$t, _>(|s| &s.$f),
@@ -91,71 +99,64 @@ macro_rules! fields {
 /// The fields of a struct the samples are built from, in memory order.
 pub fn fields(struct_name: &str) -> Option<Vec<Field>> {
     Some(match struct_name {
-        "Stamp" => fields!(Stamp {
+        "handblocks/Stamp" => fields!(Stamp {
             seq: "uint64",
             source_time_ns: "uint64",
             origin_ns: "uint64",
             publish_ns: "uint64",
         }),
-        "Pose" => fields!(Pose {
+        "handblocks/Pose" => fields!(Pose {
             position: "float64[3]",
             rotation: "float64[4]",
         }),
-        "BlockState" => fields!(BlockState {
-            pose: "Pose",
+        "handblocks/BlockState" => fields!(BlockState {
+            pose: "handblocks/Pose",
             mode: "uint32",
             _reserved: "uint32",
         }),
-        "TopicCounter" => fields!(TopicCounter {
-            topic: "uint32",
-            role: "uint32",
-            count: "uint64",
-            gaps: "uint64",
-            last_seq: "uint64",
-        }),
-        "handblocks::GloveSample" => fields!(GloveSample {
-            stamp: "Stamp",
+        "handblocks/msg/GloveSample" => fields!(GloveSample {
+            stamp: "handblocks/Stamp",
             sensor_count: "uint32",
             _reserved: "uint32",
             angles: "float64[22]",
         }),
-        "handblocks::TrackerSample" => fields!(TrackerSample {
-            stamp: "Stamp",
+        "handblocks/msg/TrackerSample" => fields!(TrackerSample {
+            stamp: "handblocks/Stamp",
             station: "uint32",
             _reserved: "uint32",
-            wrist: "Pose",
+            wrist: "handblocks/Pose",
         }),
-        "handblocks::JointsSample" => fields!(JointsSample {
-            stamp: "Stamp",
+        "handblocks/msg/JointsSample" => fields!(JointsSample {
+            stamp: "handblocks/Stamp",
             tracked: "uint32",
             _reserved: "uint32",
-            wrist: "Pose",
-            joints: "Pose[26]",
+            wrist: "handblocks/Pose",
+            joints: "handblocks/Pose[26]",
         }),
-        "handblocks::HandSample" => fields!(HandSample {
-            stamp: "Stamp",
-            wrist: "Pose",
+        "handblocks/msg/HandSample" => fields!(HandSample {
+            stamp: "handblocks/Stamp",
+            wrist: "handblocks/Pose",
             tracked: "uint32",
             finger_count: "uint32",
             finger_point_count: "uint32[5]",
             palm_vertex_count: "uint32",
-            finger_points: "float64[5][5][3]",
+            finger_points: "float64[75]",
             finger_radius: "float64[5]",
-            palm_vertices: "float64[16][3]",
+            palm_vertices: "float64[48]",
         }),
-        "handblocks::WorldSample" => fields!(WorldSample {
-            stamp: "Stamp",
+        "handblocks/msg/WorldSample" => fields!(WorldSample {
+            stamp: "handblocks/Stamp",
             step: "uint64",
             hand_seq: "uint64",
             block_count: "uint32",
             grasped_block: "int32",
-            blocks: "BlockState[128]",
+            blocks: "handblocks/BlockState[128]",
             finger_count: "uint32",
             finger_point_count: "uint32[5]",
-            finger_points: "float64[5][5][3]",
+            finger_points: "float64[75]",
         }),
-        "handblocks::FrameSample" => fields!(FrameSample {
-            stamp: "Stamp",
+        "handblocks/msg/FrameSample" => fields!(FrameSample {
+            stamp: "handblocks/Stamp",
             world_seq: "uint64",
             render_ns: "uint64",
             origin_to_photon_ns: "uint64",
@@ -165,40 +166,47 @@ pub fn fields(struct_name: &str) -> Option<Vec<Field>> {
     })
 }
 
-/// The schema text of a topic's sample type: the type, then every struct it uses, one field per
-/// line as `TYPE NAME  # @OFFSET, SIZE bytes`. Little-endian, `#[repr(C)]`, no padding.
+/// The schema of a topic: a ROS 2 message definition of its sample type, then (after the
+/// `====` separators of the format) each nested message it uses. Each field's comment gives its
+/// byte offset and size within the sample, so the bytes can be read without a CDR library too.
 pub fn layout(topic: Topic) -> String {
     let (name, size) = sample_type(topic);
     let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "# handblocks sample layout: little-endian, C layout without padding; geometry in metres \
-         (world frame, y up), rotations as unit quaternions [x, y, z, w], times in nanoseconds."
-    );
-    let mut structs = vec![(name, size)];
-    let mut done = Vec::new();
-    while let Some((name, size)) = structs.pop() {
+    let mut pending = vec![(name, size)];
+    let mut done: Vec<&str> = Vec::new();
+    while let Some((name, size)) = pending.pop() {
         if done.contains(&name) {
             continue;
         }
-        done.push(name);
         let Some(fs) = fields(name) else { continue };
-        let _ = writeln!(out, "struct {name}  # {size} bytes");
+        if done.is_empty() {
+            let _ = writeln!(
+                out,
+                "# {name}: {size} bytes after the 4-byte CDR header (little-endian; each field at a \
+                 multiple of its size, so the CDR bytes are the C layout). Metres, world frame, y \
+                 up; rotations as unit quaternions [x, y, z, w]; times in nanoseconds."
+            );
+        } else {
+            let _ = writeln!(out, "{}", "=".repeat(80));
+            let _ = writeln!(out, "MSG: {name}");
+            let _ = writeln!(out, "# {size} bytes");
+        }
+        done.push(name);
         for f in &fs {
             let _ = writeln!(
                 out,
-                "  {:<20} {:<20} # @{}, {} bytes",
+                "{} {}  # @{}, {} bytes",
                 f.ty, f.name, f.offset, f.size
             );
             let base = f.ty.split('[').next().unwrap_or(f.ty);
             let nested = match base {
-                "Stamp" => Some(size_of::<Stamp>()),
-                "Pose" => Some(size_of::<Pose>()),
-                "BlockState" => Some(size_of::<BlockState>()),
+                "handblocks/Stamp" => Some(size_of::<Stamp>()),
+                "handblocks/Pose" => Some(size_of::<Pose>()),
+                "handblocks/BlockState" => Some(size_of::<BlockState>()),
                 _ => None,
             };
             if let Some(s) = nested {
-                structs.push((base, s));
+                pending.insert(0, (base, s));
             }
         }
     }
@@ -272,6 +280,8 @@ pub struct RecordingWriter {
     chunk_bytes: usize,
     chunk_first_publish_ns: Option<u64>,
     messages: u64,
+    /// The CDR header and the sample's bytes, contiguous (sized for the largest sample once).
+    message: Vec<u8>,
 }
 
 impl RecordingWriter {
@@ -333,6 +343,14 @@ impl RecordingWriter {
             chunk_bytes: 0,
             chunk_first_publish_ns: None,
             messages: 0,
+            message: Vec::with_capacity(
+                CDR_LE_HEADER.len()
+                    + RECORDED_TOPICS
+                        .iter()
+                        .map(|t| sample_type(*t).1)
+                        .max()
+                        .unwrap_or(0),
+            ),
         })
     }
 
@@ -362,8 +380,11 @@ impl RecordingWriter {
             log_time: stamp.publish_ns + self.unix_offset_ns,
             publish_time: stamp.origin_ns + self.unix_offset_ns,
         };
+        self.message.clear();
+        self.message.extend_from_slice(&CDR_LE_HEADER);
+        self.message.extend_from_slice(bytes);
         self.mcap
-            .write_to_known_channel(&header, bytes)
+            .write_to_known_channel(&header, &self.message)
             .map_err(|e| self.write_error(e))?;
         self.messages += 1;
         self.chunk_bytes += bytes.len();
@@ -688,17 +709,27 @@ impl Reader {
                     return Ok(());
                 };
                 let (type_name, size) = sample_type(topic);
-                if data.len() != size {
+                if data.len() != CDR_LE_HEADER.len() + size {
                     return Err(format!(
-                        "a {} message (seq {}) has {} bytes; {type_name} has {size} (a recording \
-                         from another version of handblocks?)",
+                        "a {} message (seq {}) has {} bytes; {type_name} has {} with its CDR \
+                         header (a recording from another version of handblocks?)",
                         topic.name(),
                         header.sequence,
-                        data.len()
+                        data.len(),
+                        CDR_LE_HEADER.len() + size
                     ));
                 }
+                if data[..CDR_LE_HEADER.len()] != CDR_LE_HEADER {
+                    return Err(format!(
+                        "a {} message (seq {}) is not little-endian plain CDR (header {:02x?})",
+                        topic.name(),
+                        header.sequence,
+                        &data[..CDR_LE_HEADER.len()]
+                    ));
+                }
+                let data = &data[CDR_LE_HEADER.len()..];
                 let start = rec.data.len();
-                rec.data.extend_from_slice(&data);
+                rec.data.extend_from_slice(data);
                 let mut publish = [0u8; 8];
                 publish.copy_from_slice(&data[24..32]);
                 rec.messages.push(RecordedMessage {
@@ -723,9 +754,9 @@ mod tests {
     #[test]
     fn layouts_cover_every_byte() {
         for (name, size) in [
-            ("Stamp", size_of::<Stamp>()),
-            ("Pose", size_of::<Pose>()),
-            ("BlockState", size_of::<BlockState>()),
+            ("handblocks/Stamp", size_of::<Stamp>()),
+            ("handblocks/Pose", size_of::<Pose>()),
+            ("handblocks/BlockState", size_of::<BlockState>()),
         ]
         .into_iter()
         .chain(RECORDED_TOPICS.into_iter().map(sample_type))
@@ -738,15 +769,30 @@ mod tests {
                     "{name}.{} starts where the last ended",
                     f.name
                 );
+                // CDR aligns each primitive to its own size: so does our layout.
+                let element = match f.ty.split('[').next().unwrap() {
+                    "uint64"
+                    | "float64"
+                    | "handblocks/Stamp"
+                    | "handblocks/Pose"
+                    | "handblocks/BlockState" => 8,
+                    "uint32" | "int32" => 4,
+                    other => panic!("{name}.{}: unexpected type {other}", f.name),
+                };
+                assert_eq!(f.offset % element, 0, "{name}.{} is CDR-aligned", f.name);
                 at += f.size;
             }
             assert_eq!(at, size, "{name}: the fields cover all {size} bytes");
         }
         let text = layout(Topic::World);
-        assert!(text.contains("struct handblocks::WorldSample"));
-        assert!(text.contains("struct BlockState"));
-        assert!(text.contains("struct Pose"));
-        assert!(text.contains("struct Stamp"));
+        assert!(
+            text.contains("handblocks/BlockState[128] blocks  # @56, 8192 bytes"),
+            "{text}"
+        );
+        assert!(text.contains("MSG: handblocks/BlockState"));
+        assert!(text.contains("MSG: handblocks/Pose"));
+        assert!(text.contains("MSG: handblocks/Stamp"));
+        assert!(text.contains("uint32 reserved"));
     }
 
     fn scratch(name: &str) -> PathBuf {
