@@ -303,7 +303,7 @@ fn the_latency_benchmark_reports_ratios_to_its_peer() {
         serde_json::from_str(&std::fs::read_to_string(dir.path("bench/latency.json")).unwrap())
             .unwrap();
     assert!(v["peer_hop_us"]["count"].as_u64().unwrap() >= 100);
-    for stage in ["kinematics", "stepper", "recorder"] {
+    for stage in ["kinematics", "stepper", "renderer"] {
         let r = v["stages"][stage]["hop_p99_over_peer_p99"]
             .as_f64()
             .unwrap();

@@ -80,7 +80,11 @@ fn readers(session: &Session) -> Vec<Stage> {
     if session.renderer.mode != RenderMode::Off {
         v.push(Stage::Renderer);
     }
-    v.push(Stage::Recorder);
+    // Only when recording: a reader of every topic costs a wake-up per sample on cores the
+    // pipeline needs, and a session pays only for what it asks for.
+    if session.recorder.file.is_some() {
+        v.push(Stage::Recorder);
+    }
     v
 }
 
