@@ -465,15 +465,29 @@ impl Recording {
     /// (a cut-off chunk, a bad record, a message whose size does not fit its topic) ends reading
     /// there and is kept in `damage`, with every complete chunk before it read.
     pub fn open(path: &Path) -> Result<Recording, RecordingError> {
+        Recording::open_topics(path, &RECORDED_TOPICS)
+    }
+
+    /// Like [`Recording::open`], keeping only the messages of `topics` (every message is still
+    /// checked): a replay needs the source topics, not the world states that dwarf them.
+    pub fn open_topics(path: &Path, topics: &[Topic]) -> Result<Recording, RecordingError> {
         let bytes = std::fs::read(path).map_err(|error| RecordingError::Io {
             path: path.to_path_buf(),
             error,
         })?;
-        Recording::parse(path, &bytes)
+        Recording::parse_topics(path, &bytes, topics)
     }
 
     /// Reads a recording from bytes already in memory; `path` names it in errors.
     pub fn parse(path: &Path, bytes: &[u8]) -> Result<Recording, RecordingError> {
+        Recording::parse_topics(path, bytes, &RECORDED_TOPICS)
+    }
+
+    fn parse_topics(
+        path: &Path,
+        bytes: &[u8],
+        topics: &[Topic],
+    ) -> Result<Recording, RecordingError> {
         if !Recording::is_mcap(bytes) {
             return Err(RecordingError::NotMcap {
                 path: path.to_path_buf(),
@@ -490,6 +504,7 @@ impl Recording {
         let mut reader = Reader {
             channels: Vec::new(),
             schemas: Vec::new(),
+            kept: topics,
         };
         let mut at = mcap::MAGIC.len();
         let damage = |offset: usize, what: String| RecordingError::Damaged {
@@ -619,14 +634,16 @@ enum Flow {
 }
 
 /// Channels and schemas seen so far while reading.
-struct Reader {
+struct Reader<'t> {
     /// (channel id, our topic if it is one of ours with the right schema)
     channels: Vec<(u16, Option<Topic>)>,
     /// (schema id, schema name)
     schemas: Vec<(u16, String)>,
+    /// The topics whose messages are kept.
+    kept: &'t [Topic],
 }
 
-impl Reader {
+impl Reader<'_> {
     fn record(
         &mut self,
         opcode: u8,
@@ -726,6 +743,9 @@ impl Reader {
                         header.sequence,
                         &data[..CDR_LE_HEADER.len()]
                     ));
+                }
+                if !self.kept.contains(&topic) {
+                    return Ok(());
                 }
                 let data = &data[CDR_LE_HEADER.len()..];
                 let start = rec.data.len();
@@ -842,6 +862,10 @@ mod tests {
         let chunks: std::collections::BTreeSet<u64> =
             rec.messages.iter().map(|m| m.record_offset).collect();
         assert!(chunks.len() >= 4, "{} chunks", chunks.len());
+        // Only the topics asked for are kept.
+        let worlds = Recording::open_topics(&path, &[Topic::World]).unwrap();
+        assert_eq!(worlds.messages.len(), 1);
+        assert_eq!(worlds.samples::<WorldSample>(Topic::World).count(), 1);
         let _ = std::fs::remove_file(&path);
     }
 

@@ -45,7 +45,9 @@ fn drain<T: Stamped>(
 /// Runs until asked to stop, then drains every input.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
     let mut log = match &session.recorder.file {
-        Some(path) => Some(RecordingWriter::create(path).map_err(|e| format!("recorder: {e}"))?),
+        Some(path) => {
+            Some(RecordingWriter::create(path).map_err(|e| format!("cannot record: {e}"))?)
+        }
         None => None,
     };
     let glove = bus.inlet::<GloveSample>(Topic::Glove)?;

@@ -85,7 +85,8 @@ impl HandTrace {
             head[..n].to_vec()
         };
         let trace = if Recording::is_mcap(&head) {
-            let rec = Recording::open(file).map_err(|e| e.to_string())?;
+            let rec = Recording::open_topics(file, &[Topic::Glove, Topic::Tracker, Topic::Joints])
+                .map_err(|e| e.to_string())?;
             HandTrace::from_recording(&rec, offset)
         } else {
             let carl = CarlTrace::load(file).map_err(|e| {
