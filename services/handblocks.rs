@@ -534,7 +534,8 @@ fn simulate_trace(
 
 fn inspect(path: &std::path::Path, json: bool) -> ExitCode {
     use common::recording::{sample_type, Recording, RECORDED_TOPICS};
-    let rec = match Recording::open(path) {
+    // Counts and gaps come from every message; no sample needs to stay in memory.
+    let rec = match Recording::open_topics(path, &[]) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("handblocks inspect: {e}");
@@ -581,7 +582,7 @@ fn inspect(path: &std::path::Path, json: bool) -> ExitCode {
         println!(
             "{}: {} messages, {}",
             path.display(),
-            rec.messages.len(),
+            stats.iter().map(|s| s.messages).sum::<u64>(),
             if rec.complete {
                 "complete"
             } else {

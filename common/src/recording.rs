@@ -452,6 +452,8 @@ pub struct Recording {
     pub damage: Option<RecordingError>,
     /// True when the file ended with its summary and footer (it was closed properly).
     pub complete: bool,
+    /// Per topic (indexed by `Topic as usize`), over every message read, kept or not.
+    stats: [TopicStats; Topic::ALL.len()],
     data: Vec<u8>,
 }
 
@@ -499,12 +501,14 @@ impl Recording {
             foreign_messages: 0,
             damage: None,
             complete: false,
+            stats: [TopicStats::default(); Topic::ALL.len()],
             data: Vec::new(),
         };
         let mut reader = Reader {
             channels: Vec::new(),
             schemas: Vec::new(),
             kept: topics,
+            last_seq: [None; Topic::ALL.len()],
         };
         let mut at = mcap::MAGIC.len();
         let damage = |offset: usize, what: String| RecordingError::Damaged {
@@ -550,6 +554,7 @@ impl Recording {
             let body = &bytes[at + 9..at + 9 + len as usize];
             let kept = rec.messages.len();
             let kept_data = rec.data.len();
+            let (kept_stats, kept_seqs) = (rec.stats, reader.last_seq);
             match reader.record(opcode, body, at as u64, &mut rec) {
                 Ok(Flow::Go) => {}
                 Ok(Flow::DataEnd) => {
@@ -568,6 +573,8 @@ impl Recording {
                     // A damaged chunk counts as a whole: drop what it had added.
                     rec.messages.truncate(kept);
                     rec.data.truncate(kept_data);
+                    rec.stats = kept_stats;
+                    reader.last_seq = kept_seqs;
                     rec.damage = Some(damage(at, what));
                     break;
                 }
@@ -597,34 +604,10 @@ impl Recording {
             .filter_map(|m| self.sample::<T>(m))
     }
 
-    /// Messages, gaps in seq and time span per topic (indexed by `Topic as usize`).
+    /// Messages, gaps in seq and time span per topic (indexed by `Topic as usize`), over
+    /// every message read, whether its topic was kept or not.
     pub fn stats(&self) -> [TopicStats; Topic::ALL.len()] {
-        let mut stats = [TopicStats::default(); Topic::ALL.len()];
-        let mut last_seq: [Option<u64>; Topic::ALL.len()] = [None; Topic::ALL.len()];
-        for m in &self.messages {
-            let Some(stamp) = self
-                .data
-                .get(m.start..m.start + size_of::<Stamp>())
-                .map(|b| {
-                    // SAFETY: every sample starts with its Stamp (four u64), and the slice has
-                    // exactly its size.
-                    unsafe { std::ptr::read_unaligned(b.as_ptr() as *const Stamp) }
-                })
-            else {
-                continue;
-            };
-            let s = &mut stats[m.topic as usize];
-            if s.messages == 0 {
-                s.first_publish_ns = m.publish_ns;
-            }
-            s.messages += 1;
-            s.last_publish_ns = m.publish_ns;
-            if let Some(prev) = last_seq[m.topic as usize] {
-                s.gaps += stamp.seq.saturating_sub(prev + 1);
-            }
-            last_seq[m.topic as usize] = Some(stamp.seq);
-        }
-        stats
+        self.stats
     }
 }
 
@@ -641,6 +624,8 @@ struct Reader<'t> {
     schemas: Vec<(u16, String)>,
     /// The topics whose messages are kept.
     kept: &'t [Topic],
+    /// The last seq read per topic, for the gaps.
+    last_seq: [Option<u64>; Topic::ALL.len()],
 }
 
 impl Reader<'_> {
@@ -744,17 +729,27 @@ impl Reader<'_> {
                         &data[..CDR_LE_HEADER.len()]
                     ));
                 }
+                let data = &data[CDR_LE_HEADER.len()..];
+                // SAFETY: every sample starts with its Stamp (four u64) and `data` is longer.
+                let stamp = unsafe { std::ptr::read_unaligned(data.as_ptr() as *const Stamp) };
+                let s = &mut rec.stats[topic as usize];
+                if s.messages == 0 {
+                    s.first_publish_ns = stamp.publish_ns;
+                }
+                s.messages += 1;
+                s.last_publish_ns = stamp.publish_ns;
+                if let Some(prev) = self.last_seq[topic as usize] {
+                    s.gaps += stamp.seq.saturating_sub(prev + 1);
+                }
+                self.last_seq[topic as usize] = Some(stamp.seq);
                 if !self.kept.contains(&topic) {
                     return Ok(());
                 }
-                let data = &data[CDR_LE_HEADER.len()..];
                 let start = rec.data.len();
                 rec.data.extend_from_slice(data);
-                let mut publish = [0u8; 8];
-                publish.copy_from_slice(&data[24..32]);
                 rec.messages.push(RecordedMessage {
                     topic,
-                    publish_ns: u64::from_le_bytes(publish),
+                    publish_ns: stamp.publish_ns,
                     record_offset: offset,
                     start,
                     len: size,
@@ -865,6 +860,11 @@ mod tests {
         // Only the topics asked for are kept.
         let worlds = Recording::open_topics(&path, &[Topic::World]).unwrap();
         assert_eq!(worlds.messages.len(), 1);
+        assert_eq!(
+            worlds.stats(),
+            stats,
+            "stats count every message, kept or not"
+        );
         assert_eq!(worlds.samples::<WorldSample>(Topic::World).count(), 1);
         let _ = std::fs::remove_file(&path);
     }
