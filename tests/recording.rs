@@ -9,7 +9,7 @@ use common::{GloveSample, HandSample, Stamp, Topic, TrackerSample, WorldSample};
 use serde_json::Value;
 
 mod support;
-use support::{assert_same_poses, both, find_service, launch_session, repo, Scratch, EXE};
+use support::{assert_same_poses, both, launch_and_kill, launch_session, repo, Scratch, EXE};
 
 /// A session file over the grasp-throw scene (a grasp, a throw, a landing) with `rest` after.
 fn session(dir: &Scratch, name: &str, rest: &str) -> PathBuf {
@@ -209,23 +209,8 @@ fn a_recorder_killed_mid_session_leaves_a_file_readable_to_its_last_chunk() {
         &format!("[renderer]\nmode = \"off\"\n{}", recorder(&file)),
     );
     let id = format!("rc{}", std::process::id());
-    let child = Command::new(EXE)
-        .current_dir(repo())
-        .args(["launch", "--quiet", "--duration", "30", "--bus-id", &id])
-        .arg(&s)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let pid = find_service("recorder", &id).expect("the recorder never started");
     // Chunks close every 0.5 s of samples: let a few close after the source starts.
-    std::thread::sleep(std::time::Duration::from_millis(2500));
-    assert!(Command::new("kill")
-        .args(["-KILL", &pid.to_string()])
-        .status()
-        .unwrap()
-        .success());
-    let out = child.wait_with_output().unwrap();
+    let (out, _) = launch_and_kill(&s, &id, "recorder", std::time::Duration::from_millis(2500));
     assert_eq!(out.status.code(), Some(1), "{}", both(&out));
     support::assert_nothing_left(&id);
 

@@ -97,18 +97,23 @@ fn a_replay_is_the_same_world_at_any_speed_and_in_one_process() {
     assert_same_poses(&v, &timed);
 }
 
+/// `simulate --hand TRACE config/scenes/drop.toml`.
+fn simulate_drop_with(trace: &std::path::Path) -> std::process::Output {
+    Command::new(EXE)
+        .args(["simulate", "--hand"])
+        .arg(trace)
+        .arg(repo().join("config/scenes/drop.toml"))
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
     let dir = Scratch::new("replay-bad");
     let bytes = std::fs::read(carl("example_lift_0.carl")).unwrap();
     let cut = dir.path("cut.carl");
     std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
-    let out = Command::new(EXE)
-        .args(["simulate", "--hand"])
-        .arg(&cut)
-        .arg(repo().join("config/scenes/drop.toml"))
-        .output()
-        .unwrap();
+    let out = simulate_drop_with(&cut);
     assert!(out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -119,12 +124,7 @@ fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
     // MCAP's magic and then garbage: read as a recording, damaged right after the magic.
     let wrong = dir.path("wrong.carl");
     std::fs::write(&wrong, b"\x89MCAP0\r\n not a trace").unwrap();
-    let out = Command::new(EXE)
-        .args(["simulate", "--hand"])
-        .arg(&wrong)
-        .arg(repo().join("config/scenes/drop.toml"))
-        .output()
-        .unwrap();
+    let out = simulate_drop_with(&wrong);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -135,12 +135,7 @@ fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
     // Neither kind.
     let junk = dir.path("junk.carl");
     std::fs::write(&junk, b"JUNKJUNKJUNK").unwrap();
-    let out = Command::new(EXE)
-        .args(["simulate", "--hand"])
-        .arg(&junk)
-        .arg(repo().join("config/scenes/drop.toml"))
-        .output()
-        .unwrap();
+    let out = simulate_drop_with(&junk);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

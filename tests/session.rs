@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use std::time::Duration;
 
 use common::recording::Recording;
 use common::{HandSample, Topic, TrackerSample, WorldSample};
@@ -11,7 +12,8 @@ use serde_json::Value;
 
 mod support;
 use support::{
-    assert_nothing_left, assert_same_poses, find_service, find_service_now, repo, Scratch, EXE,
+    assert_nothing_left, assert_same_poses, find_service_now, launch_and_kill, launch_session,
+    repo, Scratch, EXE,
 };
 
 /// A session over the repository's grasp-throw scene with the given extra tables.
@@ -24,21 +26,7 @@ fn session(dir: &Scratch, name: &str, rest: &str) -> PathBuf {
 }
 
 fn launch(session: &Path, bus_id: &str, seconds: f64, report: &Path) -> Output {
-    Command::new(EXE)
-        .current_dir(repo())
-        .args([
-            "launch",
-            "--quiet",
-            "--duration",
-            &seconds.to_string(),
-            "--bus-id",
-            bus_id,
-            "--report",
-        ])
-        .arg(report)
-        .arg(session)
-        .output()
-        .expect("run handblocks")
+    launch_session(session, bus_id, seconds, Some(report))
 }
 
 fn unique_id(tag: &str) -> String {
@@ -246,23 +234,7 @@ fn a_crashed_stage_fails_the_session_and_leaves_nothing_behind() {
     let dir = Scratch::new("crash");
     let s = session(&dir, "crash.toml", "[renderer]\nmode = \"off\"\n");
     let id = unique_id("crash");
-    let started = std::time::Instant::now();
-    let child = Command::new(EXE)
-        .current_dir(repo())
-        .args(["launch", "--quiet", "--duration", "30", "--bus-id", &id])
-        .arg(&s)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let pid = find_service("stepper", &id).expect("the stepper process never started");
-    std::thread::sleep(std::time::Duration::from_millis(500));
-    assert!(Command::new("kill")
-        .args(["-KILL", &pid.to_string()])
-        .status()
-        .unwrap()
-        .success());
-    let out = child.wait_with_output().unwrap();
+    let (out, took) = launch_and_kill(&s, &id, "stepper", Duration::from_millis(500));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert_eq!(
         out.status.code(),
@@ -275,7 +247,7 @@ fn a_crashed_stage_fails_the_session_and_leaves_nothing_behind() {
         "{stdout}"
     );
     assert!(
-        started.elapsed() < std::time::Duration::from_secs(20),
+        took < Duration::from_secs(20),
         "the launcher did not notice the crash promptly"
     );
     assert!(

@@ -130,3 +130,32 @@ pub fn both(out: &std::process::Output) -> String {
         String::from_utf8_lossy(&out.stderr)
     )
 }
+
+/// Launches `session` for up to 30 s, SIGKILLs its `service` process `after` it started, and
+/// returns what the launcher printed and how long the launch took in all.
+pub fn launch_and_kill(
+    session: &std::path::Path,
+    bus_id: &str,
+    service: &str,
+    after: std::time::Duration,
+) -> (std::process::Output, std::time::Duration) {
+    let started = std::time::Instant::now();
+    let child = std::process::Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--duration", "30", "--bus-id", bus_id])
+        .arg(session)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run handblocks");
+    let pid = find_service(service, bus_id)
+        .unwrap_or_else(|| panic!("the {service} process never started"));
+    std::thread::sleep(after);
+    assert!(std::process::Command::new("kill")
+        .args(["-KILL", &pid.to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let out = child.wait_with_output().unwrap();
+    (out, started.elapsed())
+}
