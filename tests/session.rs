@@ -12,8 +12,8 @@ use serde_json::Value;
 
 mod support;
 use support::{
-    assert_nothing_left, assert_same_poses, find_service_now, launch_and_kill, launch_session,
-    repo, Scratch, EXE,
+    assert_nothing_left, assert_same_poses, find_service, find_service_now, launch_and_kill,
+    launch_session, repo, Scratch, EXE,
 };
 
 /// A session over the repository's grasp-throw scene with the given extra tables.
@@ -334,5 +334,58 @@ fn a_live_scripted_session_computes_exactly_what_simulate_computes() {
     for (i, block) in v["blocks"].as_array().unwrap().iter().enumerate() {
         let live = last.blocks()[i];
         assert_eq!(block["mode"].as_str().unwrap(), live.mode().name());
+    }
+}
+
+/// `Cpus_allowed_list` of a running process.
+fn allowed_cpus(pid: u32) -> String {
+    std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .unwrap_or_default()
+        .lines()
+        .find_map(|l| l.strip_prefix("Cpus_allowed_list:"))
+        .unwrap_or("")
+        .trim()
+        .to_string()
+}
+
+#[test]
+fn the_renderer_gets_cpus_of_its_own_unless_told_to_share() {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    for own in [true, false] {
+        let dir = Scratch::new(&format!("cpus-{own}"));
+        let s = session(
+            &dir,
+            "cpus.toml",
+            &format!(
+                "[renderer]\nmode = \"headless\"\nwidth = 64\nheight = 48\nown_cpus = {own}\n"
+            ),
+        );
+        let id = unique_id(&format!("cpu{own}"));
+        let child = Command::new(EXE)
+            .current_dir(repo())
+            .args(["launch", "--quiet", "--duration", "3", "--bus-id", &id])
+            .arg(&s)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let stepper = find_service("stepper", &id).expect("the stepper never started");
+        let renderer = find_service("renderer", &id).expect("the renderer never started");
+        let (at_stepper, at_renderer) = (allowed_cpus(stepper), allowed_cpus(renderer));
+        let out = child.wait_with_output().unwrap();
+        assert_nothing_left(&id);
+        assert!(
+            out.status.code().is_some_and(|c| c <= 1),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        if own && cpus >= 2 {
+            assert_ne!(
+                at_stepper, at_renderer,
+                "the renderer shares the stepper's CPUs"
+            );
+        } else {
+            assert_eq!(at_stepper, at_renderer);
+        }
     }
 }

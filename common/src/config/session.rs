@@ -82,6 +82,10 @@ pub struct RendererSettings {
     pub shadows: bool,
     /// With `launch --frames-dir`, write every Nth frame.
     pub frames_every: u32,
+    /// Run the renderer (and the recorder) on CPUs of their own, apart from the pipeline's,
+    /// when the machine has at least two. A software rasteriser otherwise delays the stepper's
+    /// wake-ups by milliseconds however low its priority.
+    pub own_cpus: bool,
 }
 
 impl Default for RendererSettings {
@@ -98,6 +102,7 @@ impl Default for RendererSettings {
             target: [0.0, 0.05, 0.0],
             shadows: true,
             frames_every: 1,
+            own_cpus: true,
         }
     }
 }
@@ -244,6 +249,7 @@ fn renderer(r: Option<Reader>) -> Result<RendererSettings, ConfigError> {
         target: r.array::<3>("target", place)?.unwrap_or(d.target),
         shadows: r.bool("shadows", d.shadows)?,
         frames_every: r.u64_in("frames_every", 1, 1..=1_000_000)? as u32,
+        own_cpus: r.bool("own_cpus", d.own_cpus)?,
     };
     if s.eye == s.target {
         return Err(r.err(

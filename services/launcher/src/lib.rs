@@ -12,6 +12,7 @@
 //!    and is released and reaped once the launcher has read that report;
 //! 7. remove the session's iceoryx2 resources, print the table, write the JSON report.
 
+pub mod placement;
 mod process;
 pub mod report;
 
@@ -24,6 +25,8 @@ use common::config::session::RenderMode;
 use common::config::Session;
 use common::latency::Metric;
 use common::{shutdown, LatencySample, Stage, Topic};
+
+use crate::placement::Placement;
 
 use process::ServiceProcess;
 use report::{Report, StageReport};
@@ -158,13 +161,30 @@ fn run_session(
         Some(file) if opts.record.is_some() => vec!["--record".into(), file.into()],
         _ => Vec::new(),
     };
+    let placement = Placement::for_session(
+        session.renderer.mode != RenderMode::Off,
+        session.renderer.own_cpus,
+    );
+    if opts.progress {
+        if let Some(line) = placement.describe() {
+            eprintln!("handblocks: {line}");
+        }
+    }
     let start = |stage| {
         let extra: &[std::ffi::OsString] = match stage {
             Stage::Renderer => &renderer_args,
             Stage::Recorder => &recorder_args,
             _ => &[],
         };
-        ServiceProcess::start(&opts.exe, stage, &session_file, &bus_config.id, extra).map_err(|e| {
+        ServiceProcess::start(
+            &opts.exe,
+            stage,
+            &session_file,
+            &bus_config.id,
+            extra,
+            placement.cpus_of(stage),
+        )
+        .map_err(|e| {
             err(format!(
                 "cannot start the {} process ({}): {e}",
                 stage.name(),

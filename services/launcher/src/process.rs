@@ -27,8 +27,21 @@ impl ServiceProcess {
         session: &Path,
         bus_id: &str,
         extra: &[std::ffi::OsString],
+        cpus: Option<libc::cpu_set_t>,
     ) -> std::io::Result<ServiceProcess> {
-        let mut child = Command::new(exe)
+        let mut command = Command::new(exe);
+        if let Some(set) = cpus {
+            // SAFETY: runs in the child between fork and exec; sched_setaffinity is one system
+            // call on a set already built (no allocation, async-signal-safe). Every thread the
+            // service starts inherits it. Failure leaves the child where it may already run.
+            unsafe {
+                command.pre_exec(move || {
+                    libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
+                    Ok(())
+                });
+            }
+        }
+        let mut child = command
             .arg("service")
             .arg(stage.name())
             .arg("--session")
