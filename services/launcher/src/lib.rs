@@ -170,6 +170,17 @@ fn run_session(
             eprintln!("handblocks: {line}");
         }
     }
+    // Without a desktop session, the Vulkan loader's Wayland support prints "XDG_RUNTIME_DIR is
+    // invalid" on every launch of a headless renderer. The session's own root (private, removed
+    // at the end, no Wayland socket in it) quiets it without touching the user's environment.
+    let renderer_env: Vec<(&str, &std::ffi::OsStr)> = if session.renderer.mode
+        == RenderMode::Headless
+        && std::env::var_os("XDG_RUNTIME_DIR").is_none()
+    {
+        vec![("XDG_RUNTIME_DIR", bus_config.root.as_os_str())]
+    } else {
+        Vec::new()
+    };
     let start = |stage| {
         let extra: &[std::ffi::OsString] = match stage {
             Stage::Renderer => &renderer_args,
@@ -183,6 +194,11 @@ fn run_session(
             &bus_config.id,
             extra,
             placement.cpus_of(stage),
+            if stage == Stage::Renderer {
+                &renderer_env
+            } else {
+                &[]
+            },
         )
         .map_err(|e| {
             err(format!(

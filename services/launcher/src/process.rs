@@ -28,8 +28,10 @@ impl ServiceProcess {
         bus_id: &str,
         extra: &[std::ffi::OsString],
         cpus: Option<libc::cpu_set_t>,
+        env: &[(&str, &std::ffi::OsStr)],
     ) -> std::io::Result<ServiceProcess> {
         let mut command = Command::new(exe);
+        command.envs(env.iter().copied());
         if let Some(set) = cpus {
             // SAFETY: runs in the child between fork and exec; sched_setaffinity is one system
             // call on a set already built (no allocation, async-signal-safe). Every thread the
