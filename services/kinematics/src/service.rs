@@ -34,22 +34,20 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         if !stopping {
             wait_any(&[&tracker_in, &joints_in], IDLE_WAIT)?;
         }
-        // A glove is sent before the tracker of the same instant: read the gloves again after
-        // each tracker arrives, so that one published just before it is never missed.
         loop {
-            while let Some(s) = glove_in.receive()? {
-                reporter.recorder.hop(&s.stamp, monotonic_ns());
-                gloves.push(s.payload());
-            }
-            let Some(s) = tracker_in.receive()? else {
-                break;
-            };
+            let tracker = tracker_in.receive()?;
             let received = monotonic_ns();
-            reporter.recorder.hop(&s.stamp, received);
+            // A glove is sent before the tracker of the same instant: read the gloves after
+            // taking each tracker (and once more when none is left), so that one published
+            // just before it is never missed.
             while let Some(g) = glove_in.receive()? {
                 reporter.recorder.hop(&g.stamp, received);
                 gloves.push(g.payload());
             }
+            let Some(s) = tracker else {
+                break;
+            };
+            reporter.recorder.hop(&s.stamp, received);
             if !s.wrist.is_finite() {
                 continue;
             }
