@@ -15,13 +15,14 @@
 //! Opening the glove stops any stream left running, asks the sensor count and checks it
 //! against the configuration and the calibration file, then (streamed mode) starts the stream.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use common::{monotonic_ns, GloveSample, Stamp, MAX_GLOVE_SENSORS};
 
 use super::calibration::Calibration;
-use super::serial::{sleep_toward, Backoff, Link, LinkState, LinkStats};
+use super::link_loop::{self, LinkUpkeep, Protocol, RecordBuffer};
+use super::serial::{Backoff, Link, LinkState, LinkStats};
 use super::{DeviceError, ReadOutcome};
 
 const DEVICE: &str = "glove";
@@ -288,15 +289,10 @@ pub struct Glove {
     sensors: u32,
     parser: GloveParser,
     raw: [u8; MAX_GLOVE_SENSORS],
-    state: LinkState,
-    backoff: Backoff,
-    last_record: Instant,
-    garbage_at_last_record: u64,
-    next_poll: Instant,
-    poll_sent: Option<Instant>,
+    upkeep: LinkUpkeep,
+    /// The last `e` code since the last sample: a silence report says what the glove said.
     last_device_error: Option<u8>,
     seq: u64,
-    stats: LinkStats,
 }
 
 impl Glove {
@@ -333,23 +329,16 @@ impl Glove {
                 problem: format!("{sensors}: a CyberGlove has 18 or 22 sensors"),
             })?,
         };
-        let now = Instant::now();
         Ok(Glove {
-            backoff: cfg.backoff,
+            upkeep: LinkUpkeep::new(cfg.backoff),
             cfg,
             calibration,
             expected,
             sensors,
             parser: GloveParser::new(sensors as usize),
             raw: [0; MAX_GLOVE_SENSORS],
-            state: LinkState::Down { retry_at: now },
-            last_record: now,
-            garbage_at_last_record: 0,
-            next_poll: now,
-            poll_sent: None,
             last_device_error: None,
             seq: 0,
-            stats: LinkStats::default(),
         })
     }
 
@@ -358,7 +347,7 @@ impl Glove {
     pub fn open(cfg: GloveConfig) -> Result<Glove, DeviceError> {
         let mut g = Glove::new(cfg)?;
         let link = g.connect()?;
-        g.up(link);
+        g.upkeep.up(link, g.parser.stats.garbage_bytes);
         Ok(g)
     }
 
@@ -373,7 +362,7 @@ impl Glove {
 
     /// Counters since `new`, across reconnections.
     pub fn stats(&self) -> LinkStats {
-        let mut s = self.stats;
+        let mut s = self.upkeep.stats;
         s.garbage_bytes += self.parser.stats.garbage_bytes;
         s.rejected_records += self.parser.stats.rejected_records;
         s.device_errors += self.parser.stats.device_errors;
@@ -382,30 +371,10 @@ impl Glove {
 
     /// Whether the driver currently has its link (false while reconnecting).
     pub fn connected(&self) -> bool {
-        matches!(self.state, LinkState::Up(_))
+        self.upkeep.connected()
     }
 
-    fn up(&mut self, link: Link) {
-        let now = Instant::now();
-        self.state = LinkState::Up(link);
-        self.backoff.reset();
-        self.last_record = now;
-        self.garbage_at_last_record = self.parser.stats.garbage_bytes;
-        self.next_poll = now;
-        self.poll_sent = None;
-    }
-
-    /// The link is gone: the first reconnection attempt follows after the shortest backoff
-    /// (a glitch heals fast); failures then back off further.
-    fn down(&mut self) {
-        self.state = LinkState::Down {
-            retry_at: Instant::now() + self.backoff.first,
-        };
-        self.stats.link_losses += 1;
-        self.parser.clear();
-    }
-
-    /// Opens the port and runs the handshake; does not touch `self.state`.
+    /// Opens the port and runs the handshake; does not touch `self.upkeep`.
     fn connect(&mut self) -> Result<Link, DeviceError> {
         let mut link = Link::open(DEVICE, &self.cfg.port, self.cfg.baud)?;
         // A stream left running from an earlier session would bury the answer.
@@ -491,110 +460,93 @@ impl Glove {
     /// `Err` reports a problem the driver is already handling (the link is being
     /// re-established with backoff): log it and call `read` again.
     pub fn read(&mut self, out: &mut GloveSample) -> Result<ReadOutcome, DeviceError> {
-        let slice_end = Instant::now() + self.cfg.read_slice;
-        if let LinkState::Down { retry_at } = self.state {
-            if Instant::now() < retry_at {
-                sleep_toward(retry_at, self.cfg.read_slice);
-                return Ok(ReadOutcome::Pending);
-            }
-            match self.connect() {
-                Ok(link) => {
-                    self.up(link);
-                    self.stats.reconnects += 1;
+        link_loop::read(self, out)
+    }
+}
+
+impl RecordBuffer for GloveParser {
+    fn space(&mut self) -> &mut [u8] {
+        GloveParser::space(self)
+    }
+
+    fn commit(&mut self, n: usize) {
+        GloveParser::commit(self, n)
+    }
+
+    fn clear(&mut self) {
+        GloveParser::clear(self)
+    }
+
+    fn garbage_bytes(&self) -> u64 {
+        self.stats.garbage_bytes
+    }
+}
+
+impl Protocol for Glove {
+    type Sample = GloveSample;
+    type Buffer = GloveParser;
+    const DEVICE: &'static str = DEVICE;
+    const POLL_COMMAND: &'static [u8] = b"G";
+
+    fn poll_rate_hz(&self) -> Option<f64> {
+        match self.cfg.mode {
+            GloveMode::Streamed => None,
+            GloveMode::Polled { rate_hz } => Some(rate_hz),
+        }
+    }
+
+    fn read_slice(&self) -> Duration {
+        self.cfg.read_slice
+    }
+
+    fn silence_timeout(&self) -> Duration {
+        self.cfg.silence_timeout
+    }
+
+    fn port(&self) -> &Path {
+        &self.cfg.port
+    }
+
+    fn connect(&mut self) -> Result<Link, DeviceError> {
+        Glove::connect(self)
+    }
+
+    /// A record becomes calibrated angles with a fresh stamp; an `e` reply in between is kept
+    /// for a silence report, and a sample clears it (the glove recovered).
+    fn take_sample(&mut self, out: &mut GloveSample) -> bool {
+        while let Some(ev) = self.parser.next(&mut self.raw) {
+            match ev {
+                GloveEvent::Record { .. } => {
+                    let now_ns = monotonic_ns();
+                    self.calibration
+                        .apply(&self.raw[..self.sensors as usize], &mut out.angles);
+                    out.sensor_count = self.sensors;
+                    out.stamp =
+                        Stamp::at_origin(self.seq, now_ns.saturating_sub(self.cfg.epoch_ns));
+                    self.seq += 1;
+                    self.last_device_error = None;
+                    return true;
                 }
-                Err(cause) => {
-                    let (retry_in, attempt) = self.backoff.next_delay();
-                    self.state = LinkState::Down {
-                        retry_at: Instant::now() + retry_in,
-                    };
-                    return Err(DeviceError::Reconnecting {
-                        device: DEVICE,
-                        port: self.cfg.port.clone(),
-                        attempt,
-                        retry_in,
-                        cause: Box::new(cause),
-                    });
-                }
+                GloveEvent::DeviceError(code) => self.last_device_error = Some(code),
+                GloveEvent::SensorCount(_) => {}
             }
         }
-        loop {
-            // A record may already be buffered.
-            while let Some(ev) = self.parser.next(&mut self.raw) {
-                match ev {
-                    GloveEvent::Record { .. } => {
-                        let now_ns = monotonic_ns();
-                        self.calibration
-                            .apply(&self.raw[..self.sensors as usize], &mut out.angles);
-                        out.sensor_count = self.sensors;
-                        out.stamp =
-                            Stamp::at_origin(self.seq, now_ns.saturating_sub(self.cfg.epoch_ns));
-                        self.seq += 1;
-                        self.stats.samples += 1;
-                        self.last_record = Instant::now();
-                        self.garbage_at_last_record = self.parser.stats.garbage_bytes;
-                        self.poll_sent = None;
-                        self.last_device_error = None;
-                        return Ok(ReadOutcome::Sample);
-                    }
-                    GloveEvent::DeviceError(code) => self.last_device_error = Some(code),
-                    GloveEvent::SensorCount(_) => {}
-                }
-            }
-            let now = Instant::now();
-            if now.duration_since(self.last_record) > self.cfg.silence_timeout {
-                let err = DeviceError::Silent {
-                    device: DEVICE,
-                    port: self.cfg.port.clone(),
-                    waited: now.duration_since(self.last_record),
-                    garbage_bytes: self.parser.stats.garbage_bytes - self.garbage_at_last_record,
-                    reported: self.last_device_error.take().map(error_code_meaning),
-                };
-                self.down();
-                return Err(err);
-            }
-            if now >= slice_end {
-                return Ok(ReadOutcome::Pending);
-            }
-            let LinkState::Up(link) = &mut self.state else {
-                return Ok(ReadOutcome::Pending);
-            };
-            let mut wait_until = slice_end;
-            if let GloveMode::Polled { rate_hz } = self.cfg.mode {
-                // Ask again when the period is up, or when an answer is overdue (lost `G`).
-                let overdue = self
-                    .poll_sent
-                    .is_some_and(|t| now.duration_since(t) > Duration::from_millis(100));
-                if self.poll_sent.is_none() || overdue {
-                    if now >= self.next_poll {
-                        if let Err(e) = link.write_all(b"G") {
-                            self.down();
-                            return Err(e);
-                        }
-                        self.poll_sent = Some(now);
-                        let period = Duration::from_secs_f64(1.0 / rate_hz);
-                        self.next_poll = (self.next_poll + period).max(now);
-                    } else {
-                        wait_until = wait_until.min(self.next_poll);
-                    }
-                }
-            }
-            let timeout = wait_until.saturating_duration_since(now);
-            let space = self.parser.space();
-            match link.read_some(space, timeout) {
-                Ok(n) => self.parser.commit(n),
-                Err(e) => {
-                    self.down();
-                    return Err(e);
-                }
-            }
-        }
+        false
+    }
+
+    fn take_reported(&mut self) -> Option<&'static str> {
+        self.last_device_error.take().map(error_code_meaning)
+    }
+
+    fn parts(&mut self) -> (&mut LinkUpkeep, &mut GloveParser) {
+        (&mut self.upkeep, &mut self.parser)
     }
 }
 
 impl Drop for Glove {
     /// Leaves the glove quiet for the next program that opens it.
     fn drop(&mut self) {
-        if let LinkState::Up(link) = &mut self.state {
+        if let LinkState::Up(link) = &mut self.upkeep.state {
             let _ = link.write_all(&[STOP_STREAM]);
         }
     }

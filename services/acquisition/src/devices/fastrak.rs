@@ -38,13 +38,14 @@
 //! the receiver to the wrist. Positions are converted from inches (2.54 cm) or centimetres to
 //! metres.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use common::{monotonic_ns, Pose, Stamp, TrackerSample};
 use glam::{DMat3, DQuat, DVec3};
 
-use super::serial::{sleep_toward, Backoff, Link, LinkState, LinkStats};
+use super::link_loop::{self, LinkUpkeep, Protocol, RecordBuffer};
+use super::serial::{Backoff, Link, LinkState, LinkStats};
 use super::{DeviceError, ReadOutcome};
 
 const DEVICE: &str = "tracker";
@@ -630,14 +631,8 @@ pub struct Tracker {
     parser: FastrakParser,
     axes: DQuat,
     record: TrackerRecord,
-    state: LinkState,
-    backoff: Backoff,
-    last_record: Instant,
-    garbage_at_last_record: u64,
-    next_poll: Instant,
-    poll_sent: Option<Instant>,
+    upkeep: LinkUpkeep,
     seq: u64,
-    stats: LinkStats,
 }
 
 impl Tracker {
@@ -650,20 +645,13 @@ impl Tracker {
                 problem,
             }
         })?;
-        let now = Instant::now();
         Ok(Tracker {
-            backoff: cfg.backoff,
+            upkeep: LinkUpkeep::new(cfg.backoff),
             cfg,
             parser,
             axes: tracker_axes(),
             record: TrackerRecord::default(),
-            state: LinkState::Down { retry_at: now },
-            last_record: now,
-            garbage_at_last_record: 0,
-            next_poll: now,
-            poll_sent: None,
             seq: 0,
-            stats: LinkStats::default(),
         })
     }
 
@@ -671,7 +659,7 @@ impl Tracker {
     pub fn open(cfg: TrackerConfig) -> Result<Tracker, DeviceError> {
         let mut t = Tracker::new(cfg)?;
         let link = t.connect()?;
-        t.up(link);
+        t.upkeep.up(link, t.parser.stats.garbage_bytes);
         Ok(t)
     }
 
@@ -680,34 +668,14 @@ impl Tracker {
     }
 
     pub fn stats(&self) -> LinkStats {
-        let mut s = self.stats;
+        let mut s = self.upkeep.stats;
         s.garbage_bytes += self.parser.stats.garbage_bytes;
         s.rejected_records += self.parser.stats.rejected_records;
         s
     }
 
     pub fn connected(&self) -> bool {
-        matches!(self.state, LinkState::Up(_))
-    }
-
-    fn up(&mut self, link: Link) {
-        let now = Instant::now();
-        self.state = LinkState::Up(link);
-        self.backoff.reset();
-        self.last_record = now;
-        self.garbage_at_last_record = self.parser.stats.garbage_bytes;
-        self.next_poll = now;
-        self.poll_sent = None;
-    }
-
-    /// The link is gone: the first reconnection attempt follows after the shortest backoff
-    /// (a glitch heals fast); failures then back off further.
-    fn down(&mut self) {
-        self.state = LinkState::Down {
-            retry_at: Instant::now() + self.backoff.first,
-        };
-        self.stats.link_losses += 1;
-        self.parser.clear();
+        self.upkeep.connected()
     }
 
     fn connect(&mut self) -> Result<Link, DeviceError> {
@@ -798,118 +766,106 @@ impl Tracker {
     /// `Err` reports a problem the driver is already handling (reconnecting with backoff): log
     /// it and call `read` again.
     pub fn read(&mut self, out: &mut TrackerSample) -> Result<ReadOutcome, DeviceError> {
-        let slice_end = Instant::now() + self.cfg.read_slice;
-        if let LinkState::Down { retry_at } = self.state {
-            if Instant::now() < retry_at {
-                sleep_toward(retry_at, self.cfg.read_slice);
-                return Ok(ReadOutcome::Pending);
-            }
-            match self.connect() {
-                Ok(link) => {
-                    self.up(link);
-                    self.stats.reconnects += 1;
-                }
-                Err(cause) => {
-                    let (retry_in, attempt) = self.backoff.next_delay();
-                    self.state = LinkState::Down {
-                        retry_at: Instant::now() + retry_in,
-                    };
-                    return Err(DeviceError::Reconnecting {
-                        device: DEVICE,
-                        port: self.cfg.port.clone(),
-                        attempt,
-                        retry_in,
-                        cause: Box::new(cause),
-                    });
-                }
-            }
+        link_loop::read(self, out)
+    }
+}
+
+impl RecordBuffer for FastrakParser {
+    fn space(&mut self) -> &mut [u8] {
+        FastrakParser::space(self)
+    }
+
+    fn commit(&mut self, n: usize) {
+        FastrakParser::commit(self, n)
+    }
+
+    fn clear(&mut self) {
+        FastrakParser::clear(self)
+    }
+
+    fn garbage_bytes(&self) -> u64 {
+        self.stats.garbage_bytes
+    }
+}
+
+impl Protocol for Tracker {
+    type Sample = TrackerSample;
+    type Buffer = FastrakParser;
+    const DEVICE: &'static str = DEVICE;
+    const POLL_COMMAND: &'static [u8] = b"P";
+
+    fn poll_rate_hz(&self) -> Option<f64> {
+        match self.cfg.mode {
+            TrackerMode::Continuous => None,
+            TrackerMode::Polled { rate_hz } => Some(rate_hz),
         }
-        loop {
-            while self.parser.next(&mut self.record) {
-                if self.record.station != self.cfg.station {
-                    self.stats.other_station_records += 1;
-                    continue;
-                }
-                if self.record.error != b' ' {
-                    // The tracker flags the record itself as bad; not a sample.
-                    self.stats.rejected_records += 1;
-                    continue;
-                }
-                let Some(wrist) = record_to_world(
-                    &self.record,
-                    self.cfg.units,
-                    self.axes,
-                    &self.cfg.to_world,
-                    &self.cfg.wrist_offset,
-                ) else {
-                    self.stats.rejected_records += 1;
-                    continue;
-                };
-                let now_ns = monotonic_ns();
-                out.wrist = wrist;
-                out.station = u32::from(self.cfg.station);
-                out.stamp = Stamp::at_origin(self.seq, now_ns.saturating_sub(self.cfg.epoch_ns));
-                self.seq += 1;
-                self.stats.samples += 1;
-                self.last_record = Instant::now();
-                self.garbage_at_last_record = self.parser.stats.garbage_bytes;
-                self.poll_sent = None;
-                return Ok(ReadOutcome::Sample);
+    }
+
+    fn read_slice(&self) -> Duration {
+        self.cfg.read_slice
+    }
+
+    fn silence_timeout(&self) -> Duration {
+        self.cfg.silence_timeout
+    }
+
+    fn port(&self) -> &Path {
+        &self.cfg.port
+    }
+
+    fn connect(&mut self) -> Result<Link, DeviceError> {
+        Tracker::connect(self)
+    }
+
+    /// Only the configured station's records become samples; other stations' are counted and
+    /// skipped (every station reports the same list), and a record the tracker flags or that
+    /// does not place the wrist in the world is rejected, not an end of the search.
+    fn take_sample(&mut self, out: &mut TrackerSample) -> bool {
+        while self.parser.next(&mut self.record) {
+            if self.record.station != self.cfg.station {
+                self.upkeep.stats.other_station_records += 1;
+                continue;
             }
-            let now = Instant::now();
-            if now.duration_since(self.last_record) > self.cfg.silence_timeout {
-                let err = DeviceError::Silent {
-                    device: DEVICE,
-                    port: self.cfg.port.clone(),
-                    waited: now.duration_since(self.last_record),
-                    garbage_bytes: self.parser.stats.garbage_bytes - self.garbage_at_last_record,
-                    reported: None,
-                };
-                self.down();
-                return Err(err);
+            if self.record.error != b' ' {
+                // The tracker flags the record itself as bad; not a sample.
+                self.upkeep.stats.rejected_records += 1;
+                continue;
             }
-            if now >= slice_end {
-                return Ok(ReadOutcome::Pending);
-            }
-            let LinkState::Up(link) = &mut self.state else {
-                return Ok(ReadOutcome::Pending);
+            let Some(wrist) = record_to_world(
+                &self.record,
+                self.cfg.units,
+                self.axes,
+                &self.cfg.to_world,
+                &self.cfg.wrist_offset,
+            ) else {
+                self.upkeep.stats.rejected_records += 1;
+                continue;
             };
-            let mut wait_until = slice_end;
-            if let TrackerMode::Polled { rate_hz } = self.cfg.mode {
-                let overdue = self
-                    .poll_sent
-                    .is_some_and(|t| now.duration_since(t) > Duration::from_millis(100));
-                if self.poll_sent.is_none() || overdue {
-                    if now >= self.next_poll {
-                        if let Err(e) = link.write_all(b"P") {
-                            self.down();
-                            return Err(e);
-                        }
-                        self.poll_sent = Some(now);
-                        let period = Duration::from_secs_f64(1.0 / rate_hz);
-                        self.next_poll = (self.next_poll + period).max(now);
-                    } else {
-                        wait_until = wait_until.min(self.next_poll);
-                    }
-                }
-            }
-            let timeout = wait_until.saturating_duration_since(now);
-            let space = self.parser.space();
-            match link.read_some(space, timeout) {
-                Ok(n) => self.parser.commit(n),
-                Err(e) => {
-                    self.down();
-                    return Err(e);
-                }
-            }
+            let now_ns = monotonic_ns();
+            out.wrist = wrist;
+            out.station = u32::from(self.cfg.station);
+            out.stamp = Stamp::at_origin(self.seq, now_ns.saturating_sub(self.cfg.epoch_ns));
+            self.seq += 1;
+            return true;
         }
+        false
+    }
+
+    /// The FASTRAK sends no error replies of its own (its per-record error character is
+    /// counted as a rejected record), so a silence report has nothing to add.
+    fn take_reported(&mut self) -> Option<&'static str> {
+        None
+    }
+
+    fn parts(&mut self) -> (&mut LinkUpkeep, &mut FastrakParser) {
+        (&mut self.upkeep, &mut self.parser)
     }
 }
 
 impl Drop for Tracker {
     /// Leaves the tracker quiet for the next program that opens it.
     fn drop(&mut self) {
-        if let LinkState::Up(link) = &mut self.state {
+        if let LinkState::Up(link) = &mut self.upkeep.state {
             let _ = link.write_all(b"c");
         }
     }

@@ -32,6 +32,7 @@
 pub mod calibration;
 pub mod cyberglove;
 pub mod fastrak;
+mod link_loop;
 pub mod readers;
 pub mod serial;
 pub mod settings;

@@ -1,0 +1,233 @@
+//! The read loop both drivers share: keep the link, pace the polls, notice silence, and get the
+//! link back when it goes.
+//!
+//! The CyberGlove and the FASTRAK differ in their bytes (the parser, the handshake, what a
+//! record turns into) but not in how they sit on a serial port: a `read` call reconnects with
+//! backoff while the link is down, hands out a buffered record if there is one, reports
+//! silence, polls when the device does not stream, and otherwise waits for bytes until the end
+//! of its time slice. That part lives here once, so a fix to the link policy (a timing, a
+//! counter, a state transition) reaches both devices; each driver implements [`Protocol`] with
+//! only what is its own.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use super::serial::{sleep_toward, Backoff, Link, LinkState, LinkStats};
+use super::{DeviceError, ReadOutcome};
+
+/// A poll whose answer has not come for this long is taken as lost and sent again (the next
+/// period permitting), so one dropped command byte does not stall a polled device for good.
+const POLL_OVERDUE: Duration = Duration::from_millis(100);
+
+/// A parser's byte buffer, as the loop sees it: it reads into the free space and forgets the
+/// bytes of a lost link, and it compares garbage counts to tell a silent device from one that
+/// talks at the wrong baud rate.
+pub(super) trait RecordBuffer {
+    /// The free tail of the buffer, to read into; then [`RecordBuffer::commit`].
+    fn space(&mut self) -> &mut [u8];
+    fn commit(&mut self, n: usize);
+    /// Forgets buffered bytes: after a loss they are the remains of another connection.
+    fn clear(&mut self);
+    /// Bytes skipped so far that made no record.
+    fn garbage_bytes(&self) -> u64;
+}
+
+/// What a driver keeps about its link besides the protocol: whether it is up, when to retry
+/// or poll, when the last record came, and the counters that survive reconnections.
+pub(super) struct LinkUpkeep {
+    pub state: LinkState,
+    pub backoff: Backoff,
+    /// When the last sample was taken (or the link came up): silence is measured from here.
+    pub last_record: Instant,
+    /// The parser's garbage count at `last_record`, so a silence report can say how many
+    /// bytes arrived meanwhile that made no record.
+    pub garbage_at_last_record: u64,
+    /// When the next poll may be sent (polled mode).
+    pub next_poll: Instant,
+    /// When the unanswered poll was sent; None once it was answered.
+    pub poll_sent: Option<Instant>,
+    /// The driver's own counters; the parser keeps the byte-level ones.
+    pub stats: LinkStats,
+}
+
+impl LinkUpkeep {
+    /// Down, with the first connection attempt due now: `new` does not touch the port, the
+    /// first `read` connects.
+    pub fn new(backoff: Backoff) -> LinkUpkeep {
+        let now = Instant::now();
+        LinkUpkeep {
+            state: LinkState::Down { retry_at: now },
+            backoff,
+            last_record: now,
+            garbage_at_last_record: 0,
+            next_poll: now,
+            poll_sent: None,
+            stats: LinkStats::default(),
+        }
+    }
+
+    /// Whether the driver currently has its link (false while reconnecting).
+    pub fn connected(&self) -> bool {
+        matches!(self.state, LinkState::Up(_))
+    }
+
+    /// The link is (back) up: a fresh connection gets the full silence timeout and polls at
+    /// once, and the next loss starts its backoff from the shortest delay again.
+    pub fn up(&mut self, link: Link, garbage_now: u64) {
+        let now = Instant::now();
+        self.state = LinkState::Up(link);
+        self.backoff.reset();
+        self.last_record = now;
+        self.garbage_at_last_record = garbage_now;
+        self.next_poll = now;
+        self.poll_sent = None;
+    }
+
+    /// The link is gone: the first reconnection attempt follows after the shortest backoff
+    /// (a glitch heals fast); failures then back off further. The buffered bytes go too, so
+    /// half a record of the old connection cannot join one of the next.
+    pub fn down(&mut self, buffer: &mut impl RecordBuffer) {
+        self.state = LinkState::Down {
+            retry_at: Instant::now() + self.backoff.first,
+        };
+        self.stats.link_losses += 1;
+        buffer.clear();
+    }
+
+    /// A sample was taken: it counts, it ends the silence, and it answers the poll.
+    pub fn record_seen(&mut self, garbage_now: u64) {
+        self.stats.samples += 1;
+        self.last_record = Instant::now();
+        self.garbage_at_last_record = garbage_now;
+        self.poll_sent = None;
+    }
+}
+
+/// What a driver tells the shared loop about its device.
+pub(super) trait Protocol {
+    /// What `read` fills in.
+    type Sample;
+    type Buffer: RecordBuffer;
+    /// The device's name in errors ("glove", "tracker").
+    const DEVICE: &'static str;
+    /// The command that asks for one sample in polled mode.
+    const POLL_COMMAND: &'static [u8];
+
+    /// The poll rate in polled mode; None when the device streams on its own.
+    fn poll_rate_hz(&self) -> Option<f64>;
+    fn read_slice(&self) -> Duration;
+    fn silence_timeout(&self) -> Duration;
+    fn port(&self) -> &Path;
+    /// Opens the port and runs the handshake; does not touch the upkeep's state.
+    fn connect(&mut self) -> Result<Link, DeviceError>;
+    /// Takes buffered records until one makes a sample, written into `out` (true), or the
+    /// buffer holds no complete record (false). Does not touch the upkeep's timing: the loop
+    /// calls [`LinkUpkeep::record_seen`] after a sample.
+    fn take_sample(&mut self, out: &mut Self::Sample) -> bool;
+    /// What the device itself said went wrong since the last sample, for a silence report;
+    /// taking it leaves None.
+    fn take_reported(&mut self) -> Option<&'static str>;
+    /// The upkeep and the parser's buffer at once, so the loop can read from the link into
+    /// the buffer.
+    fn parts(&mut self) -> (&mut LinkUpkeep, &mut Self::Buffer);
+}
+
+/// Waits up to the driver's read slice for the next sample and writes it into `out`; never
+/// allocates on the sample path.
+///
+/// `Err` reports a problem the driver is already handling (the link is being re-established
+/// with backoff): the caller logs it and calls again.
+pub(super) fn read<P: Protocol>(
+    driver: &mut P,
+    out: &mut P::Sample,
+) -> Result<ReadOutcome, DeviceError> {
+    let read_slice = driver.read_slice();
+    let slice_end = Instant::now() + read_slice;
+    if let LinkState::Down { retry_at } = driver.parts().0.state {
+        if Instant::now() < retry_at {
+            sleep_toward(retry_at, read_slice);
+            return Ok(ReadOutcome::Pending);
+        }
+        match driver.connect() {
+            Ok(link) => {
+                let (upkeep, buffer) = driver.parts();
+                upkeep.up(link, buffer.garbage_bytes());
+                upkeep.stats.reconnects += 1;
+            }
+            Err(cause) => {
+                let upkeep = driver.parts().0;
+                let (retry_in, attempt) = upkeep.backoff.next_delay();
+                upkeep.state = LinkState::Down {
+                    retry_at: Instant::now() + retry_in,
+                };
+                return Err(DeviceError::Reconnecting {
+                    device: P::DEVICE,
+                    port: driver.port().to_path_buf(),
+                    attempt,
+                    retry_in,
+                    cause: Box::new(cause),
+                });
+            }
+        }
+    }
+    let silence_timeout = driver.silence_timeout();
+    let poll_rate_hz = driver.poll_rate_hz();
+    loop {
+        // A record may already be buffered.
+        if driver.take_sample(out) {
+            let (upkeep, buffer) = driver.parts();
+            upkeep.record_seen(buffer.garbage_bytes());
+            return Ok(ReadOutcome::Sample);
+        }
+        let now = Instant::now();
+        let (upkeep, buffer) = driver.parts();
+        if now.duration_since(upkeep.last_record) > silence_timeout {
+            let waited = now.duration_since(upkeep.last_record);
+            let garbage_bytes = buffer.garbage_bytes() - upkeep.garbage_at_last_record;
+            let err = DeviceError::Silent {
+                device: P::DEVICE,
+                port: driver.port().to_path_buf(),
+                waited,
+                garbage_bytes,
+                reported: driver.take_reported(),
+            };
+            let (upkeep, buffer) = driver.parts();
+            upkeep.down(buffer);
+            return Err(err);
+        }
+        if now >= slice_end {
+            return Ok(ReadOutcome::Pending);
+        }
+        let LinkState::Up(link) = &mut upkeep.state else {
+            return Ok(ReadOutcome::Pending);
+        };
+        let mut wait_until = slice_end;
+        if let Some(rate_hz) = poll_rate_hz {
+            // Ask again when the period is up, or when an answer is overdue (a lost poll).
+            let overdue = upkeep
+                .poll_sent
+                .is_some_and(|t| now.duration_since(t) > POLL_OVERDUE);
+            if upkeep.poll_sent.is_none() || overdue {
+                if now >= upkeep.next_poll {
+                    if let Err(e) = link.write_all(P::POLL_COMMAND) {
+                        upkeep.down(buffer);
+                        return Err(e);
+                    }
+                    upkeep.poll_sent = Some(now);
+                    let period = Duration::from_secs_f64(1.0 / rate_hz);
+                    upkeep.next_poll = (upkeep.next_poll + period).max(now);
+                } else {
+                    wait_until = wait_until.min(upkeep.next_poll);
+                }
+            }
+        }
+        let timeout = wait_until.saturating_duration_since(now);
+        match link.read_some(buffer.space(), timeout) {
+            Ok(n) => buffer.commit(n),
+            Err(e) => {
+                upkeep.down(buffer);
+                return Err(e);
+            }
+        }
+    }
+}
