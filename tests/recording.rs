@@ -23,6 +23,19 @@ fn recorder(file: &Path) -> String {
     format!("[recorder]\nfile = {:?}\n", file.to_string_lossy())
 }
 
+/// A session without a renderer that records to `file` and allows no drop; `source` is the
+/// body of its `[source]` table.
+fn recorded_session(dir: &Scratch, name: &str, source: &str, file: &Path) -> PathBuf {
+    session(
+        dir,
+        name,
+        &format!(
+            "[source]\n{source}[renderer]\nmode = \"off\"\n{}[budget]\nmax_dropped = 0\n",
+            recorder(file)
+        ),
+    )
+}
+
 fn inspect(file: &Path) -> (Option<i32>, Value) {
     let out = Command::new(EXE)
         .args(["inspect", "--json"])
@@ -64,13 +77,11 @@ fn same_world(a: &WorldSample, b: &WorldSample, what: &str) {
 fn a_recorded_live_session_replays_bit_for_bit_at_any_speed() {
     let dir = Scratch::new("rec-replay");
     let live_file = dir.path("live.mcap");
-    let live = session(
+    let live = recorded_session(
         &dir,
         "live.toml",
-        &format!(
-            "[source]\nkind = \"scripted\"\nrate_hz = 120\n[renderer]\nmode = \"off\"\n{}[budget]\nmax_dropped = 0\n",
-            recorder(&live_file)
-        ),
+        "kind = \"scripted\"\nrate_hz = 120\n",
+        &live_file,
     );
     let id = format!("rl{}", std::process::id());
     let out = launch_session(&live, &id, 3.5, None);
@@ -87,14 +98,14 @@ fn a_recorded_live_session_replays_bit_for_bit_at_any_speed() {
 
     for (tag, speed, seconds) in [("fast", 0.0, 4.0), ("double", 2.0, 4.0)] {
         let file = dir.path(&format!("{tag}.mcap"));
-        let replay = session(
+        let replay = recorded_session(
             &dir,
             &format!("{tag}.toml"),
             &format!(
-                "[source]\nkind = \"replay\"\nfile = {:?}\nspeed = {speed}\n[renderer]\nmode = \"off\"\n{}[budget]\nmax_dropped = 0\n",
-                live_file.to_string_lossy(),
-                recorder(&file)
+                "kind = \"replay\"\nfile = {:?}\nspeed = {speed}\n",
+                live_file.to_string_lossy()
             ),
+            &file,
         );
         let id = format!("rr{tag}{}", std::process::id());
         let out = launch_session(&replay, &id, seconds, None);
@@ -155,13 +166,11 @@ fn a_recorded_live_session_replays_bit_for_bit_at_any_speed() {
 fn the_recorder_keeps_up_with_a_1khz_hand_and_inspect_lists_it() {
     let dir = Scratch::new("rec-1khz");
     let file = dir.path("fast.mcap");
-    let s = session(
+    let s = recorded_session(
         &dir,
         "fast.toml",
-        &format!(
-            "[source]\nkind = \"scripted\"\nrate_hz = 1000\n[renderer]\nmode = \"off\"\n{}[budget]\nmax_dropped = 0\n",
-            recorder(&file)
-        ),
+        "kind = \"scripted\"\nrate_hz = 1000\n",
+        &file,
     );
     let report = dir.path("report.json");
     let id = format!("rk{}", std::process::id());

@@ -122,26 +122,28 @@ fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
     );
 
     // MCAP's magic and then garbage: read as a recording, damaged right after the magic.
-    let wrong = dir.path("wrong.carl");
-    std::fs::write(&wrong, b"\x89MCAP0\r\n not a trace").unwrap();
-    let out = simulate_drop_with(&wrong);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = refused(&dir, "wrong.carl", b"\x89MCAP0\r\n not a trace");
     assert!(
         err.contains("wrong.carl: no hand samples")
             && err.contains("wrong.carl: damaged at byte offset 8"),
         "{err}"
     );
     // Neither kind.
-    let junk = dir.path("junk.carl");
-    std::fs::write(&junk, b"JUNKJUNKJUNK").unwrap();
-    let out = simulate_drop_with(&junk);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = refused(&dir, "junk.carl", b"JUNKJUNKJUNK");
     assert!(
         err.contains("junk.carl: at byte 0: not a CARL file"),
         "{err}"
     );
+}
+
+/// Writes `bytes` as trace `name`, checks that `simulate --hand` refuses it (exit 2), and
+/// returns what it said.
+fn refused(dir: &Scratch, name: &str, bytes: &[u8]) -> String {
+    let file = dir.path(name);
+    std::fs::write(&file, bytes).unwrap();
+    let out = simulate_drop_with(&file);
+    assert_eq!(out.status.code(), Some(2));
+    String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
 /// What a recording's hand must do to its scene's block.
