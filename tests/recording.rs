@@ -9,7 +9,9 @@ use common::{GloveSample, HandSample, Stamp, Topic, TrackerSample, WorldSample};
 use serde_json::Value;
 
 mod support;
-use support::{assert_same_poses, both, launch_and_kill, launch_session, repo, Scratch, EXE};
+use support::{
+    assert_same_poses, both, launch_and_kill, launch_session, repo, simulate_trace, Scratch, EXE,
+};
 
 /// A session file over the grasp-throw scene (a grasp, a throw, a landing) with `rest` after.
 fn session(dir: &Scratch, name: &str, rest: &str) -> PathBuf {
@@ -145,20 +147,12 @@ fn a_recorded_live_session_replays_bit_for_bit_at_any_speed() {
 
     // And in one process: `simulate --hand` takes the recording as the hand.
     let last = live_worlds.last().unwrap();
-    let sim = Command::new(EXE)
-        .args([
-            "simulate",
-            "--json",
-            "--frames",
-            &last.step.to_string(),
-            "--hand",
-        ])
-        .arg(&live_file)
-        .arg(repo().join("config/scenes/grasp-throw.toml"))
-        .output()
-        .unwrap();
-    assert!(sim.status.success(), "{}", both(&sim));
-    let v: Value = serde_json::from_slice(&sim.stdout).unwrap();
+    let v = simulate_trace(
+        &repo().join("config/scenes/grasp-throw.toml"),
+        &live_file,
+        [0.0; 3],
+        last.step,
+    );
     assert_same_poses(&v, last);
 }
 

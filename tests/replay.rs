@@ -6,10 +6,9 @@ use std::process::Command;
 
 use common::recording::Recording;
 use common::{BlockMode, JointsSample, Topic, WorldSample};
-use serde_json::Value;
 
 mod support;
-use support::{assert_nothing_left, assert_same_poses, repo, Scratch, EXE};
+use support::{assert_nothing_left, assert_same_poses, repo, simulate_trace, Scratch, EXE};
 
 fn carl(name: &str) -> PathBuf {
     repo().join("../shared/data/carl").join(name)
@@ -73,26 +72,12 @@ fn a_replay_is_the_same_world_at_any_speed_and_in_one_process() {
     assert_eq!(timed.blocks(), fast.blocks());
     assert_eq!(timed.finger_points, fast.finger_points);
 
-    let sim = Command::new(EXE)
-        .args([
-            "simulate",
-            "--json",
-            "--hand-offset",
-            "0,-0.85,0",
-            "--frames",
-            &timed.step.to_string(),
-            "--hand",
-        ])
-        .arg(carl("example_push_0.carl"))
-        .arg(repo().join("config/scenes/drop.toml"))
-        .output()
-        .unwrap();
-    assert!(
-        sim.status.success(),
-        "{}",
-        String::from_utf8_lossy(&sim.stderr)
+    let v = simulate_trace(
+        &repo().join("config/scenes/drop.toml"),
+        &carl("example_push_0.carl"),
+        [0.0, -0.85, 0.0],
+        timed.step,
     );
-    let v: Value = serde_json::from_slice(&sim.stdout).unwrap();
     assert_eq!(v["frames"].as_u64(), Some(timed.step));
     assert_same_poses(&v, &timed);
 }
@@ -284,21 +269,7 @@ fn carl_session_meets_its_block(name: &str, contact: Contact) {
 
     // The same world in one process.
     let last = worlds.last().unwrap();
-    let sim = Command::new(EXE)
-        .args(["simulate", "--json", "--frames", &last.step.to_string()])
-        .arg("--hand-offset")
-        .arg(format!("{},{},{}", offset[0], offset[1], offset[2]))
-        .arg("--hand")
-        .arg(file)
-        .arg(&session.scene_file)
-        .output()
-        .unwrap();
-    assert!(
-        sim.status.success(),
-        "{}",
-        String::from_utf8_lossy(&sim.stderr)
-    );
-    let v: Value = serde_json::from_slice(&sim.stdout).unwrap();
+    let v = simulate_trace(&session.scene_file, file, *offset, last.step);
     assert_same_poses(&v, last);
 }
 

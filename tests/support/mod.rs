@@ -159,3 +159,24 @@ pub fn launch_and_kill(
     let out = child.wait_with_output().unwrap();
     (out, started.elapsed())
 }
+
+/// `simulate --json --frames FRAMES --hand-offset X,Y,Z --hand TRACE SCENE`, which must
+/// succeed; its JSON report.
+pub fn simulate_trace(
+    scene: &std::path::Path,
+    trace: &std::path::Path,
+    offset: [f64; 3],
+    frames: u64,
+) -> Value {
+    let out = std::process::Command::new(EXE)
+        .args(["simulate", "--json", "--frames", &frames.to_string()])
+        .arg("--hand-offset")
+        .arg(format!("{},{},{}", offset[0], offset[1], offset[2]))
+        .arg("--hand")
+        .arg(trace)
+        .arg(scene)
+        .output()
+        .expect("run handblocks");
+    assert!(out.status.success(), "{}", both(&out));
+    serde_json::from_slice(&out.stdout).expect("simulate --json prints JSON")
+}
