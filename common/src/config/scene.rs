@@ -45,6 +45,10 @@ pub struct WorldSettings {
     pub release_angle: f64,
     /// R13 [extension]: steps averaged for the throw velocity; 1 in the paper.
     pub throw_window: u32,
+    /// `[precise]`: the rigid-body reference's own settings. They live beside `model` (not
+    /// in `Scene`) because they only mean something together with it, and so that scenes built
+    /// in code with `WorldSettings::default()` get them too.
+    pub precise: PreciseSettings,
 }
 
 impl Default for WorldSettings {
@@ -59,6 +63,57 @@ impl Default for WorldSettings {
             grasp_angle: 120f64.to_radians(),
             release_angle: 120f64.to_radians(),
             throw_window: 1,
+            precise: PreciseSettings::default(),
+        }
+    }
+}
+
+/// `[precise]`: the settings of the rigid-body reference (rapier3d). The model steps at the
+/// scene's `step_hz` (the same timeline as the paper model); these say how finely each step is
+/// solved. The defaults are the reference setting of the accuracy benchmark: rapier's own
+/// defaults (4 substeps at 60 Hz, 30 Hz soft contacts, Simplified friction, sleeping) sink a
+/// stack by ~0.55 mm per body and put a slowly tipping block to sleep before it falls, so a
+/// reference cannot use them (../shared/notes/accuracy.md).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PreciseSettings {
+    /// Solver substeps per step (rapier's `num_solver_iterations`): the substep is
+    /// dt / substeps.
+    pub substeps: u32,
+    /// Solver (PGS) iterations per substep (rapier's `num_internal_pgs_iterations`).
+    pub solver_iterations: u32,
+    /// Contact stiffness as the natural frequency of the contact spring, Hz. None: Box2D's
+    /// rule, 0.125 / substep dt, the stiffest a substep resolves stably (at rapier's default
+    /// 60 Hz x 4 that is rapier's own 30 Hz).
+    pub contact_hz: Option<f64>,
+    /// Damping ratio of the contact spring (rapier's default 10 is heavily overdamped: soft).
+    pub contact_damping: f64,
+    /// Coulomb friction coefficient, blocks and floor ("perfect friction" is a high one).
+    pub friction: f64,
+    /// Continuous collision detection (no tunnelling, MODEL.md R12's counterpart).
+    pub ccd: bool,
+    /// Whether still bodies may sleep (rapier: below 0.05 m/s and 0.5 rad/s for 0.5 s). Off by
+    /// default: a block released 2 degrees past its tipping edge turns slower than that for
+    /// its first half second, and sleeping would freeze it upright.
+    pub sleep: bool,
+    /// The penetration rapier leaves uncorrected, metres (its default 5 mm is 5% of a 10 cm
+    /// block: a final pose cannot be within 1 mm with it).
+    pub allowed_penetration: f64,
+    /// Radius of a bare check-point hand's fingers (a hand with no hand model has none), m.
+    pub bare_finger_radius: f64,
+}
+
+impl Default for PreciseSettings {
+    fn default() -> Self {
+        PreciseSettings {
+            substeps: 8,
+            solver_iterations: 2,
+            contact_hz: None,
+            contact_damping: 1.0,
+            friction: 2.0,
+            ccd: true,
+            sleep: false,
+            allowed_penetration: 1e-4,
+            bare_finger_radius: 0.002,
         }
     }
 }
@@ -187,7 +242,10 @@ impl Scene {
         let root = Reader::new(file, "", &table);
         let scene = Scene {
             file: file.to_path_buf(),
-            world: world(root.table("world")?)?,
+            world: WorldSettings {
+                precise: precise(root.table("precise")?)?,
+                ..world(root.table("world")?)?
+            },
             effects: effects(root.table("effects")?)?,
             blocks: blocks(&root)?,
             hand: match root.table("hand")? {
@@ -238,9 +296,45 @@ fn world(r: Option<Reader>) -> Result<WorldSettings, ConfigError> {
         grasp_angle: grasp_deg.to_radians(),
         release_angle: release_deg.to_radians(),
         throw_window: r.u64_in("throw_window", 1, 1..=1000)? as u32,
+        precise: d.precise,
     };
     r.finish()?;
     Ok(w)
+}
+
+fn precise(r: Option<Reader>) -> Result<PreciseSettings, ConfigError> {
+    let d = PreciseSettings::default();
+    let Some(r) = r else { return Ok(d) };
+    let p = PreciseSettings {
+        substeps: r.u64_in("substeps", d.substeps as u64, 1..=256)? as u32,
+        solver_iterations: r.u64_in("solver_iterations", d.solver_iterations as u64, 1..=64)?
+            as u32,
+        contact_hz: r.f64_in("contact_hz", None, 1.0..=100_000.0)?,
+        contact_damping: r
+            .f64_in("contact_damping", Some(d.contact_damping), 0.0..=100.0)?
+            .unwrap_or(d.contact_damping),
+        friction: r
+            .f64_in("friction", Some(d.friction), 0.0..=100.0)?
+            .unwrap_or(d.friction),
+        ccd: r.bool("ccd", d.ccd)?,
+        sleep: r.bool("sleep", d.sleep)?,
+        allowed_penetration: r
+            .f64_in(
+                "allowed_penetration",
+                Some(d.allowed_penetration),
+                1e-7..=0.1,
+            )?
+            .unwrap_or(d.allowed_penetration),
+        bare_finger_radius: r
+            .f64_in(
+                "bare_finger_radius",
+                Some(d.bare_finger_radius),
+                1e-4..=0.05,
+            )?
+            .unwrap_or(d.bare_finger_radius),
+    };
+    r.finish()?;
+    Ok(p)
 }
 
 fn effects(r: Option<Reader>) -> Result<Effects, ConfigError> {
@@ -564,6 +658,19 @@ mod tests {
         assert_eq!(e.key, "hand.key[1].t");
         let e = load("[hand]\n[[hand.key]]\nt = 0\nwrist = [0,0,0]\nfingers = [[[0,0,0]]]\n[[hand.key]]\nt = 1\nwrist = [0,0,0]\n").unwrap_err();
         assert!(e.problem.contains("same way"), "{e}");
+    }
+
+    #[test]
+    fn the_precise_table_has_defaults_and_named_ranges() {
+        let s = load("[precise]\nsubsteps = 16\nccd = false\n").unwrap();
+        assert_eq!(s.world.precise.substeps, 16);
+        assert!(!s.world.precise.ccd);
+        assert_eq!(s.world.precise.solver_iterations, 2);
+        let e = load("[precise]\nsubsteps = 0\n").unwrap_err();
+        assert_eq!(e.key, "precise.substeps");
+        assert!(e.problem.contains("allowed: 1 to 256"), "{e}");
+        let e = load("[precise]\nsubstep = 4\n").unwrap_err();
+        assert!(e.problem.contains("unknown key"), "{e}");
     }
 
     #[test]

@@ -15,6 +15,8 @@
 //! - [`motion`]: R4's decomposition, R7 free motion;
 //! - [`floor`]: R8 impact, R9 stability;
 //! - [`world`]: the world and its step, in MODEL.md's order;
+//! - [`precise`]: the precise reference model (rapier3d), beside the paper's;
+//! - [`model`]: the one switch between the two that the process and `simulate` hold;
 //! - [`simulate`](mod@simulate): `handblocks simulate`, the bare check-point hand.
 
 pub mod body;
@@ -22,12 +24,16 @@ pub mod floor;
 pub mod geometry;
 pub mod hand;
 pub mod interference;
+pub mod model;
 pub mod motion;
+pub mod precise;
 pub mod service;
 pub mod simulate;
 pub mod world;
 
+pub use model::Model;
 pub use motion::{push_one_point, PushOutcome};
+pub use precise::PreciseWorld;
 pub use simulate::{
     default_frames, simulate, simulate_samples, BareFingersHand, BlockReport, EventReport,
     HandSource, Report,

@@ -14,7 +14,7 @@ use common::latency::Reporter;
 use common::{monotonic_ns, shutdown, HandSample, Stage, Stamp, Topic, WorldSample};
 use glam::{DQuat, DVec3};
 
-use crate::world::World;
+use crate::model::Model;
 
 const IDLE_WAIT: Duration = Duration::from_millis(50);
 
@@ -121,7 +121,7 @@ pub fn interpolate(a: &HandSample, b: &HandSample, s: f64, out: &mut HandSample)
 
 /// Runs until asked to stop, then drains what its input still holds.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
-    let mut world = World::new(&session.scene)?;
+    let mut world = Model::new(&session.scene)?;
     let hand_in = bus.inlet::<HandSample>(Topic::Hand)?;
     let mut world_out = bus.outlet::<WorldSample>(Topic::World)?;
     let mut reporter = Reporter::new(Stage::Stepper, bus.outlet(Topic::Latency)?);

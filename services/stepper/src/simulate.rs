@@ -15,8 +15,9 @@ use common::config::scene::{HandPoseSpec, HandScript};
 use common::config::Scene;
 use common::{BlockMode, HandSample, Pose, Stamp, MAX_FINGERS, MAX_FINGER_POINTS};
 
+use crate::model::Model;
 use crate::service::Timeline;
-use crate::world::{EventKind, World, WorldError};
+use crate::world::{EventKind, WorldError};
 
 /// Where `simulate` gets the hand of each step.
 pub trait HandSource {
@@ -182,13 +183,14 @@ pub fn default_frames(scene: &Scene) -> u64 {
 }
 
 /// Runs the scene's world for `frames` steps with the hand from `hand` (None: no hand; a scene
-/// whose hand uses `fingers` can pass a [`BareFingersHand`]). Deterministic.
+/// whose hand uses `fingers` can pass a [`BareFingersHand`]), under the model the scene's
+/// `[world] model` names. Deterministic.
 pub fn simulate(
     scene: &Scene,
     frames: u64,
     mut hand: Option<&mut dyn HandSource>,
 ) -> Result<Report, WorldError> {
-    let mut world = World::new(scene)?;
+    let mut world = Model::new(scene)?;
     let dt = 1.0 / scene.world.step_hz;
     let mut events = Vec::new();
     if let Some(h) = hand.as_deref_mut() {
@@ -215,7 +217,7 @@ pub fn simulate_samples(
     hands: &[HandSample],
     frames: Option<u64>,
 ) -> Result<Report, WorldError> {
-    let mut world = World::new(scene)?;
+    let mut world = Model::new(scene)?;
     let mut events = Vec::new();
     let mut timeline = Timeline::new(scene.world.step_hz);
     let limit = frames.unwrap_or(u64::MAX);
@@ -240,7 +242,7 @@ pub fn simulate_samples(
     Ok(report(&world, scene, steps, events))
 }
 
-fn collect_events(world: &World, scene: &Scene, events: &mut Vec<EventReport>) {
+fn collect_events(world: &Model, scene: &Scene, events: &mut Vec<EventReport>) {
     for e in world.events() {
         events.push(EventReport {
             step: e.step,
@@ -250,7 +252,7 @@ fn collect_events(world: &World, scene: &Scene, events: &mut Vec<EventReport>) {
     }
 }
 
-fn report(world: &World, scene: &Scene, frames: u64, events: Vec<EventReport>) -> Report {
+fn report(world: &Model, scene: &Scene, frames: u64, events: Vec<EventReport>) -> Report {
     let blocks = (0..world.block_count())
         .filter_map(|i| world.block(i).map(|b| (i, b)))
         .map(|(i, b)| BlockReport {

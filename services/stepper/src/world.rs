@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 use glam::{DQuat, DVec2, DVec3};
 
-use common::config::scene::{FloorEffect, HandEffect, ModelKind, Stacking};
+use common::config::scene::{FloorEffect, HandEffect, Stacking};
 use common::config::Scene;
 use common::{BlockMode, HandSample, WorldSample, MAX_BLOCKS, MAX_FINGERS, MAX_FINGER_POINTS};
 
@@ -157,16 +157,10 @@ fn err(scene: &Scene, block: Option<&str>, problem: impl Into<String>) -> WorldE
 impl World {
     /// Builds the world of a scene, checking what the scene loader cannot: shapes that are
     /// solids, no block starting below the floor or inside another, and the options this
-    /// model implements.
+    /// model implements. It is the paper model whatever `[world] model` says: the choice
+    /// between the models is [`crate::Model::new`]'s.
     pub fn new(scene: &Scene) -> Result<World, WorldError> {
         let w = &scene.world;
-        if w.model == ModelKind::Precise {
-            return Err(err(
-                scene,
-                None,
-                "model = \"precise\" (the rapier3d reference) is not implemented yet; use \"paper\"",
-            ));
-        }
         if scene.effects.stacking == Stacking::Supported {
             return Err(err(
                 scene,

@@ -85,12 +85,21 @@ fn options_of_later_issues_are_clear_errors() {
         e.contains("R14") && e.contains("not implemented yet"),
         "{e}"
     );
-    let s = scene("[world]\nmodel = \"precise\"\n");
-    let e = World::new(&s).err().unwrap().to_string();
-    assert!(
-        e.contains("precise") && e.contains("not implemented yet"),
-        "{e}"
+}
+
+/// `model = "precise"` is no longer refused: the dispatch builds the rapier3d reference, and
+/// it refuses what the paper model refuses (here: a block inside another), with the same words.
+#[test]
+fn the_precise_model_is_built_by_the_dispatch_and_checked_as_the_paper_model() {
+    let s = scene("[world]\nmodel = \"precise\"\n[[block]]\nposition = [0.0, 0.05, 0.0]\n");
+    let m = stepper::Model::new(&s).unwrap();
+    assert_eq!(m.kind(), common::config::scene::ModelKind::Precise);
+    let s = scene(
+        "[world]\nmodel = \"precise\"\n[[block]]\nname = \"a\"\nposition = [0.0, 0.05, 0.0]\n\
+         [[block]]\nname = \"b\"\nposition = [0.05, 0.05, 0.0]\n",
     );
+    let e = stepper::Model::new(&s).err().unwrap().to_string();
+    assert!(e.contains("starts inside block \"a\""), "{e}");
 }
 
 #[test]
