@@ -173,6 +173,16 @@ enum BenchKind {
         #[arg(long, default_value = "out/bench")]
         out: PathBuf,
     },
+    /// What accuracy costs in time: the paper model and the precise one (rapier3d) against
+    /// exact answers at several settings each, timed in the same run.
+    Accuracy {
+        /// Where accuracy.json, accuracy.md and accuracy.png go.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+        /// A reduced sweep (under a minute on 2 cores).
+        #[arg(long)]
+        quick: bool,
+    },
 }
 
 fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
@@ -274,6 +284,21 @@ fn main() -> ExitCode {
                 Ok(_) => ExitCode::SUCCESS,
                 Err(e) => {
                     eprintln!("handblocks bench latency: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
+        Some(Command::Bench {
+            which: BenchKind::Accuracy { out, quick },
+        }) => {
+            let b = handblocks_bench::accuracy::AccuracyBench {
+                out_dir: out,
+                quick,
+            };
+            match handblocks_bench::accuracy::run(&b) {
+                Ok(_) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("handblocks bench accuracy: {e}");
                     ExitCode::from(2)
                 }
             }

@@ -2,5 +2,10 @@
 //! to a peer measured in the same run, and judged as a ratio to it.
 //!
 //! * [`latency`]: the whole process set against a bare two-process iceoryx2 hop.
+//! * [`accuracy`]: the paper model and the precise one (rapier3d) against exact answers, and
+//!   what each setting costs per step, measured in the same run.
+//! * [`plot`]: the figures (plotters into a PNG), shared by the reports.
 
+pub mod accuracy;
 pub mod latency;
+pub mod plot;
