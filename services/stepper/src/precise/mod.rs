@@ -73,6 +73,9 @@ pub struct PreciseWorld {
     events: Vec<Event>,
     prev_hand: Option<HandSample>,
     fingers: Fingers,
+    /// Scratch of the mode derivation, kept so that a step does not allocate.
+    touches: Vec<modes::Touches>,
+    modes: Vec<BlockMode>,
 }
 
 impl PreciseWorld {
@@ -141,13 +144,12 @@ impl PreciseWorld {
             } else {
                 DVec3::ZERO
             };
-            let body = RigidBodyBuilder::dynamic()
+            let mut body = RigidBodyBuilder::dynamic()
                 .translation(DVec3::from_array(spec.position))
                 .linvel(velocity)
                 .ccd_enabled(p.ccd)
                 .can_sleep(p.sleep)
                 .build();
-            let mut body = body;
             body.set_rotation(rot, false);
             let body = physics.bodies.insert(body);
             let collider =
@@ -164,7 +166,10 @@ impl PreciseWorld {
             });
         }
         let hand = (e.hand != HandEffect::None).then(|| HandBodies::new(p.bare_finger_radius));
+        let n = blocks.len();
         Ok(PreciseWorld {
+            touches: Vec::with_capacity(n),
+            modes: Vec::with_capacity(n),
             file: scene.file.clone(),
             physics,
             events: Vec::with_capacity(16 * blocks.len() + 16),

@@ -26,13 +26,13 @@ const STILL_TURN: f64 = 0.05;
 const MAX_HAND_NORMALS: usize = 24;
 
 #[derive(Clone, Copy)]
-struct Touches {
+pub(super) struct Touches {
     floor_points: usize,
     blocks: bool,
     hand_normals: [DVec3; MAX_HAND_NORMALS],
     hand_count: usize,
     /// A touched block's index (the first one), for `carried`.
-    neighbour_mask_first: Option<usize>,
+    first_block: Option<usize>,
 }
 
 impl PreciseWorld {
@@ -43,7 +43,7 @@ impl PreciseWorld {
             blocks: false,
             hand_normals: [DVec3::ZERO; MAX_HAND_NORMALS],
             hand_count: 0,
-            neighbour_mask_first: None,
+            first_block: None,
         };
         for pair in self.physics.narrow_phase.contact_pairs_with(me) {
             let other = if pair.collider1 == me {
@@ -67,8 +67,8 @@ impl PreciseWorld {
                     KIND_FLOOR => t.floor_points += touching,
                     KIND_BLOCK => {
                         t.blocks = true;
-                        if t.neighbour_mask_first.is_none() {
-                            t.neighbour_mask_first = Some((oc.user_data & !KIND_MASK) as usize);
+                        if t.first_block.is_none() {
+                            t.first_block = Some((oc.user_data & !KIND_MASK) as usize);
                         }
                     }
                     KIND_HAND => {
@@ -94,8 +94,10 @@ impl PreciseWorld {
     /// Derives every block's mode and this step's events.
     pub(super) fn settle_modes(&mut self) {
         let n = self.blocks.len();
-        let mut touches = Vec::with_capacity(n);
-        let mut modes = Vec::with_capacity(n);
+        let mut touches = std::mem::take(&mut self.touches);
+        let mut modes = std::mem::take(&mut self.modes);
+        touches.clear();
+        modes.clear();
         for i in 0..n {
             let t = self.touches(i);
             let before = self.blocks[i].mode;
@@ -142,7 +144,7 @@ impl PreciseWorld {
             if matches!(modes[i], BlockMode::Grasped | BlockMode::Pushed) {
                 continue;
             }
-            if let Some(j) = touches[i].neighbour_mask_first {
+            if let Some(j) = touches[i].first_block {
                 if modes.get(j) == Some(&BlockMode::Grasped) && touches[i].floor_points == 0 {
                     modes[i] = BlockMode::Carried;
                 }
@@ -177,5 +179,7 @@ impl PreciseWorld {
             b.touching = touching;
             b.floor_contacts = touches[i].floor_points;
         }
+        self.touches = touches;
+        self.modes = modes;
     }
 }
