@@ -10,7 +10,8 @@
 
 use glam::{DQuat, DVec3};
 use rapier3d_f64::prelude::{
-    ColliderBuilder, ColliderHandle, Pose, RigidBodyBuilder, RigidBodyHandle, SharedShape,
+    CoefficientCombineRule, ColliderBuilder, ColliderHandle, Pose, RigidBodyBuilder,
+    RigidBodyHandle, SharedShape,
 };
 
 use common::{HandSample, MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
@@ -51,6 +52,9 @@ struct Palm {
 /// The hand's kinematic bodies and the layout they were built for.
 pub(super) struct HandBodies {
     bare_radius: f64,
+    /// The blocks' Coulomb friction: a grasp holds a block by friction alone here (no R5),
+    /// so the fingers and palm grip as the floor does.
+    friction: f64,
     layout: Option<Layout>,
     segments: Vec<Segment>,
     palm: Option<Palm>,
@@ -103,9 +107,10 @@ fn segment_pose(a: DVec3, b: DVec3, previous: DQuat) -> (Pose, f64, DQuat) {
 }
 
 impl HandBodies {
-    pub fn new(bare_radius: f64) -> Self {
+    pub fn new(bare_radius: f64, friction: f64) -> Self {
         HandBodies {
             bare_radius,
+            friction,
             layout: None,
             segments: Vec::new(),
             palm: None,
@@ -190,7 +195,8 @@ impl HandBodies {
                 let body = world.insert_body(RigidBodyBuilder::kinematic_position_based());
                 let collider = world.insert_collider(
                     ColliderBuilder::new(shape)
-                        .friction(0.0)
+                        .friction(self.friction)
+                        .friction_combine_rule(CoefficientCombineRule::Max)
                         .user_data(KIND_HAND | index),
                     Some(body),
                 );
@@ -218,7 +224,10 @@ impl HandBodies {
             if let Some(builder) = ColliderBuilder::convex_hull(&local) {
                 let body = world.insert_body(RigidBodyBuilder::kinematic_position_based());
                 let collider = world.insert_collider(
-                    builder.friction(0.0).user_data(KIND_HAND | index),
+                    builder
+                        .friction(self.friction)
+                        .friction_combine_rule(CoefficientCombineRule::Max)
+                        .user_data(KIND_HAND | index),
                     Some(body),
                 );
                 self.palm = Some(Palm {

@@ -165,7 +165,8 @@ impl PreciseWorld {
                 floor_contacts: 0,
             });
         }
-        let hand = (e.hand != HandEffect::None).then(|| HandBodies::new(p.bare_finger_radius));
+        let hand =
+            (e.hand != HandEffect::None).then(|| HandBodies::new(p.bare_finger_radius, p.friction));
         let n = blocks.len();
         Ok(PreciseWorld {
             touches: Vec::with_capacity(n),
