@@ -43,6 +43,11 @@ pub enum Setting {
     Paper {
         hz: f64,
     },
+    /// The paper model with R14's supported stacking (`stacking = "supported"`), run on the
+    /// stack scenes only (elsewhere it is the paper model), when this build has R14.
+    PaperR14 {
+        hz: f64,
+    },
     Precise {
         hz: f64,
         substeps: u32,
@@ -54,13 +59,14 @@ impl Setting {
     pub fn model(&self) -> &'static str {
         match self {
             Setting::Paper { .. } => "paper",
+            Setting::PaperR14 { .. } => "paper-R14",
             Setting::Precise { .. } => "precise",
         }
     }
 
     pub fn label(&self) -> String {
         match self {
-            Setting::Paper { hz } => format!("{hz} Hz"),
+            Setting::Paper { hz } | Setting::PaperR14 { hz } => format!("{hz} Hz"),
             Setting::Precise {
                 hz,
                 substeps,
@@ -71,7 +77,7 @@ impl Setting {
 
     fn hz(&self) -> f64 {
         match self {
-            Setting::Paper { hz } | Setting::Precise { hz, .. } => *hz,
+            Setting::Paper { hz } | Setting::PaperR14 { hz } | Setting::Precise { hz, .. } => *hz,
         }
     }
 
@@ -79,6 +85,10 @@ impl Setting {
         scene.world.step_hz = self.hz();
         match *self {
             Setting::Paper { .. } => scene.world.model = ModelKind::Paper,
+            Setting::PaperR14 { .. } => {
+                scene.world.model = ModelKind::Paper;
+                scene.effects.stacking = common::config::scene::Stacking::Supported;
+            }
             Setting::Precise {
                 substeps,
                 iterations,
@@ -893,16 +903,31 @@ pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
     }
 
     let mut rows = Vec::new();
-    let all: Vec<Setting> = paper.iter().chain(&precise).copied().collect();
+    let r14: Vec<Setting> = paper
+        .iter()
+        .map(|s| Setting::PaperR14 { hz: s.hz() })
+        .collect();
+    let all: Vec<Setting> = paper.iter().chain(&r14).chain(&precise).copied().collect();
+    let mut r14_missing = false;
     for (si, setting) in all.iter().enumerate() {
         let t0 = Instant::now();
+        let mut ran = 0;
         for (ci, c) in cases.iter().enumerate() {
+            if matches!(setting, Setting::PaperR14 { .. }) && (c.class != "stack" || r14_missing) {
+                continue;
+            }
             // The reference's error against itself is 0 by definition: not a measurement.
             if matches!(c.judge, Judge::AgainstReference { .. }) && *setting == reference {
                 continue;
             }
             let trace = match run_timed(c, *setting, timed) {
                 Ok(t) => t,
+                Err(e) if matches!(setting, Setting::PaperR14 { .. }) => {
+                    // A build without R14 refuses the option: say so once, skip the line.
+                    r14_missing = true;
+                    notes.push(format!("paper-R14 not measured: {e}"));
+                    continue;
+                }
                 Err(e) => {
                     notes.push(format!(
                         "{} under {} {}: {e}",
@@ -913,6 +938,7 @@ pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
                     continue;
                 }
             };
+            ran += 1;
             let dt = 1.0 / setting.hz();
             for (class, error) in judge(c, &trace, dt, references[ci]).errors {
                 rows.push(Row {
@@ -933,7 +959,7 @@ pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
             all.len(),
             setting.model(),
             setting.label(),
-            cases.len(),
+            ran,
             t0.elapsed().as_secs_f64(),
             started.elapsed().as_secs_f64()
         );
@@ -1120,6 +1146,22 @@ pub fn summary_table(points: &[Point]) -> String {
             cell(&q),
             ratio
         );
+        // The paper model with R14 where it was measured (stacks), in the paper's columns.
+        if let Some(r) = best(points, info.class, "paper-R14") {
+            let ratio = match &q {
+                Some(q) if r.us_per_step > 0.0 => format!("{:.0}x", q.us_per_step / r.us_per_step),
+                _ => "-".into(),
+            };
+            let _ = writeln!(
+                o,
+                "| {} (paper with R14) | {} | {} | {} | {} |",
+                info.class,
+                info.unit,
+                cell(&Some(r)),
+                cell(&q),
+                ratio
+            );
+        }
     }
     o
 }
@@ -1208,7 +1250,7 @@ fn figure(summary: &[Point], pareto: &[Point]) -> Figure {
     for info in &CLASSES {
         let floor = floor_of(info.unit);
         let mut series = Vec::new();
-        for model in ["paper", "precise"] {
+        for model in ["paper", "paper-R14", "precise"] {
             let mut pts: Vec<(f64, f64)> = summary
                 .iter()
                 .filter(|p| p.class == info.class && p.model == model && p.error.is_finite())
