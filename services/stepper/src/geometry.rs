@@ -405,6 +405,135 @@ pub fn sat_depth(
     depth
 }
 
+/// [`sat_depth`] with the axis that gives it: (depth, unit axis pointing from `a` to `b`). R14
+/// reads the axis as the pair's contact normal (a supports b when it points up) and R12 as the
+/// direction in which a touching blocker can be approached. Kept apart from `sat_depth` so that
+/// the paper mode's arithmetic is untouched.
+pub fn sat_axis(
+    pa: &Polyhedron,
+    ra: DQuat,
+    va: &[DVec3],
+    pb: &Polyhedron,
+    rb: DQuat,
+    vb: &[DVec3],
+    b_off: DVec3,
+) -> (f64, DVec3) {
+    let mut best = (f64::INFINITY, DVec3::Y);
+    let mut test = |axis: DVec3| {
+        let (mut amin, mut amax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in va {
+            let x = v.dot(axis);
+            amin = amin.min(x);
+            amax = amax.max(x);
+        }
+        let (mut bmin, mut bmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in vb {
+            let x = (*v + b_off).dot(axis);
+            bmin = bmin.min(x);
+            bmax = bmax.max(x);
+        }
+        // b beyond a along +axis, or along -axis: the smaller overlap says which side b is on.
+        let (up, down) = (amax - bmin, bmax - amin);
+        let (overlap, dir) = if up <= down {
+            (up, axis)
+        } else {
+            (down, -axis)
+        };
+        if overlap < best.0 {
+            best = (overlap, dir);
+        }
+    };
+    for f in &pa.faces {
+        test(ra * f.normal);
+    }
+    for f in &pb.faces {
+        test(rb * f.normal);
+    }
+    for ea in &pa.edge_dirs {
+        let ea = ra * *ea;
+        for eb in &pb.edge_dirs {
+            let c = ea.cross(rb * *eb);
+            let l = c.length();
+            if l > 1e-9 {
+                test(c / l);
+            }
+        }
+    }
+    best
+}
+
+/// R14's contact manifold of two blocks within `eps`, appended to `out` relative to a's G (world
+/// orientation; b's G at `b_off`), at most `cap` points in `out` in all:
+/// - every vertex of either block within `eps` of the other solid (inside or on it:
+///   `max_face_distance <= eps` in the other's body frame);
+/// - every crossing of an edge of either block with a face plane of the other that lies within
+///   `eps` of the other solid. These give the corners of the true overlap polygon where no vertex
+///   of either block lies on the other's face (a box turned 45 deg on another: an octagon).
+///
+/// Points of either kind lie on one block's surface and within `eps` of the other: all of them
+/// are in the contact patch, so their 2-D hull is the patch's outline.
+#[allow(clippy::too_many_arguments)]
+pub fn contact_points(
+    pa: &Polyhedron,
+    ra: DQuat,
+    va: &[DVec3],
+    pb: &Polyhedron,
+    rb: DQuat,
+    vb: &[DVec3],
+    b_off: DVec3,
+    eps: f64,
+    cap: usize,
+    out: &mut Vec<DVec3>,
+) {
+    let (ia, ib) = (ra.conjugate(), rb.conjugate());
+    let in_a = |x: DVec3| pa.max_face_distance(ia * x).0 <= eps;
+    let in_b = |x: DVec3| pb.max_face_distance(ib * (x - b_off)).0 <= eps;
+    let push = |out: &mut Vec<DVec3>, p: DVec3| {
+        if out.len() < cap {
+            out.push(p);
+        }
+    };
+    for v in vb {
+        let p = *v + b_off;
+        if in_a(p) {
+            push(out, p);
+        }
+    }
+    for v in va {
+        if in_b(*v) {
+            push(out, *v);
+        }
+    }
+    // Edges of a against b's face planes, in b's body frame.
+    for e in &pa.edges {
+        let p0 = ib * (va[e[0]] - b_off);
+        let p1 = ib * (va[e[1]] - b_off);
+        for f in &pb.faces {
+            let (d0, d1) = (f.distance(p0), f.distance(p1));
+            if (d0 < 0.0 && d1 > 0.0) || (d0 > 0.0 && d1 < 0.0) {
+                let x = p0 + (p1 - p0) * (d0 / (d0 - d1));
+                if pb.max_face_distance(x).0 <= eps {
+                    push(out, rb * x + b_off);
+                }
+            }
+        }
+    }
+    // Edges of b against a's face planes, in a's body frame.
+    for e in &pb.edges {
+        let p0 = ia * (vb[e[0]] + b_off);
+        let p1 = ia * (vb[e[1]] + b_off);
+        for f in &pa.faces {
+            let (d0, d1) = (f.distance(p0), f.distance(p1));
+            if (d0 < 0.0 && d1 > 0.0) || (d0 > 0.0 && d1 < 0.0) {
+                let x = p0 + (p1 - p0) * (d0 / (d0 - d1));
+                if pa.max_face_distance(x).0 <= eps {
+                    push(out, ra * x);
+                }
+            }
+        }
+    }
+}
+
 /// The segment a0 a1 crossing the triangle (t0, t1, t2) (Moller-Trumbore, both sides):
 /// returns (s along the segment, barycentric w1, w2) of the crossing. A segment parallel to
 /// the triangle's plane, or a zero-area triangle, gives None (MODEL.md R2).

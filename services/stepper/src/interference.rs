@@ -16,7 +16,7 @@ use parry3d_f64::query::{self, ShapeCastOptions};
 use common::BlockMode;
 
 use crate::body::{Block, Moved};
-use crate::geometry::sat_depth;
+use crate::geometry::{sat_axis, sat_depth};
 use crate::world::World;
 
 /// The pair's poses with block `a`'s G as the origin (precision far from the world origin).
@@ -59,6 +59,26 @@ pub(crate) fn overlapping(a: &Block, b: &Block, tol: f64) -> bool {
         &b.rel,
         b.pos - a.pos,
     ) > tol
+}
+
+/// R12: whether moving block a by `d` takes it into b, which it touches: along the SAT axis of
+/// least overlap (a separating axis when they only touch) the step may close the gap and go at
+/// most `tol` deeper. For convex blocks a step that keeps a separating axis separated cannot
+/// enter the other block anywhere along the way.
+fn approaches(a: &Block, b: &Block, d: DVec3, tol: f64) -> bool {
+    let (depth, n) = sat_axis(
+        &a.poly,
+        a.rot,
+        &a.rel,
+        &b.poly,
+        b.rot,
+        &b.rel,
+        b.pos - a.pos,
+    );
+    // NaN (a degenerate pair) counts as approaching: the cast's stop stands.
+    let closing = d.dot(n);
+    let allowed = (-depth).max(0.0) + tol;
+    closing.is_nan() || closing > allowed
 }
 
 impl World {
@@ -138,7 +158,16 @@ impl World {
                     query::cast_shapes(&pa, d, &a.poly.shape, &pb, DVec3::ZERO, &b.poly.shape, opts)
                 {
                     if hit.time_of_impact.is_finite() {
-                        toi = toi.min(hit.time_of_impact.clamp(0.0, 1.0));
+                        let t = hit.time_of_impact.clamp(0.0, 1.0);
+                        // A blocker the block already touches (the cast says time of impact 0)
+                        // stops it only if the step approaches it: a block sliding down past
+                        // another's side, or tipping off its edge, must not hang in the air.
+                        if t * len <= self.params.contact_eps
+                            && !approaches(a, b, d, self.params.hull_eps)
+                        {
+                            continue;
+                        }
+                        toi = toi.min(t);
                     }
                 }
             }

@@ -1,5 +1,5 @@
 //! Motion without the floor: R4's one-point push (the paper's equations 1-2), R7 gravity and
-//! inertia with R11's hold and R12's cut, and R13's throw velocity.
+//! inertia with R11's hold (R14's in supported stacking) and R12's cut, and R13's throw velocity.
 
 use glam::DVec3;
 
@@ -75,8 +75,15 @@ impl World {
                     continue;
                 }
             }
+            // R14 decided it in stage 3a, or holds it asleep (supported, untouched).
+            if self.passes.supported {
+                let b = &self.blocks[i];
+                if b.judged || b.mode == BlockMode::Supported {
+                    continue;
+                }
+            }
             // R11 (paper): a block that touches another is not affected by gravity or inertia.
-            if self.passes.blocks && self.supported_by_block(i) {
+            if self.passes.blocks && !self.passes.supported && self.supported_by_block(i) {
                 let b = &mut self.blocks[i];
                 b.mode = BlockMode::Supported;
                 b.v = DVec3::ZERO;

@@ -1,0 +1,197 @@
+//! R14 supported stacking [extension]: stacks hold exactly when statics says they do
+//! (MODEL.md R14 "Consequences to test"; notes/accuracy.md "Exact answers": a stack stands iff at
+//! every interface the centre of gravity of everything above lies in that interface's contact
+//! area; the harmonic stack's top overhangs 1/2 H_n block lengths). Each stack is also run in
+//! paper mode (R11), which keeps every one of them where it is.
+
+mod support;
+
+use glam::DVec3;
+
+use common::BlockMode;
+use support::*;
+
+/// Cube edge.
+const L: f64 = 0.1;
+
+/// A scene of 0.1 m cubes stacked exactly touching: cube k at x = `xs[k]` with its bottom face
+/// at y = k L (cube 0 on the floor), turned `yaw[k]` degrees about y (0 when absent).
+fn stack(stacking: &str, xs: &[f64], yaw: &[f64]) -> common::config::Scene {
+    let mut t = format!("[effects]\nstacking = \"{stacking}\"\n");
+    for (k, x) in xs.iter().enumerate() {
+        let a = yaw.get(k).copied().unwrap_or(0.0).to_radians() / 2.0;
+        t.push_str(&format!(
+            "[[block]]\nname = \"c{k}\"\nposition = [{x}, {}, 0.0]\nrotation = [0.0, {}, 0.0, {}]\n",
+            L / 2.0 + L * k as f64,
+            a.sin(),
+            a.cos()
+        ));
+    }
+    scene(&t)
+}
+
+/// Every block's pose at every step after the first (the first step lands them: R8's first
+/// impact) is bit-for-bit that of step 1.
+fn never_moves(s: &common::config::Scene, steps: u64) -> Result<(), String> {
+    let (poses, _, _) = trace(s, steps);
+    for (k, p) in poses.iter().enumerate().skip(1) {
+        if *p != poses[1] {
+            return Err(format!("moved at step {k}: {:?} vs {:?}", p, poses[1]));
+        }
+    }
+    // Nothing moved on step 1 either: the blocks were spawned exactly touching.
+    if poses[1] != poses[0] {
+        return Err(format!("moved on step 1: {:?} vs {:?}", poses[1], poses[0]));
+    }
+    Ok(())
+}
+
+/// The harmonic stack of n cubes on a base cube, scaled by `s`: cube k from the top
+/// (k = 1..n) is offset s L / (2k) from the one below it, so that the top overhangs the base's
+/// edge by s 1/2 H_n block lengths and at s = 1 every interface carries its load's G_L exactly
+/// on its edge.
+fn harmonic(n: usize, s: f64) -> Vec<f64> {
+    let mut xs = vec![0.0; n + 1];
+    for (i, x) in xs.iter_mut().enumerate().skip(1) {
+        // Block i from the bottom of the stack is k = n + 1 - i from the top.
+        *x = (n + 1 - i..=n).map(|m| s * L / (2.0 * m as f64)).sum();
+    }
+    xs
+}
+
+#[test]
+fn r14_an_aligned_tower_never_moves() {
+    let xs = vec![0.0; 20];
+    let s = stack("supported", &xs, &[]);
+    never_moves(&s, 600).unwrap();
+    let (_, _, w) = trace(&s, 10);
+    assert_eq!(w.block(0).unwrap().mode, BlockMode::Resting);
+    for i in 1..20 {
+        assert_eq!(w.block(i).unwrap().mode, BlockMode::Supported, "cube {i}");
+    }
+    never_moves(&stack("paper", &xs, &[]), 600).unwrap();
+}
+
+/// Three cubes, each 0.3 L beyond the one below: the top's G is 0.6 L from the bottom's centre,
+/// beyond its edge (0.5 L), but every interface carries its load: the top on the middle at
+/// 0.3 L, the top two on the bottom at 0.45 L, all three on the floor at 0.3 L.
+#[test]
+fn r14_a_staggered_stack_with_its_top_beyond_the_bottom_stays_exactly_still() {
+    let xs = [0.0, 0.3 * L, 0.6 * L];
+    let s = stack("supported", &xs, &[]);
+    never_moves(&s, 600).unwrap();
+    never_moves(&stack("paper", &xs, &[]), 600).unwrap();
+}
+
+/// Two 0.3 m slabs (base on the floor, A on it), cube B on A 0.02 m inside A's right edge, cube
+/// C on B 0.045 m beyond B: C on B holds (0.045 < 0.05), B inside its own support, but B and C
+/// on A put G_L at x = 0.1525, beyond A's edge at 0.15. So the stack topples from the A-B
+/// interface up: base and A never move (A's load with B and C is at most x = 0.124 even when
+/// they have turned over, and while B tips over A's edge its weight rests on that edge), B and
+/// C come down beyond A and lie still.
+#[test]
+fn r14_a_combined_load_beyond_a_lower_interface_topples_from_there_up() {
+    let text = |stacking: &str| {
+        format!(
+            "[effects]\nstacking = \"{stacking}\"\n\
+             [[block]]\nname = \"base\"\nsize = [0.3, 0.1, 0.1]\nposition = [0.0, 0.05, 0.0]\n\
+             [[block]]\nname = \"A\"\nsize = [0.3, 0.1, 0.1]\nposition = [0.0, 0.15, 0.0]\n\
+             [[block]]\nname = \"B\"\nposition = [0.13, 0.25, 0.0]\n\
+             [[block]]\nname = \"C\"\nposition = [0.175, 0.35, 0.0]\n"
+        )
+    };
+    let s = scene(&text("supported"));
+    let (poses, events, w) = trace(&s, 1500);
+    for p in &poses {
+        assert_eq!(p[0], poses[0][0], "the base never moves");
+        assert_eq!(p[1], poses[0][1], "A never moves");
+    }
+    let first_topple = events
+        .iter()
+        .find(|e| e.kind == stepper::EventKind::Topple)
+        .expect("a topple");
+    assert_eq!(first_topple.block, 2, "B topples first: {first_topple:?}");
+    // B and C came down beyond A's edge and lie still: C on the floor, B leaning on A's side
+    // and C (perfect friction holds it there).
+    for (i, below) in [(2, 0.25), (3, 0.1)] {
+        let b = w.block(i).unwrap();
+        assert!(b.position.is_finite() && (b.rotation.length() - 1.0).abs() < 1e-12);
+        assert!(b.position.y < below, "block {i} came down: {}", b.position);
+        assert!(b.position.x > 0.15, "block {i} fell beyond A's edge");
+        assert!(
+            poses[1400..].iter().all(|p| p[i] == poses[1400][i]),
+            "block {i} lies still"
+        );
+    }
+    never_moves(&scene(&text("paper")), 600).unwrap();
+}
+
+/// notes/accuracy.md: harmonic stacks of n = 2, 3, 4 cubes on a base overhang 1/2 H_n block
+/// lengths (0.75, 0.917, 1.042): at 99% of it they stand exactly still, at 101% they fall (the
+/// lowest interface over the base edge is exceeded: everything above the base topples as one)
+/// and the base does not move while they topple. Paper mode keeps both.
+#[test]
+fn r14_harmonic_stacks_stand_at_99_percent_and_fall_at_101() {
+    for n in [2, 3, 4] {
+        let xs = harmonic(n, 0.99);
+        let h_n: f64 = (1..=n).map(|m| 1.0 / m as f64).sum();
+        assert!((xs[n] - 0.99 * L * h_n / 2.0).abs() < 1e-15);
+        never_moves(&stack("supported", &xs, &[]), 400).unwrap_or_else(|e| panic!("n = {n}: {e}"));
+        never_moves(&stack("paper", &xs, &[]), 400).unwrap_or_else(|e| panic!("n = {n}: {e}"));
+
+        let xs = harmonic(n, 1.01);
+        let (poses, events, w) = trace(&stack("supported", &xs, &[]), 3000);
+        // The statics verdict: everything above the base topples over its edge, and the base
+        // does not move while it does (until the toppling stack reaches the floor).
+        let down = events
+            .iter()
+            .find(|e| e.kind == stepper::EventKind::Impact && e.block != 0)
+            .expect("the stack reaches the floor")
+            .step as usize;
+        assert!(
+            poses[..down].iter().all(|p| p[0] == poses[0][0]),
+            "n = {n}: base"
+        );
+        for i in 1..=n {
+            let b = w.block(i).unwrap();
+            assert!(
+                b.position.y < L * i as f64 && b.position.x > 0.05,
+                "n = {n}: block {i} fell beyond the base: {}",
+                b.position
+            );
+        }
+        never_moves(&stack("paper", &xs, &[]), 400).unwrap_or_else(|e| panic!("n = {n}: {e}"));
+    }
+}
+
+/// A cube turned 45 deg on another: no vertex of either lies on the other's face, so only the
+/// edge crossings of the contact manifold give the octagon they share. It is supported, exactly
+/// still, also shifted 0.03 m (its G still over the octagon).
+#[test]
+fn r14_a_cube_turned_45_degrees_on_another_is_supported() {
+    for x in [0.0, 0.03] {
+        let s = stack("supported", &[0.0, x], &[0.0, 45.0]);
+        never_moves(&s, 300).unwrap();
+        let (_, _, w) = trace(&s, 5);
+        assert_eq!(w.block(1).unwrap().mode, BlockMode::Supported);
+    }
+}
+
+/// A block beside a stack is no supporter (side contact): a cube dropped so that it slides down
+/// the side of a tower (touching it) falls to the floor instead of hanging where it touched.
+#[test]
+fn r14_r12_a_block_sliding_down_the_side_of_another_does_not_hang() {
+    let s = scene(
+        "[effects]\nstacking = \"supported\"\n\
+         [[block]]\nname = \"post\"\nsize = [0.1, 0.6, 0.1]\nposition = [0.0, 0.3, 0.0]\n\
+         [[block]]\nname = \"slider\"\nposition = [0.1, 0.5, 0.0]\n",
+    );
+    let (_, _, w) = trace(&s, 300);
+    let b = w.block(1).unwrap();
+    assert_eq!(b.mode, BlockMode::Resting);
+    assert!(
+        (b.position - DVec3::new(0.1, 0.05, 0.0)).length() < 1e-9,
+        "{}",
+        b.position
+    );
+}
