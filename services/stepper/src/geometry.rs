@@ -12,7 +12,6 @@
 //! floor contacts) are ours: they need the crossed *features*, not only a distance.
 
 use glam::{DQuat, DVec2, DVec3};
-use parry3d_f64::query::PointQuery;
 use parry3d_f64::shape::ConvexPolyhedron;
 
 use common::config::scene::ShapeSpec;
@@ -254,9 +253,36 @@ impl Polyhedron {
             // Inside: the nearest boundary point is the foot on the nearest face plane.
             (p - self.faces[face].normal * s, s, face)
         } else {
-            let proj = self.shape.project_local_point(p, false);
-            let d = (p - proj.point).length();
-            (proj.point, d, face)
+            // Outside: the nearest of the faces' feet that lie on the solid, the edges' nearest
+            // points and (through the edges) the vertices. Exact and allocation-free (parry's
+            // point projection runs EPA, which allocates, for points this close).
+            let scale = self.radius.max(f64::MIN_POSITIVE);
+            let mut best = (f64::INFINITY, p);
+            for f in &self.faces {
+                let d = f.distance(p);
+                if d > 0.0 {
+                    let foot = p - f.normal * d;
+                    if self.max_face_distance(foot).0 <= 1e-12 * scale && d < best.0 {
+                        best = (d, foot);
+                    }
+                }
+            }
+            for [i, j] in &self.edges {
+                let (a, b) = (self.vertices[*i], self.vertices[*j]);
+                let ab = b - a;
+                let l2 = ab.length_squared();
+                let t = if l2 > 0.0 {
+                    ((p - a).dot(ab) / l2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let q = a + ab * t;
+                let d = (p - q).length();
+                if d < best.0 {
+                    best = (d, q);
+                }
+            }
+            (best.1, best.0, face)
         }
     }
 

@@ -61,21 +61,12 @@ pub(crate) fn overlapping(a: &Block, b: &Block, tol: f64) -> bool {
     ) > tol
 }
 
-/// R12: whether moving block a by `d` takes it into b, which it touches: along the SAT axis of
-/// least overlap (a separating axis when they only touch) the step may close the gap and go at
-/// most `tol` deeper. For convex blocks a step that keeps a separating axis separated cannot
-/// enter the other block anywhere along the way.
-fn approaches(a: &Block, b: &Block, d: DVec3, tol: f64) -> bool {
-    let (depth, n) = sat_axis(
-        &a.poly,
-        a.rot,
-        &a.rel,
-        &b.poly,
-        b.rot,
-        &b.rel,
-        b.pos - a.pos,
-    );
-    // NaN (a degenerate pair) counts as approaching: the cast's stop stands.
+/// R12 (R14): whether moving a block by `d` takes it into another one it touches, given their
+/// SAT depth and axis of least overlap `n` (from the block to the other): along `n` the step
+/// may close the gap and go at most `tol` deeper. For convex blocks a step that keeps a
+/// separating axis separated cannot enter the other block anywhere along the way.
+fn approaches(depth: f64, n: DVec3, d: DVec3, tol: f64) -> bool {
+    // NaN (a degenerate pair) counts as approaching: the block stays.
     let closing = d.dot(n);
     let allowed = (-depth).max(0.0) + tol;
     closing.is_nan() || closing > allowed
@@ -153,21 +144,33 @@ impl World {
                 if (b.pos - mid).length() > a.poly.radius + b.poly.radius + 0.5 * len {
                     continue;
                 }
+                // R14 lets blocks that touch move (R11 holds them): a blocker the block already
+                // touches stops it exactly when the step approaches it. The shape cast cannot
+                // tell: it says time of impact 0 for a block merely sliding past another's side
+                // (which would hang in the air), and may miss a touching one it moves into.
+                if self.passes.supported {
+                    let (depth, n) = sat_axis(
+                        &a.poly,
+                        a.rot,
+                        &a.rel,
+                        &b.poly,
+                        b.rot,
+                        &b.rel,
+                        b.pos - a.pos,
+                    );
+                    if depth >= -self.params.contact_eps {
+                        if approaches(depth, n, d, self.params.hull_eps) {
+                            toi = 0.0;
+                        }
+                        continue;
+                    }
+                }
                 let (pa, pb) = rel_poses(a, b);
                 if let Ok(Some(hit)) =
                     query::cast_shapes(&pa, d, &a.poly.shape, &pb, DVec3::ZERO, &b.poly.shape, opts)
                 {
                     if hit.time_of_impact.is_finite() {
-                        let t = hit.time_of_impact.clamp(0.0, 1.0);
-                        // A blocker the block already touches (the cast says time of impact 0)
-                        // stops it only if the step approaches it: a block sliding down past
-                        // another's side, or tipping off its edge, must not hang in the air.
-                        if t * len <= self.params.contact_eps
-                            && !approaches(a, b, d, self.params.hull_eps)
-                        {
-                            continue;
-                        }
-                        toi = toi.min(t);
+                        toi = toi.min(hit.time_of_impact.clamp(0.0, 1.0));
                     }
                 }
             }
