@@ -100,6 +100,9 @@ impl SupportScratch {
     }
 }
 
+// Block sets are u128 bit masks: one bit per block.
+const _: () = assert!(common::MAX_BLOCKS <= 128);
+
 #[inline]
 fn bit(i: usize) -> u128 {
     1u128 << i
