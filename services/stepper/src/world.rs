@@ -130,7 +130,7 @@ pub(crate) struct Fingers {
     pub points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
 }
 
-/// The block world: MODEL.md's paper model (rules R1-R13).
+/// The block world: MODEL.md's paper model (rules R1-R13, and R14 when the scene asks for it).
 pub struct World {
     pub(crate) file: PathBuf,
     pub(crate) params: Params,
