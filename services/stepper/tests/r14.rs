@@ -195,3 +195,60 @@ fn r14_r12_a_block_sliding_down_the_side_of_another_does_not_hang() {
         b.position
     );
 }
+
+/// Every scene of config/scenes also runs under R14: no two blocks ever overlap by more than
+/// hull_eps, and everything lies still at the end (stack-paper's overhanging "top" now falls:
+/// its G is beyond the base's edge).
+#[test]
+fn r14_every_scene_runs_under_supported_stacking() {
+    use stepper::geometry::{rotate_vertices, sat_depth, Polyhedron};
+    for name in [
+        "drop",
+        "tip",
+        "balance",
+        "push",
+        "grasp-throw-fingers",
+        "carry",
+        "stack-paper",
+        "wedge-tetra",
+    ] {
+        let mut s = scene_file(name);
+        s.effects.stacking = common::config::scene::Stacking::Supported;
+        let polys: Vec<Polyhedron> = s
+            .blocks
+            .iter()
+            .map(|b| Polyhedron::from_spec(&b.shape).unwrap())
+            .collect();
+        let (poses, _, w) = trace(&s, 900);
+        let (mut va, mut vb) = (Vec::new(), Vec::new());
+        for (k, p) in poses.iter().enumerate() {
+            for i in 0..p.len() {
+                for j in i + 1..p.len() {
+                    rotate_vertices(&polys[i], p[i].1, &mut va);
+                    rotate_vertices(&polys[j], p[j].1, &mut vb);
+                    let d = sat_depth(
+                        &polys[i],
+                        p[i].1,
+                        &va,
+                        &polys[j],
+                        p[j].1,
+                        &vb,
+                        p[j].0 - p[i].0,
+                    );
+                    assert!(
+                        d <= 1e-6,
+                        "{name}: blocks {i} and {j} overlap by {d} at step {k}"
+                    );
+                }
+            }
+        }
+        assert!(
+            poses[800..].iter().all(|p| *p == poses[800]),
+            "{name}: still moving at the end"
+        );
+        if name == "stack-paper" {
+            assert_eq!(w.block(1).unwrap().mode, BlockMode::Resting, "top fell");
+            assert!(w.block(1).unwrap().position.y < 0.06);
+        }
+    }
+}
