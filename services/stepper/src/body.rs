@@ -103,9 +103,9 @@ pub struct Block {
     /// judges again the resting and supported blocks it touches ("a block whose supporter
     /// moved is judged again in the next step").
     pub stirred: bool,
-    /// R14: the blocks this block tipped over in its last step as the root of a tipping load
-    /// (bit j: block j). While it tips over their edge its weight rests on that edge, not on
-    /// them as a load: they do not count it in their G_L.
+    /// R14: the blocks this block tipped over as the root of a tipping load (bit j: block j),
+    /// kept while it still rests on them. Its weight rests on their edge, not on them as a
+    /// load: they do not count it in their G_L.
     pub tipped_over: u128,
     /// R13: the last `throw_window` grasped displacements (ring buffer) and how many are valid.
     pub grasp_history: Vec<DVec3>,

@@ -30,9 +30,10 @@
 //!    contact with a block outside S (bisection on the SAT depth). A turn that cannot start
 //!    without entering another block releases b as `free` (R7, R12 then decide).
 //!
-//! While a load tips over a block's edge, its weight rests on that edge, not on the block as a
-//! load (**[resolved]**): the block it tips over leaves it out of its own G_L
-//! (`Block::tipped_over`), so a stack toppling off a base does not drag the base along.
+//! While a load tips over a block's edge, and while it still leans on the block it tipped over,
+//! its weight rests on that edge, not on the block as a load (**[resolved]**): that block leaves
+//! it out of its own G_L (`Block::tipped_over`), so a stack toppling off a base, or lying
+//! across its edge afterwards, does not drag the base along.
 //!
 //! A tipping block that loses contact with its supporters (its contact normal turns sideways)
 //! has no supporter in the next step and is free: R7 moves it, R12 stops it, R8/R9 land it.
@@ -365,7 +366,8 @@ impl World {
             let b = &mut blocks[i];
             b.v = DVec3::ZERO;
             b.judged = true;
-            b.tipped_over = 0;
+            // Still leaning on the edge it tipped over: still no load of that block.
+            b.tipped_over &= below;
             b.mode = if below != 0 {
                 BlockMode::Supported
             } else {

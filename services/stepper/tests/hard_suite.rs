@@ -303,20 +303,23 @@ const EPS: f64 = 1e-4;
 const HULL_EPS: f64 = 1e-6;
 
 fn harmonic_101(o: &Outcome) -> Result<String, String> {
+    block_still(o, 0, o.poses.len())?;
     let down = o
         .events
         .iter()
         .find(|e| e.kind == EventKind::Impact && e.block != 0)
         .ok_or("the stack never reached the floor")?
-        .step as usize;
-    block_still(o, 0, down)?;
+        .step;
     for i in 1..5 {
         let (x0, x) = (o.poses[0][i].0, last(o)[i].0);
         if !(x.y < x0.y && x.x > 0.05) {
             return Err(format!("block {i} did not come down beyond the edge: {x}"));
         }
     }
-    Ok(format!("toppled; first on the floor at step {down}"))
+    still_at_end(o, 60)?;
+    Ok(format!(
+        "toppled, first on the floor at step {down}; base never moved"
+    ))
 }
 
 fn plate_1_5_20(o: &Outcome) -> Result<String, String> {
