@@ -153,6 +153,9 @@ fn run_paper(case: &Case, scene: &Scene) -> Outcome {
         if case.overlaps {
             for i in 0..p.len() {
                 for j in i + 1..p.len() {
+                    if (p[j].0 - p[i].0).length() > polys[i].radius + polys[j].radius {
+                        continue;
+                    }
                     rotate_vertices(&polys[i], p[i].1, &mut va);
                     rotate_vertices(&polys[j], p[j].1, &mut vb);
                     let d = sat_depth(
@@ -289,6 +292,26 @@ fn pyramid_stands(o: &Outcome) -> Result<String, String> {
         )?;
     }
     Ok(r)
+}
+
+fn pyramid_knocked(o: &Outcome) -> Result<String, String> {
+    if o.max_overlap > EPS {
+        return Err(format!("overlap {}", o.max_overlap));
+    }
+    let pushed = 14;
+    if last(o)[pushed].0.z < 0.1 {
+        return Err(format!(
+            "the bottom-right cube was not pushed out: {}",
+            last(o)[pushed].0
+        ));
+    }
+    for i in (0..o.modes.len()).filter(|&i| i != pushed) {
+        block_still(o, i, o.poses.len())?;
+    }
+    Ok(format!(
+        "largest overlap {:.1e} m; 119 cubes never moved",
+        o.max_overlap.max(0.0)
+    ))
 }
 
 fn upper_stays(o: &Outcome) -> Result<String, String> {
@@ -594,6 +617,14 @@ const CASES: &[Case] = &[
     case!("harmonic-4-99", 600, never_moves),
     case!("harmonic-4-101", 3000, harmonic_101),
     case!("pyramid-15", 240, pyramid_stands),
+    case!(
+        "pyramid-knocked",
+        480,
+        pyramid_knocked,
+        DVec3::ZERO,
+        Glitch::None,
+        true
+    ),
     case!("plate-1-5-20", 360, plate_1_5_20),
     case!("plate-1000-1", 600, plate_1000_1),
     case!("parallel-faces", 300, parallel_faces),
@@ -734,6 +765,7 @@ tests! {
     harmonic_4_99 => "harmonic-4-99",
     harmonic_4_101 => "harmonic-4-101",
     pyramid_15 => "pyramid-15",
+    pyramid_with_a_bottom_cube_pushed_out => "pyramid-knocked",
     plate_1_5_20_lands_flat => "plate-1-5-20",
     plate_1000_1_lands_flat_and_carries_a_cube => "plate-1000-1",
     parallel_faces => "parallel-faces",
