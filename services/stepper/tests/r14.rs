@@ -245,3 +245,56 @@ fn r14_every_scene_runs_under_supported_stacking() {
         }
     }
 }
+
+/// R14 with the hand (R5, R10): lifting the bottom cube of a two-cube stack carries the top one
+/// (it overlaps the rising cube), and when the hand holds still the top rests on the grasped
+/// cube (a held block supports, it is never part of a load). Lifting the top cube leaves the
+/// bottom one exactly where it was.
+#[test]
+fn r14_r10_a_lifted_stack_rides_on_the_grasped_block() {
+    let fingers = |x: f64| {
+        format!(
+            "[[[{}, 0.0, 0.0], [{}, -0.03, 0.0]], [[{}, 0.0, 0.0], [{}, -0.03, 0.0]]]",
+            -x, -x, x, x
+        )
+    };
+    let text = |grip_y: f64| {
+        format!(
+            "[effects]\nstacking = \"supported\"\n\
+             [[block]]\nname = \"bottom\"\nsize = [0.06, 0.06, 0.06]\nposition = [0.0, 0.03, 0.0]\n\
+             [[block]]\nname = \"top\"\nsize = [0.06, 0.06, 0.06]\nposition = [0.0, 0.09, 0.0]\n\
+             [hand]\n\
+             [[hand.key]]\nt = 0.0\nwrist = [0.0, {y0}, 0.0]\nfingers = {open}\n\
+             [[hand.key]]\nt = 0.3\nwrist = [0.0, {y0}, 0.0]\nfingers = {closed}\n\
+             [[hand.key]]\nt = 0.6\nwrist = [0.0, {y1}, 0.0]\nfingers = {closed}\n",
+            y0 = grip_y + 0.015,
+            y1 = grip_y + 0.115,
+            open = fingers(0.05),
+            closed = fingers(0.0295),
+        )
+    };
+    let (poses, _, w) = trace(&scene(&text(0.03)), 200);
+    assert_eq!(w.block(0).unwrap().mode, BlockMode::Grasped);
+    assert_eq!(w.block(1).unwrap().mode, BlockMode::Supported);
+    assert!(
+        (poses[200][0].0.y - 0.13).abs() < 1e-9,
+        "{}",
+        poses[200][0].0
+    );
+    assert!(
+        (poses[200][1].0.y - 0.19).abs() < 1e-9,
+        "{}",
+        poses[200][1].0
+    );
+    assert!(
+        poses[100..].iter().all(|p| p[1] == poses[100][1]),
+        "the top rests on the held cube"
+    );
+    let (poses, _, w) = trace(&scene(&text(0.09)), 200);
+    assert_eq!(w.block(1).unwrap().mode, BlockMode::Grasped);
+    assert!((poses[200][1].0.y - 0.19).abs() < 1e-9);
+    assert!(
+        poses.iter().all(|p| p[0] == poses[0][0]),
+        "the bottom never moves"
+    );
+}
