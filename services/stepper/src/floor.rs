@@ -294,6 +294,8 @@ impl World {
             }
             let mut set = set;
             let mut impact = set.has_new_vs(&prev);
+            // The pose an R9 turn started from (R14 checks it against the neighbours).
+            let mut turned_from = None;
             if !tipping {
                 // floor = "rest": R8 only; a block on the floor stays (no rebound, no slide).
                 b.v = DVec3::ZERO;
@@ -336,6 +338,7 @@ impl World {
                     }
                     Stability::Tipping { pivot, axis, theta } => {
                         let before = b.pos;
+                        turned_from = Some((b.pos, b.rot, set));
                         b.rotate_about(DQuat::from_axis_angle(axis, theta), pivot);
                         let turned = b.pos - before;
                         // After the rotation apply R8 again.
@@ -357,6 +360,22 @@ impl World {
                 b.v = DVec3::ZERO;
             }
             b.floor = set;
+            // R14: blocks that touch are not held by R11, so an R9 turn on the floor may swing a
+            // block into the neighbour it leans on. It does not turn then: it leans on it.
+            if let Some((pos, rot, set)) = turned_from {
+                if self.passes.supported && self.turn_enters_neighbour(i, pos, rot) {
+                    let b = &mut self.blocks[i];
+                    b.pos = pos;
+                    b.rot = rot;
+                    b.refresh_rel();
+                    b.floor = set;
+                    b.v = DVec3::ZERO;
+                    if !by_hand {
+                        b.mode = BlockMode::Resting;
+                    }
+                    continue;
+                }
+            }
             if impact {
                 self.emit(EventKind::Impact, i);
             }

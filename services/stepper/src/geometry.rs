@@ -432,9 +432,12 @@ pub fn sat_depth(
 }
 
 /// [`sat_depth`] with the axis that gives it: (depth, unit axis pointing from `a` to `b`). R14
-/// reads the axis as the pair's contact normal (a supports b when it points up) and R12 as the
-/// direction in which a touching blocker can be approached. Kept apart from `sat_depth` so that
-/// the paper mode's arithmetic is untouched.
+/// reads the axis as the pair's contact normal (a supports b when it points up). Where several
+/// axes give the least overlap within `tie` (two boxes touching only along an edge, diagonal
+/// neighbours), the normal is ambiguous; the most horizontal of them is taken, so such a touch
+/// is a side contact and holds nothing up. Kept apart from `sat_depth` so that the paper mode's
+/// arithmetic is untouched.
+#[allow(clippy::too_many_arguments)]
 pub fn sat_axis(
     pa: &Polyhedron,
     ra: DQuat,
@@ -443,7 +446,9 @@ pub fn sat_axis(
     rb: DQuat,
     vb: &[DVec3],
     b_off: DVec3,
+    tie: f64,
 ) -> (f64, DVec3) {
+    let least = sat_depth(pa, ra, va, pb, rb, vb, b_off);
     let mut best = (f64::INFINITY, DVec3::Y);
     let mut test = |axis: DVec3| {
         let (mut amin, mut amax) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -465,7 +470,7 @@ pub fn sat_axis(
         } else {
             (down, -axis)
         };
-        if overlap < best.0 {
+        if overlap <= least + tie && (best.0 == f64::INFINITY || dir.y.abs() < best.1.y.abs()) {
             best = (overlap, dir);
         }
     };
@@ -485,7 +490,63 @@ pub fn sat_axis(
             }
         }
     }
-    best
+    (least, best.1)
+}
+
+/// R12 (R14) for two touching blocks: whether translating `a` by `d` keeps them apart along
+/// some separating axis, that is, some SAT axis on which they are separated or touch (within
+/// `touch`) and which the step does not close by more than the gap plus `tol`. For convex solids
+/// such an axis proves that no point of the way enters the other block. Every axis counts, not
+/// only the one of least overlap: an edge resting against a wall touches it along the wall's
+/// normal and along its own face's normal at once, and only the first lets it slide down.
+#[allow(clippy::too_many_arguments)]
+pub fn sat_allows_motion(
+    pa: &Polyhedron,
+    ra: DQuat,
+    va: &[DVec3],
+    pb: &Polyhedron,
+    rb: DQuat,
+    vb: &[DVec3],
+    b_off: DVec3,
+    d: DVec3,
+    touch: f64,
+    tol: f64,
+) -> bool {
+    // Along one axis: they touch (overlap at most `touch`, what a turn limited to hull_eps and
+    // rounding far from the origin leave) and the step closes at most the gap plus `tol`, or,
+    // where they already overlap, does not go deeper (no creeping into a neighbour).
+    let dl = d.length();
+    let keeps = |gap: f64, closing: f64| {
+        gap >= -touch && closing <= if gap >= 0.0 { gap + tol } else { 1e-9 * dl }
+    };
+    let keeps_apart = |axis: DVec3| {
+        let (mut amin, mut amax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in va {
+            let x = v.dot(axis);
+            amin = amin.min(x);
+            amax = amax.max(x);
+        }
+        let (mut bmin, mut bmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in vb {
+            let x = (*v + b_off).dot(axis);
+            bmin = bmin.min(x);
+            bmax = bmax.max(x);
+        }
+        // b beyond a along +axis (gap bmin - amax) or along -axis (gap amin - bmax).
+        let (gap_up, gap_down) = (bmin - amax, amin - bmax);
+        let closing = d.dot(axis);
+        keeps(gap_up, closing) || keeps(gap_down, -closing)
+    };
+    pa.faces.iter().any(|f| keeps_apart(ra * f.normal))
+        || pb.faces.iter().any(|f| keeps_apart(rb * f.normal))
+        || pa.edge_dirs.iter().any(|ea| {
+            let ea = ra * *ea;
+            pb.edge_dirs.iter().any(|eb| {
+                let c = ea.cross(rb * *eb);
+                let l = c.length();
+                l > 1e-9 && keeps_apart(c / l)
+            })
+        })
 }
 
 /// R14's contact manifold of two blocks within `eps`, appended to `out` relative to a's G (world

@@ -16,7 +16,7 @@ use parry3d_f64::query::{self, ShapeCastOptions};
 use common::BlockMode;
 
 use crate::body::{Block, Moved};
-use crate::geometry::{sat_axis, sat_depth};
+use crate::geometry::{sat_allows_motion, sat_axis, sat_depth};
 use crate::world::World;
 
 /// The pair's poses with block `a`'s G as the origin (precision far from the world origin).
@@ -59,17 +59,6 @@ pub(crate) fn overlapping(a: &Block, b: &Block, tol: f64) -> bool {
         &b.rel,
         b.pos - a.pos,
     ) > tol
-}
-
-/// R12 (R14): whether moving a block by `d` takes it into another one it touches, given their
-/// SAT depth and axis of least overlap `n` (from the block to the other): along `n` the step
-/// may close the gap and go at most `tol` deeper. For convex blocks a step that keeps a
-/// separating axis separated cannot enter the other block anywhere along the way.
-fn approaches(depth: f64, n: DVec3, d: DVec3, tol: f64) -> bool {
-    // NaN (a degenerate pair) counts as approaching: the block stays.
-    let closing = d.dot(n);
-    let allowed = (-depth).max(0.0) + tol;
-    closing.is_nan() || closing > allowed
 }
 
 impl World {
@@ -117,6 +106,41 @@ impl World {
             .any(|(j, b)| j != i && touching(a, b, self.params.contact_eps))
     }
 
+    /// R14 with R7: the part of block i's free step `d` it can take along the blocks it touches
+    /// at their sides. Where `d` would enter a touching block across a side contact (a contact
+    /// normal within 0.57 deg of horizontal, `SIDE_CONTACT_NY`), its component into that block
+    /// is removed: the block slides down the face (R14 **[resolved]**: side contacts hold
+    /// nothing up, so a block that turned over an edge and hangs against the face below it
+    /// falls along it instead of hanging in the air). Contacts from above or below are R12's to
+    /// stop. Removing a component never lengthens the step.
+    pub(crate) fn slide_along_sides(&self, i: usize, d: DVec3) -> DVec3 {
+        let a = &self.blocks[i];
+        let eps = self.params.contact_eps;
+        let mut d = d;
+        for (j, b) in self.blocks.iter().enumerate() {
+            if j == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + eps {
+                continue;
+            }
+            let off = b.pos - a.pos;
+            // The separating axis itself (no tie-break): the face the block slides along.
+            let (depth, n) = sat_axis(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, 0.0);
+            if depth < -eps || n.y.abs() >= crate::support::SIDE_CONTACT_NY {
+                continue;
+            }
+            let hull_eps = self.params.hull_eps;
+            if sat_allows_motion(
+                &a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, d, eps, hull_eps,
+            ) {
+                continue;
+            }
+            let closing = d.dot(n);
+            if closing > 0.0 {
+                d -= n * closing;
+            }
+        }
+        d
+    }
+
     /// R12: the fraction in [0, 1] of the step `d` block i can take before it first touches the
     /// floor (when there is one) or another block: a shape cast, so no speed tunnels through.
     pub(crate) fn cast_fraction(&self, i: usize, d: DVec3) -> f64 {
@@ -149,17 +173,22 @@ impl World {
                 // tell: it says time of impact 0 for a block merely sliding past another's side
                 // (which would hang in the air), and may miss a touching one it moves into.
                 if self.passes.supported {
-                    let (depth, n) = sat_axis(
-                        &a.poly,
-                        a.rot,
-                        &a.rel,
-                        &b.poly,
-                        b.rot,
-                        &b.rel,
-                        b.pos - a.pos,
-                    );
+                    let off = b.pos - a.pos;
+                    let depth = sat_depth(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off);
                     if depth >= -self.params.contact_eps {
-                        if approaches(depth, n, d, self.params.hull_eps) {
+                        let free = sat_allows_motion(
+                            &a.poly,
+                            a.rot,
+                            &a.rel,
+                            &b.poly,
+                            b.rot,
+                            &b.rel,
+                            off,
+                            d,
+                            self.params.contact_eps,
+                            self.params.hull_eps,
+                        );
+                        if !free {
                             toi = 0.0;
                         }
                         continue;

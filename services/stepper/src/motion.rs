@@ -112,11 +112,18 @@ impl World {
             if d == DVec3::ZERO {
                 continue;
             }
+            // R14: a block against another's side slides down along it (side contacts hold
+            // nothing up). Without R14 a touching block is held by R11 and never gets here.
+            let path = if self.passes.supported {
+                self.slide_along_sides(i, d)
+            } else {
+                d
+            };
             // R12: stop at the first time of impact; v is the actual displacement.
-            let f = self.cast_fraction(i, d);
+            let f = self.cast_fraction(i, path);
             let b = &mut self.blocks[i];
             b.intended = d;
-            let actual = d * f;
+            let actual = path * f;
             b.translate(actual);
             b.v = if inertia { actual } else { DVec3::ZERO };
             b.moved = Moved::Free;

@@ -12,7 +12,8 @@
 //! 2. **Supporters.** A touching pair (SAT depth >= -contact_eps) supports upward: the SAT axis
 //!    of least overlap is the pair's contact normal, and the lower block supports the upper one
 //!    when that normal has an upward component (MODEL.md's "at points below its G", read as
-//!    "under it": side contacts between neighbours hold nothing up and make no cycles). The
+//!    "under it": side contacts between neighbours hold nothing up and make no cycles; a touch
+//!    along an edge only, whose normal is ambiguous, is a side contact). The
 //!    contact points are the pair's manifold ([`contact_points`]): vertices of either within
 //!    contact_eps of the other, and edge-plane crossings (a box turned 45 deg on another).
 //! 3. **Judged bottom up** (a block after its supporters; ties and cycles by index). For block b,
@@ -37,6 +38,12 @@
 //!
 //! A tipping block that loses contact with its supporters (its contact normal turns sideways)
 //! has no supporter in the next step and is free: R7 moves it, R12 stops it, R8/R9 land it.
+//! Since blocks that touch are no longer held (R11), two more rules keep them apart
+//! (**[resolved]**): a free block against another's side slides down along that face rather
+//! than hanging where R12's cast would stop it (`World::slide_along_sides`; a touching blocker
+//! stops a step only if no separating axis stays separated, `sat_allows_motion`), and an R9
+//! turn on the floor that would swing a block into the neighbour it leans on is not taken
+//! (`World::turn_enters_neighbour`).
 
 use glam::{DQuat, DVec2, DVec3};
 
@@ -47,10 +54,12 @@ use crate::floor::{in_hull, landing_angle, tip_about_hull};
 use crate::geometry::{contact_points, convex_hull_2d, rotate_vertices, sat_axis, sat_depth};
 use crate::world::World;
 
-/// A contact whose normal's vertical part is below this is a side contact: it holds nothing up.
-/// (Exactly vertical faces give |n.y| ~ 1e-17 after rotation; a face 0.00006 deg off vertical
-/// is still a wall.)
-pub const SIDE_CONTACT_NY: f64 = 1e-6;
+/// A contact whose normal's vertical part is below this (a face within 0.57 deg of vertical) is
+/// a side contact: it holds nothing up. Exactly vertical faces give |n.y| ~ 1e-17 after a
+/// rotation, and a block that turned over an edge ends with its faces off vertical by the
+/// bisection's and landing's leftovers (1e-5 was seen): such a face is a wall, not a slope the
+/// block rests on (it would make the block beside a tower carry the tower as its load).
+pub const SIDE_CONTACT_NY: f64 = 0.01;
 
 /// Contact points kept per touching pair (a box on a box needs 16 at most).
 pub const MAX_PAIR_POINTS: usize = 64;
@@ -129,6 +138,47 @@ fn near(a: &Block, b: &Block, margin: f64) -> bool {
 }
 
 impl World {
+    /// R14 for R9's turns on the floor: whether block i, turned from the pose (`pos`, `rot`) to
+    /// where it is now, entered another block deeper than it was (or than hull_eps).
+    pub(crate) fn turn_enters_neighbour(&mut self, i: usize, pos: DVec3, rot: DQuat) -> bool {
+        let hull_eps = self.params.hull_eps;
+        let World {
+            blocks, support, ..
+        } = self;
+        let a = &blocks[i];
+        rotate_vertices(&a.poly, rot, &mut support.turned);
+        for (k, b) in blocks.iter().enumerate() {
+            if k == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + hull_eps {
+                continue;
+            }
+            let after = sat_depth(
+                &a.poly,
+                a.rot,
+                &a.rel,
+                &b.poly,
+                b.rot,
+                &b.rel,
+                b.pos - a.pos,
+            );
+            if after <= hull_eps {
+                continue;
+            }
+            let before = sat_depth(
+                &a.poly,
+                rot,
+                &support.turned,
+                &b.poly,
+                b.rot,
+                &b.rel,
+                b.pos - pos,
+            );
+            if after > before.max(hull_eps) {
+                return true;
+            }
+        }
+        false
+    }
+
     /// Stage 3a (R14): finds supporters, judges bottom up, holds or tips each block with its
     /// load. Blocks it decides are marked `judged`; stages 3b (R7) and 4 (R8, R9) leave them.
     pub(crate) fn support_stage(&mut self) {
@@ -204,6 +254,7 @@ impl World {
                         b.rot,
                         &b.rel,
                         b.pos - a.pos,
+                        eps,
                     );
                     if depth.is_nan() || depth < -eps {
                         continue;

@@ -58,8 +58,9 @@ struct Outcome {
     poses: Vec<Vec<(DVec3, DQuat)>>,
     events: Vec<Event>,
     modes: Vec<BlockMode>,
-    /// The largest SAT overlap of two blocks over all steps (with `overlaps`).
+    /// The largest SAT overlap of two blocks over all steps (with `overlaps`): step and blocks.
     max_overlap: f64,
+    worst_overlap: (u64, usize, usize),
     /// Steps in which a block was grasped, and the deepest a drawn finger point lay inside it.
     grasped_steps: u64,
     finger_depth: f64,
@@ -98,6 +99,7 @@ fn run_paper(case: &Case, scene: &Scene) -> Outcome {
         events: Vec::new(),
         modes: Vec::new(),
         max_overlap: f64::NEG_INFINITY,
+        worst_overlap: (0, 0, 0),
         grasped_steps: 0,
         finger_depth: f64::NEG_INFINITY,
         origin: None,
@@ -167,7 +169,10 @@ fn run_paper(case: &Case, scene: &Scene) -> Outcome {
                         &vb,
                         p[j].0 - p[i].0,
                     );
-                    out.max_overlap = out.max_overlap.max(d);
+                    if d > out.max_overlap {
+                        out.max_overlap = d;
+                        out.worst_overlap = (n, i, j);
+                    }
                 }
             }
         }
@@ -311,6 +316,31 @@ fn pyramid_knocked(o: &Outcome) -> Result<String, String> {
     Ok(format!(
         "largest overlap {:.1e} m; 119 cubes never moved",
         o.max_overlap.max(0.0)
+    ))
+}
+
+fn drop_onto_tower(o: &Outcome) -> Result<String, String> {
+    if o.max_overlap > EPS {
+        return Err(format!(
+            "overlap {} (step, blocks) {:?}",
+            o.max_overlap, o.worst_overlap
+        ));
+    }
+    for i in 0..5 {
+        block_still(o, i, o.poses.len())?;
+    }
+    mode(o, 5, BlockMode::Supported)?;
+    near("staying cube G y", last(o)[5].0.y, 0.55, 1e-9)?;
+    mode(o, 6, BlockMode::Resting)?;
+    let fell = last(o)[6].0;
+    near("falling cube G y", fell.y, 0.05, 1e-9)?;
+    if fell.x > -0.1 + 1e-9 {
+        return Err(format!("the falling cube is not beside the tower: {fell}"));
+    }
+    still_at_end(o, 60)?;
+    Ok(format!(
+        "tower still; one stays on top, the other slid down its side to the floor at x = {:.4}",
+        fell.x
     ))
 }
 
@@ -520,7 +550,10 @@ fn push_into_wall(o: &Outcome) -> Result<String, String> {
 
 fn push_into_stack(o: &Outcome) -> Result<String, String> {
     if o.max_overlap > EPS {
-        return Err(format!("overlap {}", o.max_overlap));
+        return Err(format!(
+            "overlap {} (step, blocks) {:?}",
+            o.max_overlap, o.worst_overlap
+        ));
     }
     still_at_end(o, 120)?;
     for i in [2, 3] {
@@ -621,6 +654,14 @@ const CASES: &[Case] = &[
         "pyramid-knocked",
         480,
         pyramid_knocked,
+        DVec3::ZERO,
+        Glitch::None,
+        true
+    ),
+    case!(
+        "drop-onto-tower",
+        600,
+        drop_onto_tower,
         DVec3::ZERO,
         Glitch::None,
         true
@@ -765,6 +806,7 @@ tests! {
     harmonic_4_99 => "harmonic-4-99",
     harmonic_4_101 => "harmonic-4-101",
     pyramid_15 => "pyramid-15",
+    a_cube_dropped_beyond_a_towers_edge_slides_down_its_side => "drop-onto-tower",
     pyramid_with_a_bottom_cube_pushed_out => "pyramid-knocked",
     plate_1_5_20_lands_flat => "plate-1-5-20",
     plate_1000_1_lands_flat_and_carries_a_cube => "plate-1000-1",
