@@ -51,6 +51,9 @@ pub enum Moved {
     Free,
     /// R9 rotated it (set in the floor stage).
     Tipped,
+    /// R14 turned it: it tipped over its supporters, or rode on a tipping block as its load.
+    /// The floor stage applies only R8 to it (R14 already was its R9).
+    Stacked,
 }
 
 /// What the hand does to a block this step (R3's verdict, applied in stage 2).
@@ -94,6 +97,16 @@ pub struct Block {
     pub action: HandAction,
     /// Set when R3 ends a grasp this step (R13).
     pub released: bool,
+    /// R14 decided this block this step (held or tipped): stages 3 and 4 leave it alone.
+    pub judged: bool,
+    /// Its pose or mode changed in the previous step (or the hand moved it this step): R14
+    /// judges again the resting and supported blocks it touches ("a block whose supporter
+    /// moved is judged again in the next step").
+    pub stirred: bool,
+    /// R14: the blocks this block tipped over as the root of a tipping load (bit j: block j),
+    /// kept while it still rests on them. Its weight rests on their edge, not on them as a
+    /// load: they do not count it in their G_L.
+    pub tipped_over: u128,
     /// R13: the last `throw_window` grasped displacements (ring buffer) and how many are valid.
     pub grasp_history: Vec<DVec3>,
     pub grasp_history_len: usize,
@@ -127,6 +140,9 @@ impl Block {
             intended: DVec3::ZERO,
             action: HandAction::None,
             released: false,
+            judged: false,
+            stirred: true,
+            tipped_over: 0,
             grasp_history: vec![DVec3::ZERO; window.max(1)],
             grasp_history_len: 0,
             grasp_history_next: 0,

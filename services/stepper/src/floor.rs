@@ -72,18 +72,9 @@ pub fn stability(
     }
     convex_hull_2d(hull_in, hull_out);
     let h = &hull_out[..];
-    let inside = match h.len() {
-        0 => return Stability::Resting,
-        1 => (g2 - h[0]).length() <= p.hull_eps,
-        2 => point_segment_2d(g2, h[0], h[1]).0 <= p.hull_eps,
-        n => (0..n).all(|k| {
-            let (a, b) = (h[k], h[(k + 1) % n]);
-            let e = b - a;
-            e.perp_dot(g2 - a) >= -p.hull_eps * e.length()
-        }),
-    };
-    if inside {
-        return Stability::Resting;
+    match in_hull(h, g2, p.hull_eps) {
+        None | Some(true) => return Stability::Resting,
+        Some(false) => {}
     }
     // The 3-D vertex of a hull point (its x, z were copied exactly).
     let vertex_of = |q: DVec2| -> DVec3 {
@@ -93,7 +84,47 @@ pub fn stability(
             .find(|v| v.x == q.x && v.z == q.y)
             .unwrap_or(DVec3::new(q.x, -gy, q.y))
     };
-    let tip = match h.len() {
+    let tip = tip_about_hull(h, g2, gm, vertex_of);
+    let Some((pivot, axis, theta)) = tip else {
+        return Stability::Resting;
+    };
+    // Limit: the smallest rotation about the same axis that brings a vertex not in contact
+    // down to the floor (it then joins the contact set).
+    let theta_c = landing_angle(rel, gy, set, pivot, axis, p.angle_eps);
+    Stability::Tipping {
+        pivot,
+        axis,
+        theta: theta.min(theta_c),
+    }
+}
+
+/// Whether G' (`g2`, relative to G) lies in the hull `h` (boundary included, within
+/// `hull_eps`); None for an empty hull. Shared by R9 (the floor) and R14 (a block's supporters).
+pub(crate) fn in_hull(h: &[DVec2], g2: DVec2, hull_eps: f64) -> Option<bool> {
+    Some(match h.len() {
+        0 => return None,
+        1 => (g2 - h[0]).length() <= hull_eps,
+        2 => point_segment_2d(g2, h[0], h[1]).0 <= hull_eps,
+        n => (0..n).all(|k| {
+            let (a, b) = (h[k], h[(k + 1) % n]);
+            let e = b - a;
+            e.perp_dot(g2 - a) >= -hull_eps * e.length()
+        }),
+    })
+}
+
+/// R9's three cases for a G' outside the non-empty hull `h` (relative to G): the pivot
+/// (relative to G), the unit axis and theta = atan(|R| / |CG|), before the landing limit.
+/// `vertex_of` gives the 3-D contact point (relative to G) of a hull point. Shared by R9 and R14
+/// (there G is the load's G_L).
+pub(crate) fn tip_about_hull(
+    h: &[DVec2],
+    g2: DVec2,
+    gm: DVec3,
+    vertex_of: impl Fn(DVec2) -> DVec3,
+) -> Option<(DVec3, DVec3, f64)> {
+    match h.len() {
+        0 => None,
         1 => case_one(vertex_of(h[0]), gm),
         2 => case_two(vertex_of(h[0]), vertex_of(h[1]), g2, gm),
         n => {
@@ -108,17 +139,6 @@ pub fn stability(
             let k = best.1;
             case_two(vertex_of(h[k]), vertex_of(h[(k + 1) % n]), g2, gm)
         }
-    };
-    let Some((pivot, axis, theta)) = tip else {
-        return Stability::Resting;
-    };
-    // Limit: the smallest rotation about the same axis that brings a vertex not in contact
-    // down to the floor (it then joins the contact set).
-    let theta_c = landing_angle(rel, gy, set, pivot, axis, p.angle_eps);
-    Stability::Tipping {
-        pivot,
-        axis,
-        theta: theta.min(theta_c),
     }
 }
 
@@ -180,7 +200,7 @@ fn case_two(v1: DVec3, v2: DVec3, g2: DVec2, gm: DVec3) -> Option<(DVec3, DVec3,
 
 /// The smallest positive angle about `axis` through `pivot` (relative to G; G at height `gy`)
 /// at which a vertex not in `set` reaches the floor; infinity if none does within a turn.
-fn landing_angle(
+pub(crate) fn landing_angle(
     rel: &[DVec3],
     gy: f64,
     set: &VertexSet,
@@ -237,6 +257,13 @@ impl World {
                 if b.moved == Moved::No && b.mode == BlockMode::Resting {
                     continue;
                 }
+                // R14 held it this step, or holds it asleep: R9 has nothing to add.
+                if self.passes.supported
+                    && b.moved == Moved::No
+                    && (b.judged || b.mode == BlockMode::Supported)
+                {
+                    continue;
+                }
             }
             let g_step = self.params.g_step;
             let inertia = self.params.inertia;
@@ -245,6 +272,15 @@ impl World {
             let prev = b.floor;
             let (set, _) = lift_and_contacts(b, eps);
             let by_hand = matches!(b.moved, Moved::Hand | Moved::Carried);
+            if b.moved == Moved::Stacked {
+                // R14 turned it (its R9): after the rotation apply R8 again, nothing more.
+                let impact = set.has_new_vs(&prev);
+                b.floor = set;
+                if impact {
+                    self.emit(EventKind::Impact, i);
+                }
+                continue;
+            }
             if b.mode == BlockMode::Grasped || set.is_empty() {
                 // R5: of the floor rules only R8's lift applies to a grasped block.
                 b.floor = set;
@@ -258,6 +294,8 @@ impl World {
             }
             let mut set = set;
             let mut impact = set.has_new_vs(&prev);
+            // The pose an R9 turn started from (R14 checks it against the neighbours).
+            let mut turned_from = None;
             if !tipping {
                 // floor = "rest": R8 only; a block on the floor stays (no rebound, no slide).
                 b.v = DVec3::ZERO;
@@ -300,6 +338,7 @@ impl World {
                     }
                     Stability::Tipping { pivot, axis, theta } => {
                         let before = b.pos;
+                        turned_from = Some((b.pos, b.rot, set));
                         b.rotate_about(DQuat::from_axis_angle(axis, theta), pivot);
                         let turned = b.pos - before;
                         // After the rotation apply R8 again.
@@ -321,6 +360,22 @@ impl World {
                 b.v = DVec3::ZERO;
             }
             b.floor = set;
+            // R14: blocks that touch are not held by R11, so an R9 turn on the floor may swing a
+            // block into the neighbour it leans on. It does not turn then: it leans on it.
+            if let Some((pos, rot, set)) = turned_from {
+                if self.passes.supported && self.turn_enters_neighbour(i, pos, rot) {
+                    let b = &mut self.blocks[i];
+                    b.pos = pos;
+                    b.rot = rot;
+                    b.refresh_rel();
+                    b.floor = set;
+                    b.v = DVec3::ZERO;
+                    if !by_hand {
+                        b.mode = BlockMode::Resting;
+                    }
+                    continue;
+                }
+            }
             if impact {
                 self.emit(EventKind::Impact, i);
             }

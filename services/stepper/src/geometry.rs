@@ -12,7 +12,6 @@
 //! floor contacts) are ours: they need the crossed *features*, not only a distance.
 
 use glam::{DQuat, DVec2, DVec3};
-use parry3d_f64::query::PointQuery;
 use parry3d_f64::shape::ConvexPolyhedron;
 
 use common::config::scene::ShapeSpec;
@@ -254,9 +253,36 @@ impl Polyhedron {
             // Inside: the nearest boundary point is the foot on the nearest face plane.
             (p - self.faces[face].normal * s, s, face)
         } else {
-            let proj = self.shape.project_local_point(p, false);
-            let d = (p - proj.point).length();
-            (proj.point, d, face)
+            // Outside: the nearest of the faces' feet that lie on the solid, the edges' nearest
+            // points and (through the edges) the vertices. Exact and allocation-free (parry's
+            // point projection runs EPA, which allocates, for points this close).
+            let scale = self.radius.max(f64::MIN_POSITIVE);
+            let mut best = (f64::INFINITY, p);
+            for f in &self.faces {
+                let d = f.distance(p);
+                if d > 0.0 {
+                    let foot = p - f.normal * d;
+                    if self.max_face_distance(foot).0 <= 1e-12 * scale && d < best.0 {
+                        best = (d, foot);
+                    }
+                }
+            }
+            for [i, j] in &self.edges {
+                let (a, b) = (self.vertices[*i], self.vertices[*j]);
+                let ab = b - a;
+                let l2 = ab.length_squared();
+                let t = if l2 > 0.0 {
+                    ((p - a).dot(ab) / l2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let q = a + ab * t;
+                let d = (p - q).length();
+                if d < best.0 {
+                    best = (d, q);
+                }
+            }
+            (best.1, best.0, face)
         }
     }
 
@@ -403,6 +429,196 @@ pub fn sat_depth(
         }
     }
     depth
+}
+
+/// [`sat_depth`] with the axis that gives it: (depth, unit axis pointing from `a` to `b`). R14
+/// reads the axis as the pair's contact normal (a supports b when it points up). Where several
+/// axes give the least overlap within `tie` (two boxes touching only along an edge, diagonal
+/// neighbours), the normal is ambiguous; the most horizontal of them is taken, so such a touch
+/// is a side contact and holds nothing up. Kept apart from `sat_depth` so that the paper mode's
+/// arithmetic is untouched.
+#[allow(clippy::too_many_arguments)]
+pub fn sat_axis(
+    pa: &Polyhedron,
+    ra: DQuat,
+    va: &[DVec3],
+    pb: &Polyhedron,
+    rb: DQuat,
+    vb: &[DVec3],
+    b_off: DVec3,
+    tie: f64,
+) -> (f64, DVec3) {
+    let least = sat_depth(pa, ra, va, pb, rb, vb, b_off);
+    let mut best = (f64::INFINITY, DVec3::Y);
+    let mut test = |axis: DVec3| {
+        let (mut amin, mut amax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in va {
+            let x = v.dot(axis);
+            amin = amin.min(x);
+            amax = amax.max(x);
+        }
+        let (mut bmin, mut bmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in vb {
+            let x = (*v + b_off).dot(axis);
+            bmin = bmin.min(x);
+            bmax = bmax.max(x);
+        }
+        // b beyond a along +axis, or along -axis: the smaller overlap says which side b is on.
+        let (up, down) = (amax - bmin, bmax - amin);
+        let (overlap, dir) = if up <= down {
+            (up, axis)
+        } else {
+            (down, -axis)
+        };
+        if overlap <= least + tie && (best.0 == f64::INFINITY || dir.y.abs() < best.1.y.abs()) {
+            best = (overlap, dir);
+        }
+    };
+    for f in &pa.faces {
+        test(ra * f.normal);
+    }
+    for f in &pb.faces {
+        test(rb * f.normal);
+    }
+    for ea in &pa.edge_dirs {
+        let ea = ra * *ea;
+        for eb in &pb.edge_dirs {
+            let c = ea.cross(rb * *eb);
+            let l = c.length();
+            if l > 1e-9 {
+                test(c / l);
+            }
+        }
+    }
+    (least, best.1)
+}
+
+/// R12 (R14) for two touching blocks: whether translating `a` by `d` keeps them apart along
+/// some separating axis, that is, some SAT axis on which they are separated or touch (within
+/// `touch`) and which the step does not close by more than the gap plus `tol`. For convex solids
+/// such an axis proves that no point of the way enters the other block. Every axis counts, not
+/// only the one of least overlap: an edge resting against a wall touches it along the wall's
+/// normal and along its own face's normal at once, and only the first lets it slide down.
+#[allow(clippy::too_many_arguments)]
+pub fn sat_allows_motion(
+    pa: &Polyhedron,
+    ra: DQuat,
+    va: &[DVec3],
+    pb: &Polyhedron,
+    rb: DQuat,
+    vb: &[DVec3],
+    b_off: DVec3,
+    d: DVec3,
+    touch: f64,
+    tol: f64,
+) -> bool {
+    // Along one axis: they touch (overlap at most `touch`, what a turn limited to hull_eps and
+    // rounding far from the origin leave) and the step closes at most the gap plus `tol`, or,
+    // where they already overlap, does not go deeper (no creeping into a neighbour).
+    let dl = d.length();
+    let keeps = |gap: f64, closing: f64| {
+        gap >= -touch && closing <= if gap >= 0.0 { gap + tol } else { 1e-9 * dl }
+    };
+    let keeps_apart = |axis: DVec3| {
+        let (mut amin, mut amax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in va {
+            let x = v.dot(axis);
+            amin = amin.min(x);
+            amax = amax.max(x);
+        }
+        let (mut bmin, mut bmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in vb {
+            let x = (*v + b_off).dot(axis);
+            bmin = bmin.min(x);
+            bmax = bmax.max(x);
+        }
+        // b beyond a along +axis (gap bmin - amax) or along -axis (gap amin - bmax).
+        let (gap_up, gap_down) = (bmin - amax, amin - bmax);
+        let closing = d.dot(axis);
+        keeps(gap_up, closing) || keeps(gap_down, -closing)
+    };
+    pa.faces.iter().any(|f| keeps_apart(ra * f.normal))
+        || pb.faces.iter().any(|f| keeps_apart(rb * f.normal))
+        || pa.edge_dirs.iter().any(|ea| {
+            let ea = ra * *ea;
+            pb.edge_dirs.iter().any(|eb| {
+                let c = ea.cross(rb * *eb);
+                let l = c.length();
+                l > 1e-9 && keeps_apart(c / l)
+            })
+        })
+}
+
+/// R14's contact manifold of two blocks within `eps`, appended to `out` relative to a's G (world
+/// orientation; b's G at `b_off`), at most `cap` points in `out` in all:
+/// - every vertex of either block within `eps` of the other solid (inside or on it:
+///   `max_face_distance <= eps` in the other's body frame);
+/// - every crossing of an edge of either block with a face plane of the other that lies within
+///   `eps` of the other solid. These give the corners of the true overlap polygon where no vertex
+///   of either block lies on the other's face (a box turned 45 deg on another: an octagon).
+///
+/// Points of either kind lie on one block's surface and within `eps` of the other: all of them
+/// are in the contact patch, so their 2-D hull is the patch's outline.
+#[allow(clippy::too_many_arguments)]
+pub fn contact_points(
+    pa: &Polyhedron,
+    ra: DQuat,
+    va: &[DVec3],
+    pb: &Polyhedron,
+    rb: DQuat,
+    vb: &[DVec3],
+    b_off: DVec3,
+    eps: f64,
+    cap: usize,
+    out: &mut Vec<DVec3>,
+) {
+    let (ia, ib) = (ra.conjugate(), rb.conjugate());
+    let in_a = |x: DVec3| pa.max_face_distance(ia * x).0 <= eps;
+    let in_b = |x: DVec3| pb.max_face_distance(ib * (x - b_off)).0 <= eps;
+    let push = |out: &mut Vec<DVec3>, p: DVec3| {
+        if out.len() < cap {
+            out.push(p);
+        }
+    };
+    for v in vb {
+        let p = *v + b_off;
+        if in_a(p) {
+            push(out, p);
+        }
+    }
+    for v in va {
+        if in_b(*v) {
+            push(out, *v);
+        }
+    }
+    // Edges of a against b's face planes, in b's body frame.
+    for e in &pa.edges {
+        let p0 = ib * (va[e[0]] - b_off);
+        let p1 = ib * (va[e[1]] - b_off);
+        for f in &pb.faces {
+            let (d0, d1) = (f.distance(p0), f.distance(p1));
+            if (d0 < 0.0 && d1 > 0.0) || (d0 > 0.0 && d1 < 0.0) {
+                let x = p0 + (p1 - p0) * (d0 / (d0 - d1));
+                if pb.max_face_distance(x).0 <= eps {
+                    push(out, rb * x + b_off);
+                }
+            }
+        }
+    }
+    // Edges of b against a's face planes, in a's body frame.
+    for e in &pb.edges {
+        let p0 = ia * (vb[e[0]] + b_off);
+        let p1 = ia * (vb[e[1]] + b_off);
+        for f in &pa.faces {
+            let (d0, d1) = (f.distance(p0), f.distance(p1));
+            if (d0 < 0.0 && d1 > 0.0) || (d0 > 0.0 && d1 < 0.0) {
+                let x = p0 + (p1 - p0) * (d0 / (d0 - d1));
+                if pa.max_face_distance(x).0 <= eps {
+                    push(out, ra * x);
+                }
+            }
+        }
+    }
 }
 
 /// The segment a0 a1 crossing the triangle (t0, t1, t2) (Moller-Trumbore, both sides):

@@ -71,14 +71,60 @@ fn add(contacts: &mut Vec<Contact>, c: Contact, eps: f64) {
     contacts.push(c);
 }
 
+/// Per check point, the locus parameter at which its locus first enters one of the blocks.
+pub(crate) type FirstEntries = [[f64; MAX_FINGER_POINTS]; MAX_FINGERS];
+
+/// The check point's previous position (P-), or its current one when the previous hand does
+/// not have it.
+fn prev_point(hand: &HandSample, prev: Option<&HandSample>, f: usize, k: usize) -> [f64; 3] {
+    match prev {
+        Some(p) if (f as u32) < p.finger_count && (k as u32) < p.finger_point_count[f] => {
+            p.finger_points[f][k]
+        }
+        _ => hand.finger_points[f][k],
+    }
+}
+
+/// R1 **[resolved]**: a check point's locus is a finger's path; it is stopped by the first
+/// block it enters. Without this a tracker glitch (one sample 1 m off) sweeps a locus through a
+/// row of blocks and R4 pushes every one of them to the same point B, one inside the other.
+/// Returns, per check point, the parameter along [P-, P] of its first entry into any of the
+/// `blocks` for which `near(block)` holds (infinity when it enters none).
+pub(crate) fn first_entries<'a>(
+    blocks: impl Iterator<Item = &'a Block>,
+    hand: &HandSample,
+    prev: Option<&HandSample>,
+    hull_eps: f64,
+) -> FirstEntries {
+    let mut first = [[f64::INFINITY; MAX_FINGER_POINTS]; MAX_FINGERS];
+    let fc = (hand.finger_count as usize).min(MAX_FINGERS);
+    for b in blocks {
+        let inv = b.rot.conjugate();
+        let to_body = |p: [f64; 3]| inv * (DVec3::from_array(p) - b.pos);
+        for (f, row) in first.iter_mut().enumerate().take(fc) {
+            let np = (hand.finger_point_count[f] as usize).min(MAX_FINGER_POINTS);
+            for (k, t_first) in row.iter_mut().enumerate().take(np) {
+                let a0 = to_body(prev_point(hand, prev, f, k));
+                let a1 = to_body(hand.finger_points[f][k]);
+                if let Some((t, _)) = b.poly.locus_entry(a0, a1, hull_eps) {
+                    *t_first = t_first.min(t);
+                }
+            }
+        }
+    }
+    first
+}
+
 /// R1 and R2 for one block: appends its contacts (relative to G, world orientation).
-/// `prev(f, k)` and `now(f, k)` are the check points in the world frame.
+/// `prev(f, k)` and `now(f, k)` are the check points in the world frame; `first` is
+/// [`first_entries`]: a locus entering this block after it entered another one is no contact.
 pub(crate) fn block_contacts(
     b: &Block,
     hand: &HandSample,
     prev: Option<&HandSample>,
     contact_eps: f64,
     hull_eps: f64,
+    first: &FirstEntries,
     contacts: &mut Vec<Contact>,
 ) {
     let inv = b.rot.conjugate();
@@ -115,7 +161,14 @@ pub(crate) fn block_contacts(
                 }
             }
             if let Some((t, n)) = poly.locus_entry(a0, a1, hull_eps) {
-                add(contacts, out(a0 + (a1 - a0) * t, n, a1), contact_eps);
+                // R1 [resolved]: stopped by the first block it entered.
+                if first
+                    .get(f)
+                    .and_then(|row| row.get(k))
+                    .is_none_or(|&t_first| t <= t_first)
+                {
+                    add(contacts, out(a0 + (a1 - a0) * t, n, a1), contact_eps);
+                }
             }
         }
         // R2: segment loci between neighbouring check points.
@@ -219,10 +272,16 @@ impl World {
             } else {
                 0
             };
+            let near = |b: &Block| (b.pos.max(lo).min(hi) - b.pos).length() <= b.poly.radius + eps;
+            let first = first_entries(
+                self.blocks[..blocks].iter().filter(|b| near(b)),
+                h,
+                self.prev_hand.as_ref(),
+                self.params.hull_eps,
+            );
             for i in 0..blocks {
                 let b = &self.blocks[i];
-                let nearest = b.pos.max(lo).min(hi);
-                if (nearest - b.pos).length() > b.poly.radius + eps {
+                if !near(b) {
                     continue;
                 }
                 self.contacts.clear();
@@ -232,6 +291,7 @@ impl World {
                     self.prev_hand.as_ref(),
                     eps,
                     self.params.hull_eps,
+                    &first,
                     &mut self.contacts,
                 );
                 let action = match self.contacts.len() {

@@ -16,7 +16,7 @@ use parry3d_f64::query::{self, ShapeCastOptions};
 use common::BlockMode;
 
 use crate::body::{Block, Moved};
-use crate::geometry::sat_depth;
+use crate::geometry::{sat_allows_motion, sat_axis, sat_depth};
 use crate::world::World;
 
 /// The pair's poses with block `a`'s G as the origin (precision far from the world origin).
@@ -106,6 +106,41 @@ impl World {
             .any(|(j, b)| j != i && touching(a, b, self.params.contact_eps))
     }
 
+    /// R14 with R7: the part of block i's free step `d` it can take along the blocks it touches
+    /// at their sides. Where `d` would enter a touching block across a side contact (a contact
+    /// normal within 0.57 deg of horizontal, `SIDE_CONTACT_NY`), its component into that block
+    /// is removed: the block slides down the face (R14 **[resolved]**: side contacts hold
+    /// nothing up, so a block that turned over an edge and hangs against the face below it
+    /// falls along it instead of hanging in the air). Contacts from above or below are R12's to
+    /// stop. Removing a component never lengthens the step.
+    pub(crate) fn slide_along_sides(&self, i: usize, d: DVec3) -> DVec3 {
+        let a = &self.blocks[i];
+        let eps = self.params.contact_eps;
+        let mut d = d;
+        for (j, b) in self.blocks.iter().enumerate() {
+            if j == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + eps {
+                continue;
+            }
+            let off = b.pos - a.pos;
+            // The separating axis itself (no tie-break): the face the block slides along.
+            let (depth, n) = sat_axis(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, 0.0);
+            if depth < -eps || n.y.abs() >= crate::support::SIDE_CONTACT_NY {
+                continue;
+            }
+            let hull_eps = self.params.hull_eps;
+            if sat_allows_motion(
+                &a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, d, eps, hull_eps,
+            ) {
+                continue;
+            }
+            let closing = d.dot(n);
+            if closing > 0.0 {
+                d -= n * closing;
+            }
+        }
+        d
+    }
+
     /// R12: the fraction in [0, 1] of the step `d` block i can take before it first touches the
     /// floor (when there is one) or another block: a shape cast, so no speed tunnels through.
     pub(crate) fn cast_fraction(&self, i: usize, d: DVec3) -> f64 {
@@ -132,6 +167,32 @@ impl World {
                 // Broad phase: the swept sphere against b's sphere.
                 if (b.pos - mid).length() > a.poly.radius + b.poly.radius + 0.5 * len {
                     continue;
+                }
+                // R14 lets blocks that touch move (R11 holds them): a blocker the block already
+                // touches stops it exactly when the step approaches it. The shape cast cannot
+                // tell: it says time of impact 0 for a block merely sliding past another's side
+                // (which would hang in the air), and may miss a touching one it moves into.
+                if self.passes.supported {
+                    let off = b.pos - a.pos;
+                    let depth = sat_depth(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off);
+                    if depth >= -self.params.contact_eps {
+                        let free = sat_allows_motion(
+                            &a.poly,
+                            a.rot,
+                            &a.rel,
+                            &b.poly,
+                            b.rot,
+                            &b.rel,
+                            off,
+                            d,
+                            self.params.contact_eps,
+                            self.params.hull_eps,
+                        );
+                        if !free {
+                            toi = 0.0;
+                        }
+                        continue;
+                    }
                 }
                 let (pa, pb) = rel_poses(a, b);
                 if let Ok(Some(hit)) =

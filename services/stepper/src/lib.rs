@@ -1,5 +1,6 @@
 //! The block world of MODEL.md: rules R1-R13 of Funahashi et al. (1996), "Block manipulation
-//! with hand in virtual space", for any convex polyhedron.
+//! with hand in virtual space", for any convex polyhedron, and the R14 extension (supported
+//! stacking).
 //!
 //! A [`World`] is built from a scene ([`World::new`]) and advanced one fixed step at a time
 //! with the hand of that step ([`World::step`]); [`World::write_sample`] fills the `world`
@@ -14,6 +15,7 @@
 //! - [`interference`]: R10 carry, R11 support, R12 shape casts;
 //! - [`motion`]: R4's decomposition, R7 free motion;
 //! - [`floor`]: R8 impact, R9 stability;
+//! - [`support`]: R14 supported stacking (blocks stand on blocks as statics says);
 //! - [`world`]: the world and its step, in MODEL.md's order;
 //! - [`precise`]: the precise reference model (rapier3d), beside the paper's;
 //! - [`model`]: the one switch between the two that the process and `simulate` hold;
@@ -29,6 +31,7 @@ pub mod motion;
 pub mod precise;
 pub mod service;
 pub mod simulate;
+pub mod support;
 pub mod world;
 
 pub use model::Model;

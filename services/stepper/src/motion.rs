@@ -1,5 +1,5 @@
 //! Motion without the floor: R4's one-point push (the paper's equations 1-2), R7 gravity and
-//! inertia with R11's hold and R12's cut, and R13's throw velocity.
+//! inertia with R11's hold (R14's in supported stacking) and R12's cut, and R13's throw velocity.
 
 use glam::DVec3;
 
@@ -75,8 +75,15 @@ impl World {
                     continue;
                 }
             }
+            // R14 decided it in stage 3a, or holds it asleep (supported, untouched).
+            if self.passes.supported {
+                let b = &self.blocks[i];
+                if b.judged || b.mode == BlockMode::Supported {
+                    continue;
+                }
+            }
             // R11 (paper): a block that touches another is not affected by gravity or inertia.
-            if self.passes.blocks && self.supported_by_block(i) {
+            if self.passes.blocks && !self.passes.supported && self.supported_by_block(i) {
                 let b = &mut self.blocks[i];
                 b.mode = BlockMode::Supported;
                 b.v = DVec3::ZERO;
@@ -105,11 +112,18 @@ impl World {
             if d == DVec3::ZERO {
                 continue;
             }
+            // R14: a block against another's side slides down along it (side contacts hold
+            // nothing up). Without R14 a touching block is held by R11 and never gets here.
+            let path = if self.passes.supported {
+                self.slide_along_sides(i, d)
+            } else {
+                d
+            };
             // R12: stop at the first time of impact; v is the actual displacement.
-            let f = self.cast_fraction(i, d);
+            let f = self.cast_fraction(i, path);
             let b = &mut self.blocks[i];
             b.intended = d;
-            let actual = d * f;
+            let actual = path * f;
             b.translate(actual);
             b.v = if inertia { actual } else { DVec3::ZERO };
             b.moved = Moved::Free;

@@ -60,7 +60,7 @@ pub enum EventKind {
     Topple,
     /// R9: the block came to rest on the floor.
     Rest,
-    /// R11: the block is held up by another block.
+    /// R11 (paper) or R14 (supported): the block is held up by another block.
     Support,
 }
 
@@ -118,6 +118,8 @@ pub(crate) struct Passes {
     pub tipping: bool,
     /// R11 (paper stacking) and R12's casts against other blocks: only with two blocks or more.
     pub blocks: bool,
+    /// R14 replaces R11 (stacking = "supported"): only with two blocks or more.
+    pub supported: bool,
 }
 
 /// The check points as drawn (R5's relocation), in the hand sample's layout.
@@ -128,7 +130,7 @@ pub(crate) struct Fingers {
     pub points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
 }
 
-/// The block world: MODEL.md's paper model (rules R1-R13).
+/// The block world: MODEL.md's paper model (rules R1-R13, and R14 when the scene asks for it).
 pub struct World {
     pub(crate) file: PathBuf,
     pub(crate) params: Params,
@@ -144,6 +146,7 @@ pub struct World {
     pub(crate) queue: Vec<usize>,
     pub(crate) hull_in: Vec<DVec2>,
     pub(crate) hull_out: Vec<DVec2>,
+    pub(crate) support: crate::support::SupportScratch,
 }
 
 fn err(scene: &Scene, block: Option<&str>, problem: impl Into<String>) -> WorldError {
@@ -161,13 +164,6 @@ impl World {
     /// between the models is [`crate::Model::new`]'s.
     pub fn new(scene: &Scene) -> Result<World, WorldError> {
         let w = &scene.world;
-        if scene.effects.stacking == Stacking::Supported {
-            return Err(err(
-                scene,
-                None,
-                "stacking = \"supported\" (R14) is not implemented yet; use \"paper\"",
-            ));
-        }
         if scene.blocks.len() > MAX_BLOCKS {
             return Err(err(
                 scene,
@@ -283,6 +279,7 @@ impl World {
             floor: e.floor != FloorEffect::None,
             tipping: e.floor == FloorEffect::Tipping,
             blocks: n > 1,
+            supported: e.stacking == Stacking::Supported && n > 1,
         };
         Ok(World {
             file: scene.file.clone(),
@@ -301,6 +298,14 @@ impl World {
             queue: Vec::with_capacity(n),
             hull_in: Vec::with_capacity(max_vertices + 1),
             hull_out: Vec::with_capacity(2 * max_vertices + 2),
+            support: crate::support::SupportScratch::new(
+                if e.stacking == Stacking::Supported {
+                    n
+                } else {
+                    0
+                },
+                max_vertices,
+            ),
         })
     }
 
@@ -321,7 +326,12 @@ impl World {
                 self.carry();
             }
         }
-        // 3. Free motion (R7, with R12) for the rest, except blocks held by R11. Without
+        // 3a. Supported stacking (R14, when the scene asks for it): blocks on blocks are judged
+        //     bottom up, held or tipped with their load.
+        if self.passes.supported {
+            self.support_stage();
+        }
+        // 3. Free motion (R7, with R12) for the rest, except blocks held by R11 or R14. Without
         //    gravity and inertia nothing moves freely, and R11 has nothing to hold.
         if self.passes.free_motion {
             self.free_motion();
@@ -448,6 +458,11 @@ impl World {
                 let b = &self.blocks[i];
                 (b.mode_before, b.mode, b.released)
             };
+            {
+                // R14 judges again what touches a block that moved or changed mode.
+                let b = &mut self.blocks[i];
+                b.stirred = b.pos != b.start_pos || b.rot != b.start_rot || b.mode != b.mode_before;
+            }
             if released {
                 self.emit(EventKind::Release, i);
             }

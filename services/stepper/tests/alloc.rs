@@ -1,5 +1,5 @@
 //! "Keep one step allocation-free after warm-up": counts heap allocations made by
-//! `World::step` over whole scenes (grasp, throw, carry, support, tipping, casts).
+//! `World::step` over whole scenes (grasp, throw, carry, support, tipping, casts, R14).
 
 mod support;
 
@@ -41,6 +41,10 @@ fn a_step_does_not_allocate_after_warm_up() {
         "tip",
         "drop",
         "balance",
+        // R14 supported stacking: judging, tipping with a load, landing, a hand in a stack.
+        "hard/harmonic-4-101",
+        "hard/push-into-stack",
+        "hard/pyramid-15",
     ] {
         let s = scene_file(name);
         let mut world = World::new(&s).unwrap();

@@ -79,12 +79,9 @@ fn a_flat_hull_is_reported() {
 
 #[test]
 fn options_of_later_issues_are_clear_errors() {
+    // R14 is implemented (issue 13): accepted.
     let s = scene("[effects]\nstacking = \"supported\"\n");
-    let e = World::new(&s).err().unwrap().to_string();
-    assert!(
-        e.contains("R14") && e.contains("not implemented yet"),
-        "{e}"
-    );
+    assert!(World::new(&s).is_ok());
 }
 
 /// `model = "precise"` is no longer refused: the dispatch builds the rapier3d reference, and
@@ -157,4 +154,65 @@ fn world_sample_carries_poses_modes_and_no_grasp() {
     assert_eq!(out.blocks[0].mode(), common::BlockMode::Resting);
     assert_eq!(w.block_names().collect::<Vec<_>>(), ["cube", "post"]);
     assert_eq!(w.steps(), 100);
+}
+
+/// Issue 13, bad input: what cannot be simulated is refused with the file, the block and the
+/// reason, whether the scene comes from a file (the loader) or is built in code (the world
+/// repeats the checks the model relies on).
+#[test]
+fn degenerate_and_zero_size_blocks_are_refused_with_file_block_and_reason() {
+    // Zero size: the loader names the file, the block's key and the range.
+    let e = load_err("[[block]]\nname = \"dot\"\nposition = [0, 1, 0]\nsize = [0.1, 0.0, 0.1]\n");
+    assert!(
+        e.contains("bad") && e.contains("block[0].size") && e.contains("allowed"),
+        "{e}"
+    );
+    // Built in code: the world refuses it by name.
+    let mut s = scene("[[block]]\nname = \"dot\"\nposition = [0, 1, 0]\n");
+    s.blocks[0].shape = common::config::scene::ShapeSpec::Box {
+        size: [0.1, 0.0, 0.1],
+    };
+    let e = World::new(&s).err().unwrap().to_string();
+    assert!(
+        e.contains(&*s.file.to_string_lossy()) && e.contains("\"dot\"") && e.contains("flat"),
+        "{e}"
+    );
+    s.blocks[0].shape = common::config::scene::ShapeSpec::Box {
+        size: [0.1, f64::NAN, 0.1],
+    };
+    let e = World::new(&s).err().unwrap().to_string();
+    assert!(e.contains("\"dot\"") && e.contains("finite"), "{e}");
+    // Degenerate hulls: all points equal, or on one line.
+    for vertices in [
+        "[[0,0,0],[0,0,0],[0,0,0],[0,0,0]]",
+        "[[0,0,0],[0.1,0.1,0.1],[0.2,0.2,0.2],[0.3,0.3,0.3]]",
+    ] {
+        let s = scene(&format!(
+            "[[block]]\nname = \"needle\"\nshape = \"hull\"\nvertices = {vertices}\nposition = [0, 1, 0]\n"
+        ));
+        let e = World::new(&s).err().unwrap().to_string();
+        assert!(
+            e.contains(&*s.file.to_string_lossy()) && e.contains("\"needle\""),
+            "{e}"
+        );
+        assert!(
+            e.contains("flat") || e.contains("solid") || e.contains("degenerate"),
+            "{e}"
+        );
+    }
+}
+
+/// Overlapping spawns are refused under R14 too (supported stacking could otherwise start from
+/// an interpenetrating stack), naming both blocks and the depth.
+#[test]
+fn an_overlapping_spawn_is_refused_under_supported_stacking() {
+    let s = scene(
+        "[effects]\nstacking = \"supported\"\n[[block]]\nname = \"low\"\nposition = [0, 0.05, 0]\n\
+         [[block]]\nname = \"high\"\nposition = [0, 0.14, 0]\n",
+    );
+    let e = World::new(&s).err().unwrap().to_string();
+    assert!(
+        e.contains("\"high\"") && e.contains("inside block \"low\"") && e.contains("0.010000 m"),
+        "{e}"
+    );
 }

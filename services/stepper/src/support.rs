@@ -1,0 +1,530 @@
+//! R14 supported stacking [extension] (MODEL.md): with `stacking = "supported"` a block stands on
+//! the blocks below it as on a floor, and a stack holds exactly when statics says it does.
+//!
+//! The stage runs before free motion (stage 3 of "Order of one step") and decides every block
+//! that rests on another block or carries one:
+//! 1. **Who is looked at.** Resting and supported blocks sleep: they cost nothing unless
+//!    something stirred them: the hand moved a block near them, a block near them moved or
+//!    changed mode in the previous step ("a block whose supporter moved is judged again in the
+//!    next step", a block landing on their load). Waking floods through the sleeping blocks that
+//!    touch (bounding spheres within contact_eps), so a whole stack is judged again when its top
+//!    is touched: the top's weight is part of every load below it.
+//! 2. **Supporters.** A touching pair (SAT depth >= -contact_eps) supports upward: the SAT axis
+//!    of least overlap is the pair's contact normal, and the lower block supports the upper one
+//!    when that normal has an upward component (MODEL.md's "at points below its G", read as
+//!    "under it": side contacts between neighbours hold nothing up and make no cycles; a touch
+//!    along an edge only, whose normal is ambiguous, is a side contact). The
+//!    contact points are the pair's manifold ([`contact_points`]): vertices of either within
+//!    contact_eps of the other, and edge-plane crossings (a box turned 45 deg on another).
+//! 3. **Judged bottom up** (a block after its supporters; ties and cycles by index). For block b,
+//!    S = b and its load (everything resting on b, transitively, not blocks the hand holds).
+//!    The support set H of S is the 2-D hull of the contact points through which S rests on
+//!    what is not in S: the supporters' contact points and the floor contacts of S's blocks.
+//!    For a simple stack that is b's interface with its supporter, as MODEL.md says; for a block
+//!    resting on two (a pyramid, a bridge) it also counts the other supports of b's load, since
+//!    the load does not rest on b alone (**[resolved]**: otherwise a pyramid's corner block would
+//!    carry half the pyramid on its own footprint and tip). G_L = the volume-weighted centre of S.
+//! 4. **Verdict.** G_L's vertical projection in H (within hull_eps): b is `supported` (or
+//!    `resting` when only the floor holds it), v = 0, nothing moves. Otherwise S tips rigidly by
+//!    R9's cases with G_L for G and Gm = g_step, about H's vertex or edge nearest G_L; the turn is
+//!    limited as R9 limits it, by the first vertex of S that reaches the floor, and by the first
+//!    contact with a block outside S (bisection on the SAT depth). A turn that cannot start
+//!    without entering another block releases b as `free` (R7, R12 then decide).
+//!
+//! While a load tips over a block's edge, and while it still leans on the block it tipped over,
+//! its weight rests on that edge, not on the block as a load (**[resolved]**): that block leaves
+//! it out of its own G_L (`Block::tipped_over`), so a stack toppling off a base, or lying
+//! across its edge afterwards, does not drag the base along.
+//!
+//! A tipping block that loses contact with its supporters (its contact normal turns sideways)
+//! has no supporter in the next step and is free: R7 moves it, R12 stops it, R8/R9 land it.
+//! Since blocks that touch are no longer held (R11), two more rules keep them apart
+//! (**[resolved]**): a free block against another's side slides down along that face rather
+//! than hanging where R12's cast would stop it (`World::slide_along_sides`; a touching blocker
+//! stops a step only if no separating axis stays separated, `sat_allows_motion`), and an R9
+//! turn on the floor that would swing a block into the neighbour it leans on is not taken
+//! (`World::turn_enters_neighbour`).
+
+use glam::{DQuat, DVec2, DVec3};
+
+use common::BlockMode;
+
+use crate::body::{Block, Moved};
+use crate::floor::{in_hull, landing_angle, tip_about_hull};
+use crate::geometry::{contact_points, convex_hull_2d, rotate_vertices, sat_axis, sat_depth};
+use crate::world::World;
+
+/// A contact whose normal's vertical part is below this (a face within 0.57 deg of vertical) is
+/// a side contact: it holds nothing up. Exactly vertical faces give |n.y| ~ 1e-17 after a
+/// rotation, and a block that turned over an edge ends with its faces off vertical by the
+/// bisection's and landing's leftovers (1e-5 was seen): such a face is a wall, not a slope the
+/// block rests on (it would make the block beside a tower carry the tower as its load).
+pub const SIDE_CONTACT_NY: f64 = 0.01;
+
+/// Contact points kept per touching pair (a box on a box needs 16 at most).
+pub const MAX_PAIR_POINTS: usize = 64;
+
+/// Halvings of the turn when S would enter a block outside it: 2^-40 of a step's turn.
+const BISECTIONS: u32 = 40;
+
+/// One support found this step: `lower` holds `upper` up through `points[start..end]`
+/// (relative to upper's G, world orientation).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SupportEdge {
+    lower: usize,
+    upper: usize,
+    start: usize,
+    end: usize,
+}
+
+/// R14's scratch, preallocated in `World::new` so that a step does not allocate.
+#[derive(Debug)]
+pub(crate) struct SupportScratch {
+    /// Per block: the blocks supporting it (bit j: block j), and those it supports.
+    below: Vec<u128>,
+    above: Vec<u128>,
+    edges: Vec<SupportEdge>,
+    points: Vec<DVec3>,
+    /// The contact points of the cut under S, relative to G_L.
+    cut: Vec<DVec3>,
+    hull_in: Vec<DVec2>,
+    hull_out: Vec<DVec2>,
+    /// A block's vertices turned by a trial rotation.
+    turned: Vec<DVec3>,
+}
+
+impl SupportScratch {
+    pub(crate) fn new(blocks: usize, max_vertices: usize) -> SupportScratch {
+        let edges = 8 * blocks + 16;
+        let points = 24 * edges;
+        SupportScratch {
+            below: vec![0; blocks],
+            above: vec![0; blocks],
+            edges: Vec::with_capacity(edges),
+            points: Vec::with_capacity(points),
+            cut: Vec::with_capacity(points),
+            hull_in: Vec::with_capacity(points),
+            hull_out: Vec::with_capacity(2 * points + 2),
+            turned: Vec::with_capacity(max_vertices),
+        }
+    }
+}
+
+// Block sets are u128 bit masks: one bit per block.
+const _: () = assert!(common::MAX_BLOCKS <= 128);
+
+#[inline]
+fn bit(i: usize) -> u128 {
+    1u128 << i
+}
+
+/// The indices of a mask's set bits, lowest first.
+fn bits(mut m: u128) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        if m == 0 {
+            None
+        } else {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            Some(i)
+        }
+    })
+}
+
+/// Whether the bounding spheres of a and b come within `margin`.
+#[inline]
+fn near(a: &Block, b: &Block, margin: f64) -> bool {
+    (b.pos - a.pos).length() <= a.poly.radius + b.poly.radius + margin
+}
+
+impl World {
+    /// R14 for R9's turns on the floor: whether block i, turned from the pose (`pos`, `rot`) to
+    /// where it is now, entered another block deeper than it was (or than hull_eps).
+    pub(crate) fn turn_enters_neighbour(&mut self, i: usize, pos: DVec3, rot: DQuat) -> bool {
+        let hull_eps = self.params.hull_eps;
+        let World {
+            blocks, support, ..
+        } = self;
+        let a = &blocks[i];
+        rotate_vertices(&a.poly, rot, &mut support.turned);
+        for (k, b) in blocks.iter().enumerate() {
+            if k == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + hull_eps {
+                continue;
+            }
+            let after = sat_depth(
+                &a.poly,
+                a.rot,
+                &a.rel,
+                &b.poly,
+                b.rot,
+                &b.rel,
+                b.pos - a.pos,
+            );
+            if after <= hull_eps {
+                continue;
+            }
+            let before = sat_depth(
+                &a.poly,
+                rot,
+                &support.turned,
+                &b.poly,
+                b.rot,
+                &b.rel,
+                b.pos - pos,
+            );
+            if after > before.max(hull_eps) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Stage 3a (R14): finds supporters, judges bottom up, holds or tips each block with its
+    /// load. Blocks it decides are marked `judged`; stages 3b (R7) and 4 (R8, R9) leave them.
+    pub(crate) fn support_stage(&mut self) {
+        let n = self.blocks.len();
+        let eps = self.params.contact_eps;
+        let mut sleeping = 0u128;
+        let mut awake = 0u128;
+        let mut stir = 0u128;
+        let mut fixed = 0u128;
+        for (i, b) in self.blocks.iter_mut().enumerate() {
+            b.refresh_rel();
+            b.judged = false;
+            if b.moved != Moved::No || b.mode == BlockMode::Grasped {
+                // The hand moved or holds it (R4-R6, R5, R10): not judged, never a load.
+                fixed |= bit(i);
+                if b.moved != Moved::No {
+                    stir |= bit(i);
+                }
+                continue;
+            }
+            if b.stirred {
+                stir |= bit(i);
+            }
+            if b.released {
+                // R13: it starts flying in the next step.
+                continue;
+            }
+            match b.mode {
+                BlockMode::Resting | BlockMode::Supported => sleeping |= bit(i),
+                _ => awake |= bit(i),
+            }
+        }
+        // 1. Wake the sleeping blocks near anything that moves, flooding through touching ones.
+        let mut woken = sleeping & stir;
+        let mut queue = stir | awake;
+        while queue != 0 {
+            let i = queue.trailing_zeros() as usize;
+            queue &= queue - 1;
+            for j in bits(sleeping & !woken) {
+                if near(&self.blocks[i], &self.blocks[j], eps) {
+                    woken |= bit(j);
+                    queue |= bit(j);
+                }
+            }
+        }
+        let cand = awake | woken;
+        if cand == 0 {
+            return;
+        }
+        // 2. Supporters: every touching pair with a candidate, once.
+        {
+            let World {
+                blocks, support, ..
+            } = self;
+            support.below.iter_mut().for_each(|m| *m = 0);
+            support.above.iter_mut().for_each(|m| *m = 0);
+            support.edges.clear();
+            support.points.clear();
+            for i in bits(cand) {
+                for j in 0..n {
+                    if j == i || (cand & bit(j) != 0 && j < i) {
+                        continue;
+                    }
+                    let (a, b) = (&blocks[i], &blocks[j]);
+                    if !near(a, b, eps) {
+                        continue;
+                    }
+                    let (depth, axis) = sat_axis(
+                        &a.poly,
+                        a.rot,
+                        &a.rel,
+                        &b.poly,
+                        b.rot,
+                        &b.rel,
+                        b.pos - a.pos,
+                        eps,
+                    );
+                    if depth.is_nan() || depth < -eps {
+                        continue;
+                    }
+                    let (lo, up) = if axis.y > SIDE_CONTACT_NY {
+                        (i, j)
+                    } else if axis.y < -SIDE_CONTACT_NY {
+                        (j, i)
+                    } else {
+                        continue;
+                    };
+                    let (l, u) = (&blocks[lo], &blocks[up]);
+                    let start = support.points.len();
+                    contact_points(
+                        &u.poly,
+                        u.rot,
+                        &u.rel,
+                        &l.poly,
+                        l.rot,
+                        &l.rel,
+                        l.pos - u.pos,
+                        eps,
+                        start + MAX_PAIR_POINTS,
+                        &mut support.points,
+                    );
+                    if support.points.len() == start {
+                        continue;
+                    }
+                    support.edges.push(SupportEdge {
+                        lower: lo,
+                        upper: up,
+                        start,
+                        end: support.points.len(),
+                    });
+                    support.below[up] |= bit(lo);
+                    support.above[lo] |= bit(up);
+                }
+            }
+        }
+        // 3. Bottom up: a block after its supporters; a cycle is broken at its lowest index.
+        let mut pending = cand;
+        while pending != 0 {
+            let mut ready = 0u128;
+            for i in bits(pending) {
+                if self.support.below[i] & pending == 0 {
+                    ready |= bit(i);
+                }
+            }
+            if ready == 0 {
+                ready = pending & pending.wrapping_neg();
+            }
+            for i in bits(ready) {
+                self.judge(i, fixed, woken);
+            }
+            pending &= !ready;
+        }
+    }
+
+    /// R14 for block i: hold it, tip it with its load, or leave it to R7/R9.
+    fn judge(&mut self, i: usize, fixed: u128, woken: u128) {
+        if self.blocks[i].moved != Moved::No {
+            // Moved this step as part of a load: not judged again.
+            return;
+        }
+        let below = self.support.below[i];
+        // The load: every block resting on b, transitively (not blocks the hand holds).
+        let mut load = 0u128;
+        let mut front = self.support.above[i] & !fixed;
+        while front != 0 {
+            let j = front.trailing_zeros() as usize;
+            front &= front - 1;
+            // A block tipping over b's edge rests on that edge, not on b as a load.
+            if j == i || load & bit(j) != 0 || self.blocks[j].tipped_over & bit(i) != 0 {
+                continue;
+            }
+            load |= bit(j);
+            front |= self.support.above[j] & !fixed & !load;
+        }
+        load &= !bit(i);
+        {
+            let b = &mut self.blocks[i];
+            if below == 0 && load == 0 {
+                // Neither on a block nor under one: R7 or R9 decide as without R14, except a
+                // sleeping block woken on the floor (its load may have left), which R9 would
+                // skip: judged here by the same test.
+                let woken_resting =
+                    woken & bit(i) != 0 && b.mode == BlockMode::Resting && !b.floor.is_empty();
+                if !woken_resting {
+                    b.tipped_over = 0;
+                    if b.mode == BlockMode::Supported {
+                        b.mode = BlockMode::Free;
+                    }
+                    return;
+                }
+            }
+        }
+        let s_mask = load | bit(i);
+        let gpos = self.blocks[i].pos;
+        // G_L relative to b's G (precision far from the origin), and the cut's contact points.
+        let World {
+            blocks, support, ..
+        } = self;
+        let mut vol = 0.0;
+        let mut moment = DVec3::ZERO;
+        for j in bits(s_mask) {
+            let bj = &blocks[j];
+            vol += bj.poly.volume;
+            moment += (bj.pos - gpos) * bj.poly.volume;
+        }
+        let gl = moment / vol;
+        support.cut.clear();
+        for j in bits(s_mask) {
+            let bj = &blocks[j];
+            let off = bj.pos - gpos - gl;
+            for k in bj.floor.iter().take_while(|&k| k < bj.rel.len()) {
+                support.cut.push(bj.rel[k] + off);
+            }
+        }
+        for e in &support.edges {
+            if s_mask & bit(e.upper) != 0 && s_mask & bit(e.lower) == 0 {
+                let off = blocks[e.upper].pos - gpos - gl;
+                for p in &support.points[e.start..e.end] {
+                    support.cut.push(*p + off);
+                }
+            }
+        }
+        support.hull_in.clear();
+        support
+            .hull_in
+            .extend(support.cut.iter().map(|p| DVec2::new(p.x, p.z)));
+        convex_hull_2d(&mut support.hull_in, &mut support.hull_out);
+        let h = &support.hull_out[..];
+        let verdict = in_hull(h, DVec2::ZERO, self.params.hull_eps);
+        let held = match verdict {
+            None => {
+                // Nothing under it after all (a touch without contact points).
+                let b = &mut blocks[i];
+                b.tipped_over = 0;
+                if b.mode == BlockMode::Supported {
+                    b.mode = BlockMode::Free;
+                }
+                return;
+            }
+            Some(inside) => inside,
+        };
+        let cut = &support.cut;
+        let vertex_of = |q: DVec2| -> DVec3 {
+            cut.iter()
+                .copied()
+                .find(|p| p.x == q.x && p.z == q.y)
+                .unwrap_or(DVec3::new(q.x, 0.0, q.y))
+        };
+        let tip = if held {
+            None
+        } else {
+            tip_about_hull(h, DVec2::ZERO, self.params.g_step, vertex_of)
+        };
+        let Some((pivot_gl, axis, theta)) = tip else {
+            // G_L in H (or no turn: no gravity): b does not move, exactly.
+            let b = &mut blocks[i];
+            b.v = DVec3::ZERO;
+            b.judged = true;
+            // Still leaning on the edge it tipped over: still no load of that block.
+            b.tipped_over &= below;
+            b.mode = if below != 0 {
+                BlockMode::Supported
+            } else {
+                BlockMode::Resting
+            };
+            return;
+        };
+        let pivot = pivot_gl + gl;
+        // R9's limit: the first vertex of S that reaches the floor.
+        let mut theta = theta;
+        if self.passes.floor {
+            for j in bits(s_mask) {
+                let bj = &blocks[j];
+                let pj = pivot + (gpos - bj.pos);
+                theta = theta.min(landing_angle(
+                    &bj.rel,
+                    bj.pos.y,
+                    &bj.floor,
+                    pj,
+                    axis,
+                    self.params.angle_eps,
+                ));
+            }
+        }
+        // And the first contact with a block outside S.
+        let hull_eps = self.params.hull_eps;
+        let collides = |theta: f64, turned: &mut Vec<DVec3>| -> bool {
+            let q = DQuat::from_axis_angle(axis, theta);
+            for j in bits(s_mask) {
+                let bj = &blocks[j];
+                let pj = pivot + (gpos - bj.pos);
+                let shift = pj - q * pj;
+                let rot = (q * bj.rot).normalize();
+                let mut turned_ready = false;
+                for (k, bk) in blocks.iter().enumerate() {
+                    if s_mask & bit(k) != 0 {
+                        continue;
+                    }
+                    // G's new place; the turn about G does not change the bounding sphere.
+                    let off = (bk.pos - bj.pos) - shift;
+                    if off.length() > bj.poly.radius + bk.poly.radius + hull_eps {
+                        continue;
+                    }
+                    if !turned_ready {
+                        rotate_vertices(&bj.poly, rot, turned);
+                        turned_ready = true;
+                    }
+                    let after = sat_depth(&bj.poly, rot, turned, &bk.poly, bk.rot, &bk.rel, off);
+                    if after <= hull_eps {
+                        continue;
+                    }
+                    let before = sat_depth(
+                        &bj.poly,
+                        bj.rot,
+                        &bj.rel,
+                        &bk.poly,
+                        bk.rot,
+                        &bk.rel,
+                        bk.pos - bj.pos,
+                    );
+                    // Never deeper than it already is (or than hull_eps, when it only
+                    // touches): a turn may not creep into a neighbour step by step.
+                    if after > before.max(hull_eps) {
+                        return true;
+                    }
+                }
+            }
+            false
+        };
+        if self.passes.blocks && collides(theta, &mut support.turned) {
+            let (mut lo, mut hi) = (0.0, theta);
+            for _ in 0..BISECTIONS {
+                let mid = 0.5 * (lo + hi);
+                if collides(mid, &mut support.turned) {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            theta = lo;
+        }
+        if theta.is_nan() || theta <= self.params.angle_eps || !theta.is_finite() {
+            // It cannot start to turn without entering another block: let R7/R12 decide.
+            let b = &mut blocks[i];
+            b.mode = BlockMode::Free;
+            b.v = DVec3::ZERO;
+            b.tipped_over = 0;
+            return;
+        }
+        // S turns rigidly about the pivot (perfect friction: the load rides on b).
+        let mut under = 0u128;
+        for e in &support.edges {
+            if s_mask & bit(e.upper) != 0 && s_mask & bit(e.lower) == 0 {
+                under |= bit(e.lower);
+            }
+        }
+        let q = DQuat::from_axis_angle(axis, theta);
+        for j in bits(s_mask) {
+            let bj = &mut blocks[j];
+            let pj = pivot + (gpos - bj.pos);
+            bj.rotate_about(q, pj);
+            bj.v = DVec3::ZERO;
+            bj.moved = Moved::Stacked;
+            bj.mode = BlockMode::Tipping;
+            bj.judged = true;
+            bj.tipped_over = if j == i { under } else { 0 };
+        }
+    }
+}
