@@ -29,7 +29,7 @@ pub mod world;
 
 pub use motion::{push_one_point, PushOutcome};
 pub use simulate::{
-    default_frames, simulate, simulate_samples, BareFingersHand, BlockReport, EventReport,
+    default_frames, outcome, simulate, simulate_samples, BareFingersHand, BlockReport, EventReport,
     HandSource, Report,
 };
 pub use world::{BlockView, Event, EventKind, World, WorldError};
