@@ -46,8 +46,10 @@ const LAUNCH_AFTER_HELP: &str = concat!(
         A session runs as independent processes (acquisition, kinematics, stepper, renderer, \
         recorder) exchanging zero-copy samples over iceoryx2; the launcher measures every \
         stage's latency and judges it against the session's [budget].\n\n\
-        Start with:  handblocks launch            (the scripted hand, until Ctrl-C)\n\
-        \x20            handblocks launch --help     (options and the report)"
+        Start with:  ./run                        (set-up, build, the live session: the scripted hand)\n\
+        \x20            handblocks launch --help     (options, the report and its terms)\n\
+        \x20            handblocks list              (the scenes and sessions)\n\n\
+        The design: docs/design.md; the model's rules: docs/model.md (in the repository)."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -188,7 +190,9 @@ enum Command {
         #[arg(default_value = "config")]
         dir: PathBuf,
     },
-    /// Print a shell completion script: `handblocks completions bash > ~/.local/share/bash-completion/completions/handblocks`.
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    ///
+    /// For bash: handblocks completions bash > ~/.local/share/bash-completion/completions/handblocks
     Completions {
         /// bash, zsh, fish, elvish or powershell.
         shell: clap_complete::Shell,
