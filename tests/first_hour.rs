@@ -425,3 +425,46 @@ fn any_scene_can_be_launched_and_a_scene_without_a_hand_gets_one_at_rest() {
     );
     assert_nothing_left(&id);
 }
+
+#[test]
+fn a_looped_replay_plays_its_trace_again_until_stopped() {
+    let _one = one_at_a_time();
+    let dir = Scratch::new("loop");
+    let trace = repo().join("../shared/data/carl/example_push_0.carl");
+    let session = dir.path("loop.toml");
+    std::fs::write(
+        &session,
+        format!(
+            "scene = {:?}\n[source]\nkind = \"replay\"\nfile = {:?}\nspeed = 4.0\n\
+             offset = [0.0, -1.45, 0.0]\nloop = true\n[renderer]\nmode = \"off\"\n",
+            repo()
+                .join("config/scenes/carl-push.toml")
+                .to_string_lossy(),
+            trace.to_string_lossy()
+        ),
+    )
+    .unwrap();
+    let id = unique_id("loop");
+    let report_file = dir.path("report.json");
+    // The trace plays in 0.6 s at speed 4: in 3 s, several rounds.
+    let out = launch(&[
+        "--duration",
+        "3",
+        "--bus-id",
+        &id,
+        "--report",
+        report_file.to_str().unwrap(),
+        session.to_str().unwrap(),
+    ]);
+    let text = both(&out);
+    assert!(out.status.success(), "{text}");
+    assert!(!text.contains("the trace ended"), "{text}");
+    let worlds = report(&report_file)["stages"]["stepper"]["origin_us"]["count"]
+        .as_u64()
+        .unwrap();
+    assert!(
+        worlds > 3 * 218,
+        "{worlds} world states: the trace (218 samples) did not loop"
+    );
+    assert_nothing_left(&id);
+}

@@ -500,6 +500,80 @@ pub fn rfc3339(t: std::time::SystemTime) -> String {
 mod tests {
     use super::*;
 
+    fn stage(stage: Stage, metric: Metric, n: u64, silence_ms: u64) -> StageReport {
+        let mut histograms = [
+            common::latency::new_histogram(),
+            common::latency::new_histogram(),
+            common::latency::new_histogram(),
+            common::latency::new_histogram(),
+        ];
+        for _ in 0..n {
+            histograms[metric as usize].saturating_record(100_000);
+        }
+        StageReport {
+            stage,
+            histograms,
+            counters: Vec::new(),
+            final_report: true,
+            silence_ns: silence_ms * 1_000_000,
+        }
+    }
+
+    fn judged(frames: u64, worlds: u64, silence_ms: u64, budget: &Budget) -> Report {
+        let facts = SessionFacts {
+            seconds: 10.0,
+            source: Stage::Acquisition,
+            renders: true,
+        };
+        Report::build(
+            vec![
+                stage(Stage::Acquisition, Metric::Origin, worlds, silence_ms),
+                stage(Stage::Stepper, Metric::Origin, worlds, 0),
+                stage(Stage::Renderer, Metric::Photon, frames, 0),
+            ],
+            budget,
+            Vec::new(),
+            &facts,
+        )
+    }
+
+    #[test]
+    fn a_renderer_well_below_frame_hz_fails_the_session() {
+        let b = Budget::default(); // frame_hz 90, margin 0.25: at least 67.5 per second
+        let r = judged(450, 1200, 10, &b);
+        assert!(!r.ok());
+        assert!(
+            r.violations[0].starts_with("frame_hz: 45.0 frames per second < 67.5"),
+            "{:?}",
+            r.violations
+        );
+        assert!(judged(700, 1200, 10, &b).ok());
+        // A world at 60 Hz cannot be drawn at 90: judged against the world's rate.
+        assert!(judged(550, 600, 10, &b).ok());
+        let r = judged(300, 600, 10, &b);
+        assert!(
+            r.violations[0].contains("the world's rate 60.0"),
+            "{:?}",
+            r.violations
+        );
+    }
+
+    #[test]
+    fn a_silent_source_fails_the_session() {
+        let b = Budget::default();
+        let r = judged(900, 1200, 1500, &b);
+        assert_eq!(
+            r.violations,
+            vec!["source_silence_ms: the source (acquisition) delivered no sample for 1500 ms > 1000"]
+        );
+        let r = judged(0, 0, 10_000, &b);
+        assert!(
+            r.violations[0].contains("delivered no sample in 10.0 s"),
+            "{:?}",
+            r.violations
+        );
+    }
+
     #[test]
     fn times_are_utc_dates() {
         let at = |s| std::time::UNIX_EPOCH + std::time::Duration::from_secs(s);
