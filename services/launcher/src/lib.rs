@@ -456,7 +456,7 @@ fn run_session(
     );
     report.meta = report::Meta {
         session_file: session_file.display().to_string(),
-        scene_file: std::path::absolute(&session.scene_file)
+        scene_file: std::fs::canonicalize(&session.scene_file)
             .unwrap_or_else(|_| session.scene_file.clone())
             .display()
             .to_string(),

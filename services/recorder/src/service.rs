@@ -48,7 +48,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         Some(path) => {
             // The recording names the session it came from (`handblocks inspect` shows it).
             let name = |p: &std::path::Path| {
-                std::path::absolute(p)
+                std::fs::canonicalize(p)
                     .unwrap_or_else(|_| p.to_path_buf())
                     .display()
                     .to_string()
