@@ -302,7 +302,7 @@ pub fn frame_scene(
     let tan_v = tan_h * height as f64 / width.max(1) as f64;
     let mut best: Option<(f64, DVec3, DVec3)> = None;
     for elevation in [18.0f64, 25.0, 32.0] {
-        for azimuth in [0.0f64, 20.0, -20.0, 40.0, -40.0] {
+        for azimuth in [0.0f64, 20.0, -20.0, 40.0, -40.0, 60.0, -60.0] {
             let (el, az) = (elevation.to_radians(), azimuth.to_radians());
             let forward = DVec3::new(-az.sin() * el.cos(), -el.sin(), -az.cos() * el.cos());
             let (d, target) = fit(&pts, forward, tan_h, tan_v);
