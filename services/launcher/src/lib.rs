@@ -302,7 +302,7 @@ fn run_session(
         .iter()
         .flat_map(|o| ["--set".into(), format!("{}={}", o.key, o.value).into()])
         .collect();
-    let placement = Placement::for_session(
+    let mut placement = Placement::for_session(
         session.renderer.mode != RenderMode::Off,
         session.renderer.own_cpus,
     );
@@ -322,7 +322,7 @@ fn run_session(
     } else {
         Vec::new()
     };
-    let start = |stage| {
+    let start = |stage, placement: &Placement| {
         let mut extra: Vec<std::ffi::OsString> = overrides.clone();
         extra.extend_from_slice(match stage {
             Stage::Renderer => &renderer_args,
@@ -354,7 +354,7 @@ fn run_session(
     let mut reader_stages = readers(session);
     let mut procs: Vec<ServiceProcess> = Vec::new();
     for stage in reader_stages.iter().rev() {
-        procs.push(start(*stage)?);
+        procs.push(start(*stage, &placement)?);
     }
     let mut reports: BTreeMap<Stage, StageReport> = BTreeMap::new();
     let mut failures = Vec::new();
@@ -362,12 +362,19 @@ fn run_session(
     let renderer_skipped = wait_until_connected(&services, &mut reader_stages, &mut procs)?;
     if let Some(line) = &renderer_skipped {
         eprintln!("handblocks: {line}");
+        // The pipeline was placed apart from a renderer that is not there: give it every CPU.
+        if placement.describe().is_some() {
+            placement = Placement::shared();
+            for p in procs.iter_mut() {
+                p.unpin();
+            }
+        }
     }
     let source = match session.source {
         Source::Replay { .. } => Stage::Replay,
         _ => Stage::Acquisition,
     };
-    procs.push(start(source)?);
+    procs.push(start(source, &placement)?);
     // Pipeline order: source first, recorder last.
     procs.reverse();
     // The session's time starts when the source is attached, however long it took to start.
