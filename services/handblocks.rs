@@ -8,22 +8,48 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 use common::bus::{Bus, BusConfig};
 use common::config::Session;
 use common::{shutdown, Stage};
 
+/// The version and the commit it was built from (build.rs).
+const VERSION: &str = concat!(
+    env!("CARGO_PKG_VERSION"),
+    " (commit ",
+    env!("HANDBLOCKS_COMMIT"),
+    ")"
+);
+
+/// `launch --help`'s closing text: the report's terms and where the documents are.
+const LAUNCH_AFTER_HELP: &str = concat!(
+    "The latency table (microseconds), per stage:\n",
+    "  hop          a sample's publish (by the stage before) to its receive here: the bus and the wake-up\n",
+    "  process      receive to this stage's publish: its own work\n",
+    "  origin->out  the sample's origin (when its source sample entered the pipeline) to this\n",
+    "               stage's publish: the age of what it sends (at the stepper: origin -> world)\n",
+    "  origin->px   the renderer only: origin to the frame's GPU work complete (origin -> photon)\n",
+    "  received     per topic, the fewest samples any reader received; dropped = never read\n",
+    "\n",
+    "Besides the session's [budget] keys, every session is judged on what users assume: the source\n",
+    "delivers a sample at least every `source_silence_ms` (default 1000), and the renderer draws at\n",
+    "least (1 - `frame_rate_margin`) x frame_hz frames per second (default margin 0.25; frame_hz, or\n",
+    "the world's rate when that is lower). The design: docs/design.md; the model: docs/model.md."
+);
+
 #[derive(Parser)]
 #[command(
     name = "handblocks",
-    version,
+    version = VERSION,
     about = "A hand grasps, pushes, carries and throws virtual blocks at interactive rate.",
     long_about = "A hand grasps, pushes, carries and throws virtual blocks at interactive rate.\n\n\
         A session runs as independent processes (acquisition, kinematics, stepper, renderer, \
         recorder) exchanging zero-copy samples over iceoryx2; the launcher measures every \
         stage's latency and judges it against the session's [budget].\n\n\
-        Start with:  handblocks launch            (the scripted hand, until Ctrl-C)\n\
-        \x20            handblocks launch --help     (options and the report)"
+        Start with:  ./run                        (set-up, build, the live session: the scripted hand)\n\
+        \x20            handblocks launch --help     (options, the report and its terms)\n\
+        \x20            handblocks list              (the scenes and sessions)\n\n\
+        The design: docs/design.md; the model's rules: docs/model.md (in the repository)."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -34,12 +60,31 @@ struct Cli {
 enum Command {
     /// Run a session: start its processes, measure latency, judge the budget.
     ///
+    /// After the session it prints what the world came to (each block's final pose and mode,
+    /// the events, as `simulate` does), the latency table, and the budget's verdict. A headless
+    /// session also writes an animated preview (out/SESSION-preview.png; --no-preview: none).
+    /// A replay session ends when its trace does (unless [source] loop = true).
+    ///
     /// Exit status: 0 when the session ran within its [budget], 1 when it ran but violated the
     /// budget or a process failed, 2 when it could not run (bad config, no processes).
+    #[command(after_help = LAUNCH_AFTER_HELP)]
     Launch {
-        /// The session file (which scene, which source, renderer, recorder, budget).
+        /// The session file (which scene, which source, renderer, recorder, budget), or a scene
+        /// file (run with the default settings: the scripted hand, headless).
         #[arg(default_value = "config/sessions/live.toml")]
         session: PathBuf,
+        /// Override a key of the session file, e.g. --set renderer.mode=off, --set
+        /// budget.max_dropped=0, --set source.file=/data/carl/example_push_0.carl (paths, as in
+        /// the file, start at the session file's folder). Checked as the file's keys are.
+        /// Repeatable.
+        #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
+        overrides: Vec<common::config::session::Override>,
+        /// No animated preview (a headless session writes one by default).
+        #[arg(long)]
+        no_preview: bool,
+        /// Overwrite the recording (--record or [recorder] file) if it exists.
+        #[arg(long)]
+        force: bool,
         /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM).
         #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
         duration: Option<Duration>,
@@ -81,7 +126,7 @@ enum Command {
     /// through the hand model, `fingers` keys as bare check points. Two runs print identical
     /// bytes. Exit status 2 when the scene is refused (the message names file, key and range).
     Simulate {
-        /// The scene file (DESIGN.md, "Effects").
+        /// The scene file (docs/design.md, "Effects"; the rules: docs/model.md).
         scene: PathBuf,
         /// Steps to run (default: the hand's last key plus 3 s).
         #[arg(long, value_name = "N")]
@@ -139,7 +184,21 @@ enum Command {
         #[arg(long)]
         count: u64,
     },
+    /// List the scenes and sessions under config/ (or DIR), each with its first comment line.
+    List {
+        /// Where to look.
+        #[arg(default_value = "config")]
+        dir: PathBuf,
+    },
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    ///
+    /// For bash: handblocks completions bash > ~/.local/share/bash-completion/completions/handblocks
+    Completions {
+        /// bash, zsh, fish, elvish or powershell.
+        shell: clap_complete::Shell,
+    },
     /// Run one process of a session (the launcher starts each one this way).
+    #[command(hide = true)]
     Service {
         /// acquisition, kinematics, stepper, renderer or recorder.
         name: String,
@@ -155,6 +214,15 @@ enum Command {
         /// The recorder only: the file, in place of the session's `[recorder] file`.
         #[arg(long, value_name = "FILE")]
         record: Option<PathBuf>,
+        /// The renderer only: write the animated preview here.
+        #[arg(long, value_name = "FILE")]
+        preview: Option<PathBuf>,
+        /// The stepper only: write the world's outcome into this folder when stopping.
+        #[arg(long, value_name = "DIR")]
+        outcome_dir: Option<PathBuf>,
+        /// The session's --set overrides, as the launcher got them.
+        #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
+        overrides: Vec<common::config::session::Override>,
     },
 }
 
@@ -202,6 +270,10 @@ fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
     Ok(v)
 }
 
+fn parse_override(s: &str) -> Result<common::config::session::Override, String> {
+    common::config::session::Override::parse(s)
+}
+
 fn parse_seconds(s: &str) -> Result<Duration, String> {
     let v: f64 = s
         .parse()
@@ -218,24 +290,43 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         // `cargo run --release`: the live session, until Ctrl-C.
-        None => launch(
-            PathBuf::from("config/sessions/live.toml"),
-            None,
-            None,
-            None,
-            false,
-            None,
-            None,
-        ),
+        None => launch(LaunchArgs {
+            session: PathBuf::from("config/sessions/live.toml"),
+            ..LaunchArgs::default()
+        }),
         Some(Command::Launch {
             session,
+            overrides,
+            no_preview,
+            force,
             duration,
             report,
             bus_id,
             quiet,
             frames_dir,
             record,
-        }) => launch(session, duration, report, bus_id, quiet, frames_dir, record),
+        }) => launch(LaunchArgs {
+            session,
+            overrides,
+            no_preview,
+            force,
+            duration,
+            report,
+            bus_id,
+            quiet,
+            frames_dir,
+            record,
+        }),
+        Some(Command::List { dir }) => list(&dir),
+        Some(Command::Completions { shell }) => {
+            clap_complete::generate(
+                shell,
+                &mut Cli::command(),
+                "handblocks",
+                &mut std::io::stdout(),
+            );
+            ExitCode::SUCCESS
+        }
         Some(Command::Simulate {
             scene,
             frames,
@@ -258,7 +349,21 @@ fn main() -> ExitCode {
             bus,
             frames_dir,
             record,
-        }) => service(&name, &session, &bus, frames_dir, record),
+            preview,
+            outcome_dir,
+            overrides,
+        }) => service(
+            &name,
+            &session,
+            &bus,
+            ServiceArgs {
+                frames_dir,
+                record,
+                preview,
+                outcome_dir,
+                overrides,
+            },
+        ),
         Some(Command::Bench {
             which:
                 BenchKind::Latency {
@@ -322,15 +427,22 @@ fn main() -> ExitCode {
     }
 }
 
-fn launch(
+/// What `handblocks launch` was given.
+#[derive(Default)]
+struct LaunchArgs {
     session: PathBuf,
+    overrides: Vec<common::config::session::Override>,
+    no_preview: bool,
+    force: bool,
     duration: Option<Duration>,
     report: Option<PathBuf>,
     bus_id: Option<String>,
     quiet: bool,
     frames_dir: Option<PathBuf>,
     record: Option<PathBuf>,
-) -> ExitCode {
+}
+
+fn launch(args: LaunchArgs) -> ExitCode {
     let exe = match std::env::current_exe() {
         Ok(e) => e,
         Err(e) => {
@@ -338,53 +450,72 @@ fn launch(
             return ExitCode::from(2);
         }
     };
-    if !quiet {
-        let until = duration.map_or("until Ctrl-C".to_string(), |d| {
+    let mut opts = launcher::LaunchOptions {
+        session: args.session,
+        duration: args.duration,
+        report: args.report.clone(),
+        bus_id: args.bus_id,
+        exe,
+        progress: !args.quiet,
+        frames_dir: args.frames_dir,
+        record: args.record,
+        overrides: args.overrides,
+        force: args.force,
+        preview: None,
+        version: VERSION.to_string(),
+    };
+    let s = match launcher::load_session(&opts) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("handblocks: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    // A session without a display leaves something to look at.
+    if s.renderer.mode == common::config::session::RenderMode::Headless && !args.no_preview {
+        opts.preview = Some(launcher::default_preview_path(&opts.session));
+    }
+    if !args.quiet {
+        let until = args.duration.map_or("until Ctrl-C".to_string(), |d| {
             format!("for {:.1} s", d.as_secs_f64())
         });
-        eprintln!("handblocks: launching {} {until}", session.display());
+        eprintln!("handblocks: launching {} {until}", opts.session.display());
+    }
+    // A replay's trace must be readable: say so now, naming the key, not from a child.
+    if let common::config::session::Source::Replay { file, .. } = &s.source {
+        if let Err(e) = std::fs::File::open(file) {
+            eprintln!(
+                "handblocks: {}: [source] file = {}: cannot read it: {e} (a recording of ours, \
+                 .mcap, or a CARL trace; relative paths start at the session file's folder; \
+                 README.md, \"CARL traces\", says where to get them)",
+                s.file.display(),
+                file.display()
+            );
+            return ExitCode::from(2);
+        }
     }
     // The device settings are the drivers' to read: check them here, before any process starts.
-    if let Ok(s) = common::config::Session::load(&session) {
-        // A replay's trace must be readable: say so now, naming the key, not from a child.
-        if let common::config::session::Source::Replay { file, .. } = &s.source {
-            if let Err(e) = std::fs::File::open(file) {
-                eprintln!(
-                    "handblocks: {}: [source] file = {}: cannot read it: {e} (a recording of \
-                     ours, .mcap, or a CARL trace; relative paths start at the session file's \
-                     folder)",
-                    s.file.display(),
-                    file.display()
-                );
-                return ExitCode::from(2);
-            }
-        }
-        if let common::config::session::Source::Devices {
-            glove,
-            tracker,
-            dir,
-        } = &s.source
-        {
-            if let Err(e) = acquisition::service::device_configs(&s, glove, tracker, dir, 0) {
-                eprintln!("handblocks: {e}");
-                return ExitCode::from(2);
-            }
+    if let common::config::session::Source::Devices {
+        glove,
+        tracker,
+        dir,
+    } = &s.source
+    {
+        if let Err(e) = acquisition::service::device_configs(&s, glove, tracker, dir, 0) {
+            eprintln!("handblocks: {e}");
+            return ExitCode::from(2);
         }
     }
-    let opts = launcher::LaunchOptions {
-        session,
-        duration,
-        report: report.clone(),
-        bus_id,
-        exe,
-        progress: !quiet,
-        frames_dir,
-        record,
-    };
     match launcher::launch(&opts) {
         Ok(outcome) => {
+            if let Some(world) = &outcome.world {
+                println!("what the world came to (as simulate prints it): {world}");
+            }
             print!("{}", outcome.report.table());
-            if let Some(path) = &report {
+            if let Some(path) = &outcome.preview {
+                println!("{}", preview_line(path));
+            }
+            if let Some(path) = &args.report {
                 if let Err(e) = launcher::write_report(&outcome.report, path) {
                     eprintln!("handblocks: {e}");
                     return ExitCode::from(2);
@@ -401,6 +532,83 @@ fn launch(
             ExitCode::from(2)
         }
     }
+}
+
+/// `preview: out/live-preview.png (animated PNG, 36 frames, 640 x 240, 412 KB; open it in a
+/// web browser)`.
+fn preview_line(path: &std::path::Path) -> String {
+    let size = std::fs::metadata(path).map_or(0, |m| m.len());
+    match renderer::preview::describe(path) {
+        Some(d) => format!(
+            "preview: {} (animated PNG, {} frames, {} x {}, {:.0} KB; open it in a web browser)",
+            path.display(),
+            d.frames,
+            d.width,
+            d.height,
+            size as f64 / 1024.0
+        ),
+        None => format!("preview: {} ({size} bytes)", path.display()),
+    }
+}
+
+/// `handblocks list`: scenes and sessions with their first comment line.
+fn list(dir: &std::path::Path) -> ExitCode {
+    let mut files = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let Ok(entries) = std::fs::read_dir(&d) else {
+            if d == dir {
+                eprintln!("handblocks list: cannot read the folder {}", dir.display());
+                return ExitCode::from(2);
+            }
+            continue;
+        };
+        for e in entries.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|x| x == "toml") {
+                files.push(p);
+            }
+        }
+    }
+    files.sort();
+    let mut scenes = Vec::new();
+    let mut sessions = Vec::new();
+    for f in files {
+        let Ok(text) = std::fs::read_to_string(&f) else {
+            continue;
+        };
+        let Ok(table) = text.parse::<toml::Table>() else {
+            continue;
+        };
+        let first = text
+            .lines()
+            .map(str::trim)
+            .find(|l| l.starts_with('#'))
+            .map(|l| l.trim_start_matches('#').trim().to_string())
+            .unwrap_or_default();
+        if table.contains_key("scene") {
+            sessions.push((f, first));
+        } else if table.contains_key("block") || table.contains_key("hand") {
+            scenes.push((f, first));
+        }
+    }
+    let w = scenes
+        .iter()
+        .chain(&sessions)
+        .map(|(f, _)| f.display().to_string().len())
+        .max()
+        .unwrap_or(0);
+    println!("sessions (handblocks launch SESSION, or ./run SESSION):");
+    for (f, first) in &sessions {
+        println!("  {:w$}  {first}", f.display().to_string());
+    }
+    println!("scenes (handblocks simulate SCENE; handblocks launch SCENE runs it with the scripted hand):");
+    for (f, first) in &scenes {
+        println!("  {:w$}  {first}", f.display().to_string());
+    }
+    ExitCode::SUCCESS
 }
 
 fn simulate(
@@ -583,6 +791,25 @@ fn inspect(path: &std::path::Path, json: bool) -> ExitCode {
         })
         .collect();
     let damage = rec.damage.as_ref().map(|d| d.to_string());
+    let file_bytes = std::fs::metadata(path).map_or(0, |m| m.len());
+    // Log times are publish times on the recorder's Unix offset: the span of the recording.
+    let offset: Option<u64> = rec
+        .metadata
+        .get("unix_offset_ns")
+        .and_then(|v| v.parse().ok());
+    let span = stats
+        .iter()
+        .filter(|s| s.messages > 0)
+        .fold(None, |acc, s| {
+            let (a, b) = acc.unwrap_or((u64::MAX, 0));
+            Some((a.min(s.first_publish_ns), b.max(s.last_publish_ns)))
+        });
+    let utc = |ns: u64| launcher::report::rfc3339(std::time::UNIX_EPOCH + Duration::from_nanos(ns));
+    let (start, end) = match (offset, span) {
+        (Some(o), Some((a, b))) => (Some(utc(a + o)), Some(utc(b + o))),
+        _ => (None, None),
+    };
+    let session = rec.metadata.get("session").cloned();
     if json {
         let topics: Vec<serde_json::Value> = rows
             .iter()
@@ -597,6 +824,11 @@ fn inspect(path: &std::path::Path, json: bool) -> ExitCode {
             "{}",
             serde_json::json!({
                 "file": path.display().to_string(),
+                "bytes": file_bytes,
+                "start": start,
+                "end": end,
+                "session": session,
+                "scene": rec.metadata.get("scene"),
                 "complete": rec.complete,
                 "damage": damage,
                 "foreign_messages": rec.foreign_messages,
@@ -605,15 +837,23 @@ fn inspect(path: &std::path::Path, json: bool) -> ExitCode {
         );
     } else {
         println!(
-            "{}: {} messages, {}",
+            "{}: {} messages, {:.1} KB, {}",
             path.display(),
             stats.iter().map(|s| s.messages).sum::<u64>(),
+            file_bytes as f64 / 1024.0,
             if rec.complete {
                 "complete"
             } else {
                 "damaged (read up to the damage)"
             }
         );
+        if let (Some(a), Some(b)) = (&start, &end) {
+            println!("from {a} to {b} (UTC)");
+        }
+        match &session {
+            Some(s) => println!("recorded by the session {s}"),
+            None => println!("recorded by: not named in the file (not a session's recording)"),
+        }
         println!(
             "{:<8} {:>9} {:>6} {:>9} {:>9}  schema",
             "topic", "messages", "gaps", "seconds", "rate_hz"
@@ -700,12 +940,20 @@ fn emulate(
     }
 }
 
+/// What the launcher passes a service besides its name, session and bus.
+struct ServiceArgs {
+    frames_dir: Option<PathBuf>,
+    record: Option<PathBuf>,
+    preview: Option<PathBuf>,
+    outcome_dir: Option<PathBuf>,
+    overrides: Vec<common::config::session::Override>,
+}
+
 fn service(
     name: &str,
     session_file: &std::path::Path,
     bus_id: &str,
-    frames_dir: Option<PathBuf>,
-    record: Option<PathBuf>,
+    args: ServiceArgs,
 ) -> ExitCode {
     shutdown::install_signal_handlers();
     shutdown::watch_parent_pipe();
@@ -718,23 +966,26 @@ fn service(
         return ExitCode::from(2);
     };
     let result = (|| -> Result<(), Box<dyn std::error::Error>> {
-        let mut session = Session::load(session_file)?;
-        if record.is_some() {
-            session.recorder.file = record;
+        let mut session = Session::load_with(session_file, &args.overrides)?;
+        if args.record.is_some() {
+            session.recorder.file = args.record;
         }
         let bus = Bus::open(&BusConfig::for_session(bus_id)?, stage.name())?;
         match stage {
             Stage::Acquisition => acquisition::service::run(&session, &bus),
             Stage::Kinematics => kinematics::service::run(&session, &bus),
-            Stage::Stepper => stepper::service::run(&session, &bus),
-            Stage::Renderer => renderer::service::run_with(
+            Stage::Stepper => {
+                stepper::service::run_with_outcome(&session, &bus, args.outcome_dir.as_deref())
+            }
+            Stage::Renderer => renderer::service::run_with_preview(
                 &session,
                 &bus,
-                renderer::RenderSettings::from_session(&session.renderer),
-                frames_dir.map(|dir| renderer::FramesRequest {
+                renderer::RenderSettings::from_session_framed(&session.renderer, &session.scene),
+                args.frames_dir.map(|dir| renderer::FramesRequest {
                     dir,
                     every_nth: session.renderer.frames_every,
                 }),
+                args.preview,
             ),
             Stage::Recorder => recorder::service::run(&session, &bus),
             Stage::Replay => replay::service::run(&session, &bus),
@@ -743,6 +994,13 @@ fn service(
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
+            // No GPU adapter: the launcher goes on without a renderer and says so in one line.
+            if matches!(
+                e.downcast_ref::<renderer::RenderError>(),
+                Some(renderer::RenderError::NoAdapter(_))
+            ) {
+                return ExitCode::from(launcher::RENDERER_SKIPPED_EXIT as u8);
+            }
             eprintln!("handblocks {}: {e}", stage.name());
             ExitCode::from(2)
         }

@@ -121,6 +121,7 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         progress: false,
         frames_dir: None,
         record: None,
+        ..launcher::LaunchOptions::default()
     })?;
     let report = &outcome.report;
     let mut stages = serde_json::Map::new();

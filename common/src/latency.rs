@@ -63,6 +63,9 @@ pub struct LatencyRecorder {
     stage: Stage,
     histograms: [Histogram<u64>; METRICS],
     encoded: Vec<u8>,
+    /// A source's last output (its start before the first), and its longest silence so far.
+    last_output_ns: u64,
+    longest_silence_ns: u64,
 }
 
 impl LatencyRecorder {
@@ -76,6 +79,8 @@ impl LatencyRecorder {
                 new_histogram(),
             ],
             encoded: Vec::with_capacity(HISTOGRAM_BYTES),
+            last_output_ns: monotonic_ns(),
+            longest_silence_ns: 0,
         }
     }
 
@@ -107,6 +112,9 @@ impl LatencyRecorder {
         let ns = sent.publish_ns.saturating_sub(sent.origin_ns);
         self.record(Metric::Process, ns);
         self.record(Metric::Origin, ns);
+        let silence = sent.publish_ns.saturating_sub(self.last_output_ns);
+        self.longest_silence_ns = self.longest_silence_ns.max(silence);
+        self.last_output_ns = sent.publish_ns;
     }
 
     /// Writes this recorder's histograms and the given topic counters into `sample`.
@@ -118,6 +126,9 @@ impl LatencyRecorder {
     ) {
         sample.stage = self.stage as u32;
         sample.final_report = final_report as u32;
+        sample.silence_ns = self
+            .longest_silence_ns
+            .max(monotonic_ns().saturating_sub(self.last_output_ns));
         for (slot, c) in sample.counters.iter_mut().enumerate() {
             *c = counters.get(slot).copied().unwrap_or(TopicCounter {
                 topic: u32::MAX,

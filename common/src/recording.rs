@@ -287,6 +287,15 @@ pub struct RecordingWriter {
 impl RecordingWriter {
     /// Creates `path` (and its folder) and writes the header, schemas and channels.
     pub fn create(path: &Path) -> Result<RecordingWriter, RecordingError> {
+        RecordingWriter::create_with(path, &[])
+    }
+
+    /// [`Self::create`], with more entries for the `handblocks` metadata record (the session
+    /// recorder names the session and scene files: `handblocks inspect` shows them).
+    pub fn create_with(
+        path: &Path,
+        about: &[(&str, String)],
+    ) -> Result<RecordingWriter, RecordingError> {
         let io = |error| RecordingError::Io {
             path: path.to_path_buf(),
             error,
@@ -320,6 +329,9 @@ impl RecordingWriter {
                 .to_string(),
         );
         metadata.insert("unix_offset_ns".to_string(), unix_offset_ns.to_string());
+        for (k, v) in about {
+            metadata.insert(k.to_string(), v.clone());
+        }
         mcap.write_metadata(&mcap::records::Metadata {
             name: "handblocks".to_string(),
             metadata,
@@ -452,6 +464,9 @@ pub struct Recording {
     pub damage: Option<RecordingError>,
     /// True when the file ended with its summary and footer (it was closed properly).
     pub complete: bool,
+    /// The `handblocks` metadata record: `unix_offset_ns`, and `session`, `scene` when a
+    /// session recorded it.
+    pub metadata: std::collections::BTreeMap<String, String>,
     /// Per topic (indexed by `Topic as usize`), over every message read, kept or not.
     stats: [TopicStats; Topic::ALL.len()],
     data: Vec<u8>,
@@ -501,6 +516,7 @@ impl Recording {
             foreign_messages: 0,
             damage: None,
             complete: false,
+            metadata: Default::default(),
             stats: [TopicStats::default(); Topic::ALL.len()],
             data: Vec::new(),
         };
@@ -670,6 +686,7 @@ impl Reader<'_> {
     ) -> Result<(), String> {
         use mcap::records::Record;
         match record {
+            Record::Metadata(m) if m.name == "handblocks" => rec.metadata = m.metadata,
             Record::Schema { header, .. } => {
                 self.schemas.retain(|(id, _)| *id != header.id);
                 self.schemas.push((header.id, header.name));

@@ -330,6 +330,9 @@ pub struct LatencySample {
     pub stage: u32,
     /// 1 on the stage's last report.
     pub final_report: u32,
+    /// A source only: the longest stretch without a sample it sent so far (from its start, and
+    /// the current one included), ns.
+    pub silence_ns: u64,
     pub counters: [TopicCounter; MAX_TOPIC_COUNTERS],
     /// Indexed by [`crate::latency::Metric`].
     pub histograms: [EncodedHistogram; METRICS],
@@ -341,6 +344,7 @@ impl Default for LatencySample {
             stamp: Stamp::default(),
             stage: 0,
             final_report: 0,
+            silence_ns: 0,
             counters: [TopicCounter {
                 topic: u32::MAX,
                 ..Default::default()

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use super::hand::HandModelSpec;
 use super::reader::{parse_file, Reader};
-use super::scene::Scene;
+use super::scene::{HandKey, HandPoseSpec, HandScript, Scene};
 use super::ConfigError;
 
 /// A whole session file, with its scene loaded.
@@ -38,10 +38,13 @@ pub enum Source {
     },
     /// A recorded hand (one of our MCAP recordings or a CARL trace); `speed` 0 = as fast as the pipeline consumes;
     /// `offset` moves the recorded hand, metres (real traces hold it ~1 m above the floor).
+    /// The session ends when the trace does, unless `looped` (`loop = true`): then it plays
+    /// again, its source times continuing, until stopped.
     Replay {
         file: PathBuf,
         speed: f64,
         offset: [f64; 3],
+        looped: bool,
     },
 }
 
@@ -79,6 +82,9 @@ pub struct RendererSettings {
     /// Where the eyes' midpoint is and what it looks at, world frame.
     pub eye: [f64; 3],
     pub target: [f64; 3],
+    /// Neither `eye` nor `target` given: the renderer frames the scene itself (its blocks, the
+    /// hand's reach, what the hand throws), looking from `eye` towards `target`'s direction.
+    pub auto_camera: bool,
     pub shadows: bool,
     /// With `launch --frames-dir`, write every Nth frame.
     pub frames_every: u32,
@@ -100,6 +106,7 @@ impl Default for RendererSettings {
             screen_width_m: 0.52,
             eye: [0.0, 0.75, 1.1],
             target: [0.0, 0.05, 0.0],
+            auto_camera: true,
             shadows: true,
             frames_every: 1,
             own_cpus: true,
@@ -123,6 +130,12 @@ pub struct Budget {
     pub hop_p99_us: Option<f64>,
     pub origin_to_photon_p99_ms: Option<f64>,
     pub max_dropped: Option<u64>,
+    /// The longest the source may go without delivering a sample (from the session's start,
+    /// between samples, and to its end), milliseconds.
+    pub source_silence_ms: f64,
+    /// How far below `frame_hz` (or the world's rate, when that is lower) the renderer's frame
+    /// rate may fall, as a fraction: 0.25 = frames per second at least 75 % of it.
+    pub frame_rate_margin: f64,
 }
 
 impl Default for Budget {
@@ -133,29 +146,148 @@ impl Default for Budget {
             hop_p99_us: None,
             origin_to_photon_p99_ms: None,
             max_dropped: None,
+            source_silence_ms: 1000.0,
+            frame_rate_margin: 0.25,
         }
+    }
+}
+
+/// `--set KEY=VALUE`: one key of a session file given on the command line, e.g.
+/// `renderer.mode=off` or `budget.max_dropped=0`. It replaces (or adds) the key before the file
+/// is checked, so it is validated exactly as the file's own keys are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Override {
+    /// The dotted key path.
+    pub key: String,
+    pub value: toml::Value,
+}
+
+impl Override {
+    /// `KEY=VALUE`; VALUE is read as TOML (`0`, `true`, `[0, 1, 2]`, `"text"`), else as text
+    /// (`off`, `out/live.mcap`).
+    pub fn parse(text: &str) -> Result<Override, String> {
+        let (key, value) = text.split_once('=').ok_or_else(|| {
+            format!("{text:?}: give KEY=VALUE, e.g. renderer.mode=off or budget.max_dropped=0")
+        })?;
+        let key = key.trim();
+        if key.is_empty()
+            || !key.split('.').all(|p| {
+                !p.is_empty()
+                    && p.chars()
+                        .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+            })
+        {
+            return Err(format!(
+                "{key:?}: a key is a dotted path of names, e.g. renderer.mode"
+            ));
+        }
+        let value = value.trim();
+        let value = match format!("v = {value}").parse::<toml::Table>() {
+            Ok(mut t) => t.remove("v").unwrap_or_else(|| value.into()),
+            Err(_) => toml::Value::String(value.to_string()),
+        };
+        Ok(Override {
+            key: key.to_string(),
+            value,
+        })
+    }
+
+    fn apply(&self, file: &Path, table: &mut toml::Table) -> Result<(), ConfigError> {
+        let parts: Vec<&str> = self.key.split('.').collect();
+        let Some((last, path)) = parts.split_last() else {
+            return Ok(());
+        };
+        let mut t = table;
+        let mut at = String::new();
+        for p in path {
+            if !at.is_empty() {
+                at.push('.');
+            }
+            at.push_str(p);
+            let entry = t
+                .entry(p.to_string())
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            t = match entry {
+                toml::Value::Table(t) => t,
+                v => {
+                    return Err(ConfigError::new(
+                        file,
+                        at.clone(),
+                        format!(
+                            "--set {}: `{at}` is {}, not a table",
+                            self.key,
+                            v.type_str()
+                        ),
+                    ))
+                }
+            };
+        }
+        t.insert(last.to_string(), self.value.clone());
+        Ok(())
     }
 }
 
 impl Session {
     /// Reads a session file and the scene it names.
     pub fn load(file: &Path) -> Result<Session, ConfigError> {
-        let table = parse_file(file)?;
-        let r = Reader::new(file, "", &table);
+        Session::load_with(file, &[])
+    }
+
+    /// Reads a session file with `--set` overrides applied, and the scene it names. An error
+    /// about an overridden key says it came from `--set`.
+    ///
+    /// A scene file given in place of a session runs as a session of that scene with the
+    /// default settings (the scripted hand, the headless renderer).
+    pub fn load_with(file: &Path, overrides: &[Override]) -> Result<Session, ConfigError> {
+        let mut table = parse_file(file)?;
+        let is_scene = !table.contains_key("scene")
+            && ["block", "world", "effects", "hand"]
+                .iter()
+                .any(|k| table.contains_key(*k));
+        if is_scene {
+            table = toml::Table::new();
+            let name = file
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            table.insert("scene".into(), toml::Value::String(name));
+        }
+        for o in overrides {
+            o.apply(file, &mut table)?;
+        }
+        Session::from_table(file, &table).map_err(|mut e| {
+            if overrides
+                .iter()
+                .any(|o| e.key == o.key || e.key.starts_with(&format!("{}.", o.key)))
+            {
+                e.problem.push_str(" (given with --set)");
+            }
+            e
+        })
+    }
+
+    fn from_table(file: &Path, table: &toml::Table) -> Result<Session, ConfigError> {
+        let r = Reader::new(file, "", table);
         let dir = file.parent().unwrap_or(Path::new("."));
         let scene_name = r
             .string("scene")?
             .ok_or_else(|| r.err("scene", "required: the scene file, relative to this file"))?;
         let scene_file = dir.join(&scene_name);
-        let scene = Scene::load(&scene_file)?;
+        let mut scene = Scene::load(&scene_file)?;
         let source = source(r.table("source")?, dir)?;
         if matches!(source, Source::Scripted { .. }) && scene.hand.is_none() {
-            return Err(r.err(
-                "source.kind",
-                format!(
-                    "\"scripted\" needs a [hand] in the scene {}; add one or choose another source",
-                    scene_file.display()
-                ),
+            // Any scene can be launched: without a [hand] the hand rests out of the way.
+            scene.hand = Some(hand_at_rest(&scene));
+        }
+        let renderer = renderer(r.table("renderer")?)?;
+        let budget_reader = r.table("budget")?;
+        let budget = budget(budget_reader)?;
+        if renderer.mode == RenderMode::Off && budget.origin_to_photon_p99_ms.is_some() {
+            return Err(ConfigError::new(
+                file,
+                "budget.origin_to_photon_p99_ms",
+                "cannot be judged: [renderer] mode = \"off\" draws no frame; remove the key or \
+                 render (mode = \"headless\" or \"window\")",
             ));
         }
         let session = Session {
@@ -163,9 +295,9 @@ impl Session {
             scene_file,
             scene,
             source,
-            renderer: renderer(r.table("renderer")?)?,
+            renderer,
             recorder: recorder(r.table("recorder")?, dir)?,
-            budget: budget(r.table("budget")?)?,
+            budget,
             hand_model: match r.string("hand_model")? {
                 Some(f) => HandModelSpec::load(&dir.join(f))?,
                 None => HandModelSpec::default(),
@@ -173,6 +305,27 @@ impl Session {
         };
         r.finish()?;
         Ok(session)
+    }
+}
+
+/// An open hand at rest beside the scene's blocks (40 cm past their +x side, 30 cm above the
+/// highest), where it touches none of them.
+pub fn hand_at_rest(scene: &Scene) -> HandScript {
+    let mut x_max: f64 = 0.0;
+    let mut y_max: f64 = 0.0;
+    let mut z_mid = 0.0;
+    for b in &scene.blocks {
+        x_max = x_max.max(b.position[0]);
+        y_max = y_max.max(b.position[1]);
+        z_mid += b.position[2] / scene.blocks.len() as f64;
+    }
+    HandScript {
+        keys: vec![HandKey {
+            t: 0.0,
+            wrist: [x_max + 0.4, (y_max + 0.3).max(0.4), z_mid],
+            wrist_rotation: [0.0, 0.0, 0.0, 1.0],
+            pose: HandPoseSpec::Grip(0.0),
+        }],
     }
 }
 
@@ -209,6 +362,7 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<Source, ConfigError> {
                 file: dir.join(f),
                 speed: r.f64_in("speed", Some(1.0), 0.0..=1000.0)?.unwrap_or(1.0),
                 offset: r.array::<3>("offset", -1.0e5..=1.0e5)?.unwrap_or([0.0; 3]),
+                looped: r.bool("loop", false)?,
             }
         }
         _ => Source::Scripted {
@@ -245,6 +399,7 @@ fn renderer(r: Option<Reader>) -> Result<RendererSettings, ConfigError> {
         screen_width_m: r
             .f64_in("screen_width_m", Some(d.screen_width_m), 0.01..=100.0)?
             .unwrap_or(d.screen_width_m),
+        auto_camera: !r.has("eye") && !r.has("target"),
         eye: r.array::<3>("eye", place.clone())?.unwrap_or(d.eye),
         target: r.array::<3>("target", place)?.unwrap_or(d.target),
         shadows: r.bool("shadows", d.shadows)?,
@@ -287,6 +442,12 @@ fn budget(r: Option<Reader>) -> Result<Budget, ConfigError> {
         } else {
             None
         },
+        source_silence_ms: r
+            .f64_in("source_silence_ms", Some(d.source_silence_ms), 1.0..=1e9)?
+            .unwrap_or(d.source_silence_ms),
+        frame_rate_margin: r
+            .f64_in("frame_rate_margin", Some(d.frame_rate_margin), 0.0..=1.0)?
+            .unwrap_or(d.frame_rate_margin),
     };
     r.finish()?;
     Ok(b)
@@ -361,6 +522,78 @@ mod tests {
         let e = Session::load(&f).unwrap_err();
         assert_eq!(e.key, "budjet");
         assert!(e.problem.contains("allowed here: budget"), "{e}");
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
+    #[test]
+    fn set_overrides_are_checked_as_the_files_keys_are() {
+        let d = tmpdir("set");
+        write(&d, "scene.toml", SCENE);
+        let f = write(
+            &d,
+            "s.toml",
+            "scene = \"scene.toml\"\n[renderer]\nmode = \"headless\"\n",
+        );
+        let o = |t: &str| Override::parse(t).unwrap();
+        let s =
+            Session::load_with(&f, &[o("renderer.mode=off"), o("budget.max_dropped=0")]).unwrap();
+        assert_eq!(s.renderer.mode, RenderMode::Off);
+        assert_eq!(s.budget.max_dropped, Some(0));
+        let s = Session::load_with(&f, &[o("renderer.eye=[0, 1, 2]")]).unwrap();
+        assert_eq!(s.renderer.eye, [0.0, 1.0, 2.0]);
+        assert!(!s.renderer.auto_camera);
+        let e = Session::load_with(&f, &[o("renderer.colour=red")]).unwrap_err();
+        assert_eq!(e.key, "renderer.colour");
+        assert!(
+            e.problem.contains("unknown key") && e.problem.contains("(given with --set)"),
+            "{e}"
+        );
+        let e = Session::load_with(&f, &[o("budget.frame_hz=0")]).unwrap_err();
+        assert_eq!(e.key, "budget.frame_hz");
+        let e = Session::load_with(&f, &[o("scene.x=1")]).unwrap_err();
+        assert_eq!(e.key, "scene");
+        assert!(Override::parse("renderer.mode").is_err());
+        assert!(Override::parse("=off").is_err());
+        assert!(Override::parse("a..b=1").is_err());
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
+    #[test]
+    fn a_photon_budget_without_a_renderer_is_refused_naming_the_key() {
+        let d = tmpdir("photon");
+        write(&d, "scene.toml", SCENE);
+        let f = write(
+            &d,
+            "s.toml",
+            "scene = \"scene.toml\"\n[renderer]\nmode = \"off\"\n[budget]\norigin_to_photon_p99_ms = 11\n",
+        );
+        let e = Session::load(&f).unwrap_err();
+        assert_eq!(e.file, f);
+        assert_eq!(e.key, "budget.origin_to_photon_p99_ms");
+        assert!(e.problem.contains("cannot be judged"), "{e}");
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
+    #[test]
+    fn a_scene_runs_as_a_session_and_without_a_hand_gets_one_at_rest_beside_its_blocks() {
+        let d = tmpdir("scene");
+        let f = write(
+            &d,
+            "blocks.toml",
+            "[[block]]\nname = \"a\"\nshape = \"box\"\nsize = [0.1, 0.1, 0.1]\nposition = [0.2, 0.05, 0.0]\n",
+        );
+        let s = Session::load(&f).unwrap();
+        assert_eq!(s.scene_file, d.join("blocks.toml"));
+        assert_eq!(s.source, Source::Scripted { rate_hz: 120.0 });
+        let hand = s.scene.hand.expect("a hand at rest");
+        assert_eq!(hand.keys.len(), 1);
+        // 40 cm beside the block, above it: nowhere near its 10 cm.
+        assert!(
+            (hand.keys[0].wrist[0] - 0.6).abs() < 1e-12,
+            "{:?}",
+            hand.keys[0].wrist
+        );
+        assert!(hand.keys[0].wrist[1] >= 0.35);
         std::fs::remove_dir_all(d).unwrap();
     }
 }

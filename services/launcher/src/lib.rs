@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use common::bus::{Bus, BusConfig, Inlet, Services};
-use common::config::session::RenderMode;
+use common::config::session::{Override, RenderMode, Source};
 use common::config::Session;
 use common::latency::Metric;
 use common::{shutdown, LatencySample, Stage, Topic};
@@ -35,9 +35,11 @@ use report::{Report, StageReport};
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(20);
 /// How long a stopping process may take to send its final report.
 const FINAL_REPORT_TIMEOUT: Duration = Duration::from_secs(5);
+/// The renderer's exit status when it found no GPU adapter and the session goes on without it.
+pub const RENDERER_SKIPPED_EXIT: i32 = 3;
 
 /// What `handblocks launch` was asked to do.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct LaunchOptions {
     pub session: PathBuf,
     /// None: until Ctrl-C or SIGTERM.
@@ -53,12 +55,113 @@ pub struct LaunchOptions {
     pub frames_dir: Option<PathBuf>,
     /// Record every topic to this MCAP file, in place of the session's `[recorder] file`.
     pub record: Option<PathBuf>,
+    /// `--set KEY=VALUE` overrides of the session file's keys (every process gets them).
+    pub overrides: Vec<Override>,
+    /// Overwrite an existing recording.
+    pub force: bool,
+    /// Write an animated preview here (a headless session; see [`default_preview_path`]).
+    pub preview: Option<PathBuf>,
+    /// What the report names as the version (`0.1.0 (commit abc1234)`).
+    pub version: String,
+}
+
+/// Where a headless session's animated preview goes by default: `out/<session>-preview.png`.
+pub fn default_preview_path(session: &Path) -> PathBuf {
+    let stem = session
+        .file_stem()
+        .map_or("session".into(), |s| s.to_string_lossy().into_owned());
+    PathBuf::from("out").join(format!("{stem}-preview.png"))
+}
+
+/// Loads the session as `launch` will run it: with the `--set` overrides and `--record`.
+pub fn load_session(opts: &LaunchOptions) -> Result<Session, LaunchError> {
+    let mut session = Session::load_with(&opts.session, &opts.overrides).map_err(err)?;
+    if let Some(file) = &opts.record {
+        session.recorder.file = Some(std::path::absolute(file).unwrap_or_else(|_| file.clone()));
+    }
+    Ok(session)
+}
+
+/// What can be known wrong before any process starts, each naming the option, file or key.
+pub fn preflight(opts: &LaunchOptions, session: &Session) -> Result<(), LaunchError> {
+    let file = session.file.display();
+    if session.renderer.mode == RenderMode::Window
+        && std::env::var_os("DISPLAY").is_none_or(|d| d.is_empty())
+        && std::env::var_os("WAYLAND_DISPLAY").is_none_or(|d| d.is_empty())
+    {
+        return Err(err(format!(
+            "{file}: `renderer.mode`: \"window\" needs a display, and neither $DISPLAY nor \
+             $WAYLAND_DISPLAY is set; run it on a desktop, or without a window: \
+             --set renderer.mode=headless (frames and an animated preview, no display needed)"
+        )));
+    }
+    if opts.frames_dir.is_some() && session.renderer.mode == RenderMode::Off {
+        return Err(err(format!(
+            "--frames-dir: this session draws no frames ({file}: [renderer] mode = \"off\"); \
+             add --set renderer.mode=headless, or drop --frames-dir"
+        )));
+    }
+    if let Some(rec) = &session.recorder.file {
+        if rec.exists() && !opts.force {
+            let from = if opts.record.is_some() {
+                "--record".to_string()
+            } else {
+                format!("{file}: `recorder.file`")
+            };
+            return Err(err(format!(
+                "{from}: {} exists; pass --force to overwrite it, or record to another file",
+                rec.display()
+            )));
+        }
+        check_writable("the recording", rec)?;
+    }
+    if let Some(report) = &opts.report {
+        check_writable("--report", report)?;
+    }
+    if let Some(preview) = &opts.preview {
+        check_writable("the preview", preview)?;
+    }
+    Ok(())
+}
+
+/// `path` can be written: its folder exists or can be made, and it is not a folder. Nothing is
+/// left behind that was not there.
+fn check_writable(what: &str, path: &Path) -> Result<(), LaunchError> {
+    if path.is_dir() {
+        return Err(err(format!(
+            "{what}: {} is a folder; give a file name",
+            path.display()
+        )));
+    }
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            err(format!(
+                "{what}: cannot create the folder {} for {}: {e}",
+                dir.display(),
+                path.display()
+            ))
+        })?;
+    }
+    let existed = path.exists();
+    std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(path)
+        .map_err(|e| err(format!("{what}: cannot write {}: {e}", path.display())))?;
+    if !existed {
+        let _ = std::fs::remove_file(path);
+    }
+    Ok(())
 }
 
 /// How a launch ended.
 pub struct LaunchOutcome {
     pub report: Report,
     pub bus: BusConfig,
+    /// What the world came to (the stepper's final state and events, as `simulate` prints).
+    pub world: Option<String>,
+    /// The animated preview, when one was written.
+    pub preview: Option<PathBuf>,
 }
 
 /// Why a launch could not run (as opposed to running and violating the budget).
@@ -111,30 +214,61 @@ fn expected_subscribers(stages: &[Stage]) -> Vec<(Topic, usize)> {
 
 /// Runs one session. The resources of its bus are removed whatever happens.
 pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
-    let mut session = Session::load(&opts.session).map_err(err)?;
-    if let Some(file) = &opts.record {
-        session.recorder.file = Some(std::path::absolute(file).unwrap_or_else(|_| file.clone()));
-    }
+    let session = load_session(opts)?;
+    preflight(opts, &session)?;
     let id = opts.bus_id.clone().unwrap_or_else(BusConfig::fresh_id);
     let bus_config = BusConfig::for_session(&id).map_err(err)?;
     shutdown::install_signal_handlers();
     for stale in BusConfig::sweep_abandoned() {
         eprintln!("handblocks: removed the shared memory of abandoned session {stale}");
     }
+    if bus_config.has_live_processes() {
+        return Err(err(format!(
+            "--bus-id {id}: that bus id is already in use by a running session (its processes \
+             are alive); give another id, or none for a fresh one"
+        )));
+    }
+    if !bus_config.leftover_shm_files().is_empty() || bus_config.root.exists() {
+        // Left by a session whose processes are all gone.
+        bus_config.remove_resources().map_err(|e| {
+            err(format!(
+                "--bus-id {id}: files of an earlier session with that id are left ({}) and \
+                 cannot be removed: {e}",
+                bus_config.prefix
+            ))
+        })?;
+    }
+    std::fs::create_dir_all(&bus_config.root).map_err(|e| {
+        err(format!(
+            "cannot create the session's folder {}: {e}",
+            bus_config.root.display()
+        ))
+    })?;
 
     let result = run_session(opts, &session, &bus_config);
+    // The stepper left the world's outcome in the session's folder when it stopped.
+    let world = std::fs::read_to_string(bus_config.root.join("outcome.txt")).ok();
+    let world_json = std::fs::read_to_string(bus_config.root.join("outcome.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
     // Every process is reaped and every port dropped by now: the files are ours to remove.
     let cleanup = bus_config.remove_resources();
-    let report = result?;
+    let mut report = result?;
     cleanup.map_err(|e| {
         err(format!(
             "cannot remove the session's iceoryx2 files ({}): {e}",
             bus_config.prefix
         ))
     })?;
+    report.meta.world = world_json;
+    let preview = opts.preview.clone().filter(|p| {
+        report.meta.renderer_skipped.is_none() && p.metadata().is_ok_and(|m| m.len() > 0)
+    });
     Ok(LaunchOutcome {
         report,
         bus: bus_config,
+        world,
+        preview,
     })
 }
 
@@ -148,20 +282,27 @@ fn run_session(
     let latency = bus.inlet::<LatencySample>(Topic::Latency).map_err(err)?;
     let session_file = std::path::absolute(&opts.session).unwrap_or_else(|_| opts.session.clone());
 
-    let renderer_args: Vec<std::ffi::OsString> = match &opts.frames_dir {
-        Some(dir) => vec![
-            "--frames-dir".into(),
-            std::path::absolute(dir)
-                .unwrap_or_else(|_| dir.clone())
-                .into(),
-        ],
-        None => Vec::new(),
-    };
+    let started_at = std::time::SystemTime::now();
+    let absolute = |p: &PathBuf| std::path::absolute(p).unwrap_or_else(|_| p.clone());
+    let mut renderer_args: Vec<std::ffi::OsString> = Vec::new();
+    if let Some(dir) = &opts.frames_dir {
+        renderer_args.extend(["--frames-dir".into(), absolute(dir).into()]);
+    }
+    if let Some(preview) = &opts.preview {
+        renderer_args.extend(["--preview".into(), absolute(preview).into()]);
+    }
     let recorder_args: Vec<std::ffi::OsString> = match &session.recorder.file {
         Some(file) if opts.record.is_some() => vec!["--record".into(), file.into()],
         _ => Vec::new(),
     };
-    let placement = Placement::for_session(
+    let stepper_args: Vec<std::ffi::OsString> =
+        vec!["--outcome-dir".into(), bus_config.root.clone().into()];
+    let overrides: Vec<std::ffi::OsString> = opts
+        .overrides
+        .iter()
+        .flat_map(|o| ["--set".into(), format!("{}={}", o.key, o.value).into()])
+        .collect();
+    let mut placement = Placement::for_session(
         session.renderer.mode != RenderMode::Off,
         session.renderer.own_cpus,
     );
@@ -181,18 +322,20 @@ fn run_session(
     } else {
         Vec::new()
     };
-    let start = |stage| {
-        let extra: &[std::ffi::OsString] = match stage {
+    let start = |stage, placement: &Placement| {
+        let mut extra: Vec<std::ffi::OsString> = overrides.clone();
+        extra.extend_from_slice(match stage {
             Stage::Renderer => &renderer_args,
             Stage::Recorder => &recorder_args,
+            Stage::Stepper => &stepper_args,
             _ => &[],
-        };
+        });
         ServiceProcess::start(
             &opts.exe,
             stage,
             &session_file,
             &bus_config.id,
-            extra,
+            &extra,
             placement.cpus_of(stage),
             if stage == Stage::Renderer {
                 &renderer_env
@@ -208,20 +351,30 @@ fn run_session(
             ))
         })
     };
-    let reader_stages = readers(session);
+    let mut reader_stages = readers(session);
     let mut procs: Vec<ServiceProcess> = Vec::new();
     for stage in reader_stages.iter().rev() {
-        procs.push(start(*stage)?);
+        procs.push(start(*stage, &placement)?);
     }
     let mut reports: BTreeMap<Stage, StageReport> = BTreeMap::new();
     let mut failures = Vec::new();
 
-    wait_until_connected(&services, &reader_stages, &mut procs)?;
+    let renderer_skipped = wait_until_connected(&services, &mut reader_stages, &mut procs)?;
+    if let Some(line) = &renderer_skipped {
+        eprintln!("handblocks: {line}");
+        // The pipeline was placed apart from a renderer that is not there: give it every CPU.
+        if placement.describe().is_some() {
+            placement = Placement::shared();
+            for p in procs.iter_mut() {
+                p.unpin();
+            }
+        }
+    }
     let source = match session.source {
-        common::config::session::Source::Replay { .. } => Stage::Replay,
+        Source::Replay { .. } => Stage::Replay,
         _ => Stage::Acquisition,
     };
-    procs.push(start(source)?);
+    procs.push(start(source, &placement)?);
     // Pipeline order: source first, recorder last.
     procs.reverse();
     // The session's time starts when the source is attached, however long it took to start.
@@ -234,6 +387,17 @@ fn run_session(
         std::thread::sleep(Duration::from_millis(20));
         collect(&latency, &mut reports);
         if shutdown::requested() || opts.duration.is_some_and(|d| started.elapsed() >= d) {
+            break;
+        }
+        // A replay that played its whole trace has sent its final report: the session ends,
+        // as `ros2 bag play` does.
+        if has_final(&reports, source) {
+            if opts.progress {
+                eprintln!(
+                    "handblocks: the trace ended after {:.1} s; stopping",
+                    started.elapsed().as_secs_f64()
+                );
+            }
             break;
         }
         if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
@@ -250,6 +414,7 @@ fn run_session(
         }
     }
 
+    let ran_for = started.elapsed();
     // Stop in pipeline order; each stage drains what the one before it sent.
     for p in procs.iter_mut() {
         p.request_stop();
@@ -285,11 +450,33 @@ fn run_session(
     drop(latency);
     drop(services);
     drop(bus);
-    Ok(Report::build(
+    let facts = report::SessionFacts {
+        seconds: ran_for.as_secs_f64(),
+        source,
+        renders: session.renderer.mode != RenderMode::Off && renderer_skipped.is_none(),
+    };
+    let mut report = Report::build(
         reports.into_values().collect(),
         &session.budget,
         failures,
-    ))
+        &facts,
+    );
+    report.meta = report::Meta {
+        session_file: session_file.display().to_string(),
+        scene_file: std::fs::canonicalize(&session.scene_file)
+            .unwrap_or_else(|_| session.scene_file.clone())
+            .display()
+            .to_string(),
+        source: session.source.kind(),
+        version: opts.version.clone(),
+        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        placement: placement.describe(),
+        started: started_at,
+        seconds: facts.seconds,
+        renderer_skipped,
+        world: None,
+    };
+    Ok(report)
 }
 
 fn has_final(reports: &BTreeMap<Stage, StageReport>, stage: Stage) -> bool {
@@ -329,9 +516,39 @@ fn wait_for_start(
     Ok(())
 }
 
+/// Every reader attached (see [`wait_for_readers`]). A renderer that found no GPU adapter
+/// exits with [`RENDERER_SKIPPED_EXIT`] before it attaches: the session goes on without it,
+/// and the returned line says what was skipped and how to get it.
+fn wait_until_connected(
+    services: &Services,
+    stages: &mut Vec<Stage>,
+    procs: &mut Vec<ServiceProcess>,
+) -> Result<Option<String>, LaunchError> {
+    let Err(e) = wait_for_readers(services, stages, procs) else {
+        return Ok(None);
+    };
+    let skipped = procs.iter_mut().position(|p| {
+        p.stage == Stage::Renderer
+            && p.poll_exit()
+                .is_some_and(|s| s.code() == Some(RENDERER_SKIPPED_EXIT))
+    });
+    let Some(i) = skipped else {
+        return Err(e);
+    };
+    procs.remove(i);
+    stages.retain(|s| *s != Stage::Renderer);
+    wait_for_readers(services, stages, procs)?;
+    Ok(Some(
+        "renderer skipped: no GPU adapter (no Vulkan driver found), so no frames and no \
+         preview; to draw, install one: sudo apt-get install mesa-vulkan-drivers libvulkan1 \
+         (./run does this)"
+            .to_string(),
+    ))
+}
+
 /// Every reader attached: each topic has its subscribers, and each reader's latency publisher
 /// (created last) exists.
-fn wait_until_connected(
+fn wait_for_readers(
     services: &Services,
     stages: &[Stage],
     procs: &mut [ServiceProcess],

@@ -92,6 +92,28 @@ impl ServiceProcess {
         self.exit
     }
 
+    /// Lets every thread of the running process use the CPUs this process may use (undoing
+    /// its placement, when the renderer it was placed apart from did not start).
+    pub fn unpin(&mut self) {
+        if self.poll_exit().is_some() {
+            return;
+        }
+        // SAFETY: sched_getaffinity writes one cpu_set_t into the valid pointer; sched_setaffinity
+        // reads one. A thread that ended meanwhile makes the call fail, which is harmless.
+        unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
+                return;
+            }
+            let tasks = format!("/proc/{}/task", self.child.id());
+            for task in std::fs::read_dir(tasks).into_iter().flatten().flatten() {
+                if let Ok(tid) = task.file_name().to_string_lossy().parse::<libc::pid_t>() {
+                    libc::sched_setaffinity(tid, std::mem::size_of::<libc::cpu_set_t>(), &set);
+                }
+            }
+        }
+    }
+
     /// Asks the process to stop (SIGTERM): it drains its inputs and sends its final report.
     pub fn request_stop(&mut self) {
         if self.poll_exit().is_none() {

@@ -46,7 +46,22 @@ fn drain<T: Stamped>(
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
     let mut log = match &session.recorder.file {
         Some(path) => {
-            Some(RecordingWriter::create(path).map_err(|e| format!("cannot record: {e}"))?)
+            // The recording names the session it came from (`handblocks inspect` shows it).
+            let name = |p: &std::path::Path| {
+                std::fs::canonicalize(p)
+                    .unwrap_or_else(|_| p.to_path_buf())
+                    .display()
+                    .to_string()
+            };
+            let about = [
+                ("session", name(&session.file)),
+                ("scene", name(&session.scene_file)),
+                ("source", session.source.kind().to_string()),
+            ];
+            Some(
+                RecordingWriter::create_with(path, &about)
+                    .map_err(|e| format!("cannot record: {e}"))?,
+            )
         }
         None => None,
     };

@@ -220,3 +220,186 @@ mod tests {
         assert!(v.depth(DVec3::ZERO) > 0.99);
     }
 }
+
+/// A sphere the view must hold: a point of the scene and how far around it matters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Interest {
+    centre: DVec3,
+    radius: f64,
+}
+
+/// Where a hand reaches around its wrist (fingers included), metres.
+const HAND_REACH_M: f64 = 0.12;
+/// Around blocks with no scripted hand (a replay or devices), the hand's likely reach.
+const UNSCRIPTED_REACH_M: f64 = 0.3;
+/// A hand moving at least this fast between two keys may throw what it holds.
+const THROW_SPEED: f64 = 0.5;
+/// The view's margin on each side, as a fraction of the half field.
+const MARGIN: f64 = 0.06;
+
+/// An eye point and target that frame `scene` for the camera `c` (its direction of view, the
+/// default user's, above and in front of the scene at +z, is kept; its eye and target are
+/// replaced): every block, the scripted hand's path within its reach, and the flight of what
+/// the hand (or a block's own initial velocity) throws, up to its landing, fill the view with
+/// a margin. Returns `(eye, target)`.
+pub fn frame_scene(
+    scene: &common::config::Scene,
+    c: &CameraSettings,
+    width: u32,
+    height: u32,
+) -> ([f64; 3], [f64; 3]) {
+    let g = scene.world.gravity;
+    let mut pts: Vec<Interest> = Vec::new();
+    for b in &scene.blocks {
+        let radius = block_radius(&b.shape);
+        let p = DVec3::from_array(b.position);
+        pts.push(Interest { centre: p, radius });
+        let v = DVec3::from_array(b.velocity);
+        if v.length() > 1e-9 {
+            pts.extend(flight(p, v, g, radius));
+        }
+    }
+    // A hand of one key rests (the hand a scene without [hand] gets, out of the way): the view
+    // is of the blocks.
+    match scene.hand.as_ref().filter(|h| h.keys.len() > 1) {
+        Some(h) => {
+            for k in &h.keys {
+                pts.push(Interest {
+                    centre: DVec3::from_array(k.wrist),
+                    radius: HAND_REACH_M,
+                });
+            }
+            // The fastest stretch between keys: what it holds may fly on from there.
+            let fastest = h
+                .keys
+                .windows(2)
+                .filter(|w| w[1].t > w[0].t)
+                .map(|w| {
+                    let v = (DVec3::from_array(w[1].wrist) - DVec3::from_array(w[0].wrist))
+                        / (w[1].t - w[0].t);
+                    (v, DVec3::from_array(w[1].wrist))
+                })
+                .max_by(|a, b| a.0.length().total_cmp(&b.0.length()));
+            if let Some((v, p)) = fastest.filter(|(v, _)| v.length() >= THROW_SPEED) {
+                pts.extend(flight(p, v, g, 0.05));
+            }
+        }
+        None => {
+            for b in &scene.blocks {
+                pts.push(Interest {
+                    centre: DVec3::from_array(b.position),
+                    radius: UNSCRIPTED_REACH_M,
+                });
+            }
+        }
+    }
+    if pts.is_empty() {
+        return (c.eye, c.target);
+    }
+    // The user's side of the scene (+z), from above: of these directions of view, the one
+    // that frames it largest.
+    let tan_h = c.screen_width_m * 0.5 / c.screen_distance_m;
+    let tan_v = tan_h * height as f64 / width.max(1) as f64;
+    let mut best: Option<(f64, DVec3, DVec3)> = None;
+    for elevation in [18.0f64, 25.0, 32.0] {
+        for azimuth in [0.0f64, 20.0, -20.0, 40.0, -40.0, 60.0, -60.0] {
+            let (el, az) = (elevation.to_radians(), azimuth.to_radians());
+            let forward = DVec3::new(-az.sin() * el.cos(), -el.sin(), -az.cos() * el.cos());
+            let (d, target) = fit(&pts, forward, tan_h, tan_v);
+            // Prefer the straight view unless another frames it clearly larger.
+            if best.is_none_or(|(b, _, _)| d < 0.93 * b) {
+                best = Some((d, target, forward));
+            }
+        }
+    }
+    let Some((d, target, forward)) = best else {
+        return (c.eye, c.target);
+    };
+    let eye = target - forward * d;
+    (eye.to_array(), target.to_array())
+}
+
+/// For a direction of view: the nearest eye distance at which every sphere is inside both
+/// fields with the margin, and the target it looks at.
+fn fit(pts: &[Interest], forward: DVec3, tan_h: f64, tan_v: f64) -> (f64, DVec3) {
+    let axes = Viewer::new(&CameraSettings {
+        eye: [0.0, 0.0, 0.0],
+        target: forward.to_array(),
+        ..CameraSettings::default()
+    });
+    let (lo, hi) = pts.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), p| {
+            (
+                lo.min(p.centre - DVec3::splat(p.radius)),
+                hi.max(p.centre + DVec3::splat(p.radius)),
+            )
+        },
+    );
+    // Centre the view on the middle of the spheres' extents along right and up.
+    let mid = (lo + hi) * 0.5;
+    let (mut r_lo, mut r_hi, mut u_lo, mut u_hi) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for p in pts {
+        let q = p.centre - mid;
+        let (r, u) = (q.dot(axes.right), q.dot(axes.up));
+        r_lo = r_lo.min(r - p.radius);
+        r_hi = r_hi.max(r + p.radius);
+        u_lo = u_lo.min(u - p.radius);
+        u_hi = u_hi.max(u + p.radius);
+    }
+    let target = mid + axes.right * ((r_lo + r_hi) * 0.5) + axes.up * ((u_lo + u_hi) * 0.5);
+    let k = 1.0 - MARGIN;
+    let mut d: f64 = 0.3;
+    for p in pts {
+        let q = p.centre - target;
+        let (r, u, f) = (q.dot(axes.right), q.dot(axes.up), q.dot(axes.forward));
+        d = d.max((r.abs() + p.radius) / (tan_h * k) - f + p.radius);
+        d = d.max((u.abs() + p.radius) / (tan_v * k) - f + p.radius);
+    }
+    (d, target)
+}
+
+/// The radius of the sphere around G that holds the block.
+fn block_radius(shape: &common::config::scene::ShapeSpec) -> f64 {
+    use common::config::scene::ShapeSpec;
+    match shape {
+        ShapeSpec::Box { size } | ShapeSpec::Wedge { size } | ShapeSpec::Tetra { size } => {
+            0.5 * DVec3::from_array(*size).length()
+        }
+        ShapeSpec::Hull { vertices } => {
+            let n = vertices.len().max(1) as f64;
+            let c = vertices
+                .iter()
+                .fold(DVec3::ZERO, |a, v| a + DVec3::from_array(*v))
+                / n;
+            vertices
+                .iter()
+                .map(|v| (DVec3::from_array(*v) - c).length())
+                .fold(0.0, f64::max)
+        }
+    }
+}
+
+/// Points along a ballistic flight from `p` at velocity `v` down to the floor: its top and
+/// where it lands (and where it starts).
+fn flight(p: DVec3, v: DVec3, g: f64, radius: f64) -> Vec<Interest> {
+    let mut out = vec![Interest { centre: p, radius }];
+    if g <= 0.0 {
+        return out;
+    }
+    if v.y > 0.0 {
+        let t = v.y / g;
+        out.push(Interest {
+            centre: p + v * t - DVec3::Y * (0.5 * g * t * t),
+            radius,
+        });
+    }
+    // y(t) = p.y + v.y t - g t^2 / 2 = 0
+    let t = (v.y + (v.y * v.y + 2.0 * g * p.y.max(0.0)).sqrt()) / g;
+    let land = p + v * t - DVec3::Y * (0.5 * g * t * t);
+    out.push(Interest {
+        centre: DVec3::new(land.x, 0.0, land.z),
+        radius,
+    });
+    out
+}

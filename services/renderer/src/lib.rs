@@ -17,6 +17,7 @@ pub mod mesh;
 pub mod output;
 pub mod pipeline;
 pub mod png;
+pub mod preview;
 pub mod renderer;
 pub mod service;
 pub mod settings;

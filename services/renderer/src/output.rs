@@ -45,6 +45,24 @@ impl Image {
         }
     }
 
+    /// A side-by-side image with [`crate::preview::EYE_GAP`] dark pixels between its two eyes
+    /// (so that the eyes read as two views, not one image with a seam), into `out`.
+    pub fn with_eye_gap_into(&self, out: &mut Image) {
+        let w = (self.width / 2) as usize;
+        let gap = crate::preview::EYE_GAP as usize;
+        out.width = self.width + crate::preview::EYE_GAP;
+        out.height = self.height;
+        out.rgba.clear();
+        for y in 0..self.height as usize {
+            let row = &self.rgba[y * self.width as usize * 4..(y + 1) * self.width as usize * 4];
+            out.rgba.extend_from_slice(&row[..w * 4]);
+            for _ in 0..gap {
+                out.rgba.extend_from_slice(&[24, 24, 28, 255]);
+            }
+            out.rgba.extend_from_slice(&row[w * 4..]);
+        }
+    }
+
     /// [`Self::eye_into`] into a new image.
     pub fn eye(&self, eye: Eye) -> Image {
         let mut out = Image::default();
@@ -65,7 +83,7 @@ pub fn frame_paths(dir: &Path, n: u64, mode: OutputMode) -> Vec<PathBuf> {
 }
 
 /// Writes a read-back frame (see `Renderer::read_back_into`) as the output mode's files.
-/// `scratch` holds a split eye in separate mode.
+/// `scratch` holds a split eye in separate mode, the frame with its eye gap in side-by-side.
 pub fn write_frame(
     dir: &Path,
     n: u64,
@@ -81,7 +99,11 @@ pub fn write_frame(
                 write_png(path, scratch)?;
             }
         }
-        _ => write_png(&paths[0], frame)?,
+        OutputMode::SideBySide => {
+            frame.with_eye_gap_into(scratch);
+            write_png(&paths[0], scratch)?;
+        }
+        OutputMode::Anaglyph => write_png(&paths[0], frame)?,
     }
     Ok(paths)
 }

@@ -21,6 +21,7 @@ use common::latency::{Metric, Reporter};
 use common::{monotonic_ns, shutdown, FrameSample, HandSample, Stage, Stamp, Topic, WorldSample};
 
 use crate::output::{write_frame, Image};
+use crate::preview::PreviewWriter;
 use crate::renderer::{RenderError, Renderer};
 use crate::settings::{FramesRequest, OutputMode, RenderSettings};
 use crate::window::WindowStatus;
@@ -47,6 +48,18 @@ pub fn run_with(
     bus: &Bus,
     settings: RenderSettings,
     frames: Option<FramesRequest>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    run_with_preview(session, bus, settings, frames, None)
+}
+
+/// [`run_with`], and when `preview` names a file, writes the animated preview there when it
+/// stops (see [`crate::preview`]).
+pub fn run_with_preview(
+    session: &Session,
+    bus: &Bus,
+    settings: RenderSettings,
+    frames: Option<FramesRequest>,
+    preview: Option<PathBuf>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let (mut renderer, mut window) = match session.renderer.mode {
         RenderMode::Off => (None, None),
@@ -80,6 +93,10 @@ pub fn run_with(
     let mut reporter = Reporter::new(Stage::Renderer, bus.outlet(Topic::Latency)?);
     let mut writer = match (&frames, &renderer) {
         (Some(f), Some(_)) => Some(FrameWriter::start(f.clone(), settings.output)?),
+        _ => None,
+    };
+    let mut preview = match (preview, &renderer) {
+        (Some(p), Some(_)) => Some(PreviewWriter::start(p, settings.output)?),
         _ => None,
     };
 
@@ -144,6 +161,9 @@ pub fn run_with(
                             w.offer(r, frame_no)?;
                         }
                     }
+                    if let Some(p) = &mut preview {
+                        p.after_frame(r, done)?;
+                    }
                     frame_no += 1;
                 }
                 let frame = FrameSample {
@@ -171,6 +191,9 @@ pub fn run_with(
         if stopping {
             if let Some(w) = writer.take() {
                 w.finish();
+            }
+            if let Some(p) = preview.take() {
+                p.finish();
             }
             return Ok(reporter.finish(&counters)?);
         }

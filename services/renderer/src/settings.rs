@@ -121,6 +121,21 @@ impl RenderSettings {
         }
     }
 
+    /// [`Self::from_session`], with the camera framing `scene` when the session gives neither
+    /// `eye` nor `target` (see [`crate::camera::frame_scene`]).
+    pub fn from_session_framed(
+        r: &RendererSettings,
+        scene: &common::config::Scene,
+    ) -> RenderSettings {
+        let mut s = RenderSettings::from_session(r);
+        if r.auto_camera {
+            let (eye, target) = crate::camera::frame_scene(scene, &s.camera, s.width, s.height);
+            s.camera.eye = eye;
+            s.camera.target = target;
+        }
+        s
+    }
+
     /// Checks what a user could get wrong, naming the setting and its range.
     pub fn validate(&self) -> Result<(), String> {
         let c = &self.camera;

@@ -345,7 +345,11 @@ fn output_modes_write_the_files_they_promise() {
     let hand = HandSample::default();
     let mut scratch = Image::default();
     for (mode, files, width) in [
-        (OutputMode::SideBySide, 1, 2 * W),
+        (
+            OutputMode::SideBySide,
+            1,
+            2 * W + renderer::preview::EYE_GAP,
+        ),
         (OutputMode::Anaglyph, 1, W),
         (OutputMode::Separate, 2, W),
     ] {
@@ -356,10 +360,15 @@ fn output_modes_write_the_files_they_promise() {
         for (i, p) in paths.iter().enumerate() {
             let back = read_png(p).unwrap();
             assert_eq!((back.width, back.height), (width, H), "{}", p.display());
-            let want = if mode == OutputMode::Separate {
-                img.eye(if i == 0 { Eye::Left } else { Eye::Right })
-            } else {
-                img.clone()
+            // Side by side: the two eyes with a gap between them.
+            let want = match mode {
+                OutputMode::Separate => img.eye(if i == 0 { Eye::Left } else { Eye::Right }),
+                OutputMode::SideBySide => {
+                    let mut g = Image::default();
+                    img.with_eye_gap_into(&mut g);
+                    g
+                }
+                OutputMode::Anaglyph => img.clone(),
             };
             assert!(back == want, "{} differs from the frame", p.display());
         }

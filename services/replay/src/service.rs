@@ -26,12 +26,16 @@ use crate::trace::{HandTrace, SourceSample};
 /// buffer).
 pub const IN_FLIGHT: u64 = 32;
 
-/// Runs until asked to stop; after the trace's end the hand holds still (nothing more is sent).
+/// Plays the trace, sends its final report and returns: the launcher then ends the session
+/// (as `ros2 bag play` ends). With `loop = true` it plays the trace again and again, its
+/// source times going on (each round starts one mean sample period after the last ended), until
+/// asked to stop.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
     let Source::Replay {
         file,
         speed,
         offset,
+        looped,
     } = &session.source
     else {
         return Err(format!(
@@ -60,10 +64,29 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     let mut answered: Option<u64> = None; // the newest hand seq a world state answered
     let mut hands_sent: u64 = 0;
     let t0 = trace.first_source_time_ns();
+    let span = trace
+        .samples
+        .last()
+        .map_or(0, |s| s.source_time_ns().saturating_sub(t0));
+    // One round after another: the next starts a mean sample period after this one's end.
+    let round_ns = span + span / (trace.samples.len().max(2) as u64 - 1);
     let start = monotonic_ns();
-    for sample in &trace.samples {
+    let rounds = if *looped && !trace.samples.is_empty() {
+        u64::MAX
+    } else {
+        1
+    };
+    let samples = (0..rounds)
+        .take_while(|_| !shutdown::requested())
+        .flat_map(|round| {
+            trace
+                .samples
+                .iter()
+                .map(move |s| (round.saturating_mul(round_ns), s))
+        });
+    for (shift, sample) in samples {
         if *speed > 0.0 {
-            let after = (sample.source_time_ns() - t0) as f64 / speed;
+            let after = (sample.source_time_ns() + shift - t0) as f64 / speed;
             sleep_until_ns(start + after as u64);
         } else if sample.makes_a_hand() {
             while answered.map_or(0, |a| a + 1) + IN_FLIGHT <= hands_sent && !shutdown::requested()
@@ -80,6 +103,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         let origin = monotonic_ns();
         let restamp = |s: &Stamp| Stamp {
             origin_ns: origin,
+            source_time_ns: s.source_time_ns + shift,
             ..*s
         };
         let sent = match *sample {
@@ -110,15 +134,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             joints_out.counter(),
         ])?;
     }
-    while !shutdown::requested() {
-        std::thread::sleep(Duration::from_millis(20));
-        while world_in.receive()?.is_some() {}
-        reporter.maybe_report(&[
-            glove_out.counter(),
-            tracker_out.counter(),
-            joints_out.counter(),
-        ])?;
-    }
+    // The trace is played (or the session stops): the final report tells the launcher.
     reporter.finish(&[
         glove_out.counter(),
         tracker_out.counter(),

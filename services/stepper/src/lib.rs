@@ -38,7 +38,7 @@ pub use model::Model;
 pub use motion::{push_one_point, PushOutcome};
 pub use precise::PreciseWorld;
 pub use simulate::{
-    default_frames, simulate, simulate_samples, BareFingersHand, BlockReport, EventReport,
+    default_frames, outcome, simulate, simulate_samples, BareFingersHand, BlockReport, EventReport,
     HandSource, Report,
 };
 pub use world::{BlockView, Event, EventKind, World, WorldError};

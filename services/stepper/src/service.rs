@@ -17,6 +17,9 @@ use glam::{DQuat, DVec3};
 use crate::model::Model;
 
 const IDLE_WAIT: Duration = Duration::from_millis(50);
+/// Events kept for the session's outcome (grasps, releases, landings: a few per second); past
+/// this many the later ones are counted, not kept, so keeping one never allocates.
+const OUTCOME_EVENTS: usize = 4096;
 
 /// Maps a hand's source timeline onto fixed steps.
 #[derive(Debug, Clone)]
@@ -121,7 +124,20 @@ pub fn interpolate(a: &HandSample, b: &HandSample, s: f64, out: &mut HandSample)
 
 /// Runs until asked to stop, then drains what its input still holds.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
+    run_with_outcome(session, bus, None)
+}
+
+/// [`run`], and when it stops, writes the world's outcome (what `simulate` prints: each
+/// block's final pose and mode, the events) as `outcome.txt` and `outcome.json` into
+/// `outcome_dir` (the launcher prints it after the session).
+pub fn run_with_outcome(
+    session: &Session,
+    bus: &Bus,
+    outcome_dir: Option<&std::path::Path>,
+) -> Result<(), Box<dyn std::error::Error>> {
     let mut world = Model::new(&session.scene)?;
+    let mut events: Vec<crate::world::Event> = Vec::with_capacity(OUTCOME_EVENTS);
+    let mut events_not_kept = 0u64;
     let hand_in = bus.inlet::<HandSample>(Topic::Hand)?;
     let mut world_out = bus.outlet::<WorldSample>(Topic::World)?;
     let mut reporter = Reporter::new(Stage::Stepper, bus.outlet(Topic::Latency)?);
@@ -142,7 +158,16 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
                     // The first hand is the previous one of the first step (P- of R1, R2).
                     world.set_previous_hand(Some(hand));
                 }
-                timeline.advance(hand, |h| world.step(h));
+                timeline.advance(hand, |h| {
+                    world.step(h);
+                    for e in world.events() {
+                        if events.len() < OUTCOME_EVENTS {
+                            events.push(*e);
+                        } else {
+                            events_not_kept += 1;
+                        }
+                    }
+                });
             }
             world.write_sample(&mut out);
             out.stamp = Stamp::derived(0, &hand.stamp);
@@ -153,9 +178,34 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         }
         let counters = [hand_in.counter(), world_out.counter()];
         if stopping {
+            if let Some(dir) = outcome_dir {
+                write_outcome(dir, &world, session, &events, events_not_kept);
+            }
             return Ok(reporter.finish(&counters)?);
         }
         reporter.maybe_report(&counters)?;
+    }
+}
+
+fn write_outcome(
+    dir: &std::path::Path,
+    world: &Model,
+    session: &Session,
+    events: &[crate::world::Event],
+    not_kept: u64,
+) {
+    let report = crate::simulate::outcome(world, &session.scene, events);
+    let mut text = report.to_text();
+    if not_kept > 0 {
+        text.push_str(&format!("  ... and {not_kept} later events, not kept\n"));
+    }
+    for (name, body) in [("outcome.txt", text), ("outcome.json", report.to_json())] {
+        if let Err(e) = std::fs::write(dir.join(name), body) {
+            eprintln!(
+                "handblocks stepper: cannot write the outcome {}: {e}",
+                dir.join(name).display()
+            );
+        }
     }
 }
 

@@ -252,6 +252,23 @@ fn collect_events(world: &Model, scene: &Scene, events: &mut Vec<EventReport>) {
     }
 }
 
+/// What a live session's world came to (the stepper process writes it when it stops): the
+/// report `simulate` prints, from the world and the events it saw.
+pub fn outcome(world: &Model, scene: &Scene, events: &[crate::world::Event]) -> Report {
+    let events = events
+        .iter()
+        .map(|e| EventReport {
+            step: e.step,
+            kind: e.kind,
+            block: scene
+                .blocks
+                .get(e.block)
+                .map_or_else(|| format!("block {}", e.block), |b| b.name.clone()),
+        })
+        .collect();
+    report(world, scene, world.steps(), events)
+}
+
 fn report(world: &Model, scene: &Scene, frames: u64, events: Vec<EventReport>) -> Report {
     let blocks = (0..world.block_count())
         .filter_map(|i| world.block(i).map(|b| (i, b)))

@@ -1,0 +1,474 @@
+//! A new user's first hour: the README's run command on this machine (with and without a
+//! Vulkan driver), sessions that end and are judged as users assume, and mistakes refused
+//! before anything starts. Every session runs under its own bus id and is checked to leave
+//! nothing behind.
+
+use std::process::{Command, Output};
+use std::sync::Mutex;
+use std::time::{Duration, Instant, SystemTime};
+
+use serde_json::Value;
+
+mod support;
+use support::{assert_nothing_left, both, repo, Scratch, EXE};
+
+/// One session at a time: the README's run command writes the default preview path, and its
+/// budget (frame rate, origin -> world) is the live session's, judged on a machine that other
+/// sessions would share.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
+fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn unique_id(tag: &str) -> String {
+    format!("fh{tag}{}", std::process::id())
+}
+
+/// `./run ARGS` from the repository, as the README says, with the binary this test was built
+/// with (cargo holds the build lock while the tests run, so ./run cannot build here).
+fn run_script(args: &[&str], env: &[(&str, &str)]) -> Output {
+    Command::new(repo().join("run"))
+        .current_dir(repo())
+        .env("HANDBLOCKS_BIN", EXE)
+        .envs(env.iter().copied())
+        .args(args)
+        .output()
+        .expect("run ./run")
+}
+
+fn launch(args: &[&str]) -> Output {
+    Command::new(EXE)
+        .current_dir(repo())
+        .arg("launch")
+        .args(args)
+        .output()
+        .expect("run handblocks")
+}
+
+fn report(path: &std::path::Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).expect("the report")).expect("JSON")
+}
+
+#[test]
+fn the_readme_run_command_runs_the_live_session_and_leaves_a_preview() {
+    let _one = one_at_a_time();
+    let dir = Scratch::new("readme");
+    let id = unique_id("readme");
+    let report_file = dir.path("report.json");
+    let preview = repo().join("out/live-preview.png");
+    let started = SystemTime::now();
+    let out = run_script(
+        &[
+            "--duration",
+            "3",
+            "--bus-id",
+            &id,
+            "--report",
+            report_file.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let text = both(&out);
+    assert!(out.status.success(), "{text}");
+    assert_nothing_left(&id);
+    // What the world came to, the table's terms, and the preview's path.
+    for want in [
+        "what the world came to",
+        "grasp    red",
+        "release  red",
+        "origin->out  the sample's origin",
+        "preview: out/live-preview.png (animated PNG",
+        "budget: ok",
+    ] {
+        assert!(text.contains(want), "no {want:?} in:\n{text}");
+    }
+    let written = std::fs::metadata(&preview)
+        .expect("the preview")
+        .modified()
+        .unwrap();
+    assert!(written >= started, "the preview is older than this run");
+    let info = renderer::preview::describe(&preview).expect("an animated PNG");
+    assert!(info.frames >= 5, "{info:?}");
+    assert!(info.width <= 660 && info.height <= 360, "{info:?}");
+    // The report says where it came from.
+    let r = report(&report_file);
+    assert!(r["session"]["file"]
+        .as_str()
+        .unwrap()
+        .ends_with("config/sessions/live.toml"));
+    assert!(r["session"]["scene"]
+        .as_str()
+        .unwrap()
+        .ends_with("grasp-throw.toml"));
+    assert!(r["session"]["started"].as_str().unwrap().ends_with('Z'));
+    assert!(
+        r["version"].as_str().unwrap().contains("commit"),
+        "{}",
+        r["version"]
+    );
+    assert!(r["machine"]["cpus"].as_u64().unwrap() >= 1);
+    assert!(r["renderer"]["skipped"].is_null());
+    assert!(r["renderer"]["frames_per_second"].as_f64().unwrap() > 0.0);
+    assert_eq!(r["world"]["blocks"][0]["name"], "red");
+}
+
+#[test]
+fn without_a_vulkan_driver_the_run_command_still_runs_and_names_what_it_skipped() {
+    let _one = one_at_a_time();
+    let dir = Scratch::new("nodriver");
+    let id = unique_id("nodriver");
+    let report_file = dir.path("report.json");
+    // The Vulkan loader reads only these manifests: none exists, so no driver loads.
+    let nowhere = "/nonexistent/handblocks-no-driver.json";
+    let out = run_script(
+        &[
+            "--duration",
+            "2",
+            "--bus-id",
+            &id,
+            "--report",
+            report_file.to_str().unwrap(),
+        ],
+        &[("VK_ICD_FILENAMES", nowhere), ("VK_DRIVER_FILES", nowhere)],
+    );
+    let text = both(&out);
+    assert!(out.status.success(), "{text}");
+    assert_nothing_left(&id);
+    let skipped: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("handblocks: renderer skipped"))
+        .collect();
+    assert_eq!(skipped.len(), 1, "one line says what was skipped:\n{text}");
+    assert!(
+        skipped[0].contains("no GPU adapter") && skipped[0].contains("mesa-vulkan-drivers"),
+        "{text}"
+    );
+    assert!(!text.contains("preview: "), "{text}");
+    assert!(text.contains("what the world came to"), "{text}");
+    let r = report(&report_file);
+    assert!(
+        r["renderer"]["skipped"]
+            .as_str()
+            .is_some_and(|s| s.contains("no GPU adapter")),
+        "{}",
+        r["renderer"]
+    );
+    assert!(r["budget"]["ok"].as_bool().unwrap());
+    // Placed apart from a renderer that did not start, the pipeline gets every CPU back.
+    assert!(r["machine"]["placement"].is_null(), "{}", r["machine"]);
+}
+
+#[test]
+fn a_devices_session_with_no_device_fails_its_budget() {
+    let _one = one_at_a_time();
+    let dir = Scratch::new("nodevice");
+    let scene = repo().join("config/scenes/grasp-throw.toml");
+    let session = dir.path("devices.toml");
+    std::fs::write(
+        &session,
+        format!(
+            "scene = {:?}\n[source]\nkind = \"devices\"\n\
+             [source.glove]\nport = {:?}\n[source.tracker]\nport = {:?}\n\
+             [renderer]\nmode = \"off\"\n",
+            scene.to_string_lossy(),
+            dir.path("no-glove").to_string_lossy(),
+            dir.path("no-tracker").to_string_lossy(),
+        ),
+    )
+    .unwrap();
+    let id = unique_id("nodevice");
+    let out = launch(&[
+        "--quiet",
+        "--duration",
+        "2",
+        "--bus-id",
+        &id,
+        session.to_str().unwrap(),
+    ]);
+    let text = both(&out);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("source_silence_ms: the source (acquisition) delivered no sample"),
+        "{text}"
+    );
+    assert_nothing_left(&id);
+}
+
+#[test]
+fn a_replay_session_ends_when_its_trace_ends() {
+    let _one = one_at_a_time();
+    let session = repo().join("config/sessions/replay-carl-push.toml");
+    let id = unique_id("replayend");
+    let started = Instant::now();
+    // No --duration: it must end by itself (the push trace is 2.4 s long).
+    let mut child = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--bus-id", &id])
+        .arg(&session)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run handblocks");
+    let limit = Duration::from_secs(30);
+    while child.try_wait().unwrap().is_none() && started.elapsed() < limit {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    if child.try_wait().unwrap().is_none() {
+        let _ = child.kill();
+        panic!("the replay session was still running after {limit:?}");
+    }
+    let out = child.wait_with_output().unwrap();
+    let text = both(&out);
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("the trace ended after"), "{text}");
+    assert!(
+        text.contains("push     cube"),
+        "the push is in the outcome:\n{text}"
+    );
+    assert_nothing_left(&id);
+}
+
+#[test]
+fn record_refuses_to_overwrite_a_recording_unless_forced() {
+    let _one = one_at_a_time();
+    let dir = Scratch::new("overwrite");
+    let file = dir.path("live.mcap");
+    std::fs::write(&file, b"an earlier recording").unwrap();
+    let id = unique_id("overwrite");
+    let out = launch(&[
+        "--quiet",
+        "--duration",
+        "1",
+        "--bus-id",
+        &id,
+        "--set",
+        "renderer.mode=off",
+        "--record",
+        file.to_str().unwrap(),
+    ]);
+    let text = both(&out);
+    assert_eq!(out.status.code(), Some(2), "{text}");
+    assert!(text.contains("exists; pass --force"), "{text}");
+    assert_eq!(std::fs::read(&file).unwrap(), b"an earlier recording");
+    let out = launch(&[
+        "--quiet",
+        "--duration",
+        "1",
+        "--bus-id",
+        &id,
+        "--set",
+        "renderer.mode=off",
+        // What is tested is the file, not this machine's latency.
+        "--set",
+        "budget.origin_to_world_p99_us=1000000",
+        "--record",
+        file.to_str().unwrap(),
+        "--force",
+    ]);
+    assert!(out.status.success(), "{}", both(&out));
+    assert_nothing_left(&id);
+    // The new recording names the session it came from.
+    let out = Command::new(EXE)
+        .args(["inspect", file.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let text = both(&out);
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("recorded by the session") && text.contains("live.toml"),
+        "{text}"
+    );
+    assert!(text.contains("(UTC)") && text.contains(" KB,"), "{text}");
+}
+
+#[test]
+fn mistakes_are_refused_before_anything_starts_naming_the_option_or_key() {
+    let _one = one_at_a_time();
+    let dir = Scratch::new("mistakes");
+    let in_use = unique_id("inuse");
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec![
+                "--set".into(),
+                "renderer.mode=off".into(),
+                "--frames-dir".into(),
+                dir.path("f").display().to_string(),
+            ],
+            "--frames-dir: this session draws no frames",
+        ),
+        (
+            vec![
+                "--set".into(),
+                "renderer.mode=off".into(),
+                "--set".into(),
+                "budget.origin_to_photon_p99_ms=11".into(),
+            ],
+            "`budget.origin_to_photon_p99_ms`: cannot be judged",
+        ),
+        (
+            vec!["--set".into(), "renderer.colour=red".into()],
+            "`renderer.colour`: unknown key",
+        ),
+        (
+            vec!["--set".into(), "renderer.width=3".into()],
+            "(given with --set)",
+        ),
+        (
+            vec!["--report".into(), "/proc/handblocks/report.json".into()],
+            "--report: cannot create the folder /proc/handblocks",
+        ),
+        (
+            vec!["--set".into(), "renderer.mode=window".into()],
+            "\"window\" needs a display",
+        ),
+    ];
+    for (args, want) in cases {
+        let started = Instant::now();
+        let out = Command::new(EXE)
+            .current_dir(repo())
+            .env_remove("DISPLAY")
+            .env_remove("WAYLAND_DISPLAY")
+            .args(["launch", "--quiet", "--duration", "5", "--bus-id", &in_use])
+            .args(&args)
+            .output()
+            .unwrap();
+        let text = both(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {text}");
+        assert!(text.contains(want), "{args:?}: no {want:?} in {text}");
+        assert!(
+            started.elapsed() < Duration::from_secs(4),
+            "{args:?} started a session"
+        );
+        assert_nothing_left(&in_use);
+    }
+}
+
+#[test]
+fn a_bus_id_in_use_is_named_as_such() {
+    let _one = one_at_a_time();
+    let id = unique_id("busy");
+    let mut first = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--duration", "6", "--bus-id", &id])
+        .args(["--set", "renderer.mode=off"])
+        // What is tested is the second launch, not this machine's latency.
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    support::find_service("stepper", &id).expect("the first session runs");
+    let out = launch(&["--quiet", "--duration", "1", "--bus-id", &id]);
+    let text = both(&out);
+    assert_eq!(out.status.code(), Some(2), "{text}");
+    assert!(
+        text.contains("already in use by a running session"),
+        "{text}"
+    );
+    assert!(first.wait().unwrap().success());
+    assert_nothing_left(&id);
+}
+
+#[test]
+fn list_names_scenes_and_sessions_and_completions_cover_the_commands() {
+    let out = Command::new(EXE)
+        .current_dir(repo())
+        .arg("list")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(
+        text.lines()
+            .any(|l| l.contains("config/sessions/live.toml") && l.contains("The default session")),
+        "{text}"
+    );
+    assert!(text.contains("config/scenes/tip.toml"), "{text}");
+    let out = Command::new(EXE)
+        .args(["completions", "bash"])
+        .output()
+        .unwrap();
+    let script = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    for word in ["launch", "simulate", "inspect", "--set", "--no-preview"] {
+        assert!(script.contains(word), "no {word} in the completions");
+    }
+    // `service` is how the launcher starts processes, not a user's command.
+    let help = Command::new(EXE).arg("--help").output().unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(!help.contains("service"), "{help}");
+    assert!(!help.contains("bench-peer"), "{help}");
+    assert!(
+        help.contains("list") && help.contains("completions"),
+        "{help}"
+    );
+}
+
+#[test]
+fn any_scene_can_be_launched_and_a_scene_without_a_hand_gets_one_at_rest() {
+    let _one = one_at_a_time();
+    let id = unique_id("scene");
+    let out = launch(&[
+        "--quiet",
+        "--duration",
+        "1.5",
+        "--bus-id",
+        &id,
+        "--no-preview",
+        "--set",
+        "renderer.mode=off",
+        "config/scenes/tip.toml",
+    ]);
+    let text = both(&out);
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("what the world came to"), "{text}");
+    assert!(
+        !text.contains(" push "),
+        "the hand at rest touched a block:\n{text}"
+    );
+    assert_nothing_left(&id);
+}
+
+#[test]
+fn a_looped_replay_plays_its_trace_again_until_stopped() {
+    let _one = one_at_a_time();
+    let dir = Scratch::new("loop");
+    let trace = repo().join("../shared/data/carl/example_push_0.carl");
+    let session = dir.path("loop.toml");
+    std::fs::write(
+        &session,
+        format!(
+            "scene = {:?}\n[source]\nkind = \"replay\"\nfile = {:?}\nspeed = 4.0\n\
+             offset = [0.0, -1.45, 0.0]\nloop = true\n[renderer]\nmode = \"off\"\n",
+            repo()
+                .join("config/scenes/carl-push.toml")
+                .to_string_lossy(),
+            trace.to_string_lossy()
+        ),
+    )
+    .unwrap();
+    let id = unique_id("loop");
+    let report_file = dir.path("report.json");
+    // The trace plays in 0.6 s at speed 4: in 3 s, several rounds.
+    let out = launch(&[
+        "--duration",
+        "3",
+        "--bus-id",
+        &id,
+        "--report",
+        report_file.to_str().unwrap(),
+        session.to_str().unwrap(),
+    ]);
+    let text = both(&out);
+    assert!(out.status.success(), "{text}");
+    assert!(!text.contains("the trace ended"), "{text}");
+    let worlds = report(&report_file)["stages"]["stepper"]["origin_us"]["count"]
+        .as_u64()
+        .unwrap();
+    assert!(
+        worlds > 3 * 218,
+        "{worlds} world states: the trace (218 samples) did not loop"
+    );
+    assert_nothing_left(&id);
+}
