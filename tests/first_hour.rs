@@ -37,6 +37,52 @@ fn run_script(args: &[&str], env: &[(&str, &str)]) -> Output {
         .expect("run ./run")
 }
 
+/// The budget verdicts that measure this machine rather than the program: latency and frame
+/// rate. The live session's budget is judged for real (that is the product), but a test that
+/// runs it on a shared two-core VM would fail whenever another job takes the CPUs.
+const TIMING_KEYS: [&str; 3] = [
+    "origin_to_world_p99_us",
+    "origin_to_photon_p99_ms",
+    "frame_hz",
+];
+
+/// [`run_script`], tried again (at most three tries) while a try fails on timing alone: every
+/// violation it names is one of [`TIMING_KEYS`] and nothing else went wrong. Each such try is
+/// printed, so a slow machine shows in the test's output instead of failing it; any other
+/// failure is returned at once.
+fn run_script_judged(args: &[&str], env: &[(&str, &str)], report_file: &std::path::Path) -> Output {
+    let mut tries = 0;
+    loop {
+        tries += 1;
+        let out = run_script(args, env);
+        let timing_only = !out.status.success()
+            && out.status.code() == Some(1)
+            && std::fs::read_to_string(report_file)
+                .ok()
+                .and_then(|t| serde_json::from_str::<Value>(&t).ok())
+                .and_then(|r| {
+                    let failed = r["failures"].as_array().is_some_and(|f| !f.is_empty());
+                    let v = r["budget"]["violations"].as_array()?.clone();
+                    Some(
+                        !failed
+                            && !v.is_empty()
+                            && v.iter().all(|x| {
+                                x.as_str()
+                                    .is_some_and(|x| TIMING_KEYS.iter().any(|k| x.starts_with(k)))
+                            }),
+                    )
+                })
+                .unwrap_or(false);
+        if !timing_only || tries == 3 {
+            return out;
+        }
+        eprintln!(
+            "try {tries} failed on timing alone (a busy machine), trying again:\n{}",
+            both(&out)
+        );
+    }
+}
+
 fn launch(args: &[&str]) -> Output {
     Command::new(EXE)
         .current_dir(repo())
@@ -58,7 +104,7 @@ fn the_readme_run_command_runs_the_live_session_and_leaves_a_preview() {
     let report_file = dir.path("report.json");
     let preview = repo().join("out/live-preview.png");
     let started = SystemTime::now();
-    let out = run_script(
+    let out = run_script_judged(
         &[
             "--duration",
             "3",
@@ -68,6 +114,7 @@ fn the_readme_run_command_runs_the_live_session_and_leaves_a_preview() {
             report_file.to_str().unwrap(),
         ],
         &[],
+        &report_file,
     );
     let text = both(&out);
     assert!(out.status.success(), "{text}");
@@ -121,7 +168,7 @@ fn without_a_vulkan_driver_the_run_command_still_runs_and_names_what_it_skipped(
     let report_file = dir.path("report.json");
     // The Vulkan loader reads only these manifests: none exists, so no driver loads.
     let nowhere = "/nonexistent/handblocks-no-driver.json";
-    let out = run_script(
+    let out = run_script_judged(
         &[
             "--duration",
             "2",
@@ -131,6 +178,7 @@ fn without_a_vulkan_driver_the_run_command_still_runs_and_names_what_it_skipped(
             report_file.to_str().unwrap(),
         ],
         &[("VK_ICD_FILENAMES", nowhere), ("VK_DRIVER_FILES", nowhere)],
+        &report_file,
     );
     let text = both(&out);
     assert!(out.status.success(), "{text}");
