@@ -164,14 +164,20 @@ where
     }
     for (k, s) in panel.series.iter().enumerate() {
         let color = PALETTE[k % PALETTE.len()];
-        let pts: Vec<(f64, f64)> = s
+        let mut pts: Vec<(f64, f64)> = s
             .points
             .iter()
             .copied()
             .filter(|(a, b)| a.is_finite() && b.is_finite())
             .collect();
+        // The line joins a model's settings in order of cost, thin and light, so that it reads
+        // as "this model, cheap to dear" and the points (the settings) stay what one looks at.
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
         let line = chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                pts.clone(),
+                color.mix(0.45).stroke_width(1),
+            ))
             .map_err(e)?;
         if text {
             line.label(&s.label).legend(move |(x, y)| {
