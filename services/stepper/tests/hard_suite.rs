@@ -6,8 +6,9 @@
 //! - `paper::*`: the paper model on the scene as written (R1-R14), its exact criterion;
 //! - `precise::*`: the precise model (rapier3d) at its default `[precise]` settings, with a
 //!   criterion fitted to a rigid-body engine (mm, stands/falls, no tunnelling). Where the engine
-//!   fails it (`Precise::KnownFailure`: towers, the fall step, the bullets, the 1 m hand jump,
-//!   heavy on light) the test does not hide it: it asserts that the measured behaviour is
+//!   fails it (`Precise::KnownFailure`: the aligned towers and drop-onto-tower, harmonic at
+//!   99%, the fall step, both bullets, far from the origin, the 1 m hand jump, heavy on light)
+//!   the test does not hide it: it asserts that the measured behaviour is
 //!   finite and bounded (`hard_cases::bounded`), prints the failure and its figures, and
 //!   `bench stability` shows it next to the paper model's result.
 
