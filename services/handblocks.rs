@@ -251,6 +251,16 @@ enum BenchKind {
         #[arg(long)]
         quick: bool,
     },
+    /// Every hard case (config/scenes/hard/) under the paper model, R11 only (stacks) and the
+    /// precise one, with drift, sink, penetration, decision, time to rest and a state hash.
+    Stability {
+        /// Where stability.json, stability.md and stability.png go.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+        /// Leave out the slowest precise runs (under a minute on 2 cores).
+        #[arg(long)]
+        quick: bool,
+    },
 }
 
 fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
@@ -404,6 +414,21 @@ fn main() -> ExitCode {
                 Ok(_) => ExitCode::SUCCESS,
                 Err(e) => {
                     eprintln!("handblocks bench accuracy: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
+        Some(Command::Bench {
+            which: BenchKind::Stability { out, quick },
+        }) => {
+            let b = handblocks_bench::stability::StabilityBench {
+                out_dir: out,
+                quick,
+            };
+            match handblocks_bench::stability::run(&b) {
+                Ok(_) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("handblocks bench stability: {e}");
                     ExitCode::from(2)
                 }
             }

@@ -9,3 +9,4 @@
 pub mod accuracy;
 pub mod latency;
 pub mod plot;
+pub mod stability;

@@ -25,6 +25,7 @@ pub mod body;
 pub mod floor;
 pub mod geometry;
 pub mod hand;
+pub mod hard_cases;
 pub mod interference;
 pub mod model;
 pub mod motion;

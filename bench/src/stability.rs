@@ -1,0 +1,310 @@
+//! `handblocks bench stability`: every hard case of `stepper::hard_cases` (the table the
+//! suite `services/stepper/tests/hard_suite.rs` runs) under the paper model (R1-R14, the scene
+//! as written), under R11 only where the case is a stack (the paper's floating stacks), and
+//! under the precise model (rapier3d) at its default `[precise]` settings, with its figures:
+//! drift and sink of the blocks that stayed, deepest penetration, the stands/falls decision
+//! (expected, got), time to rest, non-finite count and a hash of the final state. The precise
+//! model's own failures (`Precise::KnownFailure`) are rows like any other, next to the paper
+//! model's.
+//!
+//! Writes `stability.json`, `stability.md` and `stability.png` under `--out`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde_json::{json, Value};
+use stepper::hard_cases::{self, Case, Variant, CASES};
+
+use crate::plot::{Figure, Panel, Series};
+
+/// `handblocks bench stability`'s options.
+pub struct StabilityBench {
+    pub out_dir: PathBuf,
+    /// Leave out the slowest precise runs (the 120-cube pyramids, the 40-tower) and the two
+    /// farther copies of the far-from-origin case.
+    pub quick: bool,
+}
+
+/// One case under one model.
+#[derive(Debug, Clone)]
+pub struct Row {
+    pub case: String,
+    pub model: String,
+    pub criterion: String,
+    pub passed: bool,
+    /// The criterion's figure when met, or what failed.
+    pub result: String,
+    /// Set where the precise model is known to fail the criterion (the reason).
+    pub known_failure: Option<String>,
+    pub drift_m: f64,
+    pub sink_mm: f64,
+    pub penetration_m: f64,
+    pub decision: Option<(bool, bool)>,
+    pub time_to_rest_s: Option<f64>,
+    pub non_finite: usize,
+    pub hash: u64,
+    pub us_per_step: f64,
+}
+
+const QUICK_SKIPS: &[&str] = &["far-100km", "far-10000km"];
+const QUICK_SKIPS_PRECISE: &[&str] = &["pyramid-15", "pyramid-knocked", "tower-40"];
+
+fn criterion_text(case: &Case, v: Variant) -> String {
+    match v {
+        Variant::Paper => "R11: stays where it is, bit for bit".into(),
+        Variant::PaperR14 => "scene header (exact)".into(),
+        Variant::Precise => match hard_cases::criterion(case, v).1 {
+            Some(_) => "rigid-body criterion (known failure)".into(),
+            None => "rigid-body criterion".into(),
+        },
+    }
+}
+
+fn one(case: &Case, v: Variant) -> Row {
+    let o = hard_cases::run(case, v);
+    let verdict = hard_cases::judge(case, v, &o);
+    let f = hard_cases::figures(case, &o);
+    let known = hard_cases::criterion(case, v).1.map(str::to_string);
+    Row {
+        case: case.name.into(),
+        model: v.label().into(),
+        criterion: criterion_text(case, v),
+        passed: verdict.is_ok(),
+        result: match verdict {
+            Ok(s) | Err(s) => s.replace('|', "/"),
+        },
+        known_failure: known,
+        drift_m: f.drift_m,
+        sink_mm: f.sink_mm,
+        penetration_m: f.penetration_m,
+        decision: f.decision,
+        time_to_rest_s: f.time_to_rest_s,
+        non_finite: f.non_finite,
+        hash: f.hash,
+        us_per_step: o.us_per_step,
+    }
+}
+
+pub fn run(b: &StabilityBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
+    std::fs::create_dir_all(&b.out_dir)
+        .map_err(|e| format!("{}: cannot create: {e}", b.out_dir.display()))?;
+    let started = Instant::now();
+    let mut jobs = Vec::new();
+    for c in CASES {
+        if b.quick && QUICK_SKIPS.contains(&c.name) {
+            continue;
+        }
+        for v in [Variant::Paper, Variant::PaperR14, Variant::Precise] {
+            if !hard_cases::applies(c, v)
+                || (b.quick && v == Variant::Precise && QUICK_SKIPS_PRECISE.contains(&c.name))
+            {
+                continue;
+            }
+            jobs.push((c, v));
+        }
+    }
+    let mut rows = Vec::new();
+    for (k, (c, v)) in jobs.iter().enumerate() {
+        let t0 = Instant::now();
+        let r = one(c, *v);
+        eprintln!(
+            "stability: [{}/{}] {} {}: {}{} ({:.1} s, {:.0} s so far)",
+            k + 1,
+            jobs.len(),
+            c.name,
+            v.label(),
+            if r.passed { "pass" } else { "FAIL" },
+            if r.known_failure.is_some() {
+                " (known)"
+            } else {
+                ""
+            },
+            t0.elapsed().as_secs_f64(),
+            started.elapsed().as_secs_f64()
+        );
+        rows.push(r);
+    }
+    write_json(&b.out_dir.join("stability.json"), &rows)?;
+    let md = markdown(&rows, b.quick, started.elapsed().as_secs_f64());
+    let md_path = b.out_dir.join("stability.md");
+    std::fs::write(&md_path, &md).map_err(|e| format!("{}: {e}", md_path.display()))?;
+    let png = b.out_dir.join("stability.png");
+    if !figure(&rows).write_png(&png)? {
+        eprintln!(
+            "stability: no TrueType font found (install fonts-dejavu-core or set HB_PLOT_FONT): {} has no labels",
+            png.display()
+        );
+    }
+    println!("{}", summary_table(&rows));
+    let failed: Vec<String> = rows
+        .iter()
+        .filter(|r| !r.passed)
+        .map(|r| format!("{} ({})", r.case, r.model))
+        .collect();
+    println!(
+        "stability: {} runs, {} failed{}{} in {:.0} s; wrote {}, stability.md, stability.png",
+        rows.len(),
+        failed.len(),
+        if failed.is_empty() { "" } else { ": " },
+        failed.join(", "),
+        started.elapsed().as_secs_f64(),
+        b.out_dir.join("stability.json").display()
+    );
+    Ok(rows)
+}
+
+fn num(v: f64) -> Value {
+    if v.is_finite() {
+        json!(v)
+    } else {
+        Value::Null
+    }
+}
+
+fn decision_text(d: Option<(bool, bool)>) -> String {
+    let w = |s: bool| if s { "stands" } else { "falls" };
+    match d {
+        Some((e, g)) => format!("{} (expected {})", w(g), w(e)),
+        None => "-".into(),
+    }
+}
+
+fn write_json(path: &Path, rows: &[Row]) -> Result<(), Box<dyn std::error::Error>> {
+    let rows: Vec<Value> = rows
+        .iter()
+        .map(|r| {
+            json!({"case": r.case, "model": r.model, "criterion": r.criterion,
+                   "passed": r.passed, "result": r.result, "known_failure": r.known_failure,
+                   "drift_m": num(r.drift_m), "sink_mm": num(r.sink_mm),
+                   "penetration_m": num(r.penetration_m),
+                   "decision": r.decision.map(|(e, g)| json!({"expected": if e { "stands" } else { "falls" }, "got": if g { "stands" } else { "falls" }})),
+                   "time_to_rest_s": r.time_to_rest_s.map(num),
+                   "non_finite": r.non_finite, "hash": format!("{:016x}", r.hash),
+                   "us_per_step": num(r.us_per_step)})
+        })
+        .collect();
+    let doc = json!({ "rows": rows });
+    std::fs::write(path, serde_json::to_string_pretty(&doc)? + "\n")
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(())
+}
+
+fn rest_text(t: Option<f64>) -> String {
+    t.map_or("moving".into(), |t| format!("{t:.2}"))
+}
+
+fn markdown(rows: &[Row], quick: bool, seconds: f64) -> String {
+    let mut s = String::from("# handblocks bench stability\n\n");
+    s += &format!(
+        "Every hard case (`config/scenes/hard/`, table `stepper::hard_cases`) under the paper model (R1-R14, `paper-R14`: the scene as written), under R11 only where the case is a stack (`paper`), and under the precise model (rapier3d, default `[precise]`). {} runs in {seconds:.0} s{}.\n\n",
+        rows.len(),
+        if quick { " (--quick: the slowest precise runs and two far-from-origin copies left out)" } else { "" }
+    );
+    s += "drift: largest horizontal move of a block that stayed (started at rest, ends within 5 cm and half its radius, turned under 10 deg); sink: its largest drop; penetration: deepest block-block or block-floor overlap over the run; decision: every block that started at rest ends within 1 cm and 5 deg (stands) or not; rest: when the last block last moved more than 1e-6 m or rad in a step; non-finite: non-finite poses plus quarantined bodies; hash: FNV-1a of the final poses' bits.\n\n";
+    s += &summary_table(rows);
+    s += "\n\n## Results\n\n| case | model | passed | result |\n|---|---|---|---|\n";
+    for r in rows {
+        s += &format!(
+            "| {} | {} | {} | {}{} |\n",
+            r.case,
+            r.model,
+            if r.passed { "yes" } else { "**no**" },
+            r.result,
+            r.known_failure
+                .as_ref()
+                .map_or(String::new(), |k| format!(" (known failure: {k})"))
+        );
+    }
+    s
+}
+
+/// The table: one line per (case, model).
+pub fn summary_table(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "| case | model | passed | drift (m) | sink (mm) | penetration (m) | decision | rest (s) | non-finite | hash | us/step |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        s += &format!(
+            "| {} | {} | {} | {:.1e} | {:.3} | {:.1e} | {} | {} | {} | {:016x} | {:.0} |\n",
+            r.case,
+            r.model,
+            match (r.passed, &r.known_failure) {
+                (true, _) => "yes",
+                (false, Some(_)) => "**no** (known)",
+                (false, None) => "**no**",
+            },
+            r.drift_m,
+            r.sink_mm,
+            r.penetration_m,
+            decision_text(r.decision),
+            rest_text(r.time_to_rest_s),
+            r.non_finite,
+            r.hash,
+            r.us_per_step
+        );
+    }
+    s.trim_end().to_string()
+}
+
+/// Per case (x: the case's index in the table, the row order of stability.md), one line per
+/// model: pass (1) or fail (0), the drift of blocks that stayed and the deepest penetration
+/// (zeros drawn at 1e-9 m on the log axes).
+fn figure(rows: &[Row]) -> Figure {
+    let floor = 1e-9;
+    let mut cases: Vec<&str> = Vec::new();
+    for r in rows {
+        if !cases.contains(&r.case.as_str()) {
+            cases.push(&r.case);
+        }
+    }
+    let index = |r: &Row| cases.iter().position(|c| *c == r.case).unwrap() as f64 + 1.0;
+    type Get = fn(&Row) -> f64;
+    let panels = [
+        (
+            "criterion met (1) or not (0)",
+            "passed",
+            false,
+            (|r: &Row| if r.passed { 1.0 } else { 0.0 }) as Get,
+        ),
+        (
+            "drift of blocks that stayed (0 drawn at 1e-9 m)",
+            "m (log)",
+            true,
+            |r: &Row| r.drift_m.max(1e-9),
+        ),
+        (
+            "deepest penetration (0 drawn at 1e-9 m)",
+            "m (log)",
+            true,
+            |r: &Row| r.penetration_m.max(1e-9),
+        ),
+    ]
+    .into_iter()
+    .map(|(title, y_label, log_y, get)| Panel {
+        title: title.into(),
+        x_label: "case (row order of stability.md)".into(),
+        y_label: y_label.into(),
+        log_x: false,
+        log_y,
+        series: ["paper", "paper-R14", "precise"]
+            .iter()
+            .map(|m| Series {
+                label: m.to_string(),
+                points: rows
+                    .iter()
+                    .filter(|r| r.model == *m)
+                    .map(|r| (index(r), get(r).max(if log_y { floor } else { 0.0 })))
+                    .collect(),
+            })
+            .filter(|s| !s.points.is_empty())
+            .collect(),
+        marked: Vec::new(),
+    })
+    .collect();
+    Figure {
+        panels,
+        columns: 1,
+        panel_width: 900,
+        panel_height: 280,
+    }
+}
