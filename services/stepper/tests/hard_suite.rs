@@ -6,7 +6,7 @@
 //! - `paper::*`: the paper model on the scene as written (R1-R14), its exact criterion;
 //! - `precise::*`: the precise model (rapier3d) at its default `[precise]` settings, with a
 //!   criterion fitted to a rigid-body engine (mm, stands/falls, no tunnelling). Where the engine
-//!   fails it (`Precise::KnownFailure`: the aligned towers and drop-onto-tower, harmonic at
+//!   fails it (`Precise::KnownFailure`: the tall aligned towers and drop-onto-tower, harmonic at
 //!   99%, the fall step, both bullets, far from the origin, the 1 m hand jump, heavy on light)
 //!   the test does not hide it: it asserts that the measured behaviour is
 //!   finite and bounded (`hard_cases::bounded`), prints the failure and its figures, and

@@ -1,9 +1,11 @@
 //! The precise reference model (MODEL.md, "The precise reference model"): the same scene under
 //! a full rigid-body engine, rapier3d (f64), as the yardstick for "what accuracy costs in time".
 //!
-//! Each block is a dynamic convex-hull collider built from the very polyhedron the paper model
-//! uses ([`Polyhedron::from_spec`], G at the body origin), with restitution 0 and a high Coulomb
-//! friction (the paper's "perfect friction"), CCD on; the floor is a fixed half-space; the hand
+//! Each block is a dynamic collider of the very shape the paper model uses, G at the body
+//! origin: a box is parry's exact cuboid, any other shape the convex hull of the polyhedron
+//! ([`Polyhedron::from_spec`]); restitution 0 and a high Coulomb
+//! friction (the paper's "perfect friction"), CCD on (a fast block is one of rapier's bullets,
+//! see `choose_bullets`); the floor is a fixed half-space; the hand
 //! is a set of kinematic colliders (module [`hand`]) moved to each step's hand pose, so push,
 //! grasp, carry and throw scenes run here too. The engine knows nothing of the paper's modes,
 //! so module [`modes`] derives one per block from its contacts and velocities, with the paper's
@@ -28,7 +30,7 @@ use rapier3d_f64::prelude::{
     RigidBodyBuilder, RigidBodyHandle, SharedShape, SpringCoefficients, Vector,
 };
 
-use common::config::scene::{FloorEffect, HandEffect, PreciseSettings};
+use common::config::scene::{FloorEffect, HandEffect, PreciseSettings, ShapeSpec};
 use common::config::Scene;
 use common::{BlockMode, HandSample, WorldSample, MAX_FINGERS, MAX_FINGER_POINTS};
 
@@ -57,6 +59,10 @@ struct PreciseBlock {
     /// that begins).
     touching: bool,
     floor_contacts: usize,
+    /// The collider's CCD thickness (parry's, the shape's thinnest extent) and the radius of
+    /// its bounding sphere about G, for the choice of this step's bullets.
+    thickness: f64,
+    radius: f64,
 }
 
 /// The scene under rapier3d: see the module documentation.
@@ -76,6 +82,10 @@ pub struct PreciseWorld {
     /// Scratch of the mode derivation, kept so that a step does not allocate.
     touches: Vec<modes::Touches>,
     modes: Vec<BlockMode>,
+    /// Scratch of the bullet choice: fast blocks (motion this step, index) and the swept
+    /// boxes of the chosen bullets.
+    fast: Vec<(f64, usize)>,
+    bullet_boxes: Vec<(DVec3, DVec3)>,
 }
 
 impl PreciseWorld {
@@ -129,9 +139,24 @@ impl PreciseWorld {
             };
             let poly =
                 Polyhedron::from_spec(&spec.shape).map_err(|p| bad(format!("shape: {p}")))?;
-            let points: Vec<Vector> = poly.vertices.to_vec();
-            let collider = ColliderBuilder::convex_hull(&points)
-                .ok_or_else(|| bad("rapier3d cannot build a convex hull of its vertices".into()))?
+            let builder = match &spec.shape {
+                // A box is parry's exact cuboid (G is its centre, as in the polyhedron): its
+                // contacts come from parry's box-box path (separating axes, face clipping). A
+                // hull of the same eight vertices goes through the generic GJK path
+                // (contact_manifold_pfm_pfm), which for faces touching at exactly zero distance
+                // gave tilted normals: an aligned tower spawned face on face was kicked 6 to 12
+                // degrees in its first step and fell.
+                ShapeSpec::Box { size } => {
+                    ColliderBuilder::cuboid(size[0] / 2.0, size[1] / 2.0, size[2] / 2.0)
+                }
+                _ => {
+                    let points: Vec<Vector> = poly.vertices.to_vec();
+                    ColliderBuilder::convex_hull(&points).ok_or_else(|| {
+                        bad("rapier3d cannot build a convex hull of its vertices".into())
+                    })?
+                }
+            };
+            let collider = builder
                 .friction(p.friction)
                 .friction_combine_rule(CoefficientCombineRule::Max)
                 .restitution(0.0)
@@ -147,10 +172,11 @@ impl PreciseWorld {
             let mut body = RigidBodyBuilder::dynamic()
                 .translation(DVec3::from_array(spec.position))
                 .linvel(velocity)
-                .ccd_enabled(p.ccd)
                 .can_sleep(p.sleep)
                 .build();
             body.set_rotation(rot, false);
+            let thickness = collider.shape().ccd_thickness();
+            let radius = collider.shape().compute_local_bounding_sphere().radius;
             let body = physics.bodies.insert(body);
             let collider =
                 physics
@@ -163,6 +189,8 @@ impl PreciseWorld {
                 mode: BlockMode::Free,
                 touching: false,
                 floor_contacts: 0,
+                thickness,
+                radius,
             });
         }
         let hand =
@@ -171,6 +199,8 @@ impl PreciseWorld {
         Ok(PreciseWorld {
             touches: Vec::with_capacity(n),
             modes: Vec::with_capacity(n),
+            fast: Vec::with_capacity(n),
+            bullet_boxes: Vec::with_capacity(n),
             file: scene.file.clone(),
             physics,
             events: Vec::with_capacity(16 * blocks.len() + 16),
@@ -216,10 +246,63 @@ impl PreciseWorld {
                 None => bodies.switch_off(&mut self.physics),
             }
         }
+        if self.settings.ccd {
+            self.choose_bullets();
+        }
         self.physics.step();
         self.settle_modes();
         self.copy_fingers(hand);
         self.prev_hand = hand.copied();
+    }
+
+    /// CCD (`ccd = true`): which blocks are rapier's "bullets" this step. rapier sweeps every
+    /// fast dynamic body against fixed colliders (the floor) on its own; a body with
+    /// `ccd_enabled` (a bullet) also sweeps the kinematic and dynamic bodies, but never another
+    /// bullet (rapier's `ccd::sweeps::tier_allows`). With `ccd_enabled` on every block no block
+    /// ever swept another one: a 200 m/s cube passed a 1 cm wall block. So a block is a
+    /// bullet only while it moves fast (rapier's criterion: its farthest point moves more than
+    /// half its thinnest extent in the step), fastest first, and not when its swept box meets a
+    /// faster bullet's (that bullet sweeps it: the two are swept against each other once).
+    /// Slow blocks are never bullets: they are the targets.
+    fn choose_bullets(&mut self) {
+        let dt = self.dt;
+        let g = self.physics.gravity;
+        self.fast.clear();
+        for (i, b) in self.blocks.iter().enumerate() {
+            let body = &self.physics.bodies[b.body];
+            let v = body.linvel() + g * dt;
+            let motion = (v.length() + body.angvel().length() * b.radius) * dt;
+            if motion > 0.5 * b.thickness {
+                self.fast.push((motion, i));
+            }
+        }
+        // Fastest first; equal motions by index (deterministic).
+        self.fast
+            .sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        self.bullet_boxes.clear();
+        for b in &self.blocks {
+            let body = self.physics.bodies.get_mut(b.body).expect("a block's body");
+            if body.is_ccd_enabled() {
+                body.enable_ccd(false);
+            }
+        }
+        for &(motion, i) in &self.fast {
+            let b = &self.blocks[i];
+            let body = &self.physics.bodies[b.body];
+            let p0 = body.translation();
+            let p1 = p0 + (body.linvel() + g * dt) * dt;
+            let reach = DVec3::splat(b.radius + (motion - (p1 - p0).length()).max(0.0));
+            let (lo, hi) = (p0.min(p1) - reach, p0.max(p1) + reach);
+            let meets = self
+                .bullet_boxes
+                .iter()
+                .any(|(l, h)| lo.cmple(*h).all() && l.cmple(hi).all());
+            if !meets {
+                self.bullet_boxes.push((lo, hi));
+                let body = self.physics.bodies.get_mut(b.body).expect("a block's body");
+                body.enable_ccd(true);
+            }
+        }
     }
 
     fn copy_fingers(&mut self, hand: Option<&HandSample>) {
