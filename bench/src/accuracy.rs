@@ -1250,7 +1250,9 @@ fn figure(summary: &[Point], pareto: &[Point]) -> Figure {
     for info in &CLASSES {
         let floor = floor_of(info.unit);
         let mut series = Vec::new();
-        for model in ["paper", "paper-R14", "precise"] {
+        // This order gives each model the same colour in every panel (the palette goes by
+        // position): paper blue, precise red, paper-R14 (stack panels only) green.
+        for model in ["paper", "precise", "paper-R14"] {
             let mut pts: Vec<(f64, f64)> = summary
                 .iter()
                 .filter(|p| p.class == info.class && p.model == model && p.error.is_finite())

@@ -1136,7 +1136,7 @@ macro_rules! with {
 
 use Precise::{Check as P, KnownFailure as Fails};
 
-const FAR_DIFFERS: &str = "not translation invariant: the toppling scene ends 3 to 6 mm and 0.04 to 0.07 rad from the origin run already at 1 km (the rounding of the shifted positions seeds a different contact solve, and tipping amplifies it)";
+const FAR_DIFFERS: &str = "not translation invariant at 10,000 km: the toppling scene ends 12 mm and 0.19 rad from the origin run (f64 positions there are 2e-9 m apart; that rounding seeds a different contact solve, and tipping amplifies it); at 1 km and 100 km it stays within 3e-6 m";
 
 const TOWER_FALLS: &str = "a tall aligned column of cubes buckles: the first-step kick is gone (box colliders, step 1 tilts 0.005 deg), but the soft contacts sink each interface and Gauss-Seidel's order leaves a tilt that grows after about 1 s; tower-20 falls after about 4.5 s (tower-10 stands)";
 
@@ -1195,7 +1195,7 @@ pub const CASES: &[Case] = &[
             Glitch::None,
             false
         )
-    }, stack false, expect None, Fails(p_far, FAR_DIFFERS)),
+    }, stack false, expect None, P(p_far)),
     with!(Case {
         name: "far-100km",
         ..case!(
@@ -1206,7 +1206,7 @@ pub const CASES: &[Case] = &[
             Glitch::None,
             false
         )
-    }, stack false, expect None, Fails(p_far, FAR_DIFFERS)),
+    }, stack false, expect None, P(p_far)),
     with!(Case {
         name: "far-10000km",
         ..case!(
