@@ -286,7 +286,7 @@ fn the_latency_benchmark_reports_ratios_to_its_peer() {
 
 #[test]
 fn a_live_scripted_session_computes_exactly_what_simulate_computes() {
-    // The world of a session follows the hand's source time, never a wall clock (MODEL.md
+    // The world of a session follows the hand's source time, never a wall clock (docs/model.md
     // conventions), so five processes over shared memory must agree with one process, bit
     // for bit, through a grasp, a throw and a landing.
     let dir = Scratch::new("same");

@@ -12,7 +12,7 @@ use crate::stamp::Stamp;
 pub const MAX_GLOVE_SENSORS: usize = 22;
 /// Fingers a hand sample can carry (a scene's bare `fingers` hand may use fewer).
 pub const MAX_FINGERS: usize = 5;
-/// Check points per finger, ordered knuckle to tip (MODEL.md, "Hand input per step").
+/// Check points per finger, ordered knuckle to tip (docs/model.md, "Hand input per step").
 pub const MAX_FINGER_POINTS: usize = 5;
 /// Vertices of the palm polyhedron.
 pub const MAX_PALM_VERTICES: usize = 16;
@@ -111,7 +111,7 @@ impl Default for JointsSample {
     }
 }
 
-/// `hand`: the hand as the block world sees it (MODEL.md R1-R2): check points per finger
+/// `hand`: the hand as the block world sees it (docs/model.md R1-R2): check points per finger
 /// (knuckle to tip), finger radii, the palm polyhedron and the wrist pose, all in the world frame.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
@@ -157,7 +157,7 @@ impl HandSample {
     }
 }
 
-/// What a block is doing (MODEL.md, "Per block the stepper keeps ... a mode").
+/// What a block is doing (docs/model.md, "Per block the stepper keeps ... a mode").
 #[repr(u32)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum BlockMode {
@@ -217,7 +217,7 @@ impl BlockState {
     }
 }
 
-/// `world`: the block world after the steps one hand sample brought (MODEL.md conventions).
+/// `world`: the block world after the steps one hand sample brought (docs/model.md conventions).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("handblocks::WorldSample")]
@@ -232,7 +232,7 @@ pub struct WorldSample {
     pub grasped_block: i32,
     pub blocks: [BlockState; MAX_BLOCKS],
     /// Check points as drawn: moved to the grasped block's surface where they ended inside it
-    /// (MODEL.md R5), otherwise the hand's own. Same layout as the hand sample's.
+    /// (docs/model.md R5), otherwise the hand's own. Same layout as the hand sample's.
     pub finger_count: u32,
     pub finger_point_count: [u32; MAX_FINGERS],
     pub finger_points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],

@@ -1,4 +1,4 @@
-//! Session and scene files (DESIGN.md, "Sessions" and "Effects").
+//! Session and scene files (docs/design.md, "Sessions" and "Effects").
 //!
 //! Every error names the file, the key (as a dotted path, e.g. `block[2].size`) and what is
 //! allowed, so a user can fix the file without reading code. Unknown keys are errors: a typo

@@ -1,5 +1,5 @@
 //! Scene files: the world's settings, the effects it simulates, its blocks and the scripted
-//! hand (DESIGN.md, "Effects"). This module checks the file's form and ranges; geometric
+//! hand (docs/design.md, "Effects"). This module checks the file's form and ranges; geometric
 //! checks (a block inside another or below the floor) belong to the stepper, which knows the
 //! shapes.
 
@@ -32,10 +32,10 @@ pub struct Scene {
 pub struct WorldSettings {
     /// Fixed steps per second (dt = 1 / step_hz).
     pub step_hz: f64,
-    /// g in m/s^2 (MODEL.md g_step = (0, -g dt^2, 0)).
+    /// g in m/s^2 (docs/model.md g_step = (0, -g dt^2, 0)).
     pub gravity: f64,
     pub model: ModelKind,
-    /// MODEL.md tolerances.
+    /// docs/model.md tolerances.
     pub contact_eps: f64,
     pub hull_eps: f64,
     pub angle_eps: f64,
@@ -91,7 +91,7 @@ pub struct PreciseSettings {
     pub contact_damping: f64,
     /// Coulomb friction coefficient, blocks and floor ("perfect friction" is a high one).
     pub friction: f64,
-    /// Continuous collision detection (no tunnelling, MODEL.md R12's counterpart).
+    /// Continuous collision detection (no tunnelling, docs/model.md R12's counterpart).
     pub ccd: bool,
     /// Whether still bodies may sleep (rapier: below 0.05 m/s and 0.5 rad/s for 0.5 s). Off by
     /// default: a block released 2 degrees past its tipping edge turns slower than that for
@@ -122,7 +122,7 @@ impl Default for PreciseSettings {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ModelKind {
-    /// MODEL.md's rules R1-R14: the product.
+    /// docs/model.md's rules R1-R14: the product.
     Paper,
     /// The rigid-body reference (rapier3d).
     Precise,
@@ -190,7 +190,7 @@ pub struct BlockSpec {
     pub position: [f64; 3],
     /// Unit quaternion `[x, y, z, w]` (normalised on load).
     pub rotation: [f64; 4],
-    /// Initial inertia, m/s (MODEL.md v is this times dt).
+    /// Initial inertia, m/s (docs/model.md v is this times dt).
     pub velocity: [f64; 3],
 }
 

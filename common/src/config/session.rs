@@ -1,5 +1,5 @@
 //! Session files: which scene, which source feeds the pipeline, renderer and recorder settings,
-//! and the interactive-rate budget (DESIGN.md, "Sessions").
+//! and the interactive-rate budget (docs/design.md, "Sessions").
 
 use std::path::{Path, PathBuf};
 

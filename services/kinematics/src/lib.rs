@@ -1,6 +1,6 @@
 //! Kinematics: turns what the devices report (glove angles and a wrist pose) into the hand the
 //! block world needs: check points per finger, finger radii and the palm polyhedron
-//! (MODEL.md R1-R2), in the world frame.
+//! (docs/model.md R1-R2), in the world frame.
 
 pub mod model;
 pub mod pairing;

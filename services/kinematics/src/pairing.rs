@@ -1,6 +1,6 @@
 //! Which glove reading goes with a tracker sample.
 //!
-//! Kinematics makes one hand per tracker sample with "the newest glove reading" (DESIGN.md).
+//! Kinematics makes one hand per tracker sample with "the newest glove reading" (docs/design.md).
 //! Newest *at the tracker's source time*, not newest received: when kinematics falls behind
 //! (a descheduled process, a replay as fast as it is consumed) several gloves may be waiting,
 //! and pairing a tracker with a glove from its future would make the hand depend on timing.

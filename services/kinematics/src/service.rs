@@ -1,5 +1,5 @@
 //! The kinematics process: one `hand` sample per `tracker` sample, with the newest glove
-//! reading at the tracker's source time ([`GloveHistory`]; DESIGN.md, "Stamps and latency"),
+//! reading at the tracker's source time ([`GloveHistory`]; docs/design.md, "Stamps and latency"),
 //! keeping the older of the two origins; or one `hand` per `joints` sample from a hand tracker.
 
 use std::time::Duration;

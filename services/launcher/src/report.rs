@@ -1,5 +1,5 @@
 //! The session report: each stage's latency histograms and topic counters, merged, judged
-//! against the session's `[budget]`, printed as a table and written as JSON (DESIGN.md).
+//! against the session's `[budget]`, printed as a table and written as JSON (docs/design.md).
 
 use std::collections::BTreeMap;
 
@@ -410,7 +410,7 @@ impl Report {
         out
     }
 
-    /// The report JSON of DESIGN.md.
+    /// The report JSON of docs/design.md.
     pub fn json(&self) -> Value {
         let summary = |x: Summary| json!({"p50": x.p50, "p90": x.p90, "p99": x.p99, "p999": x.p999, "max": x.max, "count": x.count});
         let mut stages = Map::new();

@@ -134,7 +134,7 @@ impl DrawList {
             self.instances.push(instance(model, mode_color(mode), true));
         }
 
-        // Fingers as drawn: the world's (relocated onto a grasped block's surface, MODEL.md
+        // Fingers as drawn: the world's (relocated onto a grasped block's surface, docs/model.md
         // R5) when it has them, else the hand's own check points.
         let (count, counts, points) = if world.finger_count > 0 {
             (

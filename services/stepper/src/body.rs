@@ -1,4 +1,4 @@
-//! One block's state: what MODEL.md "Conventions" says the stepper keeps per block (pose, v,
+//! One block's state: what docs/model.md "Conventions" says the stepper keeps per block (pose, v,
 //! floor contact set, mode), plus the per-step scratch the rules pass between stages.
 
 use glam::{DQuat, DVec3};
@@ -38,7 +38,7 @@ impl VertexSet {
     }
 }
 
-/// How the block moved in this step (MODEL.md "Order of one step").
+/// How the block moved in this step (docs/model.md "Order of one step").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Moved {
     #[default]
@@ -78,7 +78,7 @@ pub struct Block {
     pub pos: DVec3,
     /// Unit quaternion, body to world.
     pub rot: DQuat,
-    /// The inertia v: G's displacement per step (MODEL.md "Conventions").
+    /// The inertia v: G's displacement per step (docs/model.md "Conventions").
     pub v: DVec3,
     pub mode: BlockMode,
     /// Floor contact vertices after the last step (R8).

@@ -1,9 +1,9 @@
 //! Convex polyhedra in their body frame, and the exact geometric queries the rules need.
 //!
-//! A block (MODEL.md "Conventions") is a rigid convex polyhedron with its body origin at its
+//! A block (docs/model.md "Conventions") is a rigid convex polyhedron with its body origin at its
 //! centre of gravity G. Every query here works in that body frame, relative to G: the caller
 //! transforms the few hand points into it instead of transforming the block into the world,
-//! so a scene 1 km from the origin behaves as it does at the origin (MODEL.md R9 "Precision").
+//! so a scene 1 km from the origin behaves as it does at the origin (docs/model.md R9 "Precision").
 //!
 //! parry3d builds the hull (`transformation::try_convex_hull`, face merging in
 //! `ConvexPolyhedron::from_convex_mesh`), projects points (GJK) and casts shapes (R12). The face
@@ -623,7 +623,7 @@ pub fn contact_points(
 
 /// The segment a0 a1 crossing the triangle (t0, t1, t2) (Moller-Trumbore, both sides):
 /// returns (s along the segment, barycentric w1, w2) of the crossing. A segment parallel to
-/// the triangle's plane, or a zero-area triangle, gives None (MODEL.md R2).
+/// the triangle's plane, or a zero-area triangle, gives None (docs/model.md R2).
 pub fn segment_triangle(
     a0: DVec3,
     a1: DVec3,

@@ -5,7 +5,7 @@
 //! Contacts are found in each block's body frame (the hand's few points are moved into it) and
 //! kept relative to G in world orientation, which is what R4 needs.
 //!
-//! The hand is its check points and finger segments (MODEL.md R1, R2). The palm polyhedron and
+//! The hand is its check points and finger segments (docs/model.md R1, R2). The palm polyhedron and
 //! the finger radius of a hand sample are not part of these rules and are not used.
 
 use glam::{DQuat, DVec3};

@@ -441,7 +441,7 @@ fn figures_of(o: &Outcome, expect: Option<bool>) -> Figures {
 }
 
 /// R11 only (`stacking = "paper"`): a block on a block stays where it is, standing or not
-/// (MODEL.md R11, the paper's own flaw that R14 fixes): nothing moves, bit for bit.
+/// (docs/model.md R11, the paper's own flaw that R14 fixes): nothing moves, bit for bit.
 fn paper_r11(o: &Outcome) -> Result<String, String> {
     never_moves(o).map(|r| format!("{r} (R11: stays where it is)"))
 }

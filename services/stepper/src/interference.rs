@@ -1,6 +1,6 @@
 //! Block against block (paper 3.3): R10 carry, R11 support (paper mode), R12 no tunnelling.
 //!
-//! Two different notions of "interfere", both from MODEL.md:
+//! Two different notions of "interfere", both from docs/model.md:
 //! - R11: touching within contact_eps counts (a block resting on another is held by it). This
 //!   is parry's GJK distance, which is exact for separated convex shapes.
 //! - R10: the blocks a hand-moved block *then* interferes with, i.e. that it now overlaps.

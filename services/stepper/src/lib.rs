@@ -1,4 +1,4 @@
-//! The block world of MODEL.md: rules R1-R13 of Funahashi et al. (1996), "Block manipulation
+//! The block world of docs/model.md: rules R1-R13 of Funahashi et al. (1996), "Block manipulation
 //! with hand in virtual space", for any convex polyhedron, and the R14 extension (supported
 //! stacking).
 //!
@@ -16,7 +16,7 @@
 //! - [`motion`]: R4's decomposition, R7 free motion;
 //! - [`floor`]: R8 impact, R9 stability;
 //! - [`support`]: R14 supported stacking (blocks stand on blocks as statics says);
-//! - [`world`]: the world and its step, in MODEL.md's order;
+//! - [`world`]: the world and its step, in docs/model.md's order;
 //! - [`precise`]: the precise reference model (rapier3d), beside the paper's;
 //! - [`model`]: the one switch between the two that the process and `simulate` hold;
 //! - [`simulate`](mod@simulate): `handblocks simulate`, the bare check-point hand.

@@ -1,7 +1,7 @@
 //! The stepper process: runs the block world on the hand's timeline and publishes one `world`
 //! sample per `hand` sample.
 //!
-//! Time (MODEL.md, "Conventions"): on each hand sample the stepper takes as many fixed steps as
+//! Time (docs/model.md, "Conventions"): on each hand sample the stepper takes as many fixed steps as
 //! bring world time up to that sample's source time, with the hand at each step interpolated
 //! between the previous and the current sample. World time never reads a wall clock, so the
 //! same hand samples always give bit-identical worlds, live or replayed.

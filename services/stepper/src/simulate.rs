@@ -1,5 +1,5 @@
 //! `handblocks simulate`: run a world for N steps from a hand source, deterministically, and
-//! render the result as DESIGN.md states (text, or JSON with `--json`).
+//! render the result as docs/design.md states (text, or JSON with `--json`).
 //!
 //! The scene's `[hand]` drives the hand, sampled once per step: the n-th step (1-based) gets
 //! the hand at t = n * dt and takes the hand at t = (n - 1) * dt as its previous one, so after
@@ -208,7 +208,7 @@ pub fn simulate(
 }
 
 /// Runs the scene's world on a sequence of hand samples with their own source times, exactly
-/// as the stepper process does (MODEL.md conventions: as many steps as bring world time up to
+/// as the stepper process does (docs/model.md conventions: as many steps as bring world time up to
 /// each sample, the hand interpolated between samples); then, with the last hand held, up to
 /// `frames` steps in all (None: 2 s more). With `frames` below what the trace brings, the world
 /// stops there. This is how a recorded trace is tried against a scene in one process.
@@ -319,7 +319,7 @@ fn json_list(v: &[f64]) -> String {
 }
 
 impl Report {
-    /// DESIGN.md's `--json`: `{"frames": N, "blocks": [{"name", "position", "rotation",
+    /// docs/design.md's `--json`: `{"frames": N, "blocks": [{"name", "position", "rotation",
     /// "mode"}], "events": [{"step", "kind", "block"}]}`.
     pub fn to_json(&self) -> String {
         let mut o = String::new();

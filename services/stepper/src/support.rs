@@ -1,4 +1,4 @@
-//! R14 supported stacking [extension] (MODEL.md): with `stacking = "supported"` a block stands on
+//! R14 supported stacking [extension] (docs/model.md): with `stacking = "supported"` a block stands on
 //! the blocks below it as on a floor, and a stack holds exactly when statics says it does.
 //!
 //! The stage runs before free motion (stage 3 of "Order of one step") and decides every block
@@ -11,7 +11,7 @@
 //!    is touched: the top's weight is part of every load below it.
 //! 2. **Supporters.** A touching pair (SAT depth >= -contact_eps) supports upward: the SAT axis
 //!    of least overlap is the pair's contact normal, and the lower block supports the upper one
-//!    when that normal has an upward component (MODEL.md's "at points below its G", read as
+//!    when that normal has an upward component (docs/model.md's "at points below its G", read as
 //!    "under it": side contacts between neighbours hold nothing up and make no cycles; a touch
 //!    along an edge only, whose normal is ambiguous, is a side contact). The
 //!    contact points are the pair's manifold ([`contact_points`]): vertices of either within
@@ -20,7 +20,7 @@
 //!    S = b and its load (everything resting on b, transitively, not blocks the hand holds).
 //!    The support set H of S is the 2-D hull of the contact points through which S rests on
 //!    what is not in S: the supporters' contact points and the floor contacts of S's blocks.
-//!    For a simple stack that is b's interface with its supporter, as MODEL.md says; for a block
+//!    For a simple stack that is b's interface with its supporter, as docs/model.md says; for a block
 //!    resting on two (a pyramid, a bridge) it also counts the other supports of b's load, since
 //!    the load does not rest on b alone (**[resolved]**: otherwise a pyramid's corner block would
 //!    carry half the pyramid on its own footprint and tip). G_L = the volume-weighted centre of S.

@@ -1,8 +1,8 @@
-//! The world and its step, in MODEL.md's "Order of one step".
+//! The world and its step, in docs/model.md's "Order of one step".
 //!
 //! [`World::step`] reads as that order: each stage is a method named for its rules, in its own
 //! module (`hand` R1-R6, `interference` R10-R12, `motion` R7 and R13, `floor` R8-R9). The
-//! passes a scene does not enable (DESIGN.md "Effects") are decided once in [`World::new`] and
+//! passes a scene does not enable (docs/design.md "Effects") are decided once in [`World::new`] and
 //! cost one branch per step; resting blocks that nothing touches are skipped.
 
 use std::fmt;
@@ -101,7 +101,7 @@ pub(crate) struct Params {
     pub release_angle: f64,
 }
 
-/// Which passes run each step (DESIGN.md "Effects"): an effect that is off costs nothing.
+/// Which passes run each step (docs/design.md "Effects"): an effect that is off costs nothing.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Passes {
     /// R1-R6 (and R13's release).
@@ -130,7 +130,7 @@ pub(crate) struct Fingers {
     pub points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
 }
 
-/// The block world: MODEL.md's paper model (rules R1-R13, and R14 when the scene asks for it).
+/// The block world: docs/model.md's paper model (rules R1-R13, and R14 when the scene asks for it).
 pub struct World {
     pub(crate) file: PathBuf,
     pub(crate) params: Params,
@@ -311,7 +311,7 @@ impl World {
 
     /// Exactly one fixed step (dt = 1 / step_hz) with the hand's pose at this step; the world
     /// keeps the previous one itself (P-, W-). `None`, or a hand with a non-finite value, is
-    /// "no hand this step". MODEL.md "Order of one step":
+    /// "no hand this step". docs/model.md "Order of one step":
     pub fn step(&mut self, hand: Option<&HandSample>) {
         self.steps += 1;
         self.events.clear();

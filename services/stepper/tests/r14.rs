@@ -1,5 +1,5 @@
 //! R14 supported stacking [extension]: stacks hold exactly when statics says they do
-//! (MODEL.md R14 "Consequences to test"; notes/accuracy.md "Exact answers": a stack stands iff at
+//! (docs/model.md R14 "Consequences to test"; notes/accuracy.md "Exact answers": a stack stands iff at
 //! every interface the centre of gravity of everything above lies in that interface's contact
 //! area; the harmonic stack's top overhangs 1/2 H_n block lengths). Each stack is also run in
 //! paper mode (R11), which keeps every one of them where it is.

@@ -1,4 +1,4 @@
-//! One test (or a few) per MODEL.md rule, with expectations worked out by hand in the comments.
+//! One test (or a few) per docs/model.md rule, with expectations worked out by hand in the comments.
 
 mod support;
 

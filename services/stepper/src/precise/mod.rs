@@ -1,4 +1,4 @@
-//! The precise reference model (MODEL.md, "The precise reference model"): the same scene under
+//! The precise reference model (docs/model.md, "The precise reference model"): the same scene under
 //! a full rigid-body engine, rapier3d (f64), as the yardstick for "what accuracy costs in time".
 //!
 //! Each block is a dynamic collider of the very shape the paper model uses, G at the body
