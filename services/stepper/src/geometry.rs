@@ -382,6 +382,19 @@ pub fn rotate_vertices(poly: &Polyhedron, rot: DQuat, out: &mut Vec<DVec3>) {
     out.extend(poly.vertices.iter().map(|v| rot * *v));
 }
 
+/// The interval `points` cover along `axis`: the one projection every SAT test
+/// here is made of.
+#[inline]
+fn project(points: impl Iterator<Item = DVec3>, axis: DVec3) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in points {
+        let x = v.dot(axis);
+        lo = lo.min(x);
+        hi = hi.max(x);
+    }
+    (lo, hi)
+}
+
 /// Separating-axis penetration depth of two blocks given their vertices relative to G1
 /// (world orientation): `a` around the origin, `b` offset by `b_off` from it. Positive: the
 /// solids overlap by that much along the best axis; negative: separated by at least that much.
@@ -397,18 +410,8 @@ pub fn sat_depth(
 ) -> f64 {
     let mut depth = f64::INFINITY;
     let mut test = |axis: DVec3| {
-        let (mut amin, mut amax) = (f64::INFINITY, f64::NEG_INFINITY);
-        for v in va {
-            let x = v.dot(axis);
-            amin = amin.min(x);
-            amax = amax.max(x);
-        }
-        let (mut bmin, mut bmax) = (f64::INFINITY, f64::NEG_INFINITY);
-        for v in vb {
-            let x = (*v + b_off).dot(axis);
-            bmin = bmin.min(x);
-            bmax = bmax.max(x);
-        }
+        let (amin, amax) = project(va.iter().copied(), axis);
+        let (bmin, bmax) = project(vb.iter().map(|v| *v + b_off), axis);
         let overlap = (amax - bmin).min(bmax - amin);
         depth = depth.min(overlap);
     };
@@ -451,18 +454,8 @@ pub fn sat_axis(
     let least = sat_depth(pa, ra, va, pb, rb, vb, b_off);
     let mut best = (f64::INFINITY, DVec3::Y);
     let mut test = |axis: DVec3| {
-        let (mut amin, mut amax) = (f64::INFINITY, f64::NEG_INFINITY);
-        for v in va {
-            let x = v.dot(axis);
-            amin = amin.min(x);
-            amax = amax.max(x);
-        }
-        let (mut bmin, mut bmax) = (f64::INFINITY, f64::NEG_INFINITY);
-        for v in vb {
-            let x = (*v + b_off).dot(axis);
-            bmin = bmin.min(x);
-            bmax = bmax.max(x);
-        }
+        let (amin, amax) = project(va.iter().copied(), axis);
+        let (bmin, bmax) = project(vb.iter().map(|v| *v + b_off), axis);
         // b beyond a along +axis, or along -axis: the smaller overlap says which side b is on.
         let (up, down) = (amax - bmin, bmax - amin);
         let (overlap, dir) = if up <= down {
@@ -520,18 +513,8 @@ pub fn sat_allows_motion(
         gap >= -touch && closing <= if gap >= 0.0 { gap + tol } else { 1e-9 * dl }
     };
     let keeps_apart = |axis: DVec3| {
-        let (mut amin, mut amax) = (f64::INFINITY, f64::NEG_INFINITY);
-        for v in va {
-            let x = v.dot(axis);
-            amin = amin.min(x);
-            amax = amax.max(x);
-        }
-        let (mut bmin, mut bmax) = (f64::INFINITY, f64::NEG_INFINITY);
-        for v in vb {
-            let x = (*v + b_off).dot(axis);
-            bmin = bmin.min(x);
-            bmax = bmax.max(x);
-        }
+        let (amin, amax) = project(va.iter().copied(), axis);
+        let (bmin, bmax) = project(vb.iter().map(|v| *v + b_off), axis);
         // b beyond a along +axis (gap bmin - amax) or along -axis (gap amin - bmax).
         let (gap_up, gap_down) = (bmin - amax, amin - bmax);
         let closing = d.dot(axis);

@@ -65,6 +65,20 @@ pub enum EventKind {
 }
 
 impl EventKind {
+    /// The event a block's change into `mode` is reported as (both models: a mode change is
+    /// an event); None for `free`, which is the absence of the others.
+    pub fn on_entering(mode: BlockMode) -> Option<EventKind> {
+        match mode {
+            BlockMode::Grasped => Some(EventKind::Grasp),
+            BlockMode::Pushed => Some(EventKind::Push),
+            BlockMode::Carried => Some(EventKind::Carry),
+            BlockMode::Tipping => Some(EventKind::Topple),
+            BlockMode::Resting => Some(EventKind::Rest),
+            BlockMode::Supported => Some(EventKind::Support),
+            BlockMode::Free => None,
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             EventKind::Grasp => "grasp",
@@ -128,6 +142,31 @@ pub(crate) struct Fingers {
     pub count: u32,
     pub point_count: [u32; MAX_FINGERS],
     pub points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
+}
+
+impl Fingers {
+    /// The hand's check points as they arrive (both models publish them; the paper model's R5
+    /// then relocates those inside a grasped block); none without a hand.
+    pub(crate) fn copy_from(&mut self, hand: Option<&HandSample>) {
+        match hand {
+            Some(h) => {
+                let fc = (h.finger_count as usize).min(MAX_FINGERS);
+                self.count = fc as u32;
+                for f in 0..MAX_FINGERS {
+                    self.point_count[f] = if f < fc {
+                        h.finger_point_count[f].min(MAX_FINGER_POINTS as u32)
+                    } else {
+                        0
+                    };
+                }
+                self.points = h.finger_points;
+            }
+            None => {
+                self.count = 0;
+                self.point_count = [0; MAX_FINGERS];
+            }
+        }
+    }
 }
 
 /// The block world: docs/model.md's paper model (rules R1-R13, and R14 when the scene asks for it).
@@ -424,24 +463,7 @@ impl World {
             b.action = crate::body::HandAction::None;
             b.released = false;
         }
-        match hand {
-            Some(h) => {
-                let fc = (h.finger_count as usize).min(MAX_FINGERS);
-                self.fingers.count = fc as u32;
-                for f in 0..MAX_FINGERS {
-                    self.fingers.point_count[f] = if f < fc {
-                        h.finger_point_count[f].min(MAX_FINGER_POINTS as u32)
-                    } else {
-                        0
-                    };
-                }
-                self.fingers.points = h.finger_points;
-            }
-            None => {
-                self.fingers.count = 0;
-                self.fingers.point_count = [0; MAX_FINGERS];
-            }
-        }
+        self.fingers.copy_from(hand);
     }
 
     pub(crate) fn emit(&mut self, kind: EventKind, block: usize) {
@@ -469,16 +491,7 @@ impl World {
             if before == now {
                 continue;
             }
-            let kind = match now {
-                BlockMode::Grasped => Some(EventKind::Grasp),
-                BlockMode::Pushed => Some(EventKind::Push),
-                BlockMode::Carried => Some(EventKind::Carry),
-                BlockMode::Tipping => Some(EventKind::Topple),
-                BlockMode::Resting => Some(EventKind::Rest),
-                BlockMode::Supported => Some(EventKind::Support),
-                BlockMode::Free => None,
-            };
-            if let Some(k) = kind {
+            if let Some(k) = EventKind::on_entering(now) {
                 self.emit(k, i);
             }
         }

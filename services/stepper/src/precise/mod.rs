@@ -251,7 +251,7 @@ impl PreciseWorld {
         }
         self.physics.step();
         self.settle_modes();
-        self.copy_fingers(hand);
+        self.fingers.copy_from(hand);
         self.prev_hand = hand.copied();
     }
 
@@ -301,27 +301,6 @@ impl PreciseWorld {
                 self.bullet_boxes.push((lo, hi));
                 let body = self.physics.bodies.get_mut(b.body).expect("a block's body");
                 body.enable_ccd(true);
-            }
-        }
-    }
-
-    fn copy_fingers(&mut self, hand: Option<&HandSample>) {
-        match hand {
-            Some(h) => {
-                let fc = (h.finger_count as usize).min(MAX_FINGERS);
-                self.fingers.count = fc as u32;
-                for f in 0..MAX_FINGERS {
-                    self.fingers.point_count[f] = if f < fc {
-                        h.finger_point_count[f].min(MAX_FINGER_POINTS as u32)
-                    } else {
-                        0
-                    };
-                }
-                self.fingers.points = h.finger_points;
-            }
-            None => {
-                self.fingers.count = 0;
-                self.fingers.point_count = [0; MAX_FINGERS];
             }
         }
     }

@@ -161,16 +161,7 @@ impl PreciseWorld {
                 self.emit(EventKind::Release, i);
             }
             if before != now {
-                let kind = match now {
-                    BlockMode::Grasped => Some(EventKind::Grasp),
-                    BlockMode::Pushed => Some(EventKind::Push),
-                    BlockMode::Carried => Some(EventKind::Carry),
-                    BlockMode::Tipping => Some(EventKind::Topple),
-                    BlockMode::Resting => Some(EventKind::Rest),
-                    BlockMode::Supported => Some(EventKind::Support),
-                    BlockMode::Free => None,
-                };
-                if let Some(k) = kind {
+                if let Some(k) = EventKind::on_entering(now) {
                     self.emit(k, i);
                 }
             }
