@@ -395,13 +395,7 @@ fn main() -> ExitCode {
                 seconds: seconds.as_secs_f64(),
                 out_dir: out,
             };
-            match handblocks_bench::latency::run(&b) {
-                Ok(_) => ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("handblocks bench latency: {e}");
-                    ExitCode::from(2)
-                }
-            }
+            bench_exit("latency", handblocks_bench::latency::run(&b))
         }
         Some(Command::Bench {
             which: BenchKind::Accuracy { out, quick },
@@ -410,13 +404,7 @@ fn main() -> ExitCode {
                 out_dir: out,
                 quick,
             };
-            match handblocks_bench::accuracy::run(&b) {
-                Ok(_) => ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("handblocks bench accuracy: {e}");
-                    ExitCode::from(2)
-                }
-            }
+            bench_exit("accuracy", handblocks_bench::accuracy::run(&b))
         }
         Some(Command::Bench {
             which: BenchKind::Stability { out, quick },
@@ -425,13 +413,7 @@ fn main() -> ExitCode {
                 out_dir: out,
                 quick,
             };
-            match handblocks_bench::stability::run(&b) {
-                Ok(_) => ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("handblocks bench stability: {e}");
-                    ExitCode::from(2)
-                }
-            }
+            bench_exit("stability", handblocks_bench::stability::run(&b))
         }
         Some(Command::Emulate {
             device,
@@ -1027,6 +1009,18 @@ fn service(
                 return ExitCode::from(launcher::RENDERER_SKIPPED_EXIT as u8);
             }
             eprintln!("handblocks {}: {e}", stage.name());
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// A benchmark's exit: 0 when it ran (its figures are its verdict), 2 with the reason when it
+/// could not run.
+fn bench_exit<T, E: std::fmt::Display>(name: &str, result: Result<T, E>) -> ExitCode {
+    match result {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("handblocks bench {name}: {e}");
             ExitCode::from(2)
         }
     }
