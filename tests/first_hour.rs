@@ -46,7 +46,11 @@ const TIMING_KEYS: [&str; 3] = [
     "frame_hz",
 ];
 
-/// [`run_script`], tried again (at most three tries) while a try fails on timing alone: every
+/// Five: on this VM a quiet machine still gives the odd run whose origin -> world p99 is decided
+/// by a few millisecond-long stalls (seen three times in a row once, in a full suite).
+const TRIES: u32 = 5;
+
+/// [`run_script`], tried again (at most [`TRIES`] tries) while a try fails on timing alone: every
 /// violation it names is one of [`TIMING_KEYS`] and nothing else went wrong. Each such try is
 /// printed, so a slow machine shows in the test's output instead of failing it; any other
 /// failure is returned at once.
@@ -73,7 +77,7 @@ fn run_script_judged(args: &[&str], env: &[(&str, &str)], report_file: &std::pat
                     )
                 })
                 .unwrap_or(false);
-        if !timing_only || tries == 3 {
+        if !timing_only || tries == TRIES {
             return out;
         }
         eprintln!(
