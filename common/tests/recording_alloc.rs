@@ -2,43 +2,11 @@
 //! message index grow to their size, and closing a chunk starts the next. Counted with a global
 //! allocator that tallies per thread.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use common::recording::{Recording, RecordingWriter};
 use common::{Stamp, Topic, TrackerSample, WorldSample};
 
-struct Counting;
-
-thread_local! {
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards to the system allocator; the counter is a const-initialised thread local,
-// which needs no allocation to access.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as ours.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as ours.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as ours.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> u64 {
-    ALLOCATIONS.with(|c| c.get())
-}
+static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
 
 #[test]
 fn writing_allocates_per_chunk_not_per_sample() {
@@ -63,12 +31,12 @@ fn writing_allocates_per_chunk_not_per_sample() {
     for k in 0..2_000 {
         write(&mut w, k); // warm-up: buffers grow to their size
     }
-    let before = allocations();
+    let before = counting_alloc::allocations();
     let messages = 2 * 8_000u64;
     for k in 2_000..10_000 {
         write(&mut w, k);
     }
-    let during = allocations() - before;
+    let during = counting_alloc::allocations() - before;
     w.finish().unwrap();
     let rec = Recording::open(&path).unwrap();
     let _ = std::fs::remove_file(&path);

@@ -2,8 +2,6 @@
 //! through a real tty (parse, calibrate or transform, stamp) makes no heap allocation on the
 //! reading thread. Counted with a global allocator that tallies per thread.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::time::{Duration, Instant};
 
 use acquisition::devices::{
@@ -14,42 +12,13 @@ use acquisition::emulator::glove::{self, GloveBehaviour};
 use acquisition::emulator::tracker::{self, TrackerBehaviour};
 use common::{GloveSample, TrackerSample};
 
-struct Counting;
-
-thread_local! {
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards to the system allocator; the counter is a const-initialised thread local,
-// which needs no allocation to access.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as ours.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as ours.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as ours.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> u64 {
-    ALLOCATIONS.with(|c| c.get())
-}
+static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
 
 /// Reads `n` samples and returns the allocations made meanwhile on this thread.
 fn count<S>(n: usize, mut read: impl FnMut(&mut S) -> Option<bool>, sample: &mut S) -> u64 {
     let end = Instant::now() + Duration::from_secs(10);
-    let before = allocations();
+    let before = counting_alloc::allocations();
     let mut got = 0;
     while got < n && Instant::now() < end {
         match read(sample) {
@@ -58,7 +27,7 @@ fn count<S>(n: usize, mut read: impl FnMut(&mut S) -> Option<bool>, sample: &mut
             None => panic!("device error during the count"),
         }
     }
-    let made = allocations() - before;
+    let made = counting_alloc::allocations() - before;
     assert_eq!(got, n, "too few samples");
     made
 }

@@ -1,34 +1,14 @@
 //! "Keep one step allocation-free after warm-up": counts heap allocations made by
-//! `World::step` over whole scenes (grasp, throw, carry, support, tipping, casts, R14).
+//! `World::step` over whole scenes (grasp, throw, carry, support, tipping, casts, R14), on the
+//! stepping thread only (`counting-alloc`).
 
 mod support;
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use stepper::{BareFingersHand, HandSource, World};
 use support::*;
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
 
 #[test]
 fn a_step_does_not_allocate_after_warm_up() {
@@ -57,11 +37,11 @@ fn a_step_does_not_allocate_after_warm_up() {
         for h in &hands[1..4] {
             world.step(h.as_ref());
         }
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
+        let before = counting_alloc::allocations();
         for h in &hands[4..] {
             world.step(h.as_ref());
         }
-        let made = ALLOCATIONS.load(Ordering::Relaxed) - before;
+        let made = counting_alloc::allocations() - before;
         assert_eq!(made, 0, "{name}: {made} allocations in 597 steps");
     }
 }
