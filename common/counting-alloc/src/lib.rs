@@ -7,13 +7,15 @@
 //! a step that made none; counting only the measuring thread is what the tests mean.
 //!
 //! Use it in a test binary:
-//! ```ignore
+//! ```
 //! #[global_allocator]
 //! static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
 //!
-//! let before = counting_alloc::allocations();
-//! hot_path();
-//! assert_eq!(counting_alloc::allocations() - before, 0);
+//! let mut samples = Vec::with_capacity(16);
+//! let ((), made) = counting_alloc::count(|| samples.extend_from_slice(&[1u64, 2, 3]));
+//! assert_eq!(made, 0, "pushing within capacity does not allocate");
+//! let ((), made) = counting_alloc::count(|| samples.extend(0..100));
+//! assert!(made >= 1, "growing past capacity does");
 //! ```
 
 use std::alloc::{GlobalAlloc, Layout, System};
