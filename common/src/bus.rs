@@ -221,8 +221,8 @@ fn leftover_files(dir: &StdPath, prefix: &str) -> Vec<PathBuf> {
         .collect()
 }
 
-/// A sample type that starts with a [`Stamp`]; the topic table implements it for each topic's
-/// sample type (crate::topic).
+/// A sample type that starts with a [`Stamp`]; the topic table ([`crate::topic`]) implements
+/// it for each topic's sample type.
 pub trait Stamped: Copy + std::fmt::Debug + ZeroCopySend + 'static {
     fn stamp(&self) -> &Stamp;
     fn stamp_mut(&mut self) -> &mut Stamp;
@@ -260,7 +260,7 @@ impl Bus {
         impl TopicVisitor for Create<'_> {
             type Error = BusError;
             fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
-                let service = self.bus.pubsub::<P::Sample>(P::TOPIC)?;
+                let service = self.bus.pubsub::<P>()?;
                 self.pubsub.push(Box::new(service));
                 Ok(())
             }
@@ -279,11 +279,13 @@ impl Bus {
         })
     }
 
-    fn pubsub<T: Stamped>(&self, topic: Topic) -> Result<PubSub<T>, BusError> {
+    /// Opens (or creates) topic `P`'s service, with its sample type and its row's sizing.
+    fn pubsub<P: TopicSpec>(&self) -> Result<PubSub<P::Sample>, BusError> {
+        let topic = P::TOPIC;
         let name = service_name(topic)?;
         self.node
             .service_builder(&name)
-            .publish_subscribe::<T>()
+            .publish_subscribe::<P::Sample>()
             .max_publishers(topic.max_publishers())
             .max_subscribers(MAX_SUBSCRIBERS)
             .max_nodes(MAX_NODES)
@@ -341,7 +343,7 @@ impl Bus {
             reason: e,
         };
         let publisher = self
-            .pubsub::<P::Sample>(topic)?
+            .pubsub::<P>()?
             .publisher_builder()
             .max_loaned_samples(2)
             .create()
@@ -375,7 +377,7 @@ impl Bus {
             reason: e,
         };
         let subscriber = self
-            .pubsub::<P::Sample>(topic)?
+            .pubsub::<P>()?
             .subscriber_builder()
             .buffer_size(topic.subscriber_buffer())
             .create()
