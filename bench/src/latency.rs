@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use common::bus::{Bus, BusConfig};
 use common::latency::{new_histogram, Metric, Summary};
-use common::{monotonic_ns, HandSample, Stage, Stamp, Topic};
+use common::{monotonic_ns, topics, HandSample, Stage, Stamp};
 use serde_json::{json, Value};
 
 /// Options of `handblocks bench latency`.
@@ -31,7 +31,7 @@ pub fn peer_publisher(
     count: u64,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let bus = Bus::open(&BusConfig::for_session(bus_id)?, "peer-publisher")?;
-    let mut out = bus.outlet::<HandSample>(Topic::Hand)?;
+    let mut out = bus.outlet::<topics::Hand>()?;
     let period = 1e9 / rate_hz;
     let start = monotonic_ns();
     let sample = HandSample::default();
@@ -54,7 +54,7 @@ fn peer(exe: &Path, seconds: f64) -> Result<Summary, Box<dyn std::error::Error>>
     let result = (|| -> Result<Summary, Box<dyn std::error::Error>> {
         let bus = Bus::open(&config, "peer-subscriber")?;
         let _services = bus.create_services()?;
-        let inlet = bus.inlet::<HandSample>(Topic::Hand)?;
+        let inlet = bus.inlet::<topics::Hand>()?;
         let mut child = Command::new(exe)
             .args([
                 "bench-peer",

@@ -7,9 +7,12 @@
 //! * [`Bus`] is one process's node. [`Bus::outlet`] gives an [`Outlet`] (publisher + notifier)
 //!   that stamps `seq` and `publish_ns` and counts what it sent; [`Bus::inlet`] gives an
 //!   [`Inlet`] (subscriber + listener) that counts what it received and the sequence gaps.
+//!   Both are typed by a topic's marker ([`crate::topics`]), which fixes their sample type: a
+//!   port cannot be opened with another topic's samples.
 //! * Service limits (subscribers, publishers, buffer depth) are fixed when a service is
-//!   created, so [`Bus::create_services`] creates every topic with the same sizing before any
-//!   process attaches; every later open must agree.
+//!   created, so [`Bus::create_services`] creates every topic of the table
+//!   ([`crate::topic`]) with its sizing before any process attaches; every later open must
+//!   agree.
 
 use std::cell::Cell;
 use std::fmt;
@@ -23,9 +26,9 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 
-use crate::samples::*;
+use crate::samples::TopicCounter;
 use crate::stamp::{monotonic_ns, Stamp};
-use crate::topic::Topic;
+use crate::topic::{Topic, TopicSpec, TopicVisitor};
 
 /// Ports of one service type; a sample read from an [`Inlet`].
 pub type Received<T> = Sample<ipc::Service, T, ()>;
@@ -218,29 +221,12 @@ fn leftover_files(dir: &StdPath, prefix: &str) -> Vec<PathBuf> {
         .collect()
 }
 
-/// A sample type that starts with a [`Stamp`].
+/// A sample type that starts with a [`Stamp`]; the topic table ([`crate::topic`]) implements
+/// it for each topic's sample type.
 pub trait Stamped: Copy + std::fmt::Debug + ZeroCopySend + 'static {
     fn stamp(&self) -> &Stamp;
     fn stamp_mut(&mut self) -> &mut Stamp;
 }
-
-macro_rules! stamped {
-    ($($t:ty),*) => {$(
-        impl Stamped for $t {
-            fn stamp(&self) -> &Stamp { &self.stamp }
-            fn stamp_mut(&mut self) -> &mut Stamp { &mut self.stamp }
-        }
-    )*};
-}
-stamped!(
-    GloveSample,
-    TrackerSample,
-    JointsSample,
-    HandSample,
-    WorldSample,
-    FrameSample,
-    LatencySample
-);
 
 /// One process's attachment to the session's bus.
 pub struct Bus {
@@ -266,14 +252,26 @@ impl Bus {
     /// Creates every topic of the session with its fixed sizing. The launcher calls this once
     /// before it starts any process, and keeps the returned handles until the session ends.
     pub fn create_services(&self) -> Result<Services, BusError> {
+        /// Creates each topic's service with its sample type, in table order.
+        struct Create<'b> {
+            bus: &'b Bus,
+            pubsub: Vec<Box<dyn AttachedPorts>>,
+        }
+        impl TopicVisitor for Create<'_> {
+            type Error = BusError;
+            fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
+                let service = self.bus.pubsub::<P>()?;
+                self.pubsub.push(Box::new(service));
+                Ok(())
+            }
+        }
+        let mut create = Create {
+            bus: self,
+            pubsub: Vec::with_capacity(Topic::ALL.len()),
+        };
+        Topic::visit_each(&mut create)?;
         Ok(Services {
-            glove: self.pubsub::<GloveSample>(Topic::Glove)?,
-            tracker: self.pubsub::<TrackerSample>(Topic::Tracker)?,
-            joints: self.pubsub::<JointsSample>(Topic::Joints)?,
-            hand: self.pubsub::<HandSample>(Topic::Hand)?,
-            world: self.pubsub::<WorldSample>(Topic::World)?,
-            frame: self.pubsub::<FrameSample>(Topic::Frame)?,
-            latency: self.pubsub::<LatencySample>(Topic::Latency)?,
+            pubsub: create.pubsub,
             _events: Topic::ALL
                 .iter()
                 .map(|t| self.event(*t))
@@ -281,13 +279,14 @@ impl Bus {
         })
     }
 
-    fn pubsub<T: Stamped>(&self, topic: Topic) -> Result<PubSub<T>, BusError> {
+    /// Opens (or creates) topic `P`'s service, with its sample type and its row's sizing.
+    fn pubsub<P: TopicSpec>(&self) -> Result<PubSub<P::Sample>, BusError> {
+        let topic = P::TOPIC;
         let name = service_name(topic)?;
-        let max_publishers = if topic == Topic::Latency { 8 } else { 2 };
         self.node
             .service_builder(&name)
-            .publish_subscribe::<T>()
-            .max_publishers(max_publishers)
+            .publish_subscribe::<P::Sample>()
+            .max_publishers(topic.max_publishers())
             .max_subscribers(MAX_SUBSCRIBERS)
             .max_nodes(MAX_NODES)
             .subscriber_max_buffer_size(topic.subscriber_buffer())
@@ -317,14 +316,34 @@ impl Bus {
             })
     }
 
-    /// A publisher on `topic` with its notifier.
-    pub fn outlet<T: Stamped>(&self, topic: Topic) -> Result<Outlet<T>, BusError> {
+    /// A publisher on topic `P` (a marker of [`crate::topics`]) with its notifier. The outlet
+    /// sends `P`'s sample type and nothing else:
+    ///
+    /// ```no_run
+    /// # use common::{bus::Bus, topics, GloveSample};
+    /// # fn f(bus: &Bus) -> Result<(), common::bus::BusError> {
+    /// let mut glove = bus.outlet::<topics::Glove>()?;
+    /// glove.publish(&GloveSample::default())?;
+    /// # Ok(()) }
+    /// ```
+    ///
+    /// A hand sample on the glove topic does not compile:
+    ///
+    /// ```compile_fail
+    /// # use common::{bus::Bus, topics, HandSample};
+    /// # fn f(bus: &Bus) -> Result<(), common::bus::BusError> {
+    /// let mut glove = bus.outlet::<topics::Glove>()?;
+    /// glove.publish(&HandSample::default())?;
+    /// # Ok(()) }
+    /// ```
+    pub fn outlet<P: TopicSpec>(&self) -> Result<Outlet<P>, BusError> {
+        let topic = P::TOPIC;
         let port_err = |e: String| BusError::Port {
             topic: topic.name(),
             reason: e,
         };
         let publisher = self
-            .pubsub::<T>(topic)?
+            .pubsub::<P>()?
             .publisher_builder()
             .max_loaned_samples(2)
             .create()
@@ -335,21 +354,30 @@ impl Bus {
             .create()
             .map_err(|e| port_err(format!("{e:?}")))?;
         Ok(Outlet {
-            topic,
             publisher,
             notifier,
             next_seq: 0,
         })
     }
 
-    /// A subscriber on `topic` with its listener.
-    pub fn inlet<T: Stamped>(&self, topic: Topic) -> Result<Inlet<T>, BusError> {
+    /// A subscriber on topic `P` (a marker of [`crate::topics`]) with its listener; it
+    /// receives `P`'s sample type:
+    ///
+    /// ```compile_fail
+    /// # use common::{bus::Bus, topics, HandSample};
+    /// # fn f(bus: &Bus) -> Result<(), common::bus::BusError> {
+    /// let glove = bus.inlet::<topics::Glove>()?;
+    /// let hand: Option<HandSample> = glove.receive()?.map(|s| *s.payload());
+    /// # Ok(()) }
+    /// ```
+    pub fn inlet<P: TopicSpec>(&self) -> Result<Inlet<P>, BusError> {
+        let topic = P::TOPIC;
         let port_err = |e: String| BusError::Port {
             topic: topic.name(),
             reason: e,
         };
         let subscriber = self
-            .pubsub::<T>(topic)?
+            .pubsub::<P>()?
             .subscriber_builder()
             .buffer_size(topic.subscriber_buffer())
             .create()
@@ -360,7 +388,6 @@ impl Bus {
             .create()
             .map_err(|e| port_err(format!("{e:?}")))?;
         Ok(Inlet {
-            topic,
             subscriber,
             listener,
             received: Cell::new(0),
@@ -375,7 +402,7 @@ pub trait Wakeable {
     fn listener(&self) -> &Listener<ipc::Service>;
 }
 
-impl<T: Stamped> Wakeable for Inlet<T> {
+impl<P: TopicSpec> Wakeable for Inlet<P> {
     fn listener(&self) -> &Listener<ipc::Service> {
         &self.listener
     }
@@ -442,16 +469,26 @@ type PubSub<T> =
     iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>;
 type EventService = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
 
+/// The attachment counts of one publish-subscribe service, whatever its sample type.
+trait AttachedPorts {
+    fn subscribers(&self) -> usize;
+    fn publishers(&self) -> usize;
+}
+
+impl<T: Stamped> AttachedPorts for PubSub<T> {
+    fn subscribers(&self) -> usize {
+        self.dynamic_config().number_of_subscribers()
+    }
+    fn publishers(&self) -> usize {
+        self.dynamic_config().number_of_publishers()
+    }
+}
+
 /// Every service of a session, created once by the launcher; it also reads how many ports are
 /// attached, to start the source only when every reader is there.
 pub struct Services {
-    pub glove: PubSub<GloveSample>,
-    pub tracker: PubSub<TrackerSample>,
-    pub joints: PubSub<JointsSample>,
-    pub hand: PubSub<HandSample>,
-    pub world: PubSub<WorldSample>,
-    pub frame: PubSub<FrameSample>,
-    pub latency: PubSub<LatencySample>,
+    /// The publish-subscribe services, indexed by `Topic as usize`.
+    pubsub: Vec<Box<dyn AttachedPorts>>,
     /// Held so the event services keep the sizing they were created with.
     _events: Vec<EventService>,
 }
@@ -459,45 +496,28 @@ pub struct Services {
 impl Services {
     /// Subscribers attached to `topic` now.
     pub fn subscribers(&self, topic: Topic) -> usize {
-        match topic {
-            Topic::Glove => self.glove.dynamic_config().number_of_subscribers(),
-            Topic::Tracker => self.tracker.dynamic_config().number_of_subscribers(),
-            Topic::Joints => self.joints.dynamic_config().number_of_subscribers(),
-            Topic::Hand => self.hand.dynamic_config().number_of_subscribers(),
-            Topic::World => self.world.dynamic_config().number_of_subscribers(),
-            Topic::Frame => self.frame.dynamic_config().number_of_subscribers(),
-            Topic::Latency => self.latency.dynamic_config().number_of_subscribers(),
-        }
+        self.pubsub[topic as usize].subscribers()
     }
 
     /// Publishers attached to `topic` now.
     pub fn publishers(&self, topic: Topic) -> usize {
-        match topic {
-            Topic::Glove => self.glove.dynamic_config().number_of_publishers(),
-            Topic::Tracker => self.tracker.dynamic_config().number_of_publishers(),
-            Topic::Joints => self.joints.dynamic_config().number_of_publishers(),
-            Topic::Hand => self.hand.dynamic_config().number_of_publishers(),
-            Topic::World => self.world.dynamic_config().number_of_publishers(),
-            Topic::Frame => self.frame.dynamic_config().number_of_publishers(),
-            Topic::Latency => self.latency.dynamic_config().number_of_publishers(),
-        }
+        self.pubsub[topic as usize].publishers()
     }
 }
 
 /// A publisher with its notifier: stamps `seq` and `publish_ns`, sends, wakes the readers.
-pub struct Outlet<T: Stamped> {
-    topic: Topic,
-    publisher: Publisher<ipc::Service, T, ()>,
+pub struct Outlet<P: TopicSpec> {
+    publisher: Publisher<ipc::Service, P::Sample, ()>,
     notifier: Notifier<ipc::Service>,
     next_seq: u64,
 }
 
-impl<T: Stamped> Outlet<T> {
+impl<P: TopicSpec> Outlet<P> {
     /// Sends `value` with the next seq and `publish_ns` = now; returns the stamp it went with.
     /// `value`'s `source_time_ns` and `origin_ns` travel as given.
-    pub fn publish(&mut self, value: &T) -> Result<Stamp, BusError> {
+    pub fn publish(&mut self, value: &P::Sample) -> Result<Stamp, BusError> {
         let send_err = |e: String| BusError::Send {
-            topic: self.topic.name(),
+            topic: P::TOPIC.name(),
             reason: e,
         };
         let sample = self
@@ -518,13 +538,13 @@ impl<T: Stamped> Outlet<T> {
     }
 
     pub fn topic(&self) -> Topic {
-        self.topic
+        P::TOPIC
     }
 
     /// This outlet's counter for the latency report.
     pub fn counter(&self) -> TopicCounter {
         TopicCounter {
-            topic: self.topic as u32,
+            topic: P::TOPIC as u32,
             role: 0,
             count: self.next_seq,
             gaps: 0,
@@ -534,9 +554,8 @@ impl<T: Stamped> Outlet<T> {
 }
 
 /// A subscriber with its listener: counts what arrives and the gaps in `seq`.
-pub struct Inlet<T: Stamped> {
-    topic: Topic,
-    subscriber: Subscriber<ipc::Service, T, ()>,
+pub struct Inlet<P: TopicSpec> {
+    subscriber: Subscriber<ipc::Service, P::Sample, ()>,
     listener: Listener<ipc::Service>,
     // Cells, so that an inlet can be read while its listener is attached to a WaitSet.
     received: Cell<u64>,
@@ -544,11 +563,11 @@ pub struct Inlet<T: Stamped> {
     last_seq: Cell<Option<u64>>,
 }
 
-impl<T: Stamped> Inlet<T> {
+impl<P: TopicSpec> Inlet<P> {
     /// The next unread sample, zero-copy (it reads the publisher's memory), or None.
-    pub fn receive(&self) -> Result<Option<Received<T>>, BusError> {
+    pub fn receive(&self) -> Result<Option<Received<P::Sample>>, BusError> {
         let sample = self.subscriber.receive().map_err(|e| BusError::Receive {
-            topic: self.topic.name(),
+            topic: P::TOPIC.name(),
             reason: format!("{e:?}"),
         })?;
         if let Some(s) = &sample {
@@ -588,13 +607,13 @@ impl<T: Stamped> Inlet<T> {
     }
 
     pub fn topic(&self) -> Topic {
-        self.topic
+        P::TOPIC
     }
 
     /// This inlet's counter for the latency report.
     pub fn counter(&self) -> TopicCounter {
         TopicCounter {
-            topic: self.topic as u32,
+            topic: P::TOPIC as u32,
             role: 1,
             count: self.received.get(),
             gaps: self.gaps.get(),

@@ -17,7 +17,7 @@ use hdrhistogram::Histogram;
 use crate::bus::{BusError, Outlet};
 use crate::samples::{LatencySample, TopicCounter, HISTOGRAM_BYTES, MAX_TOPIC_COUNTERS, METRICS};
 use crate::stamp::{monotonic_ns, Stamp};
-use crate::topic::Stage;
+use crate::topic::{topics, Stage};
 
 /// How long a stopping stage waits for the launcher to read its final report.
 const RELEASE_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
@@ -214,14 +214,14 @@ impl Summary {
 /// more, final, when the stage stops. The sample buffer is allocated once.
 pub struct Reporter {
     pub recorder: LatencyRecorder,
-    outlet: Outlet<LatencySample>,
+    outlet: Outlet<topics::Latency>,
     sample: Box<LatencySample>,
     next_report_ns: u64,
     period_ns: u64,
 }
 
 impl Reporter {
-    pub fn new(stage: Stage, outlet: Outlet<LatencySample>) -> Self {
+    pub fn new(stage: Stage, outlet: Outlet<topics::Latency>) -> Self {
         Reporter {
             recorder: LatencyRecorder::new(stage),
             outlet,

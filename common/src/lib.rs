@@ -18,4 +18,4 @@ pub mod topic;
 
 pub use samples::*;
 pub use stamp::{monotonic_ns, Stamp};
-pub use topic::{Stage, Topic};
+pub use topic::{topics, Stage, Topic, TopicSpec};

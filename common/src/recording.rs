@@ -42,14 +42,7 @@ pub const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
 /// The MCAP profile named in the file header.
 pub const PROFILE: &str = "handblocks";
 /// The topics a recording holds (the latency reports go into the session report instead).
-pub const RECORDED_TOPICS: [Topic; 6] = [
-    Topic::Glove,
-    Topic::Tracker,
-    Topic::Joints,
-    Topic::Hand,
-    Topic::World,
-    Topic::Frame,
-];
+pub const RECORDED_TOPICS: [Topic; Topic::RECORDED.len()] = Topic::RECORDED;
 /// A chunk is closed once it holds this many uncompressed bytes...
 pub const CHUNK_BYTES: usize = 1 << 20;
 /// ... or spans this much publish time, whichever comes first: a crash loses at most this much.
@@ -59,15 +52,7 @@ pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
 
 /// The schema (message type) name and the sample's byte size of a topic.
 pub fn sample_type(topic: Topic) -> (&'static str, usize) {
-    match topic {
-        Topic::Glove => ("handblocks/msg/GloveSample", size_of::<GloveSample>()),
-        Topic::Tracker => ("handblocks/msg/TrackerSample", size_of::<TrackerSample>()),
-        Topic::Joints => ("handblocks/msg/JointsSample", size_of::<JointsSample>()),
-        Topic::Hand => ("handblocks/msg/HandSample", size_of::<HandSample>()),
-        Topic::World => ("handblocks/msg/WorldSample", size_of::<WorldSample>()),
-        Topic::Frame => ("handblocks/msg/FrameSample", size_of::<FrameSample>()),
-        Topic::Latency => ("handblocks/msg/LatencySample", size_of::<LatencySample>()),
-    }
+    (topic.schema_name(), topic.sample_size())
 }
 
 /// One field of a sample layout: where it is and what it holds.

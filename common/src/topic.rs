@@ -1,56 +1,284 @@
-//! Topic names and the stages (processes) that publish and read them.
+//! The topic table: every topic of a session declared once, with its sample type, its service
+//! sizing and the stages that publish and read it, and the stages (processes) themselves.
+//!
+//! Everything else that depends on the set of topics derives from the table instead of
+//! listing topics again: the bus's typed ports ([`crate::bus::Bus::outlet`] and
+//! [`crate::bus::Bus::inlet`] take a marker type from [`topics`], so a port's sample type is
+//! its topic's and a wrong pairing does not compile), the services the launcher creates, the
+//! subscribers it waits for before starting the source ([`Topic::readers_among`]), the
+//! source's topics ([`Stage::recorded_outputs`]), and the recording's channels
+//! ([`Topic::RECORDED`]: the topics the recorder reads).
 
-/// Every publish-subscribe service of a session. Each is paired with an event service of the
-/// same name, so consumers sleep until a sample arrives instead of spinning.
-#[repr(u32)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Topic {
-    Glove = 0,
-    Tracker = 1,
-    Joints = 2,
-    Hand = 3,
-    World = 4,
-    Frame = 5,
-    Latency = 6,
+use crate::bus::Stamped;
+use crate::samples::*;
+
+/// One topic at the type level: a marker type of [`topics`] names its [`Topic`] and its sample
+/// type, so that ports typed by it cannot carry another topic's samples. Only the table
+/// declares topics (the trait is sealed).
+pub trait TopicSpec: sealed::Sealed + 'static {
+    /// What every sample of the topic is.
+    type Sample: Stamped;
+    /// The topic's runtime name, for service names, counters and messages.
+    const TOPIC: Topic;
+}
+
+mod sealed {
+    pub trait Sealed {}
+}
+
+/// Something done once per topic of the table with the topic's types in hand (creating its
+/// service, opening a port of the right sample type), since a loop over [`Topic::ALL`] knows
+/// only the runtime value. [`Topic::visit_each`] calls [`TopicVisitor::visit`] in table order.
+pub trait TopicVisitor {
+    type Error;
+    fn visit<P: TopicSpec>(&mut self) -> Result<(), Self::Error>;
+}
+
+/// True when `stage` is one of `stages` (a `const` `contains`).
+const fn contains(stages: &[Stage], stage: Stage) -> bool {
+    let mut i = 0;
+    while i < stages.len() {
+        if stages[i] as u32 == stage as u32 {
+            return true;
+        }
+        i += 1;
+    }
+    false
+}
+
+/// Declares the [`Topic`] enum, its per-topic facts, the marker types of [`topics`] and their
+/// [`TopicSpec`], and the [`Stamped`] access of each sample type, from one row per topic.
+macro_rules! topic_table {
+    (
+        $(#[$enum_doc:meta])*
+        pub enum Topic {
+            $(
+                $(#[$doc:meta])*
+                $topic:ident: $sample:ident {
+                    name: $name:literal,
+                    buffer: $buffer:expr,
+                    max_publishers: $max_publishers:expr,
+                    publishers: [$($publisher:ident),* $(,)?],
+                    readers: [$($reader:ident),* $(,)?] $(,)?
+                }
+            ),* $(,)?
+        }
+    ) => {
+        $(#[$enum_doc])*
+        #[repr(u32)]
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum Topic {
+            $($(#[$doc])* $topic,)*
+        }
+
+        impl Topic {
+            /// Every topic, in table order (`Topic as usize` indexes it).
+            pub const ALL: [Topic; [$(Topic::$topic),*].len()] = [$(Topic::$topic),*];
+
+            /// The service name; the session's own iceoryx2 prefix keeps sessions apart.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $(Topic::$topic => $name,)*
+                }
+            }
+
+            /// Samples a subscriber may hold unread before the oldest is overwritten.
+            pub const fn subscriber_buffer(self) -> usize {
+                match self {
+                    $(Topic::$topic => $buffer,)*
+                }
+            }
+
+            /// Publishers the service admits (fixed when it is created).
+            pub const fn max_publishers(self) -> usize {
+                match self {
+                    $(Topic::$topic => $max_publishers,)*
+                }
+            }
+
+            /// The stages that publish this topic.
+            pub const fn publishers(self) -> &'static [Stage] {
+                match self {
+                    $(Topic::$topic => &[$(Stage::$publisher),*],)*
+                }
+            }
+
+            /// The stages that read this topic.
+            pub const fn readers(self) -> &'static [Stage] {
+                match self {
+                    $(Topic::$topic => &[$(Stage::$reader),*],)*
+                }
+            }
+
+            /// The schema (message type) name of the topic's sample type in a recording,
+            /// `handblocks/msg/` and the type's name.
+            pub const fn schema_name(self) -> &'static str {
+                match self {
+                    $(Topic::$topic => concat!("handblocks/msg/", stringify!($sample)),)*
+                }
+            }
+
+            /// The byte size of the topic's sample type.
+            pub const fn sample_size(self) -> usize {
+                match self {
+                    $(Topic::$topic => std::mem::size_of::<$sample>(),)*
+                }
+            }
+
+            /// Calls `visitor` once per topic, in table order, with the topic's marker type.
+            pub fn visit_each<V: TopicVisitor>(visitor: &mut V) -> Result<(), V::Error> {
+                $(visitor.visit::<topics::$topic>()?;)*
+                Ok(())
+            }
+        }
+
+        /// The marker type of each topic, for the bus's typed ports: `bus.outlet::<topics::Hand>()`
+        /// is an outlet of `HandSample`s on `hand`. The types have no values.
+        pub mod topics {
+            use super::*;
+            $(
+                $(#[$doc])*
+                #[derive(Debug)]
+                pub enum $topic {}
+
+                impl sealed::Sealed for $topic {}
+
+                impl TopicSpec for $topic {
+                    type Sample = $sample;
+                    const TOPIC: Topic = Topic::$topic;
+                }
+            )*
+        }
+
+        // Every sample starts with its stamp. Each topic has a sample type of its own (a
+        // recording tells the topics apart by their schema), so one impl per row.
+        $(
+            impl Stamped for $sample {
+                fn stamp(&self) -> &crate::stamp::Stamp {
+                    &self.stamp
+                }
+                fn stamp_mut(&mut self) -> &mut crate::stamp::Stamp {
+                    &mut self.stamp
+                }
+            }
+        )*
+    };
+}
+
+topic_table! {
+    /// Every publish-subscribe service of a session, one row of the table each. Each is paired
+    /// with an event service of the same name, so consumers sleep until a sample arrives
+    /// instead of spinning.
+    ///
+    /// Subscriber buffers are sized for a second of a 1 kHz source, so a stage that is
+    /// descheduled for a while loses nothing; the renderer drains everything and keeps only
+    /// the newest world state, so its frames need less.
+    ///
+    /// To add a topic: (1) its sample type in `samples.rs` (`#[repr(C)]`, starting with its
+    /// `stamp`); (2) its row here; (3) the sample's fields in `recording::fields` (the schema a
+    /// recording carries), if a stage records it. Then the stages in its row open their ports,
+    /// `bus.outlet::<topics::New>()` / `bus.inlet::<topics::New>()`; the services, the
+    /// launcher's wait for readers, the recording's channels and the recorder's inlets follow
+    /// from the row.
+    pub enum Topic {
+        /// Finger joint angles from the data glove (or the scripted hand, or a replay).
+        Glove: GloveSample {
+            name: "glove",
+            buffer: 1024,
+            max_publishers: 2,
+            publishers: [Acquisition, Replay],
+            readers: [Kinematics, Recorder],
+        },
+        /// The wrist pose from the 6-DoF tracker.
+        Tracker: TrackerSample {
+            name: "tracker",
+            buffer: 1024,
+            max_publishers: 2,
+            publishers: [Acquisition, Replay],
+            readers: [Kinematics, Recorder],
+        },
+        /// Whole-hand joint poses (an OpenXR hand), replayed from a recording or a CARL file.
+        Joints: JointsSample {
+            name: "joints",
+            buffer: 1024,
+            max_publishers: 2,
+            publishers: [Replay],
+            readers: [Kinematics, Recorder],
+        },
+        /// The hand model: finger check points and the palm, as the stepper reads them.
+        Hand: HandSample {
+            name: "hand",
+            buffer: 1024,
+            max_publishers: 2,
+            publishers: [Kinematics],
+            readers: [Stepper, Renderer, Recorder],
+        },
+        /// The blocks' states after each step (the replay reads it to pace itself).
+        World: WorldSample {
+            name: "world",
+            buffer: 1024,
+            max_publishers: 2,
+            publishers: [Stepper],
+            readers: [Renderer, Replay, Recorder],
+        },
+        /// One drawn frame's timing.
+        Frame: FrameSample {
+            name: "frame",
+            buffer: 256,
+            max_publishers: 2,
+            publishers: [Renderer],
+            readers: [Recorder],
+        },
+        /// Each stage's latency report, about once a second; the launcher (no stage) reads
+        /// them, and a recording does not keep them (they go into the session report).
+        Latency: LatencySample {
+            name: "latency",
+            buffer: 32,
+            max_publishers: 8,
+            publishers: [Acquisition, Replay, Kinematics, Stepper, Renderer, Recorder],
+            readers: [],
+        },
+    }
 }
 
 impl Topic {
-    pub const ALL: [Topic; 7] = [
-        Topic::Glove,
-        Topic::Tracker,
-        Topic::Joints,
-        Topic::Hand,
-        Topic::World,
-        Topic::Frame,
-        Topic::Latency,
-    ];
-
-    /// The service name; the session's own iceoryx2 prefix keeps sessions apart.
-    pub fn name(self) -> &'static str {
-        match self {
-            Topic::Glove => "glove",
-            Topic::Tracker => "tracker",
-            Topic::Joints => "joints",
-            Topic::Hand => "hand",
-            Topic::World => "world",
-            Topic::Frame => "frame",
-            Topic::Latency => "latency",
-        }
-    }
-
     pub fn from_u32(v: u32) -> Option<Topic> {
         Topic::ALL.get(v as usize).copied()
     }
 
-    /// Samples a subscriber may hold unread before the oldest is overwritten. Sized for a
-    /// second of a 1 kHz source so a stage that is descheduled for a while loses nothing; the
-    /// renderer drains everything and keeps only the newest world state.
-    pub fn subscriber_buffer(self) -> usize {
-        match self {
-            Topic::Glove | Topic::Tracker | Topic::Joints | Topic::Hand | Topic::World => 1024,
-            Topic::Frame => 256,
-            Topic::Latency => 32,
+    /// True when the recorder reads this topic: a recording has a channel for it.
+    pub const fn is_recorded(self) -> bool {
+        contains(self.readers(), Stage::Recorder)
+    }
+
+    /// The topics a recording holds, in table order: those the recorder reads.
+    pub const RECORDED: [Topic; Topic::recorded_count()] = {
+        let mut out = [Topic::ALL[0]; Topic::recorded_count()];
+        let (mut i, mut n) = (0, 0);
+        while i < Topic::ALL.len() {
+            if Topic::ALL[i].is_recorded() {
+                out[n] = Topic::ALL[i];
+                n += 1;
+            }
+            i += 1;
         }
+        out
+    };
+
+    const fn recorded_count() -> usize {
+        let (mut i, mut n) = (0, 0);
+        while i < Topic::ALL.len() {
+            if Topic::ALL[i].is_recorded() {
+                n += 1;
+            }
+            i += 1;
+        }
+        n
+    }
+
+    /// How many of `stages` read this topic: the subscribers it has once they all attached.
+    pub fn readers_among(self, stages: &[Stage]) -> usize {
+        self.readers().iter().filter(|s| stages.contains(s)).count()
     }
 }
 
@@ -94,5 +322,88 @@ impl Stage {
 
     pub fn from_u32(v: u32) -> Option<Stage> {
         Stage::ALL.get(v as usize).copied()
+    }
+
+    /// The topics this stage publishes that a recording keeps, in table order: for a source,
+    /// its samples (what the launcher waits for before the session's time starts, and what a
+    /// replay plays back from a recording); its latency report is not one of them.
+    pub fn recorded_outputs(self) -> impl Iterator<Item = Topic> {
+        Topic::RECORDED
+            .into_iter()
+            .filter(move |t| t.publishers().contains(&self))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The discriminants are the table's order, which `from_u32` and every
+    /// `[_; Topic::ALL.len()]` indexed by `Topic as usize` rely on.
+    #[test]
+    fn topics_are_numbered_in_table_order() {
+        for (i, t) in Topic::ALL.into_iter().enumerate() {
+            assert_eq!(t as usize, i);
+            assert_eq!(Topic::from_u32(i as u32), Some(t));
+        }
+        assert_eq!(Topic::from_u32(Topic::ALL.len() as u32), None);
+    }
+
+    /// What the table says, as the rest of the project used to spell it out topic by topic.
+    #[test]
+    fn the_table_derives_what_was_listed_by_hand() {
+        assert_eq!(
+            Topic::RECORDED,
+            [
+                Topic::Glove,
+                Topic::Tracker,
+                Topic::Joints,
+                Topic::Hand,
+                Topic::World,
+                Topic::Frame,
+            ]
+        );
+        let outputs = |s: Stage| s.recorded_outputs().collect::<Vec<_>>();
+        assert_eq!(
+            outputs(Stage::Replay),
+            [Topic::Glove, Topic::Tracker, Topic::Joints]
+        );
+        assert_eq!(outputs(Stage::Acquisition), [Topic::Glove, Topic::Tracker]);
+        assert_eq!(Topic::Hand.schema_name(), "handblocks/msg/HandSample");
+        assert_eq!(
+            Topic::Latency.sample_size(),
+            std::mem::size_of::<LatencySample>()
+        );
+        let all_readers = [
+            Stage::Kinematics,
+            Stage::Stepper,
+            Stage::Renderer,
+            Stage::Recorder,
+        ];
+        assert_eq!(Topic::Hand.readers_among(&all_readers), 3);
+        assert_eq!(Topic::World.readers_among(&all_readers[..2]), 0);
+        // Every stage reports its latency.
+        assert_eq!(Topic::Latency.publishers(), Stage::ALL);
+        for t in Topic::ALL {
+            assert!(t.publishers().len() <= t.max_publishers(), "{t:?}");
+        }
+    }
+
+    /// Each marker type names its own topic, and visiting goes through the table in order.
+    #[test]
+    fn markers_name_their_topics() {
+        struct Names(Vec<(Topic, usize)>);
+        impl TopicVisitor for Names {
+            type Error = ();
+            fn visit<P: TopicSpec>(&mut self) -> Result<(), ()> {
+                self.0.push((P::TOPIC, std::mem::size_of::<P::Sample>()));
+                Ok(())
+            }
+        }
+        let mut names = Names(Vec::new());
+        Topic::visit_each(&mut names).unwrap();
+        let expected: Vec<_> = Topic::ALL.iter().map(|t| (*t, t.sample_size())).collect();
+        assert_eq!(names.0, expected);
+        assert_eq!(<topics::Glove as TopicSpec>::TOPIC, Topic::Glove);
     }
 }

@@ -9,7 +9,7 @@ use common::config::session::Source;
 use common::config::Session;
 use common::latency::Reporter;
 use common::stamp::sleep_until_ns;
-use common::{monotonic_ns, shutdown, GloveSample, Stage, Stamp, Topic, TrackerSample};
+use common::{monotonic_ns, shutdown, topics, Stage, Stamp};
 
 use crate::devices::{
     settings, DeviceEvent, DeviceReaders, Glove, GloveConfig, Tracker, TrackerConfig,
@@ -61,9 +61,9 @@ fn run_devices(
     dir: &Path,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let (gc, tc) = device_configs(session, glove, tracker, dir, monotonic_ns())?;
-    let mut glove_out = bus.outlet::<GloveSample>(Topic::Glove)?;
-    let mut tracker_out = bus.outlet::<TrackerSample>(Topic::Tracker)?;
-    let mut reporter = Reporter::new(Stage::Acquisition, bus.outlet(Topic::Latency)?);
+    let mut glove_out = bus.outlet::<topics::Glove>()?;
+    let mut tracker_out = bus.outlet::<topics::Tracker>()?;
+    let mut reporter = Reporter::new(Stage::Acquisition, bus.outlet::<topics::Latency>()?);
     // `new` checks the configuration and connects on the first read, so a device that is not
     // there yet (or is unplugged) is reported and retried instead of failing the session.
     let readers = DeviceReaders::spawn(Some(Glove::new(gc)?), Some(Tracker::new(tc)?))?;
@@ -105,9 +105,9 @@ fn run_scripted(
     let hand =
         ScriptedHand::new(script).map_err(|e| format!("{}: {e}", session.scene_file.display()))?;
 
-    let mut glove = bus.outlet::<GloveSample>(Topic::Glove)?;
-    let mut tracker = bus.outlet::<TrackerSample>(Topic::Tracker)?;
-    let mut reporter = Reporter::new(Stage::Acquisition, bus.outlet(Topic::Latency)?);
+    let mut glove = bus.outlet::<topics::Glove>()?;
+    let mut tracker = bus.outlet::<topics::Tracker>()?;
+    let mut reporter = Reporter::new(Stage::Acquisition, bus.outlet::<topics::Latency>()?);
 
     let start_ns = monotonic_ns();
     let period_ns = 1e9 / rate_hz;

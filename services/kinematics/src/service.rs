@@ -7,10 +7,7 @@ use std::time::Duration;
 use common::bus::{wait_any, Bus};
 use common::config::Session;
 use common::latency::Reporter;
-use common::{
-    monotonic_ns, shutdown, GloveSample, HandSample, JointsSample, Stage, Stamp, Topic,
-    TrackerSample,
-};
+use common::{monotonic_ns, shutdown, topics, GloveSample, HandSample, Stage, Stamp};
 
 use crate::model::HandModel;
 use crate::pairing::GloveHistory;
@@ -21,11 +18,11 @@ const IDLE_WAIT: Duration = Duration::from_millis(50);
 /// Runs until asked to stop, then drains what its inputs still hold.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
     let model = HandModel::new(session.hand_model.clone());
-    let glove_in = bus.inlet::<GloveSample>(Topic::Glove)?;
-    let tracker_in = bus.inlet::<TrackerSample>(Topic::Tracker)?;
-    let joints_in = bus.inlet::<JointsSample>(Topic::Joints)?;
-    let mut hand_out = bus.outlet::<HandSample>(Topic::Hand)?;
-    let mut reporter = Reporter::new(Stage::Kinematics, bus.outlet(Topic::Latency)?);
+    let glove_in = bus.inlet::<topics::Glove>()?;
+    let tracker_in = bus.inlet::<topics::Tracker>()?;
+    let joints_in = bus.inlet::<topics::Joints>()?;
+    let mut hand_out = bus.outlet::<topics::Hand>()?;
+    let mut reporter = Reporter::new(Stage::Kinematics, bus.outlet::<topics::Latency>()?);
 
     let mut gloves = GloveHistory::default();
     let mut hand = HandSample::default();

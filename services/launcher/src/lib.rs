@@ -24,7 +24,7 @@ use common::bus::{Bus, BusConfig, Inlet, Services};
 use common::config::session::{Override, RenderMode, Source};
 use common::config::Session;
 use common::latency::Metric;
-use common::{shutdown, LatencySample, Stage, Topic};
+use common::{shutdown, topics, Stage, Topic};
 
 use crate::placement::Placement;
 
@@ -194,22 +194,14 @@ fn readers(session: &Session) -> Vec<Stage> {
     v
 }
 
-/// Subscribers each topic must have before the source may start.
+/// Subscribers each topic must have before the source may start: as many as the topic table
+/// names readers of it among `stages`.
 fn expected_subscribers(stages: &[Stage]) -> Vec<(Topic, usize)> {
-    let has = |s| stages.contains(&s) as usize;
-    vec![
-        (Topic::Glove, has(Stage::Kinematics) + has(Stage::Recorder)),
-        (
-            Topic::Tracker,
-            has(Stage::Kinematics) + has(Stage::Recorder),
-        ),
-        (
-            Topic::Hand,
-            has(Stage::Stepper) + has(Stage::Renderer) + has(Stage::Recorder),
-        ),
-        (Topic::World, has(Stage::Renderer) + has(Stage::Recorder)),
-        (Topic::Frame, has(Stage::Recorder)),
-    ]
+    Topic::ALL
+        .into_iter()
+        .map(|t| (t, t.readers_among(stages)))
+        .filter(|(_, n)| *n > 0)
+        .collect()
 }
 
 /// Runs one session. The resources of its bus are removed whatever happens.
@@ -279,7 +271,7 @@ fn run_session(
 ) -> Result<Report, LaunchError> {
     let bus = Bus::open(bus_config, "launcher").map_err(err)?;
     let services = bus.create_services().map_err(err)?;
-    let latency = bus.inlet::<LatencySample>(Topic::Latency).map_err(err)?;
+    let latency = bus.inlet::<topics::Latency>().map_err(err)?;
     let session_file = std::path::absolute(&opts.session).unwrap_or_else(|_| opts.session.clone());
 
     let started_at = std::time::SystemTime::now();
@@ -568,20 +560,17 @@ fn wait_for_readers(
     })
 }
 
-/// The source attached: its publishers exist, so the session's time can start.
+/// The source attached: the publishers of its samples (the topics the table names it a
+/// publisher of, its latency report aside) exist, so the session's time can start.
 fn wait_for_source(
     services: &Services,
     source: Stage,
     procs: &mut [ServiceProcess],
 ) -> Result<(), LaunchError> {
-    let topics: &[Topic] = match source {
-        Stage::Replay => &[Topic::Glove, Topic::Tracker, Topic::Joints],
-        _ => &[Topic::Glove, Topic::Tracker],
-    };
     wait_for_start(procs, || {
-        let missing: Vec<&str> = topics
-            .iter()
-            .filter(|t| services.publishers(**t) == 0)
+        let missing: Vec<&str> = source
+            .recorded_outputs()
+            .filter(|t| services.publishers(*t) == 0)
             .map(|t| t.name())
             .collect();
         (!missing.is_empty())
@@ -591,7 +580,7 @@ fn wait_for_source(
 
 /// Reads every latency report waiting; the newest of each stage replaces the older one
 /// (histograms are cumulative).
-fn collect(latency: &Inlet<LatencySample>, reports: &mut BTreeMap<Stage, StageReport>) {
+fn collect(latency: &Inlet<topics::Latency>, reports: &mut BTreeMap<Stage, StageReport>) {
     while let Ok(Some(s)) = latency.receive() {
         match StageReport::decode(s.payload()) {
             Ok(r) => {
@@ -626,4 +615,42 @@ pub fn write_report(report: &Report, path: &Path) -> Result<(), LaunchError> {
     let text = serde_json::to_string_pretty(&report.json()).map_err(err)?;
     std::fs::write(path, text + "\n")
         .map_err(|e| err(format!("cannot write the report {}: {e}", path.display())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The counts the table gives are those the launcher used to list by hand (which left out
+    /// `joints`: its readers, kinematics and the recorder, open it before their latency
+    /// publisher, which the launcher also waits for).
+    #[test]
+    fn expected_subscribers_follow_the_topic_table() {
+        let all = [
+            Stage::Kinematics,
+            Stage::Stepper,
+            Stage::Renderer,
+            Stage::Recorder,
+        ];
+        assert_eq!(
+            expected_subscribers(&all),
+            [
+                (Topic::Glove, 2),
+                (Topic::Tracker, 2),
+                (Topic::Joints, 2),
+                (Topic::Hand, 3),
+                (Topic::World, 2),
+                (Topic::Frame, 1),
+            ]
+        );
+        assert_eq!(
+            expected_subscribers(&[Stage::Kinematics, Stage::Stepper]),
+            [
+                (Topic::Glove, 1),
+                (Topic::Tracker, 1),
+                (Topic::Joints, 1),
+                (Topic::Hand, 1),
+            ]
+        );
+    }
 }

@@ -7,39 +7,79 @@
 
 use std::time::Duration;
 
-use common::bus::{wait_any, Bus, Inlet, Stamped};
+use common::bus::{wait_any, Bus, BusError, Inlet, Stamped, Wakeable, MAX_WAIT};
 use common::config::Session;
 use common::latency::Reporter;
-use common::{
-    monotonic_ns, shutdown, FrameSample, GloveSample, HandSample, JointsSample, Stage, Topic,
-    TrackerSample, WorldSample,
-};
+use common::topic::{TopicSpec, TopicVisitor};
+use common::{monotonic_ns, shutdown, topics, Stage, Topic, TopicCounter};
 
 use common::recording::RecordingWriter;
 
 const IDLE_WAIT: Duration = Duration::from_millis(50);
 
-fn drain<T: Stamped>(
-    inlet: &Inlet<T>,
-    log: &mut Option<RecordingWriter>,
-    reporter: &mut Reporter,
-) -> Result<(), Box<dyn std::error::Error>> {
-    while let Some(s) = inlet.receive()? {
-        let received = monotonic_ns();
-        reporter.recorder.hop(s.stamp(), received);
-        if let Some(log) = log {
-            log.write(inlet.topic(), s.payload())?;
-        }
-        let done = monotonic_ns();
-        reporter
-            .recorder
-            .record(common::latency::Metric::Process, done - received);
-        reporter.recorder.record(
-            common::latency::Metric::Origin,
-            done.saturating_sub(s.stamp().origin_ns),
-        );
+// One `wait_any` sleeps on every recorded topic.
+const _: () = assert!(Topic::RECORDED.len() <= MAX_WAIT);
+
+/// One recorded topic's inlet, whatever its sample type: the recorder holds one per topic the
+/// table names it a reader of, in table order.
+trait Channel {
+    fn wakeable(&self) -> &dyn Wakeable;
+    /// Writes every sample waiting into `log` and records its latency.
+    fn drain(
+        &self,
+        log: &mut Option<RecordingWriter>,
+        reporter: &mut Reporter,
+    ) -> Result<(), Box<dyn std::error::Error>>;
+    fn counter(&self) -> TopicCounter;
+}
+
+impl<P: TopicSpec> Channel for Inlet<P> {
+    fn wakeable(&self) -> &dyn Wakeable {
+        self
     }
-    Ok(())
+
+    fn drain(
+        &self,
+        log: &mut Option<RecordingWriter>,
+        reporter: &mut Reporter,
+    ) -> Result<(), Box<dyn std::error::Error>> {
+        while let Some(s) = self.receive()? {
+            let received = monotonic_ns();
+            reporter.recorder.hop(s.stamp(), received);
+            if let Some(log) = log {
+                log.write(P::TOPIC, s.payload())?;
+            }
+            let done = monotonic_ns();
+            reporter
+                .recorder
+                .record(common::latency::Metric::Process, done - received);
+            reporter.recorder.record(
+                common::latency::Metric::Origin,
+                done.saturating_sub(s.stamp().origin_ns),
+            );
+        }
+        Ok(())
+    }
+
+    fn counter(&self) -> TopicCounter {
+        Inlet::counter(self)
+    }
+}
+
+/// Opens an inlet on every topic the recorder reads.
+struct OpenChannels<'b> {
+    bus: &'b Bus,
+    channels: Vec<Box<dyn Channel>>,
+}
+
+impl TopicVisitor for OpenChannels<'_> {
+    type Error = BusError;
+    fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
+        if P::TOPIC.is_recorded() {
+            self.channels.push(Box::new(self.bus.inlet::<P>()?));
+        }
+        Ok(())
+    }
 }
 
 /// Runs until asked to stop, then drains every input.
@@ -65,36 +105,27 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         }
         None => None,
     };
-    let glove = bus.inlet::<GloveSample>(Topic::Glove)?;
-    let tracker = bus.inlet::<TrackerSample>(Topic::Tracker)?;
-    let joints = bus.inlet::<JointsSample>(Topic::Joints)?;
-    let hand = bus.inlet::<HandSample>(Topic::Hand)?;
-    let world = bus.inlet::<WorldSample>(Topic::World)?;
-    let frame = bus.inlet::<FrameSample>(Topic::Frame)?;
-    let mut reporter = Reporter::new(Stage::Recorder, bus.outlet(Topic::Latency)?);
+    let mut open = OpenChannels {
+        bus,
+        channels: Vec::with_capacity(Topic::RECORDED.len()),
+    };
+    Topic::visit_each(&mut open)?;
+    let channels = open.channels;
+    let mut reporter = Reporter::new(Stage::Recorder, bus.outlet::<topics::Latency>()?);
+    // Built once: the loop below allocates nothing per wake-up.
+    let wakeables: Vec<&dyn Wakeable> = channels.iter().map(|c| c.wakeable()).collect();
+    let mut counters: Vec<TopicCounter> = Vec::with_capacity(channels.len());
 
     loop {
         let stopping = shutdown::requested();
         if !stopping {
-            wait_any(
-                &[&glove, &tracker, &joints, &hand, &world, &frame],
-                IDLE_WAIT,
-            )?;
+            wait_any(&wakeables, IDLE_WAIT)?;
         }
-        drain(&glove, &mut log, &mut reporter)?;
-        drain(&tracker, &mut log, &mut reporter)?;
-        drain(&joints, &mut log, &mut reporter)?;
-        drain(&hand, &mut log, &mut reporter)?;
-        drain(&world, &mut log, &mut reporter)?;
-        drain(&frame, &mut log, &mut reporter)?;
-        let counters = [
-            glove.counter(),
-            tracker.counter(),
-            joints.counter(),
-            hand.counter(),
-            world.counter(),
-            frame.counter(),
-        ];
+        for channel in &channels {
+            channel.drain(&mut log, &mut reporter)?;
+        }
+        counters.clear();
+        counters.extend(channels.iter().map(|c| c.counter()));
         if stopping {
             if let Some(log) = log.take() {
                 log.finish()?;

@@ -19,7 +19,7 @@ use common::config::scene::{BlockSpec, Effects, Scene, ShapeSpec, WorldSettings}
 use common::config::session::{
     Budget, RecorderSettings, RenderMode, RendererSettings, Session, Source,
 };
-use common::{shutdown, BlockMode, FrameSample, HandSample, Stamp, Topic, WorldSample};
+use common::{shutdown, topics, BlockMode, HandSample, Stamp, WorldSample};
 use renderer::RenderSettings;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -85,9 +85,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let settings = RenderSettings::from_session(&s.renderer);
         renderer::service::run_with(&s, &bus, settings, None).map_err(|e| e.to_string())
     });
-    let frames_in = bus.inlet::<FrameSample>(Topic::Frame)?;
-    let mut world_out = bus.outlet::<WorldSample>(Topic::World)?;
-    let mut hand_out = bus.outlet::<HandSample>(Topic::Hand)?;
+    let frames_in = bus.inlet::<topics::Frame>()?;
+    let mut world_out = bus.outlet::<topics::World>()?;
+    let mut hand_out = bus.outlet::<topics::Hand>()?;
 
     // Blocks moving on the floor and a hand above them: a typical frame's content.
     let mut world = WorldSample {

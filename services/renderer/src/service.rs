@@ -18,7 +18,7 @@ use common::bus::Bus;
 use common::config::session::RenderMode;
 use common::config::Session;
 use common::latency::{Metric, Reporter};
-use common::{monotonic_ns, shutdown, FrameSample, HandSample, Stage, Stamp, Topic, WorldSample};
+use common::{monotonic_ns, shutdown, topics, FrameSample, HandSample, Stage, Stamp, WorldSample};
 
 use crate::output::{write_frame, Image};
 use crate::preview::PreviewWriter;
@@ -87,10 +87,10 @@ pub fn run_with_preview(
     if let Some(r) = renderer.as_mut() {
         r.render(&WorldSample::default(), &HandSample::default())?;
     }
-    let world_in = bus.inlet::<WorldSample>(Topic::World)?;
-    let hand_in = bus.inlet::<HandSample>(Topic::Hand)?;
-    let mut frame_out = bus.outlet::<FrameSample>(Topic::Frame)?;
-    let mut reporter = Reporter::new(Stage::Renderer, bus.outlet(Topic::Latency)?);
+    let world_in = bus.inlet::<topics::World>()?;
+    let hand_in = bus.inlet::<topics::Hand>()?;
+    let mut frame_out = bus.outlet::<topics::Frame>()?;
+    let mut reporter = Reporter::new(Stage::Renderer, bus.outlet::<topics::Latency>()?);
     let mut writer = match (&frames, &renderer) {
         (Some(f), Some(_)) => Some(FrameWriter::start(f.clone(), settings.output)?),
         _ => None,

@@ -11,7 +11,7 @@ use common::config::scene::{BlockSpec, Effects, Scene, ShapeSpec, WorldSettings}
 use common::config::session::{
     Budget, RecorderSettings, RenderMode, RendererSettings, Session, Source,
 };
-use common::{shutdown, BlockMode, FrameSample, Stamp, Topic, WorldSample};
+use common::{shutdown, topics, BlockMode, Stamp, WorldSample};
 use renderer::png::read_png;
 use renderer::{FramesRequest, OutputMode, RenderSettings};
 
@@ -73,8 +73,8 @@ fn the_loop_draws_the_newest_world_publishes_photon_and_writes_every_nth_frame()
         let bus = Bus::open(&cfg, "renderer").map_err(|e| e.to_string())?;
         renderer::service::run_with(&s, &bus, settings, Some(req)).map_err(|e| e.to_string())
     });
-    let frames_in = bus.inlet::<FrameSample>(Topic::Frame).unwrap();
-    let mut world_out = bus.outlet::<WorldSample>(Topic::World).unwrap();
+    let frames_in = bus.inlet::<topics::Frame>().unwrap();
+    let mut world_out = bus.outlet::<topics::World>().unwrap();
     // 1 s of worlds at 120 Hz; the renderer draws at 60 Hz, so about every other is superseded.
     let mut w = WorldSample {
         block_count: 1,

@@ -15,10 +15,7 @@ use common::config::session::Source;
 use common::config::Session;
 use common::latency::Reporter;
 use common::stamp::sleep_until_ns;
-use common::{
-    monotonic_ns, shutdown, GloveSample, JointsSample, Stage, Stamp, Topic, TrackerSample,
-    WorldSample,
-};
+use common::{monotonic_ns, shutdown, topics, Stage, Stamp};
 
 use crate::trace::{HandTrace, SourceSample};
 
@@ -56,11 +53,11 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         );
     }
 
-    let mut glove_out = bus.outlet::<GloveSample>(Topic::Glove)?;
-    let mut tracker_out = bus.outlet::<TrackerSample>(Topic::Tracker)?;
-    let mut joints_out = bus.outlet::<JointsSample>(Topic::Joints)?;
-    let world_in = bus.inlet::<WorldSample>(Topic::World)?;
-    let mut reporter = Reporter::new(Stage::Replay, bus.outlet(Topic::Latency)?);
+    let mut glove_out = bus.outlet::<topics::Glove>()?;
+    let mut tracker_out = bus.outlet::<topics::Tracker>()?;
+    let mut joints_out = bus.outlet::<topics::Joints>()?;
+    let world_in = bus.inlet::<topics::World>()?;
+    let mut reporter = Reporter::new(Stage::Replay, bus.outlet::<topics::Latency>()?);
     let mut answered: Option<u64> = None; // the newest hand seq a world state answered
     let mut hands_sent: u64 = 0;
     let t0 = trace.first_source_time_ns();

@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use common::recording::Recording;
-use common::{GloveSample, JointsSample, Pose, Topic, TrackerSample, MAX_GLOVE_SENSORS};
+use common::{GloveSample, JointsSample, Pose, Stage, Topic, TrackerSample, MAX_GLOVE_SENSORS};
 
 use crate::carl::CarlTrace;
 
@@ -85,8 +85,8 @@ impl HandTrace {
             head[..n].to_vec()
         };
         let trace = if Recording::is_mcap(&head) {
-            let rec = Recording::open_topics(file, &[Topic::Glove, Topic::Tracker, Topic::Joints])
-                .map_err(|e| e.to_string())?;
+            let sources: Vec<Topic> = Stage::Replay.recorded_outputs().collect();
+            let rec = Recording::open_topics(file, &sources).map_err(|e| e.to_string())?;
             HandTrace::from_recording(&rec, offset)
         } else {
             let carl = CarlTrace::load(file).map_err(|e| {
@@ -123,10 +123,11 @@ impl HandTrace {
             samples: Vec::new(),
             warnings: rec.damage.iter().map(|d| d.to_string()).collect(),
         };
+        let sources: Vec<Topic> = Stage::Replay.recorded_outputs().collect();
         let mut order: Vec<_> = rec
             .messages
             .iter()
-            .filter(|m| matches!(m.topic, Topic::Glove | Topic::Tracker | Topic::Joints))
+            .filter(|m| sources.contains(&m.topic))
             .collect();
         // Stable: samples published in the same nanosecond keep their file order.
         order.sort_by_key(|m| m.publish_ns);

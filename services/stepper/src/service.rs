@@ -11,7 +11,7 @@ use std::time::Duration;
 use common::bus::Bus;
 use common::config::Session;
 use common::latency::Reporter;
-use common::{monotonic_ns, shutdown, HandSample, Stage, Stamp, Topic, WorldSample};
+use common::{monotonic_ns, shutdown, topics, HandSample, Stage, Stamp, WorldSample};
 use glam::{DQuat, DVec3};
 
 use crate::model::Model;
@@ -138,9 +138,9 @@ pub fn run_with_outcome(
     let mut world = Model::new(&session.scene)?;
     let mut events: Vec<crate::world::Event> = Vec::with_capacity(OUTCOME_EVENTS);
     let mut events_not_kept = 0u64;
-    let hand_in = bus.inlet::<HandSample>(Topic::Hand)?;
-    let mut world_out = bus.outlet::<WorldSample>(Topic::World)?;
-    let mut reporter = Reporter::new(Stage::Stepper, bus.outlet(Topic::Latency)?);
+    let hand_in = bus.inlet::<topics::Hand>()?;
+    let mut world_out = bus.outlet::<topics::World>()?;
+    let mut reporter = Reporter::new(Stage::Stepper, bus.outlet::<topics::Latency>()?);
     let mut timeline = Timeline::new(session.scene.world.step_hz);
     let mut out = Box::<WorldSample>::default();
     loop {
