@@ -14,9 +14,11 @@
 //! How the acquisition process uses it, for `[source] kind = "devices"`:
 //!
 //! ```text
+//! // The settings were read and checked with the session (common::config::devices).
+//! let Source::Devices { glove, tracker } = &session.source else { ... };
 //! let epoch = monotonic_ns();                                  // one timeline for both
-//! let gc = settings::glove_config(file, "source.glove", table, dir, epoch)?;
-//! let tc = settings::tracker_config(file, "source.tracker", table, epoch)?;
+//! let gc = GloveConfig { epoch_ns: epoch, ..glove.clone() };
+//! let tc = TrackerConfig { epoch_ns: epoch, ..tracker.clone() };
 //! let readers = DeviceReaders::spawn(Some(Glove::open(gc)?), Some(Tracker::open(tc)?))?;
 //! while !shutdown::requested() {
 //!     match readers.recv_timeout(Duration::from_millis(50)) {
@@ -36,13 +38,13 @@ pub mod fastrak;
 mod link_loop;
 pub mod readers;
 pub mod serial;
-pub mod settings;
 
 pub use calibration::{Calibration, CalibrationError};
-pub use error::DeviceError;
 pub use cyberglove::{Glove, GloveConfig, GloveMode, GloveParser};
+pub use error::DeviceError;
 pub use fastrak::{FastrakParser, Format, Orientation, Tracker, TrackerConfig, TrackerMode, Units};
 pub use readers::{DeviceEvent, DeviceReaders, ReaderStats};
+pub use serial::LinkSettings;
 pub use serial::LinkStats;
 
 /// What one `read` call produced.
@@ -53,4 +55,28 @@ pub enum ReadOutcome {
     /// Nothing new within this call's time slice (the device is between samples, or the
     /// driver is waiting to retry a connection). Call again; the output was not touched.
     Pending,
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use common::config::session::Source;
+    use common::config::Session;
+
+    use super::{Glove, Tracker};
+
+    /// The example devices session, as session loading reads it, gives settings both drivers
+    /// take (its calibration file included).
+    #[test]
+    fn the_example_sessions_settings_make_drivers() {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../config/devices/emulated-session.toml");
+        let session = Session::load(&file).unwrap();
+        let Source::Devices { glove, tracker } = session.source else {
+            panic!("not a devices session: {:?}", session.source)
+        };
+        assert!(Glove::new(*glove).is_ok());
+        assert!(Tracker::new(*tracker).is_ok());
+    }
 }
