@@ -71,7 +71,7 @@ pub enum GloveEvent {
 /// real header hidden in the rejected bytes is still found.
 #[derive(Debug, Clone)]
 pub struct GloveParser {
-    bytes: RecordBytes<256>,
+    bytes: RecordBytes,
     sensors: usize,
     pub stats: LinkStats,
 }
@@ -80,7 +80,7 @@ impl GloveParser {
     /// A parser for a glove of `sensors` sensors (1..=22; the driver uses 18 or 22).
     pub fn new(sensors: usize) -> GloveParser {
         GloveParser {
-            bytes: RecordBytes::new(),
+            bytes: RecordBytes::new(256),
             sensors: sensors.clamp(1, MAX_GLOVE_SENSORS),
             stats: LinkStats::default(),
         }
@@ -270,7 +270,43 @@ impl Glove {
         self.upkeep.connected()
     }
 
-    /// Opens the port and runs the handshake; does not touch `self.upkeep`.
+    /// Waits up to the read slice for the next sample and writes it into `out` (angles in
+    /// radians, `sensor_count`, a fresh stamp). Never allocates on the sample path.
+    ///
+    /// `Err` reports a problem the driver is already handling (the link is being
+    /// re-established with backoff): log it and call `read` again.
+    pub fn read(&mut self, out: &mut GloveSample) -> Result<ReadOutcome, DeviceError> {
+        link_loop::read(self, out)
+    }
+}
+
+impl RecordBuffer for GloveParser {
+    fn window(&mut self) -> (&mut RecordBytes, &mut LinkStats) {
+        (&mut self.bytes, &mut self.stats)
+    }
+
+    fn stats(&self) -> &LinkStats {
+        &self.stats
+    }
+}
+
+impl Protocol for Glove {
+    type Sample = GloveSample;
+    type Buffer = GloveParser;
+    const DEVICE: &'static str = DEVICE;
+    const POLL_COMMAND: &'static [u8] = b"G";
+
+    fn poll_rate_hz(&self) -> Option<f64> {
+        match self.cfg.mode {
+            GloveMode::Streamed => None,
+            GloveMode::Polled { rate_hz } => Some(rate_hz),
+        }
+    }
+
+    fn link(&self) -> &LinkSettings {
+        &self.cfg.link
+    }
+
     fn connect(&mut self) -> Result<Link, DeviceError> {
         let mut link =
             link_loop::open_quiet(DEVICE, &self.cfg.link, &[STOP_STREAM], &mut self.parser)?;
@@ -343,55 +379,6 @@ impl Glove {
             link.write_all(b"S")?;
         }
         Ok(link)
-    }
-
-    /// Waits up to the read slice for the next sample and writes it into `out` (angles in
-    /// radians, `sensor_count`, a fresh stamp). Never allocates on the sample path.
-    ///
-    /// `Err` reports a problem the driver is already handling (the link is being
-    /// re-established with backoff): log it and call `read` again.
-    pub fn read(&mut self, out: &mut GloveSample) -> Result<ReadOutcome, DeviceError> {
-        link_loop::read(self, out)
-    }
-}
-
-impl RecordBuffer for GloveParser {
-    fn space(&mut self) -> &mut [u8] {
-        self.bytes.space(&mut self.stats.garbage_bytes)
-    }
-
-    fn commit(&mut self, n: usize) {
-        self.bytes.commit(n)
-    }
-
-    fn clear(&mut self) {
-        self.bytes.clear()
-    }
-
-    fn garbage_bytes(&self) -> u64 {
-        self.stats.garbage_bytes
-    }
-}
-
-impl Protocol for Glove {
-    type Sample = GloveSample;
-    type Buffer = GloveParser;
-    const DEVICE: &'static str = DEVICE;
-    const POLL_COMMAND: &'static [u8] = b"G";
-
-    fn poll_rate_hz(&self) -> Option<f64> {
-        match self.cfg.mode {
-            GloveMode::Streamed => None,
-            GloveMode::Polled { rate_hz } => Some(rate_hz),
-        }
-    }
-
-    fn link(&self) -> &LinkSettings {
-        &self.cfg.link
-    }
-
-    fn connect(&mut self) -> Result<Link, DeviceError> {
-        Glove::connect(self)
     }
 
     /// A record becomes calibrated angles with a fresh stamp; an `e` reply in between is kept

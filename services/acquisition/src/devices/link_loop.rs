@@ -20,30 +20,54 @@ const POLL_OVERDUE: Duration = Duration::from_millis(100);
 
 /// A parser's byte buffer, as the loop sees it: it reads into the free space and forgets the
 /// bytes of a lost link, and it compares garbage counts to tell a silent device from one that
-/// talks at the wrong baud rate.
+/// talks at the wrong baud rate. A parser gives its window and its counters; the rest is the
+/// same for every parser.
 pub(super) trait RecordBuffer {
+    /// The parser's byte window and its counters, at once.
+    fn window(&mut self) -> (&mut RecordBytes, &mut LinkStats);
+    fn stats(&self) -> &LinkStats;
+
     /// The free tail of the buffer, to read into; then [`RecordBuffer::commit`].
-    fn space(&mut self) -> &mut [u8];
-    fn commit(&mut self, n: usize);
+    fn space(&mut self) -> &mut [u8] {
+        let (bytes, stats) = self.window();
+        bytes.space(&mut stats.garbage_bytes)
+    }
+
+    fn commit(&mut self, n: usize) {
+        self.window().0.commit(n)
+    }
+
     /// Forgets buffered bytes: after a loss they are the remains of another connection.
-    fn clear(&mut self);
+    fn clear(&mut self) {
+        self.window().0.clear()
+    }
+
     /// Bytes skipped so far that made no record.
-    fn garbage_bytes(&self) -> u64;
+    fn garbage_bytes(&self) -> u64 {
+        self.stats().garbage_bytes
+    }
 }
+
+/// The largest window a parser uses (the FASTRAK's; the glove's records are shorter).
+pub(super) const MAX_WINDOW: usize = 1024;
 
 /// A parser's byte window: what was read from the link waits here until it makes a record.
 /// Fixed-size, so the sample path never allocates; a window that fills without a record (only
 /// noise does that) drops its older half, counted as garbage.
 #[derive(Debug, Clone)]
-pub(super) struct RecordBytes<const N: usize> {
-    buf: [u8; N],
+pub(super) struct RecordBytes {
+    buf: [u8; MAX_WINDOW],
+    /// How much of `buf` the parser uses: a few of its records' worth.
+    capacity: usize,
     len: usize,
 }
 
-impl<const N: usize> RecordBytes<N> {
-    pub fn new() -> RecordBytes<N> {
+impl RecordBytes {
+    /// A window of `capacity` bytes (at most [`MAX_WINDOW`]).
+    pub fn new(capacity: usize) -> RecordBytes {
         RecordBytes {
-            buf: [0; N],
+            buf: [0; MAX_WINDOW],
+            capacity: capacity.clamp(2, MAX_WINDOW),
             len: 0,
         }
     }
@@ -60,17 +84,17 @@ impl<const N: usize> RecordBytes<N> {
     /// The free tail, to read into; then [`RecordBytes::commit`]. A full window first drops
     /// its older half and adds it to `garbage`.
     pub fn space(&mut self, garbage: &mut u64) -> &mut [u8] {
-        if self.len == N {
-            let half = N / 2;
-            self.buf.copy_within(half.., 0);
+        if self.len == self.capacity {
+            let half = self.capacity / 2;
+            self.buf.copy_within(half..self.capacity, 0);
             self.len -= half;
             *garbage += half as u64;
         }
-        &mut self.buf[self.len..]
+        &mut self.buf[self.len..self.capacity]
     }
 
     pub fn commit(&mut self, n: usize) {
-        self.len = (self.len + n).min(N);
+        self.len = (self.len + n).min(self.capacity);
     }
 
     /// Appends what fits of `bytes` (for tests and emulators); returns how many did.

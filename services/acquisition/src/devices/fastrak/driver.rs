@@ -108,6 +108,33 @@ impl Tracker {
         self.upkeep.connected()
     }
 
+    /// Waits up to the read slice for the next record of the configured station and writes
+    /// the wrist pose (world frame, metres) into `out`. Never allocates on the sample path.
+    ///
+    /// `Err` reports a problem the driver is already handling (reconnecting with backoff): log
+    /// it and call `read` again.
+    pub fn read(&mut self, out: &mut TrackerSample) -> Result<ReadOutcome, DeviceError> {
+        link_loop::read(self, out)
+    }
+}
+
+impl Protocol for Tracker {
+    type Sample = TrackerSample;
+    type Buffer = FastrakParser;
+    const DEVICE: &'static str = DEVICE;
+    const POLL_COMMAND: &'static [u8] = b"P";
+
+    fn poll_rate_hz(&self) -> Option<f64> {
+        match self.cfg.mode {
+            TrackerMode::Continuous => None,
+            TrackerMode::Polled { rate_hz } => Some(rate_hz),
+        }
+    }
+
+    fn link(&self) -> &LinkSettings {
+        &self.cfg.link
+    }
+
     fn connect(&mut self) -> Result<Link, DeviceError> {
         let mut link = link_loop::open_quiet(DEVICE, &self.cfg.link, b"c", &mut self.parser)?;
         let mut cmd = [0u8; 32];
@@ -183,37 +210,6 @@ impl Tracker {
             }
             link_loop::receive_until(&mut link, &mut self.parser, deadline)?;
         }
-    }
-
-    /// Waits up to the read slice for the next record of the configured station and writes
-    /// the wrist pose (world frame, metres) into `out`. Never allocates on the sample path.
-    ///
-    /// `Err` reports a problem the driver is already handling (reconnecting with backoff): log
-    /// it and call `read` again.
-    pub fn read(&mut self, out: &mut TrackerSample) -> Result<ReadOutcome, DeviceError> {
-        link_loop::read(self, out)
-    }
-}
-
-impl Protocol for Tracker {
-    type Sample = TrackerSample;
-    type Buffer = FastrakParser;
-    const DEVICE: &'static str = DEVICE;
-    const POLL_COMMAND: &'static [u8] = b"P";
-
-    fn poll_rate_hz(&self) -> Option<f64> {
-        match self.cfg.mode {
-            TrackerMode::Continuous => None,
-            TrackerMode::Polled { rate_hz } => Some(rate_hz),
-        }
-    }
-
-    fn link(&self) -> &LinkSettings {
-        &self.cfg.link
-    }
-
-    fn connect(&mut self) -> Result<Link, DeviceError> {
-        Tracker::connect(self)
     }
 
     /// Only the configured station's records become samples; other stations' are counted and

@@ -30,7 +30,7 @@ pub struct FastrakParser {
     format: Format,
     items: [u8; MAX_ITEMS],
     item_count: usize,
-    bytes: RecordBytes<1024>,
+    bytes: RecordBytes,
     pub stats: LinkStats,
 }
 
@@ -70,7 +70,7 @@ impl FastrakParser {
             format,
             items: [0; MAX_ITEMS],
             item_count: items.len(),
-            bytes: RecordBytes::new(),
+            bytes: RecordBytes::new(1024),
             stats: LinkStats::default(),
         };
         p.items[..items.len()].copy_from_slice(items);
@@ -272,20 +272,12 @@ impl TrackerRecord {
 }
 
 impl RecordBuffer for FastrakParser {
-    fn space(&mut self) -> &mut [u8] {
-        self.bytes.space(&mut self.stats.garbage_bytes)
+    fn window(&mut self) -> (&mut RecordBytes, &mut LinkStats) {
+        (&mut self.bytes, &mut self.stats)
     }
 
-    fn commit(&mut self, n: usize) {
-        self.bytes.commit(n)
-    }
-
-    fn clear(&mut self) {
-        self.bytes.clear()
-    }
-
-    fn garbage_bytes(&self) -> u64 {
-        self.stats.garbage_bytes
+    fn stats(&self) -> &LinkStats {
+        &self.stats
     }
 }
 
