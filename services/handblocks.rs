@@ -488,31 +488,6 @@ fn launch(args: LaunchArgs) -> ExitCode {
         });
         eprintln!("handblocks: launching {} {until}", opts.session.display());
     }
-    // A replay's trace must be readable: say so now, naming the key, not from a child.
-    if let common::config::session::Source::Replay { file, .. } = &s.source {
-        if let Err(e) = std::fs::File::open(file) {
-            eprintln!(
-                "handblocks: {}: [source] file = {}: cannot read it: {e} (a recording of ours, \
-                 .mcap, or a CARL trace; relative paths start at the session file's folder; \
-                 README.md, \"CARL traces\", says where to get them)",
-                s.file.display(),
-                file.display()
-            );
-            return ExitCode::from(2);
-        }
-    }
-    // The device settings are the drivers' to read: check them here, before any process starts.
-    if let common::config::session::Source::Devices {
-        glove,
-        tracker,
-        dir,
-    } = &s.source
-    {
-        if let Err(e) = acquisition::service::device_configs(&s, glove, tracker, dir, 0) {
-            eprintln!("handblocks: {e}");
-            return ExitCode::from(2);
-        }
-    }
     match launcher::launch(&opts) {
         Ok(outcome) => {
             if let Some(world) = &outcome.world {

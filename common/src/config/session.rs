@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::devices::{self, GloveConfig, TrackerConfig};
 use super::hand::HandModelSpec;
 use super::reader::{parse_file, Reader};
 use super::scene::{HandKey, HandPoseSpec, HandScript, Scene};
@@ -28,13 +29,12 @@ pub struct Session {
 pub enum Source {
     /// The scene's `[hand]` keyframes, sampled at `rate_hz`.
     Scripted { rate_hz: f64 },
-    /// A CyberGlove and a FASTRAK on serial ports. The tables are the device drivers' own
-    /// settings (acquisition::devices::settings reads and checks them; this crate cannot know
-    /// the drivers), kept as written, with the folder relative paths are resolved against.
+    /// A CyberGlove and a FASTRAK on serial ports, with their settings read and checked at
+    /// load ([`super::devices`]), so a wrong key fails the session before anything starts.
+    /// Boxed: the settings are large beside the other sources' few numbers.
     Devices {
-        glove: toml::Table,
-        tracker: toml::Table,
-        dir: PathBuf,
+        glove: Box<GloveConfig>,
+        tracker: Box<TrackerConfig>,
     },
     /// A recorded hand (one of our MCAP recordings or a CARL trace); `speed` 0 = as fast as the pipeline consumes;
     /// `offset` moves the recorded hand, metres (real traces hold it ~1 m above the floor).
@@ -335,9 +335,9 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<Source, ConfigError> {
     };
     let s = match r.choice("kind", &["scripted", "devices", "replay"])? {
         "devices" => {
-            let table = |key: &'static str| -> Result<toml::Table, ConfigError> {
+            let table = |key: &'static str| -> Result<&toml::Table, ConfigError> {
                 match r.raw(key) {
-                    Some(toml::Value::Table(t)) => Ok(t.clone()),
+                    Some(toml::Value::Table(t)) => Ok(t),
                     Some(v) => Err(r.err(key, format!("expected a table, found {}", v.type_str()))),
                     None => Err(r.err(
                         key,
@@ -345,10 +345,22 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<Source, ConfigError> {
                     )),
                 }
             };
+            // Both devices share one timeline; acquisition sets its own epoch when it starts.
+            let epoch_ns = crate::monotonic_ns();
             Source::Devices {
-                glove: table("glove")?,
-                tracker: table("tracker")?,
-                dir: dir.to_path_buf(),
+                glove: Box::new(devices::glove_config(
+                    r.file,
+                    &r.key("glove"),
+                    table("glove")?,
+                    dir,
+                    epoch_ns,
+                )?),
+                tracker: Box::new(devices::tracker_config(
+                    r.file,
+                    &r.key("tracker"),
+                    table("tracker")?,
+                    epoch_ns,
+                )?),
             }
         }
         "replay" => {

@@ -1,7 +1,6 @@
 //! The acquisition process: samples the source at its rate and publishes `glove` and
 //! `tracker`, stamping each pair with one origin (the moment it entered the pipeline).
 
-use std::path::Path;
 use std::time::Duration;
 
 use common::bus::Bus;
@@ -11,20 +10,14 @@ use common::latency::Reporter;
 use common::stamp::sleep_until_ns;
 use common::{monotonic_ns, shutdown, topics, Stage, Stamp};
 
-use crate::devices::{
-    settings, DeviceEvent, DeviceReaders, Glove, GloveConfig, Tracker, TrackerConfig,
-};
+use crate::devices::{DeviceEvent, DeviceReaders, Glove, GloveConfig, Tracker, TrackerConfig};
 use crate::scripted::{source_time_ns, ScriptedHand};
 
 /// Runs until asked to stop.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
     match &session.source {
         Source::Scripted { rate_hz } => run_scripted(session, bus, *rate_hz),
-        Source::Devices {
-            glove,
-            tracker,
-            dir,
-        } => run_devices(session, bus, glove, tracker, dir),
+        Source::Devices { glove, tracker } => run_devices(bus, glove, tracker),
         other => Err(format!(
             "{}: source kind \"{}\" is not run by the acquisition process",
             session.file.display(),
@@ -34,33 +27,25 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     }
 }
 
-/// The device drivers' settings from a session's `[source.glove]` and `[source.tracker]`,
-/// checked; errors name the session file and the key. Both devices share one timeline
-/// starting at `epoch_ns`.
-pub fn device_configs(
-    session: &Session,
-    glove: &toml::Table,
-    tracker: &toml::Table,
-    dir: &Path,
-    epoch_ns: u64,
-) -> Result<(GloveConfig, TrackerConfig), common::config::ConfigError> {
-    Ok((
-        settings::glove_config(&session.file, "source.glove", glove, dir, epoch_ns)?,
-        settings::tracker_config(&session.file, "source.tracker", tracker, epoch_ns)?,
-    ))
-}
-
 /// A CyberGlove and a FASTRAK: each driver reads on its own thread; this loop stamps and
 /// publishes what they deliver and reports device errors without stopping (the drivers
 /// reconnect by themselves).
 fn run_devices(
-    session: &Session,
     bus: &Bus,
-    glove: &toml::Table,
-    tracker: &toml::Table,
-    dir: &Path,
+    glove: &GloveConfig,
+    tracker: &TrackerConfig,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let (gc, tc) = device_configs(session, glove, tracker, dir, monotonic_ns())?;
+    // The session read and checked the settings when it loaded; both devices share one
+    // timeline, starting now.
+    let epoch_ns = monotonic_ns();
+    let gc = GloveConfig {
+        epoch_ns,
+        ..glove.clone()
+    };
+    let tc = TrackerConfig {
+        epoch_ns,
+        ..tracker.clone()
+    };
     let mut glove_out = bus.outlet::<topics::Glove>()?;
     let mut tracker_out = bus.outlet::<topics::Tracker>()?;
     let mut reporter = Reporter::new(Stage::Acquisition, bus.outlet::<topics::Latency>()?);

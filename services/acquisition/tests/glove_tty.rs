@@ -18,8 +18,8 @@ fn config(port: &std::path::Path) -> GloveConfig {
     let mut cfg = GloveConfig::new(port);
     // Generous: a loaded test machine must not make a healthy stream look silent. Tests of
     // silence shorten it.
-    cfg.silence_timeout = Duration::from_millis(1500);
-    cfg.backoff = acquisition::devices::serial::Backoff::new(
+    cfg.link.silence_timeout = Duration::from_millis(1500);
+    cfg.link.backoff = acquisition::devices::serial::Backoff::new(
         Duration::from_millis(50),
         Duration::from_millis(200),
     );
@@ -147,7 +147,7 @@ fn a_glove_that_goes_silent_is_reported_and_reconnected() {
     b.faults = vec![(20, Fault::Silence(Duration::from_millis(600)))];
     let emu = glove::spawn(b).unwrap();
     let mut cfg = config(emu.path());
-    cfg.silence_timeout = Duration::from_millis(250);
+    cfg.link.silence_timeout = Duration::from_millis(250);
     let mut g = Glove::open(cfg).unwrap();
     let (first, errors) = collect(&mut g, 20, Duration::from_secs(5));
     assert_eq!(first.len(), 20);
@@ -216,7 +216,7 @@ fn a_glove_whose_records_do_not_match_its_answer_is_reported_silent() {
     b.reported_sensors = 22;
     let emu = glove::spawn(b).unwrap();
     let mut cfg = config(emu.path());
-    cfg.silence_timeout = Duration::from_millis(250);
+    cfg.link.silence_timeout = Duration::from_millis(250);
     let mut g = Glove::open(cfg).unwrap();
     let (samples, errors) = collect(&mut g, 1, Duration::from_secs(1));
     assert!(samples.is_empty());
@@ -232,7 +232,7 @@ fn a_port_with_no_glove_on_it_says_so() {
     // A FASTRAK where the glove should be: nothing answers `?S`.
     let emu = tracker::spawn(Default::default()).unwrap();
     let mut cfg = config(emu.path());
-    cfg.answer_timeout = Duration::from_millis(200);
+    cfg.link.answer_timeout = Duration::from_millis(200);
     let Err(e) = Glove::open(cfg) else {
         panic!("a tracker answered as a glove")
     };
@@ -267,7 +267,7 @@ fn a_glove_detached_from_its_interface_unit_is_named_as_such() {
     let emu = glove::spawn(b).unwrap();
     let mut cfg = config(emu.path());
     cfg.mode = GloveMode::Polled { rate_hz: 100.0 };
-    cfg.silence_timeout = Duration::from_millis(250);
+    cfg.link.silence_timeout = Duration::from_millis(250);
     let mut g = Glove::open(cfg).unwrap();
     let (samples, errors) = collect(&mut g, 1, Duration::from_millis(500));
     assert!(samples.is_empty());

@@ -38,7 +38,7 @@ fn glove_reads_allocate_nothing() {
         let emu = glove::spawn(GloveBehaviour::new(22)).unwrap();
         let mut cfg = GloveConfig::new(emu.path());
         cfg.mode = mode;
-        cfg.silence_timeout = Duration::from_secs(2);
+        cfg.link.silence_timeout = Duration::from_secs(2);
         let mut g = Glove::open(cfg).unwrap();
         let mut s = GloveSample::default();
         let mut read = |s: &mut GloveSample| match g.read(s) {
@@ -74,7 +74,7 @@ fn tracker_reads_allocate_nothing() {
         cfg.orientation = orientation;
         cfg.mode = mode;
         cfg.units = Units::Inches;
-        cfg.silence_timeout = Duration::from_secs(2);
+        cfg.link.silence_timeout = Duration::from_secs(2);
         let mut t = Tracker::open(cfg).unwrap();
         let mut s = TrackerSample::default();
         let mut read = |s: &mut TrackerSample| match t.read(s) {

@@ -44,8 +44,8 @@ fn a_devices_session_survives_an_unplugged_glove_and_a_silent_tracker() {
     gc.calibration = Some(
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/devices/glove-22.cal"),
     );
-    gc.silence_timeout = Duration::from_millis(300);
-    gc.backoff = backoff();
+    gc.link.silence_timeout = Duration::from_millis(300);
+    gc.link.backoff = backoff();
     gc.epoch_ns = epoch;
     let mut tc = TrackerConfig::new(tracker_emu.path());
     tc.format = Format::Binary;
@@ -54,8 +54,8 @@ fn a_devices_session_survives_an_unplugged_glove_and_a_silent_tracker() {
         position: [0.0, 1.2, 0.0],
         rotation: [0.0, 0.0, 0.0, 1.0],
     };
-    tc.silence_timeout = Duration::from_millis(300);
-    tc.backoff = backoff();
+    tc.link.silence_timeout = Duration::from_millis(300);
+    tc.link.backoff = backoff();
     tc.epoch_ns = epoch;
 
     // As the acquisition process runs them: each driver on its own reader thread, one

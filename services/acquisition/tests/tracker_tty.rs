@@ -16,8 +16,8 @@ fn config(port: &std::path::Path) -> TrackerConfig {
     let mut cfg = TrackerConfig::new(port);
     // Generous: a loaded test machine must not make a healthy stream look silent. Tests of
     // silence shorten it.
-    cfg.silence_timeout = Duration::from_millis(1500);
-    cfg.backoff = Backoff::new(Duration::from_millis(50), Duration::from_millis(200));
+    cfg.link.silence_timeout = Duration::from_millis(1500);
+    cfg.link.backoff = Backoff::new(Duration::from_millis(50), Duration::from_millis(200));
     cfg
 }
 
@@ -146,7 +146,7 @@ fn a_missing_station_names_the_ones_that_report() {
     let emu = tracker::spawn(b).unwrap();
     let mut cfg = config(emu.path());
     cfg.station = 3;
-    cfg.answer_timeout = Duration::from_millis(200);
+    cfg.link.answer_timeout = Duration::from_millis(200);
     let Err(e) = Tracker::open(cfg) else {
         panic!("opened a station with no receiver")
     };
@@ -186,9 +186,9 @@ fn a_tracker_that_goes_silent_is_reported_and_reconnected() {
     b.faults = vec![(20, Fault::Silence(Duration::from_millis(600)))];
     let emu = tracker::spawn(b).unwrap();
     let mut cfg = config(emu.path());
-    cfg.silence_timeout = Duration::from_millis(250);
+    cfg.link.silence_timeout = Duration::from_millis(250);
     // Shorter than the silence, so the first reconnection attempt meets a mute tracker.
-    cfg.answer_timeout = Duration::from_millis(200);
+    cfg.link.answer_timeout = Duration::from_millis(200);
     let mut t = Tracker::open(cfg).unwrap();
     let (first, _) = collect(&mut t, 15, Duration::from_secs(5));
     assert_eq!(first.len(), 15);

@@ -12,13 +12,15 @@
 //!    and is released and reaped once the launcher has read that report;
 //! 7. remove the session's iceoryx2 resources, print the table, write the JSON report.
 
+mod error;
 pub mod placement;
 mod process;
 pub mod report;
 
 use std::collections::BTreeMap;
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
 
 use common::bus::{Bus, BusConfig, Inlet, Services};
 use common::config::session::{Override, RenderMode, Source};
@@ -28,6 +30,8 @@ use common::{shutdown, topics, Stage, Topic};
 
 use crate::placement::Placement;
 
+use error::describe_exit;
+pub use error::LaunchError;
 use process::ServiceProcess;
 use report::{Report, StageReport};
 
@@ -74,44 +78,49 @@ pub fn default_preview_path(session: &Path) -> PathBuf {
 }
 
 /// Loads the session as `launch` will run it: with the `--set` overrides and `--record`.
+///
+/// Loading checks every key, the device settings of a devices session included; a replay's
+/// trace must also be readable, which is said here, naming the key, rather than by a child
+/// process after the others have started.
 pub fn load_session(opts: &LaunchOptions) -> Result<Session, LaunchError> {
-    let mut session = Session::load_with(&opts.session, &opts.overrides).map_err(err)?;
+    let mut session = Session::load_with(&opts.session, &opts.overrides)?;
     if let Some(file) = &opts.record {
         session.recorder.file = Some(std::path::absolute(file).unwrap_or_else(|_| file.clone()));
+    }
+    if let Source::Replay { file, .. } = &session.source {
+        if let Err(reason) = std::fs::File::open(file) {
+            return Err(LaunchError::TraceUnreadable {
+                session: session.file.clone(),
+                trace: file.clone(),
+                reason,
+            });
+        }
     }
     Ok(session)
 }
 
 /// What can be known wrong before any process starts, each naming the option, file or key.
 pub fn preflight(opts: &LaunchOptions, session: &Session) -> Result<(), LaunchError> {
-    let file = session.file.display();
     if session.renderer.mode == RenderMode::Window
         && std::env::var_os("DISPLAY").is_none_or(|d| d.is_empty())
         && std::env::var_os("WAYLAND_DISPLAY").is_none_or(|d| d.is_empty())
     {
-        return Err(err(format!(
-            "{file}: `renderer.mode`: \"window\" needs a display, and neither $DISPLAY nor \
-             $WAYLAND_DISPLAY is set; run it on a desktop, or without a window: \
-             --set renderer.mode=headless (frames and an animated preview, no display needed)"
-        )));
+        return Err(LaunchError::NoDisplay {
+            session: session.file.clone(),
+        });
     }
     if opts.frames_dir.is_some() && session.renderer.mode == RenderMode::Off {
-        return Err(err(format!(
-            "--frames-dir: this session draws no frames ({file}: [renderer] mode = \"off\"); \
-             add --set renderer.mode=headless, or drop --frames-dir"
-        )));
+        return Err(LaunchError::NoFramesToWrite {
+            session: session.file.clone(),
+        });
     }
     if let Some(rec) = &session.recorder.file {
         if rec.exists() && !opts.force {
-            let from = if opts.record.is_some() {
-                "--record".to_string()
-            } else {
-                format!("{file}: `recorder.file`")
-            };
-            return Err(err(format!(
-                "{from}: {} exists; pass --force to overwrite it, or record to another file",
-                rec.display()
-            )));
+            return Err(LaunchError::RecordingExists {
+                session: session.file.clone(),
+                file: rec.clone(),
+                from_option: opts.record.is_some(),
+            });
         }
         check_writable("the recording", rec)?;
     }
@@ -126,20 +135,19 @@ pub fn preflight(opts: &LaunchOptions, session: &Session) -> Result<(), LaunchEr
 
 /// `path` can be written: its folder exists or can be made, and it is not a folder. Nothing is
 /// left behind that was not there.
-fn check_writable(what: &str, path: &Path) -> Result<(), LaunchError> {
+fn check_writable(what: &'static str, path: &Path) -> Result<(), LaunchError> {
     if path.is_dir() {
-        return Err(err(format!(
-            "{what}: {} is a folder; give a file name",
-            path.display()
-        )));
+        return Err(LaunchError::OutputIsFolder {
+            what,
+            path: path.to_path_buf(),
+        });
     }
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| {
-            err(format!(
-                "{what}: cannot create the folder {} for {}: {e}",
-                dir.display(),
-                path.display()
-            ))
+        std::fs::create_dir_all(dir).map_err(|reason| LaunchError::OutputFolder {
+            what,
+            dir: dir.to_path_buf(),
+            path: path.to_path_buf(),
+            reason,
         })?;
     }
     let existed = path.exists();
@@ -147,7 +155,11 @@ fn check_writable(what: &str, path: &Path) -> Result<(), LaunchError> {
         .append(true)
         .create(true)
         .open(path)
-        .map_err(|e| err(format!("{what}: cannot write {}: {e}", path.display())))?;
+        .map_err(|reason| LaunchError::OutputUnwritable {
+            what,
+            path: path.to_path_buf(),
+            reason,
+        })?;
     if !existed {
         let _ = std::fs::remove_file(path);
     }
@@ -162,22 +174,6 @@ pub struct LaunchOutcome {
     pub world: Option<String>,
     /// The animated preview, when one was written.
     pub preview: Option<PathBuf>,
-}
-
-/// Why a launch could not run (as opposed to running and violating the budget).
-#[derive(Debug)]
-pub struct LaunchError(pub String);
-
-impl std::fmt::Display for LaunchError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for LaunchError {}
-
-fn err(e: impl std::fmt::Display) -> LaunchError {
-    LaunchError(e.to_string())
 }
 
 /// The readers of a session, in the order they stop (after the source): pipeline order.
@@ -209,32 +205,27 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     let session = load_session(opts)?;
     preflight(opts, &session)?;
     let id = opts.bus_id.clone().unwrap_or_else(BusConfig::fresh_id);
-    let bus_config = BusConfig::for_session(&id).map_err(err)?;
+    let bus_config = BusConfig::for_session(&id)?;
     shutdown::install_signal_handlers();
     for stale in BusConfig::sweep_abandoned() {
         eprintln!("handblocks: removed the shared memory of abandoned session {stale}");
     }
     if bus_config.has_live_processes() {
-        return Err(err(format!(
-            "--bus-id {id}: that bus id is already in use by a running session (its processes \
-             are alive); give another id, or none for a fresh one"
-        )));
+        return Err(LaunchError::BusIdInUse { id });
     }
     if !bus_config.leftover_shm_files().is_empty() || bus_config.root.exists() {
         // Left by a session whose processes are all gone.
-        bus_config.remove_resources().map_err(|e| {
-            err(format!(
-                "--bus-id {id}: files of an earlier session with that id are left ({}) and \
-                 cannot be removed: {e}",
-                bus_config.prefix
-            ))
-        })?;
+        bus_config
+            .remove_resources()
+            .map_err(|reason| LaunchError::LeftoverFiles {
+                id: id.clone(),
+                prefix: bus_config.prefix.clone(),
+                reason,
+            })?;
     }
-    std::fs::create_dir_all(&bus_config.root).map_err(|e| {
-        err(format!(
-            "cannot create the session's folder {}: {e}",
-            bus_config.root.display()
-        ))
+    std::fs::create_dir_all(&bus_config.root).map_err(|reason| LaunchError::SessionFolder {
+        root: bus_config.root.clone(),
+        reason,
     })?;
 
     let result = run_session(opts, &session, &bus_config);
@@ -246,11 +237,9 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     // Every process is reaped and every port dropped by now: the files are ours to remove.
     let cleanup = bus_config.remove_resources();
     let mut report = result?;
-    cleanup.map_err(|e| {
-        err(format!(
-            "cannot remove the session's iceoryx2 files ({}): {e}",
-            bus_config.prefix
-        ))
+    cleanup.map_err(|reason| LaunchError::Cleanup {
+        prefix: bus_config.prefix.clone(),
+        reason,
     })?;
     report.meta.world = world_json;
     let preview = opts.preview.clone().filter(|p| {
@@ -264,36 +253,19 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     })
 }
 
+/// Steps 2 to 6 of the launch (the module docs), on a bus that `launch` prepared and cleans up;
+/// returns the report of step 7 for `launch` to complete.
 fn run_session(
     opts: &LaunchOptions,
     session: &Session,
     bus_config: &BusConfig,
 ) -> Result<Report, LaunchError> {
-    let bus = Bus::open(bus_config, "launcher").map_err(err)?;
-    let services = bus.create_services().map_err(err)?;
-    let latency = bus.inlet::<topics::Latency>().map_err(err)?;
-    let session_file = std::path::absolute(&opts.session).unwrap_or_else(|_| opts.session.clone());
-
-    let started_at = std::time::SystemTime::now();
-    let absolute = |p: &PathBuf| std::path::absolute(p).unwrap_or_else(|_| p.clone());
-    let mut renderer_args: Vec<std::ffi::OsString> = Vec::new();
-    if let Some(dir) = &opts.frames_dir {
-        renderer_args.extend(["--frames-dir".into(), absolute(dir).into()]);
-    }
-    if let Some(preview) = &opts.preview {
-        renderer_args.extend(["--preview".into(), absolute(preview).into()]);
-    }
-    let recorder_args: Vec<std::ffi::OsString> = match &session.recorder.file {
-        Some(file) if opts.record.is_some() => vec!["--record".into(), file.into()],
-        _ => Vec::new(),
-    };
-    let stepper_args: Vec<std::ffi::OsString> =
-        vec!["--outcome-dir".into(), bus_config.root.clone().into()];
-    let overrides: Vec<std::ffi::OsString> = opts
-        .overrides
-        .iter()
-        .flat_map(|o| ["--set".into(), format!("{}={}", o.key, o.value).into()])
-        .collect();
+    let started_at = SystemTime::now();
+    // 2. The services, and the launcher's own inlet of every stage's latency reports.
+    let bus = Bus::open(bus_config, "launcher")?;
+    let services = bus.create_services()?;
+    let latency = bus.inlet::<topics::Latency>()?;
+    let starter = Starter::new(opts, session, bus_config);
     let mut placement = Placement::for_session(
         session.renderer.mode != RenderMode::Off,
         session.renderer.own_cpus,
@@ -303,145 +275,26 @@ fn run_session(
             eprintln!("handblocks: {line}");
         }
     }
-    // Without a desktop session, the Vulkan loader's Wayland support prints "XDG_RUNTIME_DIR is
-    // invalid" on every launch of a headless renderer. The session's own root (private, removed
-    // at the end, no Wayland socket in it) quiets it without touching the user's environment.
-    let renderer_env: Vec<(&str, &std::ffi::OsStr)> = if session.renderer.mode
-        == RenderMode::Headless
-        && std::env::var_os("XDG_RUNTIME_DIR").is_none()
-    {
-        vec![("XDG_RUNTIME_DIR", bus_config.root.as_os_str())]
-    } else {
-        Vec::new()
+    // 3. and 4.
+    let (mut procs, renderer_skipped) =
+        start_readers(&starter, session, &services, &mut placement)?;
+    let source = start_source(&starter, session, &services, &placement, &mut procs)?;
+    let mut supervision = Supervision {
+        latency: &latency,
+        reports: BTreeMap::new(),
+        failures: Vec::new(),
     };
-    let start = |stage, placement: &Placement| {
-        let mut extra: Vec<std::ffi::OsString> = overrides.clone();
-        extra.extend_from_slice(match stage {
-            Stage::Renderer => &renderer_args,
-            Stage::Recorder => &recorder_args,
-            Stage::Stepper => &stepper_args,
-            _ => &[],
-        });
-        ServiceProcess::start(
-            &opts.exe,
-            stage,
-            &session_file,
-            &bus_config.id,
-            &extra,
-            placement.cpus_of(stage),
-            if stage == Stage::Renderer {
-                &renderer_env
-            } else {
-                &[]
-            },
-        )
-        .map_err(|e| {
-            err(format!(
-                "cannot start the {} process ({}): {e}",
-                stage.name(),
-                opts.exe.display()
-            ))
-        })
-    };
-    let mut reader_stages = readers(session);
-    let mut procs: Vec<ServiceProcess> = Vec::new();
-    for stage in reader_stages.iter().rev() {
-        procs.push(start(*stage, &placement)?);
-    }
-    let mut reports: BTreeMap<Stage, StageReport> = BTreeMap::new();
-    let mut failures = Vec::new();
-
-    let renderer_skipped = wait_until_connected(&services, &mut reader_stages, &mut procs)?;
-    if let Some(line) = &renderer_skipped {
-        eprintln!("handblocks: {line}");
-        // The pipeline was placed apart from a renderer that is not there: give it every CPU.
-        if placement.describe().is_some() {
-            placement = Placement::shared();
-            for p in procs.iter_mut() {
-                p.unpin();
-            }
-        }
-    }
-    let source = match session.source {
-        Source::Replay { .. } => Stage::Replay,
-        _ => Stage::Acquisition,
-    };
-    procs.push(start(source, &placement)?);
-    // Pipeline order: source first, recorder last.
-    procs.reverse();
-    // The session's time starts when the source is attached, however long it took to start.
-    wait_for_source(&services, source, &mut procs)?;
-
-    // Run.
-    let started = Instant::now();
-    let mut next_progress = Duration::from_secs(1);
-    loop {
-        std::thread::sleep(Duration::from_millis(20));
-        collect(&latency, &mut reports);
-        if shutdown::requested() || opts.duration.is_some_and(|d| started.elapsed() >= d) {
-            break;
-        }
-        // A replay that played its whole trace has sent its final report: the session ends,
-        // as `ros2 bag play` does.
-        if has_final(&reports, source) {
-            if opts.progress {
-                eprintln!(
-                    "handblocks: the trace ended after {:.1} s; stopping",
-                    started.elapsed().as_secs_f64()
-                );
-            }
-            break;
-        }
-        if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
-            failures.push(format!(
-                "the {} process exited during the session ({})",
-                p.stage.name(),
-                describe(p.exit)
-            ));
-            break;
-        }
-        if opts.progress && started.elapsed() >= next_progress {
-            next_progress += Duration::from_secs(1);
-            eprintln!("{}", progress_line(started.elapsed(), &reports));
-        }
-    }
-
-    let ran_for = started.elapsed();
-    // Stop in pipeline order; each stage drains what the one before it sent.
-    for p in procs.iter_mut() {
-        p.request_stop();
-        let deadline = Instant::now() + FINAL_REPORT_TIMEOUT;
-        while !reports.get(&p.stage).is_some_and(|r| r.final_report) {
-            collect(&latency, &mut reports);
-            if Instant::now() > deadline
-                || (p.poll_exit().is_some() && !has_final(&reports, p.stage))
-            {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(1));
-        }
-        collect(&latency, &mut reports);
-        let status = p.release_and_reap(Duration::from_secs(5));
-        if !has_final(&reports, p.stage) {
-            failures.push(format!(
-                "the {} process sent no final report ({})",
-                p.stage.name(),
-                describe(status)
-            ));
-        } else if !status.is_some_and(|s| s.success())
-            && !failures.iter().any(|f| f.contains(p.stage.name()))
-        {
-            failures.push(format!(
-                "the {} process failed ({})",
-                p.stage.name(),
-                describe(status)
-            ));
-        }
-    }
+    // 5. and 6.
+    let ran_for = supervision.run(opts, source, &mut procs);
+    supervision.stop_in_order(&mut procs);
+    let Supervision {
+        reports, failures, ..
+    } = supervision;
     drop(procs);
     drop(latency);
     drop(services);
     drop(bus);
+    // 7. (the report; `launch` removes the resources).
     let facts = report::SessionFacts {
         seconds: ran_for.as_secs_f64(),
         source,
@@ -454,7 +307,7 @@ fn run_session(
         &facts,
     );
     report.meta = report::Meta {
-        session_file: session_file.display().to_string(),
+        session_file: starter.session_file.display().to_string(),
         scene_file: std::fs::canonicalize(&session.scene_file)
             .unwrap_or_else(|_| session.scene_file.clone())
             .display()
@@ -471,15 +324,235 @@ fn run_session(
     Ok(report)
 }
 
-fn has_final(reports: &BTreeMap<Stage, StageReport>, stage: Stage) -> bool {
-    reports.get(&stage).is_some_and(|r| r.final_report)
+/// How this session's service processes are started: each is `handblocks service NAME` on the
+/// session file and bus, with the `--set` overrides every process gets and its stage's own
+/// arguments.
+struct Starter<'a> {
+    exe: &'a Path,
+    /// Absolute, so a process started elsewhere reads the same file.
+    session_file: PathBuf,
+    bus_id: &'a str,
+    overrides: Vec<OsString>,
+    renderer_args: Vec<OsString>,
+    recorder_args: Vec<OsString>,
+    stepper_args: Vec<OsString>,
+    renderer_env: Vec<(&'static str, OsString)>,
 }
 
-fn describe(status: Option<std::process::ExitStatus>) -> String {
-    match status {
-        Some(s) => s.to_string(),
-        None => "still running; killed".into(),
+impl<'a> Starter<'a> {
+    fn new(opts: &'a LaunchOptions, session: &Session, bus_config: &'a BusConfig) -> Starter<'a> {
+        let absolute = |p: &PathBuf| std::path::absolute(p).unwrap_or_else(|_| p.clone());
+        let mut renderer_args: Vec<OsString> = Vec::new();
+        if let Some(dir) = &opts.frames_dir {
+            renderer_args.extend(["--frames-dir".into(), absolute(dir).into()]);
+        }
+        if let Some(preview) = &opts.preview {
+            renderer_args.extend(["--preview".into(), absolute(preview).into()]);
+        }
+        let recorder_args: Vec<OsString> = match &session.recorder.file {
+            Some(file) if opts.record.is_some() => vec!["--record".into(), file.into()],
+            _ => Vec::new(),
+        };
+        // Without a desktop session, the Vulkan loader's Wayland support prints
+        // "XDG_RUNTIME_DIR is invalid" on every launch of a headless renderer. The session's
+        // own root (private, removed at the end, no Wayland socket in it) quiets it without
+        // touching the user's environment.
+        let renderer_env = if session.renderer.mode == RenderMode::Headless
+            && std::env::var_os("XDG_RUNTIME_DIR").is_none()
+        {
+            vec![("XDG_RUNTIME_DIR", bus_config.root.clone().into_os_string())]
+        } else {
+            Vec::new()
+        };
+        Starter {
+            exe: &opts.exe,
+            session_file: absolute(&opts.session),
+            bus_id: &bus_config.id,
+            overrides: opts
+                .overrides
+                .iter()
+                .flat_map(|o| ["--set".into(), format!("{}={}", o.key, o.value).into()])
+                .collect(),
+            renderer_args,
+            recorder_args,
+            stepper_args: vec!["--outcome-dir".into(), bus_config.root.clone().into()],
+            renderer_env,
+        }
     }
+
+    /// Starts `stage`'s process on the CPUs `placement` gives it.
+    fn start(&self, stage: Stage, placement: &Placement) -> Result<ServiceProcess, LaunchError> {
+        let mut extra = self.overrides.clone();
+        extra.extend_from_slice(match stage {
+            Stage::Renderer => &self.renderer_args,
+            Stage::Recorder => &self.recorder_args,
+            Stage::Stepper => &self.stepper_args,
+            _ => &[],
+        });
+        let env: Vec<(&str, &std::ffi::OsStr)> = if stage == Stage::Renderer {
+            self.renderer_env
+                .iter()
+                .map(|(k, v)| (*k, v.as_os_str()))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        ServiceProcess::start(
+            self.exe,
+            stage,
+            &self.session_file,
+            self.bus_id,
+            &extra,
+            placement.cpus_of(stage),
+            &env,
+        )
+        .map_err(|reason| LaunchError::Spawn {
+            stage,
+            exe: self.exe.to_path_buf(),
+            reason,
+        })
+    }
+}
+
+/// Step 3: starts the readers, the last in the pipeline first, and waits until every one is
+/// attached. Returns their processes (recorder first) and, when the renderer found no GPU
+/// adapter, the line that says it was skipped; the pipeline then gets every CPU.
+fn start_readers(
+    starter: &Starter,
+    session: &Session,
+    services: &Services,
+    placement: &mut Placement,
+) -> Result<(Vec<ServiceProcess>, Option<String>), LaunchError> {
+    let mut stages = readers(session);
+    let mut procs: Vec<ServiceProcess> = Vec::new();
+    for stage in stages.iter().rev() {
+        procs.push(starter.start(*stage, placement)?);
+    }
+    let renderer_skipped = wait_until_connected(services, &mut stages, &mut procs)?;
+    if let Some(line) = &renderer_skipped {
+        eprintln!("handblocks: {line}");
+        // The pipeline was placed apart from a renderer that is not there: give it every CPU.
+        if placement.describe().is_some() {
+            *placement = Placement::shared();
+            for p in procs.iter_mut() {
+                p.unpin();
+            }
+        }
+    }
+    Ok((procs, renderer_skipped))
+}
+
+/// Step 4: starts the source last, so no sample is lost at start-up, and waits until it is
+/// attached (the session's time starts then, however long it took to start). `procs` ends in
+/// pipeline order: source first, recorder last.
+fn start_source(
+    starter: &Starter,
+    session: &Session,
+    services: &Services,
+    placement: &Placement,
+    procs: &mut Vec<ServiceProcess>,
+) -> Result<Stage, LaunchError> {
+    let source = match session.source {
+        Source::Replay { .. } => Stage::Replay,
+        _ => Stage::Acquisition,
+    };
+    procs.push(starter.start(source, placement)?);
+    procs.reverse();
+    wait_for_source(services, source, procs)?;
+    Ok(source)
+}
+
+/// What the launcher gathers while the session runs and stops: every stage's newest latency
+/// report, and what went wrong with the processes.
+struct Supervision<'a> {
+    latency: &'a Inlet<topics::Latency>,
+    reports: BTreeMap<Stage, StageReport>,
+    failures: Vec<String>,
+}
+
+impl Supervision<'_> {
+    /// Step 5: runs for `--duration`, until Ctrl-C / SIGTERM, until a replay's trace ends, or
+    /// until a process exits (a failure), printing progress; returns how long it ran.
+    fn run(
+        &mut self,
+        opts: &LaunchOptions,
+        source: Stage,
+        procs: &mut [ServiceProcess],
+    ) -> Duration {
+        let started = Instant::now();
+        let mut next_progress = Duration::from_secs(1);
+        loop {
+            std::thread::sleep(Duration::from_millis(20));
+            collect(self.latency, &mut self.reports);
+            if shutdown::requested() || opts.duration.is_some_and(|d| started.elapsed() >= d) {
+                break;
+            }
+            // A replay that played its whole trace has sent its final report: the session
+            // ends, as `ros2 bag play` does.
+            if has_final(&self.reports, source) {
+                if opts.progress {
+                    eprintln!(
+                        "handblocks: the trace ended after {:.1} s; stopping",
+                        started.elapsed().as_secs_f64()
+                    );
+                }
+                break;
+            }
+            if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
+                self.failures.push(format!(
+                    "the {} process exited during the session ({})",
+                    p.stage.name(),
+                    describe_exit(p.exit)
+                ));
+                break;
+            }
+            if opts.progress && started.elapsed() >= next_progress {
+                next_progress += Duration::from_secs(1);
+                eprintln!("{}", progress_line(started.elapsed(), &self.reports));
+            }
+        }
+        started.elapsed()
+    }
+
+    /// Step 6: stops the processes in pipeline order; each stage drains what the one before it
+    /// sent and sends its final report, and is released and reaped once that report is read
+    /// (or it gave up). A process without a final report, or that failed, is a failure.
+    fn stop_in_order(&mut self, procs: &mut [ServiceProcess]) {
+        for p in procs.iter_mut() {
+            p.request_stop();
+            let deadline = Instant::now() + FINAL_REPORT_TIMEOUT;
+            while !has_final(&self.reports, p.stage) {
+                collect(self.latency, &mut self.reports);
+                if Instant::now() > deadline
+                    || (p.poll_exit().is_some() && !has_final(&self.reports, p.stage))
+                {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            collect(self.latency, &mut self.reports);
+            let status = p.release_and_reap(Duration::from_secs(5));
+            if !has_final(&self.reports, p.stage) {
+                self.failures.push(format!(
+                    "the {} process sent no final report ({})",
+                    p.stage.name(),
+                    describe_exit(status)
+                ));
+            } else if !status.is_some_and(|s| s.success())
+                && !self.failures.iter().any(|f| f.contains(p.stage.name()))
+            {
+                self.failures.push(format!(
+                    "the {} process failed ({})",
+                    p.stage.name(),
+                    describe_exit(status)
+                ));
+            }
+        }
+    }
+}
+
+fn has_final(reports: &BTreeMap<Stage, StageReport>, stage: Stage) -> bool {
+    reports.get(&stage).is_some_and(|r| r.final_report)
 }
 
 /// Polls `ready` until it returns None (all attached) or the start-up fails: a process exits,
@@ -491,17 +564,16 @@ fn wait_for_start(
     let deadline = Instant::now() + CONNECT_TIMEOUT;
     while let Some(missing) = ready() {
         if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
-            return Err(err(format!(
-                "the {} process exited during start-up ({})",
-                p.stage.name(),
-                describe(p.exit)
-            )));
+            return Err(LaunchError::ExitedDuringStartup {
+                stage: p.stage,
+                status: p.exit,
+            });
         }
         if Instant::now() > deadline {
-            return Err(err(format!(
-                "the processes did not attach within {} s; still missing: {missing}",
-                CONNECT_TIMEOUT.as_secs()
-            )));
+            return Err(LaunchError::AttachTimeout {
+                waited: CONNECT_TIMEOUT,
+                missing,
+            });
         }
         std::thread::sleep(Duration::from_millis(2));
     }
@@ -609,12 +681,16 @@ fn progress_line(elapsed: Duration, reports: &BTreeMap<Stage, StageReport>) -> S
 /// Writes the report JSON to `path`, creating its folder.
 pub fn write_report(report: &Report, path: &Path) -> Result<(), LaunchError> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| err(format!("cannot create {}: {e}", dir.display())))?;
+        std::fs::create_dir_all(dir).map_err(|reason| LaunchError::ReportFolder {
+            dir: dir.to_path_buf(),
+            reason,
+        })?;
     }
-    let text = serde_json::to_string_pretty(&report.json()).map_err(err)?;
-    std::fs::write(path, text + "\n")
-        .map_err(|e| err(format!("cannot write the report {}: {e}", path.display())))
+    let text = serde_json::to_string_pretty(&report.json()).map_err(LaunchError::ReportJson)?;
+    std::fs::write(path, text + "\n").map_err(|reason| LaunchError::ReportWrite {
+        path: path.to_path_buf(),
+        reason,
+    })
 }
 
 #[cfg(test)]

@@ -15,107 +15,41 @@
 //! Opening the glove stops any stream left running, asks the sensor count and checks it
 //! against the configuration and the calibration file, then (streamed mode) starts the stream.
 
-use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
+pub use common::config::devices::{GloveConfig, GloveMode};
 use common::{monotonic_ns, GloveSample, Stamp, MAX_GLOVE_SENSORS};
 
 use super::calibration::Calibration;
-use super::link_loop::{self, LinkUpkeep, Protocol, RecordBuffer};
-use super::serial::{Backoff, Link, LinkState, LinkStats};
+use super::link_loop::{self, LinkUpkeep, Protocol, RecordBuffer, RecordBytes};
+use super::serial::{check_link, Link, LinkSettings, LinkStats};
 use super::{DeviceError, ReadOutcome};
 
 const DEVICE: &str = "glove";
 /// Control-C: ends streamed mode.
 pub const STOP_STREAM: u8 = 0x03;
 
-/// How samples are requested.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum GloveMode {
-    /// The glove sends records on its own (`S`): the lowest latency, the usual choice.
-    Streamed,
-    /// The driver sends `G` at `rate_hz` and waits for each answer: for links that drop
-    /// bytes under a continuous stream, or to pace the glove.
-    Polled { rate_hz: f64 },
-}
-
-/// Where the glove is and how to read it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct GloveConfig {
-    /// The serial device, e.g. `/dev/ttyUSB0` (or an emulator's pseudo-terminal).
-    pub port: PathBuf,
-    /// Usually 115200.
-    pub baud: u32,
-    /// 18 or 22 when the session insists on a glove size; None accepts what the glove reports
-    /// (within what the calibration fits).
-    pub sensors: Option<u32>,
-    /// A calibration file ([`super::calibration`]); None uses [`Calibration::nominal`].
-    pub calibration: Option<PathBuf>,
-    pub mode: GloveMode,
-    /// How long to wait for the answer to a command at open (`?S`).
-    pub answer_timeout: Duration,
-    /// No valid record for this long means the glove stopped answering: report and reconnect.
-    pub silence_timeout: Duration,
-    /// The longest one `read` call blocks, so the caller can check for shutdown.
-    pub read_slice: Duration,
-    /// Reconnection backoff.
-    pub backoff: Backoff,
-    /// CLOCK_MONOTONIC (ns) that is source time 0; give the glove and the tracker the same.
-    pub epoch_ns: u64,
-}
-
-impl GloveConfig {
-    /// The usual settings: 115200 baud, streamed, size and calibration from the glove.
-    pub fn new(port: impl Into<PathBuf>) -> GloveConfig {
-        GloveConfig {
-            port: port.into(),
-            baud: 115_200,
-            sensors: None,
-            calibration: None,
-            mode: GloveMode::Streamed,
-            answer_timeout: Duration::from_millis(500),
-            silence_timeout: Duration::from_millis(500),
-            read_slice: Duration::from_millis(50),
-            backoff: Backoff::default(),
-            epoch_ns: monotonic_ns(),
-        }
-    }
-
-    fn check(&self) -> Result<(), DeviceError> {
-        super::serial::check_timing(
-            "glove",
-            &[
-                self.answer_timeout,
-                self.silence_timeout,
-                self.read_slice,
-                self.backoff.first,
-                self.backoff.max,
-            ],
-        )?;
-        if let Some(n) = self.sensors {
-            if n != 18 && n != 22 {
-                return Err(DeviceError::Config {
-                    key: "glove.sensors",
-                    problem: format!("{n}: a CyberGlove has 18 or 22 sensors"),
-                });
-            }
-        }
-        if self.baud == 0 {
+/// The driver's own checks of a configuration (the session reader checked the file's keys;
+/// these also catch a configuration built in code).
+fn check(cfg: &GloveConfig) -> Result<(), DeviceError> {
+    check_link("glove", "glove.baud", &cfg.link)?;
+    if let Some(n) = cfg.sensors {
+        if n != 18 && n != 22 {
             return Err(DeviceError::Config {
-                key: "glove.baud",
-                problem: "0: give the glove's baud rate, usually 115200".into(),
+                key: "glove.sensors",
+                problem: format!("{n}: a CyberGlove has 18 or 22 sensors"),
             });
         }
-        if let GloveMode::Polled { rate_hz } = self.mode {
-            if !(rate_hz.is_finite() && (1.0..=1000.0).contains(&rate_hz)) {
-                return Err(DeviceError::Config {
-                    key: "glove.rate_hz",
-                    problem: format!("{rate_hz}: allowed 1..=1000 samples per second"),
-                });
-            }
-        }
-        Ok(())
     }
+    if let GloveMode::Polled { rate_hz } = cfg.mode {
+        if !(rate_hz.is_finite() && (1.0..=1000.0).contains(&rate_hz)) {
+            return Err(DeviceError::Config {
+                key: "glove.rate_hz",
+                problem: format!("{rate_hz}: allowed 1..=1000 samples per second"),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// What the parser found next in the byte stream.
@@ -137,8 +71,7 @@ pub enum GloveEvent {
 /// real header hidden in the rejected bytes is still found.
 #[derive(Debug, Clone)]
 pub struct GloveParser {
-    buf: [u8; 256],
-    len: usize,
+    bytes: RecordBytes,
     sensors: usize,
     pub stats: LinkStats,
 }
@@ -147,8 +80,7 @@ impl GloveParser {
     /// A parser for a glove of `sensors` sensors (1..=22; the driver uses 18 or 22).
     pub fn new(sensors: usize) -> GloveParser {
         GloveParser {
-            buf: [0; 256],
-            len: 0,
+            bytes: RecordBytes::new(256),
             sensors: sensors.clamp(1, MAX_GLOVE_SENSORS),
             stats: LinkStats::default(),
         }
@@ -158,41 +90,9 @@ impl GloveParser {
         self.sensors
     }
 
-    /// Forgets buffered bytes (after a reconnection).
-    pub fn clear(&mut self) {
-        self.len = 0;
-    }
-
-    /// The free tail of the buffer, to read into; then [`GloveParser::commit`].
-    pub fn space(&mut self) -> &mut [u8] {
-        if self.len == self.buf.len() {
-            // Full without a record: cannot happen with records of at most 24 bytes unless
-            // the stream is noise; drop the oldest half.
-            let half = self.buf.len() / 2;
-            self.buf.copy_within(half.., 0);
-            self.len -= half;
-            self.stats.garbage_bytes += half as u64;
-        }
-        &mut self.buf[self.len..]
-    }
-
-    pub fn commit(&mut self, n: usize) {
-        self.len = (self.len + n).min(self.buf.len());
-    }
-
     /// Appends bytes (for tests and emulators); returns how many fit.
     pub fn push(&mut self, bytes: &[u8]) -> usize {
-        let space = self.space();
-        let n = bytes.len().min(space.len());
-        space[..n].copy_from_slice(&bytes[..n]);
-        self.commit(n);
-        n
-    }
-
-    fn consume(&mut self, n: usize) {
-        let n = n.min(self.len);
-        self.buf.copy_within(n..self.len, 0);
-        self.len -= n;
+        self.bytes.push(bytes, &mut self.stats.garbage_bytes)
     }
 
     /// The next complete event, or None until more bytes arrive. Sample bytes go to `raw`.
@@ -201,13 +101,14 @@ impl GloveParser {
         let mut p = 0;
         let result = loop {
             // Skip to a possible header.
-            while p < self.len && !matches!(self.buf[p], b'G' | b'S' | b'?' | b'e') {
+            let filled = self.bytes.filled();
+            while p < filled.len() && !matches!(filled[p], b'G' | b'S' | b'?' | b'e') {
                 p += 1;
             }
-            if p >= self.len {
+            if p >= filled.len() {
                 break None;
             }
-            let avail = &self.buf[p..self.len];
+            let avail = &filled[p..];
             match avail[0] {
                 b'G' | b'S' => {
                     let data_end = (1 + n).min(avail.len());
@@ -229,7 +130,7 @@ impl GloveParser {
                     raw[..n].copy_from_slice(&avail[1..=n]);
                     let header = avail[0];
                     self.stats.garbage_bytes += p as u64;
-                    self.consume(p + n + 2);
+                    self.bytes.consume(p + n + 2);
                     return Some(GloveEvent::Record { header });
                 }
                 b'?' => {
@@ -243,7 +144,7 @@ impl GloveParser {
                     if avail[1] == b'S' && avail[3] == 0 && avail[2] != 0 {
                         let count = avail[2];
                         self.stats.garbage_bytes += p as u64;
-                        self.consume(p + 4);
+                        self.bytes.consume(p + 4);
                         return Some(GloveEvent::SensorCount(count));
                     }
                     p += 1;
@@ -257,7 +158,7 @@ impl GloveParser {
                         let code = avail[1];
                         self.stats.garbage_bytes += p as u64;
                         self.stats.device_errors += 1;
-                        self.consume(p + 2);
+                        self.bytes.consume(p + 2);
                         return Some(GloveEvent::DeviceError(code));
                     }
                     p += 1;
@@ -266,7 +167,7 @@ impl GloveParser {
         };
         // Everything before p can never start a record.
         self.stats.garbage_bytes += p as u64;
-        self.consume(p);
+        self.bytes.consume(p);
         result
     }
 }
@@ -299,7 +200,7 @@ impl Glove {
     /// Checks the configuration and loads the calibration, without touching the port: the
     /// first `read` connects. For a session that should start even while the glove is off.
     pub fn new(cfg: GloveConfig) -> Result<Glove, DeviceError> {
-        cfg.check()?;
+        check(&cfg)?;
         let file_cal = match &cfg.calibration {
             Some(file) => Some(Calibration::load(file)?),
             None => None,
@@ -330,7 +231,7 @@ impl Glove {
             })?,
         };
         Ok(Glove {
-            upkeep: LinkUpkeep::new(cfg.backoff),
+            upkeep: LinkUpkeep::new(cfg.link.backoff),
             cfg,
             calibration,
             expected,
@@ -346,8 +247,7 @@ impl Glove {
     /// reason when any of that fails (wrong port, no answer, wrong glove size).
     pub fn open(cfg: GloveConfig) -> Result<Glove, DeviceError> {
         let mut g = Glove::new(cfg)?;
-        let link = g.connect()?;
-        g.upkeep.up(link, g.parser.stats.garbage_bytes);
+        link_loop::connect_now(&mut g)?;
         Ok(g)
     }
 
@@ -362,11 +262,7 @@ impl Glove {
 
     /// Counters since `new`, across reconnections.
     pub fn stats(&self) -> LinkStats {
-        let mut s = self.upkeep.stats;
-        s.garbage_bytes += self.parser.stats.garbage_bytes;
-        s.rejected_records += self.parser.stats.rejected_records;
-        s.device_errors += self.parser.stats.device_errors;
-        s
+        self.upkeep.stats.with_parser(&self.parser.stats)
     }
 
     /// Whether the driver currently has its link (false while reconnecting).
@@ -374,15 +270,48 @@ impl Glove {
         self.upkeep.connected()
     }
 
-    /// Opens the port and runs the handshake; does not touch `self.upkeep`.
+    /// Waits up to the read slice for the next sample and writes it into `out` (angles in
+    /// radians, `sensor_count`, a fresh stamp). Never allocates on the sample path.
+    ///
+    /// `Err` reports a problem the driver is already handling (the link is being
+    /// re-established with backoff): log it and call `read` again.
+    pub fn read(&mut self, out: &mut GloveSample) -> Result<ReadOutcome, DeviceError> {
+        link_loop::read(self, out)
+    }
+}
+
+impl RecordBuffer for GloveParser {
+    fn window(&mut self) -> (&mut RecordBytes, &mut LinkStats) {
+        (&mut self.bytes, &mut self.stats)
+    }
+
+    fn stats(&self) -> &LinkStats {
+        &self.stats
+    }
+}
+
+impl Protocol for Glove {
+    type Sample = GloveSample;
+    type Buffer = GloveParser;
+    const DEVICE: &'static str = DEVICE;
+    const POLL_COMMAND: &'static [u8] = b"G";
+
+    fn poll_rate_hz(&self) -> Option<f64> {
+        match self.cfg.mode {
+            GloveMode::Streamed => None,
+            GloveMode::Polled { rate_hz } => Some(rate_hz),
+        }
+    }
+
+    fn link(&self) -> &LinkSettings {
+        &self.cfg.link
+    }
+
     fn connect(&mut self) -> Result<Link, DeviceError> {
-        let mut link = Link::open(DEVICE, &self.cfg.port, self.cfg.baud)?;
-        // A stream left running from an earlier session would bury the answer.
-        link.write_all(&[STOP_STREAM])?;
-        link.drain(Duration::from_millis(30), Duration::from_millis(300))?;
-        self.parser.clear();
+        let mut link =
+            link_loop::open_quiet(DEVICE, &self.cfg.link, &[STOP_STREAM], &mut self.parser)?;
         link.write_all(b"?S")?;
-        let deadline = Instant::now() + self.cfg.answer_timeout;
+        let deadline = Instant::now() + self.cfg.link.answer_timeout;
         let reported = loop {
             if let Some(ev) = self.parser.next(&mut self.raw) {
                 match ev {
@@ -402,31 +331,29 @@ impl Glove {
                     ),
                     None => format!(
                         "is it switched on, on this port, at {} baud?",
-                        self.cfg.baud
+                        self.cfg.link.baud
                     ),
                 };
                 return Err(DeviceError::NoAnswer {
                     device: DEVICE,
-                    port: self.cfg.port.clone(),
+                    port: self.cfg.link.port.clone(),
                     command: "`?S` (sensor count)",
-                    waited: self.cfg.answer_timeout,
+                    waited: self.cfg.link.answer_timeout,
                     hint,
                 });
             }
-            let space = self.parser.space();
-            let got = link.read_some(space, (deadline - now).min(Duration::from_millis(20)))?;
-            self.parser.commit(got);
+            link_loop::receive_until(&mut link, &mut self.parser, deadline)?;
         };
         if reported != 18 && reported != 22 {
             return Err(DeviceError::UnsupportedSensorCount {
-                port: self.cfg.port.clone(),
+                port: self.cfg.link.port.clone(),
                 reported,
             });
         }
         if let Some(expected) = self.expected {
             if reported != expected {
                 return Err(DeviceError::SensorCount {
-                    port: self.cfg.port.clone(),
+                    port: self.cfg.link.port.clone(),
                     reported,
                     configured: self.cfg.sensors,
                     calibration: self
@@ -452,63 +379,6 @@ impl Glove {
             link.write_all(b"S")?;
         }
         Ok(link)
-    }
-
-    /// Waits up to the read slice for the next sample and writes it into `out` (angles in
-    /// radians, `sensor_count`, a fresh stamp). Never allocates on the sample path.
-    ///
-    /// `Err` reports a problem the driver is already handling (the link is being
-    /// re-established with backoff): log it and call `read` again.
-    pub fn read(&mut self, out: &mut GloveSample) -> Result<ReadOutcome, DeviceError> {
-        link_loop::read(self, out)
-    }
-}
-
-impl RecordBuffer for GloveParser {
-    fn space(&mut self) -> &mut [u8] {
-        GloveParser::space(self)
-    }
-
-    fn commit(&mut self, n: usize) {
-        GloveParser::commit(self, n)
-    }
-
-    fn clear(&mut self) {
-        GloveParser::clear(self)
-    }
-
-    fn garbage_bytes(&self) -> u64 {
-        self.stats.garbage_bytes
-    }
-}
-
-impl Protocol for Glove {
-    type Sample = GloveSample;
-    type Buffer = GloveParser;
-    const DEVICE: &'static str = DEVICE;
-    const POLL_COMMAND: &'static [u8] = b"G";
-
-    fn poll_rate_hz(&self) -> Option<f64> {
-        match self.cfg.mode {
-            GloveMode::Streamed => None,
-            GloveMode::Polled { rate_hz } => Some(rate_hz),
-        }
-    }
-
-    fn read_slice(&self) -> Duration {
-        self.cfg.read_slice
-    }
-
-    fn silence_timeout(&self) -> Duration {
-        self.cfg.silence_timeout
-    }
-
-    fn port(&self) -> &Path {
-        &self.cfg.port
-    }
-
-    fn connect(&mut self) -> Result<Link, DeviceError> {
-        Glove::connect(self)
     }
 
     /// A record becomes calibrated angles with a fresh stamp; an `e` reply in between is kept
@@ -546,9 +416,7 @@ impl Protocol for Glove {
 impl Drop for Glove {
     /// Leaves the glove quiet for the next program that opens it.
     fn drop(&mut self) {
-        if let LinkState::Up(link) = &mut self.upkeep.state {
-            let _ = link.write_all(&[STOP_STREAM]);
-        }
+        self.upkeep.send_if_up(&[STOP_STREAM]);
     }
 }
 

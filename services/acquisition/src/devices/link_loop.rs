@@ -9,10 +9,9 @@
 //! counter, a state transition) reaches both devices; each driver implements [`Protocol`] with
 //! only what is its own.
 
-use std::path::Path;
 use std::time::{Duration, Instant};
 
-use super::serial::{sleep_toward, Backoff, Link, LinkState, LinkStats};
+use super::serial::{sleep_toward, Backoff, Link, LinkSettings, LinkState, LinkStats};
 use super::{DeviceError, ReadOutcome};
 
 /// A poll whose answer has not come for this long is taken as lost and sent again (the next
@@ -21,15 +20,98 @@ const POLL_OVERDUE: Duration = Duration::from_millis(100);
 
 /// A parser's byte buffer, as the loop sees it: it reads into the free space and forgets the
 /// bytes of a lost link, and it compares garbage counts to tell a silent device from one that
-/// talks at the wrong baud rate.
+/// talks at the wrong baud rate. A parser gives its window and its counters; the rest is the
+/// same for every parser.
 pub(super) trait RecordBuffer {
+    /// The parser's byte window and its counters, at once.
+    fn window(&mut self) -> (&mut RecordBytes, &mut LinkStats);
+    fn stats(&self) -> &LinkStats;
+
     /// The free tail of the buffer, to read into; then [`RecordBuffer::commit`].
-    fn space(&mut self) -> &mut [u8];
-    fn commit(&mut self, n: usize);
+    fn space(&mut self) -> &mut [u8] {
+        let (bytes, stats) = self.window();
+        bytes.space(&mut stats.garbage_bytes)
+    }
+
+    fn commit(&mut self, n: usize) {
+        self.window().0.commit(n)
+    }
+
     /// Forgets buffered bytes: after a loss they are the remains of another connection.
-    fn clear(&mut self);
+    fn clear(&mut self) {
+        self.window().0.clear()
+    }
+
     /// Bytes skipped so far that made no record.
-    fn garbage_bytes(&self) -> u64;
+    fn garbage_bytes(&self) -> u64 {
+        self.stats().garbage_bytes
+    }
+}
+
+/// The largest window a parser uses (the FASTRAK's; the glove's records are shorter).
+pub(super) const MAX_WINDOW: usize = 1024;
+
+/// A parser's byte window: what was read from the link waits here until it makes a record.
+/// Fixed-size, so the sample path never allocates; a window that fills without a record (only
+/// noise does that) drops its older half, counted as garbage.
+#[derive(Debug, Clone)]
+pub(super) struct RecordBytes {
+    buf: [u8; MAX_WINDOW],
+    /// How much of `buf` the parser uses: a few of its records' worth.
+    capacity: usize,
+    len: usize,
+}
+
+impl RecordBytes {
+    /// A window of `capacity` bytes (at most [`MAX_WINDOW`]).
+    pub fn new(capacity: usize) -> RecordBytes {
+        RecordBytes {
+            buf: [0; MAX_WINDOW],
+            capacity: capacity.clamp(2, MAX_WINDOW),
+            len: 0,
+        }
+    }
+
+    /// The bytes waiting, oldest first.
+    pub fn filled(&self) -> &[u8] {
+        &self.buf[..self.len]
+    }
+
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// The free tail, to read into; then [`RecordBytes::commit`]. A full window first drops
+    /// its older half and adds it to `garbage`.
+    pub fn space(&mut self, garbage: &mut u64) -> &mut [u8] {
+        if self.len == self.capacity {
+            let half = self.capacity / 2;
+            self.buf.copy_within(half..self.capacity, 0);
+            self.len -= half;
+            *garbage += half as u64;
+        }
+        &mut self.buf[self.len..self.capacity]
+    }
+
+    pub fn commit(&mut self, n: usize) {
+        self.len = (self.len + n).min(self.capacity);
+    }
+
+    /// Appends what fits of `bytes` (for tests and emulators); returns how many did.
+    pub fn push(&mut self, bytes: &[u8], garbage: &mut u64) -> usize {
+        let space = self.space(garbage);
+        let n = bytes.len().min(space.len());
+        space[..n].copy_from_slice(&bytes[..n]);
+        self.commit(n);
+        n
+    }
+
+    /// Forgets the first `n` bytes (a record taken, or bytes that can start none).
+    pub fn consume(&mut self, n: usize) {
+        let n = n.min(self.len);
+        self.buf.copy_within(n..self.len, 0);
+        self.len -= n;
+    }
 }
 
 /// What a driver keeps about its link besides the protocol: whether it is up, when to retry
@@ -94,6 +176,14 @@ impl LinkUpkeep {
         buffer.clear();
     }
 
+    /// Sends `bytes` if the link is up, ignoring a failure: for a driver that is going away
+    /// and leaves its device quiet for the next program that opens it.
+    pub fn send_if_up(&mut self, bytes: &[u8]) {
+        if let LinkState::Up(link) = &mut self.state {
+            let _ = link.write_all(bytes);
+        }
+    }
+
     /// A sample was taken: it counts, it ends the silence, and it answers the poll.
     pub fn record_seen(&mut self, garbage_now: u64) {
         self.stats.samples += 1;
@@ -115,9 +205,8 @@ pub(super) trait Protocol {
 
     /// The poll rate in polled mode; None when the device streams on its own.
     fn poll_rate_hz(&self) -> Option<f64>;
-    fn read_slice(&self) -> Duration;
-    fn silence_timeout(&self) -> Duration;
-    fn port(&self) -> &Path;
+    /// The port, its timeouts and its backoff.
+    fn link(&self) -> &LinkSettings;
     /// Opens the port and runs the handshake; does not touch the upkeep's state.
     fn connect(&mut self) -> Result<Link, DeviceError>;
     /// Takes buffered records until one makes a sample, written into `out` (true), or the
@@ -132,6 +221,46 @@ pub(super) trait Protocol {
     fn parts(&mut self) -> (&mut LinkUpkeep, &mut Self::Buffer);
 }
 
+/// Opens the port for a handshake: stops whatever the device may still be sending (`stop`,
+/// a stream left running by an earlier session would bury the answer), throws away what it
+/// sent, and empties the parser's buffer.
+pub(super) fn open_quiet(
+    device: &'static str,
+    settings: &LinkSettings,
+    stop: &[u8],
+    buffer: &mut impl RecordBuffer,
+) -> Result<Link, DeviceError> {
+    let mut link = Link::open(device, &settings.port, settings.baud)?;
+    link.write_all(stop)?;
+    link.drain(Duration::from_millis(30), Duration::from_millis(300))?;
+    buffer.clear();
+    Ok(link)
+}
+
+/// Reads what arrives within 20 ms, or until `deadline` if sooner, into the buffer: one step
+/// of a handshake waiting for its answer.
+pub(super) fn receive_until(
+    link: &mut Link,
+    buffer: &mut impl RecordBuffer,
+    deadline: Instant,
+) -> Result<(), DeviceError> {
+    let timeout = deadline
+        .saturating_duration_since(Instant::now())
+        .min(Duration::from_millis(20));
+    let got = link.read_some(buffer.space(), timeout)?;
+    buffer.commit(got);
+    Ok(())
+}
+
+/// Connects now (the port and the handshake), failing with the reason: for `open`, which
+/// must not return a driver that is not there.
+pub(super) fn connect_now<P: Protocol>(driver: &mut P) -> Result<(), DeviceError> {
+    let link = driver.connect()?;
+    let (upkeep, buffer) = driver.parts();
+    upkeep.up(link, buffer.garbage_bytes());
+    Ok(())
+}
+
 /// Waits up to the driver's read slice for the next sample and writes it into `out`; never
 /// allocates on the sample path.
 ///
@@ -141,7 +270,7 @@ pub(super) fn read<P: Protocol>(
     driver: &mut P,
     out: &mut P::Sample,
 ) -> Result<ReadOutcome, DeviceError> {
-    let read_slice = driver.read_slice();
+    let read_slice = driver.link().read_slice;
     let slice_end = Instant::now() + read_slice;
     if let LinkState::Down { retry_at } = driver.parts().0.state {
         if Instant::now() < retry_at {
@@ -162,7 +291,7 @@ pub(super) fn read<P: Protocol>(
                 };
                 return Err(DeviceError::Reconnecting {
                     device: P::DEVICE,
-                    port: driver.port().to_path_buf(),
+                    port: driver.link().port.clone(),
                     attempt,
                     retry_in,
                     cause: Box::new(cause),
@@ -170,7 +299,7 @@ pub(super) fn read<P: Protocol>(
             }
         }
     }
-    let silence_timeout = driver.silence_timeout();
+    let silence_timeout = driver.link().silence_timeout;
     let poll_rate_hz = driver.poll_rate_hz();
     loop {
         // A record may already be buffered.
@@ -186,7 +315,7 @@ pub(super) fn read<P: Protocol>(
             let garbage_bytes = buffer.garbage_bytes() - upkeep.garbage_at_last_record;
             let err = DeviceError::Silent {
                 device: P::DEVICE,
-                port: driver.port().to_path_buf(),
+                port: driver.link().port.clone(),
                 waited,
                 garbage_bytes,
                 reported: driver.take_reported(),

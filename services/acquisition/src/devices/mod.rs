@@ -14,9 +14,11 @@
 //! How the acquisition process uses it, for `[source] kind = "devices"`:
 //!
 //! ```text
+//! // The settings were read and checked with the session (common::config::devices).
+//! let Source::Devices { glove, tracker } = &session.source else { ... };
 //! let epoch = monotonic_ns();                                  // one timeline for both
-//! let gc = settings::glove_config(file, "source.glove", table, dir, epoch)?;
-//! let tc = settings::tracker_config(file, "source.tracker", table, epoch)?;
+//! let gc = GloveConfig { epoch_ns: epoch, ..glove.clone() };
+//! let tc = TrackerConfig { epoch_ns: epoch, ..tracker.clone() };
 //! let readers = DeviceReaders::spawn(Some(Glove::open(gc)?), Some(Tracker::open(tc)?))?;
 //! while !shutdown::requested() {
 //!     match readers.recv_timeout(Duration::from_millis(50)) {
@@ -31,20 +33,18 @@
 
 pub mod calibration;
 pub mod cyberglove;
+mod error;
 pub mod fastrak;
 mod link_loop;
 pub mod readers;
 pub mod serial;
-pub mod settings;
-
-use std::fmt;
-use std::path::PathBuf;
-use std::time::Duration;
 
 pub use calibration::{Calibration, CalibrationError};
 pub use cyberglove::{Glove, GloveConfig, GloveMode, GloveParser};
+pub use error::DeviceError;
 pub use fastrak::{FastrakParser, Format, Orientation, Tracker, TrackerConfig, TrackerMode, Units};
 pub use readers::{DeviceEvent, DeviceReaders, ReaderStats};
+pub use serial::LinkSettings;
 pub use serial::LinkStats;
 
 /// What one `read` call produced.
@@ -57,227 +57,26 @@ pub enum ReadOutcome {
     Pending,
 }
 
-/// What went wrong with a device, worded for the person at the keyboard: what happened and
-/// what to do. `Display` gives the whole sentence.
-#[derive(Debug, Clone, PartialEq)]
-pub enum DeviceError {
-    /// The serial device could not be opened (missing, busy, no permission).
-    Open {
-        device: &'static str,
-        port: PathBuf,
-        reason: String,
-    },
-    /// Reading or writing the open port failed (cable pulled, adapter gone).
-    Io {
-        device: &'static str,
-        port: PathBuf,
-        reason: String,
-    },
-    /// The device did not answer a command in time.
-    NoAnswer {
-        device: &'static str,
-        port: PathBuf,
-        command: &'static str,
-        waited: Duration,
-        hint: String,
-    },
-    /// The device answered at first and then went quiet: no valid record for `waited`.
-    Silent {
-        device: &'static str,
-        port: PathBuf,
-        waited: Duration,
-        /// Bytes that arrived in that time but made no valid record.
-        garbage_bytes: u64,
-        /// What the device itself reported meanwhile, if anything (a CyberGlove's `e` code).
-        reported: Option<&'static str>,
-    },
-    /// The glove has another number of sensors than the configuration or calibration says.
-    SensorCount {
-        port: PathBuf,
-        reported: u32,
-        configured: Option<u32>,
-        calibration: Option<(PathBuf, u32)>,
-    },
-    /// The glove reports a sensor count no CyberGlove has.
-    UnsupportedSensorCount { port: PathBuf, reported: u32 },
-    /// The configured tracker station never reported, while others did.
-    StationMissing {
-        port: PathBuf,
-        station: u8,
-        seen: [bool; 4],
-    },
-    /// The calibration file is unusable.
-    Calibration(CalibrationError),
-    /// A configuration value is out of range.
-    Config { key: &'static str, problem: String },
-    /// A reconnection attempt failed; another follows after `retry_in`.
-    Reconnecting {
-        device: &'static str,
-        port: PathBuf,
-        attempt: u32,
-        retry_in: Duration,
-        cause: Box<DeviceError>,
-    },
-}
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
 
-impl DeviceError {
-    /// The port the error is about, if any.
-    pub fn port(&self) -> Option<&std::path::Path> {
-        match self {
-            DeviceError::Open { port, .. }
-            | DeviceError::Io { port, .. }
-            | DeviceError::NoAnswer { port, .. }
-            | DeviceError::Silent { port, .. }
-            | DeviceError::SensorCount { port, .. }
-            | DeviceError::UnsupportedSensorCount { port, .. }
-            | DeviceError::StationMissing { port, .. }
-            | DeviceError::Reconnecting { port, .. } => Some(port),
-            DeviceError::Calibration(_) | DeviceError::Config { .. } => None,
-        }
-    }
-}
+    use common::config::session::Source;
+    use common::config::Session;
 
-impl fmt::Display for DeviceError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            DeviceError::Open {
-                device,
-                port,
-                reason,
-            } => write!(
-                f,
-                "cannot open the {device} port {}: {reason}; check that the device is plugged \
-                 in, that `port` names it, and that you may open it (group dialout)",
-                port.display()
-            ),
-            DeviceError::Io {
-                device,
-                port,
-                reason,
-            } => write!(
-                f,
-                "the {device} link on {} failed: {reason}; was the cable or adapter pulled? \
-                 reconnecting",
-                port.display()
-            ),
-            DeviceError::NoAnswer {
-                device,
-                port,
-                command,
-                waited,
-                hint,
-            } => write!(
-                f,
-                "the {device} on {} did not answer {command} within {} ms: {hint}",
-                port.display(),
-                waited.as_millis()
-            ),
-            DeviceError::Silent {
-                device,
-                port,
-                waited,
-                garbage_bytes,
-                reported,
-            } => {
-                write!(
-                    f,
-                    "the {device} on {} stopped answering: no valid record for {} ms",
-                    port.display(),
-                    waited.as_millis()
-                )?;
-                if let Some(r) = reported {
-                    write!(f, " (it reported: {r})")?;
-                }
-                if *garbage_bytes > 0 {
-                    write!(
-                        f,
-                        " ({garbage_bytes} bytes arrived that made no record: is the baud rate right?)"
-                    )?;
-                }
-                write!(f, "; reconnecting")
-            }
-            DeviceError::SensorCount {
-                port,
-                reported,
-                configured,
-                calibration,
-            } => {
-                write!(
-                    f,
-                    "the glove on {} answered {reported} sensors but ",
-                    port.display()
-                )?;
-                match (configured, calibration) {
-                    (Some(c), Some((file, n))) => write!(
-                        f,
-                        "the config says {c} (calibration {} has {n} entries)",
-                        file.display()
-                    )?,
-                    (Some(c), None) => write!(f, "the config says {c}")?,
-                    (None, Some((file, n))) => write!(
-                        f,
-                        "the calibration {} has {n} entries",
-                        file.display()
-                    )?,
-                    (None, None) => write!(f, "the driver expected another count")?,
-                }
-                write!(
-                    f,
-                    ": set sensors = {reported} and use a calibration file for a {reported}-sensor glove"
-                )
-            }
-            DeviceError::UnsupportedSensorCount { port, reported } => write!(
-                f,
-                "the glove on {} says it has {reported} sensors; CyberGloves have 18 or 22: \
-                 is this a CyberGlove, at the right baud rate?",
-                port.display()
-            ),
-            DeviceError::StationMissing {
-                port,
-                station,
-                seen,
-            } => {
-                write!(
-                    f,
-                    "the FASTRAK on {} did not report station {station}",
-                    port.display()
-                )?;
-                let active: Vec<String> = (0..4)
-                    .filter(|i| seen[*i])
-                    .map(|i| (i + 1).to_string())
-                    .collect();
-                if active.is_empty() {
-                    write!(f, "; no station reported")?;
-                } else {
-                    write!(f, "; stations reporting: {}", active.join(", "))?;
-                }
-                write!(
-                    f,
-                    ": plug the receiver into station {station} or set `station` to one that reports"
-                )
-            }
-            DeviceError::Calibration(e) => write!(f, "{e}"),
-            DeviceError::Config { key, problem } => write!(f, "`{key}`: {problem}"),
-            DeviceError::Reconnecting {
-                device,
-                port,
-                attempt,
-                retry_in,
-                cause,
-            } => write!(
-                f,
-                "{device} on {}: reconnection attempt {attempt} failed ({cause}); next try in {} ms",
-                port.display(),
-                retry_in.as_millis()
-            ),
-        }
-    }
-}
+    use super::{Glove, Tracker};
 
-impl std::error::Error for DeviceError {}
-
-impl From<CalibrationError> for DeviceError {
-    fn from(e: CalibrationError) -> Self {
-        DeviceError::Calibration(e)
+    /// The example devices session, as session loading reads it, gives settings both drivers
+    /// take (its calibration file included).
+    #[test]
+    fn the_example_sessions_settings_make_drivers() {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../config/devices/emulated-session.toml");
+        let session = Session::load(&file).unwrap();
+        let Source::Devices { glove, tracker } = session.source else {
+            panic!("not a devices session: {:?}", session.source)
+        };
+        assert!(Glove::new(*glove).is_ok());
+        assert!(Tracker::new(*tracker).is_ok());
     }
 }

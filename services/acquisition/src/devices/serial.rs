@@ -14,6 +14,8 @@ use std::time::{Duration, Instant};
 
 use serialport::{DataBits, FlowControl, Parity, SerialPort, StopBits, TTYPort};
 
+pub use common::config::devices::{Backoff, LinkSettings};
+
 use super::DeviceError;
 
 /// Counters a driver keeps across reconnections; cheap to copy out for a status line or a test.
@@ -35,6 +37,17 @@ pub struct LinkStats {
     pub reconnects: u64,
     /// Error records the device sent (the CyberGlove's `e` replies).
     pub device_errors: u64,
+}
+
+impl LinkStats {
+    /// A driver's counters with its parser's byte-level ones added: what the driver reports,
+    /// across reconnections (the parser is replaced when the glove's size changes).
+    pub fn with_parser(mut self, parser: &LinkStats) -> LinkStats {
+        self.garbage_bytes += parser.garbage_bytes;
+        self.rejected_records += parser.rejected_records;
+        self.device_errors += parser.device_errors;
+        self
+    }
 }
 
 /// An open serial port.
@@ -161,46 +174,6 @@ impl Link {
     }
 }
 
-/// Exponential backoff between reconnection attempts: quick for a glitch, patient for a
-/// device that is switched off, and never a busy loop.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Backoff {
-    pub first: Duration,
-    pub max: Duration,
-    next: Duration,
-    attempt: u32,
-}
-
-impl Backoff {
-    pub fn new(first: Duration, max: Duration) -> Backoff {
-        Backoff {
-            first,
-            max,
-            next: first,
-            attempt: 0,
-        }
-    }
-
-    /// The delay before the next attempt, and that attempt's number (from 1).
-    pub fn next_delay(&mut self) -> (Duration, u32) {
-        let d = self.next;
-        self.attempt += 1;
-        self.next = (self.next * 2).min(self.max);
-        (d, self.attempt)
-    }
-
-    pub fn reset(&mut self) {
-        self.next = self.first;
-        self.attempt = 0;
-    }
-}
-
-impl Default for Backoff {
-    fn default() -> Self {
-        Backoff::new(Duration::from_millis(100), Duration::from_secs(2))
-    }
-}
-
 /// The longest timeout or backoff a configuration may give: longer is surely a mistake (and
 /// would overflow deadline arithmetic near `Duration::MAX`).
 pub const MAX_WAIT: Duration = Duration::from_secs(3600);
@@ -217,6 +190,32 @@ pub fn check_timing(device: &'static str, waits: &[Duration]) -> Result<(), Devi
                 ),
             });
         }
+    }
+    Ok(())
+}
+
+/// Checks a driver's link settings: its timeouts and backoff ([`check_timing`]) and a baud
+/// rate other than 0 (`baud_key` names it in the message).
+pub fn check_link(
+    device: &'static str,
+    baud_key: &'static str,
+    link: &LinkSettings,
+) -> Result<(), DeviceError> {
+    check_timing(
+        device,
+        &[
+            link.answer_timeout,
+            link.silence_timeout,
+            link.read_slice,
+            link.backoff.first,
+            link.backoff.max,
+        ],
+    )?;
+    if link.baud == 0 {
+        return Err(DeviceError::Config {
+            key: baud_key,
+            problem: format!("0: give the {device}'s baud rate, usually 115200"),
+        });
     }
     Ok(())
 }

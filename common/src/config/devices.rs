@@ -1,18 +1,250 @@
-//! Session-file settings to driver configurations: the `glove` and `tracker` tables of a
-//! `[source] kind = "devices"` session (see `config/devices/emulated-session.toml`).
+//! The device settings of a `[source] kind = "devices"` session: its `glove` and `tracker`
+//! tables, read and checked when the session loads (docs/design.md, "Sessions"), so a typo in a
+//! port or a glove size is reported before any process starts, like every other key.
+//!
+//! These are settings, not drivers: acquisition::devices opens the ports, speaks the
+//! protocols and checks what only a driver can (the calibration file, the device's answers).
+//! The structs live here because the session file is this crate's to read, and the launcher,
+//! which must not depend on acquisition, checks the whole session before it starts anything.
 //!
 //! Like the rest of the session reader, every error names the file, the dotted key and what is
 //! allowed, and unknown keys are errors, so a typo never silently falls back to a default.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use common::config::ConfigError;
-use common::Pose;
 use toml::{Table, Value};
 
-use super::{Format, GloveConfig, GloveMode, Orientation, TrackerConfig, TrackerMode, Units};
+use super::ConfigError;
+use crate::{monotonic_ns, Pose};
 
+/// Exponential backoff between reconnection attempts: quick for a glitch, patient for a
+/// device that is switched off, and never a busy loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Backoff {
+    pub first: Duration,
+    pub max: Duration,
+    next: Duration,
+    attempt: u32,
+}
+
+impl Backoff {
+    pub fn new(first: Duration, max: Duration) -> Backoff {
+        Backoff {
+            first,
+            max,
+            next: first,
+            attempt: 0,
+        }
+    }
+
+    /// The delay before the next attempt, and that attempt's number (from 1).
+    pub fn next_delay(&mut self) -> (Duration, u32) {
+        let d = self.next;
+        self.attempt += 1;
+        self.next = (self.next * 2).min(self.max);
+        (d, self.attempt)
+    }
+
+    pub fn reset(&mut self) {
+        self.next = self.first;
+        self.attempt = 0;
+    }
+}
+
+impl Default for Backoff {
+    fn default() -> Self {
+        Backoff::new(Duration::from_millis(100), Duration::from_secs(2))
+    }
+}
+
+/// How a device sits on its serial line: the same for the glove and the tracker, because
+/// the link policy (answer, silence, reconnection) is one for both drivers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinkSettings {
+    /// The serial device, e.g. `/dev/ttyUSB0` (or an emulator's pseudo-terminal).
+    pub port: PathBuf,
+    /// Usually 115200 (the CyberGlove's usual rate; the FASTRAK's switches set it).
+    pub baud: u32,
+    /// How long to wait for the answer to a command at open.
+    pub answer_timeout: Duration,
+    /// No valid record for this long means the device stopped answering: report and reconnect.
+    pub silence_timeout: Duration,
+    /// The longest one `read` call blocks, so the caller can check for shutdown.
+    pub read_slice: Duration,
+    /// Reconnection backoff.
+    pub backoff: Backoff,
+}
+
+impl LinkSettings {
+    /// The usual settings: 115200 baud, half a second to answer and between records.
+    pub fn new(port: impl Into<PathBuf>) -> LinkSettings {
+        LinkSettings {
+            port: port.into(),
+            baud: 115_200,
+            answer_timeout: Duration::from_millis(500),
+            silence_timeout: Duration::from_millis(500),
+            read_slice: Duration::from_millis(50),
+            backoff: Backoff::default(),
+        }
+    }
+}
+
+/// How glove samples are requested.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GloveMode {
+    /// The glove sends records on its own (`S`): the lowest latency, the usual choice.
+    Streamed,
+    /// The driver sends `G` at `rate_hz` and waits for each answer: for links that drop
+    /// bytes under a continuous stream, or to pace the glove.
+    Polled { rate_hz: f64 },
+}
+
+/// Where the CyberGlove is and how to read it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GloveConfig {
+    pub link: LinkSettings,
+    /// 18 or 22 when the session insists on a glove size; None accepts what the glove reports
+    /// (within what the calibration fits).
+    pub sensors: Option<u32>,
+    /// A calibration file (acquisition::devices::calibration); None uses a nominal mapping.
+    pub calibration: Option<PathBuf>,
+    pub mode: GloveMode,
+    /// CLOCK_MONOTONIC (ns) that is source time 0; give the glove and the tracker the same.
+    pub epoch_ns: u64,
+}
+
+impl GloveConfig {
+    /// The usual settings: 115200 baud, streamed, size and calibration from the glove.
+    pub fn new(port: impl Into<PathBuf>) -> GloveConfig {
+        GloveConfig {
+            link: LinkSettings::new(port),
+            sensors: None,
+            calibration: None,
+            mode: GloveMode::Streamed,
+            epoch_ns: monotonic_ns(),
+        }
+    }
+}
+
+/// FASTRAK record encoding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Ascii,
+    Binary,
+}
+
+/// Position units the tracker reports in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Units {
+    Inches,
+    Centimetres,
+}
+
+impl Format {
+    /// The names a session file uses.
+    pub const NAMES: [&'static str; 2] = ["ascii", "binary"];
+
+    /// `"ascii"` or `"binary"`.
+    pub fn from_name(name: &str) -> Option<Format> {
+        match name {
+            "ascii" => Some(Format::Ascii),
+            "binary" => Some(Format::Binary),
+            _ => None,
+        }
+    }
+}
+
+impl Units {
+    /// The names a session file uses.
+    pub const NAMES: [&'static str; 4] = ["cm", "centimetres", "in", "inches"];
+
+    /// `"cm"`/`"centimetres"` or `"in"`/`"inches"`.
+    pub fn from_name(name: &str) -> Option<Units> {
+        match name {
+            "cm" | "centimetres" | "centimeters" => Some(Units::Centimetres),
+            "in" | "inches" => Some(Units::Inches),
+            _ => None,
+        }
+    }
+
+    pub fn metres_per_unit(self) -> f64 {
+        match self {
+            Units::Inches => 0.0254,
+            Units::Centimetres => 0.01,
+        }
+    }
+}
+
+/// Which orientation item the tracker driver asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Orientation {
+    /// Item 11: no gimbal lock, the default.
+    Quaternion,
+    /// Item 4: for firmware or setups that only give Euler angles.
+    Euler,
+}
+
+impl Orientation {
+    /// The names a session file uses.
+    pub const NAMES: [&'static str; 2] = ["quaternion", "euler"];
+
+    pub fn from_name(name: &str) -> Option<Orientation> {
+        match name {
+            "quaternion" => Some(Orientation::Quaternion),
+            "euler" => Some(Orientation::Euler),
+            _ => None,
+        }
+    }
+}
+
+/// How tracker records are requested.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TrackerMode {
+    /// `C`: the tracker sends at its own rate (120 Hz shared among active stations).
+    Continuous,
+    /// `P` at `rate_hz`.
+    Polled { rate_hz: f64 },
+}
+
+/// Where the FASTRAK is, how to read it, and where its frame sits in the world.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackerConfig {
+    pub link: LinkSettings,
+    pub format: Format,
+    pub units: Units,
+    pub orientation: Orientation,
+    pub mode: TrackerMode,
+    /// The receiver on the hand, 1..=4.
+    pub station: u8,
+    /// The transmitter's pose in the world (project axes, see acquisition::devices::fastrak).
+    pub to_world: Pose,
+    /// The wrist's pose in the receiver's frame (project axes).
+    pub wrist_offset: Pose,
+    /// CLOCK_MONOTONIC (ns) that is source time 0; give the glove and the tracker the same.
+    pub epoch_ns: u64,
+}
+
+impl TrackerConfig {
+    /// The usual settings: 115200 baud, binary, centimetres, quaternions, continuous,
+    /// station 1, transmitter at the world origin.
+    pub fn new(port: impl Into<PathBuf>) -> TrackerConfig {
+        TrackerConfig {
+            link: LinkSettings::new(port),
+            format: Format::Binary,
+            units: Units::Centimetres,
+            orientation: Orientation::Quaternion,
+            mode: TrackerMode::Continuous,
+            station: 1,
+            to_world: Pose::IDENTITY,
+            wrist_offset: Pose::IDENTITY,
+            epoch_ns: monotonic_ns(),
+        }
+    }
+}
+
+/// A device table's reader: its own, not [`super::reader::Reader`], because its messages are
+/// the drivers' own wording (and tests and users know them).
 struct Keys<'a> {
     file: &'a Path,
     prefix: &'a str,
@@ -161,6 +393,58 @@ impl<'a> Keys<'a> {
         Ok(Some(pose))
     }
 
+    /// `port` (required) and `baud`: where the device is and how fast it talks.
+    fn link(&mut self, device: &str, example_port: &str) -> Result<LinkSettings, ConfigError> {
+        let port = self.string("port")?.ok_or_else(|| {
+            self.err(
+                "port",
+                format!("required: the {device}'s serial device, e.g. {example_port}"),
+            )
+        })?;
+        let mut link = LinkSettings::new(port);
+        if let Some(b) = self.integer("baud", 300, 4_000_000)? {
+            link.baud = b as u32;
+        }
+        Ok(link)
+    }
+
+    /// `answer_ms` and `silence_ms`: how long the device may take to answer, and to send the
+    /// next record, before the driver reports it.
+    fn timeouts(&mut self, link: &mut LinkSettings) -> Result<(), ConfigError> {
+        if let Some(d) = self.millis("answer_ms")? {
+            link.answer_timeout = d;
+        }
+        if let Some(d) = self.millis("silence_ms")? {
+            link.silence_timeout = d;
+        }
+        Ok(())
+    }
+
+    /// `mode` (`own_mode`, the device sending on its own, or "polled") and `rate_hz`, which
+    /// only polling takes: the poll rate (`default_hz` when not given) when polled, None when
+    /// the device sends on its own. `own_rate` says in a message what sets the rate then.
+    fn poll_rate(
+        &mut self,
+        own_mode: &'static str,
+        default_hz: f64,
+        own_rate: &str,
+    ) -> Result<Option<f64>, ConfigError> {
+        let polled = self.choice("mode", &[own_mode, "polled"], |s| match s {
+            "polled" => Some(true),
+            s if s == own_mode => Some(false),
+            _ => None,
+        })?;
+        let rate = self.number("rate_hz", 1.0, 1000.0)?;
+        match (polled, rate) {
+            (Some(true), r) => Ok(Some(r.unwrap_or(default_hz))),
+            (_, Some(_)) => Err(self.err(
+                "rate_hz",
+                format!("only for mode = \"polled\" ({own_rate} sets its own rate)"),
+            )),
+            _ => Ok(None),
+        }
+    }
+
     fn finish(self) -> Result<(), ConfigError> {
         for key in self.table.keys() {
             if !self.known.iter().any(|k| k == key) {
@@ -189,17 +473,11 @@ pub fn glove_config(
     epoch_ns: u64,
 ) -> Result<GloveConfig, ConfigError> {
     let mut k = Keys::new(file, prefix, table);
-    let port = k.string("port")?.ok_or_else(|| {
-        k.err(
-            "port",
-            "required: the glove's serial device, e.g. /dev/ttyUSB0",
-        )
-    })?;
-    let mut cfg = GloveConfig::new(port);
-    cfg.epoch_ns = epoch_ns;
-    if let Some(b) = k.integer("baud", 300, 4_000_000)? {
-        cfg.baud = b as u32;
-    }
+    let mut cfg = GloveConfig {
+        link: k.link("glove", "/dev/ttyUSB0")?,
+        epoch_ns,
+        ..GloveConfig::new("")
+    };
     match k.get("sensors") {
         None => {}
         Some(Value::Integer(n)) if *n == 18 || *n == 22 => cfg.sensors = Some(*n as u32),
@@ -208,32 +486,10 @@ pub fn glove_config(
     if let Some(c) = k.string("calibration")? {
         cfg.calibration = Some(dir.join(c));
     }
-    let polled = k.choice("mode", &["streamed", "polled"], |s| match s {
-        "streamed" => Some(false),
-        "polled" => Some(true),
-        _ => None,
-    })?;
-    let rate = k.number("rate_hz", 1.0, 1000.0)?;
-    match (polled, rate) {
-        (Some(true), r) => {
-            cfg.mode = GloveMode::Polled {
-                rate_hz: r.unwrap_or(100.0),
-            }
-        }
-        (_, Some(_)) => {
-            return Err(k.err(
-                "rate_hz",
-                "only for mode = \"polled\" (a stream sets its own rate)",
-            ))
-        }
-        _ => {}
+    if let Some(rate_hz) = k.poll_rate("streamed", 100.0, "a stream")? {
+        cfg.mode = GloveMode::Polled { rate_hz };
     }
-    if let Some(d) = k.millis("answer_ms")? {
-        cfg.answer_timeout = d;
-    }
-    if let Some(d) = k.millis("silence_ms")? {
-        cfg.silence_timeout = d;
-    }
+    k.timeouts(&mut cfg.link)?;
     k.finish()?;
     Ok(cfg)
 }
@@ -251,17 +507,11 @@ pub fn tracker_config(
     epoch_ns: u64,
 ) -> Result<TrackerConfig, ConfigError> {
     let mut k = Keys::new(file, prefix, table);
-    let port = k.string("port")?.ok_or_else(|| {
-        k.err(
-            "port",
-            "required: the tracker's serial device, e.g. /dev/ttyUSB1",
-        )
-    })?;
-    let mut cfg = TrackerConfig::new(port);
-    cfg.epoch_ns = epoch_ns;
-    if let Some(b) = k.integer("baud", 300, 4_000_000)? {
-        cfg.baud = b as u32;
-    }
+    let mut cfg = TrackerConfig {
+        link: k.link("tracker", "/dev/ttyUSB1")?,
+        epoch_ns,
+        ..TrackerConfig::new("")
+    };
     if let Some(f) = k.choice("format", &Format::NAMES, Format::from_name)? {
         cfg.format = f;
     }
@@ -271,25 +521,8 @@ pub fn tracker_config(
     if let Some(o) = k.choice("orientation", &Orientation::NAMES, Orientation::from_name)? {
         cfg.orientation = o;
     }
-    let polled = k.choice("mode", &["continuous", "polled"], |s| match s {
-        "continuous" => Some(false),
-        "polled" => Some(true),
-        _ => None,
-    })?;
-    let rate = k.number("rate_hz", 1.0, 1000.0)?;
-    match (polled, rate) {
-        (Some(true), r) => {
-            cfg.mode = TrackerMode::Polled {
-                rate_hz: r.unwrap_or(60.0),
-            }
-        }
-        (_, Some(_)) => {
-            return Err(k.err(
-                "rate_hz",
-                "only for mode = \"polled\" (continuous output sets its own rate)",
-            ))
-        }
-        _ => {}
+    if let Some(rate_hz) = k.poll_rate("continuous", 60.0, "continuous output")? {
+        cfg.mode = TrackerMode::Polled { rate_hz };
     }
     if let Some(s) = k.integer("station", 1, 4)? {
         cfg.station = s as u8;
@@ -300,12 +533,7 @@ pub fn tracker_config(
     if let Some(p) = k.pose("wrist_offset")? {
         cfg.wrist_offset = p;
     }
-    if let Some(d) = k.millis("answer_ms")? {
-        cfg.answer_timeout = d;
-    }
-    if let Some(d) = k.millis("silence_ms")? {
-        cfg.silence_timeout = d;
-    }
+    k.timeouts(&mut cfg.link)?;
     k.finish()?;
     Ok(cfg)
 }
@@ -320,8 +548,8 @@ mod tests {
 
     #[test]
     fn the_example_session_reads() {
-        let file = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../config/devices/emulated-session.toml");
+        let file =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/devices/emulated-session.toml");
         let all = table(&std::fs::read_to_string(&file).unwrap());
         let Some(Value::Table(source)) = all.get("source") else {
             panic!("no [source]")
@@ -337,7 +565,6 @@ mod tests {
         assert_eq!(gc.sensors, Some(22));
         assert_eq!(gc.epoch_ns, 7);
         assert!(gc.calibration.as_ref().unwrap().ends_with("glove-22.cal"));
-        assert!(crate::devices::Glove::new(gc).is_ok());
         let tc = tracker_config(&file, "source.tracker", t, 7).unwrap();
         assert_eq!(tc.format, Format::Binary);
         assert_eq!(tc.units, Units::Centimetres);
