@@ -7,4 +7,4 @@ pub mod pairing;
 pub mod service;
 
 pub use model::HandModel;
-pub use pairing::GloveHistory;
+pub use pairing::{GloveHistory, HandStream};

@@ -6,8 +6,13 @@
 //! and pairing a tracker with a glove from its future would make the hand depend on timing.
 //! Pairing by source time makes the hand a function of the samples alone, which is what lets a
 //! replay reproduce a live run bit for bit.
+//!
+//! [`HandStream`] is that rule together with the hand model: the one place where source
+//! samples become hands, for the kinematics process and for `simulate --hand` alike.
 
-use common::GloveSample;
+use common::{GloveSample, HandSample, JointsSample, Stamp, TrackerSample};
+
+use crate::model::HandModel;
 
 /// Glove readings kept to pair with trackers that arrive late (a second of a 120 Hz glove).
 pub const GLOVE_HISTORY: usize = 128;
@@ -51,6 +56,75 @@ impl GloveHistory {
     }
 }
 
+/// The source samples of a hand (glove, tracker, joints) in, hand samples out: what the
+/// kinematics process does with each sample it receives, and what `handblocks simulate --hand`
+/// does with a trace, so that the two make the same hands from the same samples.
+///
+/// One hand per tracker sample (with the glove [`GloveHistory::at`] its source time, keeping
+/// the older of the two origins), one per joints sample from a hand tracker; a glove alone makes
+/// none. The hand is kept between samples: a joints sample the model cannot use yields the
+/// previous hand, marked lost, so that a reader still gets one hand per source sample.
+/// Nothing here allocates: the service calls it for every sample.
+pub struct HandStream {
+    model: HandModel,
+    gloves: GloveHistory,
+    hand: HandSample,
+    /// Hands made so far: the next hand's `seq` (a bus outlet stamps its own on publishing).
+    made: u64,
+}
+
+impl HandStream {
+    pub fn new(model: HandModel) -> Self {
+        HandStream {
+            model,
+            gloves: GloveHistory::default(),
+            hand: HandSample::default(),
+            made: 0,
+        }
+    }
+
+    /// Keeps a glove reading to pair with the trackers of its time (and later ones).
+    pub fn glove(&mut self, glove: &GloveSample) {
+        self.gloves.push(glove);
+    }
+
+    /// The hand at a tracker sample; `None` for a wrist pose that is not finite (no hand can
+    /// be placed there, and the stepper must never see a NaN). Before any glove the hand is
+    /// the model's at zero angles.
+    pub fn tracker(&mut self, tracker: &TrackerSample) -> Option<&HandSample> {
+        if !tracker.wrist.is_finite() {
+            return None;
+        }
+        let glove = self.gloves.at(tracker.stamp.source_time_ns);
+        self.model.solve(
+            glove.unwrap_or(&GloveSample::default()),
+            &tracker.wrist,
+            &mut self.hand,
+        );
+        let mut stamp = Stamp::derived(self.made, &tracker.stamp);
+        if let Some(g) = glove {
+            stamp.origin_ns = stamp.origin_ns.min(g.stamp.origin_ns);
+        }
+        Some(self.stamped(stamp))
+    }
+
+    /// The hand at a joints sample: the joints' hand, or, when the model cannot use them, the
+    /// previous hand marked lost.
+    pub fn joints(&mut self, joints: &JointsSample) -> &HandSample {
+        if !self.model.from_joints(joints, &mut self.hand) {
+            self.hand.tracked = 0;
+        }
+        let stamp = Stamp::derived(self.made, &joints.stamp);
+        self.stamped(stamp)
+    }
+
+    fn stamped(&mut self, stamp: Stamp) -> &HandSample {
+        self.hand.stamp = stamp;
+        self.made += 1;
+        &self.hand
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -80,5 +154,50 @@ mod tests {
             h.at(50).unwrap().stamp.source_time_ns,
             100 + GLOVE_HISTORY as u64
         );
+    }
+
+    fn tracker(t: u64, origin: u64) -> TrackerSample {
+        let mut s = TrackerSample::default();
+        s.stamp.source_time_ns = t;
+        s.stamp.origin_ns = origin;
+        s
+    }
+
+    #[test]
+    fn a_stream_makes_one_hand_per_tracker_or_joints_sample() {
+        let model = HandModel::default();
+        let mut stream = HandStream::new(model.clone());
+        let mut g = glove(10);
+        g.stamp.origin_ns = 5;
+        g.angles[3] = 0.7;
+        stream.glove(&g);
+        // The tracker's hand is the model's with the glove of its time, the older origin kept.
+        let t = tracker(12, 9);
+        let hand = *stream.tracker(&t).unwrap();
+        let mut expected = HandSample::default();
+        model.solve(&g, &t.wrist, &mut expected);
+        assert_eq!(hand.finger_points, expected.finger_points);
+        assert_eq!(
+            hand.stamp,
+            Stamp {
+                seq: 0,
+                source_time_ns: 12,
+                origin_ns: 5,
+                publish_ns: 0
+            }
+        );
+        // A wrist that is not finite makes no hand and takes no seq.
+        let mut bad = tracker(13, 9);
+        bad.wrist.position[0] = f64::NAN;
+        assert!(stream.tracker(&bad).is_none());
+        // Joints the model cannot use: the previous hand, marked lost, with the joints' stamp.
+        let mut j = JointsSample::default();
+        j.wrist.rotation = [0.0; 4];
+        j.stamp.source_time_ns = 20;
+        j.tracked = 1;
+        let lost = *stream.joints(&j);
+        assert_eq!(lost.tracked, 0);
+        assert_eq!(lost.finger_points, hand.finger_points);
+        assert_eq!((lost.stamp.seq, lost.stamp.source_time_ns), (1, 20));
     }
 }

@@ -1,16 +1,17 @@
 //! The kinematics process: one `hand` sample per `tracker` sample, with the newest glove
-//! reading at the tracker's source time ([`GloveHistory`]; docs/design.md, "Stamps and latency"),
-//! keeping the older of the two origins; or one `hand` per `joints` sample from a hand tracker.
+//! reading at the tracker's source time ([`crate::GloveHistory`]; docs/design.md, "Stamps and
+//! latency"), keeping the older of the two origins; or one `hand` per `joints` sample from a
+//! hand tracker. The samples become hands in [`HandStream`], as in `simulate --hand`.
 
 use std::time::Duration;
 
 use common::bus::{wait_any, Bus};
 use common::config::Session;
 use common::latency::Reporter;
-use common::{monotonic_ns, shutdown, topics, GloveSample, HandSample, Stage, Stamp};
+use common::{monotonic_ns, shutdown, topics, Stage};
 
 use crate::model::HandModel;
-use crate::pairing::GloveHistory;
+use crate::pairing::HandStream;
 
 /// How long to sleep without a sample before re-checking for a stop request.
 const IDLE_WAIT: Duration = Duration::from_millis(50);
@@ -24,8 +25,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     let mut hand_out = bus.outlet::<topics::Hand>()?;
     let mut reporter = Reporter::new(Stage::Kinematics, bus.outlet::<topics::Latency>()?);
 
-    let mut gloves = GloveHistory::default();
-    let mut hand = HandSample::default();
+    let mut hands = HandStream::new(model);
     loop {
         let stopping = shutdown::requested();
         if !stopping {
@@ -39,39 +39,23 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             // just before it is never missed.
             while let Some(g) = glove_in.receive()? {
                 reporter.recorder.hop(&g.stamp, received);
-                gloves.push(g.payload());
+                hands.glove(g.payload());
             }
             let Some(s) = tracker else {
                 break;
             };
             reporter.recorder.hop(&s.stamp, received);
-            if !s.wrist.is_finite() {
+            let Some(hand) = hands.tracker(s.payload()) else {
                 continue;
-            }
-            let glove = gloves.at(s.stamp.source_time_ns);
-            model.solve(
-                glove.unwrap_or(&GloveSample::default()),
-                &s.wrist,
-                &mut hand,
-            );
-            let mut stamp = Stamp::derived(0, &s.stamp);
-            if let Some(g) = glove {
-                stamp.origin_ns = stamp.origin_ns.min(g.stamp.origin_ns);
-            }
-            hand.stamp = stamp;
-            let sent = hand_out.publish(&hand)?;
+            };
+            let sent = hand_out.publish(hand)?;
             reporter.recorder.output(received, &sent);
         }
         // A hand tracker's joints: one hand per joints sample.
         while let Some(s) = joints_in.receive()? {
             let received = monotonic_ns();
             reporter.recorder.hop(&s.stamp, received);
-            if !model.from_joints(&s, &mut hand) {
-                // Keep one hand per joints sample: the previous hand, marked lost.
-                hand.tracked = 0;
-            }
-            hand.stamp = Stamp::derived(0, &s.stamp);
-            let sent = hand_out.publish(&hand)?;
+            let sent = hand_out.publish(hands.joints(s.payload()))?;
             reporter.recorder.output(received, &sent);
         }
         let counters = [

@@ -1,0 +1,86 @@
+//! `handblocks bench latency|accuracy|stability` (the benchmarks are the bench crate's), and
+//! the hidden `bench-peer`, the publishing half of the latency benchmark's peer.
+
+use std::fmt;
+use std::process::ExitCode;
+
+use crate::cli::BenchKind;
+
+/// Why a benchmark could not run. One that ran exits 0: its figures are its verdict.
+#[derive(Debug)]
+pub enum BenchError {
+    /// The latency benchmark starts this executable as the session's services.
+    OwnExecutable(std::io::Error),
+    /// The benchmark itself failed; `name` is `latency`, `accuracy` or `stability`.
+    Run {
+        name: &'static str,
+        error: Box<dyn std::error::Error>,
+    },
+    /// `bench-peer` could not publish.
+    Peer(Box<dyn std::error::Error>),
+}
+
+impl BenchError {
+    /// The command the message names after `handblocks` (none for a missing executable).
+    pub fn command(&self) -> Option<String> {
+        match self {
+            BenchError::OwnExecutable(_) => None,
+            BenchError::Run { name, .. } => Some(format!("bench {name}")),
+            BenchError::Peer(_) => Some("bench-peer".to_string()),
+        }
+    }
+}
+
+impl fmt::Display for BenchError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BenchError::OwnExecutable(e) => write!(f, "cannot find my own executable: {e}"),
+            BenchError::Run { error, .. } => write!(f, "{error}"),
+            BenchError::Peer(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for BenchError {}
+
+/// Runs one benchmark; its results are files under its `--out` folder.
+pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
+    let (name, result) = match which {
+        BenchKind::Latency {
+            session,
+            seconds,
+            out,
+        } => {
+            let exe = std::env::current_exe().map_err(BenchError::OwnExecutable)?;
+            let b = handblocks_bench::latency::LatencyBench {
+                exe,
+                session,
+                seconds: seconds.as_secs_f64(),
+                out_dir: out,
+            };
+            ("latency", handblocks_bench::latency::run(&b).map(drop))
+        }
+        BenchKind::Accuracy { out, quick } => {
+            let b = handblocks_bench::accuracy::AccuracyBench {
+                out_dir: out,
+                quick,
+            };
+            ("accuracy", handblocks_bench::accuracy::run(&b).map(drop))
+        }
+        BenchKind::Stability { out, quick } => {
+            let b = handblocks_bench::stability::StabilityBench {
+                out_dir: out,
+                quick,
+            };
+            ("stability", handblocks_bench::stability::run(&b).map(drop))
+        }
+    };
+    result.map_err(|error| BenchError::Run { name, error })?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `bench-peer`: publishes `count` hands at `rate` Hz on the bus `bus`.
+pub fn peer(bus: &str, rate: f64, count: u64) -> Result<ExitCode, BenchError> {
+    handblocks_bench::latency::peer_publisher(bus, rate, count).map_err(BenchError::Peer)?;
+    Ok(ExitCode::SUCCESS)
+}

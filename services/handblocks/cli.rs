@@ -1,0 +1,290 @@
+//! The command line: every subcommand, its options and their help, as clap parses them. What
+//! each subcommand does is its own module's; this file only says what can be asked.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::{Parser, Subcommand};
+
+/// The version and the commit it was built from (build.rs).
+pub const VERSION: &str = concat!(
+    env!("CARGO_PKG_VERSION"),
+    " (commit ",
+    env!("HANDBLOCKS_COMMIT"),
+    ")"
+);
+
+/// `launch --help`'s closing text: the report's terms and where the documents are.
+const LAUNCH_AFTER_HELP: &str = concat!(
+    "The latency table (microseconds), per stage:\n",
+    "  hop          a sample's publish (by the stage before) to its receive here: the bus and the wake-up\n",
+    "  process      receive to this stage's publish: its own work\n",
+    "  origin->out  the sample's origin (when its source sample entered the pipeline) to this\n",
+    "               stage's publish: the age of what it sends (at the stepper: origin -> world)\n",
+    "  origin->px   the renderer only: origin to the frame's GPU work complete (origin -> photon)\n",
+    "  received     per topic, the fewest samples any reader received; dropped = never read\n",
+    "\n",
+    "Besides the session's [budget] keys, every session is judged on what users assume: the source\n",
+    "delivers a sample at least every `source_silence_ms` (default 1000), and the renderer draws at\n",
+    "least (1 - `frame_rate_margin`) x frame_hz frames per second (default margin 0.25; frame_hz, or\n",
+    "the world's rate when that is lower). The design: docs/design.md; the model: docs/model.md."
+);
+
+#[derive(Parser)]
+#[command(
+    name = "handblocks",
+    version = VERSION,
+    about = "A hand grasps, pushes, carries and throws virtual blocks at interactive rate.",
+    long_about = "A hand grasps, pushes, carries and throws virtual blocks at interactive rate.\n\n\
+        A session runs as independent processes (acquisition, kinematics, stepper, renderer, \
+        recorder) exchanging zero-copy samples over iceoryx2; the launcher measures every \
+        stage's latency and judges it against the session's [budget].\n\n\
+        Start with:  ./run                        (set-up, build, the live session: the scripted hand)\n\
+        \x20            handblocks launch --help     (options, the report and its terms)\n\
+        \x20            handblocks list              (the scenes and sessions)\n\n\
+        The design: docs/design.md; the model's rules: docs/model.md (in the repository)."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Run a session: start its processes, measure latency, judge the budget.
+    ///
+    /// After the session it prints what the world came to (each block's final pose and mode,
+    /// the events, as `simulate` does), the latency table, and the budget's verdict. A headless
+    /// session also writes an animated preview (out/SESSION-preview.png; --no-preview: none).
+    /// A replay session ends when its trace does (unless [source] loop = true).
+    ///
+    /// Exit status: 0 when the session ran within its [budget], 1 when it ran but violated the
+    /// budget or a process failed, 2 when it could not run (bad config, no processes).
+    #[command(after_help = LAUNCH_AFTER_HELP)]
+    Launch {
+        /// The session file (which scene, which source, renderer, recorder, budget), or a scene
+        /// file (run with the default settings: the scripted hand, headless).
+        #[arg(default_value = "config/sessions/live.toml")]
+        session: PathBuf,
+        /// Override a key of the session file, e.g. --set renderer.mode=off, --set
+        /// budget.max_dropped=0, --set source.file=/data/carl/example_push_0.carl (paths, as in
+        /// the file, start at the session file's folder). Checked as the file's keys are.
+        /// Repeatable.
+        #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
+        overrides: Vec<common::config::session::Override>,
+        /// No animated preview (a headless session writes one by default).
+        #[arg(long)]
+        no_preview: bool,
+        /// Overwrite the recording (--record or [recorder] file) if it exists.
+        #[arg(long)]
+        force: bool,
+        /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM).
+        #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+        duration: Option<Duration>,
+        /// Also write the report as JSON to this file.
+        #[arg(long, value_name = "FILE")]
+        report: Option<PathBuf>,
+        /// The session's bus id (iceoryx2 prefix `hb_<ID>_`); default: a fresh one.
+        #[arg(long, value_name = "ID")]
+        bus_id: Option<String>,
+        /// No progress lines while running.
+        #[arg(long)]
+        quiet: bool,
+        /// Write rendered frames as PNG into DIR (every `[renderer] frames_every`-th frame).
+        #[arg(long, value_name = "DIR")]
+        frames_dir: Option<PathBuf>,
+        /// Record every topic to this MCAP file (overrides the session's `[recorder] file`);
+        /// list it with `handblocks inspect FILE`, replay it with `[source] kind = "replay"`.
+        #[arg(long, value_name = "FILE")]
+        record: Option<PathBuf>,
+    },
+    /// List a recording's topics: messages, sequence gaps, time span and rate of each.
+    ///
+    /// Reads an MCAP file the recorder wrote (`[recorder] file` in a session). A file cut off
+    /// by a crash is read up to its last complete chunk and the damage is named with its byte
+    /// offset. The file also opens in the standard MCAP tools (`mcap info FILE`, Foxglove).
+    /// Exit status: 0 for an intact recording, 1 when it is damaged (what could be read is
+    /// listed), 2 when it cannot be read at all.
+    Inspect {
+        /// The recording (.mcap).
+        recording: PathBuf,
+        /// Print {"file", "complete", "damage", "foreign_messages", "topics": [{"topic",
+        /// "messages", "gaps", "seconds", "rate_hz", "schema", "bytes"}]}.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Run a scene's block world alone, in one process, deterministically.
+    ///
+    /// The scene's [hand] keyframes drive the hand, sampled once per step: `grip`/`angles` keys
+    /// through the hand model, `fingers` keys as bare check points. Two runs print identical
+    /// bytes. Exit status 2 when the scene is refused (the message names file, key and range).
+    Simulate {
+        /// The scene file (docs/design.md, "Effects"; the rules: docs/model.md).
+        scene: PathBuf,
+        /// Steps to run (default: the hand's last key plus 3 s).
+        #[arg(long, value_name = "N")]
+        frames: Option<u64>,
+        /// Override the scene's [world] model.
+        #[arg(long, value_parser = ["paper", "precise"])]
+        model: Option<String>,
+        /// Drive the hand from a trace instead of the scene's [hand]: one of our MCAP recordings
+        /// (its glove + tracker or joints topics) or a CARL file (OpenXR joints), through the
+        /// hand model and the stepper's own timeline, exactly as a live replay would.
+        #[arg(long, value_name = "TRACE")]
+        hand: Option<PathBuf>,
+        /// Move the traced hand by X,Y,Z metres (real traces hold the hand ~1 m above the floor).
+        #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+        hand_offset: Option<[f64; 3]>,
+        /// Print {"frames", "blocks": [{"name", "position", "rotation", "mode"}], "events"}.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Benchmarks, each reported against a peer measured in the same run.
+    Bench {
+        #[command(subcommand)]
+        which: BenchKind,
+    },
+    /// Emulate a CyberGlove or a FASTRAK on a pseudo-terminal, for sessions without hardware.
+    ///
+    /// The device appears at --link (a symbolic link to the pty), which a session's
+    /// [source.glove] or [source.tracker] `port` names exactly as it would name /dev/ttyUSB0.
+    /// See config/devices/emulated-session.toml. Ctrl-C stops it.
+    Emulate {
+        /// glove or tracker.
+        #[arg(value_parser = ["glove", "tracker"])]
+        device: String,
+        /// Where the device appears.
+        #[arg(long, value_name = "PATH")]
+        link: PathBuf,
+        /// Glove sensors (18 or 22).
+        #[arg(long, default_value = "22", value_parser = clap::value_parser!(u8).range(18..=22))]
+        sensors: u8,
+        /// Records per second (glove default 100, tracker default 120).
+        #[arg(long, value_name = "HZ")]
+        rate: Option<f64>,
+        /// A fault to inject, KIND@RECORD[:ARG]: garbage@100, truncate@200:5, corrupt@300:7,
+        /// silence@400:1500 (ms, or `forever`), unplug@500:1000. Repeatable.
+        #[arg(long = "fault", value_name = "SPEC")]
+        faults: Vec<String>,
+    },
+    /// The publishing half of the latency benchmark's peer (started by `bench latency`).
+    #[command(hide = true)]
+    BenchPeer {
+        #[arg(long)]
+        bus: String,
+        #[arg(long)]
+        rate: f64,
+        #[arg(long)]
+        count: u64,
+    },
+    /// List the scenes and sessions under config/ (or DIR), each with its first comment line.
+    List {
+        /// Where to look.
+        #[arg(default_value = "config")]
+        dir: PathBuf,
+    },
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    ///
+    /// For bash: handblocks completions bash > ~/.local/share/bash-completion/completions/handblocks
+    Completions {
+        /// bash, zsh, fish, elvish or powershell.
+        shell: clap_complete::Shell,
+    },
+    /// Run one process of a session (the launcher starts each one this way).
+    #[command(hide = true)]
+    Service {
+        /// acquisition, kinematics, stepper, renderer or recorder.
+        name: String,
+        /// The session file.
+        #[arg(long)]
+        session: PathBuf,
+        /// The session's bus id, as the launcher chose it.
+        #[arg(long)]
+        bus: String,
+        /// The renderer only: write PNG frames here.
+        #[arg(long, value_name = "DIR")]
+        frames_dir: Option<PathBuf>,
+        /// The recorder only: the file, in place of the session's `[recorder] file`.
+        #[arg(long, value_name = "FILE")]
+        record: Option<PathBuf>,
+        /// The renderer only: write the animated preview here.
+        #[arg(long, value_name = "FILE")]
+        preview: Option<PathBuf>,
+        /// The stepper only: write the world's outcome into this folder when stopping.
+        #[arg(long, value_name = "DIR")]
+        outcome_dir: Option<PathBuf>,
+        /// The session's --set overrides, as the launcher got them.
+        #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
+        overrides: Vec<common::config::session::Override>,
+    },
+}
+
+#[derive(Subcommand)]
+pub enum BenchKind {
+    /// Per-hop and origin -> world latency of the whole process set, against a bare
+    /// two-process iceoryx2 hop measured in the same run.
+    Latency {
+        /// The session to measure.
+        #[arg(long, default_value = "config/sessions/live.toml")]
+        session: PathBuf,
+        /// Seconds for the peer, and again for the session.
+        #[arg(long, default_value = "10", value_parser = parse_seconds)]
+        seconds: Duration,
+        /// Where latency.json goes.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+    },
+    /// What accuracy costs in time: the paper model and the precise one (rapier3d) against
+    /// exact answers at several settings each, timed in the same run.
+    Accuracy {
+        /// Where accuracy.json, accuracy.md and accuracy.png go.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+        /// A reduced sweep (under a minute on 2 cores).
+        #[arg(long)]
+        quick: bool,
+    },
+    /// Every hard case (config/scenes/hard/) under the paper model, R11 only (stacks) and the
+    /// precise one, with drift, sink, penetration, decision, time to rest and a state hash.
+    Stability {
+        /// Where stability.json, stability.md and stability.png go.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+        /// Leave out the slowest precise runs (under a minute on 2 cores).
+        #[arg(long)]
+        quick: bool,
+    },
+}
+
+fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("{s:?}: give three numbers, X,Y,Z (metres)"));
+    }
+    let mut v = [0.0; 3];
+    for (slot, p) in v.iter_mut().zip(&parts) {
+        *slot = p
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && x.abs() <= 1e5)
+            .ok_or_else(|| format!("{p:?} is not a number of metres within 100 km"))?;
+    }
+    Ok(v)
+}
+
+fn parse_override(s: &str) -> Result<common::config::session::Override, String> {
+    common::config::session::Override::parse(s)
+}
+
+fn parse_seconds(s: &str) -> Result<Duration, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number of seconds"))?;
+    if !(v.is_finite() && v > 0.0 && v <= 86_400.0 * 365.0) {
+        return Err(format!(
+            "{s}: allowed: more than 0 and at most a year of seconds"
+        ));
+    }
+    Ok(Duration::from_secs_f64(v))
+}

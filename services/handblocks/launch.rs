@@ -1,0 +1,119 @@
+//! `handblocks launch SESSION` (and the bare `handblocks`): runs a session through the
+//! launcher, then prints what the world came to, the latency table, the preview's path and
+//! the budget's verdict.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+use common::config::session::{Override, RenderMode};
+
+use crate::cli::VERSION;
+
+/// What `handblocks launch` was given.
+#[derive(Default)]
+pub struct LaunchArgs {
+    pub session: PathBuf,
+    pub overrides: Vec<Override>,
+    pub no_preview: bool,
+    pub force: bool,
+    pub duration: Option<Duration>,
+    pub report: Option<PathBuf>,
+    pub bus_id: Option<String>,
+    pub quiet: bool,
+    pub frames_dir: Option<PathBuf>,
+    pub record: Option<PathBuf>,
+}
+
+/// Why a session did not run, or ran but its report could not be written.
+#[derive(Debug)]
+pub enum LaunchCommandError {
+    /// The services are this executable started again: it must know where it is.
+    OwnExecutable(std::io::Error),
+    /// The session file, its overrides or its recording settings were refused.
+    Session(launcher::LaunchError),
+    /// The launcher could not start or supervise the processes.
+    Run(launcher::LaunchError),
+    /// `--report FILE` could not be written (the session itself ran).
+    Report(launcher::LaunchError),
+}
+
+impl fmt::Display for LaunchCommandError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LaunchCommandError::OwnExecutable(e) => write!(
+                f,
+                "cannot find my own executable to start the services: {e}"
+            ),
+            LaunchCommandError::Session(e)
+            | LaunchCommandError::Run(e)
+            | LaunchCommandError::Report(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for LaunchCommandError {}
+
+/// Runs the session; 0 when it kept its budget, 1 when it did not or a process failed.
+pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
+    let exe = std::env::current_exe().map_err(LaunchCommandError::OwnExecutable)?;
+    let mut opts = launcher::LaunchOptions {
+        session: args.session,
+        duration: args.duration,
+        report: args.report.clone(),
+        bus_id: args.bus_id,
+        exe,
+        progress: !args.quiet,
+        frames_dir: args.frames_dir,
+        record: args.record,
+        overrides: args.overrides,
+        force: args.force,
+        preview: None,
+        version: VERSION.to_string(),
+    };
+    let s = launcher::load_session(&opts).map_err(LaunchCommandError::Session)?;
+    // A session without a display leaves something to look at.
+    if s.renderer.mode == RenderMode::Headless && !args.no_preview {
+        opts.preview = Some(launcher::default_preview_path(&opts.session));
+    }
+    if !args.quiet {
+        let until = args.duration.map_or("until Ctrl-C".to_string(), |d| {
+            format!("for {:.1} s", d.as_secs_f64())
+        });
+        eprintln!("handblocks: launching {} {until}", opts.session.display());
+    }
+    let outcome = launcher::launch(&opts).map_err(LaunchCommandError::Run)?;
+    if let Some(world) = &outcome.world {
+        println!("what the world came to (as simulate prints it): {world}");
+    }
+    print!("{}", outcome.report.table());
+    if let Some(path) = &outcome.preview {
+        println!("{}", preview_line(path));
+    }
+    if let Some(path) = &args.report {
+        launcher::write_report(&outcome.report, path).map_err(LaunchCommandError::Report)?;
+    }
+    Ok(if outcome.report.ok() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+/// `preview: out/live-preview.png (animated PNG, 36 frames, 640 x 240, 412 KB; open it in a
+/// web browser)`.
+fn preview_line(path: &Path) -> String {
+    let size = std::fs::metadata(path).map_or(0, |m| m.len());
+    match renderer::preview::describe(path) {
+        Some(d) => format!(
+            "preview: {} (animated PNG, {} frames, {} x {}, {:.0} KB; open it in a web browser)",
+            path.display(),
+            d.frames,
+            d.width,
+            d.height,
+            size as f64 / 1024.0
+        ),
+        None => format!("preview: {} ({size} bytes)", path.display()),
+    }
+}

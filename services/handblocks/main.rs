@@ -1,0 +1,123 @@
+//! `handblocks`: the one binary that holds every service of the system.
+//!
+//! A hand, measured by a data glove and a 6-DoF tracker (or scripted, or replayed), grasps,
+//! pushes, carries and throws virtual blocks at interactive rate. `launch` runs a session as
+//! separate processes over shared memory; `service` is how the launcher starts each of them.
+//!
+//! This file only dispatches: [`cli`] says what can be asked, one module per subcommand does
+//! it through the crates (which hold the logic), and every refusal comes back as a
+//! [`CliError`] that `main` prints once.
+
+mod bench;
+mod cli;
+mod completions;
+mod emulate;
+mod error;
+mod inspect;
+mod launch;
+mod list;
+mod service;
+mod simulate;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::Parser;
+
+use cli::{Cli, Command};
+use error::CliError;
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("{e}");
+            ExitCode::from(CliError::EXIT_STATUS)
+        }
+    }
+}
+
+/// Runs the subcommand asked for. `Ok` carries its verdict (0, or 1 for a session over its
+/// budget or a damaged recording); `Err` is a refusal, which `main` prints and exits 2 for.
+fn run() -> Result<ExitCode, CliError> {
+    let cli = Cli::parse();
+    let code = match cli.command {
+        // `cargo run --release`: the live session, until Ctrl-C.
+        None => launch::run(launch::LaunchArgs {
+            session: PathBuf::from("config/sessions/live.toml"),
+            ..launch::LaunchArgs::default()
+        })?,
+        Some(Command::Launch {
+            session,
+            overrides,
+            no_preview,
+            force,
+            duration,
+            report,
+            bus_id,
+            quiet,
+            frames_dir,
+            record,
+        }) => launch::run(launch::LaunchArgs {
+            session,
+            overrides,
+            no_preview,
+            force,
+            duration,
+            report,
+            bus_id,
+            quiet,
+            frames_dir,
+            record,
+        })?,
+        Some(Command::List { dir }) => list::run(&dir)?,
+        Some(Command::Completions { shell }) => completions::run(shell),
+        Some(Command::Simulate {
+            scene,
+            frames,
+            model,
+            hand,
+            hand_offset,
+            json,
+        }) => simulate::run(simulate::SimulateArgs {
+            scene,
+            frames,
+            model,
+            trace: hand,
+            hand_offset: hand_offset.unwrap_or_default(),
+            json,
+        })?,
+        Some(Command::Inspect { recording, json }) => inspect::run(&recording, json)?,
+        Some(Command::Service {
+            name,
+            session,
+            bus,
+            frames_dir,
+            record,
+            preview,
+            outcome_dir,
+            overrides,
+        }) => service::run(
+            &name,
+            &session,
+            &bus,
+            service::ServiceArgs {
+                frames_dir,
+                record,
+                preview,
+                outcome_dir,
+                overrides,
+            },
+        )?,
+        Some(Command::Bench { which }) => bench::run(which)?,
+        Some(Command::BenchPeer { bus, rate, count }) => bench::peer(&bus, rate, count)?,
+        Some(Command::Emulate {
+            device,
+            link,
+            sensors,
+            rate,
+            faults,
+        }) => emulate::run(&device, &link, sensors, rate, &faults)?,
+    };
+    Ok(code)
+}

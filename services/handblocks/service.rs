@@ -1,0 +1,119 @@
+//! `handblocks service NAME --session FILE --bus ID` (hidden): one process of a session, as
+//! the launcher starts it. The process itself is its crate's `service::run`.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use common::bus::{Bus, BusConfig};
+use common::config::session::Override;
+use common::config::Session;
+use common::{shutdown, Stage};
+
+/// What the launcher passes a service besides its name, session and bus.
+pub struct ServiceArgs {
+    pub frames_dir: Option<PathBuf>,
+    pub record: Option<PathBuf>,
+    pub preview: Option<PathBuf>,
+    pub outcome_dir: Option<PathBuf>,
+    pub overrides: Vec<Override>,
+}
+
+/// Why a service process stopped with an error.
+#[derive(Debug)]
+pub enum ServiceError {
+    /// NAME is none of the stages.
+    Unknown { name: String },
+    /// The stage's process failed: its session, its bus, or its own work. The processes'
+    /// errors are their crates' own types, carried as they are (the launcher reads the line).
+    Failed {
+        stage: Stage,
+        error: Box<dyn std::error::Error>,
+    },
+}
+
+impl ServiceError {
+    /// Who says it: `service` for a name that is none, else the stage (`handblocks stepper: ...`).
+    pub fn service(&self) -> &'static str {
+        match self {
+            ServiceError::Unknown { .. } => "service",
+            ServiceError::Failed { stage, .. } => stage.name(),
+        }
+    }
+}
+
+impl fmt::Display for ServiceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ServiceError::Unknown { name } => {
+                let names: Vec<&str> = Stage::ALL.iter().map(|s| s.name()).collect();
+                write!(f, "unknown service {name:?}; one of: {}", names.join(", "))
+            }
+            ServiceError::Failed { error, .. } => write!(f, "{error}"),
+        }
+    }
+}
+
+impl std::error::Error for ServiceError {}
+
+/// Runs the stage until it is asked to stop. A renderer without a GPU adapter exits with
+/// [`launcher::RENDERER_SKIPPED_EXIT`] and no message: the launcher goes on without it and
+/// says so in one line.
+pub fn run(
+    name: &str,
+    session_file: &Path,
+    bus_id: &str,
+    args: ServiceArgs,
+) -> Result<ExitCode, ServiceError> {
+    shutdown::install_signal_handlers();
+    shutdown::watch_parent_pipe();
+    let Some(stage) = Stage::from_name(name) else {
+        return Err(ServiceError::Unknown {
+            name: name.to_string(),
+        });
+    };
+    match run_stage(stage, session_file, bus_id, args) {
+        Ok(()) => Ok(ExitCode::SUCCESS),
+        Err(error) => {
+            if matches!(
+                error.downcast_ref::<renderer::RenderError>(),
+                Some(renderer::RenderError::NoAdapter(_))
+            ) {
+                return Ok(ExitCode::from(launcher::RENDERER_SKIPPED_EXIT as u8));
+            }
+            Err(ServiceError::Failed { stage, error })
+        }
+    }
+}
+
+fn run_stage(
+    stage: Stage,
+    session_file: &Path,
+    bus_id: &str,
+    args: ServiceArgs,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let mut session = Session::load_with(session_file, &args.overrides)?;
+    if args.record.is_some() {
+        session.recorder.file = args.record;
+    }
+    let bus = Bus::open(&BusConfig::for_session(bus_id)?, stage.name())?;
+    match stage {
+        Stage::Acquisition => acquisition::service::run(&session, &bus),
+        Stage::Kinematics => kinematics::service::run(&session, &bus),
+        Stage::Stepper => {
+            stepper::service::run_with_outcome(&session, &bus, args.outcome_dir.as_deref())
+        }
+        Stage::Renderer => renderer::service::run_with_preview(
+            &session,
+            &bus,
+            renderer::RenderSettings::from_session_framed(&session.renderer, &session.scene),
+            args.frames_dir.map(|dir| renderer::FramesRequest {
+                dir,
+                every_nth: session.renderer.frames_every,
+            }),
+            args.preview,
+        ),
+        Stage::Recorder => recorder::service::run(&session, &bus),
+        Stage::Replay => replay::service::run(&session, &bus),
+    }
+}
