@@ -773,7 +773,7 @@ fn simulate_trace(
 }
 
 fn inspect(path: &std::path::Path, json: bool) -> ExitCode {
-    use common::recording::{sample_type, Recording, RECORDED_TOPICS};
+    use recording::{sample_type, Recording, RECORDED_TOPICS};
     // Counts and gaps come from every message; no sample needs to stay in memory.
     let rec = match Recording::open_topics(path, &[]) {
         Ok(r) => r,

@@ -15,7 +15,7 @@ use common::{
     TrackerSample, WorldSample,
 };
 
-use common::recording::RecordingWriter;
+use recording::RecordingWriter;
 
 const IDLE_WAIT: Duration = Duration::from_millis(50);
 
