@@ -5,14 +5,13 @@
 //! [`Renderer::render`] draws a world and hand sample and waits for the GPU,
 //! [`Renderer::read_back`] returns the pixels. [`service`] is the process around it.
 //!
-//! Modules, by concept: [`camera`] (off-axis stereo), [`hull`] and [`mesh`] (block polyhedra
-//! from the scene's shape specs, centred on G), [`draw_list`] (a frame's instances),
+//! Modules, by concept: [`camera`] (off-axis stereo), [`mesh`] (static geometry; block meshes
+//! over the shapes crate's solids, centred on G), [`draw_list`] (a frame's instances),
 //! [`pipeline`] (shaders and GPU pipelines), [`renderer`] (device and frame), [`output`]
 //! (side-by-side, anaglyph, separate), [`png`], [`window`] (winit), [`service`].
 
 pub mod camera;
 pub mod draw_list;
-pub mod hull;
 pub mod mesh;
 pub mod output;
 pub mod pipeline;
