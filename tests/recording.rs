@@ -4,8 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::recording::{Recording, RecordingWriter};
 use common::{GloveSample, HandSample, Stamp, Topic, TrackerSample, WorldSample};
+use recording::{Recording, RecordingWriter};
 use serde_json::Value;
 
 mod support;
@@ -421,19 +421,13 @@ fn recordings_open_in_the_standard_mcap_reader() {
     assert_eq!(v["profile"], "handblocks");
     assert!(v["chunks"].as_u64().unwrap() >= 2, "{}", v["chunks"]);
     let ours = Recording::open(&file).unwrap();
-    for t in common::recording::RECORDED_TOPICS {
+    for t in recording::RECORDED_TOPICS {
         let theirs = &v["topics"][t.name()];
-        let (schema, _) = common::recording::sample_type(t);
+        let (schema, _) = recording::sample_type(t);
         assert_eq!(theirs["schema"], schema);
-        assert_eq!(
-            theirs["schema_encoding"],
-            common::recording::SCHEMA_ENCODING
-        );
-        assert_eq!(
-            theirs["message_encoding"],
-            common::recording::MESSAGE_ENCODING
-        );
-        assert_eq!(theirs["layout"], common::recording::layout(t));
+        assert_eq!(theirs["schema_encoding"], recording::SCHEMA_ENCODING);
+        assert_eq!(theirs["message_encoding"], recording::MESSAGE_ENCODING);
+        assert_eq!(theirs["layout"], recording::layout(t));
         let seqs: Vec<u64> = theirs["seqs"]
             .as_array()
             .unwrap()

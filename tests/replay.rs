@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use common::recording::Recording;
 use common::{BlockMode, JointsSample, Topic, WorldSample};
+use recording::Recording;
 
 mod support;
 use support::{assert_nothing_left, assert_same_poses, repo, simulate_trace, Scratch, EXE};

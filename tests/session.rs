@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::Duration;
 
-use common::recording::Recording;
 use common::{HandSample, Topic, TrackerSample, WorldSample};
+use recording::Recording;
 use serde_json::Value;
 
 mod support;

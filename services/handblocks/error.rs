@@ -4,7 +4,7 @@
 
 use std::fmt;
 
-use common::recording::RecordingError;
+use recording::RecordingError;
 
 use crate::bench::BenchError;
 use crate::emulate::EmulateError;

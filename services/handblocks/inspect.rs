@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::{Duration, UNIX_EPOCH};
 
-use common::recording::{Recording, RecordingError};
+use recording::{Recording, RecordingError};
 
 /// Lists the recording; 0 when it is intact, 1 when it is damaged (what could be read is
 /// listed), an error when it cannot be read at all.

@@ -1,4 +1,4 @@
 //! The recorder: writes every sample of every topic to an MCAP file
-//! ([`common::recording`]) and counts, per topic, what it missed (gaps in seq).
+//! ([`recording`]) and counts, per topic, what it missed (gaps in seq).
 
 pub mod service;

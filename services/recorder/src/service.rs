@@ -13,7 +13,7 @@ use common::latency::Reporter;
 use common::topic::{TopicSpec, TopicVisitor};
 use common::{monotonic_ns, shutdown, topics, Stage, Topic, TopicCounter};
 
-use common::recording::RecordingWriter;
+use recording::RecordingWriter;
 
 const IDLE_WAIT: Duration = Duration::from_millis(50);
 

@@ -9,7 +9,8 @@ use std::path::PathBuf;
 
 use common::config::scene::{BlockSpec, Effects, Scene, ShapeSpec, WorldSettings};
 use common::{BlockMode, BlockState, HandSample, Pose, WorldSample};
-use renderer::output::{write_frame, Image};
+use renderer::image::Image;
+use renderer::output::write_frame;
 use renderer::{OutputMode, RenderSettings, Renderer};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -9,8 +9,8 @@ use std::ops::Range;
 use common::samples::{MAX_BLOCKS, MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
 use common::{BlockMode, HandSample, WorldSample};
 use glam::{DQuat, DVec3, Mat4, Vec3};
+use shapes::hull_triangles_into;
 
-use crate::hull::hull_triangles_into;
 use crate::mesh::Vertex;
 use crate::pipeline::Instance;
 

@@ -5,14 +5,19 @@
 //! [`Renderer::render`] draws a world and hand sample and waits for the GPU,
 //! [`Renderer::read_back`] returns the pixels. [`service`] is the process around it.
 //!
-//! Modules, by concept: [`camera`] (off-axis stereo), [`hull`] and [`mesh`] (block polyhedra
-//! from the scene's shape specs, centred on G), [`draw_list`] (a frame's instances),
-//! [`pipeline`] (shaders and GPU pipelines), [`renderer`] (device and frame), [`output`]
-//! (side-by-side, anaglyph, separate), [`png`], [`window`] (winit), [`service`].
+//! Modules, by concept, each importing only modules listed before it (the module graph has no
+//! circle, so each can be read and tested knowing only those it names): [`error`] (the one
+//! error type), [`camera`] (the viewer and off-axis stereo), [`settings`] (what the renderer is
+//! asked to do), [`mesh`] (static geometry; block meshes over the shapes crate's solids,
+//! centred on G), [`pipeline`] (shaders and GPU pipelines), [`draw_list`] (a frame's
+//! instances), [`image`] (a frame's pixels), [`renderer`] (device and frame), [`png`],
+//! [`output`] (side-by-side, anaglyph, separate), [`preview`] (the animated PNG), [`window`]
+//! (winit), [`service`].
 
 pub mod camera;
 pub mod draw_list;
-pub mod hull;
+pub mod error;
+pub mod image;
 pub mod mesh;
 pub mod output;
 pub mod pipeline;
@@ -23,6 +28,8 @@ pub mod service;
 pub mod settings;
 pub mod window;
 
-pub use output::Image;
-pub use renderer::{FrameTimes, RenderError, Renderer};
-pub use settings::{CameraSettings, FramesRequest, OutputMode, RenderSettings};
+pub use camera::CameraSettings;
+pub use error::RenderError;
+pub use image::Image;
+pub use renderer::{FrameTimes, Renderer};
+pub use settings::{FramesRequest, OutputMode, RenderSettings};

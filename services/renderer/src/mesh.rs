@@ -1,5 +1,6 @@
 //! Static geometry, built once: the floor, a unit cylinder and sphere (finger segments and
-//! joints, placed per frame by instance matrices), and one mesh per scene block.
+//! joints, placed per frame by instance matrices), and one mesh per scene block (the shapes
+//! crate's solid, the one the stepper simulates).
 //!
 //! Vertices carry only a position and an "edge weight": faces are triangle fans from each
 //! polygon's centre, whose centre vertex has weight 1 and whose rim vertices have 0, so the
@@ -14,8 +15,7 @@ use std::ops::Range;
 use bytemuck::{Pod, Zeroable};
 use common::config::scene::ShapeSpec;
 use glam::DVec3;
-
-use crate::hull::{convex_hull, Polytope};
+use shapes::Solid;
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -57,11 +57,8 @@ impl Meshes {
         let sphere = push(&mut vertices, sphere_triangles(12, 6));
         let mut blocks = Vec::with_capacity(shapes.len());
         for (i, s) in shapes.iter().enumerate() {
-            let p = block_polytope(s).ok_or_else(|| ShapeError {
-                block: i,
-                problem: "its vertices span no volume (all on one plane?)".into(),
-            })?;
-            blocks.push(push(&mut vertices, polytope_triangles(&p)));
+            let solid = Solid::from_spec(s).map_err(|problem| ShapeError { block: i, problem })?;
+            blocks.push(push(&mut vertices, solid_triangles(&solid)));
         }
         Ok(Meshes {
             vertices,
@@ -87,48 +84,9 @@ fn v(p: DVec3, edge: f32) -> Vertex {
     }
 }
 
-/// A block's polyhedron in its body frame: the hull of the shape's vertices, moved so that its
-/// volume centroid (G, where the world sample's pose puts the block) is the origin. The shape
-/// definitions are scene.rs's (the stepper builds the same ones).
-pub fn block_polytope(spec: &ShapeSpec) -> Option<Polytope> {
-    let points: Vec<DVec3> = match spec {
-        ShapeSpec::Box { size } => {
-            let h = DVec3::from_array(*size) * 0.5;
-            (0..8)
-                .map(|i| {
-                    DVec3::new(
-                        if i & 1 == 0 { -h.x } else { h.x },
-                        if i & 2 == 0 { -h.y } else { h.y },
-                        if i & 4 == 0 { -h.z } else { h.z },
-                    )
-                })
-                .collect()
-        }
-        // The right triangle with legs along +x and +y, extruded along z.
-        ShapeSpec::Wedge { size: [x, y, z] } => vec![
-            DVec3::ZERO,
-            DVec3::new(*x, 0.0, 0.0),
-            DVec3::new(0.0, *y, 0.0),
-            DVec3::new(0.0, 0.0, *z),
-            DVec3::new(*x, 0.0, *z),
-            DVec3::new(0.0, *y, *z),
-        ],
-        // The origin corner and the three corners one edge away along x, y and z.
-        ShapeSpec::Tetra { size: [x, y, z] } => vec![
-            DVec3::ZERO,
-            DVec3::new(*x, 0.0, 0.0),
-            DVec3::new(0.0, *y, 0.0),
-            DVec3::new(0.0, 0.0, *z),
-        ],
-        ShapeSpec::Hull { vertices } => vertices.iter().map(|p| DVec3::from_array(*p)).collect(),
-    };
-    let hull = convex_hull(&points)?;
-    let (_, g) = hull.volume_centroid();
-    Some(hull.shifted(g))
-}
-
-/// Each face as a fan from its centre (edge weight 1) to its outline (edge weight 0).
-pub fn polytope_triangles(p: &Polytope) -> Vec<Vertex> {
+/// A block's mesh: each face of its solid (centred on G, where the world sample's pose puts
+/// the block) as a fan from its centre (edge weight 1) to its outline (edge weight 0).
+pub fn solid_triangles(p: &Solid) -> Vec<Vertex> {
     let mut out = Vec::new();
     for f in &p.faces {
         let c = f.iter().map(|&i| p.vertices[i]).sum::<DVec3>() / f.len() as f64;
@@ -252,15 +210,15 @@ mod tests {
                 size: [0.1, 0.2, 0.3],
             },
         ] {
-            let p = block_polytope(&spec).unwrap();
-            assert!(outward(&polytope_triangles(&p), DVec3::ZERO), "{spec:?}");
+            let p = Solid::from_spec(&spec).unwrap();
+            assert!(outward(&solid_triangles(&p), DVec3::ZERO), "{spec:?}");
         }
     }
 
     #[test]
     fn block_meshes_are_centred_on_g_as_the_stepper_defines_it() {
         // Tetra: G at a quarter of each leg from the origin corner (scene.rs definition).
-        let p = block_polytope(&ShapeSpec::Tetra {
+        let p = Solid::from_spec(&ShapeSpec::Tetra {
             size: [0.4, 0.2, 0.1],
         })
         .unwrap();
@@ -286,7 +244,7 @@ mod tests {
                 })
                 .collect(),
         };
-        let p = block_polytope(&h).unwrap();
+        let p = Solid::from_spec(&h).unwrap();
         let (_, g) = p.volume_centroid();
         assert!(g.length() < 1e-9);
         assert_eq!(p.faces.len(), 6);

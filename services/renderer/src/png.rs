@@ -3,8 +3,8 @@
 use std::io::BufWriter;
 use std::path::Path;
 
-use crate::output::Image;
-use crate::renderer::RenderError;
+use crate::error::RenderError;
+use crate::image::Image;
 
 /// Writes `img` as an 8-bit sRGB RGBA PNG.
 pub fn write_png(path: &Path, img: &Image) -> Result<(), RenderError> {

@@ -12,8 +12,9 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError};
 use std::thread::JoinHandle;
 
-use crate::output::Image;
-use crate::renderer::{RenderError, Renderer};
+use crate::error::RenderError;
+use crate::image::{Image, EYE_GAP, GAP_RGB};
+use crate::renderer::Renderer;
 use crate::settings::OutputMode;
 
 /// Frames per second of the preview at first.
@@ -23,10 +24,6 @@ pub const MAX_WIDTH: u32 = 660;
 pub const MAX_HEIGHT: u32 = 360;
 /// Frames kept (of MAX_WIDTH x MAX_HEIGHT RGB: at most 43 MB).
 pub const MAX_FRAMES: usize = 60;
-/// Background-coloured pixels between the two eyes of a side-by-side image (at full size).
-pub const EYE_GAP: u32 = 16;
-/// The gap's colour.
-const GAP_RGB: [u8; 3] = [24, 24, 28];
 
 /// What [`describe`] finds in an animated PNG.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

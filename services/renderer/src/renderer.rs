@@ -16,8 +16,9 @@ use wgpu::util::DeviceExt;
 
 use crate::camera::{stereo, EyeView};
 use crate::draw_list::{DrawList, INSTANCE_CAPACITY, PALM_VERTEX_CAPACITY};
+use crate::error::RenderError;
+use crate::image::Image;
 use crate::mesh::{Meshes, Vertex};
-use crate::output::Image;
 use crate::pipeline::{
     composite_bind_group, composite_pipeline, scene_pipelines, shader, CompositePipeline,
     CompositeUniform, EyeUniform, Globals, Instance, ScenePipelines, COLOR_FORMAT, DEPTH_FORMAT,
@@ -27,39 +28,6 @@ use crate::settings::{OutputMode, RenderSettings};
 
 /// A frame's GPU work should take milliseconds; a device that needs this long is lost.
 const GPU_TIMEOUT: Duration = Duration::from_secs(10);
-
-/// Why rendering could not start or go on.
-#[derive(Debug)]
-pub enum RenderError {
-    /// No Vulkan adapter (no GPU driver, no Mesa software driver).
-    NoAdapter(String),
-    Device(String),
-    /// Settings out of range, or a block shape that cannot be drawn.
-    Settings(String),
-    /// The window could not be opened (no display).
-    Window(String),
-    Gpu(String),
-    Io(String),
-}
-
-impl std::fmt::Display for RenderError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            RenderError::NoAdapter(e) => write!(
-                f,
-                "no GPU adapter ({e}): install a Vulkan driver, or Mesa's software one \
-                 (Debian/Ubuntu: apt-get install mesa-vulkan-drivers libvulkan1)"
-            ),
-            RenderError::Device(e) => write!(f, "the GPU device could not be opened: {e}"),
-            RenderError::Settings(e) => write!(f, "renderer settings: {e}"),
-            RenderError::Window(e) => write!(f, "{e}"),
-            RenderError::Gpu(e) => write!(f, "GPU error: {e}"),
-            RenderError::Io(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for RenderError {}
 
 /// When a frame's parts happened (CLOCK_MONOTONIC, ns).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

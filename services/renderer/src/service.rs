@@ -20,9 +20,11 @@ use common::config::Session;
 use common::latency::{Metric, Reporter};
 use common::{monotonic_ns, shutdown, topics, FrameSample, HandSample, Stage, Stamp, WorldSample};
 
-use crate::output::{write_frame, Image};
+use crate::error::RenderError;
+use crate::image::Image;
+use crate::output::write_frame;
 use crate::preview::PreviewWriter;
-use crate::renderer::{RenderError, Renderer};
+use crate::renderer::Renderer;
 use crate::settings::{FramesRequest, OutputMode, RenderSettings};
 use crate::window::WindowStatus;
 

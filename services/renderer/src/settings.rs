@@ -1,4 +1,5 @@
-//! What the renderer is asked to do: image size, output mode, stereo geometry, viewpoint.
+//! What the renderer is asked to do: image size, output mode, the viewer
+//! ([`CameraSettings`], with the stereo geometry in [`crate::camera`]), shadows, frame files.
 //!
 //! `common`'s `[renderer]` section holds only `mode`, `width` and `height` today; the rest lives
 //! here with defaults until the session file grows the keys (see [`RenderSettings::from_session`]).
@@ -6,6 +7,8 @@
 use std::path::PathBuf;
 
 use common::config::session::RendererSettings;
+
+use crate::camera::{frame_scene, CameraSettings};
 
 /// How the two eyes' images reach the user.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -36,43 +39,6 @@ impl OutputMode {
             "anaglyph" => Some(OutputMode::Anaglyph),
             "separate" => Some(OutputMode::Separate),
             _ => None,
-        }
-    }
-}
-
-/// The stereo viewer: where the head is, where it looks, and the physical screen the images
-/// are shown on. The screen is a window into the world at `screen_distance_m` in front of the
-/// eyes: points at that distance have zero disparity, farther ones appear behind the screen.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CameraSettings {
-    /// Midpoint between the eyes, world frame, metres.
-    pub eye: [f64; 3],
-    /// A point straight ahead of the viewer (both eyes look parallel, in this direction).
-    pub target: [f64; 3],
-    /// Interpupillary distance, metres (adult mean 63 mm; 50-75 mm covers most adults).
-    pub ipd_m: f64,
-    /// Eyes to screen, metres (the zero-disparity plane).
-    pub screen_distance_m: f64,
-    /// The screen's visible width for one eye's image, metres; the height follows from the
-    /// image's aspect ratio (square pixels).
-    pub screen_width_m: f64,
-    pub near_m: f64,
-    pub far_m: f64,
-}
-
-impl Default for CameraSettings {
-    /// A seated user at a desk monitor (24", 0.6 m away), the virtual head 1.3 m from the
-    /// origin and looking 32 degrees down at it: blocks within about 0.4 m of the origin and
-    /// the hand 0.1-0.4 m above the floor are in view.
-    fn default() -> Self {
-        CameraSettings {
-            eye: [0.0, 0.75, 1.1],
-            target: [0.0, 0.05, 0.0],
-            ipd_m: 0.063,
-            screen_distance_m: 0.6,
-            screen_width_m: 0.52,
-            near_m: 0.02,
-            far_m: 20.0,
         }
     }
 }
@@ -122,14 +88,14 @@ impl RenderSettings {
     }
 
     /// [`Self::from_session`], with the camera framing `scene` when the session gives neither
-    /// `eye` nor `target` (see [`crate::camera::frame_scene`]).
+    /// `eye` nor `target` (see [`frame_scene`]).
     pub fn from_session_framed(
         r: &RendererSettings,
         scene: &common::config::Scene,
     ) -> RenderSettings {
         let mut s = RenderSettings::from_session(r);
         if r.auto_camera {
-            let (eye, target) = crate::camera::frame_scene(scene, &s.camera, s.width, s.height);
+            let (eye, target) = frame_scene(scene, &s.camera, s.width, s.height);
             s.camera.eye = eye;
             s.camera.target = target;
         }

@@ -14,8 +14,9 @@ use winit::platform::pump_events::{EventLoopExtPumpEvents, PumpStatus};
 use winit::platform::x11::EventLoopBuilderExtX11;
 use winit::window::{Window, WindowId};
 
+use crate::error::RenderError;
 use crate::pipeline::{composite_bind_group, composite_pipeline, CompositeUniform};
-use crate::renderer::{instance_descriptor, request_adapter, Presenter, RenderError, Renderer};
+use crate::renderer::{instance_descriptor, request_adapter, Presenter, Renderer};
 use crate::settings::{OutputMode, RenderSettings};
 
 /// What to tell a user with no display: what is missing and how to render anyway.

@@ -9,7 +9,8 @@ use common::config::scene::{BlockSpec, Effects, Scene, ShapeSpec, WorldSettings}
 use common::{BlockMode, BlockState, HandSample, Pose, WorldSample};
 use glam::DVec3;
 use renderer::camera::{expected_disparity_px, Eye, Viewer};
-use renderer::output::{write_frame, Image};
+use renderer::image::Image;
+use renderer::output::write_frame;
 use renderer::png::read_png;
 use renderer::{CameraSettings, OutputMode, RenderSettings, Renderer};
 
@@ -345,11 +346,7 @@ fn output_modes_write_the_files_they_promise() {
     let hand = HandSample::default();
     let mut scratch = Image::default();
     for (mode, files, width) in [
-        (
-            OutputMode::SideBySide,
-            1,
-            2 * W + renderer::preview::EYE_GAP,
-        ),
+        (OutputMode::SideBySide, 1, 2 * W + renderer::image::EYE_GAP),
         (OutputMode::Anaglyph, 1, W),
         (OutputMode::Separate, 2, W),
     ] {

@@ -9,8 +9,8 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use common::recording::Recording;
 use common::{GloveSample, JointsSample, Pose, Stage, Topic, TrackerSample, MAX_GLOVE_SENSORS};
+use recording::Recording;
 
 use crate::carl::CarlTrace;
 

@@ -5,8 +5,8 @@
 //! transforms the few hand points into it instead of transforming the block into the world,
 //! so a scene 1 km from the origin behaves as it does at the origin (docs/model.md R9 "Precision").
 //!
-//! parry3d builds the hull (`transformation::try_convex_hull`, face merging in
-//! `ConvexPolyhedron::from_convex_mesh`), projects points (GJK) and casts shapes (R12). The face
+//! The shapes crate builds the hull from the scene's spec (with parry3d, and the same one the
+//! renderer draws); parry3d projects points (GJK) and casts shapes (R12). The face
 //! planes, edges and the small exact tests the rules are written in terms of (which faces a
 //! locus crosses, which edge a swept finger crosses, SAT penetration depth, the 2-D hull of the
 //! floor contacts) are ours: they need the crossed *features*, not only a distance.
@@ -15,22 +15,10 @@ use glam::{DQuat, DVec2, DVec3};
 use parry3d_f64::shape::ConvexPolyhedron;
 
 use common::config::scene::ShapeSpec;
+use shapes::Solid;
 
-/// A face plane in the body frame: points x with `normal . x <= offset` are inside.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Plane {
-    /// Outward unit normal.
-    pub normal: DVec3,
-    pub offset: f64,
-}
-
-impl Plane {
-    /// Signed distance of `p` from the plane (positive outside).
-    #[inline]
-    pub fn distance(&self, p: DVec3) -> f64 {
-        self.normal.dot(p) - self.offset
-    }
-}
+/// A face plane in the body frame (the shapes crate builds them with the hull).
+pub use shapes::Plane;
 
 /// A block's shape, with G at the origin.
 #[derive(Clone)]
@@ -60,59 +48,10 @@ impl std::fmt::Debug for Polyhedron {
     }
 }
 
-/// The vertices a shape spec names, in the spec's own frame, and its volume centroid when it
-/// is known in closed form (exact: a box's G is its centre to the last bit, which matters for
-/// "G' exactly on the hull boundary").
-fn spec_points(spec: &ShapeSpec) -> (Vec<DVec3>, Option<DVec3>) {
-    match spec {
-        ShapeSpec::Box { size } => {
-            let h = DVec3::from_array(*size) * 0.5;
-            let mut v = Vec::with_capacity(8);
-            for i in 0..8 {
-                v.push(DVec3::new(
-                    if i & 1 == 0 { -h.x } else { h.x },
-                    if i & 2 == 0 { -h.y } else { h.y },
-                    if i & 4 == 0 { -h.z } else { h.z },
-                ));
-            }
-            (v, Some(DVec3::ZERO))
-        }
-        // scene.rs: the right triangle with legs along +x and +y, extruded along z.
-        ShapeSpec::Wedge { size } => {
-            let [x, y, z] = *size;
-            let v = vec![
-                DVec3::new(0.0, 0.0, 0.0),
-                DVec3::new(x, 0.0, 0.0),
-                DVec3::new(0.0, y, 0.0),
-                DVec3::new(0.0, 0.0, z),
-                DVec3::new(x, 0.0, z),
-                DVec3::new(0.0, y, z),
-            ];
-            (v, Some(DVec3::new(x / 3.0, y / 3.0, z / 2.0)))
-        }
-        // scene.rs: the origin corner and the three corners one edge away along x, y and z.
-        ShapeSpec::Tetra { size } => {
-            let [x, y, z] = *size;
-            let v = vec![
-                DVec3::ZERO,
-                DVec3::new(x, 0.0, 0.0),
-                DVec3::new(0.0, y, 0.0),
-                DVec3::new(0.0, 0.0, z),
-            ];
-            (v, Some(DVec3::new(x / 4.0, y / 4.0, z / 4.0)))
-        }
-        ShapeSpec::Hull { vertices } => (
-            vertices.iter().map(|p| DVec3::from_array(*p)).collect(),
-            None,
-        ),
-    }
-}
-
 impl Polyhedron {
     /// Builds the block shape of a scene's spec, recentred on its volume centroid.
     pub fn from_spec(spec: &ShapeSpec) -> Result<Polyhedron, String> {
-        let (points, known_centroid) = spec_points(spec);
-        Polyhedron::from_points(&points, known_centroid)
+        Solid::from_spec(spec).map(Polyhedron::from_solid)
     }
 
     /// The convex hull of `points`, recentred so that its volume centroid is the origin.
@@ -120,99 +59,20 @@ impl Polyhedron {
         points: &[DVec3],
         known_centroid: Option<DVec3>,
     ) -> Result<Polyhedron, String> {
-        if points.len() < 4 || !points.iter().all(|p| p.is_finite()) {
-            return Err("a solid needs at least 4 finite vertices".into());
-        }
-        let extent = points
-            .iter()
-            .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
-        // Hull the points scaled to a unit extent per axis, then scale back: an axis scaling
-        // keeps which points and faces form the hull, and parry's tolerances are relative, so a
-        // thin plate (1 m x 0.5 mm) is not collapsed into a flat polygon.
-        let lo = points
-            .iter()
-            .fold(DVec3::splat(f64::INFINITY), |m, p| m.min(*p));
-        let hi = points
-            .iter()
-            .fold(DVec3::splat(f64::NEG_INFINITY), |m, p| m.max(*p));
-        let mid = (lo + hi) / 2.0;
-        let half = (hi - lo) / 2.0;
-        if half.min_element() <= 0.0 {
-            return Err("its vertices are flat (no volume): a block must be a solid".into());
-        }
-        let unit: Vec<DVec3> = points.iter().map(|p| (*p - mid) / half).collect();
-        let (unit_hull, tris) = parry3d_f64::transformation::try_convex_hull(&unit)
-            .map_err(|e| format!("its vertices do not span a solid (convex hull failed: {e:?})"))?;
-        // Map the hull's vertices back to the input points they came from (exact values).
-        let hull_pts: Vec<DVec3> = unit_hull
-            .iter()
-            .map(|u| {
-                let i = unit
-                    .iter()
-                    .enumerate()
-                    .min_by(|a, b| {
-                        a.1.distance_squared(*u)
-                            .total_cmp(&b.1.distance_squared(*u))
-                    })
-                    .map_or(0, |(i, _)| i);
-                points[i]
-            })
-            .collect();
-        // Volume and centroid by the tetrahedra from one hull point to every triangle.
-        let o = hull_pts.first().copied().unwrap_or(DVec3::ZERO);
-        let mut volume = 0.0;
-        let mut moment = DVec3::ZERO;
-        for t in &tris {
-            let (a, b, c) = (
-                hull_pts[t[0] as usize],
-                hull_pts[t[1] as usize],
-                hull_pts[t[2] as usize],
-            );
-            let v6 = (a - o).dot((b - o).cross(c - o));
-            volume += v6 / 6.0;
-            moment += (o + a + b + c) * (v6 / 24.0);
-        }
-        // `volume` is signed by the hull's winding; the centroid divides it out either way.
-        if volume.is_nan() || volume.abs() <= 1e-12 * extent.powi(3) || volume.abs() < 1e-18 {
-            return Err("its vertices are flat (no volume): a block must be a solid".into());
-        }
-        let centroid = known_centroid.unwrap_or(moment / volume);
-        let volume = volume.abs();
-        let shifted: Vec<DVec3> = hull_pts.iter().map(|p| *p - centroid).collect();
-        let shape = ConvexPolyhedron::from_convex_mesh(shifted, &tris)
-            .ok_or_else(|| "its convex hull is degenerate (not a closed solid)".to_string())?;
-        let vertices: Vec<DVec3> = shape.points().to_vec();
-        let adj = shape.vertices_adj_to_face();
-        let mut faces = Vec::with_capacity(shape.faces().len());
-        for f in shape.faces() {
-            let first = adj[f.first_vertex_or_edge as usize] as usize;
-            // Offset as the largest of the face's vertices: the plane then bounds all of them.
-            let mut offset = f.normal.dot(vertices[first]);
-            for k in 0..f.num_vertices_or_edges as usize {
-                let v = vertices[adj[f.first_vertex_or_edge as usize + k] as usize];
-                offset = offset.max(f.normal.dot(v));
-            }
-            faces.push(Plane {
-                normal: f.normal,
-                offset,
-            });
-        }
-        // parry keeps the triangulation's diagonals of merged (coplanar) faces among its
-        // edges; a real edge of the solid lies on two distinct face planes.
-        let tol = 1e-9 * extent.max(1e-9);
-        let on = |f: &Plane, v: DVec3| f.distance(v).abs() <= tol;
-        let mut edges: Vec<[usize; 2]> = Vec::new();
-        for e in shape.edges() {
-            let (i, j) = (e.vertices[0] as usize, e.vertices[1] as usize);
-            let planes = faces
-                .iter()
-                .filter(|f| on(f, vertices[i]) && on(f, vertices[j]))
-                .count();
-            let key = [i.min(j), i.max(j)];
-            if planes >= 2 && !edges.contains(&key) {
-                edges.push(key);
-            }
-        }
+        Solid::from_points(points, known_centroid).map(Polyhedron::from_solid)
+    }
+
+    /// The block as the shapes crate builds it (the one hull the renderer draws too), with
+    /// what the rules' queries add: SAT axes and the bounding sphere.
+    fn from_solid(solid: Solid) -> Polyhedron {
+        let Solid {
+            vertices,
+            planes: faces,
+            edges,
+            volume,
+            shape,
+            ..
+        } = solid;
         let mut edge_dirs: Vec<DVec3> = Vec::new();
         for e in &edges {
             let d = (vertices[e[1]] - vertices[e[0]]).normalize_or_zero();
@@ -221,7 +81,7 @@ impl Polyhedron {
             }
         }
         let radius = vertices.iter().fold(0.0f64, |m, v| m.max(v.length()));
-        Ok(Polyhedron {
+        Polyhedron {
             vertices,
             faces,
             edges,
@@ -229,7 +89,7 @@ impl Polyhedron {
             radius,
             volume,
             shape,
-        })
+        }
     }
 
     /// The largest signed face distance of `p` (body frame) and that face's index: negative

@@ -27,10 +27,10 @@ use std::io::{BufWriter, Write};
 use std::mem::{offset_of, size_of};
 use std::path::{Path, PathBuf};
 
-use crate::bus::Stamped;
-use crate::samples::*;
-use crate::stamp::Stamp;
-use crate::topic::Topic;
+use common::bus::Stamped;
+use common::samples::*;
+use common::stamp::Stamp;
+use common::topic::Topic;
 
 /// Message encoding of every channel: CDR (little-endian), which for our layouts is the 4-byte
 /// [`CDR_LE_HEADER`] and then the sample's `#[repr(C)]` bytes.

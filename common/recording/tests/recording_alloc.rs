@@ -2,8 +2,8 @@
 //! message index grow to their size, and closing a chunk starts the next. Counted with a global
 //! allocator that tallies per thread.
 
-use common::recording::{Recording, RecordingWriter};
 use common::{Stamp, Topic, TrackerSample, WorldSample};
+use recording::{Recording, RecordingWriter};
 
 #[global_allocator]
 static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
