@@ -22,6 +22,7 @@
 //! - [`simulate`](mod@simulate): `handblocks simulate`, the bare check-point hand.
 
 pub mod body;
+pub mod event;
 pub mod floor;
 pub mod geometry;
 pub mod hand;
@@ -31,8 +32,10 @@ pub mod model;
 pub mod motion;
 pub mod precise;
 pub mod service;
+mod settings;
 pub mod simulate;
 pub mod support;
+pub mod timeline;
 pub mod world;
 
 pub use model::Model;
