@@ -7,6 +7,10 @@
 //!
 //! The hand is its check points and finger segments (docs/model.md R1, R2). The palm polyhedron and
 //! the finger radius of a hand sample are not part of these rules and are not used.
+//!
+//! Stages 1 and 2 of `World::step`: `HandContacts::decide_actions` (R1-R3, with its own
+//! contact buffer), `end_grasps` (R13) and `move_by_hand` (R5, R4, R6). Each is handed the
+//! blocks, the hand now and before and the settings; none needs the world.
 
 use glam::{DQuat, DVec3};
 

@@ -1,4 +1,7 @@
-//! Block against block (paper 3.3): R10 carry, R11 support (paper mode), R12 no tunnelling.
+//! Block against block (paper 3.3): R10 carry, R11 support (paper mode), R12 no tunnelling, and
+//! R14's block-against-block tests that the free motion and floor stages make (a block sliding
+//! down another's side, an R9 turn swinging into a neighbour). Every function here is handed
+//! the blocks it looks at; `Carry` keeps its own queue.
 //!
 //! Two different notions of "interfere", both from docs/model.md:
 //! - R11: touching within contact_eps counts (a block resting on another is held by it). This
@@ -66,7 +69,7 @@ pub(crate) fn overlapping(a: &Block, b: &Block, tol: f64) -> bool {
 /// rotation, and a block that turned over an edge ends with its faces off vertical by the
 /// bisection's and landing's leftovers (1e-5 was seen): such a face is a wall, not a slope the
 /// block rests on (it would make the block beside a tower carry the tower as its load).
-/// R14's supporters and its slide along sides ([`slide_along_sides`]) share it.
+/// R14's supporters and its slide along sides (`slide_along_sides`) share it.
 pub const SIDE_CONTACT_NY: f64 = 0.01;
 
 /// Stage 2's R10, with its own breadth-first queue (preallocated for every block, so that a

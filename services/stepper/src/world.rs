@@ -25,7 +25,7 @@ use crate::floor::Floor;
 use crate::geometry::{sat_depth, Polyhedron};
 // The check points as drawn are the hand's (R5 relocates them); the precise model fills the same.
 pub(crate) use crate::hand::Fingers;
-use crate::hand::{self, HandContacts};
+use crate::hand::{end_grasps, is_usable, move_by_hand, HandContacts};
 use crate::interference::Carry;
 use crate::motion::free_motion;
 use crate::settings::{Passes, Settings};
@@ -237,7 +237,7 @@ impl World {
     /// "no hand this step". docs/model.md "Order of one step", each stage handed what it reads
     /// and writes:
     pub fn step(&mut self, hand: Option<&HandSample>) {
-        let hand = hand.filter(|h| hand::is_usable(h));
+        let hand = hand.filter(|h| is_usable(h));
         self.steps += 1;
         let World {
             settings,
@@ -263,10 +263,10 @@ impl World {
             if let Some(h) = hand {
                 hand_contacts.decide_actions(blocks, h, prev, settings, passes.grasp);
             }
-            hand::end_grasps(blocks, settings.inertia);
+            end_grasps(blocks, settings.inertia);
             // 2. Hand-driven motion (R5, R4, R6), then carry (R10).
             if let Some(h) = hand {
-                hand::move_by_hand(blocks, h, prev, settings, fingers);
+                move_by_hand(blocks, h, prev, settings, fingers);
             }
             if passes.carry {
                 carry.carry(blocks, settings.hull_eps);
@@ -296,7 +296,7 @@ impl World {
     /// caller that knows the hand before the first step (a scripted hand at t = 0) gives it
     /// here so that the first step sees the hand's motion, not a standing start.
     pub fn set_previous_hand(&mut self, hand: Option<&HandSample>) {
-        self.prev_hand = hand.filter(|h| hand::is_usable(h)).copied();
+        self.prev_hand = hand.filter(|h| is_usable(h)).copied();
     }
 
     /// Block poses (pose of G), modes, the grasped block and the check points as drawn (R5's
