@@ -40,9 +40,9 @@
 //! has no supporter in the next step and is free: R7 moves it, R12 stops it, R8/R9 land it.
 //! Since blocks that touch are no longer held (R11), two more rules keep them apart
 //! (**[resolved]**): a free block against another's side slides down along that face rather
-//! than hanging where R12's cast would stop it (`interference::slide_along_sides`; a touching blocker
-//! stops a step only if no separating axis stays separated, `sat_allows_motion`), and an R9
-//! turn on the floor that would swing a block into the neighbour it leans on is not taken
+//! than hanging where R12's cast would stop it (`interference::slide_along_sides`; a touching
+//! blocker stops a step only if no separating axis stays separated, `sat_allows_motion`), and
+//! an R9 turn on the floor that would swing a block into the neighbour it leans on is not taken
 //! (`interference::turn_enters_neighbour`).
 
 use glam::{DQuat, DVec2, DVec3};
