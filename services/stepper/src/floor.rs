@@ -1,5 +1,8 @@
 //! The floor (paper 3.2): R8 impact and R9 stability, evaluated relative to G (vertices as
 //! rotation * body vertex, G' - G = t * Gm) so that far from the origin nothing changes.
+//!
+//! Stage 4 of `World::step` is `Floor::land`, with its own hull buffers; R9's [`stability`]
+//! and its hull cases are shared with R14 (`support`).
 
 use std::f64::consts::TAU;
 
@@ -8,8 +11,10 @@ use glam::{DQuat, DVec2, DVec3};
 use common::BlockMode;
 
 use crate::body::{Block, Moved, VertexSet};
+use crate::event::{EventKind, StepEvents};
 use crate::geometry::{convex_hull_2d, point_segment_2d};
-use crate::world::{EventKind, World};
+use crate::interference::turn_enters_neighbour;
+use crate::settings::{Passes, Settings};
 
 /// R9's verdict for a block in floor contact.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -240,17 +245,42 @@ pub(crate) fn landing_angle(
     best
 }
 
-impl World {
-    /// Stage 4: R8 then R9 for every block that moved or is in floor contact and not resting.
-    pub(crate) fn floor_stage(&mut self) {
-        let eps = self.params.contact_eps;
+/// Stage 4 (R8, R9) with its own scratch: the 2-D hull buffers of R9 and, for R14, a block's
+/// vertices at the pose an R9 turn started from (preallocated for the scene's largest hull, so
+/// that a step does not allocate).
+#[derive(Debug)]
+pub(crate) struct Floor {
+    hull_in: Vec<DVec2>,
+    hull_out: Vec<DVec2>,
+    turned: Vec<DVec3>,
+}
+
+impl Floor {
+    pub(crate) fn new(max_vertices: usize) -> Floor {
+        Floor {
+            hull_in: Vec::with_capacity(max_vertices + 1),
+            hull_out: Vec::with_capacity(2 * max_vertices + 2),
+            turned: Vec::with_capacity(max_vertices),
+        }
+    }
+
+    /// Stage 4: R8 then R9 for every block that moved or is in floor contact and not resting;
+    /// R8's impacts go to `events`.
+    pub(crate) fn land(
+        &mut self,
+        blocks: &mut [Block],
+        settings: &Settings,
+        passes: &Passes,
+        events: &mut StepEvents,
+    ) {
+        let eps = settings.contact_eps;
         let p9 = R9Params {
-            hull_eps: self.params.hull_eps,
-            angle_eps: self.params.angle_eps,
+            hull_eps: settings.hull_eps,
+            angle_eps: settings.angle_eps,
         };
-        for i in 0..self.blocks.len() {
+        for i in 0..blocks.len() {
             {
-                let b = &self.blocks[i];
+                let b = &blocks[i];
                 // Resting and untouched: skipped entirely. Every other block is looked at, also
                 // one that did not move: a block that starts on the floor has its first impact
                 // on step 1, and a block R11 held may be resting on the floor.
@@ -258,17 +288,17 @@ impl World {
                     continue;
                 }
                 // R14 held it this step, or holds it asleep: R9 has nothing to add.
-                if self.passes.supported
+                if passes.supported
                     && b.moved == Moved::No
                     && (b.judged || b.mode == BlockMode::Supported)
                 {
                     continue;
                 }
             }
-            let g_step = self.params.g_step;
-            let inertia = self.params.inertia;
-            let tipping = self.passes.tipping;
-            let b = &mut self.blocks[i];
+            let g_step = settings.g_step;
+            let inertia = settings.inertia;
+            let tipping = passes.tipping;
+            let b = &mut blocks[i];
             let prev = b.floor;
             let (set, _) = lift_and_contacts(b, eps);
             let by_hand = matches!(b.moved, Moved::Hand | Moved::Carried);
@@ -277,7 +307,7 @@ impl World {
                 let impact = set.has_new_vs(&prev);
                 b.floor = set;
                 if impact {
-                    self.emit(EventKind::Impact, i);
+                    events.emit(EventKind::Impact, i);
                 }
                 continue;
             }
@@ -288,7 +318,7 @@ impl World {
                     b.mode = BlockMode::Free;
                 }
                 if set.has_new_vs(&prev) {
-                    self.emit(EventKind::Impact, i);
+                    events.emit(EventKind::Impact, i);
                 }
                 continue;
             }
@@ -363,8 +393,17 @@ impl World {
             // R14: blocks that touch are not held by R11, so an R9 turn on the floor may swing a
             // block into the neighbour it leans on. It does not turn then: it leans on it.
             if let Some((pos, rot, set)) = turned_from {
-                if self.passes.supported && self.turn_enters_neighbour(i, pos, rot) {
-                    let b = &mut self.blocks[i];
+                if passes.supported
+                    && turn_enters_neighbour(
+                        blocks,
+                        i,
+                        pos,
+                        rot,
+                        settings.hull_eps,
+                        &mut self.turned,
+                    )
+                {
+                    let b = &mut blocks[i];
                     b.pos = pos;
                     b.rot = rot;
                     b.refresh_rel();
@@ -377,7 +416,7 @@ impl World {
                 }
             }
             if impact {
-                self.emit(EventKind::Impact, i);
+                events.emit(EventKind::Impact, i);
             }
         }
     }

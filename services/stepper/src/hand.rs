@@ -7,6 +7,10 @@
 //!
 //! The hand is its check points and finger segments (docs/model.md R1, R2). The palm polyhedron and
 //! the finger radius of a hand sample are not part of these rules and are not used.
+//!
+//! Stages 1 and 2 of `World::step`: `HandContacts::decide_actions` (R1-R3, with its own
+//! contact buffer), `end_grasps` (R13) and `move_by_hand` (R5, R4, R6). Each is handed the
+//! blocks, the hand now and before and the settings; none needs the world.
 
 use glam::{DQuat, DVec3};
 
@@ -15,7 +19,7 @@ use common::{BlockMode, HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS};
 use crate::body::{Block, HandAction, Moved};
 use crate::geometry::{segment_segment, segment_triangle};
 use crate::motion::push_one_point;
-use crate::world::World;
+use crate::settings::Settings;
 
 /// Contacts kept per block and step (after merging; more are dropped, never allocated).
 pub const MAX_CONTACTS: usize = 64;
@@ -29,6 +33,46 @@ pub struct Contact {
     pub n: DVec3,
     /// Where the touching hand point is now (R4's B).
     pub b: DVec3,
+}
+
+/// The check points as drawn (R5's relocation), in the hand sample's layout.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Fingers {
+    pub count: u32,
+    pub point_count: [u32; MAX_FINGERS],
+    pub points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
+}
+
+impl Fingers {
+    /// No check points (the world before its first step).
+    pub(crate) const NONE: Fingers = Fingers {
+        count: 0,
+        point_count: [0; MAX_FINGERS],
+        points: [[[0.0; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
+    };
+
+    /// The hand's check points as they arrive (both models publish them; the paper model's R5
+    /// then relocates those inside a grasped block); none without a hand.
+    pub(crate) fn copy_from(&mut self, hand: Option<&HandSample>) {
+        match hand {
+            Some(h) => {
+                let fc = (h.finger_count as usize).min(MAX_FINGERS);
+                self.count = fc as u32;
+                for f in 0..MAX_FINGERS {
+                    self.point_count[f] = if f < fc {
+                        h.finger_point_count[f].min(MAX_FINGER_POINTS as u32)
+                    } else {
+                        0
+                    };
+                }
+                self.points = h.finger_points;
+            }
+            None => {
+                self.count = 0;
+                self.point_count = [0; MAX_FINGERS];
+            }
+        }
+    }
 }
 
 /// A hand sample the rules can use: counts in range and every used value finite. A hand with
@@ -244,187 +288,201 @@ pub fn largest_angle(contacts: &[Contact]) -> f64 {
     min_dot.clamp(-1.0, 1.0).acos()
 }
 
-impl World {
-    /// Stage 1: R1-R3 for every block near the hand; decides each block's hand action and
-    /// notices grasps that end (R13).
-    pub(crate) fn hand_contacts(&mut self, hand: Option<&HandSample>) {
-        let eps = self.params.contact_eps;
-        if let Some(h) = hand {
-            // Broad phase: the box around every check point now and before.
-            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-            let mut grow = |p: [f64; 3]| {
-                let p = DVec3::from_array(p);
-                lo = lo.min(p);
-                hi = hi.max(p);
-            };
-            for hs in [Some(h), self.prev_hand.as_ref()].into_iter().flatten() {
-                for f in 0..(hs.finger_count as usize).min(MAX_FINGERS) {
-                    for k in 0..(hs.finger_point_count[f] as usize).min(MAX_FINGER_POINTS) {
-                        grow(hs.finger_points[f][k]);
-                    }
-                }
-            }
-            lo -= DVec3::splat(eps);
-            hi += DVec3::splat(eps);
-            // A hand without check points touches nothing.
-            let blocks = if lo.cmple(hi).all() {
-                self.blocks.len()
-            } else {
-                0
-            };
-            let near = |b: &Block| (b.pos.max(lo).min(hi) - b.pos).length() <= b.poly.radius + eps;
-            let first = first_entries(
-                self.blocks[..blocks].iter().filter(|b| near(b)),
-                h,
-                self.prev_hand.as_ref(),
-                self.params.hull_eps,
-            );
-            for i in 0..blocks {
-                let b = &self.blocks[i];
-                if !near(b) {
-                    continue;
-                }
-                self.contacts.clear();
-                block_contacts(
-                    b,
-                    h,
-                    self.prev_hand.as_ref(),
-                    eps,
-                    self.params.hull_eps,
-                    &first,
-                    &mut self.contacts,
-                );
-                let action = match self.contacts.len() {
-                    0 => HandAction::None,
-                    1 => HandAction::Push {
-                        c: self.contacts[0].c,
-                        b: self.contacts[0].b,
-                    },
-                    _ => {
-                        let threshold = if b.mode == BlockMode::Grasped {
-                            self.params.release_angle
-                        } else {
-                            self.params.grasp_angle
-                        };
-                        if self.passes.grasp && largest_angle(&self.contacts) > threshold {
-                            HandAction::Grasp
-                        } else {
-                            // R6: the mean of the contacts' T vectors, leaving ones excluded.
-                            let mut sum = DVec3::ZERO;
-                            let mut n = 0usize;
-                            for c in &self.contacts {
-                                if let Some(p) =
-                                    push_one_point(c.c, c.b, DVec3::ZERO, self.params.hull_eps, eps)
-                                {
-                                    sum += p.t;
-                                    n += 1;
-                                }
-                            }
-                            if n > 0 {
-                                HandAction::Translate(sum / n as f64)
-                            } else {
-                                HandAction::None
-                            }
-                        }
-                    }
-                };
-                self.blocks[i].action = action;
-            }
-        }
-        // R13: a grasp that R3 no longer confirms ends. The block is free with v = its last
-        // grasped displacement (the mean over throw_window steps); "releases take effect for
-        // the next step": R7 moves it from the next step on, so that after k more steps it is
-        // at p + k v + g_step k (k + 1) / 2 (the floor stage still looks at it this step, so
-        // a block let go on the floor rests or tips with that inertia as its Gm).
-        let inertia = self.params.inertia;
-        for b in &mut self.blocks {
-            if b.mode == BlockMode::Grasped && b.action != HandAction::Grasp {
-                b.released = true;
-                b.mode = BlockMode::Free;
-                b.v = if inertia {
-                    b.throw_displacement()
-                } else {
-                    DVec3::ZERO
-                };
-            }
+/// Stage 1's R1-R3 for the blocks near the hand, with its own contact buffer (preallocated for
+/// [`MAX_CONTACTS`], so that a step does not allocate).
+#[derive(Debug)]
+pub(crate) struct HandContacts {
+    contacts: Vec<Contact>,
+}
+
+impl HandContacts {
+    pub(crate) fn new() -> HandContacts {
+        HandContacts {
+            contacts: Vec::with_capacity(MAX_CONTACTS),
         }
     }
 
-    /// Stage 2: R5 grasp (rigidly with the wrist), R4 one-point push, R6 translation.
-    pub(crate) fn hand_motion(&mut self, hand: Option<&HandSample>) {
-        let Some(h) = hand else { return };
-        let (w_pos, w_rot) = wrist_of(&h.wrist);
-        let (wm_pos, wm_rot) = match &self.prev_hand {
-            Some(p) => wrist_of(&p.wrist),
-            None => (w_pos, w_rot),
+    /// Stage 1: R1-R3 for every block near the hand (`hand` now, `prev` the hand of the
+    /// previous step, P- and W-): decides each block's hand action. `grasp` says whether R5 may
+    /// grasp (hand = "grasp"); otherwise two contacts always push (R6).
+    pub(crate) fn decide_actions(
+        &mut self,
+        blocks: &mut [Block],
+        hand: &HandSample,
+        prev: Option<&HandSample>,
+        settings: &Settings,
+        grasp: bool,
+    ) {
+        let eps = settings.contact_eps;
+        let hull_eps = settings.hull_eps;
+        // Broad phase: the box around every check point now and before.
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        let mut grow = |p: [f64; 3]| {
+            let p = DVec3::from_array(p);
+            lo = lo.min(p);
+            hi = hi.max(p);
         };
-        let dq = (w_rot * wm_rot.conjugate()).normalize();
-        let eps = self.params.contact_eps;
-        let hull_eps = self.params.hull_eps;
-        let mut any_grasp = false;
-        for b in &mut self.blocks {
-            match b.action {
-                HandAction::None => {}
-                HandAction::Grasp => {
-                    // R5: pose <- W W-^-1 pose.
-                    if b.mode_before != BlockMode::Grasped {
-                        b.grasp_history_len = 0;
-                    }
-                    let new_pos = w_pos + dq * (b.pos - wm_pos);
-                    let d = new_pos - b.pos;
-                    b.pos = new_pos;
-                    b.rot = (dq * b.rot).normalize();
-                    b.refresh_rel();
-                    b.push_grasp_displacement(d);
-                    b.v = d;
-                    b.moved = Moved::Hand;
-                    b.mode = BlockMode::Grasped;
-                    any_grasp = true;
+        for hs in [Some(hand), prev].into_iter().flatten() {
+            for f in 0..(hs.finger_count as usize).min(MAX_FINGERS) {
+                for k in 0..(hs.finger_point_count[f] as usize).min(MAX_FINGER_POINTS) {
+                    grow(hs.finger_points[f][k]);
                 }
-                HandAction::Push { c, b: bp } => {
-                    // R4.
-                    if let Some(p) = push_one_point(c, bp, DVec3::ZERO, hull_eps, eps) {
-                        b.translate(p.t);
-                        if let Some(axis) = p.axis {
-                            b.rotate_about(DQuat::from_axis_angle(axis, p.theta), DVec3::ZERO);
+            }
+        }
+        lo -= DVec3::splat(eps);
+        hi += DVec3::splat(eps);
+        // A hand without check points touches nothing.
+        let count = if lo.cmple(hi).all() { blocks.len() } else { 0 };
+        let near = |b: &Block| (b.pos.max(lo).min(hi) - b.pos).length() <= b.poly.radius + eps;
+        let first = first_entries(
+            blocks[..count].iter().filter(|b| near(b)),
+            hand,
+            prev,
+            hull_eps,
+        );
+        let contacts = &mut self.contacts;
+        for b in &mut blocks[..count] {
+            if !near(b) {
+                continue;
+            }
+            contacts.clear();
+            block_contacts(b, hand, prev, eps, hull_eps, &first, contacts);
+            let action = match contacts.len() {
+                0 => HandAction::None,
+                1 => HandAction::Push {
+                    c: contacts[0].c,
+                    b: contacts[0].b,
+                },
+                _ => {
+                    let threshold = if b.mode == BlockMode::Grasped {
+                        settings.release_angle
+                    } else {
+                        settings.grasp_angle
+                    };
+                    if grasp && largest_angle(contacts) > threshold {
+                        HandAction::Grasp
+                    } else {
+                        // R6: the mean of the contacts' T vectors, leaving ones excluded.
+                        let mut sum = DVec3::ZERO;
+                        let mut n = 0usize;
+                        for c in contacts.iter() {
+                            if let Some(p) = push_one_point(c.c, c.b, DVec3::ZERO, hull_eps, eps) {
+                                sum += p.t;
+                                n += 1;
+                            }
                         }
-                        b.v = p.t;
-                        b.moved = Moved::Hand;
-                        b.mode = BlockMode::Pushed;
+                        if n > 0 {
+                            HandAction::Translate(sum / n as f64)
+                        } else {
+                            HandAction::None
+                        }
                     }
                 }
-                HandAction::Translate(t) => {
-                    // R6.
-                    b.translate(t);
-                    b.v = t;
+            };
+            b.action = action;
+        }
+    }
+}
+
+/// Stage 1's R13: a grasp that R3 no longer confirms ends (also when there is no hand this
+/// step). The block is free with v = its last grasped displacement (the mean over throw_window
+/// steps); "releases take effect for the next step": R7 moves it from the next step on, so
+/// that after k more steps it is at p + k v + g_step k (k + 1) / 2 (the floor stage still looks
+/// at it this step, so a block let go on the floor rests or tips with that inertia as its Gm).
+pub(crate) fn end_grasps(blocks: &mut [Block], inertia: bool) {
+    for b in blocks {
+        if b.mode == BlockMode::Grasped && b.action != HandAction::Grasp {
+            b.released = true;
+            b.mode = BlockMode::Free;
+            b.v = if inertia {
+                b.throw_displacement()
+            } else {
+                DVec3::ZERO
+            };
+        }
+    }
+}
+
+/// Stage 2: R5 grasp (rigidly with the wrist), R4 one-point push, R6 translation, as stage 1
+/// decided them; `fingers` are the check points as drawn, which R5 relocates.
+pub(crate) fn move_by_hand(
+    blocks: &mut [Block],
+    hand: &HandSample,
+    prev: Option<&HandSample>,
+    settings: &Settings,
+    fingers: &mut Fingers,
+) {
+    let (w_pos, w_rot) = wrist_of(&hand.wrist);
+    let (wm_pos, wm_rot) = match prev {
+        Some(p) => wrist_of(&p.wrist),
+        None => (w_pos, w_rot),
+    };
+    let dq = (w_rot * wm_rot.conjugate()).normalize();
+    let eps = settings.contact_eps;
+    let hull_eps = settings.hull_eps;
+    let mut any_grasp = false;
+    for b in blocks.iter_mut() {
+        match b.action {
+            HandAction::None => {}
+            HandAction::Grasp => {
+                // R5: pose <- W W-^-1 pose.
+                if b.mode_before != BlockMode::Grasped {
+                    b.grasp_history_len = 0;
+                }
+                let new_pos = w_pos + dq * (b.pos - wm_pos);
+                let d = new_pos - b.pos;
+                b.pos = new_pos;
+                b.rot = (dq * b.rot).normalize();
+                b.refresh_rel();
+                b.push_grasp_displacement(d);
+                b.v = d;
+                b.moved = Moved::Hand;
+                b.mode = BlockMode::Grasped;
+                any_grasp = true;
+            }
+            HandAction::Push { c, b: bp } => {
+                // R4.
+                if let Some(p) = push_one_point(c, bp, DVec3::ZERO, hull_eps, eps) {
+                    b.translate(p.t);
+                    if let Some(axis) = p.axis {
+                        b.rotate_about(DQuat::from_axis_angle(axis, p.theta), DVec3::ZERO);
+                    }
+                    b.v = p.t;
                     b.moved = Moved::Hand;
                     b.mode = BlockMode::Pushed;
                 }
             }
-        }
-        if any_grasp {
-            self.relocate_fingers(h);
+            HandAction::Translate(t) => {
+                // R6.
+                b.translate(t);
+                b.v = t;
+                b.moved = Moved::Hand;
+                b.mode = BlockMode::Pushed;
+            }
         }
     }
+    if any_grasp {
+        relocate_fingers(blocks, hand, fingers);
+    }
+}
 
-    /// R5: check points that end inside a grasped block are moved to its surface (nearest
-    /// point), for drawing; P- stays the hand's own sample.
-    fn relocate_fingers(&mut self, h: &HandSample) {
-        let fc = (h.finger_count as usize).min(MAX_FINGERS);
-        for f in 0..fc {
-            for k in 0..(h.finger_point_count[f] as usize).min(MAX_FINGER_POINTS) {
-                let p = DVec3::from_array(self.fingers.points[f][k]);
-                for b in &self.blocks {
-                    if b.mode != BlockMode::Grasped {
-                        continue;
-                    }
-                    let local = b.rot.conjugate() * (p - b.pos);
-                    let (s, face) = b.poly.max_face_distance(local);
-                    if s < 0.0 {
-                        let on = local - b.poly.faces[face].normal * s;
-                        self.fingers.points[f][k] = (b.pos + b.rot * on).to_array();
-                        break;
-                    }
+/// R5: check points that end inside a grasped block are moved to its surface (nearest point),
+/// for drawing; P- stays the hand's own sample.
+fn relocate_fingers(blocks: &[Block], hand: &HandSample, fingers: &mut Fingers) {
+    let fc = (hand.finger_count as usize).min(MAX_FINGERS);
+    for f in 0..fc {
+        for k in 0..(hand.finger_point_count[f] as usize).min(MAX_FINGER_POINTS) {
+            let p = DVec3::from_array(fingers.points[f][k]);
+            for b in blocks {
+                if b.mode != BlockMode::Grasped {
+                    continue;
+                }
+                let local = b.rot.conjugate() * (p - b.pos);
+                let (s, face) = b.poly.max_face_distance(local);
+                if s < 0.0 {
+                    let on = local - b.poly.faces[face].normal * s;
+                    fingers.points[f][k] = (b.pos + b.rot * on).to_array();
+                    break;
                 }
             }
         }

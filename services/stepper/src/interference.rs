@@ -1,4 +1,7 @@
-//! Block against block (paper 3.3): R10 carry, R11 support (paper mode), R12 no tunnelling.
+//! Block against block (paper 3.3): R10 carry, R11 support (paper mode), R12 no tunnelling, and
+//! R14's block-against-block tests that the free motion and floor stages make (a block sliding
+//! down another's side, an R9 turn swinging into a neighbour). Every function here is handed
+//! the blocks it looks at; `Carry` keeps its own queue.
 //!
 //! Two different notions of "interfere", both from docs/model.md:
 //! - R11: touching within contact_eps counts (a block resting on another is held by it). This
@@ -9,15 +12,15 @@
 //!   convex polyhedra and allocation-free, unlike EPA) above hull_eps, so that two faces that
 //!   merely coincide are not an overlap by rounding.
 
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 use parry3d_f64::math::Pose;
 use parry3d_f64::query::{self, ShapeCastOptions};
 
 use common::BlockMode;
 
 use crate::body::{Block, Moved};
-use crate::geometry::{sat_allows_motion, sat_axis, sat_depth};
-use crate::world::World;
+use crate::geometry::{rotate_vertices, sat_allows_motion, sat_axis, sat_depth};
+use crate::settings::{Passes, Settings};
 
 /// The pair's poses with block `a`'s G as the origin (precision far from the world origin).
 fn rel_poses(a: &Block, b: &Block) -> (Pose, Pose) {
@@ -61,149 +64,220 @@ pub(crate) fn overlapping(a: &Block, b: &Block, tol: f64) -> bool {
     ) > tol
 }
 
-impl World {
-    /// R10: every block that a hand-moved block now overlaps is translated by the same
-    /// translation (G's displacement of the hand-moved block), transitively, breadth first
-    /// from each hand-moved block; each block moves at most once per step; no rotation.
-    pub(crate) fn carry(&mut self) {
-        let n = self.blocks.len();
+/// A contact whose normal's vertical part is below this (a face within 0.57 deg of vertical) is
+/// a side contact: it holds nothing up. Exactly vertical faces give |n.y| ~ 1e-17 after a
+/// rotation, and a block that turned over an edge ends with its faces off vertical by the
+/// bisection's and landing's leftovers (1e-5 was seen): such a face is a wall, not a slope the
+/// block rests on (it would make the block beside a tower carry the tower as its load).
+/// R14's supporters and its slide along sides (`slide_along_sides`) share it.
+pub const SIDE_CONTACT_NY: f64 = 0.01;
+
+/// Stage 2's R10, with its own breadth-first queue (preallocated for every block, so that a
+/// step does not allocate).
+#[derive(Debug)]
+pub(crate) struct Carry {
+    queue: Vec<usize>,
+}
+
+impl Carry {
+    pub(crate) fn new(blocks: usize) -> Carry {
+        Carry {
+            queue: Vec::with_capacity(blocks),
+        }
+    }
+
+    /// R10: every block that a hand-moved block now overlaps (by more than `hull_eps`) is
+    /// translated by the same translation (G's displacement of the hand-moved block),
+    /// transitively, breadth first from each hand-moved block; each block moves at most once
+    /// per step; no rotation.
+    pub(crate) fn carry(&mut self, blocks: &mut [Block], hull_eps: f64) {
+        let n = blocks.len();
+        let queue = &mut self.queue;
         for root in 0..n {
-            if self.blocks[root].moved != Moved::Hand {
+            if blocks[root].moved != Moved::Hand {
                 continue;
             }
-            let t = self.blocks[root].pos - self.blocks[root].start_pos;
+            let t = blocks[root].pos - blocks[root].start_pos;
             if t == DVec3::ZERO {
                 continue;
             }
-            self.queue.clear();
-            self.queue.push(root);
+            queue.clear();
+            queue.push(root);
             let mut head = 0;
-            while head < self.queue.len() {
-                let i = self.queue[head];
+            while head < queue.len() {
+                let i = queue[head];
                 head += 1;
                 for j in 0..n {
-                    if j == i || self.blocks[j].moved != Moved::No {
+                    if j == i || blocks[j].moved != Moved::No {
                         continue;
                     }
-                    if overlapping(&self.blocks[i], &self.blocks[j], self.params.hull_eps) {
-                        let b = &mut self.blocks[j];
+                    if overlapping(&blocks[i], &blocks[j], hull_eps) {
+                        let b = &mut blocks[j];
                         b.translate(t);
                         b.moved = Moved::Carried;
                         b.mode = BlockMode::Carried;
-                        self.queue.push(j);
+                        queue.push(j);
                     }
                 }
             }
         }
     }
+}
 
-    /// R11 (paper mode): block i touches another block (within contact_eps).
-    pub(crate) fn supported_by_block(&self, i: usize) -> bool {
-        let a = &self.blocks[i];
-        self.blocks
-            .iter()
-            .enumerate()
-            .any(|(j, b)| j != i && touching(a, b, self.params.contact_eps))
-    }
+/// R11 (paper mode): block i touches another block (within `contact_eps`).
+pub(crate) fn touches_another(blocks: &[Block], i: usize, contact_eps: f64) -> bool {
+    let a = &blocks[i];
+    blocks
+        .iter()
+        .enumerate()
+        .any(|(j, b)| j != i && touching(a, b, contact_eps))
+}
 
-    /// R14 with R7: the part of block i's free step `d` it can take along the blocks it touches
-    /// at their sides. Where `d` would enter a touching block across a side contact (a contact
-    /// normal within 0.57 deg of horizontal, `SIDE_CONTACT_NY`), its component into that block
-    /// is removed: the block slides down the face (R14 **[resolved]**: side contacts hold
-    /// nothing up, so a block that turned over an edge and hangs against the face below it
-    /// falls along it instead of hanging in the air). Contacts from above or below are R12's to
-    /// stop. Removing a component never lengthens the step.
-    pub(crate) fn slide_along_sides(&self, i: usize, d: DVec3) -> DVec3 {
-        let a = &self.blocks[i];
-        let eps = self.params.contact_eps;
-        let mut d = d;
-        for (j, b) in self.blocks.iter().enumerate() {
-            if j == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + eps {
-                continue;
-            }
-            let off = b.pos - a.pos;
-            // The separating axis itself (no tie-break): the face the block slides along.
-            let (depth, n) = sat_axis(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, 0.0);
-            if depth < -eps || n.y.abs() >= crate::support::SIDE_CONTACT_NY {
-                continue;
-            }
-            let hull_eps = self.params.hull_eps;
-            if sat_allows_motion(
-                &a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, d, eps, hull_eps,
-            ) {
-                continue;
-            }
-            let closing = d.dot(n);
-            if closing > 0.0 {
-                d -= n * closing;
-            }
+/// R14 with R7: the part of block i's free step `d` it can take along the blocks it touches at
+/// their sides. Where `d` would enter a touching block across a side contact (a contact normal
+/// within 0.57 deg of horizontal, [`SIDE_CONTACT_NY`]), its component into that block is
+/// removed: the block slides down the face (R14 **[resolved]**: side contacts hold nothing up,
+/// so a block that turned over an edge and hangs against the face below it falls along it
+/// instead of hanging in the air). Contacts from above or below are R12's to stop. Removing a
+/// component never lengthens the step.
+pub(crate) fn slide_along_sides(
+    blocks: &[Block],
+    i: usize,
+    d: DVec3,
+    settings: &Settings,
+) -> DVec3 {
+    let a = &blocks[i];
+    let eps = settings.contact_eps;
+    let mut d = d;
+    for (j, b) in blocks.iter().enumerate() {
+        if j == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + eps {
+            continue;
         }
-        d
-    }
-
-    /// R12: the fraction in [0, 1] of the step `d` block i can take before it first touches the
-    /// floor (when there is one) or another block: a shape cast, so no speed tunnels through.
-    pub(crate) fn cast_fraction(&self, i: usize, d: DVec3) -> f64 {
-        let a = &self.blocks[i];
-        let mut toi = 1.0f64;
-        if self.passes.floor && d.y < 0.0 {
-            // Translation only: the lowest vertex leads; exact.
-            let bottom = a.pos.y + a.lowest_rel_y();
-            toi = toi.min((bottom / -d.y).max(0.0));
+        let off = b.pos - a.pos;
+        // The separating axis itself (no tie-break): the face the block slides along.
+        let (depth, n) = sat_axis(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, 0.0);
+        if depth < -eps || n.y.abs() >= SIDE_CONTACT_NY {
+            continue;
         }
-        if self.passes.blocks {
-            let len = d.length();
-            let opts = ShapeCastOptions {
-                max_time_of_impact: 1.0,
-                target_distance: 0.0,
-                stop_at_penetration: false,
-                compute_impact_geometry_on_penetration: false,
-            };
-            let mid = a.pos + d * 0.5;
-            for (j, b) in self.blocks.iter().enumerate() {
-                if j == i {
+        let hull_eps = settings.hull_eps;
+        if sat_allows_motion(
+            &a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, d, eps, hull_eps,
+        ) {
+            continue;
+        }
+        let closing = d.dot(n);
+        if closing > 0.0 {
+            d -= n * closing;
+        }
+    }
+    d
+}
+
+/// R12: the fraction in [0, 1] of the step `d` block i can take before it first touches the
+/// floor (when there is one) or another block: a shape cast, so no speed tunnels through.
+pub(crate) fn cast_fraction(
+    blocks: &[Block],
+    i: usize,
+    d: DVec3,
+    settings: &Settings,
+    passes: &Passes,
+) -> f64 {
+    let a = &blocks[i];
+    let mut toi = 1.0f64;
+    if passes.floor && d.y < 0.0 {
+        // Translation only: the lowest vertex leads; exact.
+        let bottom = a.pos.y + a.lowest_rel_y();
+        toi = toi.min((bottom / -d.y).max(0.0));
+    }
+    if passes.blocks {
+        let len = d.length();
+        let opts = ShapeCastOptions {
+            max_time_of_impact: 1.0,
+            target_distance: 0.0,
+            stop_at_penetration: false,
+            compute_impact_geometry_on_penetration: false,
+        };
+        let mid = a.pos + d * 0.5;
+        for (j, b) in blocks.iter().enumerate() {
+            if j == i {
+                continue;
+            }
+            // Broad phase: the swept sphere against b's sphere.
+            if (b.pos - mid).length() > a.poly.radius + b.poly.radius + 0.5 * len {
+                continue;
+            }
+            // R14 lets blocks that touch move (R11 holds them): a blocker the block already
+            // touches stops it exactly when the step approaches it. The shape cast cannot
+            // tell: it says time of impact 0 for a block merely sliding past another's side
+            // (which would hang in the air), and may miss a touching one it moves into.
+            if passes.supported {
+                let off = b.pos - a.pos;
+                let depth = sat_depth(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off);
+                if depth >= -settings.contact_eps {
+                    let free = sat_allows_motion(
+                        &a.poly,
+                        a.rot,
+                        &a.rel,
+                        &b.poly,
+                        b.rot,
+                        &b.rel,
+                        off,
+                        d,
+                        settings.contact_eps,
+                        settings.hull_eps,
+                    );
+                    if !free {
+                        toi = 0.0;
+                    }
                     continue;
                 }
-                // Broad phase: the swept sphere against b's sphere.
-                if (b.pos - mid).length() > a.poly.radius + b.poly.radius + 0.5 * len {
-                    continue;
-                }
-                // R14 lets blocks that touch move (R11 holds them): a blocker the block already
-                // touches stops it exactly when the step approaches it. The shape cast cannot
-                // tell: it says time of impact 0 for a block merely sliding past another's side
-                // (which would hang in the air), and may miss a touching one it moves into.
-                if self.passes.supported {
-                    let off = b.pos - a.pos;
-                    let depth = sat_depth(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off);
-                    if depth >= -self.params.contact_eps {
-                        let free = sat_allows_motion(
-                            &a.poly,
-                            a.rot,
-                            &a.rel,
-                            &b.poly,
-                            b.rot,
-                            &b.rel,
-                            off,
-                            d,
-                            self.params.contact_eps,
-                            self.params.hull_eps,
-                        );
-                        if !free {
-                            toi = 0.0;
-                        }
-                        continue;
-                    }
-                }
-                let (pa, pb) = rel_poses(a, b);
-                if let Ok(Some(hit)) =
-                    query::cast_shapes(&pa, d, &a.poly.shape, &pb, DVec3::ZERO, &b.poly.shape, opts)
-                {
-                    if hit.time_of_impact.is_finite() {
-                        toi = toi.min(hit.time_of_impact.clamp(0.0, 1.0));
-                    }
+            }
+            let (pa, pb) = rel_poses(a, b);
+            if let Ok(Some(hit)) =
+                query::cast_shapes(&pa, d, &a.poly.shape, &pb, DVec3::ZERO, &b.poly.shape, opts)
+            {
+                if hit.time_of_impact.is_finite() {
+                    toi = toi.min(hit.time_of_impact.clamp(0.0, 1.0));
                 }
             }
         }
-        toi
     }
+    toi
+}
+
+/// R14 for R9's turns on the floor: whether block i, turned from the pose (`pos`, `rot`) to
+/// where it is now, entered another block deeper than it was (or than `hull_eps`). `turned` is
+/// the caller's scratch for i's vertices at `rot`.
+pub(crate) fn turn_enters_neighbour(
+    blocks: &[Block],
+    i: usize,
+    pos: DVec3,
+    rot: DQuat,
+    hull_eps: f64,
+    turned: &mut Vec<DVec3>,
+) -> bool {
+    let a = &blocks[i];
+    rotate_vertices(&a.poly, rot, turned);
+    for (k, b) in blocks.iter().enumerate() {
+        if k == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + hull_eps {
+            continue;
+        }
+        let after = sat_depth(
+            &a.poly,
+            a.rot,
+            &a.rel,
+            &b.poly,
+            b.rot,
+            &b.rel,
+            b.pos - a.pos,
+        );
+        if after <= hull_eps {
+            continue;
+        }
+        let before = sat_depth(&a.poly, rot, turned, &b.poly, b.rot, &b.rel, b.pos - pos);
+        if after > before.max(hull_eps) {
+            return true;
+        }
+    }
+    false
 }

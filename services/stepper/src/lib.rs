@@ -12,16 +12,21 @@
 //! - [`geometry`]: convex polyhedra with G at the origin, and the exact queries the rules use;
 //! - [`body`]: one block's state (pose, v, floor contact set, mode);
 //! - [`hand`]: R1-R3 contacts, R5/R4/R6 hand-driven motion, R13 release detection;
-//! - [`interference`]: R10 carry, R11 support, R12 shape casts;
+//! - [`interference`]: R10 carry, R11 support, R12 shape casts, R14's side contacts;
 //! - [`motion`]: R4's decomposition, R7 free motion;
 //! - [`floor`]: R8 impact, R9 stability;
 //! - [`support`]: R14 supported stacking (blocks stand on blocks as statics says);
-//! - [`world`]: the world and its step, in docs/model.md's order;
+//! - [`event`]: what a step reports (both models);
+//! - [`world`]: the world and its step, in docs/model.md's order: it hands each stage above
+//!   the sets that stage reads and writes, so none of them depends on the world;
 //! - [`precise`]: the precise reference model (rapier3d), beside the paper's;
 //! - [`model`]: the one switch between the two that the process and `simulate` hold;
-//! - [`simulate`](mod@simulate): `handblocks simulate`, the bare check-point hand.
+//! - [`timeline`]: steps on the hand's source time, for the process and `simulate` alike;
+//! - [`simulate`](mod@simulate): `handblocks simulate`, the bare check-point hand;
+//! - [`service`]: the stepper process, a shell of IPC around the above.
 
 pub mod body;
+pub mod event;
 pub mod floor;
 pub mod geometry;
 pub mod hand;
@@ -31,8 +36,10 @@ pub mod model;
 pub mod motion;
 pub mod precise;
 pub mod service;
+mod settings;
 pub mod simulate;
 pub mod support;
+pub mod timeline;
 pub mod world;
 
 pub use model::Model;

@@ -5,8 +5,9 @@ use glam::DVec3;
 
 use common::BlockMode;
 
-use crate::body::Moved;
-use crate::world::World;
+use crate::body::{Block, Moved};
+use crate::interference::{cast_fraction, slide_along_sides, touches_another};
+use crate::settings::{Passes, Settings};
 
 /// R4's decomposition of a one-point push (the paper's Fig. 5).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,78 +58,77 @@ pub fn push_one_point(
     Some(PushOutcome { t, r, theta, axis })
 }
 
-impl World {
-    /// Stage 3: R7 (with R12) for every block the hand did not move and that is not grasped,
-    /// resting, tipping or in floor contact (the floor stage moves those), except blocks R11
-    /// holds. A block released this step (R13) waits for the next.
-    pub(crate) fn free_motion(&mut self) {
-        for i in 0..self.blocks.len() {
+/// Stage 3: R7 (with R12) for every block the hand did not move and that is not grasped,
+/// resting, tipping or in floor contact (the floor stage moves those), except blocks R11
+/// holds. A block released this step (R13) waits for the next.
+pub(crate) fn free_motion(blocks: &mut [Block], settings: &Settings, passes: &Passes) {
+    for i in 0..blocks.len() {
+        {
+            let b = &blocks[i];
+            // A block released this step starts flying in the next (R13, "Order of one
+            // step" 5).
+            if b.moved != Moved::No
+                || b.released
+                || b.mode == BlockMode::Grasped
+                || b.mode == BlockMode::Resting
             {
-                let b = &self.blocks[i];
-                // A block released this step starts flying in the next (R13, "Order of one
-                // step" 5).
-                if b.moved != Moved::No
-                    || b.released
-                    || b.mode == BlockMode::Grasped
-                    || b.mode == BlockMode::Resting
-                {
-                    continue;
-                }
-            }
-            // R14 decided it in stage 3a, or holds it asleep (supported, untouched).
-            if self.passes.supported {
-                let b = &self.blocks[i];
-                if b.judged || b.mode == BlockMode::Supported {
-                    continue;
-                }
-            }
-            // R11 (paper): a block that touches another is not affected by gravity or inertia.
-            if self.passes.blocks && !self.passes.supported && self.supported_by_block(i) {
-                let b = &mut self.blocks[i];
-                b.mode = BlockMode::Supported;
-                b.v = DVec3::ZERO;
                 continue;
             }
-            let floor = self.passes.floor;
-            let g_step = self.params.g_step;
-            let inertia = self.params.inertia;
-            {
-                let b = &mut self.blocks[i];
-                if b.mode == BlockMode::Supported {
-                    b.mode = BlockMode::Free;
-                }
-                // In floor contact: the floor stage decides (R9's Gm = v + g_step).
-                if floor && !b.floor.is_empty() {
-                    continue;
-                }
-            }
-            // R7: d = v + g_step; no rotation.
-            let v = if inertia {
-                self.blocks[i].v
-            } else {
-                DVec3::ZERO
-            };
-            let d = v + g_step;
-            if d == DVec3::ZERO {
-                continue;
-            }
-            // R14: a block against another's side slides down along it (side contacts hold
-            // nothing up). Without R14 a touching block is held by R11 and never gets here.
-            let path = if self.passes.supported {
-                self.slide_along_sides(i, d)
-            } else {
-                d
-            };
-            // R12: stop at the first time of impact; v is the actual displacement.
-            let f = self.cast_fraction(i, path);
-            let b = &mut self.blocks[i];
-            b.intended = d;
-            let actual = path * f;
-            b.translate(actual);
-            b.v = if inertia { actual } else { DVec3::ZERO };
-            b.moved = Moved::Free;
-            b.mode = BlockMode::Free;
         }
+        // R14 decided it in stage 3a, or holds it asleep (supported, untouched).
+        if passes.supported {
+            let b = &blocks[i];
+            if b.judged || b.mode == BlockMode::Supported {
+                continue;
+            }
+        }
+        // R11 (paper): a block that touches another is not affected by gravity or inertia.
+        if passes.blocks && !passes.supported && touches_another(blocks, i, settings.contact_eps) {
+            let b = &mut blocks[i];
+            b.mode = BlockMode::Supported;
+            b.v = DVec3::ZERO;
+            continue;
+        }
+        {
+            let b = &mut blocks[i];
+            if b.mode == BlockMode::Supported {
+                b.mode = BlockMode::Free;
+            }
+            // In floor contact: the floor stage decides (R9's Gm = v + g_step).
+            if passes.floor && !b.floor.is_empty() {
+                continue;
+            }
+        }
+        // R7: d = v + g_step; no rotation.
+        let v = if settings.inertia {
+            blocks[i].v
+        } else {
+            DVec3::ZERO
+        };
+        let d = v + settings.g_step;
+        if d == DVec3::ZERO {
+            continue;
+        }
+        // R14: a block against another's side slides down along it (side contacts hold
+        // nothing up). Without R14 a touching block is held by R11 and never gets here.
+        let path = if passes.supported {
+            slide_along_sides(blocks, i, d, settings)
+        } else {
+            d
+        };
+        // R12: stop at the first time of impact; v is the actual displacement.
+        let f = cast_fraction(blocks, i, path, settings, passes);
+        let b = &mut blocks[i];
+        b.intended = d;
+        let actual = path * f;
+        b.translate(actual);
+        b.v = if settings.inertia {
+            actual
+        } else {
+            DVec3::ZERO
+        };
+        b.moved = Moved::Free;
+        b.mode = BlockMode::Free;
     }
 }
 

@@ -16,7 +16,7 @@ use common::config::Scene;
 use common::{BlockMode, HandSample, Pose, Stamp, MAX_FINGERS, MAX_FINGER_POINTS};
 
 use crate::model::Model;
-use crate::service::Timeline;
+use crate::timeline::Timeline;
 use crate::world::{EventKind, WorldError};
 
 /// Where `simulate` gets the hand of each step.

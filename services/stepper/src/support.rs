@@ -40,10 +40,10 @@
 //! has no supporter in the next step and is free: R7 moves it, R12 stops it, R8/R9 land it.
 //! Since blocks that touch are no longer held (R11), two more rules keep them apart
 //! (**[resolved]**): a free block against another's side slides down along that face rather
-//! than hanging where R12's cast would stop it (`World::slide_along_sides`; a touching blocker
-//! stops a step only if no separating axis stays separated, `sat_allows_motion`), and an R9
-//! turn on the floor that would swing a block into the neighbour it leans on is not taken
-//! (`World::turn_enters_neighbour`).
+//! than hanging where R12's cast would stop it (`interference::slide_along_sides`; a touching
+//! blocker stops a step only if no separating axis stays separated, `sat_allows_motion`), and
+//! an R9 turn on the floor that would swing a block into the neighbour it leans on is not taken
+//! (`interference::turn_enters_neighbour`).
 
 use glam::{DQuat, DVec2, DVec3};
 
@@ -52,14 +52,8 @@ use common::BlockMode;
 use crate::body::{Block, Moved};
 use crate::floor::{in_hull, landing_angle, tip_about_hull};
 use crate::geometry::{contact_points, convex_hull_2d, rotate_vertices, sat_axis, sat_depth};
-use crate::world::World;
-
-/// A contact whose normal's vertical part is below this (a face within 0.57 deg of vertical) is
-/// a side contact: it holds nothing up. Exactly vertical faces give |n.y| ~ 1e-17 after a
-/// rotation, and a block that turned over an edge ends with its faces off vertical by the
-/// bisection's and landing's leftovers (1e-5 was seen): such a face is a wall, not a slope the
-/// block rests on (it would make the block beside a tower carry the tower as its load).
-pub const SIDE_CONTACT_NY: f64 = 0.01;
+use crate::interference::SIDE_CONTACT_NY;
+use crate::settings::{Passes, Settings};
 
 /// Contact points kept per touching pair (a box on a box needs 16 at most).
 pub const MAX_PAIR_POINTS: usize = 64;
@@ -77,9 +71,10 @@ pub(crate) struct SupportEdge {
     end: usize,
 }
 
-/// R14's scratch, preallocated in `World::new` so that a step does not allocate.
+/// Stage 3a (R14) with its own scratch, preallocated in `World::new` so that a step does not
+/// allocate.
 #[derive(Debug)]
-pub(crate) struct SupportScratch {
+pub(crate) struct Support {
     /// Per block: the blocks supporting it (bit j: block j), and those it supports.
     below: Vec<u128>,
     above: Vec<u128>,
@@ -93,11 +88,11 @@ pub(crate) struct SupportScratch {
     turned: Vec<DVec3>,
 }
 
-impl SupportScratch {
-    pub(crate) fn new(blocks: usize, max_vertices: usize) -> SupportScratch {
+impl Support {
+    pub(crate) fn new(blocks: usize, max_vertices: usize) -> Support {
         let edges = 8 * blocks + 16;
         let points = 24 * edges;
-        SupportScratch {
+        Support {
             below: vec![0; blocks],
             above: vec![0; blocks],
             edges: Vec::with_capacity(edges),
@@ -137,58 +132,22 @@ fn near(a: &Block, b: &Block, margin: f64) -> bool {
     (b.pos - a.pos).length() <= a.poly.radius + b.poly.radius + margin
 }
 
-impl World {
-    /// R14 for R9's turns on the floor: whether block i, turned from the pose (`pos`, `rot`) to
-    /// where it is now, entered another block deeper than it was (or than hull_eps).
-    pub(crate) fn turn_enters_neighbour(&mut self, i: usize, pos: DVec3, rot: DQuat) -> bool {
-        let hull_eps = self.params.hull_eps;
-        let World {
-            blocks, support, ..
-        } = self;
-        let a = &blocks[i];
-        rotate_vertices(&a.poly, rot, &mut support.turned);
-        for (k, b) in blocks.iter().enumerate() {
-            if k == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + hull_eps {
-                continue;
-            }
-            let after = sat_depth(
-                &a.poly,
-                a.rot,
-                &a.rel,
-                &b.poly,
-                b.rot,
-                &b.rel,
-                b.pos - a.pos,
-            );
-            if after <= hull_eps {
-                continue;
-            }
-            let before = sat_depth(
-                &a.poly,
-                rot,
-                &support.turned,
-                &b.poly,
-                b.rot,
-                &b.rel,
-                b.pos - pos,
-            );
-            if after > before.max(hull_eps) {
-                return true;
-            }
-        }
-        false
-    }
-
+impl Support {
     /// Stage 3a (R14): finds supporters, judges bottom up, holds or tips each block with its
     /// load. Blocks it decides are marked `judged`; stages 3b (R7) and 4 (R8, R9) leave them.
-    pub(crate) fn support_stage(&mut self) {
-        let n = self.blocks.len();
-        let eps = self.params.contact_eps;
+    pub(crate) fn judge_stacks(
+        &mut self,
+        blocks: &mut [Block],
+        settings: &Settings,
+        passes: &Passes,
+    ) {
+        let n = blocks.len();
+        let eps = settings.contact_eps;
         let mut sleeping = 0u128;
         let mut awake = 0u128;
         let mut stir = 0u128;
         let mut fixed = 0u128;
-        for (i, b) in self.blocks.iter_mut().enumerate() {
+        for (i, b) in blocks.iter_mut().enumerate() {
             b.refresh_rel();
             b.judged = false;
             if b.moved != Moved::No || b.mode == BlockMode::Grasped {
@@ -218,7 +177,7 @@ impl World {
             let i = queue.trailing_zeros() as usize;
             queue &= queue - 1;
             for j in bits(sleeping & !woken) {
-                if near(&self.blocks[i], &self.blocks[j], eps) {
+                if near(&blocks[i], &blocks[j], eps) {
                     woken |= bit(j);
                     queue |= bit(j);
                 }
@@ -230,13 +189,10 @@ impl World {
         }
         // 2. Supporters: every touching pair with a candidate, once.
         {
-            let World {
-                blocks, support, ..
-            } = self;
-            support.below.iter_mut().for_each(|m| *m = 0);
-            support.above.iter_mut().for_each(|m| *m = 0);
-            support.edges.clear();
-            support.points.clear();
+            self.below.iter_mut().for_each(|m| *m = 0);
+            self.above.iter_mut().for_each(|m| *m = 0);
+            self.edges.clear();
+            self.points.clear();
             for i in bits(cand) {
                 for j in 0..n {
                     if j == i || (cand & bit(j) != 0 && j < i) {
@@ -267,7 +223,7 @@ impl World {
                         continue;
                     };
                     let (l, u) = (&blocks[lo], &blocks[up]);
-                    let start = support.points.len();
+                    let start = self.points.len();
                     contact_points(
                         &u.poly,
                         u.rot,
@@ -278,19 +234,19 @@ impl World {
                         l.pos - u.pos,
                         eps,
                         start + MAX_PAIR_POINTS,
-                        &mut support.points,
+                        &mut self.points,
                     );
-                    if support.points.len() == start {
+                    if self.points.len() == start {
                         continue;
                     }
-                    support.edges.push(SupportEdge {
+                    self.edges.push(SupportEdge {
                         lower: lo,
                         upper: up,
                         start,
-                        end: support.points.len(),
+                        end: self.points.len(),
                     });
-                    support.below[up] |= bit(lo);
-                    support.above[lo] |= bit(up);
+                    self.below[up] |= bit(lo);
+                    self.above[lo] |= bit(up);
                 }
             }
         }
@@ -299,7 +255,7 @@ impl World {
         while pending != 0 {
             let mut ready = 0u128;
             for i in bits(pending) {
-                if self.support.below[i] & pending == 0 {
+                if self.below[i] & pending == 0 {
                     ready |= bit(i);
                 }
             }
@@ -307,35 +263,43 @@ impl World {
                 ready = pending & pending.wrapping_neg();
             }
             for i in bits(ready) {
-                self.judge(i, fixed, woken);
+                self.judge(blocks, i, fixed, woken, settings, passes);
             }
             pending &= !ready;
         }
     }
 
     /// R14 for block i: hold it, tip it with its load, or leave it to R7/R9.
-    fn judge(&mut self, i: usize, fixed: u128, woken: u128) {
-        if self.blocks[i].moved != Moved::No {
+    fn judge(
+        &mut self,
+        blocks: &mut [Block],
+        i: usize,
+        fixed: u128,
+        woken: u128,
+        settings: &Settings,
+        passes: &Passes,
+    ) {
+        if blocks[i].moved != Moved::No {
             // Moved this step as part of a load: not judged again.
             return;
         }
-        let below = self.support.below[i];
+        let below = self.below[i];
         // The load: every block resting on b, transitively (not blocks the hand holds).
         let mut load = 0u128;
-        let mut front = self.support.above[i] & !fixed;
+        let mut front = self.above[i] & !fixed;
         while front != 0 {
             let j = front.trailing_zeros() as usize;
             front &= front - 1;
             // A block tipping over b's edge rests on that edge, not on b as a load.
-            if j == i || load & bit(j) != 0 || self.blocks[j].tipped_over & bit(i) != 0 {
+            if j == i || load & bit(j) != 0 || blocks[j].tipped_over & bit(i) != 0 {
                 continue;
             }
             load |= bit(j);
-            front |= self.support.above[j] & !fixed & !load;
+            front |= self.above[j] & !fixed & !load;
         }
         load &= !bit(i);
         {
-            let b = &mut self.blocks[i];
+            let b = &mut blocks[i];
             if below == 0 && load == 0 {
                 // Neither on a block nor under one: R7 or R9 decide as without R14, except a
                 // sleeping block woken on the floor (its load may have left), which R9 would
@@ -352,11 +316,8 @@ impl World {
             }
         }
         let s_mask = load | bit(i);
-        let gpos = self.blocks[i].pos;
+        let gpos = blocks[i].pos;
         // G_L relative to b's G (precision far from the origin), and the cut's contact points.
-        let World {
-            blocks, support, ..
-        } = self;
         let mut vol = 0.0;
         let mut moment = DVec3::ZERO;
         for j in bits(s_mask) {
@@ -365,29 +326,28 @@ impl World {
             moment += (bj.pos - gpos) * bj.poly.volume;
         }
         let gl = moment / vol;
-        support.cut.clear();
+        self.cut.clear();
         for j in bits(s_mask) {
             let bj = &blocks[j];
             let off = bj.pos - gpos - gl;
             for k in bj.floor.iter().take_while(|&k| k < bj.rel.len()) {
-                support.cut.push(bj.rel[k] + off);
+                self.cut.push(bj.rel[k] + off);
             }
         }
-        for e in &support.edges {
+        for e in &self.edges {
             if s_mask & bit(e.upper) != 0 && s_mask & bit(e.lower) == 0 {
                 let off = blocks[e.upper].pos - gpos - gl;
-                for p in &support.points[e.start..e.end] {
-                    support.cut.push(*p + off);
+                for p in &self.points[e.start..e.end] {
+                    self.cut.push(*p + off);
                 }
             }
         }
-        support.hull_in.clear();
-        support
-            .hull_in
-            .extend(support.cut.iter().map(|p| DVec2::new(p.x, p.z)));
-        convex_hull_2d(&mut support.hull_in, &mut support.hull_out);
-        let h = &support.hull_out[..];
-        let verdict = in_hull(h, DVec2::ZERO, self.params.hull_eps);
+        self.hull_in.clear();
+        self.hull_in
+            .extend(self.cut.iter().map(|p| DVec2::new(p.x, p.z)));
+        convex_hull_2d(&mut self.hull_in, &mut self.hull_out);
+        let h = &self.hull_out[..];
+        let verdict = in_hull(h, DVec2::ZERO, settings.hull_eps);
         let held = match verdict {
             None => {
                 // Nothing under it after all (a touch without contact points).
@@ -400,7 +360,7 @@ impl World {
             }
             Some(inside) => inside,
         };
-        let cut = &support.cut;
+        let cut = &self.cut;
         let vertex_of = |q: DVec2| -> DVec3 {
             cut.iter()
                 .copied()
@@ -410,7 +370,7 @@ impl World {
         let tip = if held {
             None
         } else {
-            tip_about_hull(h, DVec2::ZERO, self.params.g_step, vertex_of)
+            tip_about_hull(h, DVec2::ZERO, settings.g_step, vertex_of)
         };
         let Some((pivot_gl, axis, theta)) = tip else {
             // G_L in H (or no turn: no gravity): b does not move, exactly.
@@ -429,7 +389,7 @@ impl World {
         let pivot = pivot_gl + gl;
         // R9's limit: the first vertex of S that reaches the floor.
         let mut theta = theta;
-        if self.passes.floor {
+        if passes.floor {
             for j in bits(s_mask) {
                 let bj = &blocks[j];
                 let pj = pivot + (gpos - bj.pos);
@@ -439,12 +399,12 @@ impl World {
                     &bj.floor,
                     pj,
                     axis,
-                    self.params.angle_eps,
+                    settings.angle_eps,
                 ));
             }
         }
         // And the first contact with a block outside S.
-        let hull_eps = self.params.hull_eps;
+        let hull_eps = settings.hull_eps;
         let collides = |theta: f64, turned: &mut Vec<DVec3>| -> bool {
             let q = DQuat::from_axis_angle(axis, theta);
             for j in bits(s_mask) {
@@ -488,11 +448,11 @@ impl World {
             }
             false
         };
-        if self.passes.blocks && collides(theta, &mut support.turned) {
+        if passes.blocks && collides(theta, &mut self.turned) {
             let (mut lo, mut hi) = (0.0, theta);
             for _ in 0..BISECTIONS {
                 let mid = 0.5 * (lo + hi);
-                if collides(mid, &mut support.turned) {
+                if collides(mid, &mut self.turned) {
                     hi = mid;
                 } else {
                     lo = mid;
@@ -500,7 +460,7 @@ impl World {
             }
             theta = lo;
         }
-        if theta.is_nan() || theta <= self.params.angle_eps || !theta.is_finite() {
+        if theta.is_nan() || theta <= settings.angle_eps || !theta.is_finite() {
             // It cannot start to turn without entering another block: let R7/R12 decide.
             let b = &mut blocks[i];
             b.mode = BlockMode::Free;
@@ -510,7 +470,7 @@ impl World {
         }
         // S turns rigidly about the pivot (perfect friction: the load rides on b).
         let mut under = 0u128;
-        for e in &support.edges {
+        for e in &self.edges {
             if s_mask & bit(e.upper) != 0 && s_mask & bit(e.lower) == 0 {
                 under |= bit(e.lower);
             }

@@ -1,21 +1,35 @@
 //! The world and its step, in docs/model.md's "Order of one step".
 //!
-//! [`World::step`] reads as that order: each stage is a method named for its rules, in its own
-//! module (`hand` R1-R6, `interference` R10-R12, `motion` R7 and R13, `floor` R8-R9). The
-//! passes a scene does not enable (docs/design.md "Effects") are decided once in [`World::new`] and
-//! cost one branch per step; resting blocks that nothing touches are skipped.
+//! [`World::step`] reads as that order: each stage is a function or a stage struct's method,
+//! named for its rules, in its own module (`hand` R1-R6 and R13's release, `interference` R10,
+//! `support` R14, `motion` R7 with R11-R12, `floor` R8-R9), and is handed exactly what it reads
+//! and writes: the blocks, the hand now and before, the scene's settings, its own scratch, the
+//! step's events. So the step shows its data flow, and no stage module needs the world (as
+//! rapier's pipeline hands each stage the sets it touches). The passes a scene does not enable
+//! (docs/design.md "Effects") are decided once in [`World::new`] and cost one branch per step;
+//! resting blocks that nothing touches are skipped.
 
 use std::fmt;
 use std::path::PathBuf;
 
-use glam::{DQuat, DVec2, DVec3};
+use glam::{DQuat, DVec3};
 
 use common::config::scene::{FloorEffect, HandEffect, Stacking};
 use common::config::Scene;
-use common::{BlockMode, HandSample, WorldSample, MAX_BLOCKS, MAX_FINGERS, MAX_FINGER_POINTS};
+use common::{BlockMode, HandSample, WorldSample, MAX_BLOCKS};
 
-use crate::body::{Block, Moved};
+use crate::body::{Block, HandAction, Moved};
+use crate::event::StepEvents;
+pub use crate::event::{Event, EventKind};
+use crate::floor::Floor;
 use crate::geometry::{sat_depth, Polyhedron};
+// The check points as drawn are the hand's (R5 relocates them); the precise model fills the same.
+pub(crate) use crate::hand::Fingers;
+use crate::hand::{end_grasps, is_usable, move_by_hand, HandContacts};
+use crate::interference::Carry;
+use crate::motion::free_motion;
+use crate::settings::{Passes, Settings};
+use crate::support::Support;
 
 /// What is wrong with a scene for the model: names the file, the block (when one is at fault)
 /// and the problem.
@@ -43,149 +57,24 @@ impl fmt::Display for WorldError {
 
 impl std::error::Error for WorldError {}
 
-/// What happened to a block in a step.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum EventKind {
-    /// R5: the hand grasped the block (it was not grasped in the previous step).
-    Grasp,
-    /// R13: the grasp ended; the block flies on with its last grasped displacement.
-    Release,
-    /// R4/R6: the hand started pushing the block.
-    Push,
-    /// R10: the block started being carried by a hand-moved block.
-    Carry,
-    /// R8: a vertex not in the previous contact set touched the floor.
-    Impact,
-    /// R9: the block started tipping.
-    Topple,
-    /// R9: the block came to rest on the floor.
-    Rest,
-    /// R11 (paper) or R14 (supported): the block is held up by another block.
-    Support,
-}
-
-impl EventKind {
-    /// The event a block's change into `mode` is reported as (both models: a mode change is
-    /// an event); None for `free`, which is the absence of the others.
-    pub fn on_entering(mode: BlockMode) -> Option<EventKind> {
-        match mode {
-            BlockMode::Grasped => Some(EventKind::Grasp),
-            BlockMode::Pushed => Some(EventKind::Push),
-            BlockMode::Carried => Some(EventKind::Carry),
-            BlockMode::Tipping => Some(EventKind::Topple),
-            BlockMode::Resting => Some(EventKind::Rest),
-            BlockMode::Supported => Some(EventKind::Support),
-            BlockMode::Free => None,
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            EventKind::Grasp => "grasp",
-            EventKind::Release => "release",
-            EventKind::Push => "push",
-            EventKind::Carry => "carry",
-            EventKind::Impact => "impact",
-            EventKind::Topple => "topple",
-            EventKind::Rest => "rest",
-            EventKind::Support => "support",
-        }
-    }
-}
-
-/// One event: in which step (1-based: the step after which `World::steps` equals it), what,
-/// and to which block (index in the scene's order).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Event {
-    pub step: u64,
-    pub kind: EventKind,
-    pub block: usize,
-}
-
-/// The scene's settings as the rules use them.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Params {
-    /// g_step = (0, -g dt^2, 0), zero when gravity is off.
-    pub g_step: DVec3,
-    pub inertia: bool,
-    pub contact_eps: f64,
-    pub hull_eps: f64,
-    pub angle_eps: f64,
-    pub grasp_angle: f64,
-    pub release_angle: f64,
-}
-
-/// Which passes run each step (docs/design.md "Effects"): an effect that is off costs nothing.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Passes {
-    /// R1-R6 (and R13's release).
-    pub hand: bool,
-    /// R5 may grasp (hand = "grasp"); otherwise two contacts always push (R6).
-    pub grasp: bool,
-    /// R10.
-    pub carry: bool,
-    /// R7 gravity or inertia moves free blocks.
-    pub free_motion: bool,
-    /// R8.
-    pub floor: bool,
-    /// R9.
-    pub tipping: bool,
-    /// R11 (paper stacking) and R12's casts against other blocks: only with two blocks or more.
-    pub blocks: bool,
-    /// R14 replaces R11 (stacking = "supported"): only with two blocks or more.
-    pub supported: bool,
-}
-
-/// The check points as drawn (R5's relocation), in the hand sample's layout.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Fingers {
-    pub count: u32,
-    pub point_count: [u32; MAX_FINGERS],
-    pub points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
-}
-
-impl Fingers {
-    /// The hand's check points as they arrive (both models publish them; the paper model's R5
-    /// then relocates those inside a grasped block); none without a hand.
-    pub(crate) fn copy_from(&mut self, hand: Option<&HandSample>) {
-        match hand {
-            Some(h) => {
-                let fc = (h.finger_count as usize).min(MAX_FINGERS);
-                self.count = fc as u32;
-                for f in 0..MAX_FINGERS {
-                    self.point_count[f] = if f < fc {
-                        h.finger_point_count[f].min(MAX_FINGER_POINTS as u32)
-                    } else {
-                        0
-                    };
-                }
-                self.points = h.finger_points;
-            }
-            None => {
-                self.count = 0;
-                self.point_count = [0; MAX_FINGERS];
-            }
-        }
-    }
-}
-
 /// The block world: docs/model.md's paper model (rules R1-R13, and R14 when the scene asks for it).
 pub struct World {
-    pub(crate) file: PathBuf,
-    pub(crate) params: Params,
-    pub(crate) passes: Passes,
-    pub(crate) blocks: Vec<Block>,
-    pub(crate) steps: u64,
-    pub(crate) events: Vec<Event>,
+    file: PathBuf,
+    settings: Settings,
+    passes: Passes,
+    blocks: Vec<Block>,
+    steps: u64,
+    events: StepEvents,
     /// The hand at the previous step (P-, W-), when there was one.
-    pub(crate) prev_hand: Option<HandSample>,
-    pub(crate) fingers: Fingers,
-    // ---- scratch, preallocated so that a step does not allocate ----
-    pub(crate) contacts: Vec<crate::hand::Contact>,
-    pub(crate) queue: Vec<usize>,
-    pub(crate) hull_in: Vec<DVec2>,
-    pub(crate) hull_out: Vec<DVec2>,
-    pub(crate) support: crate::support::SupportScratch,
+    prev_hand: Option<HandSample>,
+    /// The check points as drawn (R5's relocation).
+    fingers: Fingers,
+    // ---- the stages that keep scratch, each its own, preallocated so that a step does not
+    // allocate ----
+    hand_contacts: HandContacts,
+    carry: Carry,
+    support: Support,
+    floor: Floor,
 }
 
 fn err(scene: &Scene, block: Option<&str>, problem: impl Into<String>) -> WorldError {
@@ -212,7 +101,7 @@ impl World {
         }
         let dt = 1.0 / w.step_hz;
         let e = &scene.effects;
-        let params = Params {
+        let settings = Settings {
             g_step: if e.gravity {
                 DVec3::new(0.0, -w.gravity * dt * dt, 0.0)
             } else {
@@ -322,22 +211,17 @@ impl World {
         };
         Ok(World {
             file: scene.file.clone(),
-            params,
+            settings,
             passes,
             blocks,
             steps: 0,
-            events: Vec::with_capacity(16 * n + 16),
+            events: StepEvents::with_capacity(16 * n + 16),
             prev_hand: None,
-            fingers: Fingers {
-                count: 0,
-                point_count: [0; MAX_FINGERS],
-                points: [[[0.0; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
-            },
-            contacts: Vec::with_capacity(crate::hand::MAX_CONTACTS),
-            queue: Vec::with_capacity(n),
-            hull_in: Vec::with_capacity(max_vertices + 1),
-            hull_out: Vec::with_capacity(2 * max_vertices + 2),
-            support: crate::support::SupportScratch::new(
+            fingers: Fingers::NONE,
+            hand_contacts: HandContacts::new(),
+            carry: Carry::new(n),
+            floor: Floor::new(max_vertices),
+            support: Support::new(
                 if e.stacking == Stacking::Supported {
                     n
                 } else {
@@ -350,44 +234,69 @@ impl World {
 
     /// Exactly one fixed step (dt = 1 / step_hz) with the hand's pose at this step; the world
     /// keeps the previous one itself (P-, W-). `None`, or a hand with a non-finite value, is
-    /// "no hand this step". docs/model.md "Order of one step":
+    /// "no hand this step". docs/model.md "Order of one step", each stage handed what it reads
+    /// and writes:
     pub fn step(&mut self, hand: Option<&HandSample>) {
+        let hand = hand.filter(|h| is_usable(h));
         self.steps += 1;
-        self.events.clear();
-        let hand = hand.filter(|h| crate::hand::is_usable(h));
-        self.begin_step(hand);
-        if self.passes.hand {
-            // 1. Hand contacts (R1-R3) for every block near the hand.
-            self.hand_contacts(hand);
+        let World {
+            settings,
+            passes,
+            blocks,
+            events,
+            prev_hand,
+            fingers,
+            hand_contacts,
+            carry,
+            support,
+            floor,
+            ..
+        } = self;
+        let prev = prev_hand.as_ref();
+        // 0. Every block starts the step where it is, with nothing done to it yet.
+        events.begin(self.steps);
+        begin_step(blocks);
+        fingers.copy_from(hand);
+        if passes.hand {
+            // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
+            //    action; then R13 ends the grasps they no longer confirm.
+            if let Some(h) = hand {
+                hand_contacts.decide_actions(blocks, h, prev, settings, passes.grasp);
+            }
+            end_grasps(blocks, settings.inertia);
             // 2. Hand-driven motion (R5, R4, R6), then carry (R10).
-            self.hand_motion(hand);
-            if self.passes.carry {
-                self.carry();
+            if let Some(h) = hand {
+                move_by_hand(blocks, h, prev, settings, fingers);
+            }
+            if passes.carry {
+                carry.carry(blocks, settings.hull_eps);
             }
         }
         // 3a. Supported stacking (R14, when the scene asks for it): blocks on blocks are judged
         //     bottom up, held or tipped with their load.
-        if self.passes.supported {
-            self.support_stage();
+        if passes.supported {
+            support.judge_stacks(blocks, settings, passes);
         }
         // 3. Free motion (R7, with R12) for the rest, except blocks held by R11 or R14. Without
         //    gravity and inertia nothing moves freely, and R11 has nothing to hold.
-        if self.passes.free_motion {
-            self.free_motion();
+        if passes.free_motion {
+            free_motion(blocks, settings, passes);
         }
         // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting.
-        if self.passes.floor {
-            self.floor_stage();
+        if passes.floor {
+            floor.land(blocks, settings, passes, events);
         }
-        // 5. Releases (R13) take effect for the next step; modes and events are settled.
-        self.finish_step(hand);
+        // 5. Releases (R13) take effect for the next step; modes and events are settled, and
+        //    this hand is the next step's previous one.
+        finish_step(blocks, events);
+        *prev_hand = hand.copied();
     }
 
     /// Sets the hand the next step takes as its previous one (P-, W-) without stepping: a
     /// caller that knows the hand before the first step (a scripted hand at t = 0) gives it
     /// here so that the first step sees the hand's motion, not a standing start.
     pub fn set_previous_hand(&mut self, hand: Option<&HandSample>) {
-        self.prev_hand = hand.filter(|h| crate::hand::is_usable(h)).copied();
+        self.prev_hand = hand.filter(|h| is_usable(h)).copied();
     }
 
     /// Block poses (pose of G), modes, the grasped block and the check points as drawn (R5's
@@ -416,7 +325,7 @@ impl World {
 
     /// What happened in the last step.
     pub fn events(&self) -> &[Event] {
-        &self.events
+        self.events.as_slice()
     }
 
     /// The blocks' names, in the scene's order (the order of `WorldSample::blocks`).
@@ -452,50 +361,36 @@ impl World {
     pub fn file(&self) -> &std::path::Path {
         &self.file
     }
+}
 
-    fn begin_step(&mut self, hand: Option<&HandSample>) {
-        for b in &mut self.blocks {
-            b.start_pos = b.pos;
-            b.start_rot = b.rot;
-            b.mode_before = b.mode;
-            b.moved = Moved::No;
-            b.intended = DVec3::ZERO;
-            b.action = crate::body::HandAction::None;
-            b.released = false;
-        }
-        self.fingers.copy_from(hand);
+/// Stage 0: the step's start pose and mode of every block, and nothing done to it yet.
+fn begin_step(blocks: &mut [Block]) {
+    for b in blocks {
+        b.start_pos = b.pos;
+        b.start_rot = b.rot;
+        b.mode_before = b.mode;
+        b.moved = Moved::No;
+        b.intended = DVec3::ZERO;
+        b.action = HandAction::None;
+        b.released = false;
     }
+}
 
-    pub(crate) fn emit(&mut self, kind: EventKind, block: usize) {
-        self.events.push(Event {
-            step: self.steps,
-            kind,
-            block,
-        });
-    }
-
-    fn finish_step(&mut self, hand: Option<&HandSample>) {
-        for i in 0..self.blocks.len() {
-            let (before, now, released) = {
-                let b = &self.blocks[i];
-                (b.mode_before, b.mode, b.released)
-            };
-            {
-                // R14 judges again what touches a block that moved or changed mode.
-                let b = &mut self.blocks[i];
-                b.stirred = b.pos != b.start_pos || b.rot != b.start_rot || b.mode != b.mode_before;
-            }
-            if released {
-                self.emit(EventKind::Release, i);
-            }
-            if before == now {
-                continue;
-            }
-            if let Some(k) = EventKind::on_entering(now) {
-                self.emit(k, i);
-            }
+/// Stage 5: the step's releases (R13) and mode changes as events, and which blocks R14 judges
+/// again in the next step (those that moved or changed mode).
+fn finish_step(blocks: &mut [Block], events: &mut StepEvents) {
+    for (i, b) in blocks.iter_mut().enumerate() {
+        // R14 judges again what touches a block that moved or changed mode.
+        b.stirred = b.pos != b.start_pos || b.rot != b.start_rot || b.mode != b.mode_before;
+        if b.released {
+            events.emit(EventKind::Release, i);
         }
-        self.prev_hand = hand.copied();
+        if b.mode_before == b.mode {
+            continue;
+        }
+        if let Some(k) = EventKind::on_entering(b.mode) {
+            events.emit(k, i);
+        }
     }
 }
 
