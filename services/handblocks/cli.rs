@@ -61,43 +61,7 @@ pub enum Command {
     /// Exit status: 0 when the session ran within its [budget], 1 when it ran but violated the
     /// budget or a process failed, 2 when it could not run (bad config, no processes).
     #[command(after_help = LAUNCH_AFTER_HELP)]
-    Launch {
-        /// The session file (which scene, which source, renderer, recorder, budget), or a scene
-        /// file (run with the default settings: the scripted hand, headless).
-        #[arg(default_value = "config/sessions/live.toml")]
-        session: PathBuf,
-        /// Override a key of the session file, e.g. --set renderer.mode=off, --set
-        /// budget.max_dropped=0, --set source.file=/data/carl/example_push_0.carl (paths, as in
-        /// the file, start at the session file's folder). Checked as the file's keys are.
-        /// Repeatable.
-        #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
-        overrides: Vec<common::config::session::Override>,
-        /// No animated preview (a headless session writes one by default).
-        #[arg(long)]
-        no_preview: bool,
-        /// Overwrite the recording (--record or [recorder] file) if it exists.
-        #[arg(long)]
-        force: bool,
-        /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM).
-        #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
-        duration: Option<Duration>,
-        /// Also write the report as JSON to this file.
-        #[arg(long, value_name = "FILE")]
-        report: Option<PathBuf>,
-        /// The session's bus id (iceoryx2 prefix `hb_<ID>_`); default: a fresh one.
-        #[arg(long, value_name = "ID")]
-        bus_id: Option<String>,
-        /// No progress lines while running.
-        #[arg(long)]
-        quiet: bool,
-        /// Write rendered frames as PNG into DIR (every `[renderer] frames_every`-th frame).
-        #[arg(long, value_name = "DIR")]
-        frames_dir: Option<PathBuf>,
-        /// Record every topic to this MCAP file (overrides the session's `[recorder] file`);
-        /// list it with `handblocks inspect FILE`, replay it with `[source] kind = "replay"`.
-        #[arg(long, value_name = "FILE")]
-        record: Option<PathBuf>,
-    },
+    Launch(LaunchArgs),
     /// List a recording's topics: messages, sequence gaps, time span and rate of each.
     ///
     /// Reads an MCAP file the recorder wrote (`[recorder] file` in a session). A file cut off
@@ -217,6 +181,48 @@ pub enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
         overrides: Vec<common::config::session::Override>,
     },
+}
+
+// What `handblocks launch` was given (the bare `handblocks` is `launch` with the defaults but
+// the live session file). A plain comment: a doc comment here would replace the subcommand's
+// own help, which the `Launch` variant above holds.
+#[derive(clap::Args, Default)]
+pub struct LaunchArgs {
+    /// The session file (which scene, which source, renderer, recorder, budget), or a scene
+    /// file (run with the default settings: the scripted hand, headless).
+    #[arg(default_value = "config/sessions/live.toml")]
+    pub session: PathBuf,
+    /// Override a key of the session file, e.g. --set renderer.mode=off, --set
+    /// budget.max_dropped=0, --set source.file=/data/carl/example_push_0.carl (paths, as in
+    /// the file, start at the session file's folder). Checked as the file's keys are.
+    /// Repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
+    pub overrides: Vec<common::config::session::Override>,
+    /// No animated preview (a headless session writes one by default).
+    #[arg(long)]
+    pub no_preview: bool,
+    /// Overwrite the recording (--record or [recorder] file) if it exists.
+    #[arg(long)]
+    pub force: bool,
+    /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM).
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub duration: Option<Duration>,
+    /// Also write the report as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+    /// The session's bus id (iceoryx2 prefix `hb_<ID>_`); default: a fresh one.
+    #[arg(long, value_name = "ID")]
+    pub bus_id: Option<String>,
+    /// No progress lines while running.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Write rendered frames as PNG into DIR (every `[renderer] frames_every`-th frame).
+    #[arg(long, value_name = "DIR")]
+    pub frames_dir: Option<PathBuf>,
+    /// Record every topic to this MCAP file (overrides the session's `[recorder] file`);
+    /// list it with `handblocks inspect FILE`, replay it with `[source] kind = "replay"`.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]

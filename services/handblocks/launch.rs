@@ -3,28 +3,12 @@
 //! the budget's verdict.
 
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::ExitCode;
-use std::time::Duration;
 
-use common::config::session::{Override, RenderMode};
+use common::config::session::RenderMode;
 
-use crate::cli::VERSION;
-
-/// What `handblocks launch` was given.
-#[derive(Default)]
-pub struct LaunchArgs {
-    pub session: PathBuf,
-    pub overrides: Vec<Override>,
-    pub no_preview: bool,
-    pub force: bool,
-    pub duration: Option<Duration>,
-    pub report: Option<PathBuf>,
-    pub bus_id: Option<String>,
-    pub quiet: bool,
-    pub frames_dir: Option<PathBuf>,
-    pub record: Option<PathBuf>,
-}
+use crate::cli::{LaunchArgs, VERSION};
 
 /// Why a session did not run, or ran but its report could not be written.
 #[derive(Debug)]

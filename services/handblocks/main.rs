@@ -43,33 +43,11 @@ fn run() -> Result<ExitCode, CliError> {
     let cli = Cli::parse();
     let code = match cli.command {
         // `cargo run --release`: the live session, until Ctrl-C.
-        None => launch::run(launch::LaunchArgs {
+        None => launch::run(cli::LaunchArgs {
             session: PathBuf::from("config/sessions/live.toml"),
-            ..launch::LaunchArgs::default()
+            ..cli::LaunchArgs::default()
         })?,
-        Some(Command::Launch {
-            session,
-            overrides,
-            no_preview,
-            force,
-            duration,
-            report,
-            bus_id,
-            quiet,
-            frames_dir,
-            record,
-        }) => launch::run(launch::LaunchArgs {
-            session,
-            overrides,
-            no_preview,
-            force,
-            duration,
-            report,
-            bus_id,
-            quiet,
-            frames_dir,
-            record,
-        })?,
+        Some(Command::Launch(args)) => launch::run(args)?,
         Some(Command::List { dir }) => list::run(&dir)?,
         Some(Command::Completions { shell }) => completions::run(shell),
         Some(Command::Simulate {

@@ -30,6 +30,24 @@ fn rel_poses(a: &Block, b: &Block) -> (Pose, Pose) {
     )
 }
 
+/// [`sat_depth`] of the pair as they stand (b's offset from a's G): > 0 overlap, < 0 gap.
+pub(crate) fn pair_depth(a: &Block, b: &Block) -> f64 {
+    let off = b.pos - a.pos;
+    sat_depth(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off)
+}
+
+/// [`sat_axis`] of the pair as they stand: (depth, unit axis from a to b).
+pub(crate) fn pair_axis(a: &Block, b: &Block, tie: f64) -> (f64, DVec3) {
+    let off = b.pos - a.pos;
+    sat_axis(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, tie)
+}
+
+/// [`sat_allows_motion`] of a moving by `d` past b as they stand.
+fn pair_allows_motion(a: &Block, b: &Block, d: DVec3, eps: f64, hull_eps: f64) -> bool {
+    let (off, (pa, pb)) = (b.pos - a.pos, (&a.poly, &b.poly));
+    sat_allows_motion(pa, a.rot, &a.rel, pb, b.rot, &b.rel, off, d, eps, hull_eps)
+}
+
 /// Whether the bounding spheres of a and b come within `margin`.
 #[inline]
 fn near(a: &Block, b: &Block, margin: f64) -> bool {
@@ -53,15 +71,7 @@ pub(crate) fn overlapping(a: &Block, b: &Block, tol: f64) -> bool {
     if !near(a, b, 0.0) {
         return false;
     }
-    sat_depth(
-        &a.poly,
-        a.rot,
-        &a.rel,
-        &b.poly,
-        b.rot,
-        &b.rel,
-        b.pos - a.pos,
-    ) > tol
+    pair_depth(a, b) > tol
 }
 
 /// A contact whose normal's vertical part is below this (a face within 0.57 deg of vertical) is
@@ -153,16 +163,12 @@ pub(crate) fn slide_along_sides(
         if j == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + eps {
             continue;
         }
-        let off = b.pos - a.pos;
         // The separating axis itself (no tie-break): the face the block slides along.
-        let (depth, n) = sat_axis(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, 0.0);
+        let (depth, n) = pair_axis(a, b, 0.0);
         if depth < -eps || n.y.abs() >= SIDE_CONTACT_NY {
             continue;
         }
-        let hull_eps = settings.hull_eps;
-        if sat_allows_motion(
-            &a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, d, eps, hull_eps,
-        ) {
+        if pair_allows_motion(a, b, d, eps, settings.hull_eps) {
             continue;
         }
         let closing = d.dot(n);
@@ -211,22 +217,9 @@ pub(crate) fn cast_fraction(
             // tell: it says time of impact 0 for a block merely sliding past another's side
             // (which would hang in the air), and may miss a touching one it moves into.
             if passes.supported {
-                let off = b.pos - a.pos;
-                let depth = sat_depth(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off);
-                if depth >= -settings.contact_eps {
-                    let free = sat_allows_motion(
-                        &a.poly,
-                        a.rot,
-                        &a.rel,
-                        &b.poly,
-                        b.rot,
-                        &b.rel,
-                        off,
-                        d,
-                        settings.contact_eps,
-                        settings.hull_eps,
-                    );
-                    if !free {
+                if pair_depth(a, b) >= -settings.contact_eps {
+                    let (eps, hull_eps) = (settings.contact_eps, settings.hull_eps);
+                    if !pair_allows_motion(a, b, d, eps, hull_eps) {
                         toi = 0.0;
                     }
                     continue;
@@ -262,15 +255,7 @@ pub(crate) fn turn_enters_neighbour(
         if k == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + hull_eps {
             continue;
         }
-        let after = sat_depth(
-            &a.poly,
-            a.rot,
-            &a.rel,
-            &b.poly,
-            b.rot,
-            &b.rel,
-            b.pos - a.pos,
-        );
+        let after = pair_depth(a, b);
         if after <= hull_eps {
             continue;
         }

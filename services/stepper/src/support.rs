@@ -51,8 +51,8 @@ use common::BlockMode;
 
 use crate::body::{Block, Moved};
 use crate::floor::{in_hull, landing_angle, tip_about_hull};
-use crate::geometry::{contact_points, convex_hull_2d, rotate_vertices, sat_axis, sat_depth};
-use crate::interference::SIDE_CONTACT_NY;
+use crate::geometry::{contact_points, convex_hull_2d, rotate_vertices, sat_depth};
+use crate::interference::{pair_axis, SIDE_CONTACT_NY};
 use crate::settings::{Passes, Settings};
 
 /// Contact points kept per touching pair (a box on a box needs 16 at most).
@@ -202,16 +202,7 @@ impl Support {
                     if !near(a, b, eps) {
                         continue;
                     }
-                    let (depth, axis) = sat_axis(
-                        &a.poly,
-                        a.rot,
-                        &a.rel,
-                        &b.poly,
-                        b.rot,
-                        &b.rel,
-                        b.pos - a.pos,
-                        eps,
-                    );
+                    let (depth, axis) = pair_axis(a, b, eps);
                     if depth.is_nan() || depth < -eps {
                         continue;
                     }
