@@ -174,6 +174,11 @@ fn without_a_vulkan_driver_the_run_command_still_runs_and_names_what_it_skipped(
     let report_file = dir.path("report.json");
     // The Vulkan loader reads only these manifests: none exists, so no driver loads.
     let nowhere = "/nonexistent/handblocks-no-driver.json";
+    // What this test judges is the skip, not the machine's timing (the README test above
+    // judges that, with the renderer drawing). Without a renderer the CPUs sit idle between
+    // samples, and on a VM a halted vCPU can take milliseconds to wake: `bench latency` here
+    // once measured the bare two-process hop at p99 4.3 ms on an idle machine, when no
+    // pipeline could keep a 1 ms budget. So the timing key is set out of reach.
     let out = run_script_judged(
         &[
             "--duration",
@@ -182,6 +187,8 @@ fn without_a_vulkan_driver_the_run_command_still_runs_and_names_what_it_skipped(
             &id,
             "--report",
             report_file.to_str().unwrap(),
+            "--set",
+            "budget.origin_to_world_p99_us=1000000",
         ],
         &[("VK_ICD_FILENAMES", nowhere), ("VK_DRIVER_FILES", nowhere)],
         &report_file,

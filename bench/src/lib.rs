@@ -4,9 +4,12 @@
 //! * [`latency`]: the whole process set against a bare two-process iceoryx2 hop.
 //! * [`accuracy`]: the paper model and the precise one (rapier3d) against exact answers, and
 //!   what each setting costs per step, measured in the same run.
+//! * [`stability`]: every hard case under both models, with its figures.
+//! * [`stepper`]: a step's cost against the world's size, and each effect's cost on and off.
 //! * [`plot`]: the figures (plotters into a PNG), shared by the reports.
 
 pub mod accuracy;
 pub mod latency;
 pub mod plot;
 pub mod stability;
+pub mod stepper;

@@ -1,4 +1,4 @@
-//! `handblocks bench latency|accuracy|stability` (the benchmarks are the bench crate's), and
+//! `handblocks bench latency|accuracy|stability|stepper` (the benchmarks are the bench crate's), and
 //! the hidden `bench-peer`, the publishing half of the latency benchmark's peer.
 
 use std::fmt;
@@ -11,7 +11,7 @@ use crate::cli::BenchKind;
 pub enum BenchError {
     /// The latency benchmark starts this executable as the session's services.
     OwnExecutable(std::io::Error),
-    /// The benchmark itself failed; `name` is `latency`, `accuracy` or `stability`.
+    /// The benchmark itself failed; `name` is `latency`, `accuracy`, `stability` or `stepper`.
     Run {
         name: &'static str,
         error: Box<dyn std::error::Error>,
@@ -73,6 +73,13 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
                 quick,
             };
             ("stability", handblocks_bench::stability::run(&b).map(drop))
+        }
+        BenchKind::Stepper { out, quick } => {
+            let b = handblocks_bench::stepper::StepperBench {
+                out_dir: out,
+                quick,
+            };
+            ("stepper", handblocks_bench::stepper::run(&b).map(drop))
         }
     };
     result.map_err(|error| BenchError::Run { name, error })?;

@@ -260,6 +260,22 @@ pub enum BenchKind {
         #[arg(long)]
         quick: bool,
     },
+    /// What a step costs as the world grows (16 to 4096 blocks: falling, resting, a hand
+    /// sweeping a field) under both models, and what each `[effects]` effect costs on and off.
+    ///
+    /// Scaling: every step timed on its own, p50/p99, blocks active, the fitted exponent of
+    /// time against N, the paper model's time as a ratio to the precise model's. Ablation: per
+    /// effect, the same scene with it on and off, 5 interleaved runs a side, with the noise of
+    /// the machine beside the difference. Sizes over the world's block limit are listed as
+    /// not run.
+    Stepper {
+        /// Where stepper.json, stepper.md and stepper.png go.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+        /// 16 and 64 blocks only, 2 timed runs (well under a minute on 2 cores).
+        #[arg(long)]
+        quick: bool,
+    },
 }
 
 fn parse_vec3(s: &str) -> Result<[f64; 3], String> {

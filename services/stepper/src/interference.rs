@@ -216,14 +216,12 @@ pub(crate) fn cast_fraction(
             // touches stops it exactly when the step approaches it. The shape cast cannot
             // tell: it says time of impact 0 for a block merely sliding past another's side
             // (which would hang in the air), and may miss a touching one it moves into.
-            if passes.supported {
-                if pair_depth(a, b) >= -settings.contact_eps {
-                    let (eps, hull_eps) = (settings.contact_eps, settings.hull_eps);
-                    if !pair_allows_motion(a, b, d, eps, hull_eps) {
-                        toi = 0.0;
-                    }
-                    continue;
+            if passes.supported && pair_depth(a, b) >= -settings.contact_eps {
+                let (eps, hull_eps) = (settings.contact_eps, settings.hull_eps);
+                if !pair_allows_motion(a, b, d, eps, hull_eps) {
+                    toi = 0.0;
                 }
+                continue;
             }
             let (pa, pb) = rel_poses(a, b);
             if let Ok(Some(hit)) =

@@ -1,0 +1,803 @@
+//! `handblocks bench stepper`: what one step costs as the world grows, under both models in the
+//! same run, and what each effect of `[effects]` costs when it is on and when it is off.
+//!
+//! * **Scaling**: fields of N cubes (4 cm, on an 8 cm grid, so that only what a situation makes
+//!   touch touches) in three situations: `falling` (a rain: every cube dropped from 0.2 to
+//!   0.6 m, all landing), `resting` (the settled field) and `hand` (one bare check point sweeps
+//!   along the middle row at cube height, pushing the few it meets). Every step is timed on its
+//!   own; p50 and p99 over the timed runs, the mean count of blocks not resting ("active"),
+//!   the time per active block, the fitted exponent of time against N (least squares on
+//!   log-log), and the paper model's time as a ratio to the precise model's.
+//! * **Ablation**: per effect, on and off, `runs` times each, interleaved (on, off, on, off,
+//!   ...) so that a slow moment of the machine falls on both sides; the median, min and max of
+//!   each side's time per step. `noise_us` is what a setting measures against itself here:
+//!   half the larger of the two sides' max - min. Two cases per effect: `work`, a scene of
+//!   `config/scenes/` the effect acts in (on - off is the effect's work; the two sides do
+//!   different things), and `idle`, the idle field (64 resting cubes, a hand 5 m away), where
+//!   the effect has nothing to do and turning it off changes no pose (a test checks it), so
+//!   on - off is what its pass costs just by being in the step. An effect that is off is left
+//!   out of the step's pass list (`Passes`): off runs none of its code, and an idle pass that
+//!   costs more than noise is work the broad phase should have skipped.
+//!
+//! Sizes over the world's block limit (`common::MAX_BLOCKS`, 128 today) are listed as not
+//! run, with the reason, rather than left out silently, and the limit itself is measured in
+//! their place.
+//!
+//! Writes `stepper.json`, `stepper.md` and `stepper.png` (time per step against N, log-log)
+//! under `--out`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use common::config::scene::{
+    BlockSpec, Effects, FloorEffect, HandEffect, HandKey, HandPoseSpec, HandScript, ModelKind,
+    ShapeSpec, Stacking, WorldSettings,
+};
+use common::config::Scene;
+use common::{BlockMode, HandSample, MAX_BLOCKS};
+use serde_json::{json, Value};
+use stepper::{BareFingersHand, Model};
+
+use crate::plot::{Figure, Panel, Series};
+
+/// `handblocks bench stepper`'s options.
+pub struct StepperBench {
+    pub out_dir: PathBuf,
+    /// Sizes up to 64 blocks, 2 timed runs (5 otherwise), 5 ablation runs a side.
+    pub quick: bool,
+}
+
+/// The sizes the scaling part asks for.
+pub const SIZES: [usize; 5] = [16, 64, 256, 1024, 4096];
+const QUICK_SIZES: usize = 2;
+
+/// A scaling situation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Situation {
+    Falling,
+    Resting,
+    Hand,
+}
+
+impl Situation {
+    pub const ALL: [Situation; 3] = [Situation::Falling, Situation::Resting, Situation::Hand];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Situation::Falling => "falling",
+            Situation::Resting => "resting",
+            Situation::Hand => "hand",
+        }
+    }
+
+    /// Steps a run takes (at 120 Hz): the rain lands within 0.36 s, the sweep takes 1 s.
+    fn steps(self) -> u64 {
+        match self {
+            Situation::Falling => 96,
+            Situation::Resting => 60,
+            Situation::Hand => 132,
+        }
+    }
+}
+
+/// One (model, situation, N) of the scaling part.
+#[derive(Debug, Clone)]
+pub struct ScalingRow {
+    pub model: &'static str,
+    pub situation: Situation,
+    pub blocks: usize,
+    /// Mean number of blocks not resting after a step.
+    pub active: f64,
+    pub us_per_step_p50: f64,
+    pub us_per_step_p99: f64,
+}
+
+/// One effect's on/off pair.
+#[derive(Debug, Clone)]
+pub struct AblationRow {
+    pub model: &'static str,
+    /// e.g. `gravity`, `floor: tipping -> rest`.
+    pub effect: String,
+    /// `work`: a scene the effect acts in; `idle`: the idle field, where it has nothing to do
+    /// (turning it off changes no pose), so `on - off` is what the pass costs by being there.
+    pub case: &'static str,
+    /// The scene both sides run.
+    pub scene: String,
+    pub on: Spread,
+    pub off: Spread,
+    pub noise_us: f64,
+}
+
+/// Median, min and max of a side's time per step over its runs (microseconds).
+#[derive(Debug, Clone, Copy)]
+pub struct Spread {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+impl Spread {
+    fn of(mut v: Vec<f64>) -> Spread {
+        v.sort_by(f64::total_cmp);
+        Spread {
+            median: v[v.len() / 2],
+            min: v[0],
+            max: v[v.len() - 1],
+        }
+    }
+}
+
+impl AblationRow {
+    /// Whether on and off are indistinguishable here.
+    pub fn within_noise(&self) -> bool {
+        (self.on.median - self.off.median).abs() <= self.noise_us
+    }
+}
+
+const CUBE: f64 = 0.04;
+const PITCH: f64 = 0.08;
+
+fn cube(name: String, x: f64, y: f64, z: f64) -> BlockSpec {
+    BlockSpec {
+        name,
+        shape: ShapeSpec::Box { size: [CUBE; 3] },
+        position: [x, y, z],
+        rotation: [0.0, 0.0, 0.0, 1.0],
+        velocity: [0.0; 3],
+    }
+}
+
+/// A scene of `n` cubes on a square grid centred on the origin, in `situation`.
+pub fn field(n: usize, situation: Situation, model: ModelKind) -> Scene {
+    let side = (n as f64).sqrt().ceil() as usize;
+    let half = (side as f64 - 1.0) * PITCH / 2.0;
+    let blocks = (0..n)
+        .map(|i| {
+            let (row, col) = (i / side, i % side);
+            let (x, z) = (col as f64 * PITCH - half, row as f64 * PITCH - half);
+            // The rain: heights spread over 0.2-0.6 m by a fixed scramble of the index, so
+            // landings spread over the run.
+            let y = match situation {
+                Situation::Falling => 0.2 + 0.4 * ((i * 7919) % 97) as f64 / 96.0,
+                _ => CUBE / 2.0,
+            };
+            cube(format!("b{i}"), x, y, z)
+        })
+        .collect();
+    let hand = (situation == Situation::Hand).then(|| {
+        // One check point along the middle row (z of row side/2), at the cubes' mid-height,
+        // 2 cm off their centre line, from beyond one end to beyond the other in 1 s.
+        let z = (side / 2) as f64 * PITCH - half + 0.01;
+        let key = |t: f64, x: f64| HandKey {
+            t,
+            wrist: [x, CUBE / 2.0, z],
+            wrist_rotation: [0.0, 0.0, 0.0, 1.0],
+            pose: HandPoseSpec::Fingers(vec![vec![[0.0; 3]]]),
+        };
+        HandScript {
+            keys: vec![key(0.0, -half - PITCH), key(1.0, half + PITCH)],
+        }
+    });
+    Scene {
+        file: PathBuf::from(format!("<bench stepper: {} x{n}>", situation.name())),
+        world: WorldSettings {
+            model,
+            ..WorldSettings::default()
+        },
+        effects: Effects {
+            hand: HandEffect::Push,
+            ..Effects::default()
+        },
+        blocks,
+        hand,
+    }
+}
+
+/// One run of `scene` for `steps` steps: each step's time (us), and the mean active count.
+fn run_steps(scene: &Scene, steps: u64) -> Result<(Vec<f64>, f64), String> {
+    let mut model = Model::new(scene).map_err(|e| format!("{}: {e}", scene.file.display()))?;
+    let hand = BareFingersHand::from_scene(scene);
+    let dt = 1.0 / scene.world.step_hz;
+    let sample = |k: u64| -> Option<HandSample> { hand.as_ref().map(|h| h.sample(k as f64 * dt)) };
+    model.set_previous_hand(sample(0).as_ref());
+    let mut times = Vec::with_capacity(steps as usize);
+    let mut active = 0usize;
+    for k in 1..=steps {
+        let h = sample(k);
+        let t0 = Instant::now();
+        model.step(h.as_ref());
+        times.push(t0.elapsed().as_secs_f64() * 1e6);
+        active += (0..model.block_count())
+            .filter(|&i| model.block(i).is_some_and(|b| b.mode != BlockMode::Resting))
+            .count();
+    }
+    Ok((times, active as f64 / steps.max(1) as f64))
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let k = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted[k.min(sorted.len() - 1)]
+}
+
+fn model_name(m: ModelKind) -> &'static str {
+    match m {
+        ModelKind::Paper => "paper",
+        ModelKind::Precise => "precise",
+    }
+}
+
+fn scaling_row(
+    model: ModelKind,
+    situation: Situation,
+    n: usize,
+    runs: usize,
+) -> Result<ScalingRow, String> {
+    let scene = field(n, situation, model);
+    run_steps(&scene, situation.steps())?; // warm-up
+    let mut all = Vec::new();
+    let mut active = 0.0;
+    for _ in 0..runs {
+        let (t, a) = run_steps(&scene, situation.steps())?;
+        all.extend(t);
+        active = a;
+    }
+    all.sort_by(f64::total_cmp);
+    Ok(ScalingRow {
+        model: model_name(model),
+        situation,
+        blocks: n,
+        active,
+        us_per_step_p50: percentile(&all, 0.5),
+        us_per_step_p99: percentile(&all, 0.99),
+    })
+}
+
+/// The least-squares slope of ln(p50) on ln(N) over the rows of one (model, situation).
+pub fn exponent(rows: &[ScalingRow], model: &str, situation: Situation) -> Option<f64> {
+    let pts: Vec<(f64, f64)> = rows
+        .iter()
+        .filter(|r| r.model == model && r.situation == situation && r.us_per_step_p50 > 0.0)
+        .map(|r| ((r.blocks as f64).ln(), r.us_per_step_p50.ln()))
+        .collect();
+    if pts.len() < 2 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let (mx, my) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    (sxx > 0.0).then(|| sxy / sxx)
+}
+
+/// A scene file of `config/scenes/`, read by the real loader.
+fn config_scene(name: &str) -> Result<Scene, String> {
+    let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../config/scenes")
+        .join(name);
+    Scene::load(&file).map_err(|e| e.to_string())
+}
+
+/// An ablation pair: the effect's label, the scene, and how to set each side.
+struct Pair {
+    effect: &'static str,
+    scene: &'static str,
+    on: fn(&mut Effects),
+    off: fn(&mut Effects),
+    /// What the idle field needs so that this effect has nothing to do there either way
+    /// (without a floor, gravity would pull the resting cubes through it).
+    idle: fn(&mut Effects),
+}
+
+fn nothing(_: &mut Effects) {}
+
+const PAIRS: &[Pair] = &[
+    Pair {
+        effect: "gravity",
+        scene: "drop.toml",
+        on: |e| e.gravity = true,
+        off: |e| e.gravity = false,
+        idle: nothing,
+    },
+    Pair {
+        effect: "inertia",
+        scene: "grasp-throw-fingers.toml",
+        on: |e| e.inertia = true,
+        off: |e| e.inertia = false,
+        idle: nothing,
+    },
+    Pair {
+        effect: "floor: tipping -> rest",
+        scene: "tip.toml",
+        on: |e| e.floor = FloorEffect::Tipping,
+        off: |e| e.floor = FloorEffect::Rest,
+        idle: nothing,
+    },
+    Pair {
+        effect: "floor: rest -> none",
+        scene: "tip.toml",
+        on: |e| e.floor = FloorEffect::Rest,
+        off: |e| e.floor = FloorEffect::None,
+        idle: |e| e.gravity = false,
+    },
+    Pair {
+        effect: "hand: grasp -> push",
+        scene: "grasp-throw-fingers.toml",
+        on: |e| e.hand = HandEffect::Grasp,
+        off: |e| e.hand = HandEffect::Push,
+        idle: nothing,
+    },
+    Pair {
+        effect: "hand: push -> none",
+        scene: "push.toml",
+        on: |e| e.hand = HandEffect::Push,
+        off: |e| e.hand = HandEffect::None,
+        idle: nothing,
+    },
+    Pair {
+        effect: "carry",
+        scene: "carry.toml",
+        on: |e| e.carry = true,
+        off: |e| e.carry = false,
+        idle: nothing,
+    },
+    Pair {
+        effect: "stacking: supported -> paper",
+        scene: "hard/staggered.toml",
+        on: |e| e.stacking = Stacking::Supported,
+        off: |e| e.stacking = Stacking::Paper,
+        idle: nothing,
+    },
+];
+
+/// Mean us per step of one whole run of `scene` (its hand's keys plus 1 s).
+fn mean_us(scene: &Scene) -> Result<f64, String> {
+    let steps = stepper::default_frames(scene);
+    let (t, _) = run_steps(scene, steps)?;
+    Ok(t.iter().sum::<f64>() / t.len().max(1) as f64)
+}
+
+/// The idle field: 64 cubes resting on the floor apart from each other, and one bare check
+/// point 5 m away moving slowly: gravity, inertia, floor, hand, carry and stacking all have
+/// nothing to do, so none of them changes a pose, on or off.
+pub fn idle_field(model: ModelKind) -> Scene {
+    let mut scene = field(64, Situation::Resting, model);
+    let key = |t: f64, x: f64| HandKey {
+        t,
+        wrist: [x, 0.5, 0.0],
+        wrist_rotation: [0.0, 0.0, 0.0, 1.0],
+        pose: HandPoseSpec::Fingers(vec![vec![[0.0; 3]], vec![[0.0, 0.0, 0.02]]]),
+    };
+    scene.hand = Some(HandScript {
+        keys: vec![key(0.0, 5.0), key(1.0, 5.1)],
+    });
+    scene.file = PathBuf::from("<bench stepper: idle field x64>");
+    scene
+}
+
+fn ablation_row(
+    pair: &Pair,
+    model: ModelKind,
+    runs: usize,
+    idle: bool,
+) -> Result<AblationRow, String> {
+    let mut base = if idle {
+        idle_field(model)
+    } else {
+        config_scene(pair.scene)?
+    };
+    base.world.model = model;
+    if idle {
+        (pair.idle)(&mut base.effects);
+    }
+    let (mut on, mut off) = (base.clone(), base);
+    (pair.on)(&mut on.effects);
+    (pair.off)(&mut off.effects);
+    mean_us(&on)?;
+    mean_us(&off)?;
+    let (mut a, mut b) = (Vec::with_capacity(runs), Vec::with_capacity(runs));
+    for _ in 0..runs {
+        a.push(mean_us(&on)?);
+        b.push(mean_us(&off)?);
+    }
+    let (on, off) = (Spread::of(a), Spread::of(b));
+    Ok(AblationRow {
+        model: model_name(model),
+        effect: pair.effect.to_string(),
+        case: if idle { "idle" } else { "work" },
+        scene: if idle {
+            "idle field (64 resting cubes, a hand 5 m away)".to_string()
+        } else {
+            pair.scene.to_string()
+        },
+        noise_us: 0.5 * (on.max - on.min).max(off.max - off.min),
+        on,
+        off,
+    })
+}
+
+/// What one run of the benchmark measured.
+pub struct Report {
+    pub scaling: Vec<ScalingRow>,
+    /// Sizes asked for that the world cannot hold yet: (N, why).
+    pub not_run: Vec<(usize, String)>,
+    pub ablation: Vec<AblationRow>,
+    pub seconds: f64,
+}
+
+pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
+    std::fs::create_dir_all(&b.out_dir)
+        .map_err(|e| format!("{}: cannot create: {e}", b.out_dir.display()))?;
+    let started = Instant::now();
+    let sizes: Vec<usize> = SIZES
+        .iter()
+        .copied()
+        .take(if b.quick { QUICK_SIZES } else { SIZES.len() })
+        .collect();
+    let not_run: Vec<(usize, String)> = sizes
+        .iter()
+        .filter(|&&n| n > MAX_BLOCKS)
+        .map(|&n| {
+            (
+                n,
+                format!("over the world's limit of {MAX_BLOCKS} blocks (common::MAX_BLOCKS)"),
+            )
+        })
+        .collect();
+    // Until the world holds them all, the largest world it holds is measured too, so that the
+    // fit has three sizes.
+    let mut measured: Vec<usize> = sizes.iter().copied().filter(|&n| n <= MAX_BLOCKS).collect();
+    if !not_run.is_empty() && !measured.contains(&MAX_BLOCKS) {
+        measured.push(MAX_BLOCKS);
+    }
+    let runs = if b.quick { 2 } else { 5 };
+    let models = [ModelKind::Paper, ModelKind::Precise];
+    let mut scaling = Vec::new();
+    let jobs: Vec<(ModelKind, Situation, usize)> = models
+        .iter()
+        .flat_map(|&m| {
+            let measured = &measured;
+            Situation::ALL
+                .iter()
+                .flat_map(move |&s| measured.iter().map(move |&n| (m, s, n)))
+        })
+        .collect();
+    for (k, &(m, s, n)) in jobs.iter().enumerate() {
+        let r = scaling_row(m, s, n, runs)?;
+        eprintln!(
+            "stepper: scaling [{}/{}] {} {} x{}: p50 {:.1} us, p99 {:.1} us, {:.1} active ({:.0} s so far)",
+            k + 1,
+            jobs.len(),
+            r.model,
+            s.name(),
+            n,
+            r.us_per_step_p50,
+            r.us_per_step_p99,
+            r.active,
+            started.elapsed().as_secs_f64()
+        );
+        scaling.push(r);
+    }
+    for (n, why) in &not_run {
+        eprintln!("stepper: scaling x{n}: not run: {why}");
+    }
+    let ab_runs = 5;
+    let mut ablation = Vec::new();
+    let total = PAIRS.len() * models.len() * 2;
+    for (k, (idle, pair, &m)) in [false, true]
+        .iter()
+        .flat_map(|&i| PAIRS.iter().map(move |p| (i, p)))
+        .flat_map(|(i, p)| models.iter().map(move |m| (i, p, m)))
+        .enumerate()
+    {
+        let r = ablation_row(pair, m, ab_runs, idle)?;
+        eprintln!(
+            "stepper: ablation [{}/{}] {} {} ({}): on {:.2} us, off {:.2} us, noise {:.2} us ({:.0} s so far)",
+            k + 1,
+            total,
+            r.model,
+            r.effect,
+            r.case,
+            r.on.median,
+            r.off.median,
+            r.noise_us,
+            started.elapsed().as_secs_f64()
+        );
+        ablation.push(r);
+    }
+    let report = Report {
+        scaling,
+        not_run,
+        ablation,
+        seconds: started.elapsed().as_secs_f64(),
+    };
+    let json_path = b.out_dir.join("stepper.json");
+    std::fs::write(
+        &json_path,
+        serde_json::to_string_pretty(&to_json(&report))? + "\n",
+    )
+    .map_err(|e| format!("{}: {e}", json_path.display()))?;
+    let md_path = b.out_dir.join("stepper.md");
+    std::fs::write(&md_path, markdown(&report, b.quick))
+        .map_err(|e| format!("{}: {e}", md_path.display()))?;
+    let png = b.out_dir.join("stepper.png");
+    if !figure(&report.scaling).write_png(&png)? {
+        eprintln!(
+            "stepper: no TrueType font found (install fonts-dejavu-core or set HB_PLOT_FONT): {} has no labels",
+            png.display()
+        );
+    }
+    println!("{}\n\n{}", scaling_table(&report), ablation_table(&report));
+    println!(
+        "stepper: {} scaling rows, {} ablation rows in {:.0} s; wrote {}, stepper.md, stepper.png",
+        report.scaling.len(),
+        report.ablation.len(),
+        report.seconds,
+        json_path.display()
+    );
+    Ok(report)
+}
+
+fn num(v: f64) -> Value {
+    if v.is_finite() {
+        json!(v)
+    } else {
+        Value::Null
+    }
+}
+
+fn to_json(r: &Report) -> Value {
+    let scaling: Vec<Value> = r
+        .scaling
+        .iter()
+        .map(|s| {
+            json!({"model": s.model, "situation": s.situation.name(), "blocks": s.blocks,
+                   "active": num(s.active), "us_per_step_p50": num(s.us_per_step_p50),
+                   "us_per_step_p99": num(s.us_per_step_p99)})
+        })
+        .collect();
+    let mut exponents = Vec::new();
+    for m in ["paper", "precise"] {
+        for s in Situation::ALL {
+            exponents.push(json!({"model": m, "situation": s.name(),
+                                  "exponent": exponent(&r.scaling, m, s).map(num)}));
+        }
+    }
+    let ablation: Vec<Value> = r
+        .ablation
+        .iter()
+        .map(|a| {
+            json!({"model": a.model, "effect": a.effect, "case": a.case, "scene": a.scene,
+                   "on_us": num(a.on.median), "off_us": num(a.off.median),
+                   "noise_us": num(a.noise_us),
+                   "on_min_us": num(a.on.min), "on_max_us": num(a.on.max),
+                   "off_min_us": num(a.off.min), "off_max_us": num(a.off.max),
+                   "within_noise": a.within_noise()})
+        })
+        .collect();
+    let not_run: Vec<Value> = r
+        .not_run
+        .iter()
+        .map(|(n, why)| json!({"blocks": n, "why": why}))
+        .collect();
+    json!({"scaling": scaling, "exponents": exponents, "not_run": not_run,
+           "ablation": ablation, "seconds": num(r.seconds)})
+}
+
+/// The scaling table: one line per (situation, N), both models side by side.
+pub fn scaling_table(r: &Report) -> String {
+    let mut s = String::from(
+        "| situation | blocks | paper active | paper p50 / p99 (us) | paper us per active block | precise active | precise p50 / p99 (us) | precise / paper (p50) |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    for sit in Situation::ALL {
+        let mut sizes: Vec<usize> = r
+            .scaling
+            .iter()
+            .filter(|x| x.situation == sit)
+            .map(|x| x.blocks)
+            .collect();
+        sizes.sort_unstable();
+        sizes.dedup();
+        for n in sizes {
+            let get = |m: &str| {
+                r.scaling
+                    .iter()
+                    .find(|x| x.model == m && x.situation == sit && x.blocks == n)
+            };
+            let (p, q) = (get("paper"), get("precise"));
+            let cell = |x: Option<&ScalingRow>| {
+                x.map_or("-".to_string(), |x| {
+                    format!("{:.1} / {:.1}", x.us_per_step_p50, x.us_per_step_p99)
+                })
+            };
+            s += &format!(
+                "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                sit.name(),
+                n,
+                p.map_or("-".into(), |x| format!("{:.1}", x.active)),
+                cell(p),
+                p.map_or("-".into(), |x| if x.active > 0.0 {
+                    format!("{:.2}", x.us_per_step_p50 / x.active)
+                } else {
+                    "(none active)".into()
+                }),
+                q.map_or("-".into(), |x| format!("{:.1}", x.active)),
+                cell(q),
+                match (p, q) {
+                    (Some(p), Some(q)) if p.us_per_step_p50 > 0.0 =>
+                        format!("{:.0}x", q.us_per_step_p50 / p.us_per_step_p50),
+                    _ => "-".into(),
+                }
+            );
+        }
+    }
+    for (n, why) in &r.not_run {
+        s += &format!("| all | {n} | not run: {why} | | | | | |\n");
+    }
+    s += "\nfitted exponent of p50 against N (least squares, log-log):";
+    for m in ["paper", "precise"] {
+        for sit in Situation::ALL {
+            s += &format!(
+                " {m} {}: {};",
+                sit.name(),
+                exponent(&r.scaling, m, sit).map_or("-".into(), |e| format!("{e:.2}"))
+            );
+        }
+    }
+    s.trim_end_matches(';').to_string()
+}
+
+/// The ablation table.
+pub fn ablation_table(r: &Report) -> String {
+    let mut s = String::from(
+        "| model | effect (on -> off) | case | scene | on: median [min, max] (us/step) | off: median [min, max] | on - off | noise | within noise |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for a in &r.ablation {
+        s += &format!(
+            "| {} | {} | {} | {} | {:.2} [{:.2}, {:.2}] | {:.2} [{:.2}, {:.2}] | {:+.2} | {:.2} | {} |\n",
+            a.model,
+            a.effect,
+            a.case,
+            a.scene,
+            a.on.median,
+            a.on.min,
+            a.on.max,
+            a.off.median,
+            a.off.min,
+            a.off.max,
+            a.on.median - a.off.median,
+            a.noise_us,
+            if a.within_noise() { "yes" } else { "no" }
+        );
+    }
+    s.trim_end().to_string()
+}
+
+fn markdown(r: &Report, quick: bool) -> String {
+    let mut s = String::from("# handblocks bench stepper\n\n");
+    s += &format!(
+        "Both models in one run ({:.0} s{}). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.2-0.6 m, `resting`: the settled field, `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed runs; active: blocks not resting, mean per step.\n\n",
+        r.seconds,
+        if quick { ", --quick: 16 and 64 blocks, 2 timed runs" } else { ", 5 timed runs after a warm-up" }
+    );
+    s += &scaling_table(r);
+    s += "\n\n## Ablation\n\nEach effect on and off on the same scene, 5 interleaved runs a side after a warm-up, mean us per step of the whole run; noise: half the larger side's max - min. `work`: a scene of `config/scenes/` the effect acts in (on - off is the effect's work, and the two sides do different things); `idle`: the idle field (64 resting cubes, a two-point hand 5 m away), where the effect has nothing to do and turning it off changes no pose, so on - off is what its pass costs by being in the step at all. An effect that is off is not in the step's pass list (`Passes`): off runs none of its code.\n\n";
+    s += &ablation_table(r);
+    s += "\n";
+    s
+}
+
+/// Time per step (p50) against N, log-log: one line per (model, situation).
+fn figure(rows: &[ScalingRow]) -> Figure {
+    let mut series = Vec::new();
+    for m in ["paper", "precise"] {
+        for sit in Situation::ALL {
+            let points: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.model == m && r.situation == sit)
+                .map(|r| (r.blocks as f64, r.us_per_step_p50.max(1e-3)))
+                .collect();
+            if !points.is_empty() {
+                series.push(Series {
+                    label: format!("{m} {}", sit.name()),
+                    points,
+                });
+            }
+        }
+    }
+    Figure {
+        panels: vec![Panel {
+            title: "time per step (p50) against blocks".into(),
+            x_label: "blocks (log)".into(),
+            y_label: "us per step (log)".into(),
+            log_x: true,
+            log_y: true,
+            series,
+            marked: Vec::new(),
+        }],
+        columns: 1,
+        panel_width: 900,
+        panel_height: 560,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_fields_are_valid_scenes_of_n_cubes_in_each_situation() {
+        for s in Situation::ALL {
+            for n in [1, 16, 64] {
+                let scene = field(n, s, ModelKind::Paper);
+                assert_eq!(scene.blocks.len(), n);
+                Model::new(&scene).unwrap_or_else(|e| panic!("{} x{n}: {e}", s.name()));
+            }
+        }
+    }
+
+    #[test]
+    fn the_exponent_of_a_power_law_is_its_power() {
+        let rows: Vec<ScalingRow> = [16usize, 64, 256]
+            .iter()
+            .map(|&n| ScalingRow {
+                model: "paper",
+                situation: Situation::Falling,
+                blocks: n,
+                active: n as f64,
+                us_per_step_p50: 0.5 * (n as f64).powf(1.5),
+                us_per_step_p99: 0.0,
+            })
+            .collect();
+        let e = exponent(&rows, "paper", Situation::Falling).unwrap();
+        assert!((e - 1.5).abs() < 1e-9, "{e}");
+        assert!(exponent(&rows, "precise", Situation::Falling).is_none());
+    }
+
+    #[test]
+    fn every_ablation_scene_loads_and_both_sides_differ() {
+        for p in PAIRS {
+            let scene = config_scene(p.scene).unwrap();
+            let (mut on, mut off) = (scene.effects, scene.effects);
+            (p.on)(&mut on);
+            (p.off)(&mut off);
+            assert_ne!(on, off, "{}", p.effect);
+        }
+    }
+
+    fn final_poses(scene: &Scene, steps: u64) -> Vec<[u64; 7]> {
+        let mut model = Model::new(scene).unwrap();
+        let hand = BareFingersHand::from_scene(scene);
+        let dt = 1.0 / scene.world.step_hz;
+        for k in 1..=steps {
+            let h = hand.as_ref().map(|h| h.sample(k as f64 * dt));
+            model.step(h.as_ref());
+        }
+        (0..model.block_count())
+            .map(|i| {
+                let b = model.block(i).unwrap();
+                let (p, q) = (b.position.to_array(), b.rotation.to_array());
+                [p[0], p[1], p[2], q[0], q[1], q[2], q[3]].map(f64::to_bits)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn in_the_idle_field_no_effect_changes_a_pose_on_or_off() {
+        for p in PAIRS {
+            let (mut on, mut off) = (idle_field(ModelKind::Paper), idle_field(ModelKind::Paper));
+            (p.idle)(&mut on.effects);
+            (p.idle)(&mut off.effects);
+            (p.on)(&mut on.effects);
+            (p.off)(&mut off.effects);
+            let start = final_poses(&on, 0);
+            assert_eq!(final_poses(&on, 120), start, "{} on", p.effect);
+            assert_eq!(final_poses(&off, 120), start, "{} off", p.effect);
+        }
+    }
+}
