@@ -3,11 +3,16 @@
 //!
 //! * **Scaling**: fields of N cubes (4 cm, on an 8 cm grid, so that only what a situation makes
 //!   touch touches) in three situations: `falling` (a rain: every cube dropped from 0.2 to
-//!   0.6 m, all landing), `resting` (the settled field) and `hand` (one bare check point sweeps
+//!   0.6 m, all landing), `resting` (the settled field, timed after a second of settling) and `hand` (one bare check point sweeps
 //!   along the middle row at cube height, pushing the few it meets). Every step is timed on its
 //!   own; p50 and p99 over the timed runs, the mean count of blocks not resting ("active"),
 //!   the time per active block, the fitted exponent of time against N (least squares on
 //!   log-log), and the paper model's time as a ratio to the precise model's.
+//! * **Contenders**: the paper model; the precise one at its `[precise]` defaults (the
+//!   reference of `bench accuracy`: 8 substeps, sleeping off, because sleeping would freeze a
+//!   block tipping slowly); and the precise one at the cheapest setting that keeps a settled
+//!   field still (`precise-cheap`: sleeping on, one solver iteration, the fewest substeps that
+//!   pass [`cheapest_still`], found in the same run, not chosen by hand).
 //! * **Ablation**: per effect, on and off, `runs` times each, interleaved (on, off, on, off,
 //!   ...) so that a slow moment of the machine falls on both sides; the median, min and max of
 //!   each side's time per step. `noise_us` is what a setting measures against itself here:
@@ -31,7 +36,7 @@ use std::time::Instant;
 
 use common::config::scene::{
     BlockSpec, Effects, FloorEffect, HandEffect, HandKey, HandPoseSpec, HandScript, ModelKind,
-    ShapeSpec, Stacking, WorldSettings,
+    PreciseSettings, ShapeSpec, Stacking, WorldSettings,
 };
 use common::config::Scene;
 use common::{BlockMode, HandSample, MAX_BLOCKS};
@@ -70,7 +75,17 @@ impl Situation {
         }
     }
 
-    /// Steps a run takes (at 120 Hz): the rain lands within 0.36 s, the sweep takes 1 s.
+    /// Untimed steps before the timed ones: the settled field is timed settled (1 s: a
+    /// precise model that sleeps has put it to sleep by then; the paper model rests it at
+    /// once); the others from their start.
+    fn settle(self) -> u64 {
+        match self {
+            Situation::Resting => 120,
+            _ => 0,
+        }
+    }
+
+    /// Steps a run times (at 120 Hz): the rain lands within 0.36 s, the sweep takes 1 s.
     fn steps(self) -> u64 {
         match self {
             Situation::Falling => 96,
@@ -193,16 +208,20 @@ pub fn field(n: usize, situation: Situation, model: ModelKind) -> Scene {
     }
 }
 
-/// One run of `scene` for `steps` steps: each step's time (us), and the mean active count.
-fn run_steps(scene: &Scene, steps: u64) -> Result<(Vec<f64>, f64), String> {
+/// One run of `scene`: `settle` steps untimed, then `steps` steps each timed on its own; the
+/// times (us) and the mean active count over the timed steps.
+fn run_steps(scene: &Scene, settle: u64, steps: u64) -> Result<(Vec<f64>, f64), String> {
     let mut model = Model::new(scene).map_err(|e| format!("{}: {e}", scene.file.display()))?;
     let hand = BareFingersHand::from_scene(scene);
     let dt = 1.0 / scene.world.step_hz;
     let sample = |k: u64| -> Option<HandSample> { hand.as_ref().map(|h| h.sample(k as f64 * dt)) };
     model.set_previous_hand(sample(0).as_ref());
+    for k in 1..=settle {
+        model.step(sample(k).as_ref());
+    }
     let mut times = Vec::with_capacity(steps as usize);
     let mut active = 0usize;
-    for k in 1..=steps {
+    for k in settle + 1..=settle + steps {
         let h = sample(k);
         let t0 = Instant::now();
         model.step(h.as_ref());
@@ -229,24 +248,109 @@ fn model_name(m: ModelKind) -> &'static str {
     }
 }
 
+/// A model at one setting: the paper model, the precise one at its `[precise]` defaults (the
+/// reference, sleeping off), or the precise one at the cheapest setting that keeps a settled
+/// field still ([`cheapest_still`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Contender {
+    pub name: &'static str,
+    pub model: ModelKind,
+    pub precise: Option<PreciseSettings>,
+}
+
+impl Contender {
+    pub const PAPER: Contender = Contender {
+        name: "paper",
+        model: ModelKind::Paper,
+        precise: None,
+    };
+    pub const PRECISE: Contender = Contender {
+        name: "precise",
+        model: ModelKind::Precise,
+        precise: None,
+    };
+
+    fn apply(&self, scene: &mut Scene) {
+        scene.world.model = self.model;
+        if let Some(p) = self.precise {
+            scene.world.precise = p;
+        }
+    }
+}
+
+/// Substeps tried for the cheap precise setting, fewest first.
+const CHEAP_SUBSTEPS: [u32; 4] = [1, 2, 4, 8];
+/// "Still": no cube of the settled field moves more than this over its second second.
+pub const STILL_M: f64 = 1e-5;
+
+/// The precise model's cheapest setting that keeps a settled field still: sleeping on, one
+/// solver iteration, and the fewest substeps with which no cube of the 64-cube resting field,
+/// after a first second to settle, moves more than [`STILL_M`] over the next second. Returns
+/// the setting, what each tried setting measured (substeps, largest move in m), and the sag
+/// of the chosen one (the largest drop in the first second, its contacts' give).
+pub fn cheapest_still() -> Result<(PreciseSettings, Vec<(u32, f64)>, f64), String> {
+    let mut tried = Vec::new();
+    for substeps in CHEAP_SUBSTEPS {
+        let p = PreciseSettings {
+            substeps,
+            solver_iterations: 1,
+            sleep: true,
+            ..PreciseSettings::default()
+        };
+        let mut scene = field(64, Situation::Resting, ModelKind::Precise);
+        scene.world.precise = p;
+        let mut model = Model::new(&scene).map_err(|e| format!("{}: {e}", scene.file.display()))?;
+        let start: Vec<f64> = (0..model.block_count())
+            .filter_map(|i| model.block(i).map(|b| b.position.y))
+            .collect();
+        let settle = scene.world.step_hz.round() as u64;
+        for _ in 0..settle {
+            model.step(None);
+        }
+        let settled: Vec<_> = (0..model.block_count())
+            .filter_map(|i| model.block(i).map(|b| b.position))
+            .collect();
+        let sag = settled
+            .iter()
+            .zip(&start)
+            .map(|(p, y0)| y0 - p.y)
+            .fold(0.0, f64::max);
+        for _ in 0..settle {
+            model.step(None);
+        }
+        let moved = (0..model.block_count())
+            .filter_map(|i| model.block(i).map(|b| (b.position - settled[i]).length()))
+            .fold(0.0, f64::max);
+        tried.push((substeps, moved));
+        if moved <= STILL_M {
+            return Ok((p, tried, sag));
+        }
+    }
+    Err(format!(
+        "no setting tried keeps a settled field still ({tried:?}: substeps, largest move in m)"
+    ))
+}
+
 fn scaling_row(
-    model: ModelKind,
+    c: Contender,
     situation: Situation,
     n: usize,
     runs: usize,
 ) -> Result<ScalingRow, String> {
-    let scene = field(n, situation, model);
-    run_steps(&scene, situation.steps())?; // warm-up
+    let mut scene = field(n, situation, c.model);
+    c.apply(&mut scene);
+    let (settle, steps) = (situation.settle(), situation.steps());
+    run_steps(&scene, settle, steps)?; // warm-up
     let mut all = Vec::new();
     let mut active = 0.0;
     for _ in 0..runs {
-        let (t, a) = run_steps(&scene, situation.steps())?;
+        let (t, a) = run_steps(&scene, settle, steps)?;
         all.extend(t);
         active = a;
     }
     all.sort_by(f64::total_cmp);
     Ok(ScalingRow {
-        model: model_name(model),
+        model: c.name,
         situation,
         blocks: n,
         active,
@@ -358,7 +462,7 @@ const PAIRS: &[Pair] = &[
 /// Mean us per step of one whole run of `scene` (its hand's keys plus 1 s).
 fn mean_us(scene: &Scene) -> Result<f64, String> {
     let steps = stepper::default_frames(scene);
-    let (t, _) = run_steps(scene, steps)?;
+    let (t, _) = run_steps(scene, 0, steps)?;
     Ok(t.iter().sum::<f64>() / t.len().max(1) as f64)
 }
 
@@ -421,8 +525,18 @@ fn ablation_row(
     })
 }
 
+/// The precise model's cheap setting, as found in this run.
+pub struct Cheap {
+    pub substeps: u32,
+    /// (substeps, largest move of a settled cube over a second, m) per setting tried.
+    pub tried: Vec<(u32, f64)>,
+    /// The chosen setting's sag in its first second, m.
+    pub sag_m: f64,
+}
+
 /// What one run of the benchmark measured.
 pub struct Report {
+    pub cheap: Cheap,
     pub scaling: Vec<ScalingRow>,
     /// Sizes asked for that the world cannot hold yet: (N, why).
     pub not_run: Vec<(usize, String)>,
@@ -457,8 +571,28 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
     }
     let runs = if b.quick { 2 } else { 5 };
     let models = [ModelKind::Paper, ModelKind::Precise];
+    let (cheap, tried, sag) = cheapest_still()?;
+    eprintln!(
+        "stepper: the precise model's cheapest setting that keeps a settled field still: {} substeps, 1 iteration, sleeping on (tried {}; sag {:.2} mm)",
+        cheap.substeps,
+        tried
+            .iter()
+            .map(|(s, m)| format!("{s} substeps: {m:.1e} m"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        sag * 1e3
+    );
+    let contenders = [
+        Contender::PAPER,
+        Contender::PRECISE,
+        Contender {
+            name: "precise-cheap",
+            model: ModelKind::Precise,
+            precise: Some(cheap),
+        },
+    ];
     let mut scaling = Vec::new();
-    let jobs: Vec<(ModelKind, Situation, usize)> = models
+    let jobs: Vec<(Contender, Situation, usize)> = contenders
         .iter()
         .flat_map(|&m| {
             let measured = &measured;
@@ -511,6 +645,11 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
         ablation.push(r);
     }
     let report = Report {
+        cheap: Cheap {
+            substeps: cheap.substeps,
+            tried,
+            sag_m: sag,
+        },
         scaling,
         not_run,
         ablation,
@@ -562,7 +701,7 @@ fn to_json(r: &Report) -> Value {
         })
         .collect();
     let mut exponents = Vec::new();
-    for m in ["paper", "precise"] {
+    for m in NAMES {
         for s in Situation::ALL {
             exponents.push(json!({"model": m, "situation": s.name(),
                                   "exponent": exponent(&r.scaling, m, s).map(num)}));
@@ -585,14 +724,21 @@ fn to_json(r: &Report) -> Value {
         .iter()
         .map(|(n, why)| json!({"blocks": n, "why": why}))
         .collect();
+    let cheap = json!({"substeps": r.cheap.substeps, "solver_iterations": 1, "sleep": true,
+        "still_m": STILL_M, "sag_m": num(r.cheap.sag_m),
+        "tried": r.cheap.tried.iter().map(|(s, m)| json!({"substeps": s, "moved_m": num(*m)})).collect::<Vec<_>>()});
     json!({"scaling": scaling, "exponents": exponents, "not_run": not_run,
+           "precise_cheap": cheap,
            "ablation": ablation, "seconds": num(r.seconds)})
 }
 
-/// The scaling table: one line per (situation, N), both models side by side.
+/// The contenders' names, in table order.
+const NAMES: [&str; 3] = ["paper", "precise", "precise-cheap"];
+
+/// The scaling table: one line per (situation, N), the contenders side by side.
 pub fn scaling_table(r: &Report) -> String {
     let mut s = String::from(
-        "| situation | blocks | paper active | paper p50 / p99 (us) | paper us per active block | precise active | precise p50 / p99 (us) | precise / paper (p50) |\n|---|---|---|---|---|---|---|---|\n",
+        "| situation | blocks | paper: active, p50 / p99 (us) | paper us per active block | precise: active, p50 / p99 | precise-cheap: active, p50 / p99 | precise / paper | precise-cheap / paper |\n|---|---|---|---|---|---|---|---|\n",
     );
     for sit in Situation::ALL {
         let mut sizes: Vec<usize> = r
@@ -609,38 +755,55 @@ pub fn scaling_table(r: &Report) -> String {
                     .iter()
                     .find(|x| x.model == m && x.situation == sit && x.blocks == n)
             };
-            let (p, q) = (get("paper"), get("precise"));
+            let (p, q, c) = (get("paper"), get("precise"), get("precise-cheap"));
             let cell = |x: Option<&ScalingRow>| {
                 x.map_or("-".to_string(), |x| {
-                    format!("{:.1} / {:.1}", x.us_per_step_p50, x.us_per_step_p99)
+                    format!(
+                        "{:.1}, {:.1} / {:.1}",
+                        x.active, x.us_per_step_p50, x.us_per_step_p99
+                    )
                 })
+            };
+            let ratio = |q: Option<&ScalingRow>| match (p, q) {
+                (Some(p), Some(q)) if p.us_per_step_p50 > 0.0 => {
+                    format!("{:.0}x", q.us_per_step_p50 / p.us_per_step_p50)
+                }
+                _ => "-".into(),
             };
             s += &format!(
                 "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
                 sit.name(),
                 n,
-                p.map_or("-".into(), |x| format!("{:.1}", x.active)),
                 cell(p),
                 p.map_or("-".into(), |x| if x.active > 0.0 {
                     format!("{:.2}", x.us_per_step_p50 / x.active)
                 } else {
                     "(none active)".into()
                 }),
-                q.map_or("-".into(), |x| format!("{:.1}", x.active)),
                 cell(q),
-                match (p, q) {
-                    (Some(p), Some(q)) if p.us_per_step_p50 > 0.0 =>
-                        format!("{:.0}x", q.us_per_step_p50 / p.us_per_step_p50),
-                    _ => "-".into(),
-                }
+                cell(c),
+                ratio(q),
+                ratio(c)
             );
         }
     }
     for (n, why) in &r.not_run {
         s += &format!("| all | {n} | not run: {why} | | | | | |\n");
     }
+    s += &format!(
+        "\nprecise-cheap: {} substeps, 1 solver iteration, sleeping on: the fewest substeps (of {:?}) with which no cube of a settled 64-cube field moves over {STILL_M:.0e} m in its second second (tried: {}; its sag in the first second {:.2} mm).\n",
+        r.cheap.substeps,
+        CHEAP_SUBSTEPS,
+        r.cheap
+            .tried
+            .iter()
+            .map(|(s, m)| format!("{s}: {m:.1e} m"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        r.cheap.sag_m * 1e3
+    );
     s += "\nfitted exponent of p50 against N (least squares, log-log):";
-    for m in ["paper", "precise"] {
+    for m in NAMES {
         for sit in Situation::ALL {
             s += &format!(
                 " {m} {}: {};",
@@ -681,7 +844,7 @@ pub fn ablation_table(r: &Report) -> String {
 fn markdown(r: &Report, quick: bool) -> String {
     let mut s = String::from("# handblocks bench stepper\n\n");
     s += &format!(
-        "Both models in one run ({:.0} s{}). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.2-0.6 m, `resting`: the settled field, `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed runs; active: blocks not resting, mean per step.\n\n",
+        "Both models in one run ({:.0} s{}); the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.2-0.6 m, `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed runs; active: blocks not resting, mean per step.\n\n",
         r.seconds,
         if quick { ", --quick: 16 and 64 blocks, 2 timed runs" } else { ", 5 timed runs after a warm-up" }
     );
@@ -695,7 +858,7 @@ fn markdown(r: &Report, quick: bool) -> String {
 /// Time per step (p50) against N, log-log: one line per (model, situation).
 fn figure(rows: &[ScalingRow]) -> Figure {
     let mut series = Vec::new();
-    for m in ["paper", "precise"] {
+    for m in NAMES {
         for sit in Situation::ALL {
             let points: Vec<(f64, f64)> = rows
                 .iter()
