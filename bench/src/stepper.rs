@@ -286,9 +286,9 @@ pub const STILL_M: f64 = 1e-5;
 /// The precise model's cheapest setting that keeps a settled field still: sleeping on, one
 /// solver iteration, and the fewest substeps with which no cube of the 64-cube resting field,
 /// after a first second to settle, moves more than [`STILL_M`] over the next second. Returns
-/// the setting, what each tried setting measured (substeps, largest move in m), and the sag
-/// of the chosen one (the largest drop in the first second, its contacts' give).
-pub fn cheapest_still() -> Result<(PreciseSettings, Vec<(u32, f64)>, f64), String> {
+/// the setting and what was found ([`Cheap`]: each tried setting's largest move, and the
+/// chosen one's sag, the largest drop in the first second: its contacts' give).
+pub fn cheapest_still() -> Result<(PreciseSettings, Cheap), String> {
     let mut tried = Vec::new();
     for substeps in CHEAP_SUBSTEPS {
         let p = PreciseSettings {
@@ -323,7 +323,12 @@ pub fn cheapest_still() -> Result<(PreciseSettings, Vec<(u32, f64)>, f64), Strin
             .fold(0.0, f64::max);
         tried.push((substeps, moved));
         if moved <= STILL_M {
-            return Ok((p, tried, sag));
+            let cheap = Cheap {
+                substeps,
+                tried,
+                sag_m: sag,
+            };
+            return Ok((p, cheap));
         }
     }
     Err(format!(
@@ -571,16 +576,17 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
     }
     let runs = if b.quick { 2 } else { 5 };
     let models = [ModelKind::Paper, ModelKind::Precise];
-    let (cheap, tried, sag) = cheapest_still()?;
+    let (cheap, found) = cheapest_still()?;
     eprintln!(
         "stepper: the precise model's cheapest setting that keeps a settled field still: {} substeps, 1 iteration, sleeping on (tried {}; sag {:.2} mm)",
         cheap.substeps,
-        tried
+        found
+            .tried
             .iter()
             .map(|(s, m)| format!("{s} substeps: {m:.1e} m"))
             .collect::<Vec<_>>()
             .join(", "),
-        sag * 1e3
+        found.sag_m * 1e3
     );
     let contenders = [
         Contender::PAPER,
@@ -645,11 +651,7 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
         ablation.push(r);
     }
     let report = Report {
-        cheap: Cheap {
-            substeps: cheap.substeps,
-            tried,
-            sag_m: sag,
-        },
+        cheap: found,
         scaling,
         not_run,
         ablation,
