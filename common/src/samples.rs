@@ -16,8 +16,11 @@ pub const MAX_FINGERS: usize = 5;
 pub const MAX_FINGER_POINTS: usize = 5;
 /// Vertices of the palm polyhedron.
 pub const MAX_PALM_VERTICES: usize = 16;
-/// Blocks a world sample can carry.
+/// Blocks a world sample can carry: the most a live session (or a recording) holds.
 pub const MAX_BLOCKS: usize = 128;
+/// Blocks a scene may hold: the block world itself (`simulate`, the benchmarks) takes this
+/// many; a session's scene must also fit the world sample ([`MAX_BLOCKS`]).
+pub const MAX_SCENE_BLOCKS: usize = 4096;
 /// Joints of an OpenXR hand (XR_EXT_hand_tracking order).
 pub const OPENXR_JOINTS: usize = 26;
 

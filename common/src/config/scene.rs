@@ -9,7 +9,7 @@ use toml::Value;
 
 use super::reader::{parse_file, vector, Reader};
 use super::ConfigError;
-use crate::samples::{MAX_BLOCKS, MAX_FINGERS, MAX_FINGER_POINTS};
+use crate::samples::{MAX_FINGERS, MAX_FINGER_POINTS, MAX_SCENE_BLOCKS};
 
 /// Positions are limited to 100 km from the origin: beyond that f64 metres still work, but no
 /// hand reaches there and a typo is more likely than intent.
@@ -381,10 +381,13 @@ fn unit_quaternion(r: &Reader, key: &'static str) -> Result<[f64; 4], ConfigErro
 
 fn blocks(root: &Reader) -> Result<Vec<BlockSpec>, ConfigError> {
     let tables = root.tables("block")?;
-    if tables.len() > MAX_BLOCKS {
+    if tables.len() > MAX_SCENE_BLOCKS {
         return Err(root.err(
             "block",
-            format!("{} blocks; allowed: at most {MAX_BLOCKS}", tables.len()),
+            format!(
+                "{} blocks; allowed: at most {MAX_SCENE_BLOCKS}",
+                tables.len()
+            ),
         ));
     }
     let mut out: Vec<BlockSpec> = Vec::with_capacity(tables.len());
@@ -590,6 +593,30 @@ mod tests {
         let r = Scene::load(&file);
         std::fs::remove_file(&file).unwrap();
         r
+    }
+
+    /// `n` cubes on a grid, as scene text.
+    fn cubes(n: usize) -> String {
+        (0..n)
+            .map(|i| {
+                format!(
+                    "[[block]]\nsize = [0.04, 0.04, 0.04]\nposition = [{}, 0.02, {}]\n",
+                    (i % 64) as f64 * 0.08,
+                    (i / 64) as f64 * 0.08
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_scene_takes_4096_blocks_and_refuses_more_naming_count_and_limit() {
+        assert_eq!(load(&cubes(MAX_SCENE_BLOCKS)).unwrap().blocks.len(), 4096);
+        let e = load(&cubes(MAX_SCENE_BLOCKS + 1)).unwrap_err();
+        assert_eq!(e.key, "block");
+        assert!(
+            e.problem.contains("4097 blocks") && e.problem.contains("at most 4096"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -5,6 +5,7 @@ use glam::{DQuat, DVec3};
 
 use common::BlockMode;
 
+use crate::block_set::BlockSet;
 use crate::geometry::Polyhedron;
 
 /// A set of vertex indices (a block has at most 256 hull vertices: the scene loader's limit).
@@ -106,7 +107,7 @@ pub struct Block {
     /// R14: the blocks this block tipped over as the root of a tipping load (bit j: block j),
     /// kept while it still rests on them. Its weight rests on their edge, not on them as a
     /// load: they do not count it in their G_L.
-    pub tipped_over: u128,
+    pub tipped_over: BlockSet,
     /// R13: the last `throw_window` grasped displacements (ring buffer) and how many are valid.
     pub grasp_history: Vec<DVec3>,
     pub grasp_history_len: usize,
@@ -142,7 +143,8 @@ impl Block {
             released: false,
             judged: false,
             stirred: true,
-            tipped_over: 0,
+            // Sized for its world by `World::new` (an empty set holds no index).
+            tipped_over: BlockSet::default(),
             grasp_history: vec![DVec3::ZERO; window.max(1)],
             grasp_history_len: 0,
             grasp_history_next: 0,

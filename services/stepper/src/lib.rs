@@ -19,12 +19,14 @@
 //! - [`event`]: what a step reports (both models);
 //! - [`world`]: the world and its step, in docs/model.md's order: it hands each stage above
 //!   the sets that stage reads and writes, so none of them depends on the world;
+//! - [`block_set`]: sets of block indices as bit sets sized for their world (R14's);
 //! - [`precise`]: the precise reference model (rapier3d), beside the paper's;
 //! - [`model`]: the one switch between the two that the process and `simulate` hold;
 //! - [`timeline`]: steps on the hand's source time, for the process and `simulate` alike;
 //! - [`simulate`](mod@simulate): `handblocks simulate`, the bare check-point hand;
 //! - [`service`]: the stepper process, a shell of IPC around the above.
 
+pub mod block_set;
 pub mod body;
 pub mod event;
 pub mod floor;

@@ -49,6 +49,7 @@ use glam::{DQuat, DVec2, DVec3};
 
 use common::BlockMode;
 
+use crate::block_set::BlockSet;
 use crate::body::{Block, Moved};
 use crate::floor::{in_hull, landing_angle, tip_about_hull};
 use crate::geometry::{contact_points, convex_hull_2d, rotate_vertices, sat_depth};
@@ -75,9 +76,12 @@ pub(crate) struct SupportEdge {
 /// allocate.
 #[derive(Debug)]
 pub(crate) struct Support {
-    /// Per block: the blocks supporting it (bit j: block j), and those it supports.
-    below: Vec<u128>,
-    above: Vec<u128>,
+    /// Per block: the blocks supporting it, and those it supports. Only the rows of `edges`
+    /// are ever non-empty, so only those are cleared.
+    below: Vec<BlockSet>,
+    above: Vec<BlockSet>,
+    flood: Flood,
+    loads: Loads,
     edges: Vec<SupportEdge>,
     points: Vec<DVec3>,
     /// The contact points of the cut under S, relative to G_L.
@@ -88,13 +92,56 @@ pub(crate) struct Support {
     turned: Vec<DVec3>,
 }
 
+/// The step's block sets: what sleeps, what is awake, what the hand moved, what woke, and the
+/// bottom-up order's pending and ready ones.
+#[derive(Debug, Default)]
+struct Flood {
+    sleeping: BlockSet,
+    awake: BlockSet,
+    stir: BlockSet,
+    fixed: BlockSet,
+    woken: BlockSet,
+    queue: BlockSet,
+    cand: BlockSet,
+    pending: BlockSet,
+    ready: BlockSet,
+}
+
+/// One judged block's sets: its load, the load's frontier, S (the block and its load) and the
+/// blocks S rests on.
+#[derive(Debug, Default)]
+struct Loads {
+    load: BlockSet,
+    front: BlockSet,
+    s_mask: BlockSet,
+    under: BlockSet,
+}
+
 impl Support {
     pub(crate) fn new(blocks: usize, max_vertices: usize) -> Support {
         let edges = 8 * blocks + 16;
         let points = 24 * edges;
+        let set = || BlockSet::new(blocks);
         Support {
-            below: vec![0; blocks],
-            above: vec![0; blocks],
+            below: (0..blocks).map(|_| set()).collect(),
+            above: (0..blocks).map(|_| set()).collect(),
+            flood: Flood {
+                sleeping: set(),
+                awake: set(),
+                stir: set(),
+                fixed: set(),
+                woken: set(),
+                queue: set(),
+                cand: set(),
+                pending: set(),
+                ready: set(),
+            },
+            loads: Loads {
+                load: set(),
+                front: set(),
+                s_mask: set(),
+                under: set(),
+            },
             edges: Vec::with_capacity(edges),
             points: Vec::with_capacity(points),
             cut: Vec::with_capacity(points),
@@ -103,27 +150,6 @@ impl Support {
             turned: Vec::with_capacity(max_vertices),
         }
     }
-}
-
-// Block sets are u128 bit masks: one bit per block.
-const _: () = assert!(common::MAX_BLOCKS <= 128);
-
-#[inline]
-fn bit(i: usize) -> u128 {
-    1u128 << i
-}
-
-/// The indices of a mask's set bits, lowest first.
-fn bits(mut m: u128) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        if m == 0 {
-            None
-        } else {
-            let i = m.trailing_zeros() as usize;
-            m &= m - 1;
-            Some(i)
-        }
-    })
 }
 
 /// Whether the bounding spheres of a and b come within `margin`.
@@ -141,61 +167,81 @@ impl Support {
         settings: &Settings,
         passes: &Passes,
     ) {
+        // The sets are the stage's own scratch; taken out for the step so that judging a
+        // block can read them beside the rest of it (a swap of two vectors each: no
+        // allocation).
+        let mut flood = std::mem::take(&mut self.flood);
+        let mut loads = std::mem::take(&mut self.loads);
+        self.judge_with(blocks, settings, passes, &mut flood, &mut loads);
+        self.flood = flood;
+        self.loads = loads;
+    }
+
+    fn judge_with(
+        &mut self,
+        blocks: &mut [Block],
+        settings: &Settings,
+        passes: &Passes,
+        f: &mut Flood,
+        loads: &mut Loads,
+    ) {
         let n = blocks.len();
         let eps = settings.contact_eps;
-        let mut sleeping = 0u128;
-        let mut awake = 0u128;
-        let mut stir = 0u128;
-        let mut fixed = 0u128;
+        for set in [&mut f.sleeping, &mut f.awake, &mut f.stir, &mut f.fixed] {
+            set.clear();
+        }
         for (i, b) in blocks.iter_mut().enumerate() {
             b.refresh_rel();
             b.judged = false;
             if b.moved != Moved::No || b.mode == BlockMode::Grasped {
                 // The hand moved or holds it (R4-R6, R5, R10): not judged, never a load.
-                fixed |= bit(i);
+                f.fixed.insert(i);
                 if b.moved != Moved::No {
-                    stir |= bit(i);
+                    f.stir.insert(i);
                 }
                 continue;
             }
             if b.stirred {
-                stir |= bit(i);
+                f.stir.insert(i);
             }
             if b.released {
                 // R13: it starts flying in the next step.
                 continue;
             }
             match b.mode {
-                BlockMode::Resting | BlockMode::Supported => sleeping |= bit(i),
-                _ => awake |= bit(i),
+                BlockMode::Resting | BlockMode::Supported => f.sleeping.insert(i),
+                _ => f.awake.insert(i),
             }
         }
         // 1. Wake the sleeping blocks near anything that moves, flooding through touching ones.
-        let mut woken = sleeping & stir;
-        let mut queue = stir | awake;
-        while queue != 0 {
-            let i = queue.trailing_zeros() as usize;
-            queue &= queue - 1;
-            for j in bits(sleeping & !woken) {
-                if near(&blocks[i], &blocks[j], eps) {
-                    woken |= bit(j);
-                    queue |= bit(j);
+        f.woken.copy_from(&f.sleeping);
+        f.woken.intersect_with(&f.stir);
+        f.queue.copy_from(&f.stir);
+        f.queue.union_with(&f.awake);
+        while let Some(i) = f.queue.pop_first() {
+            for j in f.sleeping.iter() {
+                if !f.woken.contains(j) && near(&blocks[i], &blocks[j], eps) {
+                    f.woken.insert(j);
+                    f.queue.insert(j);
                 }
             }
         }
-        let cand = awake | woken;
-        if cand == 0 {
+        f.cand.copy_from(&f.awake);
+        f.cand.union_with(&f.woken);
+        if f.cand.is_empty() {
             return;
         }
         // 2. Supporters: every touching pair with a candidate, once.
         {
-            self.below.iter_mut().for_each(|m| *m = 0);
-            self.above.iter_mut().for_each(|m| *m = 0);
+            for e in &self.edges {
+                self.below[e.upper].clear();
+                self.above[e.lower].clear();
+            }
             self.edges.clear();
             self.points.clear();
-            for i in bits(cand) {
+            for i in f.cand.iter() {
                 for j in 0..n {
-                    if j == i || (cand & bit(j) != 0 && j < i) {
+                    if j == i || (f.cand.contains(j) && j < i) {
                         continue;
                     }
                     let (a, b) = (&blocks[i], &blocks[j]);
@@ -236,37 +282,41 @@ impl Support {
                         start,
                         end: self.points.len(),
                     });
-                    self.below[up] |= bit(lo);
-                    self.above[lo] |= bit(up);
+                    self.below[up].insert(lo);
+                    self.above[lo].insert(up);
                 }
             }
         }
         // 3. Bottom up: a block after its supporters; a cycle is broken at its lowest index.
-        let mut pending = cand;
-        while pending != 0 {
-            let mut ready = 0u128;
-            for i in bits(pending) {
-                if self.below[i] & pending == 0 {
-                    ready |= bit(i);
+        f.pending.copy_from(&f.cand);
+        while !f.pending.is_empty() {
+            f.ready.clear();
+            for i in f.pending.iter() {
+                if !self.below[i].intersects(&f.pending) {
+                    f.ready.insert(i);
                 }
             }
-            if ready == 0 {
-                ready = pending & pending.wrapping_neg();
+            if f.ready.is_empty() {
+                if let Some(i) = f.pending.first() {
+                    f.ready.insert(i);
+                }
             }
-            for i in bits(ready) {
-                self.judge(blocks, i, fixed, woken, settings, passes);
+            for i in f.ready.iter() {
+                self.judge(blocks, i, &f.fixed, &f.woken, loads, settings, passes);
             }
-            pending &= !ready;
+            f.pending.difference_with(&f.ready);
         }
     }
 
     /// R14 for block i: hold it, tip it with its load, or leave it to R7/R9.
+    #[allow(clippy::too_many_arguments)]
     fn judge(
         &mut self,
         blocks: &mut [Block],
         i: usize,
-        fixed: u128,
-        woken: u128,
+        fixed: &BlockSet,
+        woken: &BlockSet,
+        l: &mut Loads,
         settings: &Settings,
         passes: &Passes,
     ) {
@@ -274,31 +324,30 @@ impl Support {
             // Moved this step as part of a load: not judged again.
             return;
         }
-        let below = self.below[i];
+        let on_blocks = !self.below[i].is_empty();
         // The load: every block resting on b, transitively (not blocks the hand holds).
-        let mut load = 0u128;
-        let mut front = self.above[i] & !fixed;
-        while front != 0 {
-            let j = front.trailing_zeros() as usize;
-            front &= front - 1;
+        l.load.clear();
+        l.front.copy_from(&self.above[i]);
+        l.front.difference_with(fixed);
+        while let Some(j) = l.front.pop_first() {
             // A block tipping over b's edge rests on that edge, not on b as a load.
-            if j == i || load & bit(j) != 0 || blocks[j].tipped_over & bit(i) != 0 {
+            if j == i || l.load.contains(j) || blocks[j].tipped_over.contains(i) {
                 continue;
             }
-            load |= bit(j);
-            front |= self.above[j] & !fixed & !load;
+            l.load.insert(j);
+            l.front.union_with_except(&self.above[j], fixed, &l.load);
         }
-        load &= !bit(i);
+        l.load.remove(i);
         {
             let b = &mut blocks[i];
-            if below == 0 && load == 0 {
+            if !on_blocks && l.load.is_empty() {
                 // Neither on a block nor under one: R7 or R9 decide as without R14, except a
                 // sleeping block woken on the floor (its load may have left), which R9 would
                 // skip: judged here by the same test.
                 let woken_resting =
-                    woken & bit(i) != 0 && b.mode == BlockMode::Resting && !b.floor.is_empty();
+                    woken.contains(i) && b.mode == BlockMode::Resting && !b.floor.is_empty();
                 if !woken_resting {
-                    b.tipped_over = 0;
+                    b.tipped_over.clear();
                     if b.mode == BlockMode::Supported {
                         b.mode = BlockMode::Free;
                     }
@@ -306,19 +355,21 @@ impl Support {
                 }
             }
         }
-        let s_mask = load | bit(i);
+        l.s_mask.copy_from(&l.load);
+        l.s_mask.insert(i);
+        let s_mask = &l.s_mask;
         let gpos = blocks[i].pos;
         // G_L relative to b's G (precision far from the origin), and the cut's contact points.
         let mut vol = 0.0;
         let mut moment = DVec3::ZERO;
-        for j in bits(s_mask) {
+        for j in s_mask.iter() {
             let bj = &blocks[j];
             vol += bj.poly.volume;
             moment += (bj.pos - gpos) * bj.poly.volume;
         }
         let gl = moment / vol;
         self.cut.clear();
-        for j in bits(s_mask) {
+        for j in s_mask.iter() {
             let bj = &blocks[j];
             let off = bj.pos - gpos - gl;
             for k in bj.floor.iter().take_while(|&k| k < bj.rel.len()) {
@@ -326,7 +377,7 @@ impl Support {
             }
         }
         for e in &self.edges {
-            if s_mask & bit(e.upper) != 0 && s_mask & bit(e.lower) == 0 {
+            if s_mask.contains(e.upper) && !s_mask.contains(e.lower) {
                 let off = blocks[e.upper].pos - gpos - gl;
                 for p in &self.points[e.start..e.end] {
                     self.cut.push(*p + off);
@@ -343,7 +394,7 @@ impl Support {
             None => {
                 // Nothing under it after all (a touch without contact points).
                 let b = &mut blocks[i];
-                b.tipped_over = 0;
+                b.tipped_over.clear();
                 if b.mode == BlockMode::Supported {
                     b.mode = BlockMode::Free;
                 }
@@ -369,8 +420,8 @@ impl Support {
             b.v = DVec3::ZERO;
             b.judged = true;
             // Still leaning on the edge it tipped over: still no load of that block.
-            b.tipped_over &= below;
-            b.mode = if below != 0 {
+            b.tipped_over.intersect_with(&self.below[i]);
+            b.mode = if on_blocks {
                 BlockMode::Supported
             } else {
                 BlockMode::Resting
@@ -381,7 +432,7 @@ impl Support {
         // R9's limit: the first vertex of S that reaches the floor.
         let mut theta = theta;
         if passes.floor {
-            for j in bits(s_mask) {
+            for j in s_mask.iter() {
                 let bj = &blocks[j];
                 let pj = pivot + (gpos - bj.pos);
                 theta = theta.min(landing_angle(
@@ -398,14 +449,14 @@ impl Support {
         let hull_eps = settings.hull_eps;
         let collides = |theta: f64, turned: &mut Vec<DVec3>| -> bool {
             let q = DQuat::from_axis_angle(axis, theta);
-            for j in bits(s_mask) {
+            for j in s_mask.iter() {
                 let bj = &blocks[j];
                 let pj = pivot + (gpos - bj.pos);
                 let shift = pj - q * pj;
                 let rot = (q * bj.rot).normalize();
                 let mut turned_ready = false;
                 for (k, bk) in blocks.iter().enumerate() {
-                    if s_mask & bit(k) != 0 {
+                    if s_mask.contains(k) {
                         continue;
                     }
                     // G's new place; the turn about G does not change the bounding sphere.
@@ -456,18 +507,18 @@ impl Support {
             let b = &mut blocks[i];
             b.mode = BlockMode::Free;
             b.v = DVec3::ZERO;
-            b.tipped_over = 0;
+            b.tipped_over.clear();
             return;
         }
         // S turns rigidly about the pivot (perfect friction: the load rides on b).
-        let mut under = 0u128;
+        l.under.clear();
         for e in &self.edges {
-            if s_mask & bit(e.upper) != 0 && s_mask & bit(e.lower) == 0 {
-                under |= bit(e.lower);
+            if s_mask.contains(e.upper) && !s_mask.contains(e.lower) {
+                l.under.insert(e.lower);
             }
         }
         let q = DQuat::from_axis_angle(axis, theta);
-        for j in bits(s_mask) {
+        for j in s_mask.iter() {
             let bj = &mut blocks[j];
             let pj = pivot + (gpos - bj.pos);
             bj.rotate_about(q, pj);
@@ -475,7 +526,11 @@ impl Support {
             bj.moved = Moved::Stacked;
             bj.mode = BlockMode::Tipping;
             bj.judged = true;
-            bj.tipped_over = if j == i { under } else { 0 };
+            if j == i {
+                bj.tipped_over.copy_from(&l.under);
+            } else {
+                bj.tipped_over.clear();
+            }
         }
     }
 }

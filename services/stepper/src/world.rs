@@ -16,8 +16,9 @@ use glam::{DQuat, DVec3};
 
 use common::config::scene::{FloorEffect, HandEffect, Stacking};
 use common::config::Scene;
-use common::{BlockMode, HandSample, WorldSample, MAX_BLOCKS};
+use common::{BlockMode, HandSample, WorldSample, MAX_BLOCKS, MAX_SCENE_BLOCKS};
 
+use crate::block_set::BlockSet;
 use crate::body::{Block, HandAction, Moved};
 use crate::event::StepEvents;
 pub use crate::event::{Event, EventKind};
@@ -92,11 +93,11 @@ impl World {
     /// between the models is [`crate::Model::new`]'s.
     pub fn new(scene: &Scene) -> Result<World, WorldError> {
         let w = &scene.world;
-        if scene.blocks.len() > MAX_BLOCKS {
+        if scene.blocks.len() > MAX_SCENE_BLOCKS {
             return Err(err(
                 scene,
                 None,
-                format!("{} blocks; at most {MAX_BLOCKS}", scene.blocks.len()),
+                format!("{} blocks; at most {MAX_SCENE_BLOCKS}", scene.blocks.len()),
             ));
         }
         let dt = 1.0 / w.step_hz;
@@ -160,6 +161,11 @@ impl World {
                 v,
                 w.throw_window as usize,
             ));
+        }
+        // R14's sets of blocks are sized for this world once, here.
+        let n = blocks.len();
+        for b in &mut blocks {
+            b.tipped_over = BlockSet::new(n);
         }
         // Geometric validation (the loader checks form and ranges, we check shapes).
         if e.floor != FloorEffect::None {
@@ -303,9 +309,11 @@ impl World {
     /// relocated finger points). Leaves `out.stamp` and `out.hand_seq` alone.
     pub fn write_sample(&self, out: &mut WorldSample) {
         out.step = self.steps;
-        out.block_count = self.blocks.len() as u32;
+        // The sample carries the first MAX_BLOCKS; a larger world runs in `simulate` and the
+        // benchmarks, and a session refuses one before it starts (`Session::load`).
+        out.block_count = self.blocks.len().min(MAX_BLOCKS) as u32;
         out.grasped_block = -1;
-        for (i, b) in self.blocks.iter().enumerate() {
+        for (i, b) in self.blocks.iter().take(MAX_BLOCKS).enumerate() {
             out.blocks[i].pose.position = b.pos.to_array();
             out.blocks[i].pose.rotation = b.rot.to_array();
             out.blocks[i].mode = b.mode as u32;

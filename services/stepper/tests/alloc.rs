@@ -45,3 +45,34 @@ fn a_step_does_not_allocate_after_warm_up() {
         assert_eq!(made, 0, "{name}: {made} allocations in 597 steps");
     }
 }
+
+/// Issue 14's scale: a 4096-block world (R14 supported stacking, half the cubes resting, half
+/// falling onto the floor between them, some landing on others) steps without allocating.
+#[test]
+fn a_step_of_a_4096_block_world_does_not_allocate() {
+    let mut text = String::from("[effects]\nstacking = \"supported\"\n");
+    for i in 0..4096usize {
+        let (x, z) = ((i % 64) as f64 * 0.05, (i / 64) as f64 * 0.05);
+        // Even cubes rest; odd ones fall from 6 to 21 cm, the first of each row onto the
+        // cube resting beside it (half a pitch over), the others onto the floor.
+        let (x, y) = if i % 2 == 0 {
+            (x, 0.02)
+        } else if i % 64 == 1 {
+            (x - 0.05, 0.06 + 0.15 * (i % 7) as f64 / 6.0)
+        } else {
+            (x, 0.06 + 0.15 * (i % 7) as f64 / 6.0)
+        };
+        text += &format!("[[block]]\nsize = [0.04, 0.04, 0.04]\nposition = [{x}, {y}, {z}]\n");
+    }
+    let s = scene(&text);
+    let mut world = World::new(&s).unwrap();
+    for _ in 0..4 {
+        world.step(None);
+    }
+    let ((), made) = counting_alloc::count(|| {
+        for _ in 0..36 {
+            world.step(None);
+        }
+    });
+    assert_eq!(made, 0, "4096 blocks: {made} allocations in 36 steps");
+}

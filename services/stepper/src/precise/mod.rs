@@ -32,7 +32,7 @@ use rapier3d_f64::prelude::{
 
 use common::config::scene::{FloorEffect, HandEffect, PreciseSettings, ShapeSpec};
 use common::config::Scene;
-use common::{BlockMode, HandSample, WorldSample, MAX_FINGERS, MAX_FINGER_POINTS};
+use common::{BlockMode, HandSample, WorldSample, MAX_BLOCKS, MAX_FINGERS, MAX_FINGER_POINTS};
 
 use crate::geometry::Polyhedron;
 use crate::world::{BlockView, Event, EventKind, Fingers, WorldError};
@@ -318,9 +318,10 @@ impl PreciseWorld {
     /// the fingers). Leaves `out.stamp` and `out.hand_seq` alone.
     pub fn write_sample(&self, out: &mut WorldSample) {
         out.step = self.steps;
-        out.block_count = self.blocks.len() as u32;
+        // The sample carries the first MAX_BLOCKS (see `World::write_sample`).
+        out.block_count = self.blocks.len().min(MAX_BLOCKS) as u32;
         out.grasped_block = -1;
-        for (i, b) in self.blocks.iter().enumerate() {
+        for (i, b) in self.blocks.iter().take(MAX_BLOCKS).enumerate() {
             let body = &self.physics.bodies[b.body];
             out.blocks[i].pose.position = body.translation().to_array();
             out.blocks[i].pose.rotation = body.rotation().to_array();
