@@ -134,13 +134,13 @@ impl Carry {
     }
 }
 
-/// R11 (paper mode): block i touches another block (within `contact_eps`).
-pub(crate) fn touches_another(blocks: &[Block], i: usize, contact_eps: f64) -> bool {
+/// R11 (paper mode): block i touches another block (within `contact_eps`). `near`: the
+/// blocks that may (the broad phase's answer, by index: `grid::BlockGrid::near`).
+pub(crate) fn touches_another(blocks: &[Block], near: &[u32], i: usize, contact_eps: f64) -> bool {
     let a = &blocks[i];
-    blocks
-        .iter()
-        .enumerate()
-        .any(|(j, b)| j != i && touching(a, b, contact_eps))
+    near.iter()
+        .map(|&j| j as usize)
+        .any(|j| j != i && touching(a, &blocks[j], contact_eps))
 }
 
 /// R14 with R7: the part of block i's free step `d` it can take along the blocks it touches at
@@ -152,6 +152,7 @@ pub(crate) fn touches_another(blocks: &[Block], i: usize, contact_eps: f64) -> b
 /// component never lengthens the step.
 pub(crate) fn slide_along_sides(
     blocks: &[Block],
+    near: &[u32],
     i: usize,
     d: DVec3,
     settings: &Settings,
@@ -159,7 +160,7 @@ pub(crate) fn slide_along_sides(
     let a = &blocks[i];
     let eps = settings.contact_eps;
     let mut d = d;
-    for (j, b) in blocks.iter().enumerate() {
+    for (j, b) in near.iter().map(|&j| (j as usize, &blocks[j as usize])) {
         if j == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + eps {
             continue;
         }
@@ -181,8 +182,10 @@ pub(crate) fn slide_along_sides(
 
 /// R12: the fraction in [0, 1] of the step `d` block i can take before it first touches the
 /// floor (when there is one) or another block: a shape cast, so no speed tunnels through.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn cast_fraction(
     blocks: &[Block],
+    near: &[u32],
     i: usize,
     d: DVec3,
     settings: &Settings,
@@ -204,7 +207,7 @@ pub(crate) fn cast_fraction(
             compute_impact_geometry_on_penetration: false,
         };
         let mid = a.pos + d * 0.5;
-        for (j, b) in blocks.iter().enumerate() {
+        for (j, b) in near.iter().map(|&j| (j as usize, &blocks[j as usize])) {
             if j == i {
                 continue;
             }

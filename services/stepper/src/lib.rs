@@ -31,6 +31,7 @@ pub mod body;
 pub mod event;
 pub mod floor;
 pub mod geometry;
+pub(crate) mod grid;
 pub mod hand;
 pub mod hard_cases;
 pub mod interference;

@@ -6,6 +6,7 @@ use glam::DVec3;
 use common::BlockMode;
 
 use crate::body::{Block, Moved};
+use crate::grid::BlockGrid;
 use crate::interference::{cast_fraction, slide_along_sides, touches_another};
 use crate::settings::{Passes, Settings};
 
@@ -61,7 +62,16 @@ pub fn push_one_point(
 /// Stage 3: R7 (with R12) for every block the hand did not move and that is not grasped,
 /// resting, tipping or in floor contact (the floor stage moves those), except blocks R11
 /// holds. A block released this step (R13) waits for the next.
-pub(crate) fn free_motion(blocks: &mut [Block], settings: &Settings, passes: &Passes) {
+pub(crate) fn free_motion(
+    blocks: &mut [Block],
+    grid: &mut BlockGrid,
+    settings: &Settings,
+    passes: &Passes,
+) {
+    // Earlier stages moved blocks (hand, carry, R14): the first query rebuilds the grid, and
+    // each move below updates it, so every query sees the blocks where they are.
+    grid.invalidate();
+    let eps = settings.contact_eps;
     for i in 0..blocks.len() {
         {
             let b = &blocks[i];
@@ -83,7 +93,15 @@ pub(crate) fn free_motion(blocks: &mut [Block], settings: &Settings, passes: &Pa
             }
         }
         // R11 (paper): a block that touches another is not affected by gravity or inertia.
-        if passes.blocks && !passes.supported && touches_another(blocks, i, settings.contact_eps) {
+        if passes.blocks
+            && !passes.supported
+            && touches_another(
+                blocks,
+                grid.near(blocks, blocks[i].pos, blocks[i].poly.radius + eps),
+                i,
+                eps,
+            )
+        {
             let b = &mut blocks[i];
             b.mode = BlockMode::Supported;
             b.v = DVec3::ZERO;
@@ -112,12 +130,19 @@ pub(crate) fn free_motion(blocks: &mut [Block], settings: &Settings, passes: &Pa
         // R14: a block against another's side slides down along it (side contacts hold
         // nothing up). Without R14 a touching block is held by R11 and never gets here.
         let path = if passes.supported {
-            slide_along_sides(blocks, i, d, settings)
+            let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
+            slide_along_sides(blocks, grid.near(blocks, pos, r + eps), i, d, settings)
         } else {
             d
         };
         // R12: stop at the first time of impact; v is the actual displacement.
-        let f = cast_fraction(blocks, i, path, settings, passes);
+        let near: &[u32] = if passes.blocks {
+            let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
+            grid.near(blocks, pos + path * 0.5, r + 0.5 * path.length())
+        } else {
+            &[]
+        };
+        let f = cast_fraction(blocks, near, i, path, settings, passes);
         let b = &mut blocks[i];
         b.intended = d;
         let actual = path * f;
@@ -129,6 +154,7 @@ pub(crate) fn free_motion(blocks: &mut [Block], settings: &Settings, passes: &Pa
         };
         b.moved = Moved::Free;
         b.mode = BlockMode::Free;
+        grid.moved(i, b.pos);
     }
 }
 

@@ -24,6 +24,7 @@ use crate::event::StepEvents;
 pub use crate::event::{Event, EventKind};
 use crate::floor::Floor;
 use crate::geometry::{sat_depth, Polyhedron};
+use crate::grid::BlockGrid;
 // The check points as drawn are the hand's (R5 relocates them); the precise model fills the same.
 pub(crate) use crate::hand::Fingers;
 use crate::hand::{end_grasps, is_usable, move_by_hand, HandContacts};
@@ -76,6 +77,8 @@ pub struct World {
     carry: Carry,
     support: Support,
     floor: Floor,
+    /// Free motion's broad phase (R7 with R11, R12).
+    grid: BlockGrid,
 }
 
 fn err(scene: &Scene, block: Option<&str>, problem: impl Into<String>) -> WorldError {
@@ -215,6 +218,7 @@ impl World {
             blocks: n > 1,
             supported: e.stacking == Stacking::Supported && n > 1,
         };
+        let grid = BlockGrid::new(&blocks);
         Ok(World {
             file: scene.file.clone(),
             settings,
@@ -227,6 +231,7 @@ impl World {
             hand_contacts: HandContacts::new(),
             carry: Carry::new(n),
             floor: Floor::new(max_vertices),
+            grid,
             support: Support::new(
                 if e.stacking == Stacking::Supported {
                     n
@@ -256,6 +261,7 @@ impl World {
             carry,
             support,
             floor,
+            grid,
             ..
         } = self;
         let prev = prev_hand.as_ref();
@@ -286,7 +292,7 @@ impl World {
         // 3. Free motion (R7, with R12) for the rest, except blocks held by R11 or R14. Without
         //    gravity and inertia nothing moves freely, and R11 has nothing to hold.
         if passes.free_motion {
-            free_motion(blocks, settings, passes);
+            free_motion(blocks, grid, settings, passes);
         }
         // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting.
         if passes.floor {
