@@ -10,6 +10,7 @@ use glam::{DQuat, DVec2, DVec3};
 
 use common::BlockMode;
 
+use crate::block_set::BlockSet;
 use crate::body::{Block, Moved, VertexSet};
 use crate::event::{EventKind, StepEvents};
 use crate::geometry::{convex_hull_2d, point_segment_2d};
@@ -269,6 +270,7 @@ impl Floor {
     pub(crate) fn land(
         &mut self,
         blocks: &mut [Block],
+        active: &BlockSet,
         settings: &Settings,
         passes: &Passes,
         events: &mut StepEvents,
@@ -278,7 +280,8 @@ impl Floor {
             hull_eps: settings.hull_eps,
             angle_eps: settings.angle_eps,
         };
-        for i in 0..blocks.len() {
+        // A block outside `active` rests untouched: it would be skipped just below.
+        for i in active.iter() {
             {
                 let b = &blocks[i];
                 // Resting and untouched: skipped entirely. Every other block is looked at, also

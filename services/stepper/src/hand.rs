@@ -16,6 +16,7 @@ use glam::{DQuat, DVec3};
 
 use common::{BlockMode, HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS};
 
+use crate::block_set::BlockSet;
 use crate::body::{Block, HandAction, Moved};
 use crate::geometry::{segment_segment, segment_triangle};
 use crate::motion::push_one_point;
@@ -305,9 +306,11 @@ impl HandContacts {
     /// Stage 1: R1-R3 for every block near the hand (`hand` now, `prev` the hand of the
     /// previous step, P- and W-): decides each block's hand action. `grasp` says whether R5 may
     /// grasp (hand = "grasp"); otherwise two contacts always push (R6).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn decide_actions(
         &mut self,
         blocks: &mut [Block],
+        active: &mut BlockSet,
         hand: &HandSample,
         prev: Option<&HandSample>,
         settings: &Settings,
@@ -341,7 +344,7 @@ impl HandContacts {
             hull_eps,
         );
         let contacts = &mut self.contacts;
-        for b in &mut blocks[..count] {
+        for (i, b) in blocks[..count].iter_mut().enumerate() {
             if !near(b) {
                 continue;
             }
@@ -379,6 +382,10 @@ impl HandContacts {
                     }
                 }
             };
+            if action != HandAction::None {
+                // The hand acts on it: a resting block joins the step.
+                active.insert(i);
+            }
             b.action = action;
         }
     }
@@ -389,8 +396,10 @@ impl HandContacts {
 /// steps); "releases take effect for the next step": R7 moves it from the next step on, so
 /// that after k more steps it is at p + k v + g_step k (k + 1) / 2 (the floor stage still looks
 /// at it this step, so a block let go on the floor rests or tips with that inertia as its Gm).
-pub(crate) fn end_grasps(blocks: &mut [Block], inertia: bool) {
-    for b in blocks {
+pub(crate) fn end_grasps(blocks: &mut [Block], active: &BlockSet, inertia: bool) {
+    // A grasped block is never at rest: it is in `active`.
+    for i in active.iter() {
+        let b = &mut blocks[i];
         if b.mode == BlockMode::Grasped && b.action != HandAction::Grasp {
             b.released = true;
             b.mode = BlockMode::Free;
@@ -407,6 +416,7 @@ pub(crate) fn end_grasps(blocks: &mut [Block], inertia: bool) {
 /// decided them; `fingers` are the check points as drawn, which R5 relocates.
 pub(crate) fn move_by_hand(
     blocks: &mut [Block],
+    active: &BlockSet,
     hand: &HandSample,
     prev: Option<&HandSample>,
     settings: &Settings,
@@ -421,7 +431,9 @@ pub(crate) fn move_by_hand(
     let eps = settings.contact_eps;
     let hull_eps = settings.hull_eps;
     let mut any_grasp = false;
-    for b in blocks.iter_mut() {
+    // Stage 1 put every block the hand acts on in `active`.
+    for i in active.iter() {
+        let b = &mut blocks[i];
         match b.action {
             HandAction::None => {}
             HandAction::Grasp => {

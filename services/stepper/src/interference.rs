@@ -18,6 +18,7 @@ use parry3d_f64::query::{self, ShapeCastOptions};
 
 use common::BlockMode;
 
+use crate::block_set::BlockSet;
 use crate::body::{Block, Moved};
 use crate::geometry::{rotate_vertices, sat_allows_motion, sat_axis, sat_depth};
 use crate::settings::{Passes, Settings};
@@ -87,12 +88,15 @@ pub const SIDE_CONTACT_NY: f64 = 0.01;
 #[derive(Debug)]
 pub(crate) struct Carry {
     queue: Vec<usize>,
+    /// The step's active blocks as the stage began: the candidates to be hand-moved roots.
+    roots: BlockSet,
 }
 
 impl Carry {
     pub(crate) fn new(blocks: usize) -> Carry {
         Carry {
             queue: Vec::with_capacity(blocks),
+            roots: BlockSet::new(blocks),
         }
     }
 
@@ -100,10 +104,12 @@ impl Carry {
     /// translated by the same translation (G's displacement of the hand-moved block),
     /// transitively, breadth first from each hand-moved block; each block moves at most once
     /// per step; no rotation.
-    pub(crate) fn carry(&mut self, blocks: &mut [Block], hull_eps: f64) {
+    pub(crate) fn carry(&mut self, blocks: &mut [Block], active: &mut BlockSet, hull_eps: f64) {
         let n = blocks.len();
         let queue = &mut self.queue;
-        for root in 0..n {
+        // A hand-moved block is active; a block it carries joins.
+        self.roots.copy_from(active);
+        for root in self.roots.iter() {
             if blocks[root].moved != Moved::Hand {
                 continue;
             }
@@ -126,6 +132,7 @@ impl Carry {
                         b.translate(t);
                         b.moved = Moved::Carried;
                         b.mode = BlockMode::Carried;
+                        active.insert(j);
                         queue.push(j);
                     }
                 }

@@ -5,6 +5,7 @@ use glam::DVec3;
 
 use common::BlockMode;
 
+use crate::block_set::BlockSet;
 use crate::body::{Block, Moved};
 use crate::grid::BlockGrid;
 use crate::interference::{cast_fraction, slide_along_sides, touches_another};
@@ -64,6 +65,7 @@ pub fn push_one_point(
 /// holds. A block released this step (R13) waits for the next.
 pub(crate) fn free_motion(
     blocks: &mut [Block],
+    active: &BlockSet,
     grid: &mut BlockGrid,
     settings: &Settings,
     passes: &Passes,
@@ -72,7 +74,8 @@ pub(crate) fn free_motion(
     // each move below updates it, so every query sees the blocks where they are.
     grid.invalidate();
     let eps = settings.contact_eps;
-    for i in 0..blocks.len() {
+    // Every block not at rest is active (and a resting one is skipped below in any case).
+    for i in active.iter() {
         {
             let b = &blocks[i];
             // A block released this step starts flying in the next (R13, "Order of one

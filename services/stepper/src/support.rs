@@ -115,6 +115,8 @@ struct Loads {
     front: BlockSet,
     s_mask: BlockSet,
     under: BlockSet,
+    /// Blocks moved with a load this step.
+    touched: BlockSet,
 }
 
 impl Support {
@@ -141,6 +143,7 @@ impl Support {
                 front: set(),
                 s_mask: set(),
                 under: set(),
+                touched: set(),
             },
             edges: Vec::with_capacity(edges),
             points: Vec::with_capacity(points),
@@ -164,6 +167,7 @@ impl Support {
     pub(crate) fn judge_stacks(
         &mut self,
         blocks: &mut [Block],
+        active: &mut BlockSet,
         settings: &Settings,
         passes: &Passes,
     ) {
@@ -172,7 +176,13 @@ impl Support {
         // allocation).
         let mut flood = std::mem::take(&mut self.flood);
         let mut loads = std::mem::take(&mut self.loads);
+        loads.touched.clear();
         self.judge_with(blocks, settings, passes, &mut flood, &mut loads);
+        // Every block R14 judged or moved with a load takes part in the rest of the step.
+        if !flood.cand.is_empty() {
+            active.union_with(&flood.cand);
+            active.union_with(&loads.touched);
+        }
         self.flood = flood;
         self.loads = loads;
     }
@@ -526,6 +536,7 @@ impl Support {
             bj.moved = Moved::Stacked;
             bj.mode = BlockMode::Tipping;
             bj.judged = true;
+            l.touched.insert(j);
             if j == i {
                 bj.tipped_over.copy_from(&l.under);
             } else {

@@ -79,6 +79,13 @@ pub struct World {
     floor: Floor,
     /// Free motion's broad phase (R7 with R11, R12).
     grid: BlockGrid,
+    /// The blocks a step must look at: every block not at rest, and any at rest that a stage
+    /// touched. A block outside it rests, untouched, with its step scratch as stage 0 would
+    /// set it, so no stage has anything to do with it ("resting blocks that nothing touches
+    /// cost nothing"); it joins again when the hand, a carry or R14 touches it.
+    active: BlockSet,
+    /// Stage 5's blocks that leave `active`.
+    quiet: BlockSet,
 }
 
 fn err(scene: &Scene, block: Option<&str>, problem: impl Into<String>) -> WorldError {
@@ -219,6 +226,10 @@ impl World {
             supported: e.stacking == Stacking::Supported && n > 1,
         };
         let grid = BlockGrid::new(&blocks);
+        // Every block is looked at in the first step (a block that starts on the floor has its
+        // first impact then).
+        let mut active = BlockSet::new(n);
+        (0..n).for_each(|i| active.insert(i));
         Ok(World {
             file: scene.file.clone(),
             settings,
@@ -232,6 +243,8 @@ impl World {
             carry: Carry::new(n),
             floor: Floor::new(max_vertices),
             grid,
+            active,
+            quiet: BlockSet::new(n),
             support: Support::new(
                 if e.stacking == Stacking::Supported {
                     n
@@ -262,45 +275,47 @@ impl World {
             support,
             floor,
             grid,
+            active,
+            quiet,
             ..
         } = self;
         let prev = prev_hand.as_ref();
         // 0. Every block starts the step where it is, with nothing done to it yet.
         events.begin(self.steps);
-        begin_step(blocks);
+        begin_step(blocks, active);
         fingers.copy_from(hand);
         if passes.hand {
             // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
             //    action; then R13 ends the grasps they no longer confirm.
             if let Some(h) = hand {
-                hand_contacts.decide_actions(blocks, h, prev, settings, passes.grasp);
+                hand_contacts.decide_actions(blocks, active, h, prev, settings, passes.grasp);
             }
-            end_grasps(blocks, settings.inertia);
+            end_grasps(blocks, active, settings.inertia);
             // 2. Hand-driven motion (R5, R4, R6), then carry (R10).
             if let Some(h) = hand {
-                move_by_hand(blocks, h, prev, settings, fingers);
+                move_by_hand(blocks, active, h, prev, settings, fingers);
             }
             if passes.carry {
-                carry.carry(blocks, settings.hull_eps);
+                carry.carry(blocks, active, settings.hull_eps);
             }
         }
         // 3a. Supported stacking (R14, when the scene asks for it): blocks on blocks are judged
         //     bottom up, held or tipped with their load.
         if passes.supported {
-            support.judge_stacks(blocks, settings, passes);
+            support.judge_stacks(blocks, active, settings, passes);
         }
         // 3. Free motion (R7, with R12) for the rest, except blocks held by R11 or R14. Without
         //    gravity and inertia nothing moves freely, and R11 has nothing to hold.
         if passes.free_motion {
-            free_motion(blocks, grid, settings, passes);
+            free_motion(blocks, active, grid, settings, passes);
         }
         // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting.
         if passes.floor {
-            floor.land(blocks, settings, passes, events);
+            floor.land(blocks, active, settings, passes, events);
         }
         // 5. Releases (R13) take effect for the next step; modes and events are settled, and
         //    this hand is the next step's previous one.
-        finish_step(blocks, events);
+        finish_step(blocks, active, quiet, events);
         *prev_hand = hand.copied();
     }
 
@@ -377,35 +392,58 @@ impl World {
     }
 }
 
-/// Stage 0: the step's start pose and mode of every block, and nothing done to it yet.
-fn begin_step(blocks: &mut [Block]) {
-    for b in blocks {
-        b.start_pos = b.pos;
-        b.start_rot = b.rot;
-        b.mode_before = b.mode;
-        b.moved = Moved::No;
-        b.intended = DVec3::ZERO;
-        b.action = HandAction::None;
-        b.released = false;
+/// Stage 0: the step's start pose and mode of every block, and nothing done to it yet. A block
+/// outside `active` was left so by stage 5 (`quiet_down`).
+fn begin_step(blocks: &mut [Block], active: &BlockSet) {
+    for i in active.iter() {
+        begin_block(&mut blocks[i]);
     }
 }
 
+fn begin_block(b: &mut Block) {
+    b.start_pos = b.pos;
+    b.start_rot = b.rot;
+    b.mode_before = b.mode;
+    b.moved = Moved::No;
+    b.intended = DVec3::ZERO;
+    b.action = HandAction::None;
+    b.released = false;
+}
+
 /// Stage 5: the step's releases (R13) and mode changes as events, and which blocks R14 judges
-/// again in the next step (those that moved or changed mode).
-fn finish_step(blocks: &mut [Block], events: &mut StepEvents) {
-    for (i, b) in blocks.iter_mut().enumerate() {
+/// again in the next step (those that moved or changed mode). A block that rests and that
+/// nothing moved, turned, released or acted on this step leaves `active`, its scratch set as
+/// stage 0 would set it: until a stage touches it, no step looks at it.
+fn finish_step(
+    blocks: &mut [Block],
+    active: &mut BlockSet,
+    quiet: &mut BlockSet,
+    events: &mut StepEvents,
+) {
+    quiet.clear();
+    for i in active.iter() {
+        let b = &mut blocks[i];
         // R14 judges again what touches a block that moved or changed mode.
         b.stirred = b.pos != b.start_pos || b.rot != b.start_rot || b.mode != b.mode_before;
         if b.released {
             events.emit(EventKind::Release, i);
         }
-        if b.mode_before == b.mode {
-            continue;
+        if b.mode_before != b.mode {
+            if let Some(k) = EventKind::on_entering(b.mode) {
+                events.emit(k, i);
+            }
         }
-        if let Some(k) = EventKind::on_entering(b.mode) {
-            events.emit(k, i);
+        if b.mode == BlockMode::Resting
+            && !b.stirred
+            && !b.released
+            && b.moved == Moved::No
+            && b.action == HandAction::None
+        {
+            begin_block(b);
+            quiet.insert(i);
         }
     }
+    active.difference_with(quiet);
 }
 
 /// A read-only view of one block's state.
