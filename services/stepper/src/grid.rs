@@ -1,5 +1,8 @@
-//! The broad phase of free motion (R7 with R11, R12, R14's slide): a uniform grid of the
-//! blocks' centres, so that a moving block tests the blocks near it rather than every block.
+//! The broad phase of the hand's contacts (R1-R3) and of free motion (R7 with R11, R12, R14's
+//! slide): a uniform grid of the blocks' centres, so that the hand and a moving block test the
+//! blocks near them rather than every block. Built on the first query, then kept in step with
+//! the world's active set (`sync`) and each move of free motion, so a step costs in proportion
+//! to what moves.
 //!
 //! Why a grid and not parry's BVH: blocks are of a size (a cell twice the largest bounding
 //! radius holds a block's every neighbour in the 27 cells around it), a step moves them by a
@@ -32,7 +35,7 @@ pub(crate) struct BlockGrid {
     bucket: Vec<u32>,
     /// Blocks whose centre is not finite: candidates of every query.
     unplaced: Vec<u32>,
-    /// Whether the grid holds the blocks as they are (rebuilt lazily on the first query).
+    /// Whether the grid has been built (on the first query).
     built: bool,
     /// A query's answer.
     found: Vec<u32>,
@@ -59,11 +62,6 @@ impl BlockGrid {
             visited: vec![0; buckets],
             query: 0,
         }
-    }
-
-    /// The blocks are about to move in ways the grid does not see: the next query rebuilds.
-    pub(crate) fn invalidate(&mut self) {
-        self.built = false;
     }
 
     fn cell_of(&self, p: DVec3) -> Option<[i64; 3]> {
@@ -127,6 +125,17 @@ impl BlockGrid {
             self.insert(i, b.pos);
         }
         self.built = true;
+    }
+
+    /// The blocks of `moved` (a superset of those that moved since the grid last saw them)
+    /// stand where they are now. The world's active set is such a superset: a block that
+    /// moves is active in that step, and stays so into the next.
+    pub(crate) fn sync(&mut self, blocks: &[Block], moved: &crate::block_set::BlockSet) {
+        if self.built {
+            for i in moved.iter() {
+                self.moved(i, blocks[i].pos);
+            }
+        }
     }
 
     /// Block i now stands at `pos` (after a query built the grid; before, nothing to do).

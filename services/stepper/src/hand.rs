@@ -19,6 +19,7 @@ use common::{BlockMode, HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS};
 use crate::block_set::BlockSet;
 use crate::body::{Block, HandAction, Moved};
 use crate::geometry::{segment_segment, segment_triangle};
+use crate::grid::BlockGrid;
 use crate::motion::push_one_point;
 use crate::settings::Settings;
 
@@ -311,6 +312,7 @@ impl HandContacts {
         &mut self,
         blocks: &mut [Block],
         active: &mut BlockSet,
+        grid: &mut BlockGrid,
         hand: &HandSample,
         prev: Option<&HandSample>,
         settings: &Settings,
@@ -335,16 +337,27 @@ impl HandContacts {
         lo -= DVec3::splat(eps);
         hi += DVec3::splat(eps);
         // A hand without check points touches nothing.
-        let count = if lo.cmple(hi).all() { blocks.len() } else { 0 };
+        if !lo.cmple(hi).all() {
+            return;
+        }
         let near = |b: &Block| (b.pos.max(lo).min(hi) - b.pos).length() <= b.poly.radius + eps;
+        // The grid's blocks within the box's half diagonal (and eps) of its centre: every block
+        // `near` accepts, in index order (a superset; `near` decides).
+        grid.sync(blocks, active);
+        let candidates = grid.near(blocks, (lo + hi) * 0.5, 0.5 * (hi - lo).length() + eps);
         let first = first_entries(
-            blocks[..count].iter().filter(|b| near(b)),
+            candidates
+                .iter()
+                .map(|&j| &blocks[j as usize])
+                .filter(|b| near(b)),
             hand,
             prev,
             hull_eps,
         );
         let contacts = &mut self.contacts;
-        for (i, b) in blocks[..count].iter_mut().enumerate() {
+        for &j in candidates {
+            let i = j as usize;
+            let b = &mut blocks[i];
             if !near(b) {
                 continue;
             }

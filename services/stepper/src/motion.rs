@@ -70,9 +70,9 @@ pub(crate) fn free_motion(
     settings: &Settings,
     passes: &Passes,
 ) {
-    // Earlier stages moved blocks (hand, carry, R14): the first query rebuilds the grid, and
-    // each move below updates it, so every query sees the blocks where they are.
-    grid.invalidate();
+    // Earlier stages (hand, carry, R14) and the last step's floor stage moved only active
+    // blocks: syncing those, and each move below, keeps every query exact.
+    grid.sync(blocks, active);
     let eps = settings.contact_eps;
     // Every block not at rest is active (and a resting one is skipped below in any case).
     for i in active.iter() {

@@ -288,7 +288,7 @@ impl World {
             // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
             //    action; then R13 ends the grasps they no longer confirm.
             if let Some(h) = hand {
-                hand_contacts.decide_actions(blocks, active, h, prev, settings, passes.grasp);
+                hand_contacts.decide_actions(blocks, active, grid, h, prev, settings, passes.grasp);
             }
             end_grasps(blocks, active, settings.inertia);
             // 2. Hand-driven motion (R5, R4, R6), then carry (R10).
