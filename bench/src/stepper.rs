@@ -2,8 +2,9 @@
 //! same run, and what each effect of `[effects]` costs when it is on and when it is off.
 //!
 //! * **Scaling**: fields of N cubes (4 cm, on an 8 cm grid, so that only what a situation makes
-//!   touch touches) in three situations: `falling` (a rain: every cube dropped from 0.2 to
-//!   0.6 m, all landing), `resting` (the settled field, timed after a second of settling) and `hand` (one bare check point sweeps
+//!   touch touches) in three situations: `falling` (a rain: every cube dropped from 0.6 to
+//!   1.2 m, timed over its first 0.5 s: all falling, then the lowest landing), `resting` (the
+//!   settled field, timed after a second of settling) and `hand` (one bare check point sweeps
 //!   along the middle row at cube height, pushing the few it meets). Every step is timed on its
 //!   own; p50 and p99 over the timed runs, the mean count of blocks not resting ("active"),
 //!   the time per active block, the fitted exponent of time against N (least squares on
@@ -86,10 +87,12 @@ impl Situation {
         }
     }
 
-    /// Steps a run times (at 120 Hz): the rain lands within 0.36 s, the sweep takes 1 s.
+    /// Steps a run times (at 120 Hz): the rain's first 0.5 s (every cube in the air until the
+    /// lowest land from 0.35 s on: p50 is a step of falling, p99 one of landing), the sweep's
+    /// 1 s and a little more.
     fn steps(self) -> u64 {
         match self {
-            Situation::Falling => 96,
+            Situation::Falling => 60,
             Situation::Resting => 60,
             Situation::Hand => 132,
         }
@@ -171,10 +174,10 @@ pub fn field(n: usize, situation: Situation, model: ModelKind) -> Scene {
         .map(|i| {
             let (row, col) = (i / side, i % side);
             let (x, z) = (col as f64 * PITCH - half, row as f64 * PITCH - half);
-            // The rain: heights spread over 0.2-0.6 m by a fixed scramble of the index, so
-            // landings spread over the run.
+            // The rain: heights spread over 0.6-1.2 m by a fixed scramble of the index, so
+            // landings spread over the run's end.
             let y = match situation {
-                Situation::Falling => 0.2 + 0.4 * ((i * 7919) % 97) as f64 / 96.0,
+                Situation::Falling => 0.6 + 0.6 * ((i * 7919) % 97) as f64 / 96.0,
                 _ => CUBE / 2.0,
             };
             cube(format!("b{i}"), x, y, z)
@@ -853,7 +856,7 @@ pub fn ablation_table(r: &Report) -> String {
 fn markdown(r: &Report, quick: bool) -> String {
     let mut s = String::from("# handblocks bench stepper\n\n");
     s += &format!(
-        "Both models in one run ({:.0} s{}); the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.2-0.6 m, `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed runs; active: blocks not resting, mean per step.\n\n",
+        "Both models in one run ({:.0} s{}); the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed runs; active: blocks not resting, mean per step.\n\n",
         r.seconds,
         if quick { ", --quick: 16 and 64 blocks, 2 timed runs" } else { ", 5 timed runs after a warm-up" }
     );

@@ -4,9 +4,10 @@
 //! the world's active set (`sync`) and each move of free motion, so a step costs in proportion
 //! to what moves.
 //!
-//! Why a grid and not parry's BVH: blocks are of a size (a cell twice the largest bounding
-//! radius holds a block's every neighbour in the 27 cells around it), a step moves them by a
-//! little, and the grid is rebuilt in one pass and updated per move without allocating. It is
+//! Why a grid and not parry's BVH: blocks are of a size (with cells four times the largest
+//! bounding radius, a query for a block's neighbours visits the 8 cells around its corner), a
+//! step moves them by a little, and the grid is built in one pass and updated per move without
+//! allocating. It is
 //! a hash grid: cells hash into a fixed table of buckets (twice the blocks), each a linked
 //! list through the blocks, so memory is O(blocks) however far apart they are (the hard cases
 //! put blocks 10,000 km from the origin).
@@ -25,7 +26,8 @@ const NONE: u32 = u32::MAX;
 /// Blocks by the cell of their centre.
 #[derive(Debug)]
 pub(crate) struct BlockGrid {
-    /// The cell's edge: twice the largest bounding radius.
+    /// The cell's edge: four times the largest bounding radius (measured: 8 buckets a query
+    /// beat 27 of half the size by a third on a rain of 1024 cubes).
     cell: f64,
     max_radius: f64,
     /// The first block of each bucket, and each block's next in its bucket.
@@ -51,7 +53,7 @@ impl BlockGrid {
         let max_radius = blocks.iter().map(|b| b.poly.radius).fold(0.0, f64::max);
         let buckets = (2 * n).next_power_of_two().max(16);
         BlockGrid {
-            cell: (2.0 * max_radius).max(1e-6),
+            cell: (4.0 * max_radius).max(1e-6),
             max_radius,
             head: vec![NONE; buckets],
             next: vec![NONE; n],
@@ -156,7 +158,21 @@ impl BlockGrid {
     /// Every block whose centre is within `reach` + the largest bounding radius of `centre`
     /// (and maybe more), by index. A caller whose own test is "the spheres come within m"
     /// asks with reach = its own radius + m.
+    #[cfg(test)]
     pub(crate) fn near(&mut self, blocks: &[Block], centre: DVec3, reach: f64) -> &[u32] {
+        let found = self.near_any_order(blocks, centre, reach);
+        found.sort_unstable();
+        found
+    }
+
+    /// [`near`](Self::near)'s blocks in no particular order, for a caller whose use of them
+    /// does not depend on it (a minimum, an "any"); one whose result does sorts them.
+    pub(crate) fn near_any_order(
+        &mut self,
+        blocks: &[Block],
+        centre: DVec3,
+        reach: f64,
+    ) -> &mut [u32] {
         if !self.built {
             self.rebuild(blocks);
         }
@@ -193,14 +209,13 @@ impl BlockGrid {
             }
         }
         self.found.extend_from_slice(&self.unplaced);
-        self.found.sort_unstable();
-        &self.found
+        &mut self.found
     }
 
-    fn everything(&mut self, n: usize) -> &[u32] {
+    fn everything(&mut self, n: usize) -> &mut [u32] {
         self.found.clear();
         self.found.extend(0..n as u32);
-        &self.found
+        &mut self.found
     }
 }
 

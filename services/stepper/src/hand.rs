@@ -342,9 +342,11 @@ impl HandContacts {
         }
         let near = |b: &Block| (b.pos.max(lo).min(hi) - b.pos).length() <= b.poly.radius + eps;
         // The grid's blocks within the box's half diagonal (and eps) of its centre: every block
-        // `near` accepts, in index order (a superset; `near` decides).
+        // `near` accepts (a superset; `near` decides). In no order: each block's action is its
+        // own, and the first entries are minima.
         grid.sync(blocks, active);
-        let candidates = grid.near(blocks, (lo + hi) * 0.5, 0.5 * (hi - lo).length() + eps);
+        let candidates: &[u32] =
+            grid.near_any_order(blocks, (lo + hi) * 0.5, 0.5 * (hi - lo).length() + eps);
         let first = first_entries(
             candidates
                 .iter()

@@ -95,16 +95,23 @@ pub(crate) fn free_motion(
                 continue;
             }
         }
+        // One query for all of this block's tests: R11's touch (within eps), R14's slide
+        // (within eps) and R12's cast along d (within |d|: the slide only shortens d), so the
+        // blocks within its radius + eps + |d|. In no order: R11's is an "any", R12's a
+        // minimum; the slide, whose result depends on the order, sorts them.
+        let d_now = if settings.inertia {
+            blocks[i].v
+        } else {
+            DVec3::ZERO
+        } + settings.g_step;
+        let near: &mut [u32] = if passes.blocks {
+            let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
+            grid.near_any_order(blocks, pos, r + eps + d_now.length())
+        } else {
+            &mut []
+        };
         // R11 (paper): a block that touches another is not affected by gravity or inertia.
-        if passes.blocks
-            && !passes.supported
-            && touches_another(
-                blocks,
-                grid.near(blocks, blocks[i].pos, blocks[i].poly.radius + eps),
-                i,
-                eps,
-            )
-        {
+        if passes.blocks && !passes.supported && touches_another(blocks, near, i, eps) {
             let b = &mut blocks[i];
             b.mode = BlockMode::Supported;
             b.v = DVec3::ZERO;
@@ -132,19 +139,14 @@ pub(crate) fn free_motion(
         }
         // R14: a block against another's side slides down along it (side contacts hold
         // nothing up). Without R14 a touching block is held by R11 and never gets here.
+        debug_assert_eq!(d, d_now);
         let path = if passes.supported {
-            let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
-            slide_along_sides(blocks, grid.near(blocks, pos, r + eps), i, d, settings)
+            near.sort_unstable();
+            slide_along_sides(blocks, near, i, d, settings)
         } else {
             d
         };
         // R12: stop at the first time of impact; v is the actual displacement.
-        let near: &[u32] = if passes.blocks {
-            let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
-            grid.near(blocks, pos + path * 0.5, r + 0.5 * path.length())
-        } else {
-            &[]
-        };
         let f = cast_fraction(blocks, near, i, path, settings, passes);
         let b = &mut blocks[i];
         b.intended = d;
