@@ -21,6 +21,7 @@ use common::BlockMode;
 use crate::block_set::BlockSet;
 use crate::body::{Block, Moved};
 use crate::geometry::{rotate_vertices, sat_allows_motion, sat_axis, sat_depth};
+use crate::grid::BlockGrid;
 use crate::settings::{Passes, Settings};
 
 /// The pair's poses with block `a`'s G as the origin (precision far from the world origin).
@@ -90,6 +91,8 @@ pub(crate) struct Carry {
     queue: Vec<usize>,
     /// The step's active blocks as the stage began: the candidates to be hand-moved roots.
     roots: BlockSet,
+    /// The grid's answer for the block being carried, by index.
+    near: Vec<u32>,
 }
 
 impl Carry {
@@ -97,6 +100,7 @@ impl Carry {
         Carry {
             queue: Vec::with_capacity(blocks),
             roots: BlockSet::new(blocks),
+            near: Vec::with_capacity(blocks),
         }
     }
 
@@ -104,9 +108,16 @@ impl Carry {
     /// translated by the same translation (G's displacement of the hand-moved block),
     /// transitively, breadth first from each hand-moved block; each block moves at most once
     /// per step; no rotation.
-    pub(crate) fn carry(&mut self, blocks: &mut [Block], active: &mut BlockSet, hull_eps: f64) {
-        let n = blocks.len();
+    pub(crate) fn carry(
+        &mut self,
+        blocks: &mut [Block],
+        active: &mut BlockSet,
+        grid: &mut BlockGrid,
+        hull_eps: f64,
+    ) {
         let queue = &mut self.queue;
+        // The hand moved only active blocks; the grid sees them where they are now.
+        grid.sync(blocks, active);
         // A hand-moved block is active; a block it carries joins.
         self.roots.copy_from(active);
         for root in self.roots.iter() {
@@ -123,7 +134,14 @@ impl Carry {
             while head < queue.len() {
                 let i = queue[head];
                 head += 1;
-                for j in 0..n {
+                // The blocks whose spheres reach i's (overlapping's own first test), by index.
+                self.near.clear();
+                let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
+                self.near
+                    .extend_from_slice(grid.near_any_order(blocks, pos, r));
+                self.near.sort_unstable();
+                for &j in &self.near {
+                    let j = j as usize;
                     if j == i || blocks[j].moved != Moved::No {
                         continue;
                     }
@@ -133,6 +151,7 @@ impl Carry {
                         b.moved = Moved::Carried;
                         b.mode = BlockMode::Carried;
                         active.insert(j);
+                        grid.moved(j, b.pos);
                         queue.push(j);
                     }
                 }

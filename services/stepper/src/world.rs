@@ -296,7 +296,7 @@ impl World {
                 move_by_hand(blocks, active, h, prev, settings, fingers);
             }
             if passes.carry {
-                carry.carry(blocks, active, settings.hull_eps);
+                carry.carry(blocks, active, grid, settings.hull_eps);
             }
         }
         // 3a. Supported stacking (R14, when the scene asks for it): blocks on blocks are judged
