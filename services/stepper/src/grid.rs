@@ -39,6 +39,10 @@ pub(crate) struct BlockGrid {
     unplaced: Vec<u32>,
     /// Whether the grid has been built (on the first query).
     built: bool,
+    /// Each block's centre as the grid last saw it and its bounding radius, side by side, so
+    /// that a query's sphere test reads these and not the blocks.
+    centre: Vec<DVec3>,
+    radius: Vec<f64>,
     /// A query's answer.
     found: Vec<u32>,
     /// The query that last visited each bucket: a bucket that several of a query's cells
@@ -60,6 +64,8 @@ impl BlockGrid {
             bucket: vec![NONE; n],
             unplaced: Vec::with_capacity(n),
             built: false,
+            centre: blocks.iter().map(|b| b.pos).collect(),
+            radius: blocks.iter().map(|b| b.poly.radius).collect(),
             found: Vec::with_capacity(n),
             visited: vec![0; buckets],
             query: 0,
@@ -80,6 +86,7 @@ impl BlockGrid {
     }
 
     fn insert(&mut self, i: usize, p: DVec3) {
+        self.centre[i] = p;
         match self.cell_of(p) {
             Some(c) => {
                 let h = self.hash(c);
@@ -149,15 +156,17 @@ impl BlockGrid {
             (Some(c), h) => h != NONE && self.hash(c) == h as usize,
             (None, h) => h == NONE,
         };
-        if !same {
+        if same {
+            self.centre[i] = pos;
+        } else {
             self.remove(i);
             self.insert(i, pos);
         }
     }
 
-    /// Every block whose centre is within `reach` + the largest bounding radius of `centre`
-    /// (and maybe more), by index. A caller whose own test is "the spheres come within m"
-    /// asks with reach = its own radius + m.
+    /// Every block whose bounding sphere comes within `reach` of `centre` (and maybe a
+    /// little more: a slack covers rounding), by index. A caller whose own test is "the
+    /// spheres come within m" asks with reach = its own radius + m.
     #[cfg(test)]
     pub(crate) fn near(&mut self, blocks: &[Block], centre: DVec3, reach: f64) -> &[u32] {
         let found = self.near_any_order(blocks, centre, reach);
@@ -187,6 +196,9 @@ impl BlockGrid {
         if span(0) * span(1) * span(2) > self.head.len() as u128 {
             return self.everything(blocks.len());
         }
+        // The callers' own tests decide; this one only has to keep every block they would
+        // accept, whatever the rounding of a distance far from the origin.
+        let slack = 1e-9 * (1.0 + centre.abs().max_element() + reach);
         self.query = self.query.wrapping_add(1);
         if self.query == 0 {
             self.visited.iter_mut().for_each(|v| *v = 0);
@@ -202,8 +214,11 @@ impl BlockGrid {
                     self.visited[h] = self.query;
                     let mut k = self.head[h];
                     while k != NONE {
-                        self.found.push(k);
-                        k = self.next[k as usize];
+                        let j = k as usize;
+                        if (self.centre[j] - centre).length() <= reach + self.radius[j] + slack {
+                            self.found.push(k);
+                        }
+                        k = self.next[j];
                     }
                 }
             }
