@@ -409,63 +409,33 @@ struct Pair {
 
 fn nothing(_: &mut Effects) {}
 
+/// A row of [`PAIRS`].
+const fn pair(
+    effect: &'static str,
+    scene: &'static str,
+    on: fn(&mut Effects),
+    off: fn(&mut Effects),
+    idle: fn(&mut Effects),
+) -> Pair {
+    Pair {
+        effect,
+        scene,
+        on,
+        off,
+        idle,
+    }
+}
+
+#[rustfmt::skip]
 const PAIRS: &[Pair] = &[
-    Pair {
-        effect: "gravity",
-        scene: "drop.toml",
-        on: |e| e.gravity = true,
-        off: |e| e.gravity = false,
-        idle: nothing,
-    },
-    Pair {
-        effect: "inertia",
-        scene: "grasp-throw-fingers.toml",
-        on: |e| e.inertia = true,
-        off: |e| e.inertia = false,
-        idle: nothing,
-    },
-    Pair {
-        effect: "floor: tipping -> rest",
-        scene: "tip.toml",
-        on: |e| e.floor = FloorEffect::Tipping,
-        off: |e| e.floor = FloorEffect::Rest,
-        idle: nothing,
-    },
-    Pair {
-        effect: "floor: rest -> none",
-        scene: "tip.toml",
-        on: |e| e.floor = FloorEffect::Rest,
-        off: |e| e.floor = FloorEffect::None,
-        idle: |e| e.gravity = false,
-    },
-    Pair {
-        effect: "hand: grasp -> push",
-        scene: "grasp-throw-fingers.toml",
-        on: |e| e.hand = HandEffect::Grasp,
-        off: |e| e.hand = HandEffect::Push,
-        idle: nothing,
-    },
-    Pair {
-        effect: "hand: push -> none",
-        scene: "push.toml",
-        on: |e| e.hand = HandEffect::Push,
-        off: |e| e.hand = HandEffect::None,
-        idle: nothing,
-    },
-    Pair {
-        effect: "carry",
-        scene: "carry.toml",
-        on: |e| e.carry = true,
-        off: |e| e.carry = false,
-        idle: nothing,
-    },
-    Pair {
-        effect: "stacking: supported -> paper",
-        scene: "hard/staggered.toml",
-        on: |e| e.stacking = Stacking::Supported,
-        off: |e| e.stacking = Stacking::Paper,
-        idle: nothing,
-    },
+    pair("gravity", "drop.toml", |e| e.gravity = true, |e| e.gravity = false, nothing),
+    pair("inertia", "grasp-throw-fingers.toml", |e| e.inertia = true, |e| e.inertia = false, nothing),
+    pair("floor: tipping -> rest", "tip.toml", |e| e.floor = FloorEffect::Tipping, |e| e.floor = FloorEffect::Rest, nothing),
+    pair("floor: rest -> none", "tip.toml", |e| e.floor = FloorEffect::Rest, |e| e.floor = FloorEffect::None, |e| e.gravity = false),
+    pair("hand: grasp -> push", "grasp-throw-fingers.toml", |e| e.hand = HandEffect::Grasp, |e| e.hand = HandEffect::Push, nothing),
+    pair("hand: push -> none", "push.toml", |e| e.hand = HandEffect::Push, |e| e.hand = HandEffect::None, nothing),
+    pair("carry", "carry.toml", |e| e.carry = true, |e| e.carry = false, nothing),
+    pair("stacking: supported -> paper", "hard/staggered.toml", |e| e.stacking = Stacking::Supported, |e| e.stacking = Stacking::Paper, nothing),
 ];
 
 /// Mean us per step of one whole run of `scene` (its hand's keys plus 1 s).
