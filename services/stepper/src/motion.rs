@@ -99,14 +99,15 @@ pub(crate) fn free_motion(
         // (within eps) and R12's cast along d (within |d|: the slide only shortens d), so the
         // blocks within its radius + eps + |d|. In no order: R11's is an "any", R12's a
         // minimum; the slide, whose result depends on the order, sorts them.
-        let d_now = if settings.inertia {
+        // R7: d = v + g_step (v is not changed before it is used below).
+        let d = if settings.inertia {
             blocks[i].v
         } else {
             DVec3::ZERO
         } + settings.g_step;
         let near: &mut [u32] = if passes.blocks {
             let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
-            grid.near_any_order(blocks, pos, r + eps + d_now.length())
+            grid.near_any_order(blocks, pos, r + eps + d.length())
         } else {
             &mut []
         };
@@ -128,18 +129,11 @@ pub(crate) fn free_motion(
             }
         }
         // R7: d = v + g_step; no rotation.
-        let v = if settings.inertia {
-            blocks[i].v
-        } else {
-            DVec3::ZERO
-        };
-        let d = v + settings.g_step;
         if d == DVec3::ZERO {
             continue;
         }
         // R14: a block against another's side slides down along it (side contacts hold
         // nothing up). Without R14 a touching block is held by R11 and never gets here.
-        debug_assert_eq!(d, d_now);
         let path = if passes.supported {
             near.sort_unstable();
             slide_along_sides(blocks, near, i, d, settings)

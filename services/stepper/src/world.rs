@@ -194,8 +194,17 @@ impl World {
                 }
             }
         }
+        // Pairs that start inside each other, the first by (i, j): the grid's blocks near
+        // each one, in index order, rather than every pair (8 million at 4096 blocks).
+        let mut grid = BlockGrid::new(&blocks);
         for i in 0..blocks.len() {
-            for j in i + 1..blocks.len() {
+            let near = grid.near_any_order(
+                &blocks,
+                blocks[i].pos,
+                blocks[i].poly.radius + w.contact_eps,
+            );
+            near.sort_unstable();
+            for j in near.iter().map(|&j| j as usize).filter(|&j| j > i) {
                 let (a, b) = (&blocks[i], &blocks[j]);
                 let off = b.pos - a.pos;
                 if off.length() > a.poly.radius + b.poly.radius + w.contact_eps {
@@ -225,7 +234,6 @@ impl World {
             blocks: n > 1,
             supported: e.stacking == Stacking::Supported && n > 1,
         };
-        let grid = BlockGrid::new(&blocks);
         // Every block is looked at in the first step (a block that starts on the floor has its
         // first impact then).
         let mut active = BlockSet::new(n);
