@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde_json::{json, Value};
-use stepper::hard_cases::{self, Case, Variant, CASES};
+use stepper::hard_cases::{self, Case, Figures, Variant, CASES};
 
 use crate::plot::{Figure, Panel, Series};
 
@@ -36,13 +36,8 @@ pub struct Row {
     pub result: String,
     /// Set where the precise model is known to fail the criterion (the reason).
     pub known_failure: Option<String>,
-    pub drift_m: f64,
-    pub sink_mm: f64,
-    pub penetration_m: f64,
-    pub decision: Option<(bool, bool)>,
-    pub time_to_rest_s: Option<f64>,
-    pub non_finite: usize,
-    pub hash: u64,
+    /// Drift, sink, penetration, decision, time to rest, non-finite count, hash.
+    pub figures: Figures,
     pub us_per_step: f64,
 }
 
@@ -74,13 +69,7 @@ fn one(case: &Case, v: Variant) -> Row {
             Ok(s) | Err(s) => s.replace('|', "/"),
         },
         known_failure: known,
-        drift_m: f.drift_m,
-        sink_mm: f.sink_mm,
-        penetration_m: f.penetration_m,
-        decision: f.decision,
-        time_to_rest_s: f.time_to_rest_s,
-        non_finite: f.non_finite,
-        hash: f.hash,
+        figures: f,
         us_per_step: o.us_per_step,
     }
 }
@@ -175,11 +164,11 @@ fn write_json(path: &Path, rows: &[Row]) -> Result<(), Box<dyn std::error::Error
         .map(|r| {
             json!({"case": r.case, "model": r.model, "criterion": r.criterion,
                    "passed": r.passed, "result": r.result, "known_failure": r.known_failure,
-                   "drift_m": num(r.drift_m), "sink_mm": num(r.sink_mm),
-                   "penetration_m": num(r.penetration_m),
-                   "decision": r.decision.map(|(e, g)| json!({"expected": if e { "stands" } else { "falls" }, "got": if g { "stands" } else { "falls" }})),
-                   "time_to_rest_s": r.time_to_rest_s.map(num),
-                   "non_finite": r.non_finite, "hash": format!("{:016x}", r.hash),
+                   "drift_m": num(r.figures.drift_m), "sink_mm": num(r.figures.sink_mm),
+                   "penetration_m": num(r.figures.penetration_m),
+                   "decision": r.figures.decision.map(|(e, g)| json!({"expected": if e { "stands" } else { "falls" }, "got": if g { "stands" } else { "falls" }})),
+                   "time_to_rest_s": r.figures.time_to_rest_s.map(num),
+                   "non_finite": r.figures.non_finite, "hash": format!("{:016x}", r.figures.hash),
                    "us_per_step": num(r.us_per_step)})
         })
         .collect();
@@ -233,13 +222,13 @@ pub fn summary_table(rows: &[Row]) -> String {
                 (false, Some(_)) => "**no** (known)",
                 (false, None) => "**no**",
             },
-            r.drift_m,
-            r.sink_mm,
-            r.penetration_m,
-            decision_text(r.decision),
-            rest_text(r.time_to_rest_s),
-            r.non_finite,
-            r.hash,
+            r.figures.drift_m,
+            r.figures.sink_mm,
+            r.figures.penetration_m,
+            decision_text(r.figures.decision),
+            rest_text(r.figures.time_to_rest_s),
+            r.figures.non_finite,
+            r.figures.hash,
             r.us_per_step
         );
     }
@@ -270,13 +259,13 @@ fn figure(rows: &[Row]) -> Figure {
             "drift of blocks that stayed (0 drawn at 1e-9 m)",
             "m (log)",
             true,
-            |r: &Row| r.drift_m.max(1e-9),
+            |r: &Row| r.figures.drift_m.max(1e-9),
         ),
         (
             "deepest penetration (0 drawn at 1e-9 m)",
             "m (log)",
             true,
-            |r: &Row| r.penetration_m.max(1e-9),
+            |r: &Row| r.figures.penetration_m.max(1e-9),
         ),
     ]
     .into_iter()

@@ -246,36 +246,12 @@ fn run_at(case: &Case, shift: DVec3, variant: Variant) -> Outcome {
         stepping += t0.elapsed().as_secs_f64();
         out.events.extend_from_slice(w.events());
         let p = snap(&w);
-        for i in 0..p.len() {
-            if !(p[i].0.is_finite() && p[i].1.is_finite()) {
-                continue;
-            }
-            rotate_vertices(&polys[i], p[i].1, &mut va);
-            let low = va
-                .iter()
-                .map(|v| (p[i].0 + *v).y)
-                .fold(f64::INFINITY, f64::min);
-            out.floor_depth = out.floor_depth.max(-low);
-            for j in i + 1..p.len() {
-                if !(p[j].0.is_finite() && p[j].1.is_finite())
-                    || (p[j].0 - p[i].0).length() > polys[i].radius + polys[j].radius
-                {
-                    continue;
-                }
-                rotate_vertices(&polys[j], p[j].1, &mut vb);
-                let d = sat_depth(
-                    &polys[i],
-                    p[i].1,
-                    &va,
-                    &polys[j],
-                    p[j].1,
-                    &vb,
-                    p[j].0 - p[i].0,
-                );
-                if d > out.max_overlap {
-                    out.max_overlap = d;
-                    out.worst_overlap = (n, i, j);
-                }
+        let step = overlaps(&polys, &p, &mut va, &mut vb);
+        out.floor_depth = out.floor_depth.max(step.floor_depth);
+        if let Some((d, i, j)) = step.deepest_pair {
+            if d > out.max_overlap {
+                out.max_overlap = d;
+                out.worst_overlap = (n, i, j);
             }
         }
         w.write_sample(&mut sample);
@@ -345,6 +321,62 @@ pub fn bounded(o: &Outcome) -> Result<(), String> {
         bounded(origin)?;
     }
     Ok(())
+}
+
+/// How deep blocks at poses `p` overlap: the floor (the lowest vertex below y = 0) and the
+/// deepest pair (SAT depth, the pair's indices). Non-finite poses are left out. `va`, `vb`:
+/// scratch for the turned vertices.
+#[derive(Debug, Clone, Copy)]
+pub struct Overlaps {
+    pub floor_depth: f64,
+    pub deepest_pair: Option<(f64, usize, usize)>,
+}
+
+pub fn overlaps(
+    polys: &[Polyhedron],
+    p: &[(DVec3, DQuat)],
+    va: &mut Vec<DVec3>,
+    vb: &mut Vec<DVec3>,
+) -> Overlaps {
+    let mut out = Overlaps {
+        floor_depth: f64::NEG_INFINITY,
+        deepest_pair: None,
+    };
+    let finite = |q: &(DVec3, DQuat)| q.0.is_finite() && q.1.is_finite();
+    for i in 0..p.len() {
+        if !finite(&p[i]) {
+            continue;
+        }
+        rotate_vertices(&polys[i], p[i].1, va);
+        let low = va
+            .iter()
+            .map(|v| (p[i].0 + *v).y)
+            .fold(f64::INFINITY, f64::min);
+        out.floor_depth = out.floor_depth.max(-low);
+        for j in i + 1..p.len() {
+            if !finite(&p[j]) || (p[j].0 - p[i].0).length() > polys[i].radius + polys[j].radius {
+                continue;
+            }
+            rotate_vertices(&polys[j], p[j].1, vb);
+            let d = sat_depth(
+                &polys[i],
+                p[i].1,
+                va,
+                &polys[j],
+                p[j].1,
+                vb,
+                p[j].0 - p[i].0,
+            );
+            // A NaN depth is no depth, as `d > deepest` says.
+            if d > out
+                .deepest_pair
+                .map_or(f64::NEG_INFINITY, |(deepest, _, _)| deepest)
+            {
+                out.deepest_pair = Some((d, i, j));
+            }
+        }
+    }
+    out
 }
 
 /// The deepest overlap of two blocks or of a block with the floor over the run (m, >= 0).
@@ -481,6 +513,17 @@ fn never_moves(o: &Outcome) -> Result<String, String> {
     ))
 }
 
+/// No two blocks overlapped by more than `limit` over the run.
+fn overlap_within(o: &Outcome, limit: f64) -> Result<(), String> {
+    if o.max_overlap > limit {
+        return Err(format!(
+            "overlap {} (step, blocks) {:?}",
+            o.max_overlap, o.worst_overlap
+        ));
+    }
+    Ok(())
+}
+
 /// Block i never moves from the initial state over steps `..end`.
 fn block_still(o: &Outcome, i: usize, end: usize) -> Result<(), String> {
     match o.poses[..end.min(o.poses.len())]
@@ -548,9 +591,7 @@ fn pyramid_stands(o: &Outcome) -> Result<String, String> {
 }
 
 fn pyramid_knocked(o: &Outcome) -> Result<String, String> {
-    if o.max_overlap > EPS {
-        return Err(format!("overlap {}", o.max_overlap));
-    }
+    overlap_within(o, EPS)?;
     let pushed = 14;
     if last(o)[pushed].0.z < 0.1 {
         return Err(format!(
@@ -568,12 +609,7 @@ fn pyramid_knocked(o: &Outcome) -> Result<String, String> {
 }
 
 fn drop_onto_tower(o: &Outcome) -> Result<String, String> {
-    if o.max_overlap > EPS {
-        return Err(format!(
-            "overlap {} (step, blocks) {:?}",
-            o.max_overlap, o.worst_overlap
-        ));
-    }
+    overlap_within(o, EPS)?;
     for i in 0..5 {
         block_still(o, i, o.poses.len())?;
     }
@@ -734,9 +770,7 @@ fn bullet_wall(o: &Outcome) -> Result<String, String> {
 }
 
 fn bullet_moving(o: &Outcome) -> Result<String, String> {
-    if o.max_overlap > HULL_EPS {
-        return Err(format!("overlap {}", o.max_overlap));
-    }
+    overlap_within(o, HULL_EPS)?;
     mode(o, 0, BlockMode::Resting)?;
     mode(o, 1, BlockMode::Resting)?;
     near("bullet G y", last(o)[0].0.y, 0.025, 1e-9)?;
@@ -782,9 +816,7 @@ fn overlapping_spawn(o: &Outcome) -> Result<String, String> {
 }
 
 fn push_into_wall(o: &Outcome) -> Result<String, String> {
-    if o.max_overlap > HULL_EPS {
-        return Err(format!("overlap {}", o.max_overlap));
-    }
+    overlap_within(o, HULL_EPS)?;
     let moved = last(o)[1].0.x - 0.11;
     if !(0.08..=0.11).contains(&moved) {
         return Err(format!("the wall moved {moved}"));
@@ -797,12 +829,7 @@ fn push_into_wall(o: &Outcome) -> Result<String, String> {
 }
 
 fn push_into_stack(o: &Outcome) -> Result<String, String> {
-    if o.max_overlap > EPS {
-        return Err(format!(
-            "overlap {} (step, blocks) {:?}",
-            o.max_overlap, o.worst_overlap
-        ));
-    }
+    overlap_within(o, EPS)?;
     still_at_end(o, 120)?;
     for i in [2, 3] {
         if last(o)[i].0.y > o.poses[0][i].0.y - 0.05 {
@@ -845,9 +872,7 @@ fn trace_nan(o: &Outcome) -> Result<String, String> {
 }
 
 fn trace_jump(o: &Outcome) -> Result<String, String> {
-    if o.max_overlap > EPS {
-        return Err(format!("overlap {}", o.max_overlap));
-    }
+    overlap_within(o, EPS)?;
     for (i, (x, _)) in last(o).iter().enumerate() {
         mode(o, i, BlockMode::Resting)?;
         if x.length() > 2.0 {
