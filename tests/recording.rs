@@ -90,7 +90,7 @@ fn a_recorded_live_session_replays_bit_for_bit_at_any_speed() {
     assert!(out.status.success(), "{}", both(&out));
     let live_rec = Recording::open(&live_file).unwrap();
     assert!(live_rec.complete, "{:?}", live_rec.damage);
-    let live_worlds: Vec<WorldSample> = live_rec.samples(Topic::World).collect();
+    let live_worlds: Vec<WorldSample> = live_rec.worlds().collect();
     let live_hands: Vec<HandSample> = live_rec.samples(Topic::Hand).collect();
     assert!(live_worlds.len() >= 300, "{} worlds", live_worlds.len());
     assert!(
@@ -138,7 +138,7 @@ fn a_recorded_live_session_replays_bit_for_bit_at_any_speed() {
             );
             assert_eq!(a.palm_vertices, b.palm_vertices);
         }
-        let worlds: Vec<WorldSample> = rec.samples(Topic::World).collect();
+        let worlds: Vec<WorldSample> = rec.worlds().collect();
         assert_eq!(worlds.len(), live_worlds.len(), "{tag}: worlds");
         for (a, b) in worlds.iter().zip(&live_worlds) {
             same_world(a, b, tag);
@@ -446,7 +446,7 @@ fn recordings_open_in_the_standard_mcap_reader() {
     }
     assert!(v["topics"]["world"]["seqs"].as_array().unwrap().len() >= 200);
     // Decoded by the ROS 2 CDR decoder from the schema alone: the same last world.
-    let last: WorldSample = ours.samples(Topic::World).last().unwrap();
+    let last: WorldSample = ours.worlds().last().unwrap();
     let theirs = &v["last_world"];
     assert_eq!(theirs["seq"].as_u64(), Some(last.stamp.seq));
     assert_eq!(theirs["step"].as_u64(), Some(last.step));

@@ -58,7 +58,7 @@ fn replay(tag: &str, trace: &str, speed: f64, seconds: f64) -> WorldSample {
         "{tag}: every sample of the trace was replayed\n{}",
         String::from_utf8_lossy(&out.stdout)
     );
-    rec.samples(Topic::World).last().unwrap()
+    rec.worlds().last().unwrap()
 }
 
 #[test]
@@ -173,7 +173,7 @@ fn carl_session_meets_its_block(name: &str, contact: Contact) {
         String::from_utf8_lossy(&out.stderr)
     );
     let rec = Recording::open(&rec_file).unwrap();
-    let worlds: Vec<WorldSample> = rec.samples(Topic::World).collect();
+    let worlds: Vec<WorldSample> = rec.worlds().collect();
     assert_eq!(
         worlds.len(),
         trace.samples.len(),
@@ -255,10 +255,7 @@ fn carl_session_meets_its_block(name: &str, contact: Contact) {
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        let again: Vec<WorldSample> = Recording::open(&again_file)
-            .unwrap()
-            .samples(Topic::World)
-            .collect();
+        let again: Vec<WorldSample> = Recording::open(&again_file).unwrap().worlds().collect();
         assert_eq!(again.len(), worlds.len());
         for (a, b) in again.iter().zip(&worlds) {
             assert_eq!((a.stamp.seq, a.step), (b.stamp.seq, b.step));

@@ -27,8 +27,8 @@
 //!
 //! Sizes over the scene limit (`common::MAX_SCENE_BLOCKS`) would be listed as not run, with
 //! the reason, rather than left out silently, and the limit itself measured in their place.
-//! The block world takes 4096 blocks; a live session carries 128 (`common::MAX_BLOCKS`, the
-//! world topic's fixed sample), so these worlds run here and in `simulate`, not in sessions.
+//! Every size here also runs in a live session (the world topic is sized from the scene:
+//! `config/sessions/field-1024.toml` is the 1024-block one).
 //!
 //! Writes `stepper.json`, `stepper.md` and `stepper.png` (time per step against N, log-log)
 //! under `--out`.

@@ -26,18 +26,32 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 
-use crate::samples::TopicCounter;
+use crate::samples::{TopicCounter, MAX_SCENE_BLOCKS};
 use crate::stamp::{monotonic_ns, Stamp};
-use crate::topic::{Topic, TopicSpec, TopicVisitor};
+use crate::topic::{SliceTopicSpec, Topic, TopicSpec, TopicVisitor};
 
-/// Ports of one service type; a sample read from an [`Inlet`].
+/// A sample read from an [`Inlet`].
 pub type Received<T> = Sample<ipc::Service, T, ()>;
+/// A sample read from a [`SliceInlet`]: its header is iceoryx2's user header
+/// (`user_header()`), its elements the payload (`payload()`).
+pub type ReceivedSlice<P> =
+    Sample<ipc::Service, [<P as SliceTopicSpec>::Element], <P as SliceTopicSpec>::Header>;
 
 /// Most processes that attach to one topic (a recorder, a monitor and the `iox2` tool included).
 const MAX_SUBSCRIBERS: usize = 4;
 const MAX_NODES: usize = 16;
 /// How long a session folder must be untouched before a launcher may judge it abandoned.
 const ABANDONED_AFTER: Duration = Duration::from_secs(10);
+/// Blocks a world sample holds when a session does not say ([`BusConfig::world_blocks`]).
+pub const DEFAULT_WORLD_BLOCKS: usize = 128;
+/// Bytes of unread samples one subscriber of a slice topic may hold: its buffer depth is this
+/// over the sample size (at most the table's depth, at least [`MIN_SLICE_BUFFER`]). iceoryx2
+/// zeroes a publisher's whole data segment when it creates it, and that segment holds every
+/// subscriber's buffer, so a 4096-block world at the table's 1024 samples per subscriber would
+/// pin 1 GiB of /dev/shm; at 16 MiB it pins about 64 MiB (a 128-block world keeps all 1024).
+pub const SLICE_BUFFER_BYTES: usize = 16 << 20;
+/// The shallowest buffer a slice topic gets: 64 samples, half a second at 120 Hz.
+pub const MIN_SLICE_BUFFER: usize = 64;
 
 /// Something went wrong on the bus; each variant says which operation and which topic.
 #[derive(Debug)]
@@ -91,6 +105,10 @@ pub struct BusConfig {
     pub prefix: String,
     /// iceoryx2's root directory for this session (service and node bookkeeping).
     pub root: PathBuf,
+    /// The most blocks one `world` sample carries: the session's scene's block count. It sizes
+    /// the world topic (each sample's memory, the subscribers' buffer depth), so every process
+    /// of a session must open the bus with the same value ([`BusConfig::with_world_blocks`]).
+    pub world_blocks: usize,
 }
 
 impl BusConfig {
@@ -110,7 +128,20 @@ impl BusConfig {
             id: id.to_string(),
             prefix: format!("hb_{id}_"),
             root: std::env::temp_dir().join("handblocks-iox2").join(id),
+            world_blocks: DEFAULT_WORLD_BLOCKS,
         })
+    }
+
+    /// The same session with world samples of `blocks` blocks (its scene's count; 1 to
+    /// [`MAX_SCENE_BLOCKS`]).
+    pub fn with_world_blocks(mut self, blocks: usize) -> Result<BusConfig, BusError> {
+        if blocks == 0 || blocks > MAX_SCENE_BLOCKS {
+            return Err(BusError::Config(format!(
+                "world samples of {blocks} blocks: allowed 1 to {MAX_SCENE_BLOCKS}"
+            )));
+        }
+        self.world_blocks = blocks;
+        Ok(self)
     }
 
     /// A fresh id for a new session: unique per process and moment.
@@ -231,6 +262,8 @@ pub trait Stamped: Copy + std::fmt::Debug + ZeroCopySend + 'static {
 /// One process's attachment to the session's bus.
 pub struct Bus {
     node: Node<ipc::Service>,
+    /// Elements a slice topic's sample holds at most ([`BusConfig::world_blocks`]).
+    slice_capacity: usize,
 }
 
 impl Bus {
@@ -246,7 +279,15 @@ impl Bus {
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
             .map_err(|e| BusError::Node(format!("{e:?}")))?;
-        Ok(Bus { node })
+        Ok(Bus {
+            node,
+            slice_capacity: config.world_blocks,
+        })
+    }
+
+    /// The most elements a sample of a slice topic carries on this bus.
+    pub fn slice_capacity(&self) -> usize {
+        self.slice_capacity
     }
 
     /// Creates every topic of the session with its fixed sizing. The launcher calls this once
@@ -262,6 +303,11 @@ impl Bus {
             fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
                 let service = self.bus.pubsub::<P>()?;
                 self.pubsub.push(Box::new(service));
+                Ok(())
+            }
+            fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
+                let service = self.bus.slice_pubsub::<P>()?;
+                self.pubsub.push(Box::new(SliceService::<P>(service)));
                 Ok(())
             }
         }
@@ -293,6 +339,38 @@ impl Bus {
             .subscriber_max_borrowed_samples(4)
             .history_size(0)
             // A slow reader loses its oldest unread sample instead of stalling the publisher.
+            .enable_safe_overflow(true)
+            .open_or_create()
+            .map_err(|e| BusError::Service {
+                topic: topic.name(),
+                reason: format!("{e:?}"),
+            })
+    }
+
+    /// The subscriber buffer depth of slice topic `P` on this bus: the table's depth, or less
+    /// when samples are large ([`SLICE_BUFFER_BYTES`]).
+    pub fn slice_buffer<P: SliceTopicSpec>(&self) -> usize {
+        let sample = std::mem::size_of::<P::Header>()
+            + self.slice_capacity * std::mem::size_of::<P::Element>();
+        let depth = P::TOPIC.subscriber_buffer();
+        (SLICE_BUFFER_BYTES / sample.max(1)).clamp(MIN_SLICE_BUFFER.min(depth), depth)
+    }
+
+    /// Opens (or creates) slice topic `P`'s service: a user header and a slice payload, its
+    /// buffer depth from [`Bus::slice_buffer`].
+    fn slice_pubsub<P: SliceTopicSpec>(&self) -> Result<SlicePubSub<P>, BusError> {
+        let topic = P::TOPIC;
+        let name = service_name(topic)?;
+        self.node
+            .service_builder(&name)
+            .publish_subscribe::<[P::Element]>()
+            .user_header::<P::Header>()
+            .max_publishers(topic.max_publishers())
+            .max_subscribers(MAX_SUBSCRIBERS)
+            .max_nodes(MAX_NODES)
+            .subscriber_max_buffer_size(self.slice_buffer::<P>())
+            .subscriber_max_borrowed_samples(4)
+            .history_size(0)
             .enable_safe_overflow(true)
             .open_or_create()
             .map_err(|e| BusError::Service {
@@ -390,9 +468,61 @@ impl Bus {
         Ok(Inlet {
             subscriber,
             listener,
-            received: Cell::new(0),
-            gaps: Cell::new(0),
-            last_seq: Cell::new(None),
+            seqs: SeqCount::default(),
+        })
+    }
+
+    /// A publisher on slice topic `P` (the `world` topic) with its notifier; each sample it
+    /// sends holds 0 to [`Bus::slice_capacity`] elements, written in place
+    /// ([`SliceOutlet::publish_with`]).
+    pub fn slice_outlet<P: SliceTopicSpec>(&self) -> Result<SliceOutlet<P>, BusError> {
+        let topic = P::TOPIC;
+        let port_err = |e: String| BusError::Port {
+            topic: topic.name(),
+            reason: e,
+        };
+        let publisher = self
+            .slice_pubsub::<P>()?
+            .publisher_builder()
+            .initial_max_slice_len(self.slice_capacity)
+            .max_loaned_samples(2)
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        let notifier = self
+            .event(topic)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        Ok(SliceOutlet {
+            publisher,
+            notifier,
+            capacity: self.slice_capacity,
+            next_seq: 0,
+        })
+    }
+
+    /// A subscriber on slice topic `P` with its listener.
+    pub fn slice_inlet<P: SliceTopicSpec>(&self) -> Result<SliceInlet<P>, BusError> {
+        let topic = P::TOPIC;
+        let port_err = |e: String| BusError::Port {
+            topic: topic.name(),
+            reason: e,
+        };
+        let subscriber = self
+            .slice_pubsub::<P>()?
+            .subscriber_builder()
+            .buffer_size(self.slice_buffer::<P>())
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        let listener = self
+            .event(topic)?
+            .listener_builder()
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        Ok(SliceInlet {
+            subscriber,
+            listener,
+            seqs: SeqCount::default(),
         })
     }
 }
@@ -403,6 +533,12 @@ pub trait Wakeable {
 }
 
 impl<P: TopicSpec> Wakeable for Inlet<P> {
+    fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
+    }
+}
+
+impl<P: SliceTopicSpec> Wakeable for SliceInlet<P> {
     fn listener(&self) -> &Listener<ipc::Service> {
         &self.listener
     }
@@ -467,6 +603,11 @@ fn service_name(topic: Topic) -> Result<ServiceName, BusError> {
 
 type PubSub<T> =
     iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>;
+type SlicePubSub<P> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
+    ipc::Service,
+    [<P as SliceTopicSpec>::Element],
+    <P as SliceTopicSpec>::Header,
+>;
 type EventService = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
 
 /// The attachment counts of one publish-subscribe service, whatever its sample type.
@@ -481,6 +622,19 @@ impl<T: Stamped> AttachedPorts for PubSub<T> {
     }
     fn publishers(&self) -> usize {
         self.dynamic_config().number_of_publishers()
+    }
+}
+
+/// A slice topic's service, as [`AttachedPorts`] (a newtype: the port factory's type names the
+/// topic's element and header types, which a blanket impl over them could not).
+struct SliceService<P: SliceTopicSpec>(SlicePubSub<P>);
+
+impl<P: SliceTopicSpec> AttachedPorts for SliceService<P> {
+    fn subscribers(&self) -> usize {
+        self.0.dynamic_config().number_of_subscribers()
+    }
+    fn publishers(&self) -> usize {
+        self.0.dynamic_config().number_of_publishers()
     }
 }
 
@@ -553,14 +707,61 @@ impl<P: TopicSpec> Outlet<P> {
     }
 }
 
+/// What a subscriber counted: samples received and the gaps in `seq`. Cells, so that an inlet
+/// can be read while its listener is attached to a WaitSet.
+#[derive(Default)]
+struct SeqCount {
+    received: Cell<u64>,
+    gaps: Cell<u64>,
+    last_seq: Cell<Option<u64>>,
+}
+
+impl SeqCount {
+    fn saw(&self, seq: u64) {
+        // A seq that jumps ahead means samples were lost (overwritten unread, or never sent to
+        // us); a seq that goes back means the publisher restarted.
+        let missed = match self.last_seq.get() {
+            Some(last) if seq > last + 1 => seq - last - 1,
+            Some(_) => 0,
+            None => seq,
+        };
+        self.gaps.set(self.gaps.get() + missed);
+        self.last_seq.set(Some(seq));
+        self.received.set(self.received.get() + 1);
+    }
+
+    fn counter(&self, topic: Topic) -> TopicCounter {
+        TopicCounter {
+            topic: topic as u32,
+            role: 1,
+            count: self.received.get(),
+            gaps: self.gaps.get(),
+            last_seq: self.last_seq.get().unwrap_or(u64::MAX),
+        }
+    }
+}
+
+/// Sleeps on `listener` until a sample may have arrived, or `timeout` passes, to the
+/// nanosecond; consumes the wake-ups.
+fn wait_on(listener: &Listener<ipc::Service>, timeout: Duration) -> Result<(), BusError> {
+    use iceoryx2::prelude::FileDescriptorBased;
+    // SAFETY: the descriptor is owned by the listener, which outlives the call.
+    let fd = unsafe { listener.file_descriptor().native_handle() };
+    let mut fds = [libc::pollfd {
+        fd,
+        events: libc::POLLIN,
+        revents: 0,
+    }];
+    poll_readable(&mut fds, timeout)?;
+    let _ = listener.try_wait(|_| {});
+    Ok(())
+}
+
 /// A subscriber with its listener: counts what arrives and the gaps in `seq`.
 pub struct Inlet<P: TopicSpec> {
     subscriber: Subscriber<ipc::Service, P::Sample, ()>,
     listener: Listener<ipc::Service>,
-    // Cells, so that an inlet can be read while its listener is attached to a WaitSet.
-    received: Cell<u64>,
-    gaps: Cell<u64>,
-    last_seq: Cell<Option<u64>>,
+    seqs: SeqCount,
 }
 
 impl<P: TopicSpec> Inlet<P> {
@@ -571,17 +772,7 @@ impl<P: TopicSpec> Inlet<P> {
             reason: format!("{e:?}"),
         })?;
         if let Some(s) = &sample {
-            let seq = s.payload().stamp().seq;
-            // A seq that jumps ahead means samples were lost (overwritten unread, or never sent
-            // to us); a seq that goes back means the publisher restarted.
-            let missed = match self.last_seq.get() {
-                Some(last) if seq > last + 1 => seq - last - 1,
-                Some(_) => 0,
-                None => seq,
-            };
-            self.gaps.set(self.gaps.get() + missed);
-            self.last_seq.set(Some(seq));
-            self.received.set(self.received.get() + 1);
+            self.seqs.saw(s.payload().stamp().seq);
         }
         Ok(sample)
     }
@@ -589,21 +780,11 @@ impl<P: TopicSpec> Inlet<P> {
     /// Sleeps until a sample may have arrived, or `timeout` passes, to the nanosecond;
     /// consumes the wake-ups.
     pub fn wait(&self, timeout: Duration) -> Result<(), BusError> {
-        use iceoryx2::prelude::FileDescriptorBased;
-        // SAFETY: the descriptor is owned by our listener, which outlives the call.
-        let fd = unsafe { self.listener.file_descriptor().native_handle() };
-        let mut fds = [libc::pollfd {
-            fd,
-            events: libc::POLLIN,
-            revents: 0,
-        }];
-        poll_readable(&mut fds, timeout)?;
-        let _ = self.listener.try_wait(|_| {});
-        Ok(())
+        wait_on(&self.listener, timeout)
     }
 
     pub fn received(&self) -> u64 {
-        self.received.get()
+        self.seqs.received.get()
     }
 
     pub fn topic(&self) -> Topic {
@@ -612,12 +793,121 @@ impl<P: TopicSpec> Inlet<P> {
 
     /// This inlet's counter for the latency report.
     pub fn counter(&self) -> TopicCounter {
+        self.seqs.counter(P::TOPIC)
+    }
+}
+
+/// A publisher of a slice topic with its notifier: each sample is a header and 0 to
+/// `capacity` elements, written straight into shared memory by [`SliceOutlet::publish_with`].
+pub struct SliceOutlet<P: SliceTopicSpec> {
+    publisher: Publisher<ipc::Service, [P::Element], P::Header>,
+    notifier: Notifier<ipc::Service>,
+    capacity: usize,
+    next_seq: u64,
+}
+
+impl<P: SliceTopicSpec> SliceOutlet<P> {
+    /// Sends one sample of `len` elements: `write_header` fills the header (its stamp's
+    /// `source_time_ns` and `origin_ns` travel as written; `seq` and `publish_ns` are set
+    /// here), `element(i)` gives element `i`, written in place. Nothing is copied and nothing
+    /// allocated. Returns the stamp the sample went with.
+    pub fn publish_with(
+        &mut self,
+        len: usize,
+        write_header: impl FnOnce(&mut P::Header),
+        element: impl FnMut(usize) -> P::Element,
+    ) -> Result<Stamp, BusError> {
+        let send_err = |e: String| BusError::Send {
+            topic: P::TOPIC.name(),
+            reason: e,
+        };
+        if len > self.capacity {
+            return Err(send_err(format!(
+                "a sample of {len} elements; this session's samples hold at most {}",
+                self.capacity
+            )));
+        }
+        let mut sample = self
+            .publisher
+            .loan_slice_uninit(len)
+            .map_err(|e| send_err(format!("{e:?}")))?;
+        write_header(sample.user_header_mut());
+        let mut sample = sample.write_from_fn(element);
+        let stamp = sample.user_header_mut().stamp_mut();
+        stamp.seq = self.next_seq;
+        stamp.publish_ns = monotonic_ns();
+        let sent = *stamp;
+        sample.send().map_err(|e| send_err(format!("{e:?}")))?;
+        self.notifier
+            .notify()
+            .map_err(|e| send_err(format!("{e:?}")))?;
+        self.next_seq += 1;
+        Ok(sent)
+    }
+
+    /// Sends a copy of `header` and `elements` (for tests and tools; a stage writes in place
+    /// with [`SliceOutlet::publish_with`]).
+    pub fn publish(
+        &mut self,
+        header: &P::Header,
+        elements: &[P::Element],
+    ) -> Result<Stamp, BusError> {
+        self.publish_with(elements.len(), |h| *h = *header, |i| elements[i])
+    }
+
+    /// The most elements a sample holds.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
+    /// This outlet's counter for the latency report.
+    pub fn counter(&self) -> TopicCounter {
         TopicCounter {
             topic: P::TOPIC as u32,
-            role: 1,
-            count: self.received.get(),
-            gaps: self.gaps.get(),
-            last_seq: self.last_seq.get().unwrap_or(u64::MAX),
+            role: 0,
+            count: self.next_seq,
+            gaps: 0,
+            last_seq: self.next_seq.wrapping_sub(1),
         }
+    }
+}
+
+/// A subscriber of a slice topic with its listener; counts like an [`Inlet`].
+pub struct SliceInlet<P: SliceTopicSpec> {
+    subscriber: Subscriber<ipc::Service, [P::Element], P::Header>,
+    listener: Listener<ipc::Service>,
+    seqs: SeqCount,
+}
+
+impl<P: SliceTopicSpec> SliceInlet<P> {
+    /// The next unread sample, zero-copy, or None: `user_header()` is its header, `payload()`
+    /// its elements.
+    pub fn receive(&self) -> Result<Option<ReceivedSlice<P>>, BusError> {
+        let sample = self.subscriber.receive().map_err(|e| BusError::Receive {
+            topic: P::TOPIC.name(),
+            reason: format!("{e:?}"),
+        })?;
+        if let Some(s) = &sample {
+            self.seqs.saw(s.user_header().stamp().seq);
+        }
+        Ok(sample)
+    }
+
+    /// Sleeps until a sample may have arrived, or `timeout` passes; consumes the wake-ups.
+    pub fn wait(&self, timeout: Duration) -> Result<(), BusError> {
+        wait_on(&self.listener, timeout)
+    }
+
+    pub fn received(&self) -> u64 {
+        self.seqs.received.get()
+    }
+
+    pub fn topic(&self) -> Topic {
+        P::TOPIC
+    }
+
+    /// This inlet's counter for the latency report.
+    pub fn counter(&self) -> TopicCounter {
+        self.seqs.counter(P::TOPIC)
     }
 }

@@ -16,10 +16,9 @@ pub const MAX_FINGERS: usize = 5;
 pub const MAX_FINGER_POINTS: usize = 5;
 /// Vertices of the palm polyhedron.
 pub const MAX_PALM_VERTICES: usize = 16;
-/// Blocks a world sample can carry: the most a live session (or a recording) holds.
-pub const MAX_BLOCKS: usize = 128;
-/// Blocks a scene may hold: the block world itself (`simulate`, the benchmarks) takes this
-/// many; a session's scene must also fit the world sample ([`MAX_BLOCKS`]).
+/// Blocks a scene may hold, end to end: the block world (`simulate`, the benchmarks), a live
+/// session's `world` topic (its samples are sized from the scene: a [`WorldHeader`] and one
+/// [`BlockState`] per block), the renderer and a recording.
 pub const MAX_SCENE_BLOCKS: usize = 4096;
 /// Joints of an OpenXR hand (XR_EXT_hand_tracking order).
 pub const OPENXR_JOINTS: usize = 26;
@@ -220,20 +219,24 @@ impl BlockState {
     }
 }
 
-/// `world`: the block world after the steps one hand sample brought (docs/model.md conventions).
+/// `world`: the block world after the steps one hand sample brought (docs/model.md
+/// conventions). On the bus this header travels as the sample's user header and the blocks as
+/// its slice payload, one [`BlockState`] per block of the scene, so a sample is as large as its
+/// scene needs (a 16-block scene sends 1.3 KiB, a 4096-block one 256 KiB) and every reader
+/// reads the stepper's memory in place ([`WorldView`]).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("handblocks::WorldSample")]
-pub struct WorldSample {
+#[type_name("handblocks::WorldHeader")]
+pub struct WorldHeader {
     pub stamp: Stamp,
     /// Fixed steps taken since the world began.
     pub step: u64,
     /// The `hand` sample this state answers (its seq).
     pub hand_seq: u64,
+    /// Blocks that follow the header (the slice's length).
     pub block_count: u32,
     /// Index of the grasped block, or -1.
     pub grasped_block: i32,
-    pub blocks: [BlockState; MAX_BLOCKS],
     /// Check points as drawn: moved to the grasped block's surface where they ended inside it
     /// (docs/model.md R5), otherwise the hand's own. Same layout as the hand sample's.
     pub finger_count: u32,
@@ -241,15 +244,14 @@ pub struct WorldSample {
     pub finger_points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
 }
 
-impl Default for WorldSample {
+impl Default for WorldHeader {
     fn default() -> Self {
-        WorldSample {
+        WorldHeader {
             stamp: Stamp::default(),
             step: 0,
             hand_seq: 0,
             block_count: 0,
             grasped_block: -1,
-            blocks: [BlockState::default(); MAX_BLOCKS],
             finger_count: 0,
             finger_point_count: [0; MAX_FINGERS],
             finger_points: [[[0.0; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
@@ -257,9 +259,71 @@ impl Default for WorldSample {
     }
 }
 
+/// A world sample read in place: the header and the blocks of a received sample (or of a
+/// [`WorldSample`]). Nothing is copied to make one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WorldView<'a> {
+    pub header: &'a WorldHeader,
+    pub blocks: &'a [BlockState],
+}
+
+impl<'a> WorldView<'a> {
+    /// The blocks the header counts (never more than the slice holds).
+    pub fn blocks(&self) -> &'a [BlockState] {
+        &self.blocks[..(self.header.block_count as usize).min(self.blocks.len())]
+    }
+}
+
+impl std::ops::Deref for WorldView<'_> {
+    type Target = WorldHeader;
+    fn deref(&self) -> &WorldHeader {
+        self.header
+    }
+}
+
+/// A world sample held by value: the header and its blocks (what `simulate`, a recording read
+/// back and the tests hold). The header's fields read through it (`world.step`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct WorldSample {
+    pub header: WorldHeader,
+    pub blocks: Vec<BlockState>,
+}
+
 impl WorldSample {
+    /// A sample of `n` default blocks, `block_count` set.
+    pub fn with_blocks(n: usize) -> WorldSample {
+        WorldSample {
+            header: WorldHeader {
+                block_count: n as u32,
+                ..WorldHeader::default()
+            },
+            blocks: vec![BlockState::default(); n],
+        }
+    }
+
+    /// The blocks the header counts.
     pub fn blocks(&self) -> &[BlockState] {
-        &self.blocks[..(self.block_count as usize).min(MAX_BLOCKS)]
+        self.view().blocks()
+    }
+
+    pub fn view(&self) -> WorldView<'_> {
+        WorldView {
+            header: &self.header,
+            blocks: &self.blocks,
+        }
+    }
+}
+
+impl std::ops::Deref for WorldSample {
+    type Target = WorldHeader;
+    fn deref(&self) -> &WorldHeader {
+        &self.header
+    }
+}
+
+impl std::ops::DerefMut for WorldSample {
+    fn deref_mut(&mut self) -> &mut WorldHeader {
+        &mut self.header
     }
 }
 

@@ -26,12 +26,56 @@ mod sealed {
     pub trait Sealed {}
 }
 
+/// A topic whose samples are a fixed header and a slice of elements whose length the
+/// publisher chooses (the `world` topic: a [`WorldHeader`] and one [`BlockState`] per block of
+/// the scene). On the bus the header is iceoryx2's user header and the elements its slice
+/// payload, so a sample is sized from the scene and still read in place.
+pub trait SliceTopicSpec: sealed::Sealed + 'static {
+    /// The fixed part, which carries the stamp.
+    type Header: Stamped + Default;
+    /// One element of the slice.
+    type Element: Copy + std::fmt::Debug + iceoryx2::prelude::ZeroCopySend + 'static;
+    const TOPIC: Topic;
+}
+
 /// Something done once per topic of the table with the topic's types in hand (creating its
 /// service, opening a port of the right sample type), since a loop over [`Topic::ALL`] knows
-/// only the runtime value. [`Topic::visit_each`] calls [`TopicVisitor::visit`] in table order.
+/// only the runtime value. [`Topic::visit_each`] calls [`TopicVisitor::visit`] (or
+/// [`TopicVisitor::visit_slice`] for a slice topic) in table order.
 pub trait TopicVisitor {
     type Error;
     fn visit<P: TopicSpec>(&mut self) -> Result<(), Self::Error>;
+    fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), Self::Error>;
+}
+
+/// The marker's trait impl and visit call of one row: a fixed-size sample, or a header and a
+/// slice of elements (`World: WorldHeader[BlockState]`).
+macro_rules! topic_kind {
+    (spec $topic:ident, $sample:ident) => {
+        impl TopicSpec for $topic {
+            type Sample = $sample;
+            const TOPIC: Topic = Topic::$topic;
+        }
+    };
+    (spec $topic:ident, $sample:ident, $elem:ident) => {
+        impl SliceTopicSpec for $topic {
+            type Header = $sample;
+            type Element = $elem;
+            const TOPIC: Topic = Topic::$topic;
+        }
+    };
+    (visit $v:ident, $topic:ident) => {
+        $v.visit::<topics::$topic>()?
+    };
+    (visit $v:ident, $topic:ident, $elem:ident) => {
+        $v.visit_slice::<topics::$topic>()?
+    };
+    (element $elem:ident) => {
+        Some(std::mem::size_of::<$elem>())
+    };
+    (element) => {
+        None
+    };
 }
 
 /// True when `stage` is one of `stages` (a `const` `contains`).
@@ -54,7 +98,7 @@ macro_rules! topic_table {
         pub enum Topic {
             $(
                 $(#[$doc:meta])*
-                $topic:ident: $sample:ident {
+                $topic:ident: $sample:ident $([$elem:ident])? {
                     name: $name:literal,
                     buffer: $buffer:expr,
                     max_publishers: $max_publishers:expr,
@@ -110,30 +154,38 @@ macro_rules! topic_table {
                 }
             }
 
-            /// The schema (message type) name of the topic's sample type in a recording,
-            /// `handblocks/msg/` and the type's name.
+            /// The schema (message type) name of the topic's samples in a recording,
+            /// `handblocks/msg/` and the topic's name and `Sample` (`WorldSample`).
             pub const fn schema_name(self) -> &'static str {
                 match self {
-                    $(Topic::$topic => concat!("handblocks/msg/", stringify!($sample)),)*
+                    $(Topic::$topic => concat!("handblocks/msg/", stringify!($topic), "Sample"),)*
                 }
             }
 
-            /// The byte size of the topic's sample type.
+            /// The byte size of the topic's sample type; of a slice topic, its header's.
             pub const fn sample_size(self) -> usize {
                 match self {
                     $(Topic::$topic => std::mem::size_of::<$sample>(),)*
                 }
             }
 
+            /// The byte size of one element of a slice topic; None for a fixed-size one.
+            pub const fn element_size(self) -> Option<usize> {
+                match self {
+                    $(Topic::$topic => topic_kind!(element $($elem)?),)*
+                }
+            }
+
             /// Calls `visitor` once per topic, in table order, with the topic's marker type.
             pub fn visit_each<V: TopicVisitor>(visitor: &mut V) -> Result<(), V::Error> {
-                $(visitor.visit::<topics::$topic>()?;)*
+                $(topic_kind!(visit visitor, $topic $(, $elem)?);)*
                 Ok(())
             }
         }
 
         /// The marker type of each topic, for the bus's typed ports: `bus.outlet::<topics::Hand>()`
-        /// is an outlet of `HandSample`s on `hand`. The types have no values.
+        /// is an outlet of `HandSample`s on `hand`; `bus.slice_outlet::<topics::World>(n)` one
+        /// of world headers with `n` block states each. The types have no values.
         pub mod topics {
             use super::*;
             $(
@@ -143,10 +195,7 @@ macro_rules! topic_table {
 
                 impl sealed::Sealed for $topic {}
 
-                impl TopicSpec for $topic {
-                    type Sample = $sample;
-                    const TOPIC: Topic = Topic::$topic;
-                }
+                topic_kind!(spec $topic, $sample $(, $elem)?);
             )*
         }
 
@@ -213,8 +262,9 @@ topic_table! {
             publishers: [Kinematics],
             readers: [Stepper, Renderer, Recorder],
         },
-        /// The blocks' states after each step (the replay reads it to pace itself).
-        World: WorldSample {
+        /// The blocks' states after each step (the replay reads it to pace itself): a header
+        /// and one block state per block of the scene.
+        World: WorldHeader[BlockState] {
             name: "world",
             buffer: 1024,
             max_publishers: 2,
@@ -370,6 +420,12 @@ mod tests {
         );
         assert_eq!(outputs(Stage::Acquisition), [Topic::Glove, Topic::Tracker]);
         assert_eq!(Topic::Hand.schema_name(), "handblocks/msg/HandSample");
+        assert_eq!(Topic::World.schema_name(), "handblocks/msg/WorldSample");
+        assert_eq!(Topic::Hand.element_size(), None);
+        assert_eq!(
+            Topic::World.element_size(),
+            Some(std::mem::size_of::<BlockState>())
+        );
         assert_eq!(
             Topic::Latency.sample_size(),
             std::mem::size_of::<LatencySample>()
@@ -397,6 +453,10 @@ mod tests {
             type Error = ();
             fn visit<P: TopicSpec>(&mut self) -> Result<(), ()> {
                 self.0.push((P::TOPIC, std::mem::size_of::<P::Sample>()));
+                Ok(())
+            }
+            fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), ()> {
+                self.0.push((P::TOPIC, std::mem::size_of::<P::Header>()));
                 Ok(())
             }
         }

@@ -96,7 +96,10 @@ fn run_stage(
     if args.record.is_some() {
         session.recorder.file = args.record;
     }
-    let bus = Bus::open(&BusConfig::for_session(bus_id)?, stage.name())?;
+    // Every process of a session sizes the world topic from the same scene.
+    let config =
+        BusConfig::for_session(bus_id)?.with_world_blocks(session.scene.blocks.len().max(1))?;
+    let bus = Bus::open(&config, stage.name())?;
     match stage {
         Stage::Acquisition => acquisition::service::run(&session, &bus),
         Stage::Kinematics => kinematics::service::run(&session, &bus),

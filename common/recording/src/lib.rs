@@ -8,7 +8,9 @@
 //!   each message is the 4-byte CDR little-endian header followed by the sample's `#[repr(C)]`
 //!   bytes exactly as they travelled. That *is* the sample's CDR serialisation: every field of
 //!   every sample type lies at a multiple of its own size, with no implicit padding, which is
-//!   CDR's alignment rule, and fixed arrays carry no length;
+//!   CDR's alignment rule, and fixed arrays carry no length. A `world` message is its header's
+//!   bytes, then its blocks as a CDR sequence: a uint32 count, 4 bytes of padding (the blocks'
+//!   doubles align to 8) and the [`BlockState`]s ([`slice_message_bytes`]);
 //! * one **schema per sample type**, a ROS 2 message definition ([`SCHEMA_ENCODING`]
 //!   `ros2msg`, named `handblocks/msg/GloveSample`, ...) listing every field with its byte
 //!   offset and size in a comment ([`layout`]): Foxglove and the ROS 2 tools decode and plot
@@ -24,7 +26,7 @@
 use std::fmt::{self, Write as _};
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::mem::{offset_of, size_of};
+use std::mem::{offset_of, size_of, size_of_val};
 use std::path::{Path, PathBuf};
 
 use common::bus::Stamped;
@@ -50,9 +52,23 @@ pub const CHUNK_SPAN_NS: u64 = 500_000_000;
 /// Largest chunk a reader accepts (uncompressed); a bigger one is damage, not a recording.
 pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
 
-/// The schema (message type) name and the sample's byte size of a topic.
+/// The schema (message type) name and the sample's byte size of a topic (of a slice topic, its
+/// header's: see [`slice_message_bytes`]).
 pub fn sample_type(topic: Topic) -> (&'static str, usize) {
     (topic.schema_name(), topic.sample_size())
+}
+
+/// Where a slice topic's elements start in its message (after the CDR header): after the
+/// header, the sequence's uint32 count and the padding that aligns the elements to 8 bytes.
+pub fn slice_elements_offset(topic: Topic) -> usize {
+    (topic.sample_size() + 4).next_multiple_of(8)
+}
+
+/// The bytes of a slice topic's message after the CDR header, with `elements` elements; None
+/// for a fixed-size topic.
+pub fn slice_message_bytes(topic: Topic, elements: usize) -> Option<usize> {
+    let element = topic.element_size()?;
+    Some(slice_elements_offset(topic) + elements * element)
 }
 
 /// One field of a sample layout: where it is and what it holds.
@@ -129,13 +145,13 @@ pub fn fields(struct_name: &str) -> Option<Vec<Field>> {
             finger_radius: "float64[5]",
             palm_vertices: "float64[48]",
         }),
-        "handblocks/msg/WorldSample" => fields!(WorldSample {
+        // The header; `layout` adds the `blocks` sequence that follows it.
+        "handblocks/msg/WorldSample" => fields!(WorldHeader {
             stamp: "handblocks/Stamp",
             step: "uint64",
             hand_seq: "uint64",
             block_count: "uint32",
             grasped_block: "int32",
-            blocks: "handblocks/BlockState[128]",
             finger_count: "uint32",
             finger_point_count: "uint32[5]",
             finger_points: "float64[75]",
@@ -165,9 +181,13 @@ pub fn layout(topic: Topic) -> String {
         }
         let Some(fs) = fields(name) else { continue };
         if done.is_empty() {
+            let what = match topic.element_size() {
+                None => format!("{size} bytes"),
+                Some(_) => format!("a {size}-byte header and a sequence of blocks"),
+            };
             let _ = writeln!(
                 out,
-                "# {name}: {size} bytes after the 4-byte CDR header (little-endian; each field at a \
+                "# {name}: {what} after the 4-byte CDR header (little-endian; each field at a \
                  multiple of its size, so the CDR bytes are the C layout). Metres, world frame, y \
                  up; rotations as unit quaternions [x, y, z, w]; times in nanoseconds."
             );
@@ -193,6 +213,16 @@ pub fn layout(topic: Topic) -> String {
             if let Some(s) = nested {
                 pending.insert(0, (base, s));
             }
+        }
+        // A slice topic's elements follow its header as a CDR sequence.
+        if done.len() == 1 && topic.element_size().is_some() {
+            let _ = writeln!(
+                out,
+                "handblocks/BlockState[] blocks  # count: uint32 @{size}; blocks @{}, {} bytes each",
+                slice_elements_offset(topic),
+                size_of::<BlockState>()
+            );
+            pending.insert(0, ("handblocks/BlockState", size_of::<BlockState>()));
         }
     }
     out
@@ -344,7 +374,9 @@ impl RecordingWriter {
                 CDR_LE_HEADER.len()
                     + RECORDED_TOPICS
                         .iter()
-                        .map(|t| sample_type(*t).1)
+                        .map(|t| {
+                            slice_message_bytes(*t, MAX_SCENE_BLOCKS).unwrap_or(t.sample_size())
+                        })
                         .max()
                         .unwrap_or(0),
             ),
@@ -365,26 +397,71 @@ impl RecordingWriter {
 
     /// Writes one sample of `topic`; closes the chunk when it is full or old enough.
     pub fn write<T: Stamped>(&mut self, topic: Topic, sample: &T) -> Result<(), RecordingError> {
+        if topic.element_size().is_some() || size_of::<T>() != topic.sample_size() {
+            return Err(RecordingError::Write {
+                path: self.path.clone(),
+                error: format!(
+                    "a {}-byte sample is not a `{}` sample (a slice topic is written with \
+                     `write_slice`)",
+                    size_of::<T>(),
+                    topic.name()
+                ),
+            });
+        }
         let channel_id = self.channel_ids[topic as usize];
         let stamp = *sample.stamp();
         // SAFETY: every sample type is #[repr(C)], Copy, and laid out without implicit padding
         // (explicit `_reserved` fields fill it; `layout` lists them), so all bytes are initialised.
         let bytes =
             unsafe { std::slice::from_raw_parts(sample as *const T as *const u8, size_of::<T>()) };
+        self.message.clear();
+        self.message.extend_from_slice(&CDR_LE_HEADER);
+        self.message.extend_from_slice(bytes);
+        self.write_message(&stamp, channel_id)
+    }
+
+    /// Writes one sample of slice topic `topic`: `header`, then `elements` as a CDR sequence
+    /// (count, padding to 8, elements). Copies into the open chunk; allocates nothing for up
+    /// to [`MAX_SCENE_BLOCKS`] elements.
+    pub fn write_slice<H: Stamped, E: Copy>(
+        &mut self,
+        topic: Topic,
+        header: &H,
+        elements: &[E],
+    ) -> Result<(), RecordingError> {
+        let channel_id = self.channel_ids[topic as usize];
+        let stamp = *header.stamp();
+        // SAFETY: as in `write`: #[repr(C)] plain data without implicit padding (BlockState's
+        // `_reserved` fills its gap), so every byte is initialised.
+        let head =
+            unsafe { std::slice::from_raw_parts(header as *const H as *const u8, size_of::<H>()) };
+        let body = unsafe {
+            std::slice::from_raw_parts(elements.as_ptr() as *const u8, size_of_val(elements))
+        };
+        self.message.clear();
+        self.message.extend_from_slice(&CDR_LE_HEADER);
+        self.message.extend_from_slice(head);
+        self.message
+            .extend_from_slice(&(elements.len() as u32).to_le_bytes());
+        let pad = slice_elements_offset(topic) - size_of::<H>() - 4;
+        self.message.extend_from_slice(&[0u8; 8][..pad]);
+        self.message.extend_from_slice(body);
+        self.write_message(&stamp, channel_id)
+    }
+
+    /// Writes `self.message` on `channel_id`; closes the chunk when it is full or old enough.
+    fn write_message(&mut self, stamp: &Stamp, channel_id: u16) -> Result<(), RecordingError> {
         let header = mcap::records::MessageHeader {
             channel_id,
             sequence: stamp.seq as u32,
             log_time: stamp.publish_ns + self.unix_offset_ns,
             publish_time: stamp.origin_ns + self.unix_offset_ns,
         };
-        self.message.clear();
-        self.message.extend_from_slice(&CDR_LE_HEADER);
-        self.message.extend_from_slice(bytes);
         self.mcap
             .write_to_known_channel(&header, &self.message)
             .map_err(|e| self.write_error(e))?;
         self.messages += 1;
-        self.chunk_bytes += bytes.len();
+        self.chunk_bytes += self.message.len() - CDR_LE_HEADER.len();
         let first = *self.chunk_first_publish_ns.get_or_insert(stamp.publish_ns);
         if self.chunk_bytes >= CHUNK_BYTES
             || stamp.publish_ns.saturating_sub(first) >= CHUNK_SPAN_NS
@@ -597,7 +674,31 @@ impl Recording {
         Some(unsafe { std::ptr::read_unaligned(bytes.as_ptr() as *const T) })
     }
 
-    /// The samples of one topic, in file order.
+    /// A `world` message's sample: its header and blocks (None for another topic's message).
+    pub fn world(&self, m: &RecordedMessage) -> Option<WorldSample> {
+        if m.topic != Topic::World || m.len < slice_elements_offset(Topic::World) {
+            return None;
+        }
+        let bytes = self.data.get(m.start..m.start + m.len)?;
+        // SAFETY: the reader checked the size against the sequence's count; plain old data,
+        // read unaligned.
+        let header = unsafe { std::ptr::read_unaligned(bytes.as_ptr() as *const WorldHeader) };
+        let blocks = bytes[slice_elements_offset(Topic::World)..]
+            .chunks_exact(size_of::<BlockState>())
+            .map(|b| unsafe { std::ptr::read_unaligned(b.as_ptr() as *const BlockState) })
+            .collect();
+        Some(WorldSample { header, blocks })
+    }
+
+    /// The `world` samples, in file order.
+    pub fn worlds(&self) -> impl Iterator<Item = WorldSample> + '_ {
+        self.messages
+            .iter()
+            .filter(|m| m.topic == Topic::World)
+            .filter_map(|m| self.world(m))
+    }
+
+    /// The samples of one fixed-size topic, in file order (`world`: [`Recording::worlds`]).
     pub fn samples<T: Stamped>(&self, topic: Topic) -> impl Iterator<Item = T> + '_ {
         self.messages
             .iter()
@@ -712,7 +813,31 @@ impl Reader<'_> {
                     rec.foreign_messages += 1;
                     return Ok(());
                 };
-                let (type_name, size) = sample_type(topic);
+                let (type_name, header_size) = sample_type(topic);
+                let size = match topic.element_size() {
+                    None => header_size,
+                    // A slice topic: its sequence's count says how long it is.
+                    Some(_) => {
+                        let at = CDR_LE_HEADER.len() + header_size;
+                        let count = data
+                            .get(at..at + 4)
+                            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+                        match count {
+                            Some(n) if n <= MAX_SCENE_BLOCKS => {
+                                slice_message_bytes(topic, n).unwrap_or(0)
+                            }
+                            Some(n) => {
+                                return Err(format!(
+                                    "a {} message (seq {}) claims {n} blocks (at most \
+                                     {MAX_SCENE_BLOCKS})",
+                                    topic.name(),
+                                    header.sequence
+                                ))
+                            }
+                            None => header_size + 4,
+                        }
+                    }
+                };
                 if data.len() != CDR_LE_HEADER.len() + size {
                     return Err(format!(
                         "a {} message (seq {}) has {} bytes; {type_name} has {} with its CDR \
@@ -898,7 +1023,9 @@ mod tests {
         }
         let text = layout(Topic::World);
         assert!(
-            text.contains("handblocks/BlockState[128] blocks  # @56, 8192 bytes"),
+            text.contains(
+                "handblocks/BlockState[] blocks  # count: uint32 @680; blocks @688, 64 bytes each"
+            ),
             "{text}"
         );
         assert!(text.contains("MSG: handblocks/BlockState"));
@@ -936,9 +1063,11 @@ mod tests {
             w.write(Topic::Glove, &glove(k, 1_000_000 + k * 1_000_000))
                 .unwrap();
         }
-        let mut world = WorldSample::default();
+        let mut world = WorldSample::with_blocks(3);
         world.stamp.publish_ns = 5;
-        w.write(Topic::World, &world).unwrap();
+        world.blocks[2].pose.position = [1.0, 2.0, 3.0];
+        w.write_slice(Topic::World, &world.header, &world.blocks)
+            .unwrap();
         assert_eq!(w.finish().unwrap(), 2000);
         let rec = Recording::open(&path).unwrap();
         assert!(rec.complete, "{:?}", rec.damage);
@@ -962,7 +1091,8 @@ mod tests {
             stats,
             "stats count every message, kept or not"
         );
-        assert_eq!(worlds.samples::<WorldSample>(Topic::World).count(), 1);
+        let back: Vec<WorldSample> = worlds.worlds().collect();
+        assert_eq!(back, [world], "a world sample reads back as it was written");
         let _ = std::fs::remove_file(&path);
     }
 

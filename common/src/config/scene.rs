@@ -379,26 +379,15 @@ fn unit_quaternion(r: &Reader, key: &'static str) -> Result<[f64; 4], ConfigErro
     Ok(q.map(|v| v / norm))
 }
 
+/// The `[[block]]` tables. A table with `count = [nx, ny, nz]` stands for a lattice of that
+/// many copies, `spacing = [dx, dy, dz]` metres apart, the first at `position`, named
+/// `name_x_y_z` (a 32 x 1 x 32 field of cubes is one table).
 fn blocks(root: &Reader) -> Result<Vec<BlockSpec>, ConfigError> {
     let tables = root.tables("block")?;
-    if tables.len() > MAX_SCENE_BLOCKS {
-        return Err(root.err(
-            "block",
-            format!(
-                "{} blocks; allowed: at most {MAX_SCENE_BLOCKS}",
-                tables.len()
-            ),
-        ));
-    }
-    let mut out: Vec<BlockSpec> = Vec::with_capacity(tables.len());
+    let mut out: Vec<BlockSpec> = Vec::new();
+    let mut names = std::collections::HashSet::new();
     for (i, r) in tables.into_iter().enumerate() {
         let name = r.string("name")?.unwrap_or_else(|| format!("block{i}"));
-        if out.iter().any(|b| b.name == name) {
-            return Err(r.err(
-                "name",
-                format!("{name:?} is used by another block; names must be unique"),
-            ));
-        }
         let shape_kind = r.choice("shape", &["box", "wedge", "tetra", "hull"])?;
         let size = || -> Result<[f64; 3], ConfigError> {
             Ok(r.array::<3>("size", 1e-4..=1e3)?.unwrap_or([0.1, 0.1, 0.1]))
@@ -416,22 +405,76 @@ fn blocks(root: &Reader) -> Result<Vec<BlockSpec>, ConfigError> {
             }
             _ => ShapeSpec::Box { size: size()? },
         };
-        let block = BlockSpec {
-            name,
-            shape,
-            position: r.array::<3>("position", POSITION_RANGE)?.ok_or_else(|| {
-                r.err(
-                    "position",
-                    "required: the centre of gravity [x, y, z] in metres",
-                )
-            })?,
-            rotation: unit_quaternion(&r, "rotation")?,
-            velocity: r
-                .array::<3>("velocity", -1.0e4..=1.0e4)?
-                .unwrap_or([0.0; 3]),
+        let position = r.array::<3>("position", POSITION_RANGE)?.ok_or_else(|| {
+            r.err(
+                "position",
+                "required: the centre of gravity [x, y, z] in metres",
+            )
+        })?;
+        let rotation = unit_quaternion(&r, "rotation")?;
+        let velocity = r
+            .array::<3>("velocity", -1.0e4..=1.0e4)?
+            .unwrap_or([0.0; 3]);
+        let count = r.array::<3>("count", 1.0..=MAX_SCENE_BLOCKS as f64)?;
+        if let Some(c) = count {
+            if c.iter().any(|v| v.fract() != 0.0) {
+                return Err(r.err(
+                    "count",
+                    format!("{c:?}: copies along x, y and z must be whole numbers"),
+                ));
+            }
+        }
+        let count = count.map_or([1usize; 3], |c| c.map(|v| v as usize));
+        let copies = count.iter().product::<usize>();
+        let spacing = r.array::<3>("spacing", 0.0..=1e3)?;
+        let spacing = match (spacing, copies) {
+            (Some(s), _) => s,
+            (None, 1) => [0.0; 3],
+            (None, _) => {
+                return Err(r.err(
+                    "spacing",
+                    "required with `count`: the distance [dx, dy, dz] in metres between \
+                     neighbouring copies' centres",
+                ))
+            }
         };
+        let name_key = r.key("name");
         r.finish()?;
-        out.push(block);
+        if out.len() + copies > MAX_SCENE_BLOCKS {
+            return Err(root.err(
+                "block",
+                format!(
+                    "{} blocks; allowed: at most {MAX_SCENE_BLOCKS}",
+                    out.len() + copies
+                ),
+            ));
+        }
+        for x in 0..count[0] {
+            for y in 0..count[1] {
+                for z in 0..count[2] {
+                    let name = if copies == 1 {
+                        name.clone()
+                    } else {
+                        format!("{name}_{x}_{y}_{z}")
+                    };
+                    if !names.insert(name.clone()) {
+                        return Err(ConfigError::new(
+                            root.file,
+                            name_key,
+                            format!("{name:?} is used by another block; names must be unique"),
+                        ));
+                    }
+                    let at = [x, y, z];
+                    out.push(BlockSpec {
+                        name,
+                        shape: shape.clone(),
+                        position: std::array::from_fn(|k| position[k] + at[k] as f64 * spacing[k]),
+                        rotation,
+                        velocity,
+                    });
+                }
+            }
+        }
     }
     Ok(out)
 }
@@ -615,6 +658,55 @@ mod tests {
         assert_eq!(e.key, "block");
         assert!(
             e.problem.contains("4097 blocks") && e.problem.contains("at most 4096"),
+            "{e}"
+        );
+    }
+
+    /// One table with `count` is a lattice of copies, `spacing` apart, named by their place.
+    #[test]
+    fn a_block_with_count_is_a_lattice_of_copies() {
+        let s = load(
+            "[[block]]\nname = \"cube\"\nsize = [0.04, 0.04, 0.04]\nposition = [0.1, 0.02, -0.2]\n\
+             count = [32, 2, 16]\nspacing = [0.06, 0.05, 0.07]\n\
+             [[block]]\nname = \"lone\"\nposition = [2.0, 0.05, 0.0]\n",
+        )
+        .unwrap();
+        assert_eq!(s.blocks.len(), 32 * 2 * 16 + 1);
+        assert_eq!(s.blocks[0].name, "cube_0_0_0");
+        assert_eq!(s.blocks[0].position, [0.1, 0.02, -0.2]);
+        let last = &s.blocks[1023];
+        assert_eq!(last.name, "cube_31_1_15");
+        let want = [0.1 + 31.0 * 0.06, 0.02 + 0.05, -0.2 + 15.0 * 0.07];
+        for (got, want) in last.position.iter().zip(want) {
+            assert!((got - want).abs() < 1e-12, "{:?}", last.position);
+        }
+        assert_eq!(s.blocks[1024].name, "lone");
+        // Too many copies, fractions, a missing spacing and a clash of names are refused.
+        let e = load(
+            "[[block]]\nposition = [0, 0.05, 0]\ncount = [64, 1, 65]\nspacing = [0.1, 0, 0.1]\n",
+        )
+        .unwrap_err();
+        assert!(
+            e.problem.contains("4160 blocks") && e.problem.contains("at most 4096"),
+            "{e}"
+        );
+        let e = load(
+            "[[block]]\nposition = [0, 0.05, 0]\ncount = [2.5, 1, 1]\nspacing = [0.1, 0, 0]\n",
+        )
+        .unwrap_err();
+        assert_eq!(e.key, "block[0].count");
+        let e = load("[[block]]\nposition = [0, 0.05, 0]\ncount = [2, 1, 1]\n").unwrap_err();
+        assert!(
+            e.key == "block[0].spacing" && e.problem.contains("required with `count`"),
+            "{e}"
+        );
+        let e = load(
+            "[[block]]\nname = \"a\"\nposition = [0, 0.05, 0]\ncount = [2, 1, 1]\nspacing = [0.2, 0, 0]\n\
+             [[block]]\nname = \"a_1_0_0\"\nposition = [1, 0.05, 0]\n",
+        )
+        .unwrap_err();
+        assert!(
+            e.key == "block[1].name" && e.problem.contains("\"a_1_0_0\""),
             "{e}"
         );
     }

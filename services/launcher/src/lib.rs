@@ -205,7 +205,9 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     let session = load_session(opts)?;
     preflight(opts, &session)?;
     let id = opts.bus_id.clone().unwrap_or_else(BusConfig::fresh_id);
-    let bus_config = BusConfig::for_session(&id)?;
+    // The world topic is sized from the scene; every stage opens the bus the same way.
+    let bus_config =
+        BusConfig::for_session(&id)?.with_world_blocks(session.scene.blocks.len().max(1))?;
     shutdown::install_signal_handlers();
     for stale in BusConfig::sweep_abandoned() {
         eprintln!("handblocks: removed the shared memory of abandoned session {stale}");

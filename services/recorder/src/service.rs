@@ -7,10 +7,10 @@
 
 use std::time::Duration;
 
-use common::bus::{wait_any, Bus, BusError, Inlet, Stamped, Wakeable, MAX_WAIT};
+use common::bus::{wait_any, Bus, BusError, Inlet, SliceInlet, Stamped, Wakeable, MAX_WAIT};
 use common::config::Session;
 use common::latency::Reporter;
-use common::topic::{TopicSpec, TopicVisitor};
+use common::topic::{SliceTopicSpec, TopicSpec, TopicVisitor};
 use common::{monotonic_ns, shutdown, topics, Stage, Topic, TopicCounter};
 
 use recording::RecordingWriter;
@@ -66,6 +66,40 @@ impl<P: TopicSpec> Channel for Inlet<P> {
     }
 }
 
+impl<P: SliceTopicSpec> Channel for SliceInlet<P> {
+    fn wakeable(&self) -> &dyn Wakeable {
+        self
+    }
+
+    fn drain(
+        &self,
+        log: &mut Option<RecordingWriter>,
+        reporter: &mut Reporter,
+    ) -> Result<(), Box<dyn std::error::Error>> {
+        while let Some(s) = self.receive()? {
+            let received = monotonic_ns();
+            let stamp = *s.user_header().stamp();
+            reporter.recorder.hop(&stamp, received);
+            if let Some(log) = log {
+                log.write_slice(P::TOPIC, s.user_header(), s.payload())?;
+            }
+            let done = monotonic_ns();
+            reporter
+                .recorder
+                .record(common::latency::Metric::Process, done - received);
+            reporter.recorder.record(
+                common::latency::Metric::Origin,
+                done.saturating_sub(stamp.origin_ns),
+            );
+        }
+        Ok(())
+    }
+
+    fn counter(&self) -> TopicCounter {
+        SliceInlet::counter(self)
+    }
+}
+
 /// Opens an inlet on every topic the recorder reads.
 struct OpenChannels<'b> {
     bus: &'b Bus,
@@ -77,6 +111,12 @@ impl TopicVisitor for OpenChannels<'_> {
     fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
         if P::TOPIC.is_recorded() {
             self.channels.push(Box::new(self.bus.inlet::<P>()?));
+        }
+        Ok(())
+    }
+    fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
+        if P::TOPIC.is_recorded() {
+            self.channels.push(Box::new(self.bus.slice_inlet::<P>()?));
         }
         Ok(())
     }

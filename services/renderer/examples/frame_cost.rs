@@ -35,10 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect(),
         hand: None,
     };
-    let mut world = WorldSample {
-        block_count: blocks as u32,
-        ..Default::default()
-    };
+    let mut world = WorldSample::with_blocks(blocks);
     for (i, b) in world.blocks[..blocks].iter_mut().enumerate() {
         let a = i as f64 * 0.8;
         b.pose.position = [0.3 * a.cos(), 0.03, 0.3 * a.sin()];
@@ -59,7 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let mut t = Vec::new();
             for i in 0..frames + 10 {
                 std::thread::sleep(gap);
-                let f = r.render(wld, &hand)?;
+                let f = r.render(wld.view(), &hand)?;
                 if i >= 10 {
                     t.push((f.done_ns - f.started_ns) as f64 / 1e6);
                 }

@@ -86,14 +86,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         renderer::service::run_with(&s, &bus, settings, None).map_err(|e| e.to_string())
     });
     let frames_in = bus.inlet::<topics::Frame>()?;
-    let mut world_out = bus.outlet::<topics::World>()?;
+    let mut world_out = bus.slice_outlet::<topics::World>()?;
     let mut hand_out = bus.outlet::<topics::Hand>()?;
 
     // Blocks moving on the floor and a hand above them: a typical frame's content.
-    let mut world = WorldSample {
-        block_count: blocks as u32,
-        ..Default::default()
-    };
+    let mut world = WorldSample::with_blocks(blocks);
     let mut hand = HandSample {
         finger_count: 5,
         finger_point_count: [4; 5],
@@ -136,7 +133,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let sent = hand_out.publish(&hand)?;
         world.hand_seq = sent.seq;
         world.stamp = Stamp::at_origin(0, n);
-        world_out.publish(&world)?;
+        world_out.publish(&world.header, &world.blocks)?;
         n += 1;
         while let Some(f) = frames_in.receive()? {
             if start.elapsed() > warmup {

@@ -43,14 +43,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             while std::time::Instant::now() < until
                 && window.pump(&mut r) == renderer::window::WindowStatus::Open
             {
-                r.render(&world, &hand)?;
+                r.render(world.view(), &hand)?;
                 std::thread::sleep(std::time::Duration::from_millis(30));
             }
             r
         }
         None => Renderer::new_headless(&settings, &scene)?,
     };
-    r.render(&world, &hand)?;
+    r.render(world.view(), &hand)?;
     let img = r.read_back()?;
     let dir = out.parent().map(PathBuf::from).unwrap_or_default();
     let paths = write_frame(&dir, 0, output, &img, &mut Image::default())?;
@@ -137,11 +137,8 @@ fn demo() -> (Scene, WorldSample, HandSample) {
         ),
         ([-0.05, 0.32, -0.25], [0.3, 0.2, 0.0, 0.93], BlockMode::Free),
     ];
-    let mut world = WorldSample {
-        block_count: poses.len() as u32,
-        grasped_block: 3,
-        ..Default::default()
-    };
+    let mut world = WorldSample::with_blocks(poses.len());
+    world.grasped_block = 3;
     for (b, (p, q, m)) in world.blocks.iter_mut().zip(poses) {
         let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
         *b = BlockState {

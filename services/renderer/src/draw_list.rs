@@ -1,13 +1,17 @@
 //! What one frame draws, from a world and a hand sample: instances (matrices and colours) and
 //! draw ranges, in buffers kept across frames so that a frame allocates nothing once warm.
 //!
+//! Blocks are drawn instanced: the blocks that share a mesh (the scene's blocks of one shape)
+//! have contiguous instances and one draw call, so a frame's draw calls grow with the shapes
+//! of a scene, not its blocks.
+//!
 //! Anything non-finite in a sample (a NaN pose from a device or a bug upstream) skips that
 //! block, finger segment or palm for the frame instead of drawing garbage or failing.
 
 use std::ops::Range;
 
-use common::samples::{MAX_BLOCKS, MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
-use common::{BlockMode, HandSample, WorldSample};
+use common::samples::{MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
+use common::{BlockMode, HandSample, WorldView};
 use glam::{DQuat, DVec3, Mat4, Vec3};
 use shapes::hull_triangles_into;
 
@@ -35,8 +39,11 @@ pub const DEFAULT_FINGER_RADIUS: f64 = 0.008;
 
 const SEGMENTS: usize = MAX_FINGERS * (MAX_FINGER_POINTS - 1);
 const JOINTS: usize = MAX_FINGERS * MAX_FINGER_POINTS;
-/// Instance slots: floor, palm, blocks, finger segments, finger joints.
-pub const INSTANCE_CAPACITY: usize = 2 + MAX_BLOCKS + SEGMENTS + JOINTS;
+/// Instance slots for a scene of `blocks` blocks: floor, palm, blocks, finger segments, finger
+/// joints.
+pub const fn instance_capacity(blocks: usize) -> usize {
+    2 + blocks + SEGMENTS + JOINTS
+}
 /// The palm's hull: at most one triangle per point triple.
 pub const PALM_VERTEX_CAPACITY: usize =
     3 * MAX_PALM_VERTICES * (MAX_PALM_VERTICES - 1) * (MAX_PALM_VERTICES - 2) / 6;
@@ -44,18 +51,28 @@ pub const PALM_VERTEX_CAPACITY: usize =
 const FLOOR_INSTANCE: u32 = 0;
 const PALM_INSTANCE: u32 = 1;
 
-/// One block draw: its mesh's vertex range and its instance.
+/// One instanced draw of blocks: their shared mesh's vertex range and their instances.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BlockDraw {
     pub vertices: Range<u32>,
-    pub instance: u32,
-    pub mode: BlockMode,
+    pub instances: Range<u32>,
+}
+
+/// The blocks of one mesh, fixed by the scene.
+struct MeshGroup {
+    vertices: Range<u32>,
+    /// Scene indices of its blocks, ascending.
+    blocks: Vec<u32>,
 }
 
 /// A frame's draws.
 pub struct DrawList {
     pub instances: Vec<Instance>,
+    /// One per mesh with a block to draw this frame.
     pub blocks: Vec<BlockDraw>,
+    /// Which instance each block got this frame (u32::MAX: not drawn), in scene order.
+    pub block_instance: Vec<u32>,
+    groups: Vec<MeshGroup>,
     pub floor_instance: u32,
     pub segments: Range<u32>,
     pub joints: Range<u32>,
@@ -66,11 +83,25 @@ pub struct DrawList {
     segment_scratch: Vec<Instance>,
 }
 
-impl Default for DrawList {
-    fn default() -> Self {
+impl DrawList {
+    /// A draw list for a scene whose blocks have these vertex ranges (equal ranges: one mesh,
+    /// drawn instanced); blocks of a world beyond them are not drawn.
+    pub fn new(block_meshes: &[Range<u32>]) -> DrawList {
+        let mut groups: Vec<MeshGroup> = Vec::new();
+        for (i, mesh) in block_meshes.iter().enumerate() {
+            match groups.iter_mut().find(|g| g.vertices == *mesh) {
+                Some(g) => g.blocks.push(i as u32),
+                None => groups.push(MeshGroup {
+                    vertices: mesh.clone(),
+                    blocks: vec![i as u32],
+                }),
+            }
+        }
         DrawList {
-            instances: Vec::with_capacity(INSTANCE_CAPACITY),
-            blocks: Vec::with_capacity(MAX_BLOCKS),
+            instances: Vec::with_capacity(instance_capacity(block_meshes.len())),
+            blocks: Vec::with_capacity(groups.len()),
+            block_instance: vec![u32::MAX; block_meshes.len()],
+            groups,
             floor_instance: FLOOR_INSTANCE,
             segments: 0..0,
             joints: 0..0,
@@ -96,42 +127,49 @@ fn finite3(p: &[f64; 3]) -> Option<DVec3> {
 }
 
 impl DrawList {
-    /// Fills the list for `world` and `hand`; `block_meshes` are the scene's blocks' vertex
-    /// ranges (blocks beyond them are not drawn).
-    pub fn build(&mut self, world: &WorldSample, hand: &HandSample, block_meshes: &[Range<u32>]) {
+    /// Fills the list for `world` and `hand`.
+    pub fn build(&mut self, world: WorldView<'_>, hand: &HandSample) {
         self.instances.clear();
         self.blocks.clear();
+        self.block_instance.fill(u32::MAX);
         self.instances
             .push(instance(Mat4::IDENTITY, [0.0; 3], false));
         self.instances.push(instance(Mat4::IDENTITY, SKIN, false));
 
-        for (i, b) in world.blocks().iter().enumerate() {
-            let Some(mesh) = block_meshes.get(i) else {
-                break;
-            };
-            if !b.pose.is_finite() {
-                continue;
+        let states = world.blocks();
+        for g in &self.groups {
+            let start = self.instances.len() as u32;
+            for &i in &g.blocks {
+                let Some(b) = states.get(i as usize) else {
+                    break; // ascending: the rest are past the world's blocks too
+                };
+                if !b.pose.is_finite() {
+                    continue;
+                }
+                let q = DQuat::from_array(b.pose.rotation);
+                let len = q.length();
+                if !(len > 0.5 && len < 2.0) {
+                    continue; // not a rotation: skip rather than draw a sheared block
+                }
+                let model = Mat4::from_rotation_translation(
+                    (q / len).as_quat(),
+                    DVec3::from_array(b.pose.position).as_vec3(),
+                );
+                let mode = if world.grasped_block == i as i32 {
+                    BlockMode::Grasped
+                } else {
+                    b.mode()
+                };
+                self.block_instance[i as usize] = self.instances.len() as u32;
+                self.instances.push(instance(model, mode_color(mode), true));
             }
-            let q = DQuat::from_array(b.pose.rotation);
-            let len = q.length();
-            if !(len > 0.5 && len < 2.0) {
-                continue; // not a rotation: skip rather than draw a sheared block
+            let end = self.instances.len() as u32;
+            if end > start {
+                self.blocks.push(BlockDraw {
+                    vertices: g.vertices.clone(),
+                    instances: start..end,
+                });
             }
-            let model = Mat4::from_rotation_translation(
-                (q / len).as_quat(),
-                DVec3::from_array(b.pose.position).as_vec3(),
-            );
-            let mode = if world.grasped_block == i as i32 {
-                BlockMode::Grasped
-            } else {
-                b.mode()
-            };
-            self.blocks.push(BlockDraw {
-                vertices: mesh.clone(),
-                instance: self.instances.len() as u32,
-                mode,
-            });
-            self.instances.push(instance(model, mode_color(mode), true));
         }
 
         // Fingers as drawn: the world's (relocated onto a grasped block's surface, docs/model.md
@@ -228,11 +266,10 @@ mod tests {
     use super::*;
     use common::BlockState;
 
+    use common::WorldSample;
+
     fn world_with(n: usize) -> WorldSample {
-        let mut w = WorldSample {
-            block_count: n as u32,
-            ..Default::default()
-        };
+        let mut w = WorldSample::with_blocks(n);
         for i in 0..n {
             w.blocks[i] = BlockState {
                 pose: common::Pose {
@@ -264,10 +301,12 @@ mod tests {
             [0.0; 3],
             [0.0; 3],
         ];
-        let mut d = DrawList::default();
-        d.build(&w, &h, &meshes);
+        let mut d = DrawList::new(&meshes);
+        d.build(w.view(), &h);
         assert_eq!(d.blocks.len(), 1);
         assert_eq!(d.blocks[0].vertices, 0..36);
+        assert_eq!(d.blocks[0].instances.len(), 1);
+        assert_eq!(d.block_instance[1..], [u32::MAX, u32::MAX]);
         assert_eq!(d.joints.len(), 2); // the NaN point is skipped
         assert_eq!(d.segments.len(), 0); // both segments touch it
     }
@@ -285,9 +324,10 @@ mod tests {
             ..Default::default()
         };
         h.finger_point_count = [2, 2, 0, 0, 0];
-        let mut d = DrawList::default();
-        d.build(&w, &h, &[0..3, 3..6]);
-        assert_eq!(d.blocks[1].mode, BlockMode::Grasped);
+        let mut d = DrawList::new(&[0..3, 3..6]);
+        d.build(w.view(), &h);
+        let grasped = &d.instances[d.block_instance[1] as usize];
+        assert_eq!(grasped.color[..3], mode_color(BlockMode::Grasped));
         assert_eq!(d.joints.len(), 2);
         assert_eq!(d.segments.len(), 1);
         let m = Mat4::from_cols_array_2d(&d.instances[d.segments.start as usize].model);
@@ -296,9 +336,35 @@ mod tests {
         assert!(m.determinant() > 0.0);
     }
 
+    /// Blocks that share a mesh are one draw with contiguous instances, whatever their order
+    /// in the scene; each keeps its own pose and colour.
+    #[test]
+    fn blocks_of_one_mesh_are_one_instanced_draw() {
+        let n = 4096;
+        let mut w = world_with(n);
+        w.blocks[7].mode = BlockMode::Free as u32;
+        // Every third block another shape.
+        let meshes: Vec<_> = (0..n)
+            .map(|i| if i % 3 == 0 { 36..72 } else { 0..36 })
+            .collect();
+        let mut d = DrawList::new(&meshes);
+        d.build(w.view(), &HandSample::default());
+        assert_eq!(d.blocks.len(), 2, "two meshes, two draws");
+        assert_eq!(d.blocks[0].vertices, 36..72);
+        assert_eq!(d.blocks[0].instances.len(), n.div_ceil(3));
+        assert_eq!(d.blocks[1].instances.len(), n - n.div_ceil(3));
+        for (i, b) in w.blocks.iter().enumerate() {
+            let inst = &d.instances[d.block_instance[i] as usize];
+            let m = Mat4::from_cols_array_2d(&inst.model);
+            let p = m.transform_point3(Vec3::ZERO);
+            assert!((p.x as f64 - b.pose.position[0]).abs() < 1e-3, "block {i}");
+            assert_eq!(inst.color[..3], mode_color(b.mode()), "block {i}");
+        }
+    }
+
     #[test]
     fn a_frame_allocates_nothing_once_warm() {
-        let w = world_with(MAX_BLOCKS);
+        let w = world_with(common::MAX_SCENE_BLOCKS);
         let mut h = HandSample {
             finger_count: 5,
             finger_point_count: [5; 5],
@@ -317,13 +383,15 @@ mod tests {
                 h.finger_points[f][k] = [f as f64 * 0.02, 0.2, k as f64 * 0.02];
             }
         }
-        let meshes: Vec<_> = (0..MAX_BLOCKS as u32).map(|i| i * 3..i * 3 + 3).collect();
-        let mut d = DrawList::default();
+        let meshes: Vec<_> = (0..common::MAX_SCENE_BLOCKS as u32)
+            .map(|i| i * 3..i * 3 + 3)
+            .collect();
+        let mut d = DrawList::new(&meshes);
         let caps = (d.instances.capacity(), d.palm_vertices.capacity());
-        d.build(&w, &h, &meshes);
-        d.build(&w, &h, &meshes);
+        d.build(w.view(), &h);
+        d.build(w.view(), &h);
         assert_eq!((d.instances.capacity(), d.palm_vertices.capacity()), caps);
-        assert!(d.instances.len() <= INSTANCE_CAPACITY);
+        assert!(d.instances.len() <= instance_capacity(meshes.len()));
         assert!(!d.palm_vertices.is_empty());
     }
 }

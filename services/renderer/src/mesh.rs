@@ -37,7 +37,9 @@ pub struct Meshes {
     pub grid: Range<u32>,
     pub cylinder: Range<u32>,
     pub sphere: Range<u32>,
-    /// One per scene block, in scene order.
+    /// One per scene block, in scene order. Blocks of the same shape share one range, so that
+    /// the draw list draws them as instances of one mesh (a field of 4096 equal cubes is one
+    /// draw call).
     pub blocks: Vec<Range<u32>>,
 }
 
@@ -56,9 +58,17 @@ impl Meshes {
         let cylinder = push(&mut vertices, cylinder_triangles(12));
         let sphere = push(&mut vertices, sphere_triangles(12, 6));
         let mut blocks = Vec::with_capacity(shapes.len());
+        // Each distinct shape once: scenes hold few (a linear search over them is enough).
+        let mut distinct: Vec<(&ShapeSpec, Range<u32>)> = Vec::new();
         for (i, s) in shapes.iter().enumerate() {
+            if let Some((_, range)) = distinct.iter().find(|(d, _)| d == s) {
+                blocks.push(range.clone());
+                continue;
+            }
             let solid = Solid::from_spec(s).map_err(|problem| ShapeError { block: i, problem })?;
-            blocks.push(push(&mut vertices, solid_triangles(&solid)));
+            let range = push(&mut vertices, solid_triangles(&solid));
+            distinct.push((s, range.clone()));
+            blocks.push(range);
         }
         Ok(Meshes {
             vertices,

@@ -10,12 +10,12 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use common::config::scene::Scene;
-use common::{monotonic_ns, HandSample, WorldSample};
+use common::{monotonic_ns, HandSample, WorldView};
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
 use crate::camera::{stereo, EyeView};
-use crate::draw_list::{DrawList, INSTANCE_CAPACITY, PALM_VERTEX_CAPACITY};
+use crate::draw_list::{instance_capacity, DrawList, PALM_VERTEX_CAPACITY};
 use crate::error::RenderError;
 use crate::image::Image;
 use crate::mesh::{Meshes, Vertex};
@@ -239,7 +239,7 @@ impl Renderer {
         });
         let instance_buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("instances"),
-            size: (INSTANCE_CAPACITY * std::mem::size_of::<Instance>()) as u64,
+            size: (instance_capacity(meshes.blocks.len()) * std::mem::size_of::<Instance>()) as u64,
             usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -271,6 +271,7 @@ impl Renderer {
             }
         });
         let info = adapter.get_info();
+        let list = DrawList::new(&meshes.blocks);
         Ok(Renderer {
             settings: settings.clone(),
             adapter_name: format!("{} ({:?}, {:?})", info.name, info.device_type, info.backend),
@@ -286,7 +287,7 @@ impl Renderer {
             palm_buf,
             instance_buf,
             meshes,
-            list: DrawList::default(),
+            list,
             eye_views,
             anaglyph,
             presenter: None,
@@ -326,11 +327,11 @@ impl Renderer {
     /// Draws one frame of `world` and `hand` and waits until the GPU has finished it.
     pub fn render(
         &mut self,
-        world: &WorldSample,
+        world: WorldView<'_>,
         hand: &HandSample,
     ) -> Result<FrameTimes, RenderError> {
         let started_ns = monotonic_ns();
-        self.list.build(world, hand, &self.meshes.blocks);
+        self.list.build(world, hand);
         let list = &self.list;
         self.queue
             .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&list.instances));
@@ -396,7 +397,7 @@ impl Renderer {
                         continue;
                     }
                     for b in &list.blocks {
-                        pass.draw(b.vertices.clone(), b.instance..b.instance + 1);
+                        pass.draw(b.vertices.clone(), b.instances.clone());
                     }
                     if !list.segments.is_empty() {
                         pass.draw(self.meshes.cylinder.clone(), list.segments.clone());

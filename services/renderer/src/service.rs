@@ -15,10 +15,13 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use common::bus::Bus;
+use common::bus::ReceivedSlice;
 use common::config::session::RenderMode;
 use common::config::Session;
 use common::latency::{Metric, Reporter};
-use common::{monotonic_ns, shutdown, topics, FrameSample, HandSample, Stage, Stamp, WorldSample};
+use common::{
+    monotonic_ns, shutdown, topics, FrameSample, HandSample, Stage, Stamp, WorldHeader, WorldView,
+};
 
 use crate::error::RenderError;
 use crate::image::Image;
@@ -87,9 +90,14 @@ pub fn run_with_preview(
     // bus: the launcher starts the source once every reader is attached, so no world sample
     // waits behind this.
     if let Some(r) = renderer.as_mut() {
-        r.render(&WorldSample::default(), &HandSample::default())?;
+        let empty = WorldHeader::default();
+        let nothing = WorldView {
+            header: &empty,
+            blocks: &[],
+        };
+        r.render(nothing, &HandSample::default())?;
     }
-    let world_in = bus.inlet::<topics::World>()?;
+    let world_in = bus.slice_inlet::<topics::World>()?;
     let hand_in = bus.inlet::<topics::Hand>()?;
     let mut frame_out = bus.outlet::<topics::Frame>()?;
     let mut reporter = Reporter::new(Stage::Renderer, bus.outlet::<topics::Latency>()?);
@@ -104,8 +112,9 @@ pub fn run_with_preview(
 
     let period_ns = (1e9 / session.budget.frame_hz) as u64;
     let mut next_frame = monotonic_ns() + period_ns;
-    let mut newest: Option<Stamp> = None; // the newest world's stamp
-    let mut world = Box::<WorldSample>::default();
+    let mut newest: Option<Stamp> = None; // the newest world's stamp, while it is undrawn
+                                          // The newest world sample, held in place (read from the stepper's memory, not copied).
+    let mut world: Option<ReceivedSlice<topics::World>> = None;
     let mut hands = Box::new([HandSample::default(); HAND_HISTORY]);
     let mut hand_next = 0usize;
     let mut superseded = 0u64;
@@ -125,12 +134,14 @@ pub fn run_with_preview(
         }
         while let Some(s) = world_in.receive()? {
             let received = monotonic_ns();
-            reporter.recorder.hop(&s.stamp, received);
+            let stamp = s.user_header().stamp;
+            reporter.recorder.hop(&stamp, received);
             if newest.is_some() {
                 superseded += 1;
             }
-            newest = Some(s.stamp);
-            *world = *s.payload();
+            newest = Some(stamp);
+            // The one it replaces goes back to the stepper.
+            world = Some(s);
         }
         while let Some(s) = hand_in.receive()? {
             reporter.recorder.hop(&s.stamp, monotonic_ns());
@@ -151,12 +162,16 @@ pub fn run_with_preview(
             } else {
                 next_frame + period_ns
             };
-            if let Some(stamp) = newest.take() {
+            if let (Some(stamp), Some(world)) = (newest.take(), &world) {
                 let started = monotonic_ns();
                 let mut done = started;
                 if let Some(r) = &mut renderer {
-                    let hand = matching_hand(&hands[..hand_next.min(HAND_HISTORY)], &world);
-                    let times = r.render(&world, hand)?;
+                    let view = WorldView {
+                        header: world.user_header(),
+                        blocks: world.payload(),
+                    };
+                    let hand = matching_hand(&hands[..hand_next.min(HAND_HISTORY)], view.header);
+                    let times = r.render(view, hand)?;
                     done = times.done_ns;
                     if let (Some(w), Some(f)) = (&mut writer, &frames) {
                         if frame_no.is_multiple_of(u64::from(f.every_nth.max(1))) {
@@ -204,7 +219,7 @@ pub fn run_with_preview(
 }
 
 /// The hand sample the world answers (its `hand_seq`), else the newest one.
-pub fn matching_hand<'a>(hands: &'a [HandSample], world: &WorldSample) -> &'a HandSample {
+pub fn matching_hand<'a>(hands: &'a [HandSample], world: &WorldHeader) -> &'a HandSample {
     static EMPTY: std::sync::OnceLock<HandSample> = std::sync::OnceLock::new();
     hands
         .iter()

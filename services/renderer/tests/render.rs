@@ -60,10 +60,7 @@ fn scene(n: usize) -> Scene {
 
 /// A world of blocks at `positions`, all in `mode`.
 fn world(positions: &[[f64; 3]], mode: BlockMode) -> WorldSample {
-    let mut w = WorldSample {
-        block_count: positions.len() as u32,
-        ..Default::default()
-    };
+    let mut w = WorldSample::with_blocks(positions.len());
     for (b, p) in w.blocks.iter_mut().zip(positions) {
         *b = BlockState {
             pose: Pose {
@@ -85,7 +82,7 @@ fn renderer(s: &RenderSettings, blocks: usize) -> Renderer {
 }
 
 fn draw(r: &mut Renderer, w: &WorldSample, h: &HandSample) -> Image {
-    r.render(w, h).unwrap();
+    r.render(w.view(), h).unwrap();
     r.read_back().unwrap()
 }
 
@@ -224,7 +221,7 @@ fn fingers_are_drawn_where_the_world_relocated_them_and_the_palm_where_the_hand_
     // The hand's own points: 12 cm to the right of the block; the world's, on its left face.
     hand.finger_points[0][0] = [0.12, 0.09, 0.3];
     hand.finger_points[0][1] = [0.12, 0.11, 0.3];
-    let mut w = base;
+    let mut w = base.clone();
     w.finger_count = 1;
     w.finger_point_count[0] = 2;
     w.finger_points[0][0] = [-0.03, 0.09, 0.3];
@@ -427,7 +424,7 @@ fn the_default_camera_sees_the_blocks_around_the_origin_and_the_hand_above() {
         }
     }
     let t = r
-        .render(&WorldSample::default(), &HandSample::default())
+        .render(WorldSample::default().view(), &HandSample::default())
         .unwrap();
     assert!(t.done_ns >= t.submitted_ns && t.submitted_ns >= t.started_ns);
 }

@@ -74,12 +74,9 @@ fn the_loop_draws_the_newest_world_publishes_photon_and_writes_every_nth_frame()
         renderer::service::run_with(&s, &bus, settings, Some(req)).map_err(|e| e.to_string())
     });
     let frames_in = bus.inlet::<topics::Frame>().unwrap();
-    let mut world_out = bus.outlet::<topics::World>().unwrap();
+    let mut world_out = bus.slice_outlet::<topics::World>().unwrap();
     // 1 s of worlds at 120 Hz; the renderer draws at 60 Hz, so about every other is superseded.
-    let mut w = WorldSample {
-        block_count: 1,
-        ..Default::default()
-    };
+    let mut w = WorldSample::with_blocks(1);
     w.blocks[0].pose.position = [0.0, 0.03, 0.0];
     w.blocks[0].pose.rotation = [0.0, 0.0, 0.0, 1.0];
     w.blocks[0].mode = BlockMode::Resting as u32;
@@ -89,7 +86,7 @@ fn the_loop_draws_the_newest_world_publishes_photon_and_writes_every_nth_frame()
     while start.elapsed() < Duration::from_secs(1) {
         w.stamp = Stamp::at_origin(0, n);
         w.blocks[0].pose.position[0] = 0.1 * (n as f64 * 0.05).sin();
-        world_out.publish(&w).unwrap();
+        world_out.publish(&w.header, &w.blocks).unwrap();
         n += 1;
         while let Some(f) = frames_in.receive().unwrap() {
             frames.push(*f.payload());

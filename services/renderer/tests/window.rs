@@ -35,16 +35,13 @@ fn window_mode_draws_with_a_display_and_explains_itself_without_one() {
     match Renderer::new_window(&settings, &scene) {
         Ok((mut r, mut window)) => {
             assert!(has_display);
-            let mut w = WorldSample {
-                block_count: 1,
-                ..Default::default()
-            };
+            let mut w = WorldSample::with_blocks(1);
             w.blocks[0].pose.position = [0.0, 0.03, 0.0];
             w.blocks[0].pose.rotation = [0.0, 0.0, 0.0, 1.0];
             w.blocks[0].mode = BlockMode::Grasped as u32;
             for _ in 0..20 {
                 assert_eq!(window.pump(&mut r), WindowStatus::Open);
-                r.render(&w, &HandSample::default()).unwrap();
+                r.render(w.view(), &HandSample::default()).unwrap();
             }
             let img = r.read_back().unwrap();
             assert_eq!((img.width, img.height), (160, 120));

@@ -56,7 +56,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     let mut glove_out = bus.outlet::<topics::Glove>()?;
     let mut tracker_out = bus.outlet::<topics::Tracker>()?;
     let mut joints_out = bus.outlet::<topics::Joints>()?;
-    let world_in = bus.inlet::<topics::World>()?;
+    let world_in = bus.slice_inlet::<topics::World>()?;
     let mut reporter = Reporter::new(Stage::Replay, bus.outlet::<topics::Latency>()?);
     let mut answered: Option<u64> = None; // the newest hand seq a world state answered
     let mut hands_sent: u64 = 0;
@@ -90,7 +90,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             {
                 world_in.wait(Duration::from_millis(20))?;
                 while let Some(w) = world_in.receive()? {
-                    answered = Some(w.hand_seq);
+                    answered = Some(w.user_header().hand_seq);
                 }
             }
         }
@@ -123,7 +123,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         }
         // Keep up with the world's answers (speed 0 paces on them).
         while let Some(w) = world_in.receive()? {
-            answered = Some(w.hand_seq);
+            answered = Some(w.user_header().hand_seq);
         }
         reporter.maybe_report(&[
             glove_out.counter(),

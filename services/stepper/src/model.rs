@@ -9,7 +9,7 @@
 
 use common::config::scene::{ModelKind, Stacking};
 use common::config::Scene;
-use common::{HandSample, WorldSample};
+use common::{BlockState, HandSample, WorldHeader, WorldSample};
 
 use crate::precise::PreciseWorld;
 use crate::world::{BlockView, Event, World, WorldError};
@@ -65,11 +65,27 @@ impl Model {
         }
     }
 
-    /// Fills the `world` sample (see [`World::write_sample`]).
+    /// Fills the `world` sample held by value (see [`World::write_sample`]).
     pub fn write_sample(&self, out: &mut WorldSample) {
         match self {
             Model::Paper(w) => w.write_sample(out),
             Model::Precise(w) => w.write_sample(out),
+        }
+    }
+
+    /// The `world` sample's header (see [`World::write_header`]).
+    pub fn write_header(&self, out: &mut WorldHeader) {
+        match self {
+            Model::Paper(w) => w.write_header(out),
+            Model::Precise(w) => w.write_header(out),
+        }
+    }
+
+    /// Block `i`'s state in the `world` sample.
+    pub fn block_state(&self, i: usize) -> BlockState {
+        match self {
+            Model::Paper(w) => w.block_state(i),
+            Model::Precise(w) => w.block_state(i),
         }
     }
 

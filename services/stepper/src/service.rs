@@ -13,7 +13,7 @@ use crate::timeline::Timeline;
 use common::bus::Bus;
 use common::config::Session;
 use common::latency::Reporter;
-use common::{monotonic_ns, shutdown, topics, HandSample, Stage, Stamp, WorldSample};
+use common::{monotonic_ns, shutdown, topics, HandSample, Stage, Stamp};
 
 const IDLE_WAIT: Duration = Duration::from_millis(50);
 /// Events kept for the session's outcome (grasps, releases, landings: a few per second); past
@@ -37,10 +37,18 @@ pub fn run_with_outcome(
     let mut events: Vec<crate::world::Event> = Vec::with_capacity(OUTCOME_EVENTS);
     let mut events_not_kept = 0u64;
     let hand_in = bus.inlet::<topics::Hand>()?;
-    let mut world_out = bus.outlet::<topics::World>()?;
+    let mut world_out = bus.slice_outlet::<topics::World>()?;
+    if world.block_count() > world_out.capacity() {
+        return Err(format!(
+            "the scene has {} blocks but this session's world samples hold {} (every process \
+             of a session sizes its bus from the same scene)",
+            world.block_count(),
+            world_out.capacity()
+        )
+        .into());
+    }
     let mut reporter = Reporter::new(Stage::Stepper, bus.outlet::<topics::Latency>()?);
     let mut timeline = Timeline::new(session.scene.world.step_hz);
-    let mut out = Box::<WorldSample>::default();
     loop {
         let stopping = shutdown::requested();
         if !stopping {
@@ -67,11 +75,16 @@ pub fn run_with_outcome(
                     }
                 });
             }
-            world.write_sample(&mut out);
-            out.stamp = Stamp::derived(0, &hand.stamp);
-            out.hand_seq = hand.stamp.seq;
-            out.step = world.steps();
-            let sent = world_out.publish(&out)?;
+            // Written straight into the sample's shared memory: no copy of the world.
+            let sent = world_out.publish_with(
+                world.block_count(),
+                |header| {
+                    world.write_header(header);
+                    header.stamp = Stamp::derived(0, &hand.stamp);
+                    header.hand_seq = hand.stamp.seq;
+                },
+                |i| world.block_state(i),
+            )?;
             reporter.recorder.output(received, &sent);
         }
         let counters = [hand_in.counter(), world_out.counter()];

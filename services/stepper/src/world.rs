@@ -16,7 +16,7 @@ use glam::{DQuat, DVec3};
 
 use common::config::scene::{FloorEffect, HandEffect, Stacking};
 use common::config::Scene;
-use common::{BlockMode, HandSample, WorldSample, MAX_BLOCKS, MAX_SCENE_BLOCKS};
+use common::{BlockMode, BlockState, HandSample, Pose, WorldHeader, WorldSample, MAX_SCENE_BLOCKS};
 
 use crate::block_set::BlockSet;
 use crate::body::{Block, HandAction, Moved};
@@ -334,25 +334,41 @@ impl World {
         self.prev_hand = hand.filter(|h| is_usable(h)).copied();
     }
 
-    /// Block poses (pose of G), modes, the grasped block and the check points as drawn (R5's
-    /// relocated finger points). Leaves `out.stamp` and `out.hand_seq` alone.
-    pub fn write_sample(&self, out: &mut WorldSample) {
+    /// The `world` sample's header: steps, block count, the grasped block and the check points
+    /// as drawn (R5's relocated finger points). Leaves `stamp` and `hand_seq` alone.
+    pub fn write_header(&self, out: &mut WorldHeader) {
         out.step = self.steps;
-        // The sample carries the first MAX_BLOCKS; a larger world runs in `simulate` and the
-        // benchmarks, and a session refuses one before it starts (`Session::load`).
-        out.block_count = self.blocks.len().min(MAX_BLOCKS) as u32;
-        out.grasped_block = -1;
-        for (i, b) in self.blocks.iter().take(MAX_BLOCKS).enumerate() {
-            out.blocks[i].pose.position = b.pos.to_array();
-            out.blocks[i].pose.rotation = b.rot.to_array();
-            out.blocks[i].mode = b.mode as u32;
-            if b.mode == BlockMode::Grasped && out.grasped_block < 0 {
-                out.grasped_block = i as i32;
-            }
-        }
+        out.block_count = self.blocks.len() as u32;
+        out.grasped_block = self
+            .blocks
+            .iter()
+            .position(|b| b.mode == BlockMode::Grasped)
+            .map_or(-1, |i| i as i32);
         out.finger_count = self.fingers.count;
         out.finger_point_count = self.fingers.point_count;
         out.finger_points = self.fingers.points;
+    }
+
+    /// Block `i`'s state in the `world` sample: the pose of G and the mode.
+    pub fn block_state(&self, i: usize) -> BlockState {
+        let b = &self.blocks[i];
+        BlockState {
+            pose: Pose {
+                position: b.pos.to_array(),
+                rotation: b.rot.to_array(),
+            },
+            mode: b.mode as u32,
+            _reserved: 0,
+        }
+    }
+
+    /// The whole `world` sample, held by value ([`World::write_header`] and each
+    /// [`World::block_state`]); allocates only when the sample's block vector must grow.
+    pub fn write_sample(&self, out: &mut WorldSample) {
+        self.write_header(&mut out.header);
+        out.blocks.clear();
+        out.blocks
+            .extend((0..self.blocks.len()).map(|i| self.block_state(i)));
     }
 
     /// Fixed steps taken since the world began.

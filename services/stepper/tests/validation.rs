@@ -141,8 +141,11 @@ fn world_sample_carries_poses_modes_and_no_grasp() {
         w.step(None);
     }
     let mut out = common::WorldSample {
-        hand_seq: 77,
-        ..Default::default()
+        header: common::WorldHeader {
+            hand_seq: 77,
+            ..Default::default()
+        },
+        blocks: Vec::new(),
     };
     out.stamp.seq = 5;
     w.write_sample(&mut out);
@@ -151,7 +154,9 @@ fn world_sample_carries_poses_modes_and_no_grasp() {
     assert_eq!(out.step, 100);
     assert_eq!(out.block_count, 2);
     assert_eq!(out.grasped_block, -1);
+    assert_eq!(out.blocks.len(), 2);
     assert_eq!(out.blocks[0].mode(), common::BlockMode::Resting);
+    assert_eq!(out.blocks[0], w.block_state(0));
     assert_eq!(w.block_names().collect::<Vec<_>>(), ["cube", "post"]);
     assert_eq!(w.steps(), 100);
 }

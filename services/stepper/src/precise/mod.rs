@@ -32,7 +32,10 @@ use rapier3d_f64::prelude::{
 
 use common::config::scene::{FloorEffect, HandEffect, PreciseSettings, ShapeSpec};
 use common::config::Scene;
-use common::{BlockMode, HandSample, WorldSample, MAX_BLOCKS, MAX_FINGERS, MAX_FINGER_POINTS};
+use common::{
+    BlockMode, BlockState, HandSample, Pose, WorldHeader, WorldSample, MAX_FINGERS,
+    MAX_FINGER_POINTS,
+};
 
 use crate::geometry::Polyhedron;
 use crate::world::{BlockView, Event, EventKind, Fingers, WorldError};
@@ -313,26 +316,42 @@ impl PreciseWorld {
         });
     }
 
-    /// Block poses (pose of G), modes, the grasped block and the hand's check points as they
-    /// are (the engine keeps fingers outside blocks by pushing the blocks, not by relocating
-    /// the fingers). Leaves `out.stamp` and `out.hand_seq` alone.
-    pub fn write_sample(&self, out: &mut WorldSample) {
+    /// The `world` sample's header: steps, block count, the grasped block and the hand's check
+    /// points as they are (the engine keeps fingers outside blocks by pushing the blocks, not
+    /// by relocating the fingers). Leaves `stamp` and `hand_seq` alone.
+    pub fn write_header(&self, out: &mut WorldHeader) {
         out.step = self.steps;
-        // The sample carries the first MAX_BLOCKS (see `World::write_sample`).
-        out.block_count = self.blocks.len().min(MAX_BLOCKS) as u32;
-        out.grasped_block = -1;
-        for (i, b) in self.blocks.iter().take(MAX_BLOCKS).enumerate() {
-            let body = &self.physics.bodies[b.body];
-            out.blocks[i].pose.position = body.translation().to_array();
-            out.blocks[i].pose.rotation = body.rotation().to_array();
-            out.blocks[i].mode = b.mode as u32;
-            if b.mode == BlockMode::Grasped && out.grasped_block < 0 {
-                out.grasped_block = i as i32;
-            }
-        }
+        out.block_count = self.blocks.len() as u32;
+        out.grasped_block = self
+            .blocks
+            .iter()
+            .position(|b| b.mode == BlockMode::Grasped)
+            .map_or(-1, |i| i as i32);
         out.finger_count = self.fingers.count;
         out.finger_point_count = self.fingers.point_count;
         out.finger_points = self.fingers.points;
+    }
+
+    /// Block `i`'s state in the `world` sample: its body's pose and the mode.
+    pub fn block_state(&self, i: usize) -> BlockState {
+        let b = &self.blocks[i];
+        let body = &self.physics.bodies[b.body];
+        BlockState {
+            pose: Pose {
+                position: body.translation().to_array(),
+                rotation: body.rotation().to_array(),
+            },
+            mode: b.mode as u32,
+            _reserved: 0,
+        }
+    }
+
+    /// The whole `world` sample, held by value (see `World::write_sample`).
+    pub fn write_sample(&self, out: &mut WorldSample) {
+        self.write_header(&mut out.header);
+        out.blocks.clear();
+        out.blocks
+            .extend((0..self.blocks.len()).map(|i| self.block_state(i)));
     }
 
     pub fn steps(&self) -> u64 {
