@@ -228,7 +228,9 @@ topic_table! {
     /// recording carries), if a stage records it. Then the stages in its row open their ports,
     /// `bus.outlet::<topics::New>()` / `bus.inlet::<topics::New>()`; the services, the
     /// launcher's wait for readers, the recording's channels and the recorder's inlets follow
-    /// from the row.
+    /// from the row. A row `Name: Header[Element]` is a slice topic (a header and a run of
+    /// elements whose length the publisher picks, sized from the scene): its ports are
+    /// `bus.slice_outlet` / `bus.slice_inlet` and the recording writes it with `write_slice`.
     pub enum Topic {
         /// Finger joint angles from the data glove (or the scripted hand, or a replay).
         Glove: GloveSample {
