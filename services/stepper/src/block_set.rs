@@ -25,6 +25,21 @@ impl BlockSet {
         self.words.iter_mut().for_each(|w| *w = 0);
     }
 
+    /// The indices `0..n` and no others (`n` at most the capacity).
+    #[inline]
+    pub fn fill_to(&mut self, n: usize) {
+        for (k, w) in self.words.iter_mut().enumerate() {
+            let lo = k * 64;
+            *w = if n >= lo + 64 {
+                u64::MAX
+            } else if n > lo {
+                (1u64 << (n - lo)) - 1
+            } else {
+                0
+            };
+        }
+    }
+
     #[inline]
     pub fn insert(&mut self, i: usize) {
         self.words[i / 64] |= 1 << (i % 64);
@@ -129,6 +144,21 @@ impl BlockSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `fill_to(n)` holds exactly 0..n, at word edges too.
+    #[test]
+    fn fill_to_holds_exactly_the_first_n() {
+        for n in [0, 1, 63, 64, 65, 127, 128, 130] {
+            let mut s = BlockSet::new(130);
+            s.insert(129);
+            s.fill_to(n);
+            assert_eq!(
+                s.iter().collect::<Vec<_>>(),
+                (0..n).collect::<Vec<_>>(),
+                "n = {n}"
+            );
+        }
+    }
 
     #[test]
     fn a_set_holds_indices_across_words_and_yields_them_lowest_first() {

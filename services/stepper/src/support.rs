@@ -171,13 +171,18 @@ impl Support {
         settings: &Settings,
         passes: &Passes,
     ) {
+        // Nothing active: nothing awake or stirring, so nothing to wake and no candidate (the
+        // flood below would find none).
+        if active.is_empty() {
+            return;
+        }
         // The sets are the stage's own scratch; taken out for the step so that judging a
         // block can read them beside the rest of it (a swap of two vectors each: no
         // allocation).
         let mut flood = std::mem::take(&mut self.flood);
         let mut loads = std::mem::take(&mut self.loads);
         loads.touched.clear();
-        self.judge_with(blocks, settings, passes, &mut flood, &mut loads);
+        self.judge_with(blocks, active, settings, passes, &mut flood, &mut loads);
         // Every block R14 judged or moved with a load takes part in the rest of the step.
         if !flood.cand.is_empty() {
             active.union_with(&flood.cand);
@@ -190,6 +195,7 @@ impl Support {
     fn judge_with(
         &mut self,
         blocks: &mut [Block],
+        active: &BlockSet,
         settings: &Settings,
         passes: &Passes,
         f: &mut Flood,
@@ -197,10 +203,17 @@ impl Support {
     ) {
         let n = blocks.len();
         let eps = settings.contact_eps;
-        for set in [&mut f.sleeping, &mut f.awake, &mut f.stir, &mut f.fixed] {
+        for set in [&mut f.awake, &mut f.stir, &mut f.fixed] {
             set.clear();
         }
-        for (i, b) in blocks.iter_mut().enumerate() {
+        // A block outside the active set rests untouched since it left (`finish_step`): not
+        // moved, stirred, released or grasped, its rotated vertices fresh and `judged` clear,
+        // so it is sleeping, as the loop below would find it. Only the active blocks are
+        // looked at: a field nothing touches costs R14 a few word operations, not a loop.
+        f.sleeping.fill_to(n);
+        f.sleeping.difference_with(active);
+        for i in active.iter() {
+            let b = &mut blocks[i];
             b.refresh_rel();
             b.judged = false;
             if b.moved != Moved::No || b.mode == BlockMode::Grasped {

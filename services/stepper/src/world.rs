@@ -464,6 +464,10 @@ fn finish_step(
             && b.action == HandAction::None
         {
             begin_block(b);
+            // What R14's first pass would do to it in every later step while it sleeps
+            // outside the active set (`Support::judge_with` skips it).
+            b.refresh_rel();
+            b.judged = false;
             quiet.insert(i);
         }
     }
