@@ -27,7 +27,7 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                 serde_json::json!({
                     "topic": t.topic.name(), "messages": t.messages, "gaps": t.gaps,
                     "seconds": t.seconds, "rate_hz": t.rate_hz, "schema": t.schema,
-                    "bytes": t.sample_bytes,
+                    "bytes": t.sample_bytes, "bytes_per_element": t.element_bytes,
                 })
             })
             .collect();
@@ -70,15 +70,18 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
             "topic", "messages", "gaps", "seconds", "rate_hz"
         );
         for t in &summary.topics {
+            let size = match t.element_bytes {
+                None => format!("{} bytes", t.sample_bytes),
+                Some(e) => format!("{} bytes + {e} a block", t.sample_bytes),
+            };
             println!(
-                "{:<8} {:>9} {:>6} {:>9.3} {:>9.1}  {} ({} bytes)",
+                "{:<8} {:>9} {:>6} {:>9.3} {:>9.1}  {} ({size})",
                 t.topic.name(),
                 t.messages,
                 t.gaps,
                 t.seconds,
                 t.rate_hz,
                 t.schema,
-                t.sample_bytes
             );
         }
         if summary.foreign_messages > 0 {

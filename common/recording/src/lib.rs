@@ -901,8 +901,11 @@ pub struct TopicSummary {
     pub rate_hz: f64,
     /// The schema (message type) name, as [`sample_type`] gives it.
     pub schema: &'static str,
-    /// One sample's size in bytes (without the CDR header).
+    /// One sample's size in bytes (without the CDR header); of a slice topic (`world`), its
+    /// header's, with `element_bytes` more per element.
     pub sample_bytes: usize,
+    /// A slice topic's bytes per element (a `world` block); None for a fixed-size topic.
+    pub element_bytes: Option<usize>,
 }
 
 /// What a recording holds, in figures: `handblocks inspect` prints this (as text or JSON) and
@@ -950,6 +953,7 @@ impl Recording {
                 rate_hz,
                 schema,
                 sample_bytes,
+                element_bytes: topic.element_size(),
             }
         });
         // Log times are publish times on the recorder's Unix offset: the span of the recording.
