@@ -458,3 +458,76 @@ fn a_live_session_of_1024_blocks_carries_every_block_exactly_as_simulate() {
     );
     assert_same_poses(&v, last);
 }
+
+/// Issue 15: `bench latency transport --quick` measures every transport at every payload,
+/// paced and flat out, and writes the JSON, the table, the plot and a `.hgrm` file per
+/// histogram that parses as HdrHistogram's percentile distribution (shape, not timings).
+#[test]
+fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() {
+    let dir = Scratch::new("transport");
+    let out = dir.path("out");
+    let run = Command::new(EXE)
+        .args(["bench", "latency", "transport", "--quick", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let v: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("transport.json")).unwrap())
+            .unwrap();
+    let rows = v["transport"].as_array().unwrap();
+    assert_eq!(rows.len(), 4 * 5 * 2);
+    for t in ["iceoryx2", "iceoryx2-poll", "uds", "tcp"] {
+        for bytes in [64u64, 1024, 65536, 1 << 20, 4 << 20] {
+            for rate in [120.0, 0.0] {
+                let row = rows
+                    .iter()
+                    .find(|r| {
+                        r["transport"] == t
+                            && r["payload_bytes"].as_u64() == Some(bytes)
+                            && r["rate_hz"].as_f64() == Some(rate)
+                    })
+                    .unwrap_or_else(|| panic!("no row for {t} {bytes} B at {rate} Hz"));
+                for key in ["p50_us", "p90_us", "p99_us", "p999_us", "max_us"] {
+                    assert!(
+                        row[key].as_f64().unwrap() > 0.0,
+                        "{t} {bytes} {rate}: {key}"
+                    );
+                }
+                assert!(row["count"].as_u64().unwrap() > 0);
+                let stem = format!(
+                    "transport-{t}-{bytes}-{}",
+                    if rate > 0.0 {
+                        "120hz".to_string()
+                    } else {
+                        "flat".to_string()
+                    }
+                );
+                let hgrm =
+                    std::fs::read_to_string(out.join("hgrm").join(format!("{stem}.hgrm"))).unwrap();
+                assert!(
+                    hgrm.starts_with("       Value     Percentile TotalCount 1/(1-Percentile)\n\n")
+                );
+                let last_row = hgrm.lines().rfind(|l| !l.starts_with('#') && !l.is_empty());
+                let fields: Vec<f64> = last_row
+                    .unwrap()
+                    .split_whitespace()
+                    .map(|x| x.parse().unwrap())
+                    .collect();
+                assert_eq!(
+                    fields[1], 1.0,
+                    "{stem}: the last row is the 100th percentile"
+                );
+                assert_eq!(fields[2] as u64, row["count"].as_u64().unwrap(), "{stem}");
+            }
+        }
+    }
+    assert_eq!(v["uds_over_iceoryx2"].as_array().unwrap().len(), 10);
+    let md = std::fs::read_to_string(out.join("transport.md")).unwrap();
+    assert!(md.contains("| iceoryx2-poll | 4 MiB | flat out |"), "{md}");
+    assert!(std::fs::metadata(out.join("transport.png")).unwrap().len() > 10_000);
+}

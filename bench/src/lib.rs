@@ -9,7 +9,9 @@
 //! * [`plot`]: the figures (plotters into a PNG), shared by the reports.
 
 pub mod accuracy;
+pub mod hgrm;
 pub mod latency;
 pub mod plot;
 pub mod stability;
 pub mod stepper;
+pub mod transport;

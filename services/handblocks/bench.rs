@@ -4,7 +4,7 @@
 use std::fmt;
 use std::process::ExitCode;
 
-use crate::cli::BenchKind;
+use crate::cli::{BenchKind, LatencyPart};
 
 /// Why a benchmark could not run. One that ran exits 0: its figures are its verdict.
 #[derive(Debug)]
@@ -47,9 +47,27 @@ impl std::error::Error for BenchError {}
 pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
     let (name, result) = match which {
         BenchKind::Latency {
+            part: LatencyPart::Transport,
+            quick,
+            out,
+            ..
+        } => {
+            let exe = std::env::current_exe().map_err(BenchError::OwnExecutable)?;
+            let b = handblocks_bench::transport::TransportBench {
+                exe,
+                out_dir: out,
+                quick,
+            };
+            (
+                "latency transport",
+                handblocks_bench::transport::run(&b).map(drop),
+            )
+        }
+        BenchKind::Latency {
             session,
             seconds,
             out,
+            ..
         } => {
             let exe = std::env::current_exe().map_err(BenchError::OwnExecutable)?;
             let b = handblocks_bench::latency::LatencyBench {
@@ -83,6 +101,27 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
         }
     };
     result.map_err(|error| BenchError::Run { name, error })?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `bench-transport-peer`: the writing half of one transport run.
+pub fn transport_peer(
+    transport: &str,
+    endpoint: String,
+    bytes: usize,
+    rate_hz: f64,
+    count: u64,
+) -> Result<ExitCode, BenchError> {
+    let transport = handblocks_bench::transport::Transport::from_name(transport)
+        .ok_or_else(|| BenchError::Peer(format!("unknown transport {transport:?}").into()))?;
+    let args = handblocks_bench::transport::PeerArgs {
+        transport,
+        endpoint,
+        bytes,
+        rate_hz,
+        count,
+    };
+    handblocks_bench::transport::peer(&args).map_err(BenchError::Peer)?;
     Ok(ExitCode::SUCCESS)
 }
 

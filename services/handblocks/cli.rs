@@ -141,6 +141,20 @@ pub enum Command {
         #[arg(long)]
         count: u64,
     },
+    /// The writing half of `bench latency transport` (started by it, one run each).
+    #[command(hide = true)]
+    BenchTransportPeer {
+        #[arg(long)]
+        transport: String,
+        #[arg(long)]
+        endpoint: String,
+        #[arg(long)]
+        bytes: usize,
+        #[arg(long)]
+        rate: f64,
+        #[arg(long)]
+        count: u64,
+    },
     /// List the scenes and sessions under config/ (or DIR), each with its first comment line.
     List {
         /// Where to look.
@@ -225,18 +239,35 @@ pub struct LaunchArgs {
     pub record: Option<PathBuf>,
 }
 
+/// The parts of `bench latency`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LatencyPart {
+    /// The live session's hops and origin -> world against a bare hop.
+    Pipeline,
+    /// One hop over each transport at each payload size.
+    Transport,
+}
+
 #[derive(Subcommand)]
 pub enum BenchKind {
-    /// Per-hop and origin -> world latency of the whole process set, against a bare
-    /// two-process iceoryx2 hop measured in the same run.
+    /// Latency: `pipeline` (default), per-hop and origin -> world latency of the whole process
+    /// set against a bare two-process iceoryx2 hop measured in the same run; `transport`, one
+    /// hop between two processes over iceoryx2 (woken and polled), a Unix socket and TCP, at
+    /// 64 B to 4 MiB, 120 Hz and flat out, with .hgrm files and a plot.
     Latency {
+        /// What to measure.
+        #[arg(value_enum, default_value = "pipeline")]
+        part: LatencyPart,
+        /// `transport` only: 1 s paced runs and short flat-out ones (under a minute).
+        #[arg(long)]
+        quick: bool,
         /// The session to measure.
         #[arg(long, default_value = "config/sessions/live.toml")]
         session: PathBuf,
         /// Seconds for the peer, and again for the session.
         #[arg(long, default_value = "10", value_parser = parse_seconds)]
         seconds: Duration,
-        /// Where latency.json goes.
+        /// Where latency.json (pipeline) or transport.json, .md, .png and hgrm/ go.
         #[arg(long, default_value = "out/bench")]
         out: PathBuf,
     },

@@ -89,6 +89,13 @@ fn run() -> Result<ExitCode, CliError> {
         )?,
         Some(Command::Bench { which }) => bench::run(which)?,
         Some(Command::BenchPeer { bus, rate, count }) => bench::peer(&bus, rate, count)?,
+        Some(Command::BenchTransportPeer {
+            transport,
+            endpoint,
+            bytes,
+            rate,
+            count,
+        }) => bench::transport_peer(&transport, endpoint, bytes, rate, count)?,
         Some(Command::Emulate {
             device,
             link,
