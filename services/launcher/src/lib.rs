@@ -15,6 +15,7 @@
 mod error;
 pub mod placement;
 mod process;
+mod progress;
 pub mod report;
 
 use std::collections::BTreeMap;
@@ -25,7 +26,6 @@ use std::time::{Duration, Instant, SystemTime};
 use common::bus::{Bus, BusConfig, Inlet, Services};
 use common::config::session::{Override, RenderMode, Source};
 use common::config::Session;
-use common::latency::Metric;
 use common::{shutdown, topics, Stage, Topic};
 
 use crate::placement::Placement;
@@ -283,6 +283,7 @@ fn run_session(
     let source = start_source(&starter, session, &services, &placement, &mut procs)?;
     let mut supervision = Supervision {
         latency: &latency,
+        budget: session.budget.clone(),
         reports: BTreeMap::new(),
         failures: Vec::new(),
     };
@@ -468,6 +469,7 @@ fn start_source(
 /// report, and what went wrong with the processes.
 struct Supervision<'a> {
     latency: &'a Inlet<topics::Latency>,
+    budget: common::config::session::Budget,
     reports: BTreeMap<Stage, StageReport>,
     failures: Vec<String>,
 }
@@ -483,6 +485,7 @@ impl Supervision<'_> {
     ) -> Duration {
         let started = Instant::now();
         let mut next_progress = Duration::from_secs(1);
+        let mut progress = progress::Progress::new(&self.budget);
         loop {
             std::thread::sleep(Duration::from_millis(20));
             collect(self.latency, &mut self.reports);
@@ -510,7 +513,7 @@ impl Supervision<'_> {
             }
             if opts.progress && started.elapsed() >= next_progress {
                 next_progress += Duration::from_secs(1);
-                eprintln!("{}", progress_line(started.elapsed(), &self.reports));
+                eprintln!("{}", progress.line(started.elapsed(), &self.reports));
             }
         }
         started.elapsed()
@@ -663,21 +666,6 @@ fn collect(latency: &Inlet<topics::Latency>, reports: &mut BTreeMap<Stage, Stage
             Err(e) => eprintln!("handblocks: ignoring a malformed latency report: {e}"),
         }
     }
-}
-
-fn progress_line(elapsed: Duration, reports: &BTreeMap<Stage, StageReport>) -> String {
-    let mut line = format!("handblocks: {:5.1} s", elapsed.as_secs_f64());
-    if let Some(s) = reports.get(&Stage::Stepper) {
-        let o = s.summary(Metric::Origin);
-        line.push_str(&format!(
-            "  world states {}  origin->world p99 {:.1} us",
-            o.count, o.p99
-        ));
-    }
-    if let Some(s) = reports.get(&Stage::Renderer) {
-        line.push_str(&format!("  frames {}", s.summary(Metric::Photon).count));
-    }
-    line
 }
 
 /// Writes the report JSON to `path`, creating its folder.
