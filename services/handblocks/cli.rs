@@ -261,10 +261,10 @@ pub enum BenchKind {
         /// `transport` only: 1 s paced runs and short flat-out ones (under a minute).
         #[arg(long)]
         quick: bool,
-        /// The session to measure.
+        /// `pipeline` only: the session to measure.
         #[arg(long, default_value = "config/sessions/live.toml")]
         session: PathBuf,
-        /// Seconds for the peer, and again for the session.
+        /// `pipeline` only: seconds for the peer, and again for the session.
         #[arg(long, default_value = "10", value_parser = parse_seconds)]
         seconds: Duration,
         /// Where latency.json (pipeline) or transport.json, .md, .png and hgrm/ go.
