@@ -22,6 +22,8 @@ pub struct Session {
     pub budget: Budget,
     /// The hand model (`hand_model = "../hand.toml"`); the built-in adult hand when absent.
     pub hand_model: HandModelSpec,
+    /// `[pipeline]`: how the pipeline's stages wait for their next sample.
+    pub wait: crate::bus::WaitStrategy,
 }
 
 /// `[source]`: what feeds the pipeline.
@@ -302,10 +304,28 @@ impl Session {
                 Some(f) => HandModelSpec::load(&dir.join(f))?,
                 None => HandModelSpec::default(),
             },
+            wait: pipeline(r.table("pipeline")?)?,
         };
         r.finish()?;
         Ok(session)
     }
+}
+
+/// `[pipeline] wait`: "event" (sleep until woken, the default), "spin" (poll always, for
+/// machines with cores to spare) or "adaptive" (sleep until shortly before the next sample is
+/// due, then poll a bounded window, then sleep on the event).
+fn pipeline(r: Option<Reader>) -> Result<crate::bus::WaitStrategy, ConfigError> {
+    use crate::bus::WaitStrategy;
+    let Some(r) = r else {
+        return Ok(WaitStrategy::default());
+    };
+    let wait = match r.choice("wait", &["event", "spin", "adaptive"])? {
+        "spin" => WaitStrategy::Spin,
+        "adaptive" => WaitStrategy::Adaptive,
+        _ => WaitStrategy::Event,
+    };
+    r.finish()?;
+    Ok(wait)
 }
 
 /// An open hand at rest beside the scene's blocks (40 cm past their +x side, 30 cm above the
@@ -514,6 +534,31 @@ mod tests {
         let f = write(&d, "s.toml", "scene = \"scene.toml\"\n");
         let s = Session::load(&f).unwrap();
         assert_eq!(s.scene.blocks.len(), 300);
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
+    /// `[pipeline] wait` picks the stages' wait strategy; event is the default; a wrong value
+    /// names the key and the choices.
+    #[test]
+    fn pipeline_wait_is_event_spin_or_adaptive() {
+        use crate::bus::WaitStrategy;
+        let d = tmpdir("wait");
+        write(&d, "scene.toml", SCENE);
+        let load = |text: &str| Session::load(&write(&d, "w.toml", text));
+        assert_eq!(
+            load("scene = \"scene.toml\"\n").unwrap().wait,
+            WaitStrategy::Event
+        );
+        let s = load("scene = \"scene.toml\"\n[pipeline]\nwait = \"adaptive\"\n").unwrap();
+        assert_eq!(s.wait, WaitStrategy::Adaptive);
+        let s = load("scene = \"scene.toml\"\n[pipeline]\nwait = \"spin\"\n").unwrap();
+        assert_eq!(s.wait, WaitStrategy::Spin);
+        let e = load("scene = \"scene.toml\"\n[pipeline]\nwait = \"nap\"\n").unwrap_err();
+        assert_eq!(e.key, "pipeline.wait");
+        assert!(
+            e.problem.contains("\"event\", \"spin\", \"adaptive\""),
+            "{e}"
+        );
         std::fs::remove_dir_all(d).unwrap();
     }
 

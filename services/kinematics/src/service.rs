@@ -5,7 +5,7 @@
 
 use std::time::Duration;
 
-use common::bus::{wait_any, Bus};
+use common::bus::{Bus, WaitStrategy, Waiter};
 use common::config::Session;
 use common::latency::Reporter;
 use common::{monotonic_ns, shutdown, topics, Stage};
@@ -26,14 +26,22 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     let mut reporter = Reporter::new(Stage::Kinematics, bus.outlet::<topics::Latency>()?);
 
     let mut hands = HandStream::new(model);
+    let mut waiter = Waiter::new(session.wait);
     loop {
         let stopping = shutdown::requested();
         if !stopping {
-            wait_any(&[&tracker_in, &joints_in], IDLE_WAIT)?;
+            waiter.wait(&[&tracker_in, &joints_in], IDLE_WAIT)?;
         }
+        let mut first = true;
         loop {
             let tracker = tracker_in.receive()?;
             let received = monotonic_ns();
+            if let Some(t) = &tracker {
+                if std::mem::take(&mut first) {
+                    // When it was sent, not when we woke (see the stepper's).
+                    waiter.arrived(t.stamp.publish_ns);
+                }
+            }
             // A glove is sent before the tracker of the same instant: read the gloves after
             // taking each tracker (and once more when none is left), so that one published
             // just before it is never missed.
@@ -54,6 +62,9 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         // A hand tracker's joints: one hand per joints sample.
         while let Some(s) = joints_in.receive()? {
             let received = monotonic_ns();
+            if std::mem::take(&mut first) {
+                waiter.arrived(s.stamp.publish_ns);
+            }
             reporter.recorder.hop(&s.stamp, received);
             let sent = hand_out.publish(hands.joints(s.payload()))?;
             reporter.recorder.output(received, &sent);
@@ -65,6 +76,12 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             hand_out.counter(),
         ];
         if stopping {
+            if waiter.strategy() == WaitStrategy::Adaptive {
+                eprintln!(
+                    "handblocks kinematics: adaptive wait: {} of {} arrivals found in the poll window",
+                    waiter.in_window, waiter.arrivals
+                );
+            }
             return Ok(reporter.finish(&counters)?);
         }
         reporter.maybe_report(&counters)?;

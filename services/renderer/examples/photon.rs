@@ -74,6 +74,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ..Budget::default()
         },
         hand_model: HandModelSpec::default(),
+        wait: common::bus::WaitStrategy::Event,
     };
     let config = BusConfig::for_session(&BusConfig::fresh_id())?;
     let bus = Bus::open(&config, "photon")?;

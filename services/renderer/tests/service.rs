@@ -48,6 +48,7 @@ fn session() -> Session {
             ..Budget::default()
         },
         hand_model: HandModelSpec::default(),
+        wait: common::bus::WaitStrategy::Event,
     }
 }
 

@@ -11,6 +11,7 @@ use std::time::Duration;
 use crate::model::Model;
 use crate::timeline::Timeline;
 use common::bus::Bus;
+use common::bus::{WaitStrategy, Waiter};
 use common::config::Session;
 use common::latency::Reporter;
 use common::{monotonic_ns, shutdown, topics, HandSample, Stage, Stamp};
@@ -49,13 +50,20 @@ pub fn run_with_outcome(
     }
     let mut reporter = Reporter::new(Stage::Stepper, bus.outlet::<topics::Latency>()?);
     let mut timeline = Timeline::new(session.scene.world.step_hz);
+    let mut waiter = Waiter::new(session.wait);
     loop {
         let stopping = shutdown::requested();
         if !stopping {
-            hand_in.wait(IDLE_WAIT)?;
+            waiter.wait(&[&hand_in], IDLE_WAIT)?;
         }
+        let mut first = true;
         while let Some(s) = hand_in.receive()? {
             let received = monotonic_ns();
+            if std::mem::take(&mut first) {
+                // When it was sent, not when we woke: a late wake-up would shift the next
+                // predicted arrival late by as much.
+                waiter.arrived(s.stamp.publish_ns);
+            }
             reporter.recorder.hop(&s.stamp, received);
             let hand: &HandSample = s.payload();
             // A hand the model cannot use (NaN, bad counts) brings no steps: the world holds.
@@ -89,6 +97,12 @@ pub fn run_with_outcome(
         }
         let counters = [hand_in.counter(), world_out.counter()];
         if stopping {
+            if waiter.strategy() == WaitStrategy::Adaptive {
+                eprintln!(
+                    "handblocks stepper: adaptive wait: {} of {} arrivals found in the poll window",
+                    waiter.in_window, waiter.arrivals
+                );
+            }
             if let Some(dir) = outcome_dir {
                 write_outcome(dir, &world, session, &events, events_not_kept);
             }
