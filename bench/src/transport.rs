@@ -189,12 +189,7 @@ pub fn peer(a: &PeerArgs) -> Result<(), Box<dyn std::error::Error>> {
     match a.transport {
         Transport::Iceoryx2 | Transport::Iceoryx2Poll => {
             let config = BusConfig::for_session(&a.endpoint)?;
-            let node = NodeBuilder::new()
-                .config(&config.iceoryx()?)
-                .signal_handling_mode(SignalHandlingMode::Disabled)
-                .create::<ipc::Service>()
-                .map_err(|e| format!("{e:?}"))?;
-            let (pubsub, event) = services(&node, a.bytes)?;
+            let (_node, pubsub, event) = services(&config, a.bytes)?;
             let publisher = pubsub
                 .publisher_builder()
                 .initial_max_slice_len(a.bytes)
@@ -250,13 +245,18 @@ type ByteService =
     iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>;
 type EventService = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
 
-/// The byte-slice service and its event service, sized for one reader and one writer (so
+/// This process's node on `config`'s bus, the byte-slice service and its event service, sized for one reader and one writer (so
 /// iceoryx2's data segment, which it zeroes when the writer attaches, stays small at 4 MiB);
 /// a reader 8 samples behind loses the oldest, as in the pipeline.
 fn services(
-    node: &Node<ipc::Service>,
+    config: &BusConfig,
     bytes: usize,
-) -> Result<(ByteService, EventService), Box<dyn std::error::Error>> {
+) -> Result<(Node<ipc::Service>, ByteService, EventService), Box<dyn std::error::Error>> {
+    let node = NodeBuilder::new()
+        .config(&config.iceoryx()?)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| format!("{e:?}"))?;
     let name = ServiceName::new(&format!("transport-{bytes}")).map_err(|e| format!("{e:?}"))?;
     let pubsub = node
         .service_builder(&name)
@@ -274,7 +274,7 @@ fn services(
         .event()
         .open_or_create()
         .map_err(|e| format!("{e:?}"))?;
-    Ok((pubsub, event))
+    Ok((node, pubsub, event))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -339,12 +339,7 @@ fn measure(exe: &Path, a: &PeerArgs) -> Result<Row, Box<dyn std::error::Error>> 
         Transport::Iceoryx2 | Transport::Iceoryx2Poll => {
             let config = BusConfig::for_session(&a.endpoint)?;
             let result = (|| -> Result<(), Box<dyn std::error::Error>> {
-                let node = NodeBuilder::new()
-                    .config(&config.iceoryx()?)
-                    .signal_handling_mode(SignalHandlingMode::Disabled)
-                    .create::<ipc::Service>()
-                    .map_err(|e| format!("{e:?}"))?;
-                let (pubsub, event) = services(&node, a.bytes)?;
+                let (_node, pubsub, event) = services(&config, a.bytes)?;
                 let subscriber = pubsub
                     .subscriber_builder()
                     .buffer_size(8)

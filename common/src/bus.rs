@@ -379,6 +379,28 @@ impl Bus {
             })
     }
 
+    /// The wake-up side of topic `topic`'s outlets.
+    fn notifier(&self, topic: Topic) -> Result<Notifier<ipc::Service>, BusError> {
+        self.event(topic)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| BusError::Port {
+                topic: topic.name(),
+                reason: format!("{e:?}"),
+            })
+    }
+
+    /// What an inlet of topic `topic` sleeps on.
+    fn listener(&self, topic: Topic) -> Result<Listener<ipc::Service>, BusError> {
+        self.event(topic)?
+            .listener_builder()
+            .create()
+            .map_err(|e| BusError::Port {
+                topic: topic.name(),
+                reason: format!("{e:?}"),
+            })
+    }
+
     fn event(&self, topic: Topic) -> Result<EventService, BusError> {
         let name = service_name(topic)?;
         self.node
@@ -426,11 +448,7 @@ impl Bus {
             .max_loaned_samples(2)
             .create()
             .map_err(|e| port_err(format!("{e:?}")))?;
-        let notifier = self
-            .event(topic)?
-            .notifier_builder()
-            .create()
-            .map_err(|e| port_err(format!("{e:?}")))?;
+        let notifier = self.notifier(topic)?;
         Ok(Outlet {
             publisher,
             notifier,
@@ -460,11 +478,7 @@ impl Bus {
             .buffer_size(topic.subscriber_buffer())
             .create()
             .map_err(|e| port_err(format!("{e:?}")))?;
-        let listener = self
-            .event(topic)?
-            .listener_builder()
-            .create()
-            .map_err(|e| port_err(format!("{e:?}")))?;
+        let listener = self.listener(topic)?;
         Ok(Inlet {
             subscriber,
             listener,
@@ -488,11 +502,7 @@ impl Bus {
             .max_loaned_samples(2)
             .create()
             .map_err(|e| port_err(format!("{e:?}")))?;
-        let notifier = self
-            .event(topic)?
-            .notifier_builder()
-            .create()
-            .map_err(|e| port_err(format!("{e:?}")))?;
+        let notifier = self.notifier(topic)?;
         Ok(SliceOutlet {
             publisher,
             notifier,
@@ -514,11 +524,7 @@ impl Bus {
             .buffer_size(self.slice_buffer::<P>())
             .create()
             .map_err(|e| port_err(format!("{e:?}")))?;
-        let listener = self
-            .event(topic)?
-            .listener_builder()
-            .create()
-            .map_err(|e| port_err(format!("{e:?}")))?;
+        let listener = self.listener(topic)?;
         Ok(SliceInlet {
             subscriber,
             listener,
@@ -847,13 +853,18 @@ impl<P: TopicSpec> Outlet<P> {
 
     /// This outlet's counter for the latency report.
     pub fn counter(&self) -> TopicCounter {
-        TopicCounter {
-            topic: P::TOPIC as u32,
-            role: 0,
-            count: self.next_seq,
-            gaps: 0,
-            last_seq: self.next_seq.wrapping_sub(1),
-        }
+        sent_counter(P::TOPIC, self.next_seq)
+    }
+}
+
+/// A publisher's counter: samples sent, the last seq.
+fn sent_counter(topic: Topic, next_seq: u64) -> TopicCounter {
+    TopicCounter {
+        topic: topic as u32,
+        role: 0,
+        count: next_seq,
+        gaps: 0,
+        last_seq: next_seq.wrapping_sub(1),
     }
 }
 
@@ -1012,13 +1023,7 @@ impl<P: SliceTopicSpec> SliceOutlet<P> {
 
     /// This outlet's counter for the latency report.
     pub fn counter(&self) -> TopicCounter {
-        TopicCounter {
-            topic: P::TOPIC as u32,
-            role: 0,
-            count: self.next_seq,
-            gaps: 0,
-            last_seq: self.next_seq.wrapping_sub(1),
-        }
+        sent_counter(P::TOPIC, self.next_seq)
     }
 }
 

@@ -44,19 +44,9 @@ impl<P: TopicSpec> Channel for Inlet<P> {
         reporter: &mut Reporter,
     ) -> Result<(), Box<dyn std::error::Error>> {
         while let Some(s) = self.receive()? {
-            let received = monotonic_ns();
-            reporter.recorder.hop(s.stamp(), received);
-            if let Some(log) = log {
-                log.write(P::TOPIC, s.payload())?;
-            }
-            let done = monotonic_ns();
-            reporter
-                .recorder
-                .record(common::latency::Metric::Process, done - received);
-            reporter.recorder.record(
-                common::latency::Metric::Origin,
-                done.saturating_sub(s.stamp().origin_ns),
-            );
+            record_one(s.stamp(), log, reporter, |log| {
+                log.write(P::TOPIC, s.payload())
+            })?;
         }
         Ok(())
     }
@@ -77,20 +67,9 @@ impl<P: SliceTopicSpec> Channel for SliceInlet<P> {
         reporter: &mut Reporter,
     ) -> Result<(), Box<dyn std::error::Error>> {
         while let Some(s) = self.receive()? {
-            let received = monotonic_ns();
-            let stamp = *s.user_header().stamp();
-            reporter.recorder.hop(&stamp, received);
-            if let Some(log) = log {
-                log.write_slice(P::TOPIC, s.user_header(), s.payload())?;
-            }
-            let done = monotonic_ns();
-            reporter
-                .recorder
-                .record(common::latency::Metric::Process, done - received);
-            reporter.recorder.record(
-                common::latency::Metric::Origin,
-                done.saturating_sub(stamp.origin_ns),
-            );
+            record_one(s.user_header().stamp(), log, reporter, |log| {
+                log.write_slice(P::TOPIC, s.user_header(), s.payload())
+            })?;
         }
         Ok(())
     }
@@ -98,6 +77,30 @@ impl<P: SliceTopicSpec> Channel for SliceInlet<P> {
     fn counter(&self) -> TopicCounter {
         SliceInlet::counter(self)
     }
+}
+
+/// One received sample: its hop, `write` into the recording (when there is one), and the
+/// recorder's own time and the sample's age.
+fn record_one(
+    stamp: &common::Stamp,
+    log: &mut Option<RecordingWriter>,
+    reporter: &mut Reporter,
+    write: impl FnOnce(&mut RecordingWriter) -> Result<(), recording::RecordingError>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let received = monotonic_ns();
+    reporter.recorder.hop(stamp, received);
+    if let Some(log) = log {
+        write(log)?;
+    }
+    let done = monotonic_ns();
+    reporter
+        .recorder
+        .record(common::latency::Metric::Process, done - received);
+    reporter.recorder.record(
+        common::latency::Metric::Origin,
+        done.saturating_sub(stamp.origin_ns),
+    );
+    Ok(())
 }
 
 /// Opens an inlet on every topic the recorder reads.
