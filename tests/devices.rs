@@ -169,3 +169,36 @@ fn bad_device_settings_are_refused_before_anything_starts() {
         "{stderr}"
     );
 }
+
+/// Issue 16: the drivers counted rejected and garbage records, but no report showed them. The
+/// session report has them per device, in its table and its JSON.
+#[test]
+fn garbage_and_rejected_device_records_are_in_the_session_report() {
+    let (out, v, stderr) = run_session(
+        "noisy",
+        &["--fault", "garbage@60", "--fault", "corrupt@120:7"],
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    let tracker = &v["devices"]["tracker"];
+    let count = |k: &str| tracker[k].as_u64().unwrap_or_else(|| panic!("{k}: {v:#}"));
+    assert!(count("garbage_bytes") > 0, "{tracker}");
+    assert!(
+        count("garbage_bytes") + count("rejected_records") >= 2,
+        "{tracker}"
+    );
+    // Every valid record was published, but for the one or two read as the session stopped.
+    let published = v["topics"]["tracker"]["published"].as_u64().unwrap();
+    assert!(
+        count("samples").abs_diff(published) <= 2,
+        "{tracker} vs {published}"
+    );
+    assert!(
+        v["devices"]["glove"]["samples"].as_u64().unwrap() > 200,
+        "{v:#}"
+    );
+    assert!(
+        stdout.contains("device     samples  garbage rejected"),
+        "{stdout}"
+    );
+}

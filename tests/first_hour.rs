@@ -562,3 +562,28 @@ fn a_looped_replay_plays_its_trace_again_until_stopped() {
     );
     assert_nothing_left(&id);
 }
+
+/// `handblocks simulate ... | head` ended in a panic ("failed printing to stdout: Broken
+/// pipe"): a command that only prints ends quietly when its reader goes away.
+#[test]
+fn simulate_into_a_closed_pipe_ends_quietly() {
+    use std::io::Read;
+    let mut child = Command::new(EXE)
+        .current_dir(repo())
+        .args(["simulate", "--json", "config/scenes/field-1024.toml"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = [0u8; 16];
+    child.stdout.take().unwrap().read_exact(&mut first).unwrap();
+    // The pipe's reading end is closed here, with most of the output unwritten.
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(
+        std::os::unix::process::ExitStatusExt::signal(&out.status),
+        Some(libc::SIGPIPE),
+        "ended by SIGPIPE, as `cat` would be: {stderr}"
+    );
+}

@@ -121,6 +121,139 @@ fn a_damaged_trace_names_the_file_and_offset_and_the_good_part_still_runs() {
     );
 }
 
+/// Issue 16: a speed-0 replay of a 10 kHz recording gave the stepper everything, but the
+/// recorder 1,907 of 30,124 glove samples and the renderer 1,025 of 30,124 worlds: only the
+/// stepper paced the replay. A speed-0 session's bus is lossless: every publisher waits for
+/// its slowest reader, so every reader gets every sample.
+#[test]
+fn a_speed_0_replay_of_a_10_khz_recording_reaches_every_reader_whole() {
+    let dir = Scratch::new("replay-10k");
+    let source = dir.path("10k.mcap");
+    let live = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--no-preview", "--duration", "2"])
+        .args([
+            "--set",
+            "source.rate_hz=10000",
+            "--set",
+            "renderer.mode=off",
+        ])
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .args(["--bus-id", &format!("r10k{}", std::process::id())])
+        .arg("--record")
+        .arg(&source)
+        .arg("config/sessions/live.toml")
+        .output()
+        .unwrap();
+    assert!(live.status.success(), "{}", support::both(&live));
+    let recorded = Recording::open(&source).unwrap().stats()[Topic::Glove as usize].messages;
+    assert!(recorded > 15_000, "{recorded} glove samples recorded");
+
+    let session = dir.path("replay.toml");
+    std::fs::write(
+        &session,
+        format!(
+            "scene = {:?}\n[source]\nkind = \"replay\"\nfile = {:?}\nspeed = 0\n\
+             [renderer]\nmode = \"headless\"\nwidth = 160\nheight = 120\n[recorder]\nfile = {:?}\n\
+             [budget]\nmax_dropped = 0\n",
+            repo()
+                .join("config/scenes/grasp-throw.toml")
+                .to_string_lossy(),
+            source.to_string_lossy(),
+            dir.path("again.mcap").to_string_lossy(),
+        ),
+    )
+    .unwrap();
+    let report = dir.path("report.json");
+    let id = format!("rp10k{}", std::process::id());
+    let out = support::launch_session(&session, &id, 60.0, Some(&report));
+    assert!(out.status.success(), "{}", support::both(&out));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    for t in ["glove", "tracker", "hand", "world"] {
+        assert_eq!(
+            v["topics"][t]["published"].as_u64(),
+            Some(recorded),
+            "{t}: {v:#}"
+        );
+        for (reader, r) in v["topics"][t]["readers"].as_object().unwrap() {
+            assert_eq!(
+                r["received"].as_u64(),
+                Some(recorded),
+                "{t} at the {reader}: {r}"
+            );
+            assert_eq!(r["dropped"].as_u64(), Some(0), "{t} at the {reader}: {r}");
+        }
+    }
+}
+
+/// The byte offset of sample `k`'s timestamp in a CARL file (FORMAT.md's layout: a 20-byte
+/// header, then per sample a timestamp and seven optional poses, hands and controllers).
+fn carl_timestamp_offset(bytes: &[u8], k: usize) -> usize {
+    const SIZES: [usize; 7] = [28, 28, 28, 26 * 28, 26 * 28, 28, 28];
+    let mut at = 20;
+    for i in 0..=k {
+        if i == k {
+            return at;
+        }
+        at += 8;
+        for size in SIZES {
+            let present = bytes[at] == 1;
+            at += 1 + if present { size } else { 0 };
+        }
+    }
+    unreachable!()
+}
+
+/// Issue 16: one sample time set far in the future (a 4-byte change in a CARL file) made the
+/// stepper try ~2e12 catch-up steps: `simulate` hung even with `--frames`, and a live replay
+/// slept until then. The trace loader re-times the samples after a jump of more than 10 s and
+/// says so (and the stepper's timeline takes one step for any jump a live source makes).
+#[test]
+fn a_trace_whose_clock_jumps_decades_ahead_runs_promptly_and_says_so() {
+    let dir = Scratch::new("replay-jump");
+    let mut bytes = std::fs::read(carl("example_push_0.carl")).unwrap();
+    let at = carl_timestamp_offset(&bytes, 100);
+    let t = f64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+    assert!(t.is_finite() && t > 0.0 && t < 1e6, "sample 100's time {t}");
+    bytes[at..at + 8].copy_from_slice(&(t + 2.0e9).to_le_bytes());
+    let jumped = dir.path("jumped.carl");
+    std::fs::write(&jumped, &bytes).unwrap();
+    let mut child = Command::new(EXE)
+        .args(["simulate", "--hand"])
+        .arg(&jumped)
+        .args(["--hand-offset=0,-0.85,0", "--frames", "600"])
+        .arg(repo().join("config/scenes/drop.toml"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(60) {
+            let _ = child.kill();
+            panic!("simulate still runs after 60 s on a trace whose clock jumps");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stdout.contains("after 600 steps"), "{stdout}");
+    assert!(
+        stderr.contains("jumped.carl: sample 100 (joints topic) is +2000000000.")
+            && stderr.contains("re-timed"),
+        "{stderr}"
+    );
+    // Re-timed, the trace is the original but for one 10 ms step: the same pushing hand.
+    assert!(!stdout.contains("clock jumped"), "{stdout}");
+}
+
 /// Writes `bytes` as trace `name`, checks that `simulate --hand` refuses it (exit 2), and
 /// returns what it said.
 fn refused(dir: &Scratch, name: &str, bytes: &[u8]) -> String {

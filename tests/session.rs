@@ -234,7 +234,7 @@ fn a_crashed_stage_fails_the_session_and_leaves_nothing_behind() {
     let dir = Scratch::new("crash");
     let s = session(&dir, "crash.toml", "[renderer]\nmode = \"off\"\n");
     let id = unique_id("crash");
-    let (out, took) = launch_and_kill(&s, &id, "stepper", Duration::from_millis(500));
+    let (out, took) = launch_and_kill(&s, &id, "stepper", Duration::from_millis(1500));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert_eq!(
         out.status.code(),
@@ -250,9 +250,63 @@ fn a_crashed_stage_fails_the_session_and_leaves_nothing_behind() {
         took < Duration::from_secs(20),
         "the launcher did not notice the crash promptly"
     );
+    // Issue 16: the killed stepper's counts stop at its last report; what was published
+    // after it is not shown as dropped.
+    assert!(
+        stdout.contains("counts of stepper stop at its last report"),
+        "{stdout}"
+    );
+    let hand_row = stdout
+        .lines()
+        .find(|l| l.starts_with("hand "))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    let cols: Vec<&str> = hand_row.split_whitespace().collect();
+    assert_eq!(cols[3], "0", "no phantom drops of hand samples: {hand_row}");
     assert!(
         find_service_now("kinematics", &id).is_none(),
         "a process of the session outlived the launcher"
+    );
+    assert_nothing_left(&id);
+}
+
+/// Issue 16: a stage stopped with SIGSTOP showed no violation at all (its last report, from
+/// before it stopped, looked fine). A stage silent for 3 s is a failure, said when it happens.
+#[test]
+fn a_stage_stopped_with_sigstop_fails_the_session_and_is_named() {
+    let dir = Scratch::new("sigstop");
+    let s = session(&dir, "stop.toml", "[renderer]\nmode = \"off\"\n");
+    let id = unique_id("sigstop");
+    let child = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--duration", "9", "--bus-id", &id])
+        .arg(&s)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = find_service("kinematics", &id).expect("the kinematics process started");
+    std::thread::sleep(Duration::from_secs(2));
+    let signal = |sig: &str| {
+        assert!(Command::new("kill")
+            .args([sig, &pid.to_string()])
+            .status()
+            .unwrap()
+            .success())
+    };
+    signal("-STOP");
+    std::thread::sleep(Duration::from_secs(5));
+    signal("-CONT");
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stdout}\n{stderr}");
+    assert!(
+        stdout.contains("FAILED: the kinematics process has sent no report for"),
+        "{stdout}"
+    );
+    assert!(
+        stderr.contains("the kinematics process has sent no report for"),
+        "said while it happened: {stderr}"
     );
     assert_nothing_left(&id);
 }

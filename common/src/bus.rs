@@ -109,11 +109,37 @@ pub struct BusConfig {
     /// the world topic (each sample's memory, the subscribers' buffer depth), so every process
     /// of a session must open the bus with the same value ([`BusConfig::with_world_blocks`]).
     pub world_blocks: usize,
+    /// Every data topic without loss (a speed-0 replay, which promises every sample to every
+    /// reader): a publisher whose reader's buffer is full waits for it instead of overwriting
+    /// its oldest sample (iceoryx2's safe overflow off, back-pressure "retry until
+    /// delivered"). Live sessions keep safe overflow: a slow reader loses its oldest sample
+    /// rather than stalling the pipeline. The `latency` topic is never lossless. Every process
+    /// of a session must open the bus with the same value (services are created with it).
+    pub lossless: bool,
 }
 
+/// The longest Unix socket path (`sun_path` holds 108 bytes with its NUL).
+const MAX_SOCKET_PATH: usize = 107;
+/// What iceoryx2 0.10 puts after root + prefix in its longest socket path: a decimal u128 id
+/// (up to 39 digits) and `.event`.
+const SOCKET_NAME_TAIL: usize = 39 + ".event".len();
+/// The longest session key in file names (a longer id is hashed down to this).
+const MAX_KEY: usize = 12;
+
 impl BusConfig {
-    /// The resources of session `id`: prefix `hb_<id>_`, root `<tmp>/handblocks-iox2/<id>/`.
+    /// The resources of session `id`: prefix `hb_<key>_`, root `<base>/<key>/`, where `key` is
+    /// the id itself up to 12 characters, else `h` and 11 hex digits of its hash, and `base`
+    /// is `$TMPDIR/hb-iox2-<uid>` (this user's own folder, mode 0700), or `/tmp/hb-iox2-<uid>`
+    /// where `$TMPDIR` is too long. iceoryx2's event sockets live in the root with the prefix
+    /// in their names, and a Unix socket's path holds at most 107 bytes: root and prefix may
+    /// take at most 62 of them whatever the id and `$TMPDIR` (issue 16: an id of 44
+    /// characters the validator accepted broke every launch).
     pub fn for_session(id: &str) -> Result<BusConfig, BusError> {
+        BusConfig::for_session_in(id, &std::env::temp_dir())
+    }
+
+    /// [`BusConfig::for_session`] with `tmp` for `$TMPDIR`.
+    pub fn for_session_in(id: &str, tmp: &StdPath) -> Result<BusConfig, BusError> {
         if id.is_empty()
             || id.len() > 48
             || !id
@@ -124,12 +150,45 @@ impl BusConfig {
                 "session id {id:?} must be 1 to 48 letters, digits, `_` or `-`"
             )));
         }
+        let key = if id.len() <= MAX_KEY {
+            id.to_string()
+        } else {
+            // FNV-1a: stable across builds and platforms, unlike std's hasher.
+            let hash = id.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+                (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+            });
+            format!("h{:011x}", hash & 0xfff_ffff_ffff)
+        };
+        let prefix = format!("hb_{key}_");
+        let fits = |base: &StdPath| {
+            base.as_os_str().len() + 1 + key.len() + 1 + prefix.len() + SOCKET_NAME_TAIL
+                <= MAX_SOCKET_PATH
+        };
+        let base = [base_dir(tmp), base_dir(StdPath::new("/tmp"))]
+            .into_iter()
+            .find(|b| fits(b))
+            .ok_or_else(|| {
+                BusError::Config(format!(
+                    "no folder for the session's sockets: {} is too long for a Unix socket \
+                     path (at most {} bytes); set TMPDIR to a shorter folder",
+                    base_dir(tmp).display(),
+                    MAX_SOCKET_PATH - SOCKET_NAME_TAIL - prefix.len() - key.len() - 2
+                ))
+            })?;
         Ok(BusConfig {
             id: id.to_string(),
-            prefix: format!("hb_{id}_"),
-            root: std::env::temp_dir().join("handblocks-iox2").join(id),
+            root: base.join(&key),
+            prefix,
             world_blocks: DEFAULT_WORLD_BLOCKS,
+            lossless: false,
         })
+    }
+
+    /// The session whose root folder is named `key` (as [`BusConfig::for_session`] names it).
+    fn for_key(key: &str) -> Option<BusConfig> {
+        (key.len() <= MAX_KEY)
+            .then(|| BusConfig::for_session(key).ok())
+            .flatten()
     }
 
     /// The same session with world samples of `blocks` blocks (its scene's count; 1 to
@@ -142,6 +201,28 @@ impl BusConfig {
         }
         self.world_blocks = blocks;
         Ok(self)
+    }
+
+    /// The bus of session `id` as every process of `session` opens it: world samples sized
+    /// from its scene, lossless for a speed-0 replay (which promises every sample to every
+    /// reader, as fast as the slowest takes them).
+    pub fn for_session_of(
+        id: &str,
+        session: &crate::config::Session,
+    ) -> Result<BusConfig, BusError> {
+        let lossless = matches!(
+            session.source,
+            crate::config::session::Source::Replay { speed, .. } if speed == 0.0
+        );
+        Ok(BusConfig::for_session(id)?
+            .with_world_blocks(session.scene.blocks.len().max(1))?
+            .with_lossless(lossless))
+    }
+
+    /// The same session, lossless or not (see [`BusConfig::lossless`]).
+    pub fn with_lossless(mut self, lossless: bool) -> BusConfig {
+        self.lossless = lossless;
+        self
     }
 
     /// A fresh id for a new session: unique per process and moment.
@@ -187,16 +268,24 @@ impl BusConfig {
     /// gone. Their processes notice the launcher's death themselves (their stdin pipe closes)
     /// and exit. Returns the ids of the sessions removed.
     pub fn sweep_abandoned() -> Vec<String> {
-        let base = std::env::temp_dir().join("handblocks-iox2");
-        let Ok(entries) = std::fs::read_dir(&base) else {
-            return Vec::new();
-        };
         let mut removed = Vec::new();
-        for entry in entries.flatten() {
+        let bases = [
+            base_dir(&std::env::temp_dir()),
+            base_dir(StdPath::new("/tmp")),
+        ];
+        let entries = bases
+            .iter()
+            .take(if bases[0] == bases[1] { 1 } else { 2 })
+            .filter_map(|b| std::fs::read_dir(b).ok())
+            .flat_map(|e| e.flatten());
+        for entry in entries {
             let id = entry.file_name().to_string_lossy().into_owned();
-            let Ok(session) = BusConfig::for_session(&id) else {
+            let Some(session) = BusConfig::for_key(&id) else {
                 continue;
             };
+            if session.root != entry.path() {
+                continue;
+            }
             // A session being set up right now has its folder before its first node: only
             // folders untouched for a while can be abandoned.
             let age = entry
@@ -241,6 +330,81 @@ impl BusConfig {
     }
 }
 
+/// This user's folder of session roots under `tmp`.
+fn base_dir(tmp: &StdPath) -> PathBuf {
+    // SAFETY: getuid has no preconditions and cannot fail.
+    let uid = unsafe { libc::getuid() };
+    tmp.join(format!("hb-iox2-{uid}"))
+}
+
+/// Issue 16, private shared memory: the session's root folder (and this user's folder above
+/// it) is 0700 and this user's, so another local user can neither read the hand nor inject
+/// samples through the session's sockets and bookkeeping; a folder someone else owns, or that
+/// others may enter, is refused rather than used.
+fn make_private_dir(dir: &StdPath) -> Result<(), BusError> {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+    match std::fs::DirBuilder::new().mode(0o700).create(dir) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+        Err(e) => {
+            return Err(BusError::Config(format!(
+                "cannot create the session folder {}: {e}",
+                dir.display()
+            )))
+        }
+    }
+    let meta = std::fs::symlink_metadata(dir).map_err(|e| {
+        BusError::Config(format!(
+            "cannot read the session folder {}: {e}",
+            dir.display()
+        ))
+    })?;
+    // SAFETY: as in base_dir.
+    let uid = unsafe { libc::getuid() };
+    if !meta.is_dir() || meta.uid() != uid {
+        return Err(BusError::Config(format!(
+            "{} is not a folder of this user's (uid {uid}; it belongs to uid {}): refusing to \
+             attach a session to resources it does not own; remove it or set TMPDIR elsewhere",
+            dir.display(),
+            meta.uid()
+        )));
+    }
+    if meta.mode() & 0o077 != 0 {
+        std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700)).map_err(|e| {
+            BusError::Config(format!("cannot make {} private (0700): {e}", dir.display()))
+        })?;
+    }
+    Ok(())
+}
+
+/// Makes this session's files in /dev/shm this user's alone (0600): iceoryx2 creates its
+/// per-prefix management segment readable and writable by everyone. A file of the prefix
+/// that another user owns is refused.
+fn make_shm_private(prefix: &str) -> Result<(), BusError> {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    // SAFETY: as in base_dir.
+    let uid = unsafe { libc::getuid() };
+    for f in leftover_files(StdPath::new("/dev/shm"), prefix) {
+        let Ok(meta) = std::fs::symlink_metadata(&f) else {
+            continue; // removed meanwhile
+        };
+        if meta.uid() != uid {
+            return Err(BusError::Config(format!(
+                "{} belongs to uid {}, not this user (uid {uid}): refusing to attach a session \
+                 to shared memory it does not own; choose another --bus-id",
+                f.display(),
+                meta.uid()
+            )));
+        }
+        if meta.mode() & 0o077 != 0 {
+            std::fs::set_permissions(&f, std::fs::Permissions::from_mode(0o600)).map_err(|e| {
+                BusError::Config(format!("cannot make {} private (0600): {e}", f.display()))
+            })?;
+        }
+    }
+    Ok(())
+}
+
 fn leftover_files(dir: &StdPath, prefix: &str) -> Vec<PathBuf> {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return Vec::new();
@@ -264,11 +428,23 @@ pub struct Bus {
     node: Node<ipc::Service>,
     /// Elements a slice topic's sample holds at most ([`BusConfig::world_blocks`]).
     slice_capacity: usize,
+    /// [`BusConfig::lossless`].
+    lossless: bool,
 }
 
 impl Bus {
     /// Creates this process's node, named e.g. after its stage.
     pub fn open(config: &BusConfig, node_name: &str) -> Result<Bus, BusError> {
+        // Twice: another session that ends may remove this user's (empty) folder between the
+        // two creations.
+        let dirs = || -> Result<(), BusError> {
+            if let Some(base) = config.root.parent() {
+                make_private_dir(base)?;
+            }
+            make_private_dir(&config.root)
+        };
+        dirs().or_else(|_| dirs())?;
+        make_shm_private(&config.prefix)?;
         let iox = config.iceoryx()?;
         let name = NodeName::new(node_name).map_err(|e| BusError::Node(format!("{e:?}")))?;
         let node = NodeBuilder::new()
@@ -279,10 +455,18 @@ impl Bus {
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
             .map_err(|e| BusError::Node(format!("{e:?}")))?;
+        // The node made the prefix's management segment (world-writable): make it private.
+        make_shm_private(&config.prefix)?;
         Ok(Bus {
             node,
             slice_capacity: config.world_blocks,
+            lossless: config.lossless,
         })
+    }
+
+    /// True when `topic` waits for its slowest reader on this bus ([`BusConfig::lossless`]).
+    fn is_lossless(&self, topic: Topic) -> bool {
+        self.lossless && topic != Topic::Latency
     }
 
     /// The most elements a sample of a slice topic carries on this bus.
@@ -338,8 +522,9 @@ impl Bus {
             .subscriber_max_buffer_size(topic.subscriber_buffer())
             .subscriber_max_borrowed_samples(4)
             .history_size(0)
-            // A slow reader loses its oldest unread sample instead of stalling the publisher.
-            .enable_safe_overflow(true)
+            // A slow reader loses its oldest unread sample instead of stalling the publisher,
+            // but on a lossless bus (a speed-0 replay).
+            .enable_safe_overflow(!self.is_lossless(topic))
             .open_or_create()
             .map_err(|e| BusError::Service {
                 topic: topic.name(),
@@ -371,7 +556,7 @@ impl Bus {
             .subscriber_max_buffer_size(self.slice_buffer::<P>())
             .subscriber_max_borrowed_samples(4)
             .history_size(0)
-            .enable_safe_overflow(true)
+            .enable_safe_overflow(!self.is_lossless(topic))
             .open_or_create()
             .map_err(|e| BusError::Service {
                 topic: topic.name(),

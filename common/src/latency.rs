@@ -231,6 +231,12 @@ impl Reporter {
         }
     }
 
+    /// What the devices counted, carried by every report from now on (the acquisition process
+    /// sets it before its final report).
+    pub fn set_devices(&mut self, devices: [crate::DeviceCounters; 2]) {
+        self.sample.devices = devices;
+    }
+
     /// Publishes a periodic report if one is due.
     pub fn maybe_report(&mut self, counters: &[TopicCounter]) -> Result<(), BusError> {
         let now = monotonic_ns();

@@ -386,6 +386,42 @@ pub struct TopicCounter {
     pub last_seq: u64,
 }
 
+/// What a device driver counted over a session (the acquisition process's final report
+/// carries one per device; `device` 0 marks an empty slot).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("handblocks::DeviceCounters")]
+pub struct DeviceCounters {
+    /// 0: none, 1: the glove, 2: the tracker.
+    pub device: u32,
+    pub _reserved: u32,
+    /// Valid records turned into samples.
+    pub samples: u64,
+    /// Bytes skipped looking for the start of a record (noise, the rest of a cut record).
+    pub garbage_bytes: u64,
+    /// Record candidates refused: malformed, out of range or not finite.
+    pub rejected_records: u64,
+    /// Records of other tracker stations (skipped, not an error).
+    pub other_station_records: u64,
+    /// Times the link was lost (I/O error or silence).
+    pub link_losses: u64,
+    /// Reconnections after a loss.
+    pub reconnects: u64,
+    /// Error records the device sent (the CyberGlove's `e` replies).
+    pub device_errors: u64,
+}
+
+impl DeviceCounters {
+    /// The device's name for reports.
+    pub fn name(&self) -> Option<&'static str> {
+        match self.device {
+            1 => Some("glove"),
+            2 => Some("tracker"),
+            _ => None,
+        }
+    }
+}
+
 /// `latency`: a stage's cumulative histograms and topic counters, published about once a
 /// second and once more, marked final, when the stage stops.
 #[repr(C)]
@@ -401,6 +437,9 @@ pub struct LatencySample {
     /// the current one included), ns.
     pub silence_ns: u64,
     pub counters: [TopicCounter; MAX_TOPIC_COUNTERS],
+    /// The acquisition process with devices only: what each driver counted (issue 16: the
+    /// drivers counted rejected and garbage records, and no report showed them).
+    pub devices: [DeviceCounters; 2],
     /// Indexed by [`crate::latency::Metric`].
     pub histograms: [EncodedHistogram; METRICS],
 }
@@ -416,6 +455,7 @@ impl Default for LatencySample {
                 topic: u32::MAX,
                 ..Default::default()
             }; MAX_TOPIC_COUNTERS],
+            devices: [DeviceCounters::default(); 2],
             histograms: [EncodedHistogram::default(); METRICS],
         }
     }

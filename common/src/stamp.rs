@@ -46,6 +46,13 @@ impl Stamp {
     }
 }
 
+/// The largest step of a source's clock between two of its samples that is still time
+/// passing (a device dropout, a pause in a trace): 10 s, 1,200 steps at 120 Hz. A larger step
+/// either way is a discontinuity (a clock reset, a damaged or edited trace: one changed
+/// timestamp in a CARL file put a sample 60 years ahead), and nothing may try to catch up on
+/// it: the replay re-times the samples after it, the stepper's timeline takes one step for it.
+pub const MAX_SOURCE_GAP_NS: u64 = 10_000_000_000;
+
 /// CLOCK_MONOTONIC in nanoseconds: one clock for every process of a machine.
 pub fn monotonic_ns() -> u64 {
     let mut ts = libc::timespec {

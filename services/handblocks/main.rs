@@ -39,8 +39,30 @@ fn main() -> ExitCode {
 
 /// Runs the subcommand asked for. `Ok` carries its verdict (0, or 1 for a session over its
 /// budget or a damaged recording); `Err` is a refusal, which `main` prints and exits 2 for.
+/// A command that only prints (simulate, inspect, list, completions) ends quietly when its
+/// output pipe closes (`handblocks simulate ... | head`), as Unix tools do, instead of
+/// panicking in `println!`. Not for `launch` and the services: they outlive their readers and
+/// clean up, so a closed pipe must stay an error they can handle there.
+fn end_quietly_on_closed_pipe() {
+    // SAFETY: restoring the default disposition of one signal, before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn run() -> Result<ExitCode, CliError> {
     let cli = Cli::parse();
+    if matches!(
+        cli.command,
+        Some(
+            Command::List { .. }
+                | Command::Completions { .. }
+                | Command::Simulate { .. }
+                | Command::Inspect { .. }
+        )
+    ) {
+        end_quietly_on_closed_pipe();
+    }
     let code = match cli.command {
         // `cargo run --release`: the live session, until Ctrl-C.
         None => launch::run(cli::LaunchArgs {

@@ -96,9 +96,8 @@ fn run_stage(
     if args.record.is_some() {
         session.recorder.file = args.record;
     }
-    // Every process of a session sizes the world topic from the same scene.
-    let config =
-        BusConfig::for_session(bus_id)?.with_world_blocks(session.scene.blocks.len().max(1))?;
+    // Every process of a session opens the bus as the session says (world sizes, loss).
+    let config = BusConfig::for_session_of(bus_id, &session)?;
     let bus = Bus::open(&config, stage.name())?;
     match stage {
         Stage::Acquisition => acquisition::service::run(&session, &bus),

@@ -52,6 +52,9 @@ pub const CHUNK_SPAN_NS: u64 = 500_000_000;
 /// Largest chunk a reader accepts (uncompressed); a bigger one is damage, not a recording.
 pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
 
+/// The largest recording read (it is read whole into memory).
+pub const MAX_RECORDING_BYTES: u64 = 64 << 30;
+
 /// The schema (message type) name and the sample's byte size of a topic (of a slice topic, its
 /// header's: see [`slice_message_bytes`]).
 pub fn sample_type(topic: Topic) -> (&'static str, usize) {
@@ -550,9 +553,12 @@ impl Recording {
     /// Like [`Recording::open`], keeping only the messages of `topics` (every message is still
     /// checked): a replay needs the source topics, not the world states that dwarf them.
     pub fn open_topics(path: &Path, topics: &[Topic]) -> Result<Recording, RecordingError> {
-        let bytes = std::fs::read(path).map_err(|error| RecordingError::Io {
-            path: path.to_path_buf(),
-            error,
+        // Only a regular file (issue 16: `/dev/zero` or a pipe was read for ever).
+        let bytes = common::config::read_bounded(path, MAX_RECORDING_BYTES).map_err(|e| {
+            RecordingError::Io {
+                path: path.to_path_buf(),
+                error: std::io::Error::other(e),
+            }
         })?;
         Recording::parse_topics(path, &bytes, topics)
     }
@@ -713,6 +719,157 @@ impl Recording {
     }
 }
 
+const OP_SCHEMA: u8 = 0x03;
+const OP_CHANNEL: u8 = 0x04;
+const OP_MESSAGE: u8 = 0x05;
+const OP_CHUNK: u8 = 0x06;
+const OP_METADATA: u8 = 0x0c;
+const OP_DATA_END: u8 = 0x0f;
+/// The records the reader parses.
+const USED_OPCODES: [u8; 6] = [
+    OP_SCHEMA,
+    OP_CHANNEL,
+    OP_MESSAGE,
+    OP_CHUNK,
+    OP_METADATA,
+    OP_DATA_END,
+];
+
+/// Checks every length inside a record against the bytes its body holds, before mcap parses
+/// it: mcap 0.26 reserves the length a string or map claims before it checks that the record
+/// has it (issue 16: a 7 KiB file asked for 1.6 GiB).
+fn lengths_fit(opcode: u8, body: &[u8]) -> Result<(), String> {
+    /// Reads a record's fields in order, every length checked against what is left.
+    struct Cursor<'b> {
+        opcode: u8,
+        body: &'b [u8],
+        at: usize,
+        end: usize,
+    }
+    impl Cursor<'_> {
+        fn skip(&mut self, n: u64, what: &str) -> Result<(), String> {
+            let left = (self.end - self.at) as u64;
+            if n > left {
+                return Err(format!(
+                    "a record (opcode {:#04x}) claims {n} bytes of {what} at byte {} of its \
+                     {}-byte body ({left} left)",
+                    self.opcode,
+                    self.at,
+                    self.body.len()
+                ));
+            }
+            self.at += n as usize;
+            Ok(())
+        }
+        fn int<const N: usize>(&mut self, what: &str) -> Result<u64, String> {
+            let start = self.at;
+            self.skip(N as u64, what)?;
+            let mut b = [0u8; 8];
+            b[..N].copy_from_slice(&self.body[start..start + N]);
+            Ok(u64::from_le_bytes(b))
+        }
+        fn string(&mut self, what: &str) -> Result<(), String> {
+            let n = self.int::<4>(what)?;
+            self.skip(n, what)
+        }
+        /// A map of strings to strings: its byte length, then its entries within it.
+        fn string_map(&mut self, what: &str) -> Result<(), String> {
+            let n = self.int::<4>(what)?;
+            let start = self.at;
+            self.skip(n, what)?;
+            let mut inner = Cursor {
+                opcode: self.opcode,
+                body: self.body,
+                at: start,
+                end: self.at,
+            };
+            while inner.at < inner.end {
+                inner.string(what)?;
+                inner.string(what)?;
+            }
+            Ok(())
+        }
+    }
+    let mut c = Cursor {
+        opcode,
+        body,
+        at: 0,
+        end: body.len(),
+    };
+    match opcode {
+        OP_SCHEMA => {
+            c.skip(2, "schema id")?;
+            c.string("schema name")?;
+            c.string("schema encoding")?;
+            c.string("schema data")?;
+        }
+        OP_CHANNEL => {
+            c.skip(4, "channel and schema ids")?;
+            c.string("topic")?;
+            c.string("message encoding")?;
+            c.string_map("channel metadata")?;
+        }
+        OP_MESSAGE => c.skip(22, "message header")?,
+        OP_CHUNK => {
+            c.skip(28, "chunk header")?;
+            c.string("compression")?;
+            let n = c.int::<8>("chunk records")?;
+            c.skip(n, "chunk records")?;
+        }
+        OP_METADATA => {
+            c.string("metadata name")?;
+            c.string_map("metadata")?;
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
+/// A chunk's records, decompressed: exactly `uncompressed_size` bytes (the caller has bounded
+/// it), checked against the chunk's CRC when it has one.
+fn decompress_chunk(header: &mcap::records::ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let size = usize::try_from(header.uncompressed_size)
+        .map_err(|_| format!("a chunk of {} bytes", header.uncompressed_size))?;
+    let content = match header.compression.as_str() {
+        "" => data.to_vec(),
+        "lz4" => {
+            let decoder =
+                lz4::Decoder::new(data).map_err(|e| format!("the chunk's lz4 frame: {e}"))?;
+            // lz4 expands at most ~255 times: a stated size beyond that is not reserved.
+            let mut out = Vec::with_capacity(size.min(data.len().saturating_mul(256)));
+            // One byte more than stated, to tell a chunk that holds more than it says.
+            decoder
+                .take(size as u64 + 1)
+                .read_to_end(&mut out)
+                .map_err(|e| format!("the chunk's lz4 data: {e}"))?;
+            out
+        }
+        other => {
+            return Err(format!(
+                "a chunk compressed with {other:?} (handblocks reads lz4 and uncompressed chunks)"
+            ))
+        }
+    };
+    if content.len() != size {
+        return Err(format!(
+            "the chunk holds {} bytes uncompressed where its header says {size}",
+            content.len()
+        ));
+    }
+    if header.uncompressed_crc != 0 {
+        let crc = crc32fast::hash(&content);
+        if crc != header.uncompressed_crc {
+            return Err(format!(
+                "the chunk's CRC is {crc:#010x} where its header says {:#010x}: its bytes were \
+                 changed",
+                header.uncompressed_crc
+            ));
+        }
+    }
+    Ok(content)
+}
+
 enum Flow {
     Go,
     DataEnd,
@@ -738,6 +895,12 @@ impl Reader<'_> {
         offset: u64,
         rec: &mut Recording,
     ) -> Result<Flow, String> {
+        // What the reader uses; any other record (header, indexes, attachments, the summary)
+        // is passed over unparsed.
+        if !USED_OPCODES.contains(&opcode) {
+            return Ok(Flow::Go);
+        }
+        lengths_fit(opcode, body)?;
         let record = mcap::read::parse_record(opcode, body).map_err(|e| format!("{e}"))?;
         match record {
             mcap::records::Record::Chunk { header, data } => {
@@ -748,11 +911,44 @@ impl Reader<'_> {
                         header.uncompressed_size
                     ));
                 }
-                let reader = mcap::read::ChunkReader::new(header, &data)
-                    .map_err(|e| format!("chunk: {e}"))?;
-                for inner in reader {
-                    let inner = inner.map_err(|e| format!("inside the chunk: {e}"))?;
+                // Decompressed here, into exactly the size the chunk states (bounded above),
+                // and its records walked with every length checked against what is left:
+                // mcap's own chunk reader trusts the lengths inside a chunk, so one changed
+                // byte there asked for 1e12 bytes (issue 16).
+                let content = decompress_chunk(&header, &data)?;
+                let mut at = 0usize;
+                while at < content.len() {
+                    let left = content.len() - at;
+                    if left < 9 {
+                        return Err(format!(
+                            "inside the chunk, at byte {at} of {}: a record header is cut off \
+                             ({left} of 9 bytes)",
+                            content.len()
+                        ));
+                    }
+                    let opcode = content[at];
+                    let mut len_bytes = [0u8; 8];
+                    len_bytes.copy_from_slice(&content[at + 1..at + 9]);
+                    let len = u64::from_le_bytes(len_bytes);
+                    if len > (left - 9) as u64 {
+                        return Err(format!(
+                            "inside the chunk, at byte {at} of {}: a record (opcode \
+                             {opcode:#04x}) of {len} bytes runs past the chunk's end",
+                            content.len()
+                        ));
+                    }
+                    let body = &content[at + 9..at + 9 + len as usize];
+                    if !USED_OPCODES.contains(&opcode) || opcode == OP_CHUNK {
+                        // A chunk inside a chunk is not MCAP; other records are not used.
+                        at += 9 + len as usize;
+                        continue;
+                    }
+                    lengths_fit(opcode, body)
+                        .map_err(|e| format!("inside the chunk, at byte {at}: {e}"))?;
+                    let inner = mcap::read::parse_record(opcode, body)
+                        .map_err(|e| format!("inside the chunk, at byte {at}: {e}"))?;
                     self.inner(inner, offset, rec)?;
+                    at += 9 + len as usize;
                 }
                 Ok(Flow::Go)
             }
@@ -1164,6 +1360,115 @@ mod tests {
         assert!(
             d.contains("offset 8") && d.contains("runs past the end"),
             "{d}"
+        );
+    }
+
+    /// Issue 16: one changed byte inside a chunk crashed the reader ("capacity overflow", an
+    /// abort allocating 1e12 bytes): lengths inside chunks were trusted. Thousands of changes
+    /// of one, four or eight bytes anywhere in a real recording: each reads back as a
+    /// recording (damage named) or an error, never a panic, and never takes more memory than
+    /// the file's size allows.
+    #[test]
+    fn changed_bytes_anywhere_read_back_as_damage_never_a_panic() {
+        let path = scratch("mutated");
+        let mut w = RecordingWriter::create(&path).unwrap();
+        let mut world = WorldSample::with_blocks(5);
+        for k in 0..600u64 {
+            w.write(Topic::Glove, &glove(k, 1_000_000 + k * 1_000_000))
+                .unwrap();
+            if k % 10 == 0 {
+                world.stamp.seq = k / 10;
+                world.stamp.publish_ns = 1_000_000 + k * 1_000_000;
+                w.write_slice(Topic::World, &world.header, &world.blocks)
+                    .unwrap();
+            }
+        }
+        w.finish().unwrap();
+        let good = std::fs::read(&path).unwrap();
+        let _ = std::fs::remove_file(&path);
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let extremes: [u64; 6] = [
+            u64::MAX,
+            u32::MAX as u64,
+            1_000_000_000_000,
+            1 << 40,
+            0,
+            1 << 63,
+        ];
+        for trial in 0..10_000 {
+            let mut bytes = good.clone();
+            let at = (next() % bytes.len() as u64) as usize;
+            match trial % 3 {
+                0 => bytes[at] ^= 1 << (next() % 8),
+                1 => {
+                    let v = extremes[(next() % 6) as usize].to_le_bytes();
+                    let n = (bytes.len() - at).min(4);
+                    bytes[at..at + n].copy_from_slice(&v[..n]);
+                }
+                _ => {
+                    let v = extremes[(next() % 6) as usize].to_le_bytes();
+                    let n = (bytes.len() - at).min(8);
+                    bytes[at..at + n].copy_from_slice(&v[..n]);
+                }
+            }
+            let outcome = std::panic::catch_unwind(|| {
+                if let Ok(rec) = Recording::parse(&path, &bytes) {
+                    let _ = rec.worlds().count();
+                    let _ = rec.summary();
+                }
+            });
+            assert!(
+                outcome.is_ok(),
+                "trial {trial}: a change at byte {at} panicked the reader"
+            );
+        }
+    }
+
+    /// Issue 16 (fuzzing, fuzz/corpus/mcap/regression-metadata-string-length): mcap 0.26
+    /// reserved a string's claimed length before checking the record held it, so a 7 KiB file
+    /// asked for 1.6 GiB. Every length is checked first, and the damage is named.
+    #[test]
+    fn a_string_longer_than_its_record_is_damage_not_an_allocation() {
+        let path = scratch("long-string");
+        for opcode in [0x0cu8, 0x03, 0x04] {
+            let mut body = Vec::new();
+            if opcode != 0x0c {
+                body.extend_from_slice(&[0u8; 4][..if opcode == 0x03 { 2 } else { 4 }]);
+            }
+            body.extend_from_slice(&0xffff_fff0u32.to_le_bytes());
+            body.extend_from_slice(b"handblocks");
+            let mut bytes = mcap::MAGIC.to_vec();
+            bytes.push(opcode);
+            bytes.extend_from_slice(&(body.len() as u64).to_le_bytes());
+            bytes.extend_from_slice(&body);
+            let rec = Recording::parse(&path, &bytes).unwrap();
+            let d = rec.damage.unwrap().to_string();
+            assert!(
+                d.contains("offset 8") && d.contains("claims 4294967280 bytes"),
+                "{opcode:#04x}: {d}"
+            );
+        }
+        // Whatever the regression input holds, it reads as damage, bounded.
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../fuzz/corpus/mcap/regression-metadata-string-length");
+        let rec = Recording::open(&file).unwrap();
+        assert!(rec.damage.is_some());
+    }
+
+    #[test]
+    fn a_recording_that_is_a_device_is_refused() {
+        let e = Recording::open(std::path::Path::new("/dev/zero"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("/dev/zero") && e.contains("not a regular file"),
+            "{e}"
         );
     }
 

@@ -17,7 +17,7 @@ pub(crate) struct Reader<'a> {
 }
 
 pub(crate) fn parse_file(file: &Path) -> Result<Table, ConfigError> {
-    let text = std::fs::read_to_string(file)
+    let text = super::read_bounded_text(file, super::MAX_CONFIG_BYTES)
         .map_err(|e| ConfigError::new(file, "", format!("cannot read the file: {e}")))?;
     text.parse::<Table>().map_err(|e| {
         ConfigError::new(

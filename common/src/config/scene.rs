@@ -379,6 +379,10 @@ fn unit_quaternion(r: &Reader, key: &'static str) -> Result<[f64; 4], ConfigErro
     Ok(q.map(|v| v / norm))
 }
 
+/// The longest block name a scene takes, in characters: names label blocks in reports, events
+/// and the text summary, which aligns them in a column.
+pub const MAX_BLOCK_NAME_CHARS: usize = 128;
+
 /// The `[[block]]` tables. A table with `count = [nx, ny, nz]` stands for a lattice of that
 /// many copies, `spacing = [dx, dy, dz]` metres apart, the first at `position`, named
 /// `name_x_y_z` (a 32 x 1 x 32 field of cubes is one table).
@@ -388,6 +392,24 @@ fn blocks(root: &Reader) -> Result<Vec<BlockSpec>, ConfigError> {
     let mut names = std::collections::HashSet::new();
     for (i, r) in tables.into_iter().enumerate() {
         let name = r.string("name")?.unwrap_or_else(|| format!("block{i}"));
+        if name.is_empty()
+            || name.chars().count() > MAX_BLOCK_NAME_CHARS
+            || name.chars().any(char::is_control)
+        {
+            return Err(r.err(
+                "name",
+                format!(
+                    "a name of {} characters{}: allowed: 1 to {MAX_BLOCK_NAME_CHARS} characters, \
+                     none of them control characters (names label blocks in reports and events)",
+                    name.chars().count(),
+                    if name.chars().any(char::is_control) {
+                        " with control characters"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
         let shape_kind = r.choice("shape", &["box", "wedge", "tetra", "hull"])?;
         let size = || -> Result<[f64; 3], ConfigError> {
             Ok(r.array::<3>("size", 1e-4..=1e3)?.unwrap_or([0.1, 0.1, 0.1]))
@@ -754,6 +776,31 @@ mod tests {
         assert!(e.problem.contains("allowed: 1 to"), "{e}");
         let e = load("[[block]]\nposition = [0, 0.05]\n").unwrap_err();
         assert_eq!(e.key, "block[0].position");
+    }
+
+    #[test]
+    fn a_block_name_too_long_empty_or_with_control_characters_is_refused() {
+        let long = "n".repeat(65_536);
+        let e = load(&format!(
+            "[[block]]\nname = \"{long}\"\nposition = [0, 0.05, 0]\n"
+        ))
+        .unwrap_err();
+        assert_eq!(e.key, "block[0].name");
+        assert!(e.problem.contains("65536 characters"), "{e}");
+        assert!(e.problem.contains("1 to 128"), "{e}");
+        for bad in ["", "a\\u0007b"] {
+            let e = load(&format!(
+                "[[block]]\nname = \"{bad}\"\nposition = [0, 0.05, 0]\n"
+            ))
+            .unwrap_err();
+            assert_eq!(e.key, "block[0].name", "{bad:?}");
+        }
+        let ok = "m".repeat(MAX_BLOCK_NAME_CHARS);
+        let s = load(&format!(
+            "[[block]]\nname = \"{ok}\"\nposition = [0, 0.05, 0]\n"
+        ))
+        .unwrap();
+        assert_eq!(s.blocks[0].name, ok);
     }
 
     #[test]

@@ -636,6 +636,39 @@ mod tests {
         std::fs::remove_dir_all(d).unwrap();
     }
 
+    /// Issue 16 (found writing the `session` fuzz target): a session names its scene and hand
+    /// model by path, and reading `/dev/zero` (or a pipe, or a `/proc` file that says it is
+    /// empty) never ended, growing memory until the process died. Only regular files of at
+    /// most MAX_CONFIG_BYTES are read; the error names the file.
+    #[test]
+    fn a_session_naming_a_device_or_a_folder_as_its_scene_or_hand_is_refused() {
+        let d = tmpdir("devzero");
+        write(&d, "scene.toml", SCENE);
+        for (text, named) in [
+            ("scene = \"/dev/zero\"\n", "/dev/zero"),
+            (
+                "scene = \"scene.toml\"\nhand_model = \"/dev/zero\"\n",
+                "/dev/zero",
+            ),
+            ("scene = \"/tmp\"\n", "/tmp"),
+        ] {
+            let f = write(&d, "s.toml", text);
+            let e = Session::load(&f).unwrap_err();
+            assert_eq!(e.file, Path::new(named), "{e}");
+            assert!(
+                e.problem.starts_with("cannot read the file: it is a")
+                    && e.problem.contains("not a regular file"),
+                "{e}"
+            );
+        }
+        // A file that is not UTF-8 is named with the offset of its first bad byte.
+        std::fs::write(d.join("bad.toml"), b"[[block]]\nname = \"\xff\"\n").unwrap();
+        let f = write(&d, "s.toml", "scene = \"bad.toml\"\n");
+        let e = Session::load(&f).unwrap_err();
+        assert!(e.problem.contains("the byte at offset 18"), "{e}");
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
     #[test]
     fn a_photon_budget_without_a_renderer_is_refused_naming_the_key() {
         let d = tmpdir("photon");

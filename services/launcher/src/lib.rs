@@ -39,6 +39,9 @@ use report::{Report, StageReport};
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(20);
 /// How long a stopping process may take to send its final report.
 const FINAL_REPORT_TIMEOUT: Duration = Duration::from_secs(5);
+/// A stage that has reported and then says nothing for this long is stopped (SIGSTOP) or hung:
+/// every stage reports about once a second, idle or not.
+const STALLED_AFTER: Duration = Duration::from_secs(3);
 /// The renderer's exit status when it found no GPU adapter and the session goes on without it.
 pub const RENDERER_SKIPPED_EXIT: i32 = 3;
 
@@ -206,8 +209,7 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     preflight(opts, &session)?;
     let id = opts.bus_id.clone().unwrap_or_else(BusConfig::fresh_id);
     // The world topic is sized from the scene; every stage opens the bus the same way.
-    let bus_config =
-        BusConfig::for_session(&id)?.with_world_blocks(session.scene.blocks.len().max(1))?;
+    let bus_config = BusConfig::for_session_of(&id, &session)?;
     shutdown::install_signal_handlers();
     for stale in BusConfig::sweep_abandoned() {
         eprintln!("handblocks: removed the shared memory of abandoned session {stale}");
@@ -302,6 +304,7 @@ fn run_session(
         seconds: ran_for.as_secs_f64(),
         source,
         renders: session.renderer.mode != RenderMode::Off && renderer_skipped.is_none(),
+        real_time: !bus_config.lossless,
     };
     let mut report = Report::build(
         reports.into_values().collect(),
@@ -475,6 +478,33 @@ struct Supervision<'a> {
 }
 
 impl Supervision<'_> {
+    /// Issue 16: a stage stopped with SIGSTOP (or hung) left no trace in the report; its
+    /// reports stop, so a stage silent for [`STALLED_AFTER`] is a failure, said at once.
+    fn check_stalled(&mut self, opts: &LaunchOptions, procs: &[ServiceProcess]) {
+        for p in procs {
+            let Some(r) = self.reports.get(&p.stage) else {
+                continue;
+            };
+            let silent = r.heard_at.elapsed();
+            let tag = format!("the {} process has sent no report for", p.stage.name());
+            if r.final_report
+                || silent < STALLED_AFTER
+                || self.failures.iter().any(|f| f.starts_with(&tag))
+            {
+                continue;
+            }
+            let line = format!(
+                "{tag} {:.1} s: it is stopped (SIGSTOP?) or hung, and what it reads is piling up \
+                 unread",
+                silent.as_secs_f64()
+            );
+            if opts.progress {
+                eprintln!("handblocks: {line}");
+            }
+            self.failures.push(line);
+        }
+    }
+
     /// Step 5: runs for `--duration`, until Ctrl-C / SIGTERM, until a replay's trace ends, or
     /// until a process exits (a failure), printing progress; returns how long it ran.
     fn run(
@@ -511,6 +541,7 @@ impl Supervision<'_> {
                 ));
                 break;
             }
+            self.check_stalled(opts, procs);
             if opts.progress && started.elapsed() >= next_progress {
                 next_progress += Duration::from_secs(1);
                 eprintln!("{}", progress.line(started.elapsed(), &self.reports));

@@ -118,6 +118,8 @@ mod tests {
             counters: Vec::new(),
             final_report: false,
             silence_ns: 0,
+            heard_at: std::time::Instant::now(),
+            devices: Vec::new(),
         }
     }
 

@@ -17,6 +17,10 @@ pub struct StageReport {
     pub final_report: bool,
     /// A source only: the longest stretch without a sample it sent, ns.
     pub silence_ns: u64,
+    /// When the launcher read it (a stage reports about once a second, idle or not).
+    pub heard_at: std::time::Instant,
+    /// The acquisition process with devices: what each driver counted.
+    pub devices: Vec<common::DeviceCounters>,
 }
 
 impl StageReport {
@@ -40,6 +44,13 @@ impl StageReport {
                 .collect(),
             final_report: sample.final_report != 0,
             silence_ns: sample.silence_ns,
+            heard_at: std::time::Instant::now(),
+            devices: sample
+                .devices
+                .iter()
+                .filter(|d| d.name().is_some())
+                .copied()
+                .collect(),
         })
     }
 
@@ -56,6 +67,11 @@ pub struct ReaderFlow {
     pub dropped: u64,
     /// Gaps in the sequence numbers it received (samples overwritten before it read them).
     pub gaps: u64,
+    /// False when the reader ended without its final report (killed, hung): its counts are
+    /// those of its last report, so `received` stops there and `dropped` is its gaps only;
+    /// what was published after that report was not dropped by the bus (issue 16: a killed
+    /// process used to show a second of samples as dropped).
+    pub counts_final: bool,
 }
 
 /// Per topic: samples published, and per reading stage, received, dropped and gaps.
@@ -86,6 +102,9 @@ pub struct SessionFacts {
     pub source: Stage,
     /// A renderer drew (not off, not skipped).
     pub renders: bool,
+    /// False for a speed-0 replay: samples go as fast as the slowest reader takes them, not
+    /// at a rate, so there is no frame rate to keep.
+    pub real_time: bool,
 }
 
 impl Default for SessionFacts {
@@ -94,6 +113,7 @@ impl Default for SessionFacts {
             seconds: 0.0,
             source: Stage::Acquisition,
             renders: false,
+            real_time: true,
         }
     }
 }
@@ -183,14 +203,20 @@ impl Report {
                 };
                 if c.role == 1 {
                     let flow = topics.entry(topic).or_default();
-                    // Lost on the way: gaps in seq, and whatever was published but never read.
-                    let dropped = c.gaps.max(flow.published.saturating_sub(c.count));
+                    // Lost on the way: gaps in seq, and whatever was published but never read;
+                    // a reader without its final report is known only up to its last one.
+                    let dropped = if s.final_report {
+                        c.gaps.max(flow.published.saturating_sub(c.count))
+                    } else {
+                        c.gaps
+                    };
                     flow.readers.insert(
                         s.stage.name(),
                         ReaderFlow {
                             received: c.count,
                             dropped,
                             gaps: c.gaps,
+                            counts_final: s.final_report,
                         },
                     );
                 }
@@ -251,6 +277,13 @@ impl Report {
         if facts.seconds < 0.5 {
             self.not_judged
                 .push("frame_hz: the session was too short to measure a frame rate".into());
+            return;
+        }
+        if !facts.real_time {
+            self.not_judged.push(
+                "frame_hz: a speed-0 replay runs as fast as its slowest reader, not in real time"
+                    .into(),
+            );
             return;
         }
         let frames = self
@@ -371,15 +404,63 @@ impl Report {
             "\n{:<12} {:>10} {:>10} {:>8} {:>8}\n",
             "topic", "published", "received", "dropped", "gaps"
         ));
+        let mut not_final: Vec<&str> = Vec::new();
         for (t, f) in &self.topics {
+            let partial = f.readers.values().any(|r| !r.counts_final);
             out.push_str(&format!(
-                "{:<12} {:>10} {:>10} {:>8} {:>8}\n",
+                "{:<12} {:>10} {:>10} {:>8} {:>8}{}\n",
                 t.name(),
                 f.published,
                 f.received(),
                 f.dropped(),
-                f.gaps()
+                f.gaps(),
+                if partial { "  *" } else { "" }
             ));
+            for (name, r) in &f.readers {
+                if !r.counts_final && !not_final.contains(name) {
+                    not_final.push(name);
+                }
+            }
+        }
+        if !not_final.is_empty() {
+            out.push_str(&format!(
+                "* counts of {} stop at its last report (it ended without its final report): \
+                 dropped there is its sequence gaps only\n",
+                not_final.join(", ")
+            ));
+        }
+        let devices: Vec<&common::DeviceCounters> =
+            self.stages.iter().flat_map(|s| &s.devices).collect();
+        if !devices.is_empty() {
+            out.push_str(&format!(
+                "\n{:<8} {:>9} {:>8} {:>8} {:>8} {:>7} {:>10} {:>7}\n",
+                "device",
+                "samples",
+                "garbage",
+                "rejected",
+                "other",
+                "losses",
+                "reconnects",
+                "errors"
+            ));
+            for d in devices {
+                out.push_str(&format!(
+                    "{:<8} {:>9} {:>8} {:>8} {:>8} {:>7} {:>10} {:>7}\n",
+                    d.name().unwrap_or("?"),
+                    d.samples,
+                    d.garbage_bytes,
+                    d.rejected_records,
+                    d.other_station_records,
+                    d.link_losses,
+                    d.reconnects,
+                    d.device_errors
+                ));
+            }
+            out.push_str(
+                "garbage: bytes skipped between records; rejected: malformed or out-of-range \
+                 records; other: records of other tracker stations; errors: the device's own \
+                 error replies\n",
+            );
         }
         out.push('\n');
         out.push_str(TERMS);
@@ -436,7 +517,7 @@ impl Report {
                 .map(|(name, r)| {
                     (
                         (*name).to_string(),
-                        json!({"received": r.received, "dropped": r.dropped, "gaps": r.gaps}),
+                        json!({"received": r.received, "dropped": r.dropped, "gaps": r.gaps, "counts_final": r.counts_final}),
                     )
                 })
                 .collect();
@@ -445,8 +526,28 @@ impl Report {
                 json!({"published": f.published, "received": f.received(), "dropped": f.dropped(), "gaps": f.gaps(), "readers": readers}),
             );
         }
+        let devices: Map<String, Value> = self
+            .stages
+            .iter()
+            .flat_map(|s| &s.devices)
+            .filter_map(|d| {
+                Some((
+                    d.name()?.to_string(),
+                    json!({
+                        "samples": d.samples,
+                        "garbage_bytes": d.garbage_bytes,
+                        "rejected_records": d.rejected_records,
+                        "other_station_records": d.other_station_records,
+                        "link_losses": d.link_losses,
+                        "reconnects": d.reconnects,
+                        "device_errors": d.device_errors,
+                    }),
+                ))
+            })
+            .collect();
         let m = &self.meta;
         json!({
+            "devices": devices,
             "session": {
                 "file": m.session_file,
                 "scene": m.scene_file,
@@ -514,6 +615,8 @@ mod tests {
             stage,
             histograms,
             counters: Vec::new(),
+            heard_at: std::time::Instant::now(),
+            devices: Vec::new(),
             final_report: true,
             silence_ns: silence_ms * 1_000_000,
         }
@@ -524,6 +627,7 @@ mod tests {
             seconds: 10.0,
             source: Stage::Acquisition,
             renders: true,
+            real_time: true,
         };
         Report::build(
             vec![

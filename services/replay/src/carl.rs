@@ -17,6 +17,13 @@ const JOINTS_BYTES: usize = OPENXR_JOINTS * POSE_BYTES;
 const CONTROLLER_BYTES: usize = 7 * 4;
 /// No real recording is longer than a day at 1 kHz; a count beyond this is damage.
 const MAX_SAMPLES: u64 = 100_000_000;
+/// The fewest bytes a sample takes: its time and seven presence flags.
+const MIN_SAMPLE_BYTES: usize = 8 + 7;
+/// The fewest bytes a sample with the right hand takes (its wrist and joints): only samples
+/// that big can fill the file, so the sample list is first sized for that many.
+const MIN_HAND_SAMPLE_BYTES: usize = MIN_SAMPLE_BYTES + POSE_BYTES + JOINTS_BYTES;
+/// The largest CARL file read: about 1.4 KiB a sample, so over four hours at 90 Hz.
+pub const MAX_FILE_BYTES: u64 = 2 << 30;
 
 /// What is wrong with a CARL file.
 #[derive(Debug, Clone, PartialEq)]
@@ -120,7 +127,7 @@ impl CarlTrace {
     /// Reads a CARL file. Fails only when not even one sample can be read; later damage is
     /// reported in [`CarlTrace::damage`] with the good samples kept.
     pub fn load(file: &Path) -> Result<CarlTrace, CarlError> {
-        let bytes = std::fs::read(file).map_err(|e| CarlError {
+        let bytes = common::config::read_bounded(file, MAX_FILE_BYTES).map_err(|e| CarlError {
             file: file.into(),
             offset: 0,
             problem: format!("cannot read the file: {e}"),
@@ -152,8 +159,9 @@ impl CarlTrace {
         let _kind = c.u32("the header").map_err(fail)?;
         let count_at = c.at;
         let count = c.u64("the header").map_err(fail)?;
-        // Each sample takes at least 8 + 8 flag bytes: a count the file cannot hold is damage.
-        let most = (bytes.len() - c.at) as u64 / 16;
+        // Each sample takes at least its time and 7 flag bytes: a count the file cannot hold
+        // is damage.
+        let most = ((bytes.len() - c.at) / MIN_SAMPLE_BYTES) as u64;
         if count > MAX_SAMPLES || count > most {
             return Err(fail((
                 count_at,
@@ -163,7 +171,10 @@ impl CarlTrace {
                 ),
             )));
         }
-        let mut samples = Vec::with_capacity(count as usize);
+        // Sized for the samples the file could hold with hands (a sample is 1.5 KiB in memory
+        // and may take 15 bytes of the file): the count alone could claim 100 times the file.
+        let hand_samples = (bytes.len() - c.at) / MIN_HAND_SAMPLE_BYTES + 1;
+        let mut samples = Vec::with_capacity((count as usize).min(hand_samples));
         let mut last: Option<(Pose, [Pose; OPENXR_JOINTS])> = None;
         let mut damage = None;
         for i in 0..count {
@@ -361,6 +372,67 @@ mod tests {
         let e = CarlTrace::parse(Path::new("x.carl"), &b).unwrap_err();
         assert_eq!(e.offset, 28);
         assert!(e.problem.contains("presence flag 7"), "{e}");
+    }
+
+    /// A file of `n` samples holding no pose at all (15 bytes each), then the trailer.
+    fn poseless(count: u64, n: usize, tail: &[u8]) -> Vec<u8> {
+        let mut b = b"CARL".to_vec();
+        b.extend(1u32.to_le_bytes());
+        b.extend(1u32.to_le_bytes());
+        b.extend(count.to_le_bytes());
+        for k in 0..n {
+            b.extend((k as f64 / 90.0).to_le_bytes());
+            b.extend([0u8; 7]);
+        }
+        b.extend(tail);
+        b
+    }
+
+    /// Issue 16 (found writing the `carl` fuzz target): the count check assumed 16 bytes a
+    /// sample, so a valid file of more than 16 samples without poses (15 bytes each) was
+    /// refused as "impossible".
+    #[test]
+    fn a_carl_file_of_samples_without_poses_is_read() {
+        let b = poseless(40, 40, &[0u8; 16]);
+        let t = CarlTrace::parse(Path::new("x.carl"), &b).unwrap();
+        assert_eq!(t.samples.len(), 40);
+        assert!(t.damage.is_none(), "{:?}", t.damage);
+        assert!(t.samples.iter().all(|s| !s.tracked));
+    }
+
+    /// Issue 16: the sample list was sized by the header's count, which a file of 15-byte
+    /// samples may set to a 15th of its length: 100 times the file in memory (1.5 KiB a
+    /// sample) before a sample was read. Now it is sized for what the file can hold with hands.
+    #[test]
+    fn a_carl_sample_count_is_not_trusted_for_memory() {
+        // fuzz/corpus/carl/regression-count-sizes-memory: a count of 4000, one sample, then
+        // damage (bytes 7: a presence flag 7).
+        let b = poseless(4000, 1, &[7u8; 60_000 - 15]);
+        let t = CarlTrace::parse(Path::new("x.carl"), &b).unwrap();
+        assert_eq!(t.samples.len(), 1);
+        assert!(
+            t.samples.capacity() <= 60_000 / 771 + 1,
+            "{}",
+            t.samples.capacity()
+        );
+        let e = t.damage.unwrap();
+        // Sample 1's time (8 bytes of 7s: a tiny positive number), then its head-pose flag.
+        assert_eq!(e.offset, 20 + 15 + 8);
+        assert!(e.to_string().starts_with("x.carl: at byte 43: "), "{e}");
+        assert!(e.problem.contains("presence flag 7"), "{e}");
+    }
+
+    /// Issue 16: `load` read `/dev/zero` (a replay session may name any path) until memory
+    /// ran out; now only a regular file of at most MAX_FILE_BYTES is read.
+    #[test]
+    fn a_carl_file_that_is_a_device_is_refused() {
+        let e = CarlTrace::load(Path::new("/dev/zero")).unwrap_err();
+        assert_eq!(e.offset, 0);
+        assert!(
+            e.to_string()
+                .starts_with("/dev/zero: at byte 0: cannot read the file: it is a device"),
+            "{e}"
+        );
     }
 
     #[test]

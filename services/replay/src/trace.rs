@@ -9,6 +9,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use common::stamp::MAX_SOURCE_GAP_NS;
 use common::{GloveSample, JointsSample, Pose, Stage, Topic, TrackerSample, MAX_GLOVE_SENSORS};
 use recording::Recording;
 
@@ -31,6 +32,23 @@ impl SourceSample {
             SourceSample::Glove(s) => s.stamp.source_time_ns,
             SourceSample::Tracker(s) => s.stamp.source_time_ns,
             SourceSample::Joints(s) => s.stamp.source_time_ns,
+        }
+    }
+
+    fn set_source_time_ns(&mut self, t: u64) {
+        match self {
+            SourceSample::Glove(s) => s.stamp.source_time_ns = t,
+            SourceSample::Tracker(s) => s.stamp.source_time_ns = t,
+            SourceSample::Joints(s) => s.stamp.source_time_ns = t,
+        }
+    }
+
+    /// The topic it is published on.
+    pub fn topic(&self) -> Topic {
+        match self {
+            SourceSample::Glove(_) => Topic::Glove,
+            SourceSample::Tracker(_) => Topic::Tracker,
+            SourceSample::Joints(_) => Topic::Joints,
         }
     }
 
@@ -101,6 +119,8 @@ impl HandTrace {
                 warnings: carl.damage.iter().map(|d| d.to_string()).collect(),
             }
         };
+        let mut trace = trace;
+        trace.mend_clock_jumps();
         if trace.hands() == 0 {
             let mut why = format!(
                 "{}: no hand samples to replay (an MCAP recording needs a `tracker` or `joints` \
@@ -227,6 +247,49 @@ impl HandTrace {
             ));
         }
         trace
+    }
+
+    /// Issue 16: a sample whose source time is more than [`MAX_SOURCE_GAP_NS`] from the one
+    /// before (either way) is a jump of the clock, not time passing (one changed timestamp in
+    /// a CARL file put a sample 60 years ahead, and the replay slept until then): it and every
+    /// later sample are moved so that it comes 10 ms after the one before, keeping their
+    /// spacing; each jump is a warning naming the sample.
+    fn mend_clock_jumps(&mut self) {
+        const AFTER_JUMP_NS: i128 = 10_000_000;
+        let mut correction: i128 = 0;
+        let mut previous: Option<i128> = None;
+        let mut jumps = 0usize;
+        for (i, s) in self.samples.iter_mut().enumerate() {
+            let mut t = s.source_time_ns() as i128 + correction;
+            if let Some(p) = previous {
+                if (t - p).abs() > MAX_SOURCE_GAP_NS as i128 {
+                    jumps += 1;
+                    if jumps <= MAX_SAMPLE_WARNINGS {
+                        self.warnings.push(format!(
+                            "{}: sample {i} ({} topic) is {:+.3} s from the one before (a jump \
+                             of the source's clock, more than {} s): it and the samples after it \
+                             are re-timed to go on 10 ms later",
+                            self.file.display(),
+                            s.topic().name(),
+                            (t - p) as f64 / 1e9,
+                            MAX_SOURCE_GAP_NS / 1_000_000_000
+                        ));
+                    }
+                    correction += p + AFTER_JUMP_NS - t;
+                    t = p + AFTER_JUMP_NS;
+                }
+            }
+            let t = t.clamp(0, u64::MAX as i128);
+            s.set_source_time_ns(t as u64);
+            previous = Some(t);
+        }
+        if jumps > MAX_SAMPLE_WARNINGS {
+            self.warnings.push(format!(
+                "{}: {} more jumps of the source's clock were re-timed",
+                self.file.display(),
+                jumps - MAX_SAMPLE_WARNINGS
+            ));
+        }
     }
 
     /// Samples that each make one hand downstream (tracker or joints).

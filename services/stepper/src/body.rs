@@ -89,6 +89,10 @@ pub struct Block {
     /// Vertices in world orientation relative to G, for `rel_rot`.
     pub rel: Vec<DVec3>,
     pub rel_rot: DQuat,
+    /// The box of `rel` (world axes, relative to G): the broad phase's exact "cannot meet"
+    /// test before a GJK query (`interference::boxes_apart`).
+    pub rel_lo: DVec3,
+    pub rel_hi: DVec3,
     pub start_pos: DVec3,
     pub start_rot: DQuat,
     pub mode_before: BlockMode,
@@ -134,6 +138,8 @@ impl Block {
             floor: VertexSet::EMPTY,
             rel: Vec::with_capacity(n),
             rel_rot: DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0),
+            rel_lo: DVec3::ZERO,
+            rel_hi: DVec3::ZERO,
             start_pos: pos,
             start_rot: rot,
             mode_before: BlockMode::Free,
@@ -158,6 +164,11 @@ impl Block {
         if self.rel_rot != self.rot || self.rel.len() != self.poly.vertices.len() {
             crate::geometry::rotate_vertices(&self.poly, self.rot, &mut self.rel);
             self.rel_rot = self.rot;
+            let (lo, hi) = self.rel.iter().fold(
+                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |(lo, hi), v| (lo.min(*v), hi.max(*v)),
+            );
+            (self.rel_lo, self.rel_hi) = (lo, hi);
         }
     }
 

@@ -50,6 +50,7 @@ pub fn run_with_outcome(
     }
     let mut reporter = Reporter::new(Stage::Stepper, bus.outlet::<topics::Latency>()?);
     let mut timeline = Timeline::new(session.scene.world.step_hz);
+    let mut clock_jumps_told = 0;
     let mut waiter = Waiter::new(session.wait);
     loop {
         let stopping = shutdown::requested();
@@ -82,6 +83,17 @@ pub fn run_with_outcome(
                         }
                     }
                 });
+                if timeline.jumps() != clock_jumps_told {
+                    // Rare (a clock reset, a damaged trace): said when it happens.
+                    clock_jumps_told = timeline.jumps();
+                    eprintln!(
+                        "handblocks stepper: the hand's source clock jumped to {} ns at seq {} \
+                         (more than {} s from the sample before): world time went on one step",
+                        hand.stamp.source_time_ns,
+                        hand.stamp.seq,
+                        crate::timeline::MAX_CATCH_UP_NS / 1_000_000_000
+                    );
+                }
             }
             // Written straight into the sample's shared memory: no copy of the world.
             let sent = world_out.publish_with(
@@ -104,7 +116,14 @@ pub fn run_with_outcome(
                 );
             }
             if let Some(dir) = outcome_dir {
-                write_outcome(dir, &world, session, &events, events_not_kept);
+                write_outcome(
+                    dir,
+                    &world,
+                    session,
+                    &events,
+                    events_not_kept,
+                    timeline.jumps(),
+                );
             }
             return Ok(reporter.finish(&counters)?);
         }
@@ -118,8 +137,10 @@ fn write_outcome(
     session: &Session,
     events: &[crate::world::Event],
     not_kept: u64,
+    clock_jumps: u64,
 ) {
-    let report = crate::simulate::outcome(world, &session.scene, events);
+    let mut report = crate::simulate::outcome(world, &session.scene, events);
+    report.clock_jumps = clock_jumps;
     let mut text = report.to_text();
     if not_kept > 0 {
         text.push_str(&format!("  ... and {not_kept} later events, not kept\n"));

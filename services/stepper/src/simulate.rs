@@ -169,6 +169,9 @@ pub struct Report {
     pub frames: u64,
     pub blocks: Vec<BlockReport>,
     pub events: Vec<EventReport>,
+    /// Times the hand's source clock jumped by more than `timeline::MAX_CATCH_UP_NS` between
+    /// two samples (each brought one step, not a catch-up): 0 for a sound trace.
+    pub clock_jumps: u64,
 }
 
 /// Steps `simulate` takes when the command line gives no `--frames`: the scripted hand's
@@ -239,7 +242,9 @@ pub fn simulate_samples(
         collect_events(&world, scene, &mut events);
     }
     let steps = world.steps();
-    Ok(report(&world, scene, steps, events))
+    let mut out = report(&world, scene, steps, events);
+    out.clock_jumps = timeline.jumps();
+    Ok(out)
 }
 
 fn collect_events(world: &Model, scene: &Scene, events: &mut Vec<EventReport>) {
@@ -283,6 +288,7 @@ fn report(world: &Model, scene: &Scene, frames: u64, events: Vec<EventReport>) -
         frames,
         blocks,
         events,
+        clock_jumps: 0,
     }
 }
 
@@ -350,7 +356,11 @@ impl Report {
                 json_str(&e.block)
             );
         }
-        o.push_str("]}\n");
+        o.push(']');
+        if self.clock_jumps > 0 {
+            let _ = write!(o, ", \"clock_jumps\": {}", self.clock_jumps);
+        }
+        o.push_str("}\n");
         o
     }
 
@@ -358,7 +368,15 @@ impl Report {
     pub fn to_text(&self) -> String {
         let mut o = String::new();
         let _ = writeln!(o, "after {} steps:", self.frames);
-        let w = self.blocks.iter().map(|b| b.name.len()).max().unwrap_or(0);
+        // Names are at most MAX_BLOCK_NAME_CHARS (and a lattice suffix); the cap keeps the
+        // column within what a format width can be whatever made the report.
+        let w = self
+            .blocks
+            .iter()
+            .map(|b| b.name.len())
+            .max()
+            .unwrap_or(0)
+            .min(256);
         for b in &self.blocks {
             let [x, y, z] = b.position;
             let q = DQuat::from_array(b.rotation);
@@ -372,6 +390,15 @@ impl Report {
                 axis.x,
                 axis.y,
                 axis.z,
+            );
+        }
+        if self.clock_jumps > 0 {
+            let _ = writeln!(
+                o,
+                "the hand's clock jumped {} time(s) by more than {} s between two samples: \
+                 world time went on one step at each (a damaged or edited trace?)",
+                self.clock_jumps,
+                crate::timeline::MAX_CATCH_UP_NS / 1_000_000_000
             );
         }
         if self.events.is_empty() {

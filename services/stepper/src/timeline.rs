@@ -8,6 +8,13 @@
 use common::HandSample;
 use glam::{DQuat, DVec3};
 
+/// The longest stretch of source time one hand sample may bring in steps
+/// ([`common::stamp::MAX_SOURCE_GAP_NS`]): a source whose clock jumps further is a
+/// discontinuity, not a stretch of world time to catch up on (that would be ~1e12 steps).
+/// World time then goes on one step past the samples before the jump, and the jump is counted
+/// ([`Timeline::jumps`]).
+pub const MAX_CATCH_UP_NS: u64 = common::stamp::MAX_SOURCE_GAP_NS;
+
 /// Maps a hand's source timeline onto fixed steps.
 #[derive(Debug, Clone)]
 pub struct Timeline {
@@ -17,6 +24,11 @@ pub struct Timeline {
     previous: Option<HandSample>,
     steps_taken: u64,
     scratch: HandSample,
+    /// Discontinuities of the source's clock so far (see [`MAX_CATCH_UP_NS`]).
+    jumps: u64,
+    /// Steps taken before the last discontinuity: world time since `origin_ns` counts from
+    /// there (0 for a source whose clock never jumped).
+    base_steps: u64,
 }
 
 impl Timeline {
@@ -27,7 +39,15 @@ impl Timeline {
             previous: None,
             steps_taken: 0,
             scratch: HandSample::default(),
+            jumps: 0,
+            base_steps: 0,
         }
+    }
+
+    /// How many times the source's clock jumped by more than [`MAX_CATCH_UP_NS`] (either way)
+    /// between two samples; each time world time went on by one step.
+    pub fn jumps(&self) -> u64 {
+        self.jumps
     }
 
     /// True once the first hand sample has set world time 0.
@@ -39,10 +59,12 @@ impl Timeline {
     /// ns, the same grid a source at the step rate stamps its samples on, so that at equal
     /// rates each step takes its hand sample exactly, not an interpolation of it.
     fn step_time_ns(&self, k: u64) -> u64 {
+        // A float to integer cast saturates: no overflow for any k.
         (k as f64 * 1e9 / self.step_hz).ceil() as u64
     }
 
-    /// Fixed steps whose time is at or before `source_time_ns` (world time 0 at the first sample).
+    /// Fixed steps since `origin_ns` whose time is at or before `source_time_ns` (world time 0
+    /// at the first sample, or at the last discontinuity).
     fn steps_due(&self, source_time_ns: u64) -> u64 {
         let origin = self.origin_ns.unwrap_or(source_time_ns);
         let elapsed = source_time_ns.saturating_sub(origin);
@@ -59,12 +81,22 @@ impl Timeline {
 
     /// Takes the steps `hand` brings, calling `step` with the hand at each step's time.
     pub fn advance(&mut self, hand: &HandSample, mut step: impl FnMut(Option<&HandSample>)) {
-        let origin = *self.origin_ns.get_or_insert(hand.stamp.source_time_ns);
-        let due = self.steps_due(hand.stamp.source_time_ns);
         let now = hand.stamp.source_time_ns;
+        if let Some(prev) = &self.previous {
+            if now.abs_diff(prev.stamp.source_time_ns) > MAX_CATCH_UP_NS {
+                // A jump of the source's clock: re-base so that this sample falls on the next
+                // step, taken with this hand as it is (no interpolation across the jump).
+                self.origin_ns = Some(now.saturating_sub(self.step_time_ns(1)));
+                self.base_steps = self.steps_taken;
+                self.previous = None;
+                self.jumps += 1;
+            }
+        }
+        let origin = *self.origin_ns.get_or_insert(now);
+        let due = self.base_steps + self.steps_due(now);
         while self.steps_taken < due {
             let k = self.steps_taken + 1;
-            let t_ns = origin + self.step_time_ns(k);
+            let t_ns = origin.saturating_add(self.step_time_ns(k - self.base_steps));
             match &self.previous {
                 Some(prev) if prev.stamp.source_time_ns < now && t_ns < now => {
                     let span = (now - prev.stamp.source_time_ns) as f64;
@@ -152,6 +184,48 @@ mod tests {
         for (i, x) in xs.iter().enumerate() {
             assert!((x - (i + 1) as f64 / 120.0).abs() < 1e-6, "step {i}: {x}");
         }
+    }
+
+    #[test]
+    fn a_clock_that_jumps_decades_ahead_or_back_costs_one_step_and_is_counted() {
+        let period = 1_000_000_000 / 120;
+        for jump_to in [u64::MAX - 5, 2_000_000_000_000_000_000, 0] {
+            let mut tl = Timeline::new(120.0);
+            let mut n = 0u64;
+            let start = 100_000_000_000u64;
+            for k in 0..=120u64 {
+                tl.advance(&hand_at(start + k * period, 0.0), |_| n += 1);
+            }
+            let before = n;
+            tl.advance(&hand_at(jump_to, 1.0), |h| {
+                n += 1;
+                assert_eq!(h.unwrap().wrist.position[0], 1.0, "the hand as it is");
+            });
+            assert!(
+                n - before <= 1,
+                "{jump_to}: {} steps for the jump",
+                n - before
+            );
+            assert_eq!(tl.jumps(), 1);
+            // Time goes on at its rate after the jump.
+            for k in 1..=120u64 {
+                tl.advance(&hand_at(jump_to.saturating_add(k * period), 0.0), |_| {
+                    n += 1
+                });
+            }
+            if jump_to < u64::MAX - 5 {
+                assert!((n - before).abs_diff(121) <= 2, "{jump_to}: {}", n - before);
+            }
+        }
+    }
+
+    #[test]
+    fn a_ten_second_dropout_is_caught_up_on_not_a_jump() {
+        let mut tl = Timeline::new(120.0);
+        let mut n = 0u64;
+        tl.advance(&hand_at(0, 0.0), |_| n += 1);
+        tl.advance(&hand_at(MAX_CATCH_UP_NS, 0.0), |_| n += 1);
+        assert_eq!((n, tl.jumps()), (1200, 0));
     }
 
     #[test]

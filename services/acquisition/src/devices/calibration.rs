@@ -31,6 +31,10 @@ pub const MAX_GAIN: f64 = 0.1;
 /// The largest |offset| accepted, radians.
 pub const MAX_OFFSET: f64 = TAU;
 
+/// The largest calibration file read (one has 18 or 22 short lines): a device, a pipe or
+/// anything longer is refused naming the file, rather than read for ever.
+pub const MAX_FILE_BYTES: u64 = 1 << 20;
+
 /// Raw byte to radians, per sensor.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Calibration {
@@ -126,10 +130,12 @@ impl Calibration {
 
     /// Reads a calibration file (format in the module docs).
     pub fn load(file: &Path) -> Result<Calibration, CalibrationError> {
-        let text = std::fs::read_to_string(file).map_err(|e| CalibrationError {
-            file: file.to_path_buf(),
-            line: 0,
-            problem: format!("cannot read the calibration file: {e}"),
+        let text = common::config::read_bounded_text(file, MAX_FILE_BYTES).map_err(|e| {
+            CalibrationError {
+                file: file.to_path_buf(),
+                line: 0,
+                problem: format!("cannot read the calibration file: {e}"),
+            }
         })?;
         Calibration::parse(file, &text)
     }
@@ -421,6 +427,31 @@ mod tests {
             assert_eq!(c.raw_for(5, a[5]), raw);
         }
         assert!(Calibration::nominal(20).is_none());
+    }
+
+    /// Issue 16: `Calibration::load` read `/dev/zero` (a session's `calibration` may name any
+    /// path) until memory ran out; now only a regular file of at most MAX_FILE_BYTES is read.
+    #[test]
+    fn a_calibration_file_that_is_a_device_or_too_long_is_refused() {
+        let e = Calibration::load(Path::new("/dev/zero")).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with("/dev/zero: cannot read the calibration file: it is a device"),
+            "{msg}"
+        );
+        let dir = std::env::temp_dir().join(format!("hb-cal-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let big = dir.join("big.cal");
+        std::fs::write(&big, vec![b'#'; MAX_FILE_BYTES as usize + 1]).unwrap();
+        let msg = Calibration::load(&big).unwrap_err().to_string();
+        assert!(msg.contains("at most 1048576 are read"), "{msg}");
+        std::fs::write(&big, b"thumb_rotation 0.01 \xff\n").unwrap();
+        let msg = Calibration::load(&big).unwrap_err().to_string();
+        assert!(
+            msg.contains("the byte at offset 20 is not valid UTF-8"),
+            "{msg}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -1,0 +1,692 @@
+//! Fuzz targets: one function per parser of outside bytes, each feeding the bytes to the real
+//! parser, discarding the result and checking what the parser promises of a successful parse
+//! (finite numbers, counts in range, errors that name the file and where in it).
+//!
+//! The same functions run in two harnesses:
+//! * `fuzz/` (cargo-fuzz's layout, libFuzzer, a nightly toolchain or `RUSTC_BOOTSTRAP=1`) for
+//!   long, coverage-guided runs: `cargo fuzz run <target>`;
+//! * `tests/stable_fuzz.rs` on stable in `cargo test`: every seed of `fuzz/corpus/<target>/`,
+//!   then deterministic mutations of each ([`mutate`]) and generated inputs, each under
+//!   `catch_unwind` and a hang watchdog.
+//!
+//! A target panics only when the parser broke a promise (or panicked itself): that is a
+//! finding. A refused input is not.
+//!
+//! | target        | parser                                                            |
+//! |---------------|-------------------------------------------------------------------|
+//! | `cyberglove`  | `acquisition::devices::GloveParser` (push / next)                  |
+//! | `fastrak`     | `acquisition::devices::FastrakParser` (push / next), record_to_world |
+//! | `carl`        | `replay::CarlTrace::parse`, then `joints`                          |
+//! | `mcap`        | `recording::Recording::parse`, its samples, and replay's reading of it |
+//! | `scene`       | `common::config::Scene::load`                                      |
+//! | `session`     | `common::config::Session::load` (a valid scene beside it)          |
+//! | `hand`        | `common::config::hand::HandModelSpec::load`                        |
+//! | `calibration` | `acquisition::devices::Calibration::parse`                         |
+
+use std::cell::OnceCell;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use acquisition::devices::cyberglove::GloveEvent;
+use acquisition::devices::fastrak::{record_to_world, tracker_axes, TrackerRecord};
+use acquisition::devices::{Calibration, FastrakParser, Format, GloveParser, Units};
+use common::config::hand::HandModelSpec;
+use common::config::{Scene, Session};
+use common::{
+    FrameSample, GloveSample, HandSample, JointsSample, Pose, Topic, TrackerSample,
+    MAX_GLOVE_SENSORS, MAX_SCENE_BLOCKS,
+};
+use recording::Recording;
+use replay::trace::SourceSample;
+use replay::{CarlTrace, HandTrace};
+
+/// A target: its name and its function.
+pub type Target = (&'static str, fn(&[u8]));
+
+/// Every target by name, in the order the harnesses run them.
+pub const TARGETS: [Target; 8] = [
+    ("cyberglove", cyberglove),
+    ("fastrak", fastrak),
+    ("carl", carl),
+    ("mcap", mcap),
+    ("scene", scene),
+    ("session", session),
+    ("hand", hand),
+    ("calibration", calibration),
+];
+
+/// The target called `name`.
+pub fn target(name: &str) -> Option<fn(&[u8])> {
+    TARGETS.iter().find(|(n, _)| *n == name).map(|(_, f)| *f)
+}
+
+/// Feeds `stream` to a parser `chunk` bytes at a time (0: as much as fits), draining after
+/// each push; `push` returns how many bytes it took, `drain` takes every event out.
+fn feed(
+    stream: &[u8],
+    chunk: usize,
+    mut push: impl FnMut(&[u8]) -> usize,
+    mut drain: impl FnMut(),
+) {
+    let mut rest = stream;
+    while !rest.is_empty() {
+        let take = if chunk == 0 {
+            rest.len()
+        } else {
+            chunk.min(rest.len())
+        };
+        let took = push(&rest[..take]);
+        // A parser whose window takes nothing would stall its driver for good.
+        assert!(
+            took > 0,
+            "the parser took none of {take} bytes: it would stall"
+        );
+        rest = &rest[took..];
+        drain();
+    }
+    drain();
+}
+
+/// `cyberglove`: byte 0 picks the sensor count (18 or 22 mostly, else 0..=31, which the parser
+/// clamps), byte 1 the chunk size the bytes arrive in; the rest is the serial stream.
+pub fn cyberglove(data: &[u8]) {
+    let [config, chunking, stream @ ..] = data else {
+        return;
+    };
+    let sensors = if config & 0x80 == 0 {
+        [18, 22][usize::from(config & 1)]
+    } else {
+        usize::from(config & 0x1f)
+    };
+    let mut p = GloveParser::new(sensors);
+    let n = p.sensors();
+    assert!((1..=MAX_GLOVE_SENSORS).contains(&n), "sensor count {n}");
+    let mut raw = [0u8; MAX_GLOVE_SENSORS];
+    let mut pushed = 0u64;
+    let mut records = 0u64;
+    let parser = std::cell::RefCell::new(&mut p);
+    feed(
+        stream,
+        usize::from(*chunking % 64),
+        |b| {
+            let took = parser.borrow_mut().push(b);
+            pushed += took as u64;
+            took
+        },
+        || {
+            let mut p = parser.borrow_mut();
+            while let Some(ev) = p.next(&mut raw) {
+                match ev {
+                    GloveEvent::Record { header } => {
+                        assert!(matches!(header, b'G' | b'S'), "record header {header:#04x}");
+                        assert!(
+                            raw[..n].iter().all(|b| *b != 0),
+                            "a record with a 0 sensor byte: {:?}",
+                            &raw[..n]
+                        );
+                        records += 1;
+                    }
+                    GloveEvent::SensorCount(c) => assert_ne!(c, 0, "sensor count 0"),
+                    GloveEvent::DeviceError(c) => {
+                        assert!(c.is_ascii_lowercase(), "error code {c:#04x}")
+                    }
+                }
+            }
+        },
+    );
+    let stats = p.stats;
+    assert!(
+        stats.garbage_bytes + records * (n as u64 + 2) <= pushed,
+        "{} garbage bytes and {records} records of {} bytes from {pushed} bytes",
+        stats.garbage_bytes,
+        n + 2
+    );
+}
+
+/// The output lists the driver asks for, and a few more the parser takes.
+const FASTRAK_LISTS: [&[u8]; 8] = [
+    &[2, 11, 1],
+    &[2, 4, 1],
+    &[2, 1],
+    &[11, 1],
+    &[4, 1],
+    &[0, 2, 0, 11, 1],
+    &[2, 4, 11, 1],
+    &[2, 11],
+];
+
+/// `fastrak`: byte 0 bit 0 picks the format (binary, ASCII), bit 1 whether byte 1 picks one
+/// of [`FASTRAK_LISTS`] or says how many of the following bytes are the item list (so bad
+/// lists reach `FastrakParser::new`), bits 2.. the chunk size; the rest is the stream.
+pub fn fastrak(data: &[u8]) {
+    let [config, list, rest @ ..] = data else {
+        return;
+    };
+    let format = if config & 1 == 0 {
+        Format::Binary
+    } else {
+        Format::Ascii
+    };
+    let (items, stream): (&[u8], &[u8]) = if config & 2 == 0 {
+        (
+            FASTRAK_LISTS[usize::from(*list) % FASTRAK_LISTS.len()],
+            rest,
+        )
+    } else {
+        let k = (usize::from(*list) % 10).min(rest.len());
+        rest.split_at(k)
+    };
+    let Ok(mut p) = FastrakParser::new(format, items) else {
+        return;
+    };
+    let axes = tracker_axes();
+    let mut rec = TrackerRecord::default();
+    let mut pushed = 0u64;
+    let parser = std::cell::RefCell::new(&mut p);
+    feed(
+        stream,
+        usize::from(config >> 2),
+        |b| {
+            let took = parser.borrow_mut().push(b);
+            pushed += took as u64;
+            took
+        },
+        || {
+            let mut p = parser.borrow_mut();
+            while p.next(&mut rec) {
+                check_tracker_record(&rec);
+                for units in [Units::Centimetres, Units::Inches] {
+                    if let Some(pose) =
+                        record_to_world(&rec, units, axes, &Pose::IDENTITY, &Pose::IDENTITY)
+                    {
+                        assert!(pose.is_finite(), "record_to_world gave {pose:?}");
+                    }
+                }
+            }
+        },
+    );
+    assert!(p.stats.garbage_bytes <= pushed);
+}
+
+/// What the FASTRAK parser promises of a record it accepts.
+fn check_tracker_record(r: &TrackerRecord) {
+    assert!((1..=4).contains(&r.station), "station {}", r.station);
+    assert!(
+        r.has_position || r.has_euler || r.has_quaternion,
+        "a record with no item"
+    );
+    let all = r.position.iter().chain(&r.euler).chain(&r.quaternion);
+    assert!(all.clone().all(|v| v.is_finite()), "not finite: {r:?}");
+    assert!(r.position.iter().all(|v| v.abs() <= 1000.0), "{r:?}");
+    if r.has_quaternion {
+        let n2: f64 = r.quaternion.iter().map(|q| q * q).sum();
+        assert!((0.96..=1.04).contains(&n2), "quaternion norm^2 {n2}");
+    }
+    let q = r.rotation();
+    assert!(q.is_finite(), "rotation {q:?} of {r:?}");
+}
+
+/// `carl`: the bytes as a CARL file; a trace read must have finite, ordered times and its
+/// `joints` never a NaN; an error names the file and an offset inside it.
+pub fn carl(data: &[u8]) {
+    let file = Path::new("fuzz.carl");
+    let check_error = |e: &replay::CarlError| {
+        assert!(
+            e.offset <= data.len(),
+            "offset {} past {} bytes",
+            e.offset,
+            data.len()
+        );
+        let msg = e.to_string();
+        assert!(msg.starts_with("fuzz.carl: at byte "), "{msg}");
+    };
+    let t = match CarlTrace::parse(file, data) {
+        Ok(t) => t,
+        Err(e) => {
+            check_error(&e);
+            return;
+        }
+    };
+    if let Some(d) = &t.damage {
+        check_error(d);
+    }
+    assert!(!t.samples.is_empty(), "a trace with no samples");
+    for w in t.samples.windows(2) {
+        assert!(
+            w[0].time <= w[1].time,
+            "time goes back: {} {}",
+            w[0].time,
+            w[1].time
+        );
+    }
+    assert!(t.samples.iter().all(|s| s.time.is_finite()));
+    let mut joints = Vec::new();
+    t.joints([0.0, -0.9, 0.0], &mut joints);
+    assert_eq!(joints.len(), t.samples.len());
+    let mut prev = 0;
+    for j in &joints {
+        assert!(
+            j.wrist.is_finite() && j.joints.iter().all(|p| p.is_finite()),
+            "a NaN pose left the reader"
+        );
+        assert!(j.stamp.source_time_ns >= prev, "source time goes back");
+        prev = j.stamp.source_time_ns;
+    }
+    let _ = t.duration();
+}
+
+/// `mcap`: the bytes as one of our recordings; then every view of it a tool takes (samples of
+/// each topic, worlds, statistics, the summary) and replay's reading of its source topics,
+/// which must never let a NaN or an impossible sensor count through.
+pub fn mcap(data: &[u8]) {
+    let file = Path::new("fuzz.mcap");
+    let rec = match Recording::parse(file, data) {
+        Ok(r) => r,
+        Err(e) => {
+            assert!(e.to_string().starts_with("fuzz.mcap: "), "{e}");
+            return;
+        }
+    };
+    if let Some(d) = &rec.damage {
+        assert!(d.to_string().starts_with("fuzz.mcap: "), "{d}");
+    }
+    for w in rec.worlds() {
+        assert!(w.blocks.len() <= MAX_SCENE_BLOCKS);
+        assert!(w.blocks().len() <= w.blocks.len());
+    }
+    let _ = rec.samples::<GloveSample>(Topic::Glove).count();
+    let _ = rec.samples::<TrackerSample>(Topic::Tracker).count();
+    let _ = rec.samples::<JointsSample>(Topic::Joints).count();
+    let _ = rec.samples::<HandSample>(Topic::Hand).count();
+    let _ = rec.samples::<FrameSample>(Topic::Frame).count();
+    let stats = rec.stats();
+    let summary = rec.summary();
+    assert_eq!(
+        summary.messages,
+        stats.iter().map(|s| s.messages).sum::<u64>()
+    );
+    for t in &summary.topics {
+        assert!(t.seconds >= 0.0 && t.rate_hz >= 0.0, "{t:?}");
+    }
+    let trace = HandTrace::from_recording(&rec, [0.0, -0.9, 0.0]);
+    for s in &trace.samples {
+        match s {
+            SourceSample::Glove(g) => {
+                assert!(g.sensor_count as usize <= MAX_GLOVE_SENSORS, "{g:?}");
+                assert!(g.angles.iter().all(|a| a.is_finite()), "{g:?}");
+            }
+            SourceSample::Tracker(t) => assert!(t.wrist.is_finite(), "{t:?}"),
+            SourceSample::Joints(j) => assert!(
+                j.wrist.is_finite() && j.joints.iter().all(|p| p.is_finite()),
+                "{j:?}"
+            ),
+        }
+    }
+    for w in &trace.warnings {
+        assert!(w.starts_with("fuzz.mcap: "), "{w}");
+    }
+}
+
+static NEXT_DIR: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    static SCRATCH: OnceCell<PathBuf> = const { OnceCell::new() };
+}
+
+/// This thread's scratch folder (made on first use): file targets write their input there.
+pub fn scratch_dir() -> PathBuf {
+    SCRATCH.with(|d| {
+        d.get_or_init(|| {
+            let dir = std::env::temp_dir().join(format!(
+                "hb-fuzz-{}-{}",
+                std::process::id(),
+                NEXT_DIR.fetch_add(1, Ordering::Relaxed)
+            ));
+            std::fs::create_dir_all(&dir)
+                .unwrap_or_else(|e| panic!("fuzz harness: cannot make {}: {e}", dir.display()));
+            dir
+        })
+        .clone()
+    })
+}
+
+/// Removes this thread's scratch folder, if it made one.
+pub fn remove_scratch_dir() {
+    SCRATCH.with(|d| {
+        if let Some(dir) = d.get() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+    });
+}
+
+/// Writes `data` as `name` in this thread's scratch folder.
+fn scratch_file(name: &str, data: &[u8]) -> PathBuf {
+    let file = scratch_dir().join(name);
+    std::fs::write(&file, data)
+        .unwrap_or_else(|e| panic!("fuzz harness: cannot write {}: {e}", file.display()));
+    file
+}
+
+/// A config error must name a file and say something.
+fn check_config_error(e: &common::config::ConfigError) {
+    assert!(
+        !e.file.as_os_str().is_empty(),
+        "an error naming no file: {e:?}"
+    );
+    assert!(!e.problem.is_empty(), "an error with no problem: {e:?}");
+}
+
+/// What the scene reader promises of a scene it accepts.
+fn check_scene(s: &Scene) {
+    use common::config::scene::{HandPoseSpec, ShapeSpec};
+    let w = &s.world;
+    assert!(w.step_hz.is_finite() && w.step_hz >= 1.0, "{w:?}");
+    assert!(
+        w.gravity.is_finite() && w.release_angle <= w.grasp_angle,
+        "{w:?}"
+    );
+    assert!(
+        s.blocks.len() <= MAX_SCENE_BLOCKS,
+        "{} blocks",
+        s.blocks.len()
+    );
+    for b in &s.blocks {
+        assert!(b.position.iter().all(|v| v.is_finite()), "{b:?}");
+        assert!(b.velocity.iter().all(|v| v.is_finite()), "{b:?}");
+        let n2: f64 = b.rotation.iter().map(|q| q * q).sum();
+        assert!((n2 - 1.0).abs() < 1e-9, "rotation {:?}", b.rotation);
+        match &b.shape {
+            ShapeSpec::Box { size } | ShapeSpec::Wedge { size } | ShapeSpec::Tetra { size } => {
+                assert!(size.iter().all(|v| v.is_finite() && *v > 0.0), "{b:?}")
+            }
+            ShapeSpec::Hull { vertices } => {
+                assert!((4..=256).contains(&vertices.len()));
+                assert!(vertices.iter().flatten().all(|v| v.is_finite()));
+            }
+        }
+    }
+    if let Some(h) = &s.hand {
+        assert!(!h.keys.is_empty());
+        for w in h.keys.windows(2) {
+            assert!(w[0].t < w[1].t, "keys out of order");
+        }
+        for k in &h.keys {
+            assert!(k.t.is_finite() && k.wrist.iter().all(|v| v.is_finite()));
+            match &k.pose {
+                HandPoseSpec::Grip(g) => assert!((0.0..=1.0).contains(g)),
+                HandPoseSpec::Angles(a) => {
+                    assert!(a.len() == 18 || a.len() == 22);
+                    assert!(a.iter().all(|v| v.is_finite()));
+                }
+                HandPoseSpec::Fingers(f) => {
+                    assert!(f.iter().flatten().flatten().all(|v| v.is_finite()))
+                }
+            }
+        }
+    }
+}
+
+/// `scene`: the bytes as a scene file.
+pub fn scene(data: &[u8]) {
+    let file = scratch_file("scene.toml", data);
+    match Scene::load(&file) {
+        Ok(s) => check_scene(&s),
+        Err(e) => check_config_error(&e),
+    }
+}
+
+/// The scene a fuzzed session finds beside it as `s.toml`.
+pub const SESSION_SCENE: &str = "[[block]]\nname = \"red\"\nposition = [0.0, 0.05, 0.0]\n\
+                                 [hand]\n[[hand.key]]\nt = 0\nwrist = [0.3, 0.3, 0]\n";
+/// The hand model a fuzzed session finds beside it as `hand.toml`.
+pub const SESSION_HAND: &str = include_str!("../../../config/hand.toml");
+
+/// `session`: the bytes as a session file, with a valid scene (`s.toml`) and hand model
+/// (`hand.toml`) beside it for the session to name.
+pub fn session(data: &[u8]) {
+    let dir = scratch_dir();
+    if !dir.join("s.toml").exists() {
+        scratch_file("s.toml", SESSION_SCENE.as_bytes());
+        scratch_file("hand.toml", SESSION_HAND.as_bytes());
+    }
+    let file = scratch_file("session.toml", data);
+    match Session::load(&file) {
+        Ok(s) => {
+            check_scene(&s.scene);
+            let b = &s.budget;
+            assert!(
+                b.frame_hz.is_finite() && b.source_silence_ms.is_finite(),
+                "{b:?}"
+            );
+            let r = &s.renderer;
+            assert!(
+                r.width >= 16 && r.height >= 16 && r.eye != r.target,
+                "{r:?}"
+            );
+        }
+        Err(e) => check_config_error(&e),
+    }
+}
+
+/// `hand`: the bytes as a hand model file.
+pub fn hand(data: &[u8]) {
+    let file = scratch_file("hand.toml", data);
+    match HandModelSpec::load(&file) {
+        Ok(m) => {
+            let mut all: Vec<f64> = vec![m.thumb_radius, m.palm_half_width, m.palm_half_thickness];
+            all.extend(m.thumb_base.iter().chain(&m.thumb_bones));
+            for f in &m.fingers {
+                all.extend(f.knuckle.iter().chain(&f.bones));
+                all.push(f.radius);
+            }
+            assert!(all.iter().all(|v| v.is_finite()), "{m:?}");
+            assert!(m.thumb_bones.iter().all(|b| *b > 0.0));
+        }
+        Err(e) => check_config_error(&e),
+    }
+}
+
+/// `calibration`: the bytes as a calibration file (lossy UTF-8, as a reader of the text would
+/// see them); a calibration read must map every raw byte to a finite angle.
+pub fn calibration(data: &[u8]) {
+    let text = String::from_utf8_lossy(data);
+    match Calibration::parse(Path::new("fuzz.cal"), &text) {
+        Ok(c) => {
+            let n = c.sensor_count() as usize;
+            assert!(n == 18 || n == 22, "{n} sensors");
+            let mut out = [0.0; MAX_GLOVE_SENSORS];
+            for raw in [1u8, 2, 127, 128, 254, 255] {
+                c.apply(&[raw; MAX_GLOVE_SENSORS][..n], &mut out);
+                assert!(out.iter().all(|v| v.is_finite()), "raw {raw}: {out:?}");
+                for (i, a) in out.iter().enumerate().take(n) {
+                    assert!(c.raw_for(i, *a) >= 1);
+                }
+            }
+        }
+        Err(e) => {
+            let msg = e.to_string();
+            assert!(msg.starts_with("fuzz.cal: "), "{msg}");
+            assert!(e.line <= text.lines().count(), "line {} of {msg}", e.line);
+        }
+    }
+}
+
+/// A deterministic xorshift64* generator (the stable harness must regenerate any input from
+/// its seed).
+#[derive(Debug, Clone)]
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Rng {
+        // Never 0 (xorshift's fixed point); mix the seed so neighbouring seeds differ.
+        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xD1B5_4A32_D192_ED03 | 1)
+    }
+
+    pub fn next_u64(&mut self) -> u64 {
+        let mut x = self.0;
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        self.0 = x;
+        x.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+
+    /// Uniform-ish in 0..n (n > 0).
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n.max(1) as u64) as usize
+    }
+}
+
+/// Bytes that make parsers take their rarer paths.
+const BYTES: [u8; 4] = [0x00, 0xff, 0x7f, 0x80];
+const WORDS: [u32; 6] = [
+    u32::MAX,
+    0x8000_0000,
+    0x7fff_ffff,
+    1_000_000_000_000u64 as u32,
+    0x7fc0_0000, // f32 NaN
+    0x7f80_0000, // f32 +inf
+];
+const QUADS: [u64; 9] = [
+    u64::MAX,
+    0x8000_0000_0000_0000,
+    i64::MAX as u64,
+    1_000_000_000_000,
+    0x7ff8_0000_0000_0000, // f64 NaN
+    0x7ff0_0000_0000_0000, // f64 +inf
+    0xfff0_0000_0000_0000, // f64 -inf
+    0x7e37_e43c_8800_759c, // 1e300
+    0,
+];
+/// Text that makes the TOML and text readers take their rarer paths.
+const TOKENS: [&[u8]; 16] = [
+    b"nan",
+    b"inf",
+    b"-0",
+    b"1e309",
+    b"18446744073709551615",
+    b"9223372036854775807",
+    b"\n",
+    b" = ",
+    b"\"",
+    b"[",
+    b"]",
+    b"[[block]]\n",
+    b"{",
+    b",",
+    b"#",
+    b"\r\n",
+];
+
+/// One deterministic mutation of `input` into `out` (cleared first): 1 to 8 stacked edits
+/// chosen by `seed`, among bit flips, bytes set to 0x00/0xff/0x7f/0x80, 4- and 8-byte
+/// overwrites with extreme integers and float bit patterns (NaN, inf, 1e300), truncation,
+/// duplication of a slice, insertion of random bytes, and insertion of tokens for text formats.
+pub fn mutate(seed: u64, input: &[u8], out: &mut Vec<u8>) {
+    let mut rng = Rng::new(seed);
+    out.clear();
+    out.extend_from_slice(input);
+    let edits = 1 + rng.below(8);
+    for _ in 0..edits {
+        let len = out.len();
+        match rng.below(11) {
+            0 | 1 if len > 0 => {
+                let at = rng.below(len);
+                out[at] ^= 1 << rng.below(8);
+            }
+            2 if len > 0 => {
+                let at = rng.below(len);
+                out[at] = BYTES[rng.below(BYTES.len())];
+            }
+            3 if len >= 4 => {
+                let at = rng.below(len - 3);
+                let w = WORDS[rng.below(WORDS.len())];
+                out[at..at + 4].copy_from_slice(&w.to_le_bytes());
+            }
+            4 if len >= 8 => {
+                let at = rng.below(len - 7);
+                let q = QUADS[rng.below(QUADS.len())];
+                out[at..at + 8].copy_from_slice(&q.to_le_bytes());
+            }
+            5 if len > 0 => out.truncate(rng.below(len)),
+            6 if len > 0 => {
+                let a = rng.below(len);
+                let n = 1 + rng.below((len - a).min(4096));
+                let at = rng.below(len + 1);
+                let piece = out[a..a + n].to_vec();
+                out.splice(at..at, piece);
+            }
+            7 => {
+                let at = rng.below(len + 1);
+                let n = 1 + rng.below(16);
+                let piece: Vec<u8> = (0..n).map(|_| rng.next_u64() as u8).collect();
+                out.splice(at..at, piece);
+            }
+            8 => {
+                let at = rng.below(len + 1);
+                let t = TOKENS[rng.below(TOKENS.len())];
+                out.splice(at..at, t.iter().copied());
+            }
+            9 if len > 0 => {
+                let at = rng.below(len);
+                out[at] = rng.next_u64() as u8;
+            }
+            _ if len > 1 => {
+                // Remove a slice.
+                let a = rng.below(len);
+                let n = 1 + rng.below((len - a).min(64));
+                out.drain(a..a + n);
+            }
+            _ => out.push(rng.next_u64() as u8),
+        }
+    }
+}
+
+/// A generated input: `seed` decides its length (0 to 1 KiB) and bytes; for text targets most
+/// bytes are printable.
+pub fn generate(seed: u64, text: bool, out: &mut Vec<u8>) {
+    let mut rng = Rng::new(seed ^ 0x5eed);
+    out.clear();
+    let len = rng.below(1025);
+    for _ in 0..len {
+        let r = rng.next_u64();
+        let b = if text && !r.is_multiple_of(8) {
+            b" \n=[]\".,#abcdefghijklmnopqrstuvwxyz0123456789-_"[((r >> 8) % 47) as usize]
+        } else {
+            (r >> 8) as u8
+        };
+        out.push(b);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mutations_are_deterministic_and_differ() {
+        let input = b"CARL\x01\0\0\0 some bytes to mutate";
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        mutate(7, input, &mut a);
+        mutate(7, input, &mut b);
+        assert_eq!(a, b);
+        let distinct: std::collections::HashSet<Vec<u8>> = (0..100)
+            .map(|s| {
+                mutate(s, input, &mut a);
+                a.clone()
+            })
+            .collect();
+        assert!(distinct.len() > 90, "{}", distinct.len());
+        mutate(3, b"", &mut a); // an empty input still mutates
+    }
+
+    #[test]
+    fn every_target_takes_empty_and_short_inputs() {
+        for (_, t) in TARGETS {
+            for d in [&b""[..], b"\0", b"\xff\xff", b"0123"] {
+                t(d);
+            }
+        }
+        remove_scratch_dir();
+    }
+}

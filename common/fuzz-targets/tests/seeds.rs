@@ -1,0 +1,412 @@
+//! The checked-in seed corpus (`fuzz/corpus/<target>/`): how it was made, and that it stays
+//! small and valid.
+//!
+//! `seed-*` files are small valid inputs (each must parse); `regression-*` files are inputs
+//! that once found a bug (each must be refused without a panic: `stable_fuzz.rs` runs them).
+//! Regenerate the generated seeds with
+//! `cargo test --release -p fuzz-targets --test seeds -- --ignored write_seeds`
+//! (the text seeds are copies of config/ files and hand-written sessions; see `write_seeds`).
+
+use std::path::{Path, PathBuf};
+
+use acquisition::devices::fastrak::{encode_record, item};
+use acquisition::devices::{Calibration, FastrakParser, Format, GloveParser};
+use common::config::hand::HandModelSpec;
+use common::config::{Scene, Session};
+use common::{
+    FrameSample, GloveSample, HandSample, JointsSample, Pose, Stamp, Topic, TrackerSample,
+    WorldSample, MAX_GLOVE_SENSORS,
+};
+use recording::{Recording, RecordingWriter};
+use replay::CarlTrace;
+
+/// The largest seed checked in.
+const MAX_SEED_BYTES: usize = 64 * 1024;
+
+fn corpus() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/corpus")
+}
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn put(target: &str, name: &str, bytes: &[u8]) {
+    assert!(
+        bytes.len() < MAX_SEED_BYTES,
+        "{target}/{name}: {} bytes",
+        bytes.len()
+    );
+    let dir = corpus().join(target);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join(name), bytes).unwrap();
+}
+
+fn glove_record(header: u8, k: usize, n: usize) -> Vec<u8> {
+    let mut v = vec![header];
+    v.extend((0..n).map(|i| 1 + ((k * 37 + i * 11) % 254) as u8));
+    v.push(0);
+    v
+}
+
+fn quat(k: usize) -> [f64; 4] {
+    let a = k as f64 * 0.2;
+    let (s, c) = (a / 2.0).sin_cos();
+    [c, s * 0.6, s * 0.0, s * 0.8]
+}
+
+fn fastrak_stream(format: Format, items: &[u8], n: usize) -> Vec<u8> {
+    let mut out = Vec::new();
+    for k in 0..n {
+        encode_record(
+            format,
+            items,
+            1 + (k % 4) as u8,
+            [k as f64 * 1.5, -20.25, 33.5],
+            [k as f64 * 10.0 - 90.0, 45.0 - k as f64, 170.0],
+            quat(k),
+            &mut out,
+        );
+    }
+    out
+}
+
+/// A CARL file of `n` samples of nothing but times and absent poses, except every third
+/// sample, which has the right hand's wrist and joints.
+fn carl_sparse(n: usize) -> Vec<u8> {
+    let mut out = b"CARL".to_vec();
+    out.extend(1u32.to_le_bytes());
+    out.extend(1u32.to_le_bytes());
+    out.extend((n as u64).to_le_bytes());
+    let pose = |out: &mut Vec<u8>, k: usize| {
+        for v in [0.0f32, 0.0, 0.0, 1.0, 0.1 * k as f32, 1.0, -0.3] {
+            out.extend(v.to_le_bytes());
+        }
+    };
+    for k in 0..n {
+        out.extend((k as f64 / 90.0).to_le_bytes());
+        out.extend([0, 0]); // head, left wrist
+        let right = k % 3 == 2;
+        out.push(right as u8);
+        if right {
+            pose(&mut out, k);
+        }
+        out.push(0); // left joints
+        out.push(right as u8);
+        if right {
+            for j in 0..26 {
+                pose(&mut out, j);
+            }
+        }
+        out.extend([0, 0]); // controllers
+    }
+    out.extend(0f64.to_le_bytes());
+    out.extend(((n - 1) as f64 / 90.0).to_le_bytes());
+    out
+}
+
+fn stamp(k: u64) -> Stamp {
+    Stamp {
+        seq: k,
+        source_time_ns: k * 8_333_333,
+        origin_ns: 1_000_000_000 + k * 8_333_333,
+        publish_ns: 1_000_010_000 + k * 8_333_333,
+    }
+}
+
+/// A small recording of every recorded topic, finished properly.
+fn mcap_recording(samples: u64, world_blocks: usize) -> Vec<u8> {
+    let dir = std::env::temp_dir().join(format!("hb-fuzz-seeds-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("seed.mcap");
+    let mut w = RecordingWriter::create_with(&path, &[("session", "seed.toml".into())]).unwrap();
+    for k in 0..samples {
+        let mut g = GloveSample {
+            stamp: stamp(k),
+            ..GloveSample::default()
+        };
+        for (i, a) in g.angles.iter_mut().enumerate() {
+            *a = 0.01 * (k as f64 + i as f64);
+        }
+        w.write(Topic::Glove, &g).unwrap();
+        let wrist = Pose {
+            position: [0.1 * k as f64, 0.3, -0.2],
+            rotation: [0.0, 0.0, 0.0, 1.0],
+        };
+        w.write(
+            Topic::Tracker,
+            &TrackerSample {
+                stamp: stamp(k),
+                station: 1,
+                _reserved: 0,
+                wrist,
+            },
+        )
+        .unwrap();
+        w.write(
+            Topic::Joints,
+            &JointsSample {
+                stamp: stamp(k),
+                tracked: 1,
+                wrist,
+                ..JointsSample::default()
+            },
+        )
+        .unwrap();
+        let mut hand: HandSample = unsafe_zeroed_hand();
+        hand.stamp = stamp(k);
+        hand.wrist = wrist;
+        hand.tracked = 1;
+        w.write(Topic::Hand, &hand).unwrap();
+        let mut world = WorldSample::with_blocks(world_blocks);
+        world.header.stamp = stamp(k);
+        world.header.step = k;
+        world.header.hand_seq = k;
+        for (i, b) in world.blocks.iter_mut().enumerate() {
+            b.pose = Pose {
+                position: [i as f64 * 0.2, 0.05, 0.0],
+                rotation: [0.0, 0.0, 0.0, 1.0],
+            };
+        }
+        w.write_slice(Topic::World, &world.header, &world.blocks)
+            .unwrap();
+        w.write(
+            Topic::Frame,
+            &FrameSample {
+                stamp: stamp(k),
+                ..FrameSample::default()
+            },
+        )
+        .unwrap();
+        if k % 4 == 3 {
+            w.close_chunk().unwrap();
+        }
+    }
+    w.finish().unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    bytes
+}
+
+/// A hand sample of zeros (every sample type is plain old data: zero is a valid value).
+fn unsafe_zeroed_hand() -> HandSample {
+    // SAFETY: HandSample is #[repr(C)] plain old data of integers and floats.
+    unsafe { std::mem::zeroed() }
+}
+
+/// Writes the generated seeds and copies the text ones from config/.
+#[test]
+#[ignore = "writes fuzz/corpus: run it by hand to regenerate the seeds"]
+fn write_seeds() {
+    // cyberglove: byte 0 = size (0 -> 18, 1 -> 22), byte 1 = chunk size (0 = all at once).
+    let mut s = vec![1, 0];
+    for k in 0..5 {
+        s.extend(glove_record(b'S', k, 22));
+    }
+    s.extend(b"?S\x16\0eg");
+    put("cyberglove", "seed-22-streamed", &s);
+    let mut s = vec![0, 1];
+    s.extend(b"?S\x12\0");
+    for k in 0..4 {
+        s.extend(glove_record(b'G', k, 18));
+    }
+    s.extend(b"es");
+    put("cyberglove", "seed-18-polled-byte-by-byte", &s);
+    let mut s = vec![1, 7];
+    s.extend(b"\xff\x00 G\x01\x02");
+    s.extend(glove_record(b'S', 1, 22));
+    s.extend(&glove_record(b'S', 2, 22)[..9]);
+    s.extend(glove_record(b'S', 3, 22));
+    s.extend(b"S\x05\x06\x00?S\x16");
+    s.extend(glove_record(b'S', 4, 22));
+    put("cyberglove", "seed-22-noise-and-cut-records", &s);
+
+    // fastrak: byte 0 bit 0 = ascii, bit 1 = raw item list, bits 2.. = chunk; byte 1 = list.
+    let lists: [&[u8]; 3] = [
+        &[item::POSITION, item::QUATERNION, item::CRLF],
+        &[item::POSITION, item::EULER, item::CRLF],
+        &[
+            item::SPACE,
+            item::POSITION,
+            item::SPACE,
+            item::QUATERNION,
+            item::CRLF,
+        ],
+    ];
+    let mut s = vec![0, 0];
+    s.extend(fastrak_stream(Format::Binary, lists[0], 8));
+    put("fastrak", "seed-binary-quaternion", &s);
+    let mut s = vec![1 | (9 << 2), 1];
+    s.extend(fastrak_stream(Format::Ascii, lists[1], 8));
+    put("fastrak", "seed-ascii-euler-chunks-of-9", &s);
+    let mut s = vec![1, 0];
+    s.extend(fastrak_stream(Format::Ascii, lists[0], 6));
+    put("fastrak", "seed-ascii-quaternion", &s);
+    let mut s = vec![2 | (5 << 2), lists[2].len() as u8];
+    s.extend(lists[2]);
+    let mut stream = fastrak_stream(Format::Binary, lists[2], 6);
+    stream.splice(40..40, b"\x00\xff01 junk\r\n".iter().copied());
+    s.extend(stream);
+    put("fastrak", "seed-binary-spaces-raw-list-with-noise", &s);
+
+    // carl: generated ones only (the real recordings in ../shared/data/carl are not ours to
+    // check in: stable_fuzz reads them from there, cut short, as extra seeds).
+    put("carl", "seed-sparse-right-hand", &carl_sparse(12));
+    let mut cut = carl_sparse(30);
+    cut.truncate(cut.len() - 1000);
+    put("carl", "seed-sparse-cut-off", &cut);
+
+    // mcap: our own recordings, small.
+    put("mcap", "seed-every-topic", &mcap_recording(6, 3));
+    put("mcap", "seed-one-sample-no-blocks", &mcap_recording(1, 0));
+    let full = mcap_recording(8, 2);
+    put("mcap", "seed-cut-off", &full[..full.len() * 2 / 3]);
+
+    // Text seeds: copies of config/ files (scenes, hand, calibrations).
+    for (target, from, name) in [
+        (
+            "scene",
+            "config/scenes/grasp-throw.toml",
+            "seed-grasp-throw.toml",
+        ),
+        (
+            "scene",
+            "config/scenes/grasp-throw-fingers.toml",
+            "seed-grasp-throw-fingers.toml",
+        ),
+        (
+            "scene",
+            "config/scenes/wedge-tetra.toml",
+            "seed-wedge-tetra.toml",
+        ),
+        (
+            "scene",
+            "config/scenes/field-1024.toml",
+            "seed-field-1024.toml",
+        ),
+        ("scene", "config/scenes/balance.toml", "seed-balance.toml"),
+        ("hand", "config/hand.toml", "seed-hand.toml"),
+        (
+            "calibration",
+            "config/devices/glove-22.cal",
+            "seed-glove-22.cal",
+        ),
+        (
+            "calibration",
+            "config/devices/glove-18.cal",
+            "seed-glove-18.cal",
+        ),
+    ] {
+        put(target, name, &std::fs::read(repo().join(from)).unwrap());
+    }
+}
+
+/// Every seed is small; every `seed-*` parses (so fuzzing starts from valid inputs); every
+/// file is a seed or a regression.
+#[test]
+fn seeds_are_small_and_valid() {
+    let dir = std::env::temp_dir().join(format!("hb-fuzz-seed-check-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("s.toml"), fuzz_targets::SESSION_SCENE).unwrap();
+    std::fs::write(dir.join("hand.toml"), fuzz_targets::SESSION_HAND).unwrap();
+    let mut seen = 0;
+    for (target, _) in fuzz_targets::TARGETS {
+        let mut seeds = 0;
+        let folder = corpus().join(target);
+        for entry in std::fs::read_dir(&folder).unwrap_or_else(|e| panic!("{folder:?}: {e}")) {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            let bytes = std::fs::read(&path).unwrap();
+            assert!(
+                bytes.len() < MAX_SEED_BYTES,
+                "{target}/{name}: {} bytes",
+                bytes.len()
+            );
+            assert!(
+                name.starts_with("seed-") || name.starts_with("regression-"),
+                "{target}/{name}: name it seed-... or regression-..."
+            );
+            if name.starts_with("seed-") {
+                seeds += 1;
+                check_valid(target, &name, &bytes, &dir);
+            }
+            seen += 1;
+        }
+        assert!(seeds >= 2, "{target}: {seeds} seeds");
+    }
+    assert!(seen >= 16);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn check_valid(target: &str, name: &str, bytes: &[u8], dir: &Path) {
+    let what = format!("{target}/{name}");
+    match target {
+        "cyberglove" => {
+            let sensors = if bytes[0] & 1 == 0 { 18 } else { 22 };
+            let mut p = GloveParser::new(sensors);
+            let mut raw = [0u8; MAX_GLOVE_SENSORS];
+            let mut events = 0;
+            for chunk in bytes[2..].chunks(64) {
+                p.push(chunk);
+                while p.next(&mut raw).is_some() {
+                    events += 1;
+                }
+            }
+            assert!(events >= 3, "{what}: {events} events");
+        }
+        "fastrak" => {
+            let format = if bytes[0] & 1 == 0 {
+                Format::Binary
+            } else {
+                Format::Ascii
+            };
+            let (items, stream) = if bytes[0] & 2 == 0 {
+                let lists: [&[u8]; 2] = [&[2, 11, 1], &[2, 4, 1]];
+                (lists[usize::from(bytes[1])], &bytes[2..])
+            } else {
+                bytes[2..].split_at(usize::from(bytes[1]))
+            };
+            let mut p = FastrakParser::new(format, items).unwrap();
+            let mut r = Default::default();
+            let mut records = 0;
+            for chunk in stream.chunks(64) {
+                p.push(chunk);
+                while p.next(&mut r) {
+                    records += 1;
+                }
+            }
+            assert!(records >= 5, "{what}: {records} records");
+        }
+        "carl" => {
+            let t = CarlTrace::parse(Path::new(name), bytes).unwrap_or_else(|e| panic!("{e}"));
+            assert!(!t.samples.is_empty(), "{what}");
+            assert_eq!(t.damage.is_some(), name.contains("cut-off"), "{what}");
+        }
+        "mcap" => {
+            let r = Recording::parse(Path::new(name), bytes).unwrap_or_else(|e| panic!("{e}"));
+            assert!(!r.messages.is_empty(), "{what}");
+            assert_eq!(
+                r.complete,
+                !name.contains("cut-off"),
+                "{what}: {:?}",
+                r.damage
+            );
+        }
+        _ => {
+            let file = dir.join(format!("{target}-{name}"));
+            std::fs::write(&file, bytes).unwrap();
+            let ok = match target {
+                "scene" => Scene::load(&file).map(|_| ()),
+                "session" => Session::load(&file).map(|_| ()),
+                "hand" => HandModelSpec::load(&file).map(|_| ()),
+                "calibration" => Calibration::parse(&file, &String::from_utf8_lossy(bytes))
+                    .map(|_| ())
+                    .map_err(|e| common::config::ConfigError::new(&file, "", e.to_string())),
+                t => panic!("no check for target {t}"),
+            };
+            if let Err(e) = ok {
+                panic!("{what} does not load: {e}");
+            }
+        }
+    }
+}
