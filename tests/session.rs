@@ -585,3 +585,68 @@ fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() 
     assert!(md.contains("| iceoryx2-poll | 4 MiB | flat out |"), "{md}");
     assert!(std::fs::metadata(out.join("transport.png")).unwrap().len() > 10_000);
 }
+
+/// Issue 15's `load` (and issue 16's soak, in short): `bench latency load --quick` runs the
+/// scripted hand at 1 kHz for 5 s with every topic recorded and writes the flow, every stage's
+/// histograms (JSON, `.hgrm` files that parse) and the plot. Shape, not timings: the 60 s run
+/// with its verdict is tests/soak.rs.
+#[test]
+fn the_load_benchmark_writes_every_stage_and_topic_with_hgrm_files() {
+    let dir = Scratch::new("load");
+    let out = dir.path("out");
+    let run = Command::new(EXE)
+        .current_dir(repo())
+        .args(["bench", "latency", "load", "--quick", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let v: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("load.json")).unwrap()).unwrap();
+    assert_eq!(v["rate_hz"].as_u64(), Some(1000));
+    for key in ["dropped", "gaps", "published_not_recorded"] {
+        assert!(v[key].as_u64().is_some(), "{key}: {v:#}");
+    }
+    for t in ["glove", "tracker", "hand", "world"] {
+        let published = v["topics"][t]["published"].as_u64().unwrap();
+        assert!(published > 3000, "{t}: {published} in 5 s at 1 kHz");
+        assert_eq!(v["topics"][t]["recorded"].as_u64(), Some(published), "{t}");
+    }
+    for stage in ["acquisition", "kinematics", "stepper", "recorder"] {
+        let origin = &v["stages"][stage]["origin_us"];
+        assert!(origin["count"].as_u64().unwrap() > 0, "{stage}: {v:#}");
+        let hgrm =
+            std::fs::read_to_string(out.join("hgrm").join(format!("load-{stage}-origin.hgrm")))
+                .unwrap();
+        let last_row = hgrm
+            .lines()
+            .rfind(|l| !l.starts_with('#') && !l.is_empty())
+            .unwrap();
+        let fields: Vec<f64> = last_row
+            .split_whitespace()
+            .map(|x| x.parse().unwrap())
+            .collect();
+        assert_eq!(
+            fields[1], 1.0,
+            "{stage}: the last row is the 100th percentile"
+        );
+        assert_eq!(
+            fields[2] as u64,
+            origin["count"].as_u64().unwrap(),
+            "{stage}"
+        );
+    }
+    assert!(std::fs::read_to_string(out.join("load.md"))
+        .unwrap()
+        .contains("| stepper | origin |"));
+    assert!(std::fs::metadata(out.join("load.png")).unwrap().len() > 10_000);
+    // The recording was only the check.
+    assert!(!std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .any(|e| e.path().extension().is_some_and(|x| x == "mcap")));
+}

@@ -88,7 +88,8 @@ fn peer(exe: &Path, seconds: f64) -> Result<Summary, Box<dyn std::error::Error>>
     result
 }
 
-fn summary_json(s: Summary) -> Value {
+/// A summary as the reports write it (us).
+pub(crate) fn summary_json(s: Summary) -> Value {
     json!({"p50": s.p50, "p90": s.p90, "p99": s.p99, "p999": s.p999, "max": s.max, "count": s.count})
 }
 

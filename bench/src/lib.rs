@@ -2,6 +2,7 @@
 //! to a peer measured in the same run, and judged as a ratio to it.
 //!
 //! * [`latency`]: the whole process set against a bare two-process iceoryx2 hop.
+//! * [`load`]: the pipeline at 1 kHz for a minute, every topic recorded: the flow and latency.
 //! * [`accuracy`]: the paper model and the precise one (rapier3d) against exact answers, and
 //!   what each setting costs per step, measured in the same run.
 //! * [`stability`]: every hard case under both models, with its figures.
@@ -11,6 +12,7 @@
 pub mod accuracy;
 pub mod hgrm;
 pub mod latency;
+pub mod load;
 pub mod plot;
 pub mod stability;
 pub mod stepper;

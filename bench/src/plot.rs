@@ -22,6 +22,26 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
 }
 
+impl Series {
+    /// A histogram by percentile on HdrHistogram's "nines" axis: x = 1 / (1 - percentile)
+    /// (1, 10, 100, 1000: the median, p90, p99, p99.9), y in us (the histogram holds ns).
+    pub fn nines(label: &str, h: &hdrhistogram::Histogram<u64>) -> Series {
+        Series {
+            label: label.to_string(),
+            points: h
+                .iter_quantiles(2)
+                .filter(|v| v.quantile_iterated_to() < 1.0)
+                .map(|v| {
+                    (
+                        1.0 / (1.0 - v.quantile_iterated_to()),
+                        (v.value_iterated_to() as f64 / 1000.0).max(0.01),
+                    )
+                })
+                .collect(),
+        }
+    }
+}
+
 /// One panel: a title, axis names, its series and the points to mark (a Pareto front).
 #[derive(Debug, Clone)]
 pub struct Panel {

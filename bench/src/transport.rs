@@ -634,20 +634,7 @@ fn figure(rows: &[Row]) -> Figure {
             series: Transport::ALL
                 .iter()
                 .filter_map(|&t| find(rows, t, bytes, PACED_HZ))
-                .map(|r| Series {
-                    label: r.transport.name().into(),
-                    points: r
-                        .histogram
-                        .iter_quantiles(2)
-                        .filter(|v| v.quantile_iterated_to() < 1.0)
-                        .map(|v| {
-                            (
-                                1.0 / (1.0 - v.quantile_iterated_to()),
-                                (v.value_iterated_to() as f64 / 1000.0).max(0.01),
-                            )
-                        })
-                        .collect(),
-                })
+                .map(|r| Series::nines(r.transport.name(), &r.histogram))
                 .collect(),
             marked: Vec::new(),
         })

@@ -64,6 +64,22 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
             )
         }
         BenchKind::Latency {
+            part: LatencyPart::Load,
+            quick,
+            session,
+            out,
+            ..
+        } => {
+            let exe = std::env::current_exe().map_err(BenchError::OwnExecutable)?;
+            let b = handblocks_bench::load::LoadBench {
+                exe,
+                session,
+                out_dir: out,
+                quick,
+            };
+            ("latency load", handblocks_bench::load::run(&b).map(drop))
+        }
+        BenchKind::Latency {
             session,
             seconds,
             out,

@@ -246,28 +246,33 @@ pub enum LatencyPart {
     Pipeline,
     /// One hop over each transport at each payload size.
     Transport,
+    /// The scripted hand at 1 kHz for 60 s, every topic recorded: drops, gaps, latency.
+    Load,
 }
 
 #[derive(Subcommand)]
 pub enum BenchKind {
     /// Latency: `pipeline` (default), per-hop and origin -> world latency of the whole process
-    /// set against a bare two-process iceoryx2 hop measured in the same run; `transport`, one
+    /// set against a bare two-process iceoryx2 hop measured in the same run; `load`, the
+    /// scripted hand at 1 kHz for 60 s with every topic recorded (drops, gaps, recording
+    /// completeness and each stage's latency under that load); `transport`, one
     /// hop between two processes over iceoryx2 (woken and polled), a Unix socket and TCP, at
     /// 64 B to 4 MiB, 120 Hz and flat out, with .hgrm files and a plot.
     Latency {
         /// What to measure.
         #[arg(value_enum, default_value = "pipeline")]
         part: LatencyPart,
-        /// `transport` only: 1 s paced runs and short flat-out ones (under a minute).
+        /// `transport`: 1 s paced runs and short flat-out ones (under a minute); `load`: 5 s.
         #[arg(long)]
         quick: bool,
-        /// `pipeline` only: the session to measure.
+        /// `pipeline` and `load`: the session to measure (`load` makes its source the
+        /// scripted hand at 1 kHz).
         #[arg(long, default_value = "config/sessions/live.toml")]
         session: PathBuf,
         /// `pipeline` only: seconds for the peer, and again for the session.
         #[arg(long, default_value = "10", value_parser = parse_seconds)]
         seconds: Duration,
-        /// Where latency.json (pipeline) or transport.json, .md, .png and hgrm/ go.
+        /// Where latency.json (pipeline), transport.json or load.json, .md, .png and hgrm/ go.
         #[arg(long, default_value = "out/bench")]
         out: PathBuf,
     },
