@@ -326,7 +326,7 @@ fn the_latency_benchmark_reports_ratios_to_its_peer() {
         String::from_utf8_lossy(&out.stderr)
     );
     let v: Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path("bench/latency.json")).unwrap())
+        serde_json::from_str(&std::fs::read_to_string(dir.path("bench/pipeline.json")).unwrap())
             .unwrap();
     assert!(v["peer_hop_us"]["count"].as_u64().unwrap() >= 100);
     for stage in ["kinematics", "stepper", "renderer"] {
@@ -336,6 +336,33 @@ fn the_latency_benchmark_reports_ratios_to_its_peer() {
         assert!(r.is_finite() && r > 0.0, "{stage}: {r}");
     }
     assert_eq!(v["dropped"].as_u64(), Some(0));
+    // The suite's file: a row per stage hop, origin -> world and the bare hop.
+    let suite: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path("bench/latency.json")).unwrap())
+            .unwrap();
+    let rows = suite["pipeline"].as_array().unwrap();
+    for (stage, metric) in [
+        ("kinematics", "hop"),
+        ("stepper", "hop"),
+        ("renderer", "hop"),
+        ("stepper", "origin->world"),
+        ("bare hop", "hop"),
+    ] {
+        let row = rows
+            .iter()
+            .find(|r| r["stage"] == stage && r["metric"] == metric)
+            .unwrap_or_else(|| panic!("no {stage} {metric} row: {suite:#}"));
+        for key in [
+            "p50_us",
+            "p90_us",
+            "p99_us",
+            "p999_us",
+            "max_us",
+            "p99_over_bare_hop_p99",
+        ] {
+            assert!(row[key].as_f64().is_some(), "{stage} {metric}: {key}");
+        }
+    }
 }
 
 #[test]
@@ -581,6 +608,12 @@ fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() 
         }
     }
     assert_eq!(v["uds_over_iceoryx2"].as_array().unwrap().len(), 10);
+    let suite: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("latency.json")).unwrap()).unwrap();
+    assert_eq!(
+        suite["transport"], v["transport"],
+        "latency.json's `transport`"
+    );
     let md = std::fs::read_to_string(out.join("transport.md")).unwrap();
     assert!(md.contains("| iceoryx2-poll | 4 MiB | flat out |"), "{md}");
     assert!(std::fs::metadata(out.join("transport.png")).unwrap().len() > 10_000);
@@ -644,6 +677,9 @@ fn the_load_benchmark_writes_every_stage_and_topic_with_hgrm_files() {
         .unwrap()
         .contains("| stepper | origin |"));
     assert!(std::fs::metadata(out.join("load.png")).unwrap().len() > 10_000);
+    let suite: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("latency.json")).unwrap()).unwrap();
+    assert_eq!(suite["load"], v, "load.json is latency.json's `load`");
     // The recording was only the check.
     assert!(!std::fs::read_dir(&out)
         .unwrap()

@@ -176,8 +176,57 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         "session": report.json(),
     });
     std::fs::create_dir_all(&b.out_dir)?;
-    let file = b.out_dir.join("latency.json");
+    let file = b.out_dir.join("pipeline.json");
     std::fs::write(&file, serde_json::to_string_pretty(&value)? + "\n")?;
-    eprintln!("bench latency: wrote {}", file.display());
+    // The suite's file: a row per stage hop, and origin -> world, with its ratio to the bare hop.
+    let mut rows: Vec<Value> = stages
+        .iter()
+        .map(|(stage, v)| {
+            let hop = &v["hop_us"];
+            json!({"stage": stage, "metric": "hop", "p50_us": hop["p50"], "p90_us": hop["p90"],
+                "p99_us": hop["p99"], "p999_us": hop["p999"], "max_us": hop["max"],
+                "count": hop["count"], "p99_over_bare_hop_p99": v["hop_p99_over_peer_p99"]})
+        })
+        .collect();
+    rows.push(
+        json!({"stage": "stepper", "metric": "origin->world", "p50_us": world.p50,
+        "p90_us": world.p90, "p99_us": world.p99, "p999_us": world.p999, "max_us": world.max,
+        "count": world.count, "p99_over_bare_hop_p99": ratio(world.p99, peer.p99)}),
+    );
+    rows.push(
+        json!({"stage": "bare hop", "metric": "hop", "p50_us": peer.p50, "p90_us": peer.p90,
+        "p99_us": peer.p99, "p999_us": peer.p999, "max_us": peer.max, "count": peer.count,
+        "p99_over_bare_hop_p99": 1.0}),
+    );
+    let merged = merge_into_latency_json(&b.out_dir, "pipeline", Value::Array(rows))?;
+    eprintln!(
+        "bench latency: wrote {} and {}",
+        file.display(),
+        merged.display()
+    );
     Ok(value)
+}
+
+/// Puts one part's results under its key (`transport`, `pipeline`, `load`) in the suite's
+/// `DIR/latency.json`, keeping the other parts a run into the same folder left there: each
+/// part run alone, or `all`, ends with one file holding what was measured.
+pub fn merge_into_latency_json(
+    dir: &Path,
+    part: &str,
+    value: Value,
+) -> Result<PathBuf, Box<dyn std::error::Error>> {
+    let file = dir.join("latency.json");
+    let mut all = std::fs::read_to_string(&file)
+        .ok()
+        .and_then(|t| serde_json::from_str::<Value>(&t).ok())
+        .filter(|v| {
+            v.as_object().is_some_and(|o| {
+                o.keys()
+                    .all(|k| ["transport", "pipeline", "load"].contains(&k.as_str()))
+            })
+        })
+        .unwrap_or_else(|| json!({}));
+    all[part] = value;
+    std::fs::write(&file, serde_json::to_string_pretty(&all)? + "\n")?;
+    Ok(file)
 }

@@ -142,6 +142,7 @@ pub fn run(b: &LoadBench) -> Result<Value, Box<dyn std::error::Error>> {
         b.out_dir.join("load.json"),
         serde_json::to_string_pretty(&value)? + "\n",
     )?;
+    crate::latency::merge_into_latency_json(&b.out_dir, "load", value.clone())?;
     std::fs::write(b.out_dir.join("load.md"), markdown(&value, report))?;
     let drawn = figure(report).write_png(&b.out_dir.join("load.png"))?;
     eprintln!(

@@ -549,6 +549,7 @@ fn write_outputs(rows: &[Row], b: &TransportBench) -> Result<Value, Box<dyn std:
         b.out_dir.join("transport.json"),
         serde_json::to_string_pretty(&value)? + "\n",
     )?;
+    crate::latency::merge_into_latency_json(&b.out_dir, "transport", value["transport"].clone())?;
     std::fs::write(b.out_dir.join("transport.md"), markdown(rows, b.quick))?;
     let png = b.out_dir.join("transport.png");
     let drawn = figure(rows).write_png(&png)?;

@@ -43,56 +43,66 @@ impl fmt::Display for BenchError {
 
 impl std::error::Error for BenchError {}
 
+/// `bench latency PART`: each part writes its own files and its key of `latency.json`; `all`
+/// runs transport, pipeline and load in turn (with `--quick`, the pipeline for 2 s).
+fn latency(
+    part: LatencyPart,
+    quick: bool,
+    exe: std::path::PathBuf,
+    session: std::path::PathBuf,
+    seconds: std::time::Duration,
+    out: std::path::PathBuf,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let all = part == LatencyPart::All;
+    if all || part == LatencyPart::Transport {
+        handblocks_bench::transport::run(&handblocks_bench::transport::TransportBench {
+            exe: exe.clone(),
+            out_dir: out.clone(),
+            quick,
+        })?;
+    }
+    if all || part == LatencyPart::Pipeline {
+        let seconds = if all && quick {
+            2.0
+        } else {
+            seconds.as_secs_f64()
+        };
+        handblocks_bench::latency::run(&handblocks_bench::latency::LatencyBench {
+            exe: exe.clone(),
+            session: session.clone(),
+            seconds,
+            out_dir: out.clone(),
+        })?;
+    }
+    if all || part == LatencyPart::Load {
+        handblocks_bench::load::run(&handblocks_bench::load::LoadBench {
+            exe,
+            session,
+            out_dir: out,
+            quick,
+        })?;
+    }
+    Ok(())
+}
+
 /// Runs one benchmark; its results are files under its `--out` folder.
 pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
     let (name, result) = match which {
         BenchKind::Latency {
-            part: LatencyPart::Transport,
+            part,
             quick,
-            out,
-            ..
-        } => {
-            let exe = std::env::current_exe().map_err(BenchError::OwnExecutable)?;
-            let b = handblocks_bench::transport::TransportBench {
-                exe,
-                out_dir: out,
-                quick,
-            };
-            (
-                "latency transport",
-                handblocks_bench::transport::run(&b).map(drop),
-            )
-        }
-        BenchKind::Latency {
-            part: LatencyPart::Load,
-            quick,
-            session,
-            out,
-            ..
-        } => {
-            let exe = std::env::current_exe().map_err(BenchError::OwnExecutable)?;
-            let b = handblocks_bench::load::LoadBench {
-                exe,
-                session,
-                out_dir: out,
-                quick,
-            };
-            ("latency load", handblocks_bench::load::run(&b).map(drop))
-        }
-        BenchKind::Latency {
             session,
             seconds,
             out,
-            ..
         } => {
             let exe = std::env::current_exe().map_err(BenchError::OwnExecutable)?;
-            let b = handblocks_bench::latency::LatencyBench {
-                exe,
-                session,
-                seconds: seconds.as_secs_f64(),
-                out_dir: out,
+            let name = match part {
+                LatencyPart::Pipeline => "latency",
+                LatencyPart::Transport => "latency transport",
+                LatencyPart::Load => "latency load",
+                LatencyPart::All => "latency all",
             };
-            ("latency", handblocks_bench::latency::run(&b).map(drop))
+            (name, latency(part, quick, exe, session, seconds, out))
         }
         BenchKind::Accuracy { out, quick } => {
             let b = handblocks_bench::accuracy::AccuracyBench {

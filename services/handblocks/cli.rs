@@ -248,6 +248,8 @@ pub enum LatencyPart {
     Transport,
     /// The scripted hand at 1 kHz for 60 s, every topic recorded: drops, gaps, latency.
     Load,
+    /// transport, then pipeline, then load, into one latency.json.
+    All,
 }
 
 #[derive(Subcommand)]
@@ -262,7 +264,8 @@ pub enum BenchKind {
         /// What to measure.
         #[arg(value_enum, default_value = "pipeline")]
         part: LatencyPart,
-        /// `transport`: 1 s paced runs and short flat-out ones (under a minute); `load`: 5 s.
+        /// `transport`: 1 s paced runs and short flat-out ones (under a minute); `load`: 5 s;
+        /// `all`: both, and a 2 s pipeline.
         #[arg(long)]
         quick: bool,
         /// `pipeline` and `load`: the session to measure (`load` makes its source the
@@ -272,7 +275,9 @@ pub enum BenchKind {
         /// `pipeline` only: seconds for the peer, and again for the session.
         #[arg(long, default_value = "10", value_parser = parse_seconds)]
         seconds: Duration,
-        /// Where latency.json (pipeline), transport.json or load.json, .md, .png and hgrm/ go.
+        /// Where the parts' files go (pipeline.json, transport.json, load.json, .md, .png,
+        /// hgrm/), and latency.json: {"transport": [...], "pipeline": [...], "load": {...}}
+        /// with every part run into this folder.
         #[arg(long, default_value = "out/bench")]
         out: PathBuf,
     },
