@@ -336,6 +336,24 @@ fn the_latency_benchmark_reports_ratios_to_its_peer() {
         assert!(r.is_finite() && r > 0.0, "{stage}: {r}");
     }
     assert_eq!(v["dropped"].as_u64(), Some(0));
+    // Each wait strategy in the same run, with the CPU each stage used.
+    let waits = v["wait_strategies"].as_array().unwrap();
+    for wait in ["event", "adaptive", "spin"] {
+        let w = waits
+            .iter()
+            .find(|w| w["wait"] == wait)
+            .unwrap_or_else(|| panic!("no {wait} row"));
+        assert!(
+            w["origin_to_world_us"]["count"].as_u64().unwrap() > 0,
+            "{wait}"
+        );
+        for stage in ["kinematics", "stepper"] {
+            assert!(
+                w["cpu_s"][stage].as_f64().unwrap() >= 0.0,
+                "{wait}: {stage}"
+            );
+        }
+    }
     // The suite's file: a row per stage hop, origin -> world and the bare hop.
     let suite: Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path("bench/latency.json")).unwrap())

@@ -165,6 +165,45 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
     ));
     let dropped: u64 = report.topics.values().map(|f| f.dropped()).sum();
     table.push_str(&format!("dropped samples: {dropped}\n"));
+    // The wait strategies ([pipeline] wait), each a session of its own after the first
+    // (which ran the session's own setting): origin -> world and CPU per stage.
+    let mut waits = vec![wait_row("as the session says", report)];
+    for wait in ["event", "adaptive", "spin"] {
+        eprintln!(
+            "bench latency: the session with [pipeline] wait = {wait:?} for {:.0} s ...",
+            b.seconds
+        );
+        let o = launcher::launch(&launcher::LaunchOptions {
+            session: b.session.clone(),
+            duration: Some(Duration::from_secs_f64(b.seconds)),
+            exe: b.exe.clone(),
+            overrides: vec![common::config::session::Override::parse(&format!(
+                "pipeline.wait=\"{wait}\""
+            ))?],
+            ..launcher::LaunchOptions::default()
+        })?;
+        waits.push(wait_row(wait, &o.report));
+    }
+    table.push_str(&format!(
+        "\n{:<20} {:>10} {:>10}   CPU seconds per stage\n",
+        "[pipeline] wait", "o->w p50", "o->w p99"
+    ));
+    for w in &waits {
+        table.push_str(&format!(
+            "{:<20} {:>10.1} {:>10.1}   {}\n",
+            w["wait"].as_str().unwrap_or(""),
+            w["origin_to_world_us"]["p50"].as_f64().unwrap_or(f64::NAN),
+            w["origin_to_world_us"]["p99"].as_f64().unwrap_or(f64::NAN),
+            w["cpu_s"]
+                .as_object()
+                .map(|m| m
+                    .iter()
+                    .map(|(k, v)| format!("{k} {v}"))
+                    .collect::<Vec<_>>()
+                    .join(", "))
+                .unwrap_or_default()
+        ));
+    }
     print!("{table}");
     let value = json!({
         "seconds": b.seconds,
@@ -173,6 +212,7 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         "origin_to_world_us": summary_json(world),
         "origin_to_world_p99_over_peer_hop_p99": ratio(world.p99, peer.p99),
         "dropped": dropped,
+        "wait_strategies": waits,
         "session": report.json(),
     });
     std::fs::create_dir_all(&b.out_dir)?;
@@ -205,6 +245,23 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         merged.display()
     );
     Ok(value)
+}
+
+/// One wait strategy's session: origin -> world, and each stage's CPU seconds.
+fn wait_row(wait: &str, report: &launcher::report::Report) -> Value {
+    let world = report
+        .stages
+        .iter()
+        .find(|s| s.stage == Stage::Stepper)
+        .map(|s| s.summary(Metric::Origin))
+        .unwrap_or_default();
+    let cpu: serde_json::Map<String, Value> = report
+        .stages
+        .iter()
+        .map(|s| (s.stage.name().to_string(), json!(s.cpu_s)))
+        .collect();
+    json!({"wait": wait, "origin_to_world_us": summary_json(world), "cpu_s": cpu,
+        "dropped": report.topics.values().map(|f| f.dropped()).sum::<u64>()})
 }
 
 /// Puts one part's results under its key (`transport`, `pipeline`, `load`) in the suite's

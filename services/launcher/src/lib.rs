@@ -567,6 +567,10 @@ impl Supervision<'_> {
                 std::thread::sleep(Duration::from_millis(1));
             }
             collect(self.latency, &mut self.reports);
+            let cpu = p.cpu_seconds();
+            if let Some(r) = self.reports.get_mut(&p.stage) {
+                r.cpu_s = cpu;
+            }
             let status = p.release_and_reap(Duration::from_secs(5));
             if !has_final(&self.reports, p.stage) {
                 self.failures.push(format!(

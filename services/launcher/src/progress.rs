@@ -120,6 +120,7 @@ mod tests {
             silence_ns: 0,
             heard_at: std::time::Instant::now(),
             devices: Vec::new(),
+            cpu_s: None,
         }
     }
 

@@ -21,6 +21,9 @@ pub struct StageReport {
     pub heard_at: std::time::Instant,
     /// The acquisition process with devices: what each driver counted.
     pub devices: Vec<common::DeviceCounters>,
+    /// CPU time the stage's process used over the session (the launcher reads it as the
+    /// process stops), seconds.
+    pub cpu_s: Option<f64>,
 }
 
 impl StageReport {
@@ -51,6 +54,7 @@ impl StageReport {
                 .filter(|d| d.name().is_some())
                 .copied()
                 .collect(),
+            cpu_s: None,
         })
     }
 
@@ -507,6 +511,7 @@ impl Report {
                 );
             }
             m.insert("final_report".into(), json!(s.final_report));
+            m.insert("cpu_s".into(), json!(s.cpu_s));
             stages.insert(s.stage.name().into(), Value::Object(m));
         }
         let mut topics = Map::new();
@@ -617,6 +622,7 @@ mod tests {
             counters: Vec::new(),
             heard_at: std::time::Instant::now(),
             devices: Vec::new(),
+            cpu_s: None,
             final_report: true,
             silence_ns: silence_ms * 1_000_000,
         }
