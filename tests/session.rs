@@ -336,6 +336,12 @@ fn the_latency_benchmark_reports_ratios_to_its_peer() {
         assert!(r.is_finite() && r > 0.0, "{stage}: {r}");
     }
     assert_eq!(v["dropped"].as_u64(), Some(0));
+    assert!(
+        std::fs::metadata(dir.path("bench/pipeline.png"))
+            .unwrap()
+            .len()
+            > 10_000
+    );
     // Each wait strategy in the same run, with the CPU each stage used.
     let waits = v["wait_strategies"].as_array().unwrap();
     for wait in ["event", "adaptive", "spin"] {
@@ -364,6 +370,8 @@ fn the_latency_benchmark_reports_ratios_to_its_peer() {
         ("stepper", "hop"),
         ("renderer", "hop"),
         ("stepper", "origin->world"),
+        ("stepper", "process"),
+        ("renderer", "origin->photon"),
         ("bare hop", "hop"),
     ] {
         let row = rows

@@ -14,7 +14,10 @@ use std::time::{Duration, Instant};
 use common::bus::{Bus, BusConfig};
 use common::latency::{new_histogram, Metric, Summary};
 use common::{monotonic_ns, topics, HandSample, Stage, Stamp};
+use hdrhistogram::Histogram;
 use serde_json::{json, Value};
+
+use crate::plot::{Figure, Panel, Series};
 
 /// Options of `handblocks bench latency`.
 pub struct LatencyBench {
@@ -47,11 +50,11 @@ pub fn peer_publisher(
     Ok(())
 }
 
-fn peer(exe: &Path, seconds: f64) -> Result<Summary, Box<dyn std::error::Error>> {
+fn peer(exe: &Path, seconds: f64) -> Result<Histogram<u64>, Box<dyn std::error::Error>> {
     let id = format!("peer{}", std::process::id());
     let config = BusConfig::for_session(&id)?;
     let count = (seconds * 120.0) as u64;
-    let result = (|| -> Result<Summary, Box<dyn std::error::Error>> {
+    let result = (|| -> Result<Histogram<u64>, Box<dyn std::error::Error>> {
         let bus = Bus::open(&config, "peer-subscriber")?;
         let _services = bus.create_services()?;
         let inlet = bus.inlet::<topics::Hand>()?;
@@ -82,7 +85,7 @@ fn peer(exe: &Path, seconds: f64) -> Result<Summary, Box<dyn std::error::Error>>
         if received < count {
             return Err(format!("the peer received {received} of {count} samples").into());
         }
-        Ok(Summary::of(&hop))
+        Ok(hop)
     })();
     let _ = config.remove_resources();
     result
@@ -107,7 +110,8 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         "bench latency: peer (bare two-process hop, 120 Hz) for {:.0} s ...",
         b.seconds
     );
-    let peer = peer(&b.exe, b.seconds)?;
+    let peer_histogram = peer(&b.exe, b.seconds)?;
+    let peer = Summary::of(&peer_histogram);
     eprintln!(
         "bench latency: the session {} for {:.0} s ...",
         b.session.display(),
@@ -218,33 +222,88 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
     std::fs::create_dir_all(&b.out_dir)?;
     let file = b.out_dir.join("pipeline.json");
     std::fs::write(&file, serde_json::to_string_pretty(&value)? + "\n")?;
-    // The suite's file: a row per stage hop, and origin -> world, with its ratio to the bare hop.
-    let mut rows: Vec<Value> = stages
-        .iter()
-        .map(|(stage, v)| {
-            let hop = &v["hop_us"];
-            json!({"stage": stage, "metric": "hop", "p50_us": hop["p50"], "p90_us": hop["p90"],
-                "p99_us": hop["p99"], "p999_us": hop["p999"], "max_us": hop["max"],
-                "count": hop["count"], "p99_over_bare_hop_p99": v["hop_p99_over_peer_p99"]})
-        })
-        .collect();
-    rows.push(
-        json!({"stage": "stepper", "metric": "origin->world", "p50_us": world.p50,
-        "p90_us": world.p90, "p99_us": world.p99, "p999_us": world.p999, "max_us": world.max,
-        "count": world.count, "p99_over_bare_hop_p99": ratio(world.p99, peer.p99)}),
-    );
-    rows.push(
-        json!({"stage": "bare hop", "metric": "hop", "p50_us": peer.p50, "p90_us": peer.p90,
-        "p99_us": peer.p99, "p999_us": peer.p999, "max_us": peer.max, "count": peer.count,
-        "p99_over_bare_hop_p99": 1.0}),
-    );
+    // The suite's file: per stage its hop, processing and origin -> out, origin -> world and
+    // origin -> photon, and the bare hop, each with its p99 as a ratio to the bare hop's.
+    let row = |stage: &str, metric: &str, x: Summary| {
+        json!({"stage": stage, "metric": metric, "p50_us": x.p50, "p90_us": x.p90,
+            "p99_us": x.p99, "p999_us": x.p999, "max_us": x.max, "count": x.count,
+            "p99_over_bare_hop_p99": ratio(x.p99, peer.p99)})
+    };
+    let mut rows = Vec::new();
+    for s in &report.stages {
+        for (metric, name) in [
+            (Metric::Hop, "hop"),
+            (Metric::Process, "process"),
+            (Metric::Origin, "origin->out"),
+        ] {
+            let x = s.summary(metric);
+            if x.count > 0 {
+                rows.push(row(s.stage.name(), name, x));
+            }
+        }
+        if s.stage == Stage::Renderer && s.summary(Metric::Photon).count > 0 {
+            rows.push(row("renderer", "origin->photon", s.summary(Metric::Photon)));
+        }
+    }
+    rows.push(row("stepper", "origin->world", world));
+    rows.push(row("bare hop", "hop", peer));
     let merged = merge_into_latency_json(&b.out_dir, "pipeline", Value::Array(rows))?;
+    let drawn = figure(report, &peer_histogram).write_png(&b.out_dir.join("pipeline.png"))?;
     eprintln!(
-        "bench latency: wrote {} and {}",
+        "bench latency: wrote {}, {}{}",
         file.display(),
-        merged.display()
+        merged.display(),
+        if drawn { " and pipeline.png" } else { "" }
     );
     Ok(value)
+}
+
+/// Latency by percentile on HdrHistogram's "nines" axis: each stage's hop beside the bare hop
+/// of the same run, and the ages of what leaves the stepper (origin -> world) and the screen
+/// (origin -> photon).
+fn figure(report: &launcher::report::Report, bare_hop: &Histogram<u64>) -> Figure {
+    let of = |stage: Stage, m: Metric| {
+        report
+            .stages
+            .iter()
+            .find(|s| s.stage == stage)
+            .map(|s| &s.histograms[m as usize])
+            .filter(|h| !h.is_empty())
+    };
+    let mut hops = vec![Series::nines("bare hop", bare_hop)];
+    for s in &report.stages {
+        if !s.histograms[Metric::Hop as usize].is_empty() {
+            hops.push(Series::nines(
+                s.stage.name(),
+                &s.histograms[Metric::Hop as usize],
+            ));
+        }
+    }
+    let mut ages = vec![Series::nines("bare hop", bare_hop)];
+    if let Some(h) = of(Stage::Stepper, Metric::Origin) {
+        ages.push(Series::nines("origin -> world", h));
+    }
+    if let Some(h) = of(Stage::Renderer, Metric::Photon) {
+        ages.push(Series::nines("origin -> photon", h));
+    }
+    let panel = |title: &str, series: Vec<Series>| Panel {
+        title: title.to_string(),
+        x_label: "1 / (1 - percentile)".into(),
+        y_label: "latency (us)".into(),
+        log_x: true,
+        log_y: true,
+        series,
+        marked: Vec::new(),
+    };
+    Figure {
+        panels: vec![
+            panel("hop into each stage, and the bare hop", hops),
+            panel("origin -> world and -> photon", ages),
+        ],
+        columns: 2,
+        panel_width: 560,
+        panel_height: 400,
+    }
 }
 
 /// One wait strategy's session: origin -> world, and each stage's CPU seconds.
