@@ -369,7 +369,9 @@ fn make_private_dir(dir: &StdPath) -> Result<(), BusError> {
             meta.uid()
         )));
     }
-    if meta.mode() & 0o077 != 0 {
+    // Exactly 0700: open to others is not private, and without the owner's x (a 0600 folder
+    // was seen once in a test run) a user other than root could not use it.
+    if meta.mode() & 0o777 != 0o700 {
         std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700)).map_err(|e| {
             BusError::Config(format!("cannot make {} private (0700): {e}", dir.display()))
         })?;

@@ -86,9 +86,11 @@ fn a_long_tmpdir_falls_back_to_tmp_and_every_socket_path_fits() {
 }
 
 #[test]
-fn a_session_folder_open_to_others_is_made_private_again() {
-    let cfg = BusConfig::for_session(&format!("bq{}", std::process::id())).unwrap();
-    std::fs::create_dir_all(&cfg.root).unwrap();
-    std::fs::set_permissions(&cfg.root, std::fs::Permissions::from_mode(0o777)).unwrap();
-    round_trip_and_check_modes(&cfg);
+fn a_session_folder_open_to_others_or_closed_to_its_owner_is_made_0700_again() {
+    for (tag, mode) in [("bq", 0o777), ("br", 0o600)] {
+        let cfg = BusConfig::for_session(&format!("{tag}{}", std::process::id())).unwrap();
+        std::fs::create_dir_all(&cfg.root).unwrap();
+        std::fs::set_permissions(&cfg.root, std::fs::Permissions::from_mode(mode)).unwrap();
+        round_trip_and_check_modes(&cfg);
+    }
 }
