@@ -566,6 +566,16 @@ fn a_live_session_of_1024_blocks_carries_every_block_exactly_as_simulate() {
     assert_same_poses(&v, last);
 }
 
+/// The numbers of an `.hgrm` file's last percentile row (value, percentile, total count, ...).
+fn hgrm_last_row(hgrm: &str) -> Vec<f64> {
+    hgrm.lines()
+        .rfind(|l| !l.starts_with('#') && !l.is_empty())
+        .unwrap()
+        .split_whitespace()
+        .map(|x| x.parse().unwrap())
+        .collect()
+}
+
 /// Issue 15: `bench latency transport --quick` measures every transport at every payload,
 /// paced and flat out, and writes the JSON, the table, the plot and a `.hgrm` file per
 /// histogram that parses as HdrHistogram's percentile distribution (shape, not timings).
@@ -619,12 +629,7 @@ fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() 
                 assert!(
                     hgrm.starts_with("       Value     Percentile TotalCount 1/(1-Percentile)\n\n")
                 );
-                let last_row = hgrm.lines().rfind(|l| !l.starts_with('#') && !l.is_empty());
-                let fields: Vec<f64> = last_row
-                    .unwrap()
-                    .split_whitespace()
-                    .map(|x| x.parse().unwrap())
-                    .collect();
+                let fields = hgrm_last_row(&hgrm);
                 assert_eq!(
                     fields[1], 1.0,
                     "{stem}: the last row is the 100th percentile"
@@ -681,14 +686,7 @@ fn the_load_benchmark_writes_every_stage_and_topic_with_hgrm_files() {
         let hgrm =
             std::fs::read_to_string(out.join("hgrm").join(format!("load-{stage}-origin.hgrm")))
                 .unwrap();
-        let last_row = hgrm
-            .lines()
-            .rfind(|l| !l.starts_with('#') && !l.is_empty())
-            .unwrap();
-        let fields: Vec<f64> = last_row
-            .split_whitespace()
-            .map(|x| x.parse().unwrap())
-            .collect();
+        let fields = hgrm_last_row(&hgrm);
         assert_eq!(
             fields[1], 1.0,
             "{stage}: the last row is the 100th percentile"

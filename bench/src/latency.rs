@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::bus::{Bus, BusConfig};
+use common::bus::{Bus, BusConfig, WaitStrategy};
 use common::latency::{new_histogram, Metric, Summary};
 use common::{monotonic_ns, topics, HandSample, Stage, Stamp};
 use hdrhistogram::Histogram;
@@ -155,12 +155,7 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
             json!({"hop_us": summary_json(hop), "hop_p99_over_peer_p99": ratio(hop.p99, peer.p99)}),
         );
     }
-    let world = report
-        .stages
-        .iter()
-        .find(|s| s.stage == Stage::Stepper)
-        .map(|s| s.summary(Metric::Origin))
-        .unwrap_or_default();
+    let world = report.summary_of(Stage::Stepper, Metric::Origin);
     table.push_str(&format!(
         "\norigin -> world  p50 {:.1} us  p99 {:.1} us  (target p99 <= 200 us; p99 / peer hop p99 = {:.2})\n",
         world.p50,
@@ -171,8 +166,18 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
     table.push_str(&format!("dropped samples: {dropped}\n"));
     // The wait strategies ([pipeline] wait), each a session of its own after the first
     // (which ran the session's own setting): origin -> world and CPU per stage.
-    let mut waits = vec![wait_row("as the session says", report)];
-    for wait in ["event", "adaptive", "spin"] {
+    // The first session ran with its own strategy; the others run once each.
+    let own = common::config::Session::load(&b.session)?.wait;
+    let mut waits = vec![wait_row(own.name(), report)];
+    for wait in [
+        WaitStrategy::Event,
+        WaitStrategy::Adaptive,
+        WaitStrategy::Spin,
+    ] {
+        if wait == own {
+            continue;
+        }
+        let wait = wait.name();
         eprintln!(
             "bench latency: the session with [pipeline] wait = {wait:?} for {:.0} s ...",
             b.seconds
@@ -262,14 +267,6 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
 /// of the same run, and the ages of what leaves the stepper (origin -> world) and the screen
 /// (origin -> photon).
 fn figure(report: &launcher::report::Report, bare_hop: &Histogram<u64>) -> Figure {
-    let of = |stage: Stage, m: Metric| {
-        report
-            .stages
-            .iter()
-            .find(|s| s.stage == stage)
-            .map(|s| &s.histograms[m as usize])
-            .filter(|h| !h.is_empty())
-    };
     let mut hops = vec![Series::nines("bare hop", bare_hop)];
     for s in &report.stages {
         if !s.histograms[Metric::Hop as usize].is_empty() {
@@ -280,10 +277,10 @@ fn figure(report: &launcher::report::Report, bare_hop: &Histogram<u64>) -> Figur
         }
     }
     let mut ages = vec![Series::nines("bare hop", bare_hop)];
-    if let Some(h) = of(Stage::Stepper, Metric::Origin) {
+    if let Some(h) = report.histogram(Stage::Stepper, Metric::Origin) {
         ages.push(Series::nines("origin -> world", h));
     }
-    if let Some(h) = of(Stage::Renderer, Metric::Photon) {
+    if let Some(h) = report.histogram(Stage::Renderer, Metric::Photon) {
         ages.push(Series::nines("origin -> photon", h));
     }
     let panel = |title: &str, series: Vec<Series>| Panel {
@@ -308,12 +305,7 @@ fn figure(report: &launcher::report::Report, bare_hop: &Histogram<u64>) -> Figur
 
 /// One wait strategy's session: origin -> world, and each stage's CPU seconds.
 fn wait_row(wait: &str, report: &launcher::report::Report) -> Value {
-    let world = report
-        .stages
-        .iter()
-        .find(|s| s.stage == Stage::Stepper)
-        .map(|s| s.summary(Metric::Origin))
-        .unwrap_or_default();
+    let world = report.summary_of(Stage::Stepper, Metric::Origin);
     let cpu: serde_json::Map<String, Value> = report
         .stages
         .iter()

@@ -78,11 +78,14 @@ pub fn run(b: &LoadBench) -> Result<Value, Box<dyn std::error::Error>> {
     let report = &outcome.report;
 
     let mut topics = Map::new();
-    let (mut dropped, mut gaps) = (0u64, 0u64);
+    let (mut dropped, mut gaps, mut unrecorded) = (0u64, 0u64, 0u64);
     for (t, f) in &report.topics {
         let rec = stats.map(|s| s[*t as usize]);
         dropped += f.dropped();
         gaps += f.gaps() + rec.map_or(0, |r| r.gaps);
+        if *t != Topic::Latency {
+            unrecorded += f.published.saturating_sub(rec.map_or(0, |r| r.messages));
+        }
         topics.insert(
             t.name().into(),
             json!({
@@ -92,15 +95,6 @@ pub fn run(b: &LoadBench) -> Result<Value, Box<dyn std::error::Error>> {
             }),
         );
     }
-    let unrecorded: u64 = report
-        .topics
-        .iter()
-        .filter(|(t, _)| **t != Topic::Latency)
-        .map(|(t, f)| {
-            let r = stats.map_or(0, |s| s[*t as usize].messages);
-            f.published.saturating_sub(r)
-        })
-        .sum();
     let hgrm_dir = b.out_dir.join("hgrm");
     std::fs::create_dir_all(&hgrm_dir)?;
     let mut stages = Map::new();

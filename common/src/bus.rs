@@ -760,6 +760,17 @@ pub enum WaitStrategy {
     Adaptive,
 }
 
+impl WaitStrategy {
+    /// Its name as the session key `[pipeline] wait` gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            WaitStrategy::Event => "event",
+            WaitStrategy::Spin => "spin",
+            WaitStrategy::Adaptive => "adaptive",
+        }
+    }
+}
+
 /// Waits by a [`WaitStrategy`]; for `Adaptive`, learns the inlets' period (the median-like
 /// running estimate of the time between arrivals) and how late this machine wakes from a timed
 /// sleep, so that the poll window opens before the sample is due even when a wake-up takes

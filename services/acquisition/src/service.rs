@@ -8,9 +8,8 @@ use common::config::session::Source;
 use common::config::Session;
 use common::latency::Reporter;
 use common::stamp::sleep_until_ns;
-use common::{monotonic_ns, shutdown, topics, DeviceCounters, Stage, Stamp};
+use common::{monotonic_ns, shutdown, topics, Stage, Stamp};
 
-use crate::devices::serial::LinkStats;
 use crate::devices::{DeviceEvent, DeviceReaders, Glove, GloveConfig, Tracker, TrackerConfig};
 use crate::scripted::{source_time_ns, ScriptedHand};
 
@@ -69,18 +68,10 @@ fn run_devices(
         reporter.maybe_report(&[glove_out.counter(), tracker_out.counter()])?;
     }
     let stats = readers.stop();
-    let counters = |device: u32, l: LinkStats| DeviceCounters {
-        device,
-        _reserved: 0,
-        samples: l.samples,
-        garbage_bytes: l.garbage_bytes,
-        rejected_records: l.rejected_records,
-        other_station_records: l.other_station_records,
-        link_losses: l.link_losses,
-        reconnects: l.reconnects,
-        device_errors: l.device_errors,
-    };
-    reporter.set_devices([counters(1, stats.glove), counters(2, stats.tracker)]);
+    reporter.set_devices([
+        stats.glove.device_counters(1),
+        stats.tracker.device_counters(2),
+    ]);
     if stats.dropped > 0 {
         eprintln!("handblocks acquisition: {} device samples arrived faster than they could be published and were dropped", stats.dropped);
     }

@@ -288,6 +288,7 @@ fn run_session(
         budget: session.budget.clone(),
         reports: BTreeMap::new(),
         failures: Vec::new(),
+        stalled: Vec::new(),
     };
     // 5. and 6.
     let ran_for = supervision.run(opts, source, &mut procs);
@@ -475,6 +476,8 @@ struct Supervision<'a> {
     budget: common::config::session::Budget,
     reports: BTreeMap<Stage, StageReport>,
     failures: Vec<String>,
+    /// The stages already said to be stalled (each is said once).
+    stalled: Vec<Stage>,
 }
 
 impl Supervision<'_> {
@@ -486,16 +489,14 @@ impl Supervision<'_> {
                 continue;
             };
             let silent = r.heard_at.elapsed();
-            let tag = format!("the {} process has sent no report for", p.stage.name());
-            if r.final_report
-                || silent < STALLED_AFTER
-                || self.failures.iter().any(|f| f.starts_with(&tag))
-            {
+            if r.final_report || silent < STALLED_AFTER || self.stalled.contains(&p.stage) {
                 continue;
             }
+            self.stalled.push(p.stage);
             let line = format!(
-                "{tag} {:.1} s: it is stopped (SIGSTOP?) or hung, and what it reads is piling up \
-                 unread",
+                "the {} process has sent no report for {:.1} s: it is stopped (SIGSTOP?) or \
+                 hung, and what it reads is piling up unread",
+                p.stage.name(),
                 silent.as_secs_f64()
             );
             if opts.progress {

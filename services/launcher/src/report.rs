@@ -327,6 +327,20 @@ impl Report {
         self.stages.iter().find(|s| s.stage == stage)
     }
 
+    /// `stage`'s histogram of `metric`, if it reported one that is not empty.
+    pub fn histogram(&self, stage: Stage, metric: Metric) -> Option<&Histogram<u64>> {
+        self.stage(stage)
+            .map(|s| &s.histograms[metric as usize])
+            .filter(|h| !h.is_empty())
+    }
+
+    /// The summary of `stage`'s `metric` (empty when it sent no report).
+    pub fn summary_of(&self, stage: Stage, metric: Metric) -> Summary {
+        self.stage(stage)
+            .map(|s| s.summary(metric))
+            .unwrap_or_default()
+    }
+
     fn judge(&self, b: &Budget, facts: &SessionFacts) -> Vec<String> {
         let mut v = Vec::new();
         if let Some(limit) = b.origin_to_world_p99_us {

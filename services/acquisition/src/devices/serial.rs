@@ -40,6 +40,21 @@ pub struct LinkStats {
 }
 
 impl LinkStats {
+    /// The counters as the session report carries them (`device`: 1 glove, 2 tracker).
+    pub fn device_counters(&self, device: u32) -> common::DeviceCounters {
+        common::DeviceCounters {
+            device,
+            _reserved: 0,
+            samples: self.samples,
+            garbage_bytes: self.garbage_bytes,
+            rejected_records: self.rejected_records,
+            other_station_records: self.other_station_records,
+            link_losses: self.link_losses,
+            reconnects: self.reconnects,
+            device_errors: self.device_errors,
+        }
+    }
+
     /// A driver's counters with its parser's byte-level ones added: what the driver reports,
     /// across reconnections (the parser is replaced when the glove's size changes).
     pub fn with_parser(mut self, parser: &LinkStats) -> LinkStats {
