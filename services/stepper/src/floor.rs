@@ -302,6 +302,19 @@ impl Floor {
             let inertia = settings.inertia;
             let tipping = passes.tipping;
             let b = &mut blocks[i];
+            // In the air (its lowest vertex above contact_eps, read off its box, which is
+            // exactly rel's lowest y): R8 lifts nothing and finds no contact, so what follows
+            // comes to "no floor contact", without a pass over the vertices. Most blocks of a
+            // rain take this path every step.
+            if b.rel_rot == b.rot && b.pos.y + b.rel_lo.y > eps {
+                b.floor = VertexSet::EMPTY;
+                if b.moved != Moved::Stacked
+                    && matches!(b.mode, BlockMode::Resting | BlockMode::Tipping)
+                {
+                    b.mode = BlockMode::Free;
+                }
+                continue;
+            }
             let prev = b.floor;
             let (set, _) = lift_and_contacts(b, eps);
             let by_hand = matches!(b.moved, Moved::Hand | Moved::Carried);
