@@ -94,6 +94,12 @@ pub(crate) fn overlapping(a: &Block, b: &Block, tol: f64) -> bool {
     if !near(a, b, 0.0) {
         return false;
     }
+    // Boxes apart: the blocks are disjoint, so SAT finds a separating axis among its (complete)
+    // set and a depth below zero, not above tol (>= 0). Blocks side by side in a pushed pile
+    // have overlapping spheres but boxes apart.
+    if tol >= 0.0 && boxes_apart(a, DVec3::ZERO, b, BOX_SLACK) {
+        return false;
+    }
     pair_depth(a, b) > tol
 }
 
