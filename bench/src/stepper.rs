@@ -17,7 +17,8 @@
 //! * **Ablation**: per effect, on and off, `runs` times each, interleaved (on, off, on, off,
 //!   ...) so that a slow moment of the machine falls on both sides; the median, min and max of
 //!   each side's time per step. `noise_us` is what a setting measures against itself here:
-//!   half the larger of the two sides' max - min. Two cases per effect: `work`, a scene of
+//!   half the larger of the two sides' max - min, and at least what one reading of the clock
+//!   costs (measured in the run: a difference below it is below what the timing resolves). Two cases per effect: `work`, a scene of
 //!   `config/scenes/` the effect acts in (on - off is the effect's work; the two sides do
 //!   different things), and `idle`, the idle field (64 resting cubes, a hand 5 m away), timed
 //!   after a settling second (its first step is work: the first impacts, every block judged
@@ -403,9 +404,12 @@ struct Pair {
     scene: &'static str,
     on: fn(&mut Effects),
     off: fn(&mut Effects),
-    /// What the idle field needs so that this effect has nothing to do there either way
-    /// (without a floor, gravity would pull the resting cubes through it).
-    idle: fn(&mut Effects),
+    /// What the idle field needs so that this effect has nothing to do there either way;
+    /// `None`: the effect has no idle case. The floor's (rest -> none) has none: resting is the
+    /// floor's verdict, so without a floor the idle field's cubes never rest, stay in the
+    /// step's active set and are looked at every step; the two sides do different work (the
+    /// `work` row shows what the floor costs).
+    idle: Option<fn(&mut Effects)>,
 }
 
 fn nothing(_: &mut Effects) {}
@@ -416,7 +420,7 @@ const fn pair(
     scene: &'static str,
     on: fn(&mut Effects),
     off: fn(&mut Effects),
-    idle: fn(&mut Effects),
+    idle: Option<fn(&mut Effects)>,
 ) -> Pair {
     Pair {
         effect,
@@ -429,14 +433,14 @@ const fn pair(
 
 #[rustfmt::skip]
 const PAIRS: &[Pair] = &[
-    pair("gravity", "drop.toml", |e| e.gravity = true, |e| e.gravity = false, nothing),
-    pair("inertia", "grasp-throw-fingers.toml", |e| e.inertia = true, |e| e.inertia = false, nothing),
-    pair("floor: tipping -> rest", "tip.toml", |e| e.floor = FloorEffect::Tipping, |e| e.floor = FloorEffect::Rest, nothing),
-    pair("floor: rest -> none", "tip.toml", |e| e.floor = FloorEffect::Rest, |e| e.floor = FloorEffect::None, |e| e.gravity = false),
-    pair("hand: grasp -> push", "grasp-throw-fingers.toml", |e| e.hand = HandEffect::Grasp, |e| e.hand = HandEffect::Push, nothing),
-    pair("hand: push -> none", "push.toml", |e| e.hand = HandEffect::Push, |e| e.hand = HandEffect::None, nothing),
-    pair("carry", "carry.toml", |e| e.carry = true, |e| e.carry = false, nothing),
-    pair("stacking: supported -> paper", "hard/staggered.toml", |e| e.stacking = Stacking::Supported, |e| e.stacking = Stacking::Paper, nothing),
+    pair("gravity", "drop.toml", |e| e.gravity = true, |e| e.gravity = false, Some(nothing)),
+    pair("inertia", "grasp-throw-fingers.toml", |e| e.inertia = true, |e| e.inertia = false, Some(nothing)),
+    pair("floor: tipping -> rest", "tip.toml", |e| e.floor = FloorEffect::Tipping, |e| e.floor = FloorEffect::Rest, Some(nothing)),
+    pair("floor: rest -> none", "tip.toml", |e| e.floor = FloorEffect::Rest, |e| e.floor = FloorEffect::None, None),
+    pair("hand: grasp -> push", "grasp-throw-fingers.toml", |e| e.hand = HandEffect::Grasp, |e| e.hand = HandEffect::Push, Some(nothing)),
+    pair("hand: push -> none", "push.toml", |e| e.hand = HandEffect::Push, |e| e.hand = HandEffect::None, Some(nothing)),
+    pair("carry", "carry.toml", |e| e.carry = true, |e| e.carry = false, Some(nothing)),
+    pair("stacking: supported -> paper", "hard/staggered.toml", |e| e.stacking = Stacking::Supported, |e| e.stacking = Stacking::Paper, Some(nothing)),
 ];
 
 /// Mean us per step of one whole run of `scene` (its hand's keys plus 1 s) after `settle`
@@ -468,11 +472,24 @@ pub fn idle_field(model: ModelKind) -> Scene {
 /// Untimed steps before the idle field's timed ones (1 s at 120 Hz).
 const IDLE_SETTLE_STEPS: u64 = 120;
 
+/// What reading the clock costs here (us): the smallest of many back-to-back readings'
+/// differences. Every step is timed between two readings, so a difference between two
+/// settings below this is below what the timing resolves: the floor of `noise_us`.
+pub fn clock_reading_us() -> f64 {
+    let mut best = f64::INFINITY;
+    for _ in 0..10_000 {
+        let t0 = Instant::now();
+        best = best.min(t0.elapsed().as_secs_f64() * 1e6);
+    }
+    best
+}
+
 fn ablation_row(
     pair: &Pair,
     model: ModelKind,
     runs: usize,
     idle: bool,
+    clock_us: f64,
 ) -> Result<AblationRow, String> {
     let mut base = if idle {
         idle_field(model)
@@ -480,8 +497,8 @@ fn ablation_row(
         config_scene(pair.scene)?
     };
     base.world.model = model;
-    if idle {
-        (pair.idle)(&mut base.effects);
+    if let (true, Some(setup)) = (idle, pair.idle) {
+        setup(&mut base.effects);
     }
     // The idle field is timed settled, as the resting situation is: its first step is work
     // for several effects (the floor's first impacts, R9 and R14 judging every block once),
@@ -507,7 +524,7 @@ fn ablation_row(
         } else {
             pair.scene.to_string()
         },
-        noise_us: 0.5 * (on.max - on.min).max(off.max - off.min),
+        noise_us: (0.5 * (on.max - on.min).max(off.max - off.min)).max(clock_us),
         on,
         off,
     })
@@ -529,6 +546,8 @@ pub struct Report {
     /// Sizes asked for that the world cannot hold yet: (N, why).
     pub not_run: Vec<(usize, String)>,
     pub ablation: Vec<AblationRow>,
+    /// What one reading of the clock costs here (us): the floor of every row's noise.
+    pub clock_us: f64,
     pub seconds: f64,
 }
 
@@ -617,14 +636,19 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
     }
     let ab_runs = 5;
     let mut ablation = Vec::new();
-    let total = PAIRS.len() * models.len() * 2;
-    for (k, (idle, pair, &m)) in [false, true]
+    let cases: Vec<(bool, &Pair)> = [false, true]
         .iter()
         .flat_map(|&i| PAIRS.iter().map(move |p| (i, p)))
-        .flat_map(|(i, p)| models.iter().map(move |m| (i, p, m)))
+        .filter(|(idle, p)| !idle || p.idle.is_some())
+        .collect();
+    let total = cases.len() * models.len();
+    let clock_us = clock_reading_us();
+    for (k, (idle, pair, &m)) in cases
+        .iter()
+        .flat_map(|&(i, p)| models.iter().map(move |m| (i, p, m)))
         .enumerate()
     {
-        let r = ablation_row(pair, m, ab_runs, idle)?;
+        let r = ablation_row(pair, m, ab_runs, idle, clock_us)?;
         eprintln!(
             "stepper: ablation [{}/{}] {} {} ({}): on {:.2} us, off {:.2} us, noise {:.2} us ({:.0} s so far)",
             k + 1,
@@ -644,6 +668,7 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
         scaling,
         not_run,
         ablation,
+        clock_us,
         seconds: started.elapsed().as_secs_f64(),
     };
     let json_path = b.out_dir.join("stepper.json");
@@ -720,7 +745,8 @@ fn to_json(r: &Report) -> Value {
         "tried": r.cheap.tried.iter().map(|(s, m)| json!({"substeps": s, "moved_m": num(*m)})).collect::<Vec<_>>()});
     json!({"scaling": scaling, "exponents": exponents, "not_run": not_run,
            "precise_cheap": cheap,
-           "ablation": ablation, "seconds": num(r.seconds)})
+           "ablation": ablation, "clock_reading_us": num(r.clock_us),
+           "seconds": num(r.seconds)})
 }
 
 /// The contenders' names, in table order.
@@ -840,7 +866,7 @@ fn markdown(r: &Report, quick: bool) -> String {
         if quick { ", --quick: 16 and 64 blocks, 2 timed runs" } else { ", 5 timed runs after a warm-up" }
     );
     s += &scaling_table(r);
-    s += "\n\n## Ablation\n\nEach effect on and off on the same scene, 5 interleaved runs a side after a warm-up, mean us per step of the whole run; noise: half the larger side's max - min. `work`: a scene of `config/scenes/` the effect acts in (on - off is the effect's work, and the two sides do different things); `idle`: the idle field (64 resting cubes, a two-point hand 5 m away), timed after 1 s of settling untimed, where the effect has nothing to do and turning it off changes no pose, so on - off is what its pass costs by being in the step at all. An effect that is off is not in the step's pass list (`Passes`): off runs none of its code.\n\n";
+    s += &"\n\n## Ablation\n\nEach effect on and off on the same scene, 5 interleaved runs a side after a warm-up, mean us per step of the whole run; noise: half the larger side's max - min, at least what one reading of the clock costs here ({clock:.3} us: a difference below it is below what the timing resolves). `work`: a scene of `config/scenes/` the effect acts in (on - off is the effect's work, and the two sides do different things); `idle`: the idle field (64 resting cubes, a two-point hand 5 m away), timed after 1 s of settling untimed, where the effect has nothing to do and turning it off changes no pose, so on - off is what its pass costs by being in the step at all (the floor's rest -> none has no idle case: without a floor nothing rests, so the idle field's cubes stay in the step's active set). An effect that is off is not in the step's pass list (`Passes`): off runs none of its code.\n\n".replace("{clock:.3}", &format!("{:.3}", r.clock_us));
     s += &ablation_table(r);
     s += "\n";
     s
@@ -945,8 +971,9 @@ mod tests {
     fn in_the_idle_field_no_effect_changes_a_pose_on_or_off() {
         for p in PAIRS {
             let (mut on, mut off) = (idle_field(ModelKind::Paper), idle_field(ModelKind::Paper));
-            (p.idle)(&mut on.effects);
-            (p.idle)(&mut off.effects);
+            let Some(setup) = p.idle else { continue };
+            setup(&mut on.effects);
+            setup(&mut off.effects);
             (p.on)(&mut on.effects);
             (p.off)(&mut off.effects);
             let start = final_poses(&on, 0);

@@ -222,18 +222,18 @@ impl BlockGrid {
         // and the sphere test below both reach `slack` further.
         let slack = 1e-9 * (1.0 + centre.abs().max_element() + reach);
         let q = reach + self.max_radius + slack;
-        let (lo, hi) = match (self.cell_of(centre - q), self.cell_of(centre + q)) {
-            (Some(lo), Some(hi)) if q.is_finite() => (lo, hi),
-            _ => return self.everything(blocks.len()),
-        };
         // Nowhere near any centre the grid holds: only the unplaced (a second slack covers
-        // the rounding of centre -+ q).
+        // the rounding of centre -+ q; a NaN compares false and goes on to the cells' test).
         if (centre - q - slack).cmpgt(self.seen_hi).any()
             || (centre + q + slack).cmplt(self.seen_lo).any()
         {
             self.found.extend_from_slice(&self.unplaced);
             return &mut self.found;
         }
+        let (lo, hi) = match (self.cell_of(centre - q), self.cell_of(centre + q)) {
+            (Some(lo), Some(hi)) if q.is_finite() => (lo, hi),
+            _ => return self.everything(blocks.len()),
+        };
         let span = |k: usize| (hi[k] - lo[k] + 1) as u128;
         // A query wider than the table (a very fast block): every block, as a plain loop.
         if span(0) * span(1) * span(2) > self.head.len() as u128 {

@@ -449,12 +449,17 @@ pub(crate) fn move_by_hand(
     settings: &Settings,
     fingers: &mut Fingers,
 ) {
-    let (w_pos, w_rot) = wrist_of(&hand.wrist);
-    let (wm_pos, wm_rot) = match prev {
-        Some(p) => wrist_of(&p.wrist),
-        None => (w_pos, w_rot),
+    // R5's wrist motion, worked out for the first grasped block (a hand that acts on nothing
+    // costs this stage a pass over the active set and nothing more).
+    let wrist_motion = || {
+        let (w_pos, w_rot) = wrist_of(&hand.wrist);
+        let (wm_pos, wm_rot) = match prev {
+            Some(p) => wrist_of(&p.wrist),
+            None => (w_pos, w_rot),
+        };
+        (w_pos, wm_pos, (w_rot * wm_rot.conjugate()).normalize())
     };
-    let dq = (w_rot * wm_rot.conjugate()).normalize();
+    let mut grasp_motion: Option<(DVec3, DVec3, DQuat)> = None;
     let eps = settings.contact_eps;
     let hull_eps = settings.hull_eps;
     let mut any_grasp = false;
@@ -468,6 +473,7 @@ pub(crate) fn move_by_hand(
                 if b.mode_before != BlockMode::Grasped {
                     b.grasp_history_len = 0;
                 }
+                let (w_pos, wm_pos, dq) = *grasp_motion.get_or_insert_with(wrist_motion);
                 let new_pos = w_pos + dq * (b.pos - wm_pos);
                 let d = new_pos - b.pos;
                 b.pos = new_pos;

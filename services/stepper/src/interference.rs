@@ -247,8 +247,14 @@ pub(crate) fn cast_fraction(
     let a = &blocks[i];
     let mut toi = 1.0f64;
     if passes.floor && d.y < 0.0 {
-        // Translation only: the lowest vertex leads; exact.
-        let bottom = a.pos.y + a.lowest_rel_y();
+        // Translation only: the lowest vertex leads; exact. (Its box's floor is that vertex's
+        // height when the box is up to date: no pass over the vertices.)
+        let lowest = if a.rel_rot == a.rot {
+            a.rel_lo.y
+        } else {
+            a.lowest_rel_y()
+        };
+        let bottom = a.pos.y + lowest;
         toi = toi.min((bottom / -d.y).max(0.0));
     }
     if passes.blocks {
