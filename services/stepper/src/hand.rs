@@ -359,6 +359,10 @@ impl HandContacts {
         grid.sync(blocks, active);
         let candidates: &[u32] =
             grid.near_any_order(blocks, (lo + hi) * 0.5, 0.5 * (hi - lo).length() + eps);
+        // Nothing near the hand: no block has an action to decide.
+        if candidates.is_empty() {
+            return;
+        }
         let first = first_entries(
             candidates
                 .iter()
