@@ -1,20 +1,28 @@
 //! Steps one of `bench stepper`'s fields over and over, for a profiler (`perf record`,
 //! `valgrind --tool=callgrind`): `cargo run --release -p handblocks-bench --example
-//! stepper_profile -- falling 1024 20` (situation, blocks, runs).
+//! stepper_profile -- falling 1024 20` (situation, blocks, runs; `idle` and `idle-no-hand`:
+//! the ablation's idle field with its hand on and off, whatever the blocks).
 
 use std::time::Instant;
 
+use common::config::scene::HandEffect;
 use common::config::scene::ModelKind;
-use handblocks_bench::stepper::{field, Situation};
+use handblocks_bench::stepper::{field, idle_field, Situation};
 use stepper::{BareFingersHand, Model};
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let situation = match args.first().map(String::as_str).unwrap_or("falling") {
+    let which = args.first().map(String::as_str).unwrap_or("falling");
+    let situation = match which {
         "falling" => Situation::Falling,
-        "resting" => Situation::Resting,
+        "resting" | "idle" | "idle-no-hand" => Situation::Resting,
         "hand" => Situation::Hand,
-        other => return Err(format!("situation {other:?}: falling, resting or hand")),
+        other => {
+            return Err(format!(
+                "situation {other:?}: falling, resting, hand, idle (the ablation's idle field) \
+                 or idle-no-hand (the same with hand = \"none\")"
+            ))
+        }
     };
     let parse = |k: usize, default: usize| -> Result<usize, String> {
         args.get(k).map_or(Ok(default), |s| {
@@ -22,7 +30,15 @@ fn main() -> Result<(), String> {
         })
     };
     let (n, runs) = (parse(1, 1024)?, parse(2, 20)?);
-    let scene = field(n, situation, ModelKind::Paper);
+    let scene = match which {
+        "idle" => idle_field(ModelKind::Paper),
+        "idle-no-hand" => {
+            let mut s = idle_field(ModelKind::Paper);
+            s.effects.hand = HandEffect::None;
+            s
+        }
+        _ => field(n, situation, ModelKind::Paper),
+    };
     let hand = BareFingersHand::from_scene(&scene);
     let dt = 1.0 / scene.world.step_hz;
     let mut total = 0.0;
@@ -64,7 +80,7 @@ fn main() -> Result<(), String> {
     }
     println!(
         "{} x{n}: {:.1} us per step (mean over {steps} steps); poses {hash:016x}",
-        situation.name(),
+        which,
         total / steps as f64 * 1e6
     );
     Ok(())
