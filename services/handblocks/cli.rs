@@ -204,6 +204,9 @@ pub enum Command {
         /// The session's --set overrides, as the launcher got them.
         #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
         overrides: Vec<common::config::session::Override>,
+        /// Which restart of this process this is ([supervise]): 0 for its first start.
+        #[arg(long, default_value_t = 0)]
+        restart: u32,
     },
 }
 

@@ -181,6 +181,25 @@ pub struct RecorderSettings {
     pub file: Option<PathBuf>,
 }
 
+/// Where a recorder restarted for the `n`-th time writes (`[supervise]`): segment `n` beside
+/// the recording, `live.mcap` -> `live.1.mcap`, `live.2.mcap`, ... (segment 0 is the file
+/// itself). The dead recorder's file is left as it was (everything up to its last closed
+/// chunk reads back); each segment is a whole recording of its own, so `inspect` and a replay
+/// take any one of them.
+pub fn recording_segment(file: &Path, n: u32) -> PathBuf {
+    if n == 0 {
+        return file.to_path_buf();
+    }
+    let stem = file
+        .file_stem()
+        .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
+    let name = match file.extension() {
+        Some(ext) => format!("{stem}.{n}.{}", ext.to_string_lossy()),
+        None => format!("{stem}.{n}"),
+    };
+    file.with_file_name(name)
+}
+
 /// `[budget]`: the interactive-rate budget; exceeding a limit fails the session.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Budget {
