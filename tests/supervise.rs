@@ -262,6 +262,14 @@ fn each_killed_process_is_restarted_and_the_session_completes() {
             restart["lost"]
         );
     }
+    // The deadlines the source missed while it was down: never sent, counted by kinematics
+    // as gaps, shown as the source's restart's loss, and not as dropped.
+    let missed = log[1]["lost"]["tracker"].as_u64().unwrap();
+    assert!(missed > 0, "{}", log[1]);
+    assert_eq!(log[1]["lost"]["glove"], missed);
+    let tracker = &r["topics"]["tracker"]["readers"]["kinematics"];
+    assert_eq!(tracker["gaps"], missed, "{tracker}");
+    assert_eq!(tracker["dropped"], 0, "{tracker}");
     let recorder = &log[2];
     eprintln!(
         "recorder: downtime {:.1} ms (kill noticed -> first sample written); lost {}",

@@ -768,7 +768,8 @@ impl Bus {
         Ok(Outlet {
             publisher,
             notifier,
-            next_seq: kept.as_ref().map_or(0, SeqStore::load),
+            next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
+            skipped: kept.as_ref().map_or(0, |k| k.load(1)),
             kept,
         })
     }
@@ -825,7 +826,7 @@ impl Bus {
             publisher,
             notifier,
             capacity: self.slice_capacity,
-            next_seq: kept.as_ref().map_or(0, SeqStore::load),
+            next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
             kept,
         })
     }
@@ -1150,7 +1151,9 @@ pub struct Outlet<P: TopicSpec> {
     publisher: Publisher<ipc::Service, P::Sample, ()>,
     notifier: Notifier<ipc::Service>,
     next_seq: u64,
-    /// A supervised process's next seq, kept where its restart finds it.
+    /// Seqs this topic's source never sent ([`Outlet::skip_to`]).
+    skipped: u64,
+    /// A supervised process's next seq (and skipped), kept where its restart finds it.
     kept: Option<SeqStore>,
 }
 
@@ -1174,7 +1177,7 @@ impl<P: TopicSpec> Outlet<P> {
         // Kept before the send: a process killed between the two skips a seq (a gap its
         // readers count) rather than sending one seq twice.
         if let Some(kept) = &self.kept {
-            kept.store(self.next_seq + 1);
+            kept.store(0, self.next_seq + 1);
         }
         sample.send().map_err(|e| send_err(format!("{e:?}")))?;
         self.notifier
@@ -1190,17 +1193,33 @@ impl<P: TopicSpec> Outlet<P> {
 
     /// This outlet's counter for the latency report.
     pub fn counter(&self) -> TopicCounter {
-        sent_counter(P::TOPIC, self.next_seq)
+        sent_counter(P::TOPIC, self.next_seq, self.skipped)
+    }
+
+    /// A restarted source's next sample gets seq `seq` (its deadline grid's index, where the
+    /// dead one would have got to): the seqs between were never sent, samples lost while it
+    /// was down, which every reader counts as a gap. Its counter says how many it skipped
+    /// (`gaps` of a publisher's counter). A seq already used is not used again.
+    pub fn skip_to(&mut self, seq: u64) {
+        if seq <= self.next_seq {
+            return;
+        }
+        self.skipped += seq - self.next_seq;
+        self.next_seq = seq;
+        if let Some(kept) = &self.kept {
+            kept.store(1, self.skipped);
+            kept.store(0, self.next_seq);
+        }
     }
 }
 
-/// A publisher's counter: samples sent, the last seq.
-fn sent_counter(topic: Topic, next_seq: u64) -> TopicCounter {
+/// A publisher's counter: samples sent, seqs skipped (never sent), the last seq.
+fn sent_counter(topic: Topic, next_seq: u64, skipped: u64) -> TopicCounter {
     TopicCounter {
         topic: topic as u32,
         role: 0,
-        count: next_seq,
-        gaps: 0,
+        count: next_seq - skipped,
+        gaps: skipped,
         last_seq: next_seq.wrapping_sub(1),
     }
 }
@@ -1242,12 +1261,16 @@ impl SeqCount {
     }
 }
 
-/// A u64 in a file of the session's folder, mapped into this process's memory: an outlet's
-/// next seq, which outlives the process (the page cache keeps it when the process is killed)
-/// for its restart to read. A store is a plain memory write: no system call, no lock.
+/// Two u64 in a file of the session's folder, mapped into this process's memory: an outlet's
+/// next seq and the seqs it skipped, which outlive the process (the page cache keeps them when
+/// the process is killed) for its restart to read. A store is a plain memory write: no system
+/// call, no lock.
 struct SeqStore {
-    word: std::ptr::NonNull<std::sync::atomic::AtomicU64>,
+    words: std::ptr::NonNull<std::sync::atomic::AtomicU64>,
 }
+
+/// The bytes a [`SeqStore`] maps.
+const SEQ_STORE_BYTES: usize = 16;
 
 impl SeqStore {
     fn open(path: &StdPath) -> std::io::Result<SeqStore> {
@@ -1260,16 +1283,16 @@ impl SeqStore {
             .truncate(false)
             .mode(0o600)
             .open(path)?;
-        if file.metadata()?.len() < 8 {
-            file.set_len(8)?;
+        if file.metadata()?.len() < SEQ_STORE_BYTES as u64 {
+            file.set_len(SEQ_STORE_BYTES as u64)?;
         }
-        // SAFETY: maps 8 bytes of a file we opened read-write and sized to at least 8; the
-        // mapping is page-aligned, so it holds an aligned AtomicU64, and it stays valid until
-        // `drop` unmaps it (closing the file does not end a mapping).
+        // SAFETY: maps the 16 bytes of a file we opened read-write and sized to at least 16;
+        // the mapping is page-aligned, so it holds two aligned AtomicU64, and it stays valid
+        // until `drop` unmaps it (closing the file does not end a mapping).
         let p = unsafe {
             libc::mmap(
                 std::ptr::null_mut(),
-                8,
+                SEQ_STORE_BYTES,
                 libc::PROT_READ | libc::PROT_WRITE,
                 libc::MAP_SHARED,
                 file.as_raw_fd(),
@@ -1280,25 +1303,29 @@ impl SeqStore {
             return Err(std::io::Error::last_os_error());
         }
         std::ptr::NonNull::new(p.cast())
-            .map(|word| SeqStore { word })
+            .map(|words| SeqStore { words })
             .ok_or_else(|| std::io::Error::other("mmap returned null"))
     }
 
-    fn load(&self) -> u64 {
-        // SAFETY: `word` points into our live mapping (see `open`).
-        unsafe { self.word.as_ref() }.load(std::sync::atomic::Ordering::Relaxed)
+    /// Word `i` (0: next seq, 1: skipped).
+    fn word(&self, i: usize) -> &std::sync::atomic::AtomicU64 {
+        // SAFETY: `words` points at two AtomicU64 in our live mapping (see `open`); i < 2.
+        unsafe { &*self.words.as_ptr().add(i.min(1)) }
     }
 
-    fn store(&self, v: u64) {
-        // SAFETY: as in `load`.
-        unsafe { self.word.as_ref() }.store(v, std::sync::atomic::Ordering::Relaxed)
+    fn load(&self, i: usize) -> u64 {
+        self.word(i).load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    fn store(&self, i: usize, v: u64) {
+        self.word(i).store(v, std::sync::atomic::Ordering::Relaxed)
     }
 }
 
 impl Drop for SeqStore {
     fn drop(&mut self) {
-        // SAFETY: unmaps the 8 bytes `open` mapped, once; nothing refers to them after.
-        unsafe { libc::munmap(self.word.as_ptr().cast(), 8) };
+        // SAFETY: unmaps the bytes `open` mapped, once; nothing refers to them after.
+        unsafe { libc::munmap(self.words.as_ptr().cast(), SEQ_STORE_BYTES) };
     }
 }
 
@@ -1403,7 +1430,7 @@ impl<P: SliceTopicSpec> SliceOutlet<P> {
         // Kept before the send: a process killed between the two skips a seq (a gap its
         // readers count) rather than sending one seq twice.
         if let Some(kept) = &self.kept {
-            kept.store(self.next_seq + 1);
+            kept.store(0, self.next_seq + 1);
         }
         sample.send().map_err(|e| send_err(format!("{e:?}")))?;
         self.notifier
@@ -1430,7 +1457,7 @@ impl<P: SliceTopicSpec> SliceOutlet<P> {
 
     /// This outlet's counter for the latency report.
     pub fn counter(&self) -> TopicCounter {
-        sent_counter(P::TOPIC, self.next_seq)
+        sent_counter(P::TOPIC, self.next_seq, 0)
     }
 }
 

@@ -64,6 +64,18 @@ fn a_restarted_stage_goes_on_with_its_seq_and_epoch() {
             3,
             "an unsupervised reader counts from seq 0"
         );
+        // A restarted source skips the seqs of the deadlines it missed: readers count them as
+        // gaps, its counter as skipped, and the next restart still knows.
+        out.skip_to(8);
+        out.publish(&GloveSample::default()).unwrap();
+        assert_eq!(received_seqs(&inlet), [8]);
+        assert_eq!(inlet.counter().gaps, 3);
+        let c = out.counter();
+        assert_eq!((c.count, c.gaps, c.last_seq), (6, 3, 8));
+        drop(out);
+        let third = Bus::open(&cfg, "acquisition").unwrap().supervised(2);
+        let c = third.outlet::<topics::Glove>().unwrap().counter();
+        assert_eq!((c.count, c.gaps, c.last_seq), (6, 3, 8));
         // An unsupervised outlet of the same name starts at 0, as it always did.
         let plain = Bus::open(&cfg, "acquisition").unwrap();
         assert_eq!(

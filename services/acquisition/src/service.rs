@@ -100,8 +100,8 @@ fn run_scripted(
 
     // The session's timeline: a restarted source goes on on its first incarnation's deadline
     // grid, at the first deadline still ahead, so source time (and the hand the script gives)
-    // goes on where it would have been; the samples of the deadlines it missed while it was
-    // down were never made (its seq goes on without them: nothing was lost on the bus).
+    // goes on where it would have been. Sample k has seq k: the deadlines missed while it was
+    // down are seqs never sent, which every reader counts as lost.
     let (start_ns, resumed) = bus.session_epoch_ns("acquisition");
     let period_ns = 1e9 / rate_hz;
     let mut k: u64 = if resumed {
@@ -109,6 +109,8 @@ fn run_scripted(
     } else {
         0
     };
+    glove.skip_to(k);
+    tracker.skip_to(k);
     while !shutdown::requested() {
         let deadline = start_ns + (k as f64 * period_ns).round() as u64;
         sleep_until_ns(deadline);

@@ -84,7 +84,8 @@ impl StageReport {
     /// noticed, where known).
     ///
     /// A publisher's counts are the next one's (a supervised outlet's seq, and with it its
-    /// count, goes on across a restart). A reader's add up; the next one counts gaps from its
+    /// count, goes on across a restart); a restarted source's seqs skipped at the restart
+    /// (its deadlines missed while it was down) are its restart's loss. A reader's add up; the next one counts gaps from its
     /// first sample, so the seqs between this one's last report and the next one's first
     /// sample are the restart's: those this one read after its last report (it reports about
     /// once a second) and those published while the process was down.
@@ -114,7 +115,20 @@ impl StageReport {
                 self.counters.len() - 1
             });
             match &mut self.counters[at] {
-                e if c.role == 0 => *e = *c,
+                e if c.role == 0 => {
+                    // A restarted source skipped the seqs of the samples due while it was
+                    // down (its publisher counter's gaps): its restart's loss.
+                    if c.gaps > e.gaps {
+                        if let Some(topic) = Topic::from_u32(c.topic) {
+                            lost.push(RestartLoss {
+                                topic,
+                                lost: c.gaps - e.gaps,
+                                unreported: 0,
+                            });
+                        }
+                    }
+                    *e = *c;
+                }
                 e => {
                     if c.count > 0 {
                         let first = (c.last_seq + 1).saturating_sub(c.count + c.gaps);
@@ -350,6 +364,9 @@ impl Report {
     ) -> Report {
         stages.sort_by_key(|s| s.stage);
         let mut topics: BTreeMap<Topic, TopicFlow> = BTreeMap::new();
+        // Per topic, seqs its (restarted) publishers skipped: lost while a source was down,
+        // counted by every reader as gaps, and shown with the source's restart instead.
+        let mut skipped: BTreeMap<Topic, u64> = BTreeMap::new();
         for s in &stages {
             for c in &s.counters {
                 let Some(topic) = Topic::from_u32(c.topic) else {
@@ -358,6 +375,7 @@ impl Report {
                 let flow = topics.entry(topic).or_default();
                 if c.role == 0 {
                     flow.published += c.count;
+                    *skipped.entry(topic).or_default() += c.gaps;
                 }
             }
         }
@@ -378,14 +396,17 @@ impl Report {
                     // Lost on the way: gaps in seq, and whatever was published but never read
                     // (less what its restarts lost, which they show); a reader without its
                     // final report is known only up to its last one.
+                    let gaps = c
+                        .gaps
+                        .saturating_sub(skipped.get(&topic).copied().unwrap_or(0));
                     let dropped = if s.final_report {
-                        c.gaps.max(
+                        gaps.max(
                             flow.published
                                 .saturating_sub(c.count)
                                 .saturating_sub(lost_in_restarts),
                         )
                     } else {
-                        c.gaps
+                        gaps
                     };
                     flow.readers.insert(
                         s.stage.name(),

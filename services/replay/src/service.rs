@@ -15,7 +15,7 @@ use common::config::session::Source;
 use common::config::Session;
 use common::latency::Reporter;
 use common::stamp::sleep_until_ns;
-use common::{monotonic_ns, shutdown, topics, Stage, Stamp};
+use common::{monotonic_ns, shutdown, topics, Stage, Stamp, Topic};
 
 use crate::trace::{HandTrace, SourceSample};
 
@@ -76,6 +76,8 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     } else {
         0
     };
+    let mut skipped = [0u64; Topic::ALL.len()];
+    let mut skipping = resume_after > 0;
     let rounds = if *looped && !trace.samples.is_empty() {
         u64::MAX
     } else {
@@ -93,7 +95,15 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         if *speed > 0.0 {
             let after = (sample.source_time_ns() + shift - t0) as f64 / speed;
             if (after as u64) < resume_after {
+                // Due before the restart: sent by the dead replay, or lost while none ran
+                // (each topic's seq counts its samples in order, sent or not).
+                skipped[sample.topic() as usize] += 1;
                 continue;
+            }
+            if std::mem::take(&mut skipping) {
+                glove_out.skip_to(skipped[Topic::Glove as usize]);
+                tracker_out.skip_to(skipped[Topic::Tracker as usize]);
+                joints_out.skip_to(skipped[Topic::Joints as usize]);
             }
             sleep_until_ns(start + after as u64);
         } else if sample.makes_a_hand() {
