@@ -339,3 +339,48 @@ fn a_killed_launcher_takes_its_children_with_it_and_the_next_launch_starts_clean
     assert!(out.status.success(), "{}", both(&out));
     assert_eq!(report(&report_file)["restarts"], serde_json::json!({}));
 }
+
+/// A replay killed mid-trace goes on on its first start's timeline: the samples due while it
+/// was down are skipped (seqs never sent, the restart's loss), and the session still ends
+/// when the trace does, with status 0.
+#[test]
+fn a_killed_replay_goes_on_where_its_trace_is_due_and_the_session_ends_with_it() {
+    let dir = Scratch::new("sv-replay");
+    let scene = repo().join("config/scenes/carl-push.toml");
+    let trace = repo().join("../shared/data/carl/example_push_0.carl");
+    let s = dir.path("replay.toml");
+    std::fs::write(
+        &s,
+        format!(
+            "scene = {:?}\n[source]\nkind = \"replay\"\nfile = {:?}\nspeed = 1.0\n\
+             offset = [0.0, -1.45, 0.0]\n[renderer]\nmode = \"off\"\n\
+             [supervise]\nrestart = \"on-failure\"\n[budget]\nmax_dropped = 0\n",
+            scene.to_string_lossy(),
+            trace.to_string_lossy()
+        ),
+    )
+    .unwrap();
+    let id = unique_id("rp");
+    let report_file = dir.path("report.json");
+    let started = Instant::now();
+    let child = start(&s, &id, 20.0, &report_file);
+    find_service("replay", &id).expect("the session started");
+    std::thread::sleep(Duration::from_millis(1000));
+    kill("replay", &id);
+    let out = finish(child, &id);
+    assert!(out.status.success(), "{}", both(&out));
+    assert!(
+        started.elapsed() < Duration::from_secs(12),
+        "the session did not end with its trace"
+    );
+    let r = report(&report_file);
+    assert_eq!(r["restarts"]["replay"], 1, "{}", both(&out));
+    let lost = r["restart_log"][0]["lost"]["joints"].as_u64().unwrap();
+    assert!(lost > 0, "{}", r["restart_log"]);
+    assert_eq!(r["topics"]["joints"]["readers"]["kinematics"]["gaps"], lost);
+    assert_eq!(r["budget"]["ok"], true, "{}", r["budget"]);
+    eprintln!(
+        "replay: downtime {:.1} ms, joints samples lost {lost}",
+        r["restart_log"][0]["downtime_ms"].as_f64().unwrap()
+    );
+}
