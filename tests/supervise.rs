@@ -384,3 +384,45 @@ fn a_killed_replay_goes_on_where_its_trace_is_due_and_the_session_ends_with_it()
         r["restart_log"][0]["downtime_ms"].as_f64().unwrap()
     );
 }
+
+/// A killed renderer is restarted and draws again from the newest world; the frame rate is
+/// judged over the time it drew. (Skipped where no GPU adapter, not even a software one, is
+/// found: the renderer then does not run at all.)
+#[test]
+fn a_killed_renderer_is_restarted_and_draws_again() {
+    let dir = Scratch::new("sv-renderer");
+    let scene = repo().join("config/scenes/grasp-throw.toml");
+    let s = dir.path("renderer.toml");
+    std::fs::write(
+        &s,
+        format!(
+            "scene = {:?}\n[renderer]\nmode = \"headless\"\nwidth = 160\nheight = 120\n\
+             [supervise]\nrestart = \"on-failure\"\nbackoff_ms = 50\n[budget]\nframe_hz = 5\n",
+            scene.to_string_lossy()
+        ),
+    )
+    .unwrap();
+    let id = unique_id("rd");
+    let report_file = dir.path("report.json");
+    let child = start(&s, &id, 4.0, &report_file);
+    find_service("acquisition", &id).expect("the session started");
+    std::thread::sleep(Duration::from_millis(1500));
+    if support::find_service_now("renderer", &id).is_none() {
+        let out = finish(child, &id);
+        eprintln!("no renderer ran (no GPU adapter): {}", both(&out));
+        return;
+    }
+    kill("renderer", &id);
+    let out = finish(child, &id);
+    assert!(out.status.success(), "{}", both(&out));
+    let r = report(&report_file);
+    assert_eq!(r["restarts"]["renderer"], 1, "{}", both(&out));
+    let restart = &r["restart_log"][0];
+    let downtime = restart["downtime_ms"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("the restarted renderer drew nothing: {restart}"));
+    eprintln!(
+        "renderer: downtime {downtime:.1} ms (kill noticed -> first frame); lost {}",
+        restart["lost"]
+    );
+}
