@@ -23,7 +23,16 @@ fn unique_id(tag: &str) -> String {
 
 /// A supervised session over the grasp-throw scene, recording to `rec`, no renderer.
 fn session(dir: &Scratch, rec: &Path, supervise: &str) -> PathBuf {
-    let scene = repo().join("config/scenes/grasp-throw.toml");
+    session_of(
+        dir,
+        &repo().join("config/scenes/grasp-throw.toml"),
+        rec,
+        supervise,
+    )
+}
+
+/// A supervised session over `scene`, recording to `rec`, no renderer.
+fn session_of(dir: &Scratch, scene: &Path, rec: &Path, supervise: &str) -> PathBuf {
     let text = format!(
         "scene = {:?}\n[renderer]\nmode = \"off\"\n[recorder]\nfile = {:?}\n\
          [supervise]\nrestart = \"on-failure\"\n{supervise}\n[budget]\nmax_dropped = 0\n",
@@ -107,9 +116,23 @@ fn world_downtime_ms(worlds: &[WorldSample], kill_ns: u64, until_ns: u64) -> f64
 #[test]
 fn a_killed_stepper_resumes_its_world_exactly() {
     let dir = Scratch::new("sv-stepper");
+    stepper_resumes_exactly(&dir, &repo().join("config/scenes/grasp-throw.toml"), "st");
+}
+
+/// The same on the precise model (rapier3d): the hand log needs no state of the engine.
+#[test]
+fn a_killed_stepper_resumes_a_precise_world_exactly() {
+    let dir = Scratch::new("sv-precise");
+    let original = std::fs::read_to_string(repo().join("config/scenes/grasp-throw.toml")).unwrap();
+    let scene = dir.path("precise.toml");
+    std::fs::write(&scene, format!("[world]\nmodel = \"precise\"\n{original}")).unwrap();
+    stepper_resumes_exactly(&dir, &scene, "sp");
+}
+
+fn stepper_resumes_exactly(dir: &Scratch, scene_file: &Path, tag: &str) {
     let rec = dir.path("stepper.mcap");
-    let s = session(&dir, &rec, "");
-    let id = unique_id("st");
+    let s = session_of(dir, scene_file, &rec, "");
+    let id = unique_id(tag);
     let report_file = dir.path("report.json");
     let child = start(&s, &id, 3.5, &report_file);
     find_service("acquisition", &id).expect("the session started");
@@ -155,8 +178,7 @@ fn a_killed_stepper_resumes_its_world_exactly() {
         .all(|w| w[1].stamp.seq == w[0].stamp.seq + 1));
     assert!(worlds.windows(2).all(|w| w[1].step >= w[0].step));
 
-    let scene =
-        common::config::Scene::load(&repo().join("config/scenes/grasp-throw.toml")).unwrap();
+    let scene = common::config::Scene::load(scene_file).unwrap();
     let upto: Vec<HandSample> = hands
         .iter()
         .copied()
@@ -185,7 +207,7 @@ fn a_killed_stepper_resumes_its_world_exactly() {
         );
     }
     eprintln!(
-        "stepper: kill -> first world after the restart {:.1} ms; launcher's downtime {:.1} ms; \
+        "stepper ({tag}): kill -> first world after the restart {:.1} ms; launcher's downtime {:.1} ms; \
          hands missed while down {missed} (report: {lost_hands} lost)",
         world_downtime_ms(&worlds, killed_at, u64::MAX),
         restart["downtime_ms"].as_f64().unwrap()
@@ -425,4 +447,67 @@ fn a_killed_renderer_is_restarted_and_draws_again() {
         "renderer: downtime {downtime:.1} ms (kill noticed -> first frame); lost {}",
         restart["lost"]
     );
+}
+
+/// A session that ends while a dead process waits out its back-off ends cleanly: the death is
+/// in the report as a restart not made (no downtime), not as a failure.
+#[test]
+fn a_session_that_ends_during_a_back_off_ends_with_status_0() {
+    let dir = Scratch::new("sv-backoff");
+    let rec = dir.path("backoff.mcap");
+    let s = session(&dir, &rec, "backoff_ms = 5000\nbackoff_max_ms = 5000");
+    let id = unique_id("bo");
+    let report_file = dir.path("report.json");
+    let child = start(&s, &id, 1.5, &report_file);
+    find_service("acquisition", &id).expect("the session started");
+    std::thread::sleep(Duration::from_millis(400));
+    let pid = find_service("kinematics", &id).unwrap();
+    assert!(Command::new("kill")
+        .args(["-KILL", &pid.to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let out = finish(child, &id);
+    assert!(out.status.success(), "{}", both(&out));
+    let r = report(&report_file);
+    assert_eq!(r["restarts"]["kinematics"], 1);
+    assert_eq!(r["restart_log"][0]["downtime_ms"], Value::Null);
+    assert_eq!(r["failures"], serde_json::json!([]));
+}
+
+/// The segments a restarted recorder would write count as the recording: an earlier one is
+/// not overwritten without --force, and with it, it goes.
+#[test]
+fn an_earlier_recordings_segment_is_refused_unless_forced() {
+    let dir = Scratch::new("sv-segment");
+    let rec = dir.path("seg.mcap");
+    let s = session(&dir, &rec, "");
+    let stale = dir.path("seg.2.mcap");
+    std::fs::write(&stale, b"an earlier segment").unwrap();
+    let id = unique_id("sg");
+    let out = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--duration", "0.5", "--bus-id", &id])
+        .arg(&s)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", both(&out));
+    assert!(both(&out).contains("seg.2.mcap"), "{}", both(&out));
+    let out = Command::new(EXE)
+        .current_dir(repo())
+        .args([
+            "launch",
+            "--quiet",
+            "--force",
+            "--duration",
+            "0.5",
+            "--bus-id",
+            &id,
+        ])
+        .arg(&s)
+        .output()
+        .unwrap();
+    assert_nothing_left(&id);
+    assert!(out.status.success(), "{}", both(&out));
+    assert!(rec.exists() && !stale.exists());
 }

@@ -237,6 +237,15 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
                 reason,
             })?;
     }
+    let supervised = session.supervise.restart == RestartPolicy::OnFailure;
+    if let (Some(rec), true, true) = (&session.recorder.file, opts.force, supervised) {
+        // Forced over an earlier recording: the segments a restart would write go with it,
+        // so that no stale `name.1.mcap` sits beside the new recording as if a restart had
+        // written it (preflight refused them without --force).
+        for n in 1..=session.supervise.max_restarts {
+            let _ = std::fs::remove_file(recording_segment(rec, n));
+        }
+    }
     std::fs::create_dir_all(&bus_config.root).map_err(|reason| LaunchError::SessionFolder {
         root: bus_config.root.clone(),
         reason,
@@ -802,7 +811,13 @@ impl Supervision<'_> {
     /// sent and sends its final report, and is released and reaped once that report is read
     /// (or it gave up). A process without a final report, or that failed, is a failure.
     fn stop_in_order(&mut self, procs: &mut [ServiceProcess]) {
-        for p in procs.iter_mut() {
+        for (i, p) in procs.iter_mut().enumerate() {
+            if self.restarting.due.iter().any(|(j, _)| *j == i) {
+                // Dead and waiting out its back-off when the session ended: its death is in
+                // the report as a restart (never made), not a failure; its reports so far
+                // are its earlier incarnations'.
+                continue;
+            }
             p.request_stop();
             let deadline = Instant::now() + FINAL_REPORT_TIMEOUT;
             while !has_final(&self.reports, p.stage) {
