@@ -9,7 +9,14 @@
 //! Restarted by the launcher (issue 16, `[supervise]`), the stepper resumes exactly: the world
 //! is a pure function of the scene and the hand samples taken, so a supervised stepper keeps
 //! every hand it takes in the session's folder ([`HandLog`]), and a restarted one takes them
-//! all again before its first live hand. Its world is then bit for bit the one the dead
+//! all again before its first live hand.
+//!
+//! Why not a snapshot of the world: the world is fully determined by the hands taken, so
+//! taking them again is exact by construction, for both models, with no state of any stage
+//! (contact sets, grasp histories, R14's sleeping sets, rapier's solver) to export and keep in
+//! step with the model's code. The cost is the log's size (1144 bytes a sample, ~0.5 GB per
+//! hour at 120 Hz) and a restart's time, which grows with the session and the scene's step
+//! cost (grasp-throw, one block: 527 hands in 2.5 ms, so about 2 s after an hour at 120 Hz). Its world is then bit for bit the one the dead
 //! stepper had (no block jumps), whatever the model (paper or precise) and whatever state its
 //! stages keep; only the hands that arrived while no stepper ran are missing, and the
 //! timeline steps across them as across any gap in a source.
@@ -21,9 +28,9 @@ use crate::timeline::Timeline;
 use common::bus::Bus;
 use common::bus::{WaitStrategy, Waiter};
 use common::config::Session;
+use common::hand_log::HandLog;
 use common::latency::Reporter;
-use common::{monotonic_ns, shutdown, topics, HandSample, Pose, Stage, Stamp};
-use common::{MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
+use common::{monotonic_ns, shutdown, topics, HandSample, Stage, Stamp};
 
 const IDLE_WAIT: Duration = Duration::from_millis(50);
 /// Events kept for the session's outcome (grasps, releases, landings: a few per second); past
@@ -195,78 +202,6 @@ impl Stepping {
                 );
             }
         }
-    }
-}
-
-/// The hand samples a supervised stepper has taken, in order, as they came (a file in the
-/// session's folder, removed with it): what a restarted stepper takes again to rebuild the
-/// world exactly ([`run_with_outcome`]). One `write` per sample (no allocation); the kernel
-/// keeps what was written when the process is killed.
-///
-/// Why not a snapshot of the world: the world is fully determined by the hands taken, so
-/// taking them again is exact by construction, for both models, with no state of any stage
-/// (contact sets, grasp histories, R14's sleeping sets, rapier's solver) to export and keep in
-/// step with the model's code. The cost is the log's size (1144 bytes a sample, ~0.5 GB per
-/// hour at 120 Hz) and a restart's time, which grows with the session and the scene's step
-/// cost (grasp-throw, one block: 527 hands in 2.5 ms, so about 2 s after an hour at 120 Hz).
-struct HandLog {
-    file: std::fs::File,
-}
-
-/// The bytes of a hand sample as kept in the log: its memory, which has no padding (every
-/// field is 8 bytes, or 4-byte ones in an even number), checked here.
-const HAND_BYTES: usize = std::mem::size_of::<HandSample>();
-const _: () = assert!(
-    HAND_BYTES
-        == std::mem::size_of::<Stamp>()
-            + std::mem::size_of::<Pose>()
-            + 4 * (3 + MAX_FINGERS)
-            + 8 * 3 * MAX_FINGER_POINTS * MAX_FINGERS
-            + 8 * MAX_FINGERS
-            + 8 * 3 * MAX_PALM_VERTICES,
-    "HandSample has padding: the stepper's hand log must not write uninitialised bytes"
-);
-
-impl HandLog {
-    /// Opens (or creates) the log at `path` and reads the hands already in it. A sample cut
-    /// short by a kill is dropped (the file is cut back to whole samples).
-    fn open(path: &std::path::Path) -> Result<(HandLog, Vec<HandSample>), String> {
-        use std::io::{Seek, SeekFrom};
-        let what = |e: std::io::Error| format!("the stepper's hand log {}: {e}", path.display());
-        let bytes = match std::fs::read(path) {
-            Ok(b) => b,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
-            Err(e) => return Err(what(e)),
-        };
-        let whole = bytes.len() / HAND_BYTES * HAND_BYTES;
-        let taken = bytes[..whole]
-            .chunks_exact(HAND_BYTES)
-            .map(|chunk| {
-                // SAFETY: `chunk` holds HAND_BYTES bytes written from a HandSample by this
-                // same build (the log lives only as long as its session); every field is an
-                // integer or a float, for which any bit pattern is a value.
-                unsafe { std::ptr::read_unaligned(chunk.as_ptr().cast::<HandSample>()) }
-            })
-            .collect();
-        let mut file = std::fs::OpenOptions::new()
-            .create(true)
-            .write(true)
-            .truncate(false)
-            .open(path)
-            .map_err(what)?;
-        file.set_len(whole as u64).map_err(what)?;
-        file.seek(SeekFrom::End(0)).map_err(what)?;
-        Ok((HandLog { file }, taken))
-    }
-
-    fn append(&mut self, hand: &HandSample) -> std::io::Result<()> {
-        use std::io::Write;
-        // SAFETY: reads the HAND_BYTES bytes of a live HandSample, which has no padding (the
-        // assertion above), so every byte is initialised.
-        let bytes = unsafe {
-            std::slice::from_raw_parts(std::ptr::from_ref(hand).cast::<u8>(), HAND_BYTES)
-        };
-        self.file.write_all(bytes)
     }
 }
 
