@@ -303,6 +303,26 @@ impl BusConfig {
         removed
     }
 
+    /// How many samples of `topic` its supervised publishers have sent so far: the largest
+    /// next seq they keep in the session's folder ([`Bus::supervised`]); None when no
+    /// supervised publisher of it has sent. The launcher reads it when a reader dies, to tell
+    /// the samples published while it was down from those it read before it died.
+    pub fn published_count(&self, topic: Topic) -> Option<u64> {
+        let tail = format!(".{}", topic.name());
+        std::fs::read_dir(&self.root)
+            .ok()?
+            .flatten()
+            .filter(|e| {
+                let name = e.file_name().to_string_lossy().into_owned();
+                name.starts_with("seq.") && name.ends_with(&tail)
+            })
+            .filter_map(|e| {
+                let bytes = std::fs::read(e.path()).ok()?;
+                Some(u64::from_ne_bytes(bytes.get(..8)?.try_into().ok()?))
+            })
+            .max()
+    }
+
     /// Files of this session still in /dev/shm.
     pub fn leftover_shm_files(&self) -> Vec<PathBuf> {
         leftover_files(StdPath::new("/dev/shm"), &self.prefix)
@@ -432,6 +452,19 @@ pub struct Bus {
     slice_capacity: usize,
     /// [`BusConfig::lossless`].
     lossless: bool,
+    /// The session's folder ([`BusConfig::root`]).
+    root: PathBuf,
+    /// This node's name, which names its outlets' seq files.
+    node_name: String,
+    /// Set by [`Bus::supervised`]: this process may be restarted by the launcher.
+    supervised: Option<Supervised>,
+}
+
+/// What a stage the launcher may restart does differently ([`Bus::supervised`]).
+#[derive(Debug, Clone, Copy)]
+struct Supervised {
+    /// 0 for the first start, n for the n-th restart.
+    restart: u32,
 }
 
 impl Bus {
@@ -463,7 +496,102 @@ impl Bus {
             node,
             slice_capacity: config.world_blocks,
             lossless: config.lossless,
+            root: config.root.clone(),
+            node_name: node_name.to_string(),
+            supervised: None,
         })
+    }
+
+    /// Issue 16, supervision: this process is a stage the launcher restarts when it dies
+    /// (`[supervise] restart = "on-failure"`); `restart` is 0 for its first start, n for its
+    /// n-th restart. Then
+    /// * every outlet keeps its next `seq` in a file of the session's folder, mapped into
+    ///   memory (a store per sample, no system call), so a restarted publisher goes on from
+    ///   where the dead one stopped: seq stays monotonic for every reader;
+    /// * on a restart, every inlet counts gaps from its first sample, not from seq 0: the
+    ///   samples before it were the dead process's to count (the launcher adds the two
+    ///   incarnations' counts and attributes the samples between them to the restart).
+    pub fn supervised(mut self, restart: u32) -> Bus {
+        self.supervised = Some(Supervised { restart });
+        self
+    }
+
+    /// The n-th restart this process is (0: its first start, or not supervised).
+    pub fn restart(&self) -> u32 {
+        self.supervised.map_or(0, |s| s.restart)
+    }
+
+    /// True when the launcher may restart this process ([`Bus::supervised`]).
+    pub fn is_supervised(&self) -> bool {
+        self.supervised.is_some()
+    }
+
+    /// The session's folder: private to this user, removed when the session ends. What a
+    /// restarted stage needs of its dead incarnation lives here.
+    pub fn session_folder(&self) -> &StdPath {
+        &self.root
+    }
+
+    /// The session's epoch for `name` (a source's timeline): CLOCK_MONOTONIC when it first
+    /// asked, kept in the session folder, so that a restarted source goes on on the same
+    /// timeline (its deadlines, its source times). Returns the epoch and whether it was kept
+    /// from an earlier incarnation. Unsupervised, it is simply now.
+    pub fn session_epoch_ns(&self, name: &str) -> (u64, bool) {
+        let now = monotonic_ns();
+        if self.supervised.is_none() {
+            return (now, false);
+        }
+        let path = self.root.join(format!("epoch.{name}"));
+        if let Some(kept) = std::fs::read_to_string(&path)
+            .ok()
+            .and_then(|t| t.trim().parse::<u64>().ok())
+        {
+            return (kept, true);
+        }
+        // Written whole by rename, so a process killed while writing leaves no half number.
+        let tmp = self.root.join(format!("epoch.{name}.tmp"));
+        if std::fs::write(&tmp, now.to_string())
+            .and_then(|()| std::fs::rename(&tmp, &path))
+            .is_err()
+        {
+            eprintln!(
+                "handblocks: cannot keep the epoch of {name} in {}: a restart of it will start \
+                 its timeline anew",
+                self.root.display()
+            );
+        }
+        (now, false)
+    }
+
+    /// Removes what processes of this session that died (SIGKILL, a crash) left on the bus:
+    /// their nodes, their ports in every service, their shared memory (iceoryx2's dead-node
+    /// cleanup). The dead processes must have been reaped. Returns the nodes removed and those
+    /// that could not be.
+    pub fn cleanup_dead_nodes(&self) -> (u64, u64) {
+        let state = self.node.try_cleanup_dead_nodes();
+        (state.cleanups, state.failed_cleanups)
+    }
+
+    /// Where this node keeps `topic`'s next seq, when it is supervised.
+    fn seq_store(&self, topic: Topic) -> Result<Option<SeqStore>, BusError> {
+        if self.supervised.is_none() {
+            return Ok(None);
+        }
+        let path = self
+            .root
+            .join(format!("seq.{}.{}", self.node_name, topic.name()));
+        SeqStore::open(&path).map(Some).map_err(|e| BusError::Port {
+            topic: topic.name(),
+            reason: format!("cannot keep its seq in {}: {e}", path.display()),
+        })
+    }
+
+    /// A fresh count of received samples: on a restart, gaps count from the first sample.
+    fn seq_count(&self) -> SeqCount {
+        SeqCount {
+            from_first: self.restart() > 0,
+            ..SeqCount::default()
+        }
     }
 
     /// True when `topic` waits for its slowest reader on this bus ([`BusConfig::lossless`]).
@@ -636,10 +764,13 @@ impl Bus {
             .create()
             .map_err(|e| port_err(format!("{e:?}")))?;
         let notifier = self.notifier(topic)?;
+        let kept = self.seq_store(topic)?;
         Ok(Outlet {
             publisher,
             notifier,
-            next_seq: 0,
+            next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
+            skipped: kept.as_ref().map_or(0, |k| k.load(1)),
+            kept,
         })
     }
 
@@ -669,7 +800,7 @@ impl Bus {
         Ok(Inlet {
             subscriber,
             listener,
-            seqs: SeqCount::default(),
+            seqs: self.seq_count(),
         })
     }
 
@@ -690,11 +821,13 @@ impl Bus {
             .create()
             .map_err(|e| port_err(format!("{e:?}")))?;
         let notifier = self.notifier(topic)?;
+        let kept = self.seq_store(topic)?;
         Ok(SliceOutlet {
             publisher,
             notifier,
             capacity: self.slice_capacity,
-            next_seq: 0,
+            next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
+            kept,
         })
     }
 
@@ -715,7 +848,7 @@ impl Bus {
         Ok(SliceInlet {
             subscriber,
             listener,
-            seqs: SeqCount::default(),
+            seqs: self.seq_count(),
         })
     }
 }
@@ -1018,6 +1151,10 @@ pub struct Outlet<P: TopicSpec> {
     publisher: Publisher<ipc::Service, P::Sample, ()>,
     notifier: Notifier<ipc::Service>,
     next_seq: u64,
+    /// Seqs this topic's source never sent ([`Outlet::skip_to`]).
+    skipped: u64,
+    /// A supervised process's next seq (and skipped), kept where its restart finds it.
+    kept: Option<SeqStore>,
 }
 
 impl<P: TopicSpec> Outlet<P> {
@@ -1037,6 +1174,11 @@ impl<P: TopicSpec> Outlet<P> {
         stamp.seq = self.next_seq;
         stamp.publish_ns = monotonic_ns();
         let sent = *stamp;
+        // Kept before the send: a process killed between the two skips a seq (a gap its
+        // readers count) rather than sending one seq twice.
+        if let Some(kept) = &self.kept {
+            kept.store(0, self.next_seq + 1);
+        }
         sample.send().map_err(|e| send_err(format!("{e:?}")))?;
         self.notifier
             .notify()
@@ -1051,17 +1193,33 @@ impl<P: TopicSpec> Outlet<P> {
 
     /// This outlet's counter for the latency report.
     pub fn counter(&self) -> TopicCounter {
-        sent_counter(P::TOPIC, self.next_seq)
+        sent_counter(P::TOPIC, self.next_seq, self.skipped)
+    }
+
+    /// A restarted source's next sample gets seq `seq` (its deadline grid's index, where the
+    /// dead one would have got to): the seqs between were never sent, samples lost while it
+    /// was down, which every reader counts as a gap. Its counter says how many it skipped
+    /// (`gaps` of a publisher's counter). A seq already used is not used again.
+    pub fn skip_to(&mut self, seq: u64) {
+        if seq <= self.next_seq {
+            return;
+        }
+        self.skipped += seq - self.next_seq;
+        self.next_seq = seq;
+        if let Some(kept) = &self.kept {
+            kept.store(1, self.skipped);
+            kept.store(0, self.next_seq);
+        }
     }
 }
 
-/// A publisher's counter: samples sent, the last seq.
-fn sent_counter(topic: Topic, next_seq: u64) -> TopicCounter {
+/// A publisher's counter: samples sent, seqs skipped (never sent), the last seq.
+fn sent_counter(topic: Topic, next_seq: u64, skipped: u64) -> TopicCounter {
     TopicCounter {
         topic: topic as u32,
         role: 0,
-        count: next_seq,
-        gaps: 0,
+        count: next_seq - skipped,
+        gaps: skipped,
         last_seq: next_seq.wrapping_sub(1),
     }
 }
@@ -1073,6 +1231,8 @@ struct SeqCount {
     received: Cell<u64>,
     gaps: Cell<u64>,
     last_seq: Cell<Option<u64>>,
+    /// A restarted reader: the samples before its first were its dead incarnation's to count.
+    from_first: bool,
 }
 
 impl SeqCount {
@@ -1082,6 +1242,7 @@ impl SeqCount {
         let missed = match self.last_seq.get() {
             Some(last) if seq > last + 1 => seq - last - 1,
             Some(_) => 0,
+            None if self.from_first => 0,
             None => seq,
         };
         self.gaps.set(self.gaps.get() + missed);
@@ -1097,6 +1258,74 @@ impl SeqCount {
             gaps: self.gaps.get(),
             last_seq: self.last_seq.get().unwrap_or(u64::MAX),
         }
+    }
+}
+
+/// Two u64 in a file of the session's folder, mapped into this process's memory: an outlet's
+/// next seq and the seqs it skipped, which outlive the process (the page cache keeps them when
+/// the process is killed) for its restart to read. A store is a plain memory write: no system
+/// call, no lock.
+struct SeqStore {
+    words: std::ptr::NonNull<std::sync::atomic::AtomicU64>,
+}
+
+/// The bytes a [`SeqStore`] maps.
+const SEQ_STORE_BYTES: usize = 16;
+
+impl SeqStore {
+    fn open(path: &StdPath) -> std::io::Result<SeqStore> {
+        use std::os::unix::fs::OpenOptionsExt;
+        use std::os::unix::io::AsRawFd;
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .mode(0o600)
+            .open(path)?;
+        if file.metadata()?.len() < SEQ_STORE_BYTES as u64 {
+            file.set_len(SEQ_STORE_BYTES as u64)?;
+        }
+        // SAFETY: maps the 16 bytes of a file we opened read-write and sized to at least 16;
+        // the mapping is page-aligned, so it holds two aligned AtomicU64, and it stays valid
+        // until `drop` unmaps it (closing the file does not end a mapping).
+        let p = unsafe {
+            libc::mmap(
+                std::ptr::null_mut(),
+                SEQ_STORE_BYTES,
+                libc::PROT_READ | libc::PROT_WRITE,
+                libc::MAP_SHARED,
+                file.as_raw_fd(),
+                0,
+            )
+        };
+        if p == libc::MAP_FAILED {
+            return Err(std::io::Error::last_os_error());
+        }
+        std::ptr::NonNull::new(p.cast())
+            .map(|words| SeqStore { words })
+            .ok_or_else(|| std::io::Error::other("mmap returned null"))
+    }
+
+    /// Word `i` (0: next seq, 1: skipped).
+    fn word(&self, i: usize) -> &std::sync::atomic::AtomicU64 {
+        // SAFETY: `words` points at two AtomicU64 in our live mapping (see `open`); i < 2.
+        unsafe { &*self.words.as_ptr().add(i.min(1)) }
+    }
+
+    fn load(&self, i: usize) -> u64 {
+        self.word(i).load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    fn store(&self, i: usize, v: u64) {
+        self.word(i).store(v, std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+impl Drop for SeqStore {
+    fn drop(&mut self) {
+        // SAFETY: unmaps the bytes `open` mapped, once; nothing refers to them after.
+        unsafe { libc::munmap(self.words.as_ptr().cast(), SEQ_STORE_BYTES) };
     }
 }
 
@@ -1163,6 +1392,8 @@ pub struct SliceOutlet<P: SliceTopicSpec> {
     notifier: Notifier<ipc::Service>,
     capacity: usize,
     next_seq: u64,
+    /// As [`Outlet`]'s.
+    kept: Option<SeqStore>,
 }
 
 impl<P: SliceTopicSpec> SliceOutlet<P> {
@@ -1196,6 +1427,11 @@ impl<P: SliceTopicSpec> SliceOutlet<P> {
         stamp.seq = self.next_seq;
         stamp.publish_ns = monotonic_ns();
         let sent = *stamp;
+        // Kept before the send: a process killed between the two skips a seq (a gap its
+        // readers count) rather than sending one seq twice.
+        if let Some(kept) = &self.kept {
+            kept.store(0, self.next_seq + 1);
+        }
         sample.send().map_err(|e| send_err(format!("{e:?}")))?;
         self.notifier
             .notify()
@@ -1221,7 +1457,7 @@ impl<P: SliceTopicSpec> SliceOutlet<P> {
 
     /// This outlet's counter for the latency report.
     pub fn counter(&self) -> TopicCounter {
-        sent_counter(P::TOPIC, self.next_seq)
+        sent_counter(P::TOPIC, self.next_seq, 0)
     }
 }
 

@@ -66,6 +66,8 @@ pub struct LatencyRecorder {
     /// A source's last output (its start before the first), and its longest silence so far.
     last_output_ns: u64,
     longest_silence_ns: u64,
+    /// When the first output's age was recorded (0: none yet).
+    first_output_ns: u64,
 }
 
 impl LatencyRecorder {
@@ -81,12 +83,17 @@ impl LatencyRecorder {
             encoded: Vec::with_capacity(HISTOGRAM_BYTES),
             last_output_ns: monotonic_ns(),
             longest_silence_ns: 0,
+            first_output_ns: 0,
         }
     }
 
     /// Records one value in nanoseconds (0 is counted as 1 ns).
     pub fn record(&mut self, metric: Metric, ns: u64) {
         self.histograms[metric as usize].saturating_record(ns.max(1));
+        // Every stage records its output's age (origin -> out) as it publishes or writes it.
+        if metric == Metric::Origin && self.first_output_ns == 0 {
+            self.first_output_ns = monotonic_ns();
+        }
     }
 
     /// Records the hop of a sample received at `receive_ns`.
@@ -126,6 +133,7 @@ impl LatencyRecorder {
     ) {
         sample.stage = self.stage as u32;
         sample.final_report = final_report as u32;
+        sample.first_output_ns = self.first_output_ns;
         sample.silence_ns = self
             .longest_silence_ns
             .max(monotonic_ns().saturating_sub(self.last_output_ns));

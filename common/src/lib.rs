@@ -10,6 +10,7 @@
 pub mod bus;
 pub mod config;
 pub mod glove;
+pub mod hand_log;
 pub mod latency;
 pub mod samples;
 pub mod shutdown;

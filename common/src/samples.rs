@@ -436,6 +436,9 @@ pub struct LatencySample {
     /// A source only: the longest stretch without a sample it sent so far (from its start, and
     /// the current one included), ns.
     pub silence_ns: u64,
+    /// When this process first published what it makes (CLOCK_MONOTONIC ns; 0: not yet): the
+    /// launcher takes a restarted process's downtime up to it.
+    pub first_output_ns: u64,
     pub counters: [TopicCounter; MAX_TOPIC_COUNTERS],
     /// The acquisition process with devices only: what each driver counted (issue 16: the
     /// drivers counted rejected and garbage records, and no report showed them).
@@ -451,6 +454,7 @@ impl Default for LatencySample {
             stage: 0,
             final_report: 0,
             silence_ns: 0,
+            first_output_ns: 0,
             counters: [TopicCounter {
                 topic: u32::MAX,
                 ..Default::default()

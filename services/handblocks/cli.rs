@@ -27,7 +27,17 @@ const LAUNCH_AFTER_HELP: &str = concat!(
     "Besides the session's [budget] keys, every session is judged on what users assume: the source\n",
     "delivers a sample at least every `source_silence_ms` (default 1000), and the renderer draws at\n",
     "least (1 - `frame_rate_margin`) x frame_hz frames per second (default margin 0.25; frame_hz, or\n",
-    "the world's rate when that is lower). The design: docs/design.md; the model: docs/model.md."
+    "the world's rate when that is lower).\n",
+    "\n",
+    "Supervision, [supervise] in the session file (absent: restart = \"never\"):\n",
+    "  restart = \"never\" | \"on-failure\"   a process that exits or is killed mid-session fails the\n",
+    "               session at once, or is started again while the others keep running\n",
+    "  max_restarts = 3 (0 to 1000)      restarts allowed per process; one more fails the session\n",
+    "  backoff_ms = 100 (0 to 60000)     the wait before a process's first restart, doubled for each\n",
+    "  backoff_max_ms = 2000             further one of the same process, up to this\n",
+    "The report lists each restart (when, the exit, the downtime, samples lost); a restarted recorder\n",
+    "writes the next segment beside the recording (live.mcap, then live.1.mcap, ...).\n",
+    "The design: docs/design.md; the model: docs/model.md."
 );
 
 #[derive(Parser)]
@@ -194,6 +204,9 @@ pub enum Command {
         /// The session's --set overrides, as the launcher got them.
         #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
         overrides: Vec<common::config::session::Override>,
+        /// Which restart of this process this is ([supervise]): 0 for its first start.
+        #[arg(long, default_value_t = 0)]
+        restart: u32,
     },
 }
 

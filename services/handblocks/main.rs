@@ -97,6 +97,7 @@ fn run() -> Result<ExitCode, CliError> {
             preview,
             outcome_dir,
             overrides,
+            restart,
         }) => service::run(
             &name,
             &session,
@@ -107,6 +108,7 @@ fn run() -> Result<ExitCode, CliError> {
                 preview,
                 outcome_dir,
                 overrides,
+                restart,
             },
         )?,
         Some(Command::Bench { which }) => bench::run(which)?,

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use common::bus::{Bus, BusConfig};
-use common::config::session::Override;
+use common::config::session::{recording_segment, Override, RestartPolicy};
 use common::config::Session;
 use common::{shutdown, Stage};
 
@@ -17,6 +17,8 @@ pub struct ServiceArgs {
     pub preview: Option<PathBuf>,
     pub outcome_dir: Option<PathBuf>,
     pub overrides: Vec<Override>,
+    /// Which restart of this process this is (0: its first start).
+    pub restart: u32,
 }
 
 /// Why a service process stopped with an error.
@@ -96,9 +98,19 @@ fn run_stage(
     if args.record.is_some() {
         session.recorder.file = args.record;
     }
+    if stage == Stage::Recorder {
+        // A restarted recorder writes the next segment, leaving the dead one's file whole.
+        session.recorder.file = session
+            .recorder
+            .file
+            .map(|f| recording_segment(&f, args.restart));
+    }
     // Every process of a session opens the bus as the session says (world sizes, loss).
     let config = BusConfig::for_session_of(bus_id, &session)?;
-    let bus = Bus::open(&config, stage.name())?;
+    let mut bus = Bus::open(&config, stage.name())?;
+    if session.supervise.restart == RestartPolicy::OnFailure {
+        bus = bus.supervised(args.restart);
+    }
     match stage {
         Stage::Acquisition => acquisition::service::run(&session, &bus),
         Stage::Kinematics => kinematics::service::run(&session, &bus),

@@ -24,6 +24,64 @@ pub struct Session {
     pub hand_model: HandModelSpec,
     /// `[pipeline]`: how the pipeline's stages wait for their next sample.
     pub wait: crate::bus::WaitStrategy,
+    /// `[supervise]`: what the launcher does when a process dies mid-session.
+    pub supervise: Supervise,
+}
+
+/// `[supervise] restart`: what the launcher does when a process exits mid-session without
+/// being asked to (a crash, SIGKILL, the OOM killer).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RestartPolicy {
+    /// The session fails at once, naming the process (a test or a benchmark wants to know).
+    #[default]
+    Never,
+    /// The process is started again (after the back-off), the others go on; past
+    /// `max_restarts` restarts of one process the session fails as with `never`.
+    OnFailure,
+}
+
+impl RestartPolicy {
+    pub fn name(self) -> &'static str {
+        match self {
+            RestartPolicy::Never => "never",
+            RestartPolicy::OnFailure => "on-failure",
+        }
+    }
+}
+
+/// `[supervise]`: restarting a process that died. Absent, `never`: a session file says when it
+/// wants restarts (the live session does), so a benchmark or test never hides a crash.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Supervise {
+    pub restart: RestartPolicy,
+    /// Restarts allowed per process over the session; one more fails it.
+    pub max_restarts: u32,
+    /// The wait before a process's first restart, milliseconds; each further restart of the
+    /// same process waits twice as long as the one before, up to `backoff_max_ms`, so that a
+    /// process that dies at once on start does not spin.
+    pub backoff_ms: u64,
+    pub backoff_max_ms: u64,
+}
+
+impl Default for Supervise {
+    fn default() -> Self {
+        Supervise {
+            restart: RestartPolicy::Never,
+            max_restarts: 3,
+            backoff_ms: 100,
+            backoff_max_ms: 2000,
+        }
+    }
+}
+
+impl Supervise {
+    /// The wait before restart number `n` (1 for the first) of one process.
+    pub fn backoff(&self, n: u32) -> std::time::Duration {
+        let doubled = self
+            .backoff_ms
+            .saturating_mul(1u64 << n.saturating_sub(1).min(20));
+        std::time::Duration::from_millis(doubled.min(self.backoff_max_ms.max(self.backoff_ms)))
+    }
 }
 
 /// `[source]`: what feeds the pipeline.
@@ -121,6 +179,25 @@ impl Default for RendererSettings {
 pub struct RecorderSettings {
     /// None: the recorder runs (it counts what flows) but writes no file.
     pub file: Option<PathBuf>,
+}
+
+/// Where a recorder restarted for the `n`-th time writes (`[supervise]`): segment `n` beside
+/// the recording, `live.mcap` -> `live.1.mcap`, `live.2.mcap`, ... (segment 0 is the file
+/// itself). The dead recorder's file is left as it was (everything up to its last closed
+/// chunk reads back); each segment is a whole recording of its own, so `inspect` and a replay
+/// take any one of them.
+pub fn recording_segment(file: &Path, n: u32) -> PathBuf {
+    if n == 0 {
+        return file.to_path_buf();
+    }
+    let stem = file
+        .file_stem()
+        .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
+    let name = match file.extension() {
+        Some(ext) => format!("{stem}.{n}.{}", ext.to_string_lossy()),
+        None => format!("{stem}.{n}"),
+    };
+    file.with_file_name(name)
 }
 
 /// `[budget]`: the interactive-rate budget; exceeding a limit fails the session.
@@ -305,6 +382,7 @@ impl Session {
                 None => HandModelSpec::default(),
             },
             wait: pipeline(r.table("pipeline")?)?,
+            supervise: supervise(r.table("supervise")?)?,
         };
         r.finish()?;
         Ok(session)
@@ -330,6 +408,33 @@ fn pipeline(r: Option<Reader>) -> Result<crate::bus::WaitStrategy, ConfigError> 
 
 /// An open hand at rest beside the scene's blocks (40 cm past their +x side, 30 cm above the
 /// highest), where it touches none of them.
+fn supervise(r: Option<Reader>) -> Result<Supervise, ConfigError> {
+    let d = Supervise::default();
+    let Some(r) = r else {
+        return Ok(d);
+    };
+    let s = Supervise {
+        restart: match r.choice("restart", &["never", "on-failure"])? {
+            "on-failure" => RestartPolicy::OnFailure,
+            _ => RestartPolicy::Never,
+        },
+        max_restarts: r.u64_in("max_restarts", d.max_restarts.into(), 0..=1000)? as u32,
+        backoff_ms: r.u64_in("backoff_ms", d.backoff_ms, 0..=60_000)?,
+        backoff_max_ms: r.u64_in("backoff_max_ms", d.backoff_max_ms, 0..=600_000)?,
+    };
+    if s.backoff_max_ms < s.backoff_ms {
+        return Err(r.err(
+            "backoff_max_ms",
+            format!(
+                "{} is below backoff_ms = {}; allowed: backoff_ms to 600000",
+                s.backoff_max_ms, s.backoff_ms
+            ),
+        ));
+    }
+    r.finish()?;
+    Ok(s)
+}
+
 pub fn hand_at_rest(scene: &Scene) -> HandScript {
     let mut x_max: f64 = 0.0;
     let mut y_max: f64 = 0.0;
@@ -559,6 +664,58 @@ mod tests {
             e.problem.contains("\"event\", \"spin\", \"adaptive\""),
             "{e}"
         );
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
+    /// Issue 16: `[supervise]` is `never` unless a session asks; each bad value names its key
+    /// and range.
+    #[test]
+    fn supervise_keys_are_checked_and_never_is_the_default() {
+        let d = tmpdir("supervise");
+        write(&d, "scene.toml", SCENE);
+        let load = |text: &str| Session::load(&write(&d, "s.toml", text));
+        let s = load("scene = \"scene.toml\"\n").unwrap();
+        assert_eq!(s.supervise, Supervise::default());
+        assert_eq!(s.supervise.restart, RestartPolicy::Never);
+        let s = load(
+            "scene = \"scene.toml\"\n[supervise]\nrestart = \"on-failure\"\nmax_restarts = 2\n\
+             backoff_ms = 50\nbackoff_max_ms = 120\n",
+        )
+        .unwrap();
+        assert_eq!(s.supervise.restart, RestartPolicy::OnFailure);
+        assert_eq!(s.supervise.max_restarts, 2);
+        let waits: Vec<u128> = (1..=4)
+            .map(|n| s.supervise.backoff(n).as_millis())
+            .collect();
+        assert_eq!(waits, [50, 100, 120, 120]);
+        let bad = |text: &str, key: &str, says: &str| {
+            let e = load(&format!("scene = \"scene.toml\"\n[supervise]\n{text}\n")).unwrap_err();
+            assert_eq!(e.key, key, "{e}");
+            assert!(e.to_string().contains(says), "{e}");
+            assert!(e.to_string().contains("s.toml"), "{e}");
+        };
+        bad(
+            "restart = \"always\"",
+            "supervise.restart",
+            "\"never\", \"on-failure\"",
+        );
+        bad(
+            "max_restarts = -1",
+            "supervise.max_restarts",
+            "allowed: 0 to 1000",
+        );
+        bad(
+            "max_restarts = 5000",
+            "supervise.max_restarts",
+            "allowed: 0 to 1000",
+        );
+        bad("backoff_ms = 1.5", "supervise.backoff_ms", "whole number");
+        bad(
+            "backoff_ms = 500\nbackoff_max_ms = 100",
+            "supervise.backoff_max_ms",
+            "below backoff_ms",
+        );
+        bad("retries = 3", "supervise.retries", "");
         std::fs::remove_dir_all(d).unwrap();
     }
 

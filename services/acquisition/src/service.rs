@@ -36,8 +36,8 @@ fn run_devices(
     tracker: &TrackerConfig,
 ) -> Result<(), Box<dyn std::error::Error>> {
     // The session read and checked the settings when it loaded; both devices share one
-    // timeline, starting now.
-    let epoch_ns = monotonic_ns();
+    // timeline, starting now (or, restarted, when the first incarnation started).
+    let (epoch_ns, _) = bus.session_epoch_ns("acquisition");
     let gc = GloveConfig {
         epoch_ns,
         ..glove.clone()
@@ -98,9 +98,19 @@ fn run_scripted(
     let mut tracker = bus.outlet::<topics::Tracker>()?;
     let mut reporter = Reporter::new(Stage::Acquisition, bus.outlet::<topics::Latency>()?);
 
-    let start_ns = monotonic_ns();
+    // The session's timeline: a restarted source goes on on its first incarnation's deadline
+    // grid, at the first deadline still ahead, so source time (and the hand the script gives)
+    // goes on where it would have been. Sample k has seq k: the deadlines missed while it was
+    // down are seqs never sent, which every reader counts as lost.
+    let (start_ns, resumed) = bus.session_epoch_ns("acquisition");
     let period_ns = 1e9 / rate_hz;
-    let mut k: u64 = 0;
+    let mut k: u64 = if resumed {
+        (monotonic_ns().saturating_sub(start_ns) as f64 / period_ns).ceil() as u64
+    } else {
+        0
+    };
+    glove.skip_to(k);
+    tracker.skip_to(k);
     while !shutdown::requested() {
         let deadline = start_ns + (k as f64 * period_ns).round() as u64;
         sleep_until_ns(deadline);

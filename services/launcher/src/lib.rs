@@ -7,7 +7,9 @@
 //! 3. start the readers (recorder, renderer, stepper, kinematics), each as
 //!    `handblocks service NAME`, and wait until every one is attached;
 //! 4. start the source last, so no sample is lost at start-up;
-//! 5. run for `--duration` or until Ctrl-C / SIGTERM, printing progress;
+//! 5. run for `--duration` or until Ctrl-C / SIGTERM, printing progress; a process that dies
+//!    meanwhile fails the session, or, with `[supervise] restart = "on-failure"`, is started
+//!    again (its dead node's ports removed first) while the others keep running;
 //! 6. stop the processes in pipeline order: each drains its inputs, sends its final report,
 //!    and is released and reaped once the launcher has read that report;
 //! 7. remove the session's iceoryx2 resources, print the table, write the JSON report.
@@ -24,7 +26,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime};
 
 use common::bus::{Bus, BusConfig, Inlet, Services};
-use common::config::session::{Override, RenderMode, Source};
+use common::config::session::{recording_segment, Override, RenderMode, RestartPolicy, Source};
 use common::config::Session;
 use common::{shutdown, topics, Stage, Topic};
 
@@ -33,7 +35,7 @@ use crate::placement::Placement;
 use error::describe_exit;
 pub use error::LaunchError;
 use process::ServiceProcess;
-use report::{Report, StageReport};
+use report::{Report, Restart, StageReport};
 
 /// How long the processes may take to attach to the bus.
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(20);
@@ -118,10 +120,18 @@ pub fn preflight(opts: &LaunchOptions, session: &Session) -> Result<(), LaunchEr
         });
     }
     if let Some(rec) = &session.recorder.file {
-        if rec.exists() && !opts.force {
+        // The segments a restarted recorder would write count as the recording.
+        let restarts = match session.supervise.restart {
+            RestartPolicy::OnFailure => session.supervise.max_restarts,
+            RestartPolicy::Never => 0,
+        };
+        let existing = (0..=restarts)
+            .map(|n| recording_segment(rec, n))
+            .find(|f| f.exists());
+        if let Some(file) = existing.filter(|_| !opts.force) {
             return Err(LaunchError::RecordingExists {
                 session: session.file.clone(),
-                file: rec.clone(),
+                file,
                 from_option: opts.record.is_some(),
             });
         }
@@ -227,6 +237,15 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
                 reason,
             })?;
     }
+    let supervised = session.supervise.restart == RestartPolicy::OnFailure;
+    if let (Some(rec), true, true) = (&session.recorder.file, opts.force, supervised) {
+        // Forced over an earlier recording: the segments a restart would write go with it,
+        // so that no stale `name.1.mcap` sits beside the new recording as if a restart had
+        // written it (preflight refused them without --force).
+        for n in 1..=session.supervise.max_restarts {
+            let _ = std::fs::remove_file(recording_segment(rec, n));
+        }
+    }
     std::fs::create_dir_all(&bus_config.root).map_err(|reason| LaunchError::SessionFolder {
         root: bus_config.root.clone(),
         reason,
@@ -289,28 +308,59 @@ fn run_session(
         reports: BTreeMap::new(),
         failures: Vec::new(),
         stalled: Vec::new(),
+        restarting: Restarting {
+            bus: &bus,
+            bus_config,
+            starter: &starter,
+            placement: &placement,
+            // A lossless bus (a speed-0 replay) promises every sample to every reader; a
+            // process that died broke that promise, and a restart cannot keep it.
+            restart: if bus_config.lossless {
+                RestartPolicy::Never
+            } else {
+                session.supervise.restart
+            },
+            supervise: session.supervise,
+            recording: session.recorder.file.clone(),
+            restarts: Vec::new(),
+            earlier: BTreeMap::new(),
+            due: Vec::new(),
+            started: Instant::now(),
+        },
     };
     // 5. and 6.
     let ran_for = supervision.run(opts, source, &mut procs);
     supervision.stop_in_order(&mut procs);
+    supervision.merge_incarnations();
     let Supervision {
-        reports, failures, ..
+        reports,
+        failures,
+        restarting,
+        ..
     } = supervision;
+    let restarts = restarting.restarts;
     drop(procs);
     drop(latency);
     drop(services);
     drop(bus);
     // 7. (the report; `launch` removes the resources).
+    let seconds = ran_for.as_secs_f64();
     let facts = report::SessionFacts {
-        seconds: ran_for.as_secs_f64(),
+        seconds,
         source,
         renders: session.renderer.mode != RenderMode::Off && renderer_skipped.is_none(),
         real_time: !bus_config.lossless,
+        renderer_down_s: restarts
+            .iter()
+            .filter(|r| r.stage == Stage::Renderer)
+            .map(|r| r.downtime_s().unwrap_or((seconds - r.at_s).max(0.0)))
+            .sum(),
     };
-    let mut report = Report::build(
+    let mut report = Report::build_with_restarts(
         reports.into_values().collect(),
         &session.budget,
         failures,
+        restarts,
         &facts,
     );
     report.meta = report::Meta {
@@ -387,9 +437,18 @@ impl<'a> Starter<'a> {
         }
     }
 
-    /// Starts `stage`'s process on the CPUs `placement` gives it.
-    fn start(&self, stage: Stage, placement: &Placement) -> Result<ServiceProcess, LaunchError> {
+    /// Starts `stage`'s process on the CPUs `placement` gives it; `restart` is 0 for its first
+    /// start, n for its n-th restart.
+    fn start(
+        &self,
+        stage: Stage,
+        placement: &Placement,
+        restart: u32,
+    ) -> Result<ServiceProcess, LaunchError> {
         let mut extra = self.overrides.clone();
+        if restart > 0 {
+            extra.extend(["--restart".into(), restart.to_string().into()]);
+        }
         extra.extend_from_slice(match stage {
             Stage::Renderer => &self.renderer_args,
             Stage::Recorder => &self.recorder_args,
@@ -433,7 +492,7 @@ fn start_readers(
     let mut stages = readers(session);
     let mut procs: Vec<ServiceProcess> = Vec::new();
     for stage in stages.iter().rev() {
-        procs.push(starter.start(*stage, placement)?);
+        procs.push(starter.start(*stage, placement, 0)?);
     }
     let renderer_skipped = wait_until_connected(services, &mut stages, &mut procs)?;
     if let Some(line) = &renderer_skipped {
@@ -463,7 +522,7 @@ fn start_source(
         Source::Replay { .. } => Stage::Replay,
         _ => Stage::Acquisition,
     };
-    procs.push(starter.start(source, placement)?);
+    procs.push(starter.start(source, placement, 0)?);
     procs.reverse();
     wait_for_source(services, source, procs)?;
     Ok(source)
@@ -478,6 +537,35 @@ struct Supervision<'a> {
     failures: Vec<String>,
     /// The stages already said to be stalled (each is said once).
     stalled: Vec<Stage>,
+    restarting: Restarting<'a>,
+}
+
+/// Issue 16, supervision: what restarting a dead process takes and what the restarts were.
+struct Restarting<'a> {
+    /// The launcher's node, which removes a dead process's node and ports.
+    bus: &'a Bus,
+    /// The session's bus: where its publishers keep their seq.
+    bus_config: &'a BusConfig,
+    starter: &'a Starter<'a>,
+    placement: &'a Placement,
+    /// The policy in force (`never` on a lossless bus, whatever the session says).
+    restart: RestartPolicy,
+    supervise: common::config::session::Supervise,
+    /// The session's recording, whose next segment a restarted recorder writes.
+    recording: Option<PathBuf>,
+    restarts: Vec<Restart>,
+    /// Per restarted stage, the merged reports of its dead incarnations.
+    earlier: BTreeMap<Stage, StageReport>,
+    /// Dead processes waiting out their back-off: index into the processes, and when.
+    due: Vec<(usize, Instant)>,
+    /// The session's start (restart times count from it).
+    started: Instant,
+}
+
+impl Restarting<'_> {
+    fn count(&self, stage: Stage) -> u32 {
+        self.restarts.iter().filter(|r| r.stage == stage).count() as u32
+    }
 }
 
 impl Supervision<'_> {
@@ -515,11 +603,14 @@ impl Supervision<'_> {
         procs: &mut [ServiceProcess],
     ) -> Duration {
         let started = Instant::now();
+        self.restarting.started = started;
         let mut next_progress = Duration::from_secs(1);
         let mut progress = progress::Progress::new(&self.budget);
         loop {
-            std::thread::sleep(Duration::from_millis(20));
+            // 10 ms: a dead child is noticed (and restarted) within it.
+            std::thread::sleep(Duration::from_millis(10));
             collect(self.latency, &mut self.reports);
+            self.note_first_outputs();
             if shutdown::requested() || opts.duration.is_some_and(|d| started.elapsed() >= d) {
                 break;
             }
@@ -534,12 +625,11 @@ impl Supervision<'_> {
                 }
                 break;
             }
-            if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
-                self.failures.push(format!(
-                    "the {} process exited during the session ({})",
-                    p.stage.name(),
-                    describe_exit(p.exit)
-                ));
+            if let Err(line) = self.supervise_children(opts, procs) {
+                if opts.progress {
+                    eprintln!("handblocks: {line}");
+                }
+                self.failures.push(line);
                 break;
             }
             self.check_stalled(opts, procs);
@@ -551,11 +641,183 @@ impl Supervision<'_> {
         started.elapsed()
     }
 
+    /// Notices processes that died: each is restarted (after its back-off) when the session's
+    /// `[supervise]` allows, else the session fails with the returned line. Processes whose
+    /// back-off is over are started again here.
+    fn supervise_children(
+        &mut self,
+        opts: &LaunchOptions,
+        procs: &mut [ServiceProcess],
+    ) -> Result<(), String> {
+        for (i, p) in procs.iter_mut().enumerate() {
+            if self.restarting.due.iter().any(|(j, _)| *j == i) {
+                continue;
+            }
+            let Some(status) = p.poll_exit() else {
+                continue;
+            };
+            let stage = p.stage;
+            let noticed_ns = common::monotonic_ns();
+            let exit = describe_exit(Some(status));
+            let done = self.restarting.count(stage);
+            let policy = self.restarting.supervise;
+            if self.restarting.restart == RestartPolicy::Never {
+                return Err(format!(
+                    "the {} process exited during the session ({exit})",
+                    stage.name()
+                ));
+            }
+            if done >= policy.max_restarts {
+                return Err(format!(
+                    "the {} process exited during the session ({exit}) after {done} restarts; \
+                     [supervise] max_restarts = {} allows no more",
+                    stage.name(),
+                    policy.max_restarts
+                ));
+            }
+            // Its last reports are read before it is written off: what arrives later is the
+            // restarted process's.
+            collect(self.latency, &mut self.reports);
+            self.retire_incarnation(stage);
+            self.stalled.retain(|s| *s != stage);
+            // Reaped (poll_exit waited on it): iceoryx2 now sees its node dead, and removing
+            // it frees its ports for the process that takes its place.
+            let (removed, failed) = self.restarting.bus.cleanup_dead_nodes();
+            if failed > 0 {
+                eprintln!(
+                    "handblocks: {failed} dead node(s) of the {} process could not be removed \
+                     ({removed} were)",
+                    stage.name()
+                );
+            }
+            let n = done + 1;
+            let wait = policy.backoff(n);
+            let segment = (stage == Stage::Recorder)
+                .then(|| {
+                    self.restarting
+                        .recording
+                        .as_ref()
+                        .map(|f| recording_segment(f, n).display().to_string())
+                })
+                .flatten();
+            let at_s = self.restarting.started.elapsed().as_secs_f64();
+            if opts.progress {
+                eprintln!(
+                    "handblocks: the {} process exited ({exit}) at {at_s:.2} s; restart {n} of \
+                     at most {} in {} ms",
+                    stage.name(),
+                    policy.max_restarts,
+                    wait.as_millis()
+                );
+            }
+            // What its publishers had sent at its death: the samples after it were published
+            // while it was down.
+            let published_at_death = Topic::ALL
+                .into_iter()
+                .filter(|t| t.readers().contains(&stage))
+                .filter_map(|t| Some((t, self.restarting.bus_config.published_count(t)?)))
+                .collect();
+            self.restarting.restarts.push(Restart {
+                stage,
+                n,
+                at_s,
+                exit,
+                noticed_ns,
+                first_output_ns: None,
+                lost: None,
+                published_at_death,
+                segment,
+            });
+            self.restarting.due.push((i, Instant::now() + wait));
+        }
+        let now = Instant::now();
+        while let Some(k) = self.restarting.due.iter().position(|(_, at)| *at <= now) {
+            let (i, _) = self.restarting.due.remove(k);
+            let stage = procs[i].stage;
+            let n = self.restarting.count(stage);
+            let started = self
+                .restarting
+                .starter
+                .start(stage, self.restarting.placement, n)
+                .map_err(|e| format!("the {} process could not be restarted: {e}", stage.name()))?;
+            procs[i] = started;
+        }
+        Ok(())
+    }
+
+    /// A dead incarnation's report joins those of the stage's earlier ones; the samples lost
+    /// between it and the one before go to that restart.
+    fn retire_incarnation(&mut self, stage: Stage) {
+        // One that died before its first report counted nothing, but its restart is still
+        // to be told apart from it.
+        let current = self
+            .reports
+            .remove(&stage)
+            .unwrap_or_else(|| StageReport::empty(stage));
+        let merged = match self.restarting.earlier.remove(&stage) {
+            None => current,
+            Some(earlier) => {
+                let n = self.restarting.count(stage);
+                let restart = self
+                    .restarting
+                    .restarts
+                    .iter_mut()
+                    .find(|r| r.stage == stage && r.n == n);
+                let at_death = restart
+                    .as_ref()
+                    .map_or(&[][..], |r| &r.published_at_death[..]);
+                let (merged, lost) = earlier.then(current, at_death);
+                if let Some(r) = restart {
+                    r.lost = Some(lost);
+                }
+                merged
+            }
+        };
+        self.restarting.earlier.insert(stage, merged);
+    }
+
+    /// At the end: every restarted stage's report is all its incarnations' together.
+    fn merge_incarnations(&mut self) {
+        let stages: Vec<Stage> = self.restarting.earlier.keys().copied().collect();
+        for stage in stages {
+            self.retire_incarnation(stage);
+            if let Some(merged) = self.restarting.earlier.remove(&stage) {
+                self.reports.insert(stage, merged);
+            }
+        }
+    }
+
+    /// A restarted process's first output ends its downtime.
+    fn note_first_outputs(&mut self) {
+        let reports = &self.reports;
+        let restarts = &mut self.restarting.restarts;
+        for k in 0..restarts.len() {
+            let (stage, noticed_ns) = (restarts[k].stage, restarts[k].noticed_ns);
+            // Only the stage's latest restart: its report is the running incarnation's.
+            if restarts[k].first_output_ns.is_some()
+                || restarts[k + 1..].iter().any(|q| q.stage == stage)
+            {
+                continue;
+            }
+            if let Some(rep) = reports.get(&stage) {
+                if rep.first_output_ns >= noticed_ns {
+                    restarts[k].first_output_ns = Some(rep.first_output_ns);
+                }
+            }
+        }
+    }
+
     /// Step 6: stops the processes in pipeline order; each stage drains what the one before it
     /// sent and sends its final report, and is released and reaped once that report is read
     /// (or it gave up). A process without a final report, or that failed, is a failure.
     fn stop_in_order(&mut self, procs: &mut [ServiceProcess]) {
-        for p in procs.iter_mut() {
+        for (i, p) in procs.iter_mut().enumerate() {
+            if self.restarting.due.iter().any(|(j, _)| *j == i) {
+                // Dead and waiting out its back-off when the session ended: its death is in
+                // the report as a restart (never made), not a failure; its reports so far
+                // are its earlier incarnations'.
+                continue;
+            }
             p.request_stop();
             let deadline = Instant::now() + FINAL_REPORT_TIMEOUT;
             while !has_final(&self.reports, p.stage) {

@@ -121,6 +121,7 @@ mod tests {
             heard_at: std::time::Instant::now(),
             devices: Vec::new(),
             cpu_s: None,
+            first_output_ns: 0,
         }
     }
 

@@ -24,6 +24,8 @@ pub struct StageReport {
     /// CPU time the stage's process used over the session (the launcher reads it as the
     /// process stops), seconds.
     pub cpu_s: Option<f64>,
+    /// When the process first published what it makes (CLOCK_MONOTONIC ns; 0: not yet).
+    pub first_output_ns: u64,
 }
 
 impl StageReport {
@@ -55,7 +57,112 @@ impl StageReport {
                 .copied()
                 .collect(),
             cpu_s: None,
+            first_output_ns: sample.first_output_ns,
         })
+    }
+
+    /// An empty report of `stage`: an incarnation that died before its first report.
+    pub fn empty(stage: Stage) -> StageReport {
+        let h = common::latency::new_histogram;
+        StageReport {
+            stage,
+            histograms: [h(), h(), h(), h()],
+            counters: Vec::new(),
+            final_report: false,
+            silence_ns: 0,
+            heard_at: std::time::Instant::now(),
+            devices: Vec::new(),
+            cpu_s: None,
+            first_output_ns: 0,
+        }
+    }
+
+    /// This incarnation's report followed by the next one's, that of the same stage started
+    /// again after this one died ([`Restart`]): latencies and counts of both; per reader
+    /// topic, the seqs between them are returned apart for the restart to show
+    /// ([`RestartLoss`]), split at `published_at_death` (the topic's count when the death was
+    /// noticed, where known).
+    ///
+    /// A publisher's counts are the next one's (a supervised outlet's seq, and with it its
+    /// count, goes on across a restart); a restarted source's seqs skipped at the restart
+    /// (its deadlines missed while it was down) are its restart's loss. A reader's add up; the next one counts gaps from its
+    /// first sample, so the seqs between this one's last report and the next one's first
+    /// sample are the restart's: those this one read after its last report (it reports about
+    /// once a second) and those published while the process was down.
+    pub fn then(
+        mut self,
+        next: StageReport,
+        published_at_death: &[(Topic, u64)],
+    ) -> (StageReport, Vec<RestartLoss>) {
+        for (h, n) in self.histograms.iter_mut().zip(&next.histograms) {
+            // Same bounds on both sides: adding cannot fail; were it to, the earlier stays.
+            let _ = h.add(n);
+        }
+        let mut lost = Vec::new();
+        for c in &next.counters {
+            let at = self
+                .counters
+                .iter()
+                .position(|e| e.topic == c.topic && e.role == c.role);
+            let at = at.unwrap_or_else(|| {
+                // Not counted before (an incarnation that died before its first report).
+                self.counters.push(common::TopicCounter {
+                    count: 0,
+                    gaps: 0,
+                    last_seq: u64::MAX,
+                    ..*c
+                });
+                self.counters.len() - 1
+            });
+            match &mut self.counters[at] {
+                e if c.role == 0 => {
+                    // A restarted source skipped the seqs of the samples due while it was
+                    // down (its publisher counter's gaps): its restart's loss.
+                    if c.gaps > e.gaps {
+                        if let Some(topic) = Topic::from_u32(c.topic) {
+                            lost.push(RestartLoss {
+                                topic,
+                                lost: c.gaps - e.gaps,
+                                unreported: 0,
+                            });
+                        }
+                    }
+                    *e = *c;
+                }
+                e => {
+                    if c.count > 0 {
+                        let first = (c.last_seq + 1).saturating_sub(c.count + c.gaps);
+                        let after = if e.count > 0 { e.last_seq + 1 } else { 0 };
+                        if let Some(topic) = Topic::from_u32(c.topic) {
+                            let at_death = published_at_death
+                                .iter()
+                                .find(|(t, _)| *t == topic)
+                                .map_or(after, |(_, n)| (*n).clamp(after, first.max(after)));
+                            lost.push(RestartLoss {
+                                topic,
+                                unreported: at_death - after,
+                                lost: first.saturating_sub(at_death),
+                            });
+                        }
+                        e.last_seq = c.last_seq;
+                    }
+                    e.count += c.count;
+                    e.gaps += c.gaps;
+                }
+            }
+        }
+        self.silence_ns = self.silence_ns.max(next.silence_ns);
+        self.final_report = next.final_report;
+        self.heard_at = next.heard_at;
+        if !next.devices.is_empty() {
+            self.devices = next.devices;
+        }
+        self.cpu_s = match (self.cpu_s, next.cpu_s) {
+            (Some(a), Some(b)) => Some(a + b),
+            (a, b) => a.or(b),
+        };
+        self.first_output_ns = next.first_output_ns;
+        (self, lost)
     }
 
     pub fn summary(&self, m: Metric) -> Summary {
@@ -76,6 +183,9 @@ pub struct ReaderFlow {
     /// what was published after that report was not dropped by the bus (issue 16: a killed
     /// process used to show a second of samples as dropped).
     pub counts_final: bool,
+    /// Samples between a dead incarnation's last report and its restart's first sample
+    /// ([`Restart::lost`]): the restarts' losses, shown with them, not as dropped.
+    pub lost_in_restarts: u64,
 }
 
 /// Per topic: samples published, and per reading stage, received, dropped and gaps.
@@ -109,6 +219,9 @@ pub struct SessionFacts {
     /// False for a speed-0 replay: samples go as fast as the slowest reader takes them, not
     /// at a rate, so there is no frame rate to keep.
     pub real_time: bool,
+    /// Seconds the renderer was down (died, until its restart's first frame): the frame rate
+    /// is judged over the rest of the session.
+    pub renderer_down_s: f64,
 }
 
 impl Default for SessionFacts {
@@ -118,7 +231,54 @@ impl Default for SessionFacts {
             source: Stage::Acquisition,
             renders: false,
             real_time: true,
+            renderer_down_s: 0.0,
         }
+    }
+}
+
+/// What a reader's restart cost on one topic it reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RestartLoss {
+    pub topic: Topic,
+    /// Published while the process was down (from its death noticed to the restarted
+    /// process's first sample): never read by it.
+    pub lost: u64,
+    /// Read by the dead process after its last report (so in no count of it); where the
+    /// topic's published count at the death is not known, these are counted as lost.
+    pub unreported: u64,
+}
+
+/// One restart of a process by the launcher (`[supervise] restart = "on-failure"`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Restart {
+    pub stage: Stage,
+    /// Which restart of this stage (1 for its first).
+    pub n: u32,
+    /// When the launcher noticed the exit, seconds since the session's start.
+    pub at_s: f64,
+    /// How it ended (`signal: 9 (SIGKILL)`, `exit status: 101`).
+    pub exit: String,
+    /// When the launcher noticed the exit (CLOCK_MONOTONIC ns).
+    pub noticed_ns: u64,
+    /// When the restarted process first published (or wrote) what it makes; None if it never
+    /// did.
+    pub first_output_ns: Option<u64>,
+    /// Per topic the stage reads, what the restart cost; None until the restarted process
+    /// has reported.
+    pub lost: Option<Vec<RestartLoss>>,
+    /// Per topic the stage reads, how many samples its publishers had sent when the death
+    /// was noticed (where they keep their seq: a supervised session).
+    pub published_at_death: Vec<(Topic, u64)>,
+    /// The recorder's: the segment the restarted recorder writes.
+    pub segment: Option<String>,
+}
+
+impl Restart {
+    /// The exit noticed to the restarted process's first output, seconds (the launcher
+    /// notices within its 10 ms poll of its children).
+    pub fn downtime_s(&self) -> Option<f64> {
+        self.first_output_ns
+            .map(|t| t.saturating_sub(self.noticed_ns) as f64 / 1e9)
     }
 }
 
@@ -177,18 +337,36 @@ pub struct Report {
     pub not_judged: Vec<String>,
     /// Stages that failed (crashed, or sent no final report).
     pub failures: Vec<String>,
+    /// The processes the launcher restarted, in order.
+    pub restarts: Vec<Restart>,
     pub meta: Meta,
 }
 
 impl Report {
     pub fn build(
-        mut stages: Vec<StageReport>,
+        stages: Vec<StageReport>,
         budget: &Budget,
         failures: Vec<String>,
         facts: &SessionFacts,
     ) -> Report {
+        Report::build_with_restarts(stages, budget, failures, Vec::new(), facts)
+    }
+
+    /// [`Report::build`] of a session whose launcher restarted processes: each restarted
+    /// stage's report is its incarnations' merged ([`StageReport::then`]), and the samples its
+    /// restarts lost are the restarts', not counted as dropped.
+    pub fn build_with_restarts(
+        mut stages: Vec<StageReport>,
+        budget: &Budget,
+        failures: Vec<String>,
+        restarts: Vec<Restart>,
+        facts: &SessionFacts,
+    ) -> Report {
         stages.sort_by_key(|s| s.stage);
         let mut topics: BTreeMap<Topic, TopicFlow> = BTreeMap::new();
+        // Per topic, seqs its (restarted) publishers skipped: lost while a source was down,
+        // counted by every reader as gaps, and shown with the source's restart instead.
+        let mut skipped: BTreeMap<Topic, u64> = BTreeMap::new();
         for s in &stages {
             for c in &s.counters {
                 let Some(topic) = Topic::from_u32(c.topic) else {
@@ -197,6 +375,7 @@ impl Report {
                 let flow = topics.entry(topic).or_default();
                 if c.role == 0 {
                     flow.published += c.count;
+                    *skipped.entry(topic).or_default() += c.gaps;
                 }
             }
         }
@@ -207,12 +386,27 @@ impl Report {
                 };
                 if c.role == 1 {
                     let flow = topics.entry(topic).or_default();
-                    // Lost on the way: gaps in seq, and whatever was published but never read;
-                    // a reader without its final report is known only up to its last one.
+                    let lost_in_restarts: u64 = restarts
+                        .iter()
+                        .filter(|r| r.stage == s.stage)
+                        .flat_map(|r| r.lost.iter().flatten())
+                        .filter(|l| l.topic == topic)
+                        .map(|l| l.lost + l.unreported)
+                        .sum();
+                    // Lost on the way: gaps in seq, and whatever was published but never read
+                    // (less what its restarts lost, which they show); a reader without its
+                    // final report is known only up to its last one.
+                    let gaps = c
+                        .gaps
+                        .saturating_sub(skipped.get(&topic).copied().unwrap_or(0));
                     let dropped = if s.final_report {
-                        c.gaps.max(flow.published.saturating_sub(c.count))
+                        gaps.max(
+                            flow.published
+                                .saturating_sub(c.count)
+                                .saturating_sub(lost_in_restarts),
+                        )
                     } else {
-                        c.gaps
+                        gaps
                     };
                     flow.readers.insert(
                         s.stage.name(),
@@ -221,6 +415,7 @@ impl Report {
                             dropped,
                             gaps: c.gaps,
                             counts_final: s.final_report,
+                            lost_in_restarts,
                         },
                     );
                 }
@@ -234,6 +429,7 @@ impl Report {
             violations: Vec::new(),
             not_judged: Vec::new(),
             failures,
+            restarts,
             meta: Meta::default(),
         };
         report.violations = report.judge(budget, facts);
@@ -296,7 +492,9 @@ impl Report {
         let worlds = self
             .stage(Stage::Stepper)
             .map_or(0, |s| s.summary(Metric::Origin).count);
-        let fps = frames as f64 / facts.seconds;
+        // While a restarted renderer was down there were no frames to draw: judged without it.
+        let drawing_s = (facts.seconds - facts.renderer_down_s).max(0.5);
+        let fps = frames as f64 / drawing_s;
         // A frame is drawn for each new world state: fewer worlds than frame_hz is not the
         // renderer's shortfall.
         let world_hz = worlds as f64 / facts.seconds;
@@ -492,6 +690,40 @@ impl Report {
         if let Some(s) = &self.meta.renderer_skipped {
             out.push_str(&format!("\n{s}\n"));
         }
+        if !self.restarts.is_empty() {
+            out.push_str(&format!(
+                "\n{:<12} {:>3} {:>8} {:>12}  {:<28} lost at the restart\n",
+                "restarted", "n", "at s", "downtime ms", "exit"
+            ));
+            for r in &self.restarts {
+                let lost = match &r.lost {
+                    Some(l) if !l.is_empty() => l
+                        .iter()
+                        .map(|l| format!("{} {}", l.topic.name(), l.lost))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    Some(_) => "-".into(),
+                    None => "? (no report after the restart)".into(),
+                };
+                out.push_str(&format!(
+                    "{:<12} {:>3} {:>8.2} {:>12}  {:<28} {lost}\n",
+                    r.stage.name(),
+                    r.n,
+                    r.at_s,
+                    r.downtime_s()
+                        .map_or("?".into(), |d| format!("{:.1}", d * 1000.0)),
+                    r.exit,
+                ));
+                if let Some(seg) = &r.segment {
+                    out.push_str(&format!("{:<12} recording goes on in {seg}\n", ""));
+                }
+            }
+            out.push_str(
+                "downtime: the exit noticed to the restarted process's first output; lost: \
+                 samples published while it was down, never read by it (not counted as \
+                 dropped)\n",
+            );
+        }
         for f in &self.failures {
             out.push_str(&format!("\nFAILED: {f}\n"));
         }
@@ -536,7 +768,7 @@ impl Report {
                 .map(|(name, r)| {
                     (
                         (*name).to_string(),
-                        json!({"received": r.received, "dropped": r.dropped, "gaps": r.gaps, "counts_final": r.counts_final}),
+                        json!({"received": r.received, "dropped": r.dropped, "gaps": r.gaps, "counts_final": r.counts_final, "lost_in_restarts": r.lost_in_restarts}),
                     )
                 })
                 .collect();
@@ -564,8 +796,44 @@ impl Report {
                 ))
             })
             .collect();
+        let mut restart_counts = Map::new();
+        for r in &self.restarts {
+            let n = restart_counts
+                .get(r.stage.name())
+                .and_then(Value::as_u64)
+                .unwrap_or(0);
+            restart_counts.insert(r.stage.name().into(), json!(n + 1));
+        }
+        let restart_log: Vec<Value> = self
+            .restarts
+            .iter()
+            .map(|r| {
+                let lost = r.lost.as_ref().map(|l| {
+                    l.iter()
+                        .map(|l| (l.topic.name().to_string(), json!(l.lost)))
+                        .collect::<Map<String, Value>>()
+                });
+                let unreported = r.lost.as_ref().map(|l| {
+                    l.iter()
+                        .map(|l| (l.topic.name().to_string(), json!(l.unreported)))
+                        .collect::<Map<String, Value>>()
+                });
+                json!({
+                    "stage": r.stage.name(),
+                    "n": r.n,
+                    "at_s": r.at_s,
+                    "exit": r.exit,
+                    "downtime_ms": r.downtime_s().map(|d| d * 1000.0),
+                    "lost": lost,
+                    "read_after_last_report": unreported,
+                    "segment": r.segment,
+                })
+            })
+            .collect();
         let m = &self.meta;
         json!({
+            "restarts": restart_counts,
+            "restart_log": restart_log,
             "devices": devices,
             "session": {
                 "file": m.session_file,
@@ -639,6 +907,7 @@ mod tests {
             cpu_s: None,
             final_report: true,
             silence_ns: silence_ms * 1_000_000,
+            first_output_ns: 0,
         }
     }
 
@@ -648,6 +917,7 @@ mod tests {
             source: Stage::Acquisition,
             renders: true,
             real_time: true,
+            renderer_down_s: 0.0,
         };
         Report::build(
             vec![
@@ -696,6 +966,94 @@ mod tests {
             "{:?}",
             r.violations
         );
+    }
+
+    fn counter(
+        topic: Topic,
+        role: u32,
+        count: u64,
+        gaps: u64,
+        last_seq: u64,
+    ) -> common::TopicCounter {
+        common::TopicCounter {
+            topic: topic as u32,
+            role,
+            count,
+            gaps,
+            last_seq,
+        }
+    }
+
+    /// Issue 16: a restarted reader's counts add to its dead incarnation's; the seqs between
+    /// them are the restart's (split at what was published when the death was noticed), not
+    /// gaps, and the budget's `max_dropped` does not count them.
+    #[test]
+    fn a_restarted_stages_reports_merge_and_its_losses_are_the_restarts() {
+        let mut dead = stage(Stage::Kinematics, Metric::Hop, 90, 0);
+        dead.final_report = false;
+        // It read seqs 0..=99 by its last report (2 gaps), and published 100 hands.
+        dead.counters = vec![
+            counter(Topic::Tracker, 1, 98, 2, 99),
+            counter(Topic::Hand, 0, 100, 0, 99),
+        ];
+        // Restarted: its first tracker was seq 130, its last 229, one gap; hands went on.
+        let mut next = stage(Stage::Kinematics, Metric::Hop, 10, 0);
+        next.counters = vec![
+            counter(Topic::Tracker, 1, 99, 1, 229),
+            counter(Topic::Hand, 0, 215, 0, 214),
+        ];
+        // 112 trackers were published when its death was noticed.
+        let (merged, lost) = dead.then(next, &[(Topic::Tracker, 112)]);
+        assert_eq!(
+            lost,
+            [RestartLoss {
+                topic: Topic::Tracker,
+                lost: 18,
+                unreported: 12
+            }]
+        );
+        assert_eq!(merged.counters[0], counter(Topic::Tracker, 1, 197, 3, 229));
+        assert_eq!(merged.counters[1], counter(Topic::Hand, 0, 215, 0, 214));
+        assert_eq!(merged.summary(Metric::Hop).count, 100);
+        assert!(merged.final_report);
+
+        let restart = Restart {
+            stage: Stage::Kinematics,
+            n: 1,
+            at_s: 1.0,
+            exit: "signal: 9 (SIGKILL)".into(),
+            noticed_ns: 1_000_000_000,
+            first_output_ns: Some(1_150_000_000),
+            lost: Some(lost),
+            published_at_death: Vec::new(),
+            segment: None,
+        };
+        assert_eq!(restart.downtime_s(), Some(0.15));
+        let mut source = stage(Stage::Acquisition, Metric::Origin, 10, 0);
+        source.counters = vec![counter(Topic::Tracker, 0, 230, 0, 229)];
+        let budget = Budget {
+            max_dropped: Some(0),
+            ..Budget::default()
+        };
+        let r = Report::build_with_restarts(
+            vec![source, merged],
+            &budget,
+            Vec::new(),
+            vec![restart],
+            &SessionFacts::default(),
+        );
+        let flow = &r.topics[&Topic::Tracker].readers["kinematics"];
+        assert_eq!(
+            (flow.received, flow.lost_in_restarts, flow.dropped),
+            (197, 30, 3)
+        );
+        assert!(
+            r.table().contains("kinematics     1     1.00        150.0"),
+            "{}",
+            r.table()
+        );
+        assert_eq!(r.json()["restarts"]["kinematics"], 1);
+        assert_eq!(r.json()["restart_log"][0]["lost"]["tracker"], 18);
     }
 
     #[test]

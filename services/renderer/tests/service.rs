@@ -49,6 +49,7 @@ fn session() -> Session {
         },
         hand_model: HandModelSpec::default(),
         wait: common::bus::WaitStrategy::Event,
+        supervise: Default::default(),
     }
 }
 

@@ -15,7 +15,7 @@ use common::config::session::Source;
 use common::config::Session;
 use common::latency::Reporter;
 use common::stamp::sleep_until_ns;
-use common::{monotonic_ns, shutdown, topics, Stage, Stamp};
+use common::{monotonic_ns, shutdown, topics, Stage, Stamp, Topic};
 
 use crate::trace::{HandTrace, SourceSample};
 
@@ -67,7 +67,17 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         .map_or(0, |s| s.source_time_ns().saturating_sub(t0));
     // One round after another: the next starts a mean sample period after this one's end.
     let round_ns = span + span / (trace.samples.len().max(2) as u64 - 1);
-    let start = monotonic_ns();
+    // Restarted ([supervise]), a replay at speed > 0 goes on on its first incarnation's
+    // timeline: the samples due while it was down are skipped (never sent: its seq goes on
+    // without them).
+    let (start, resumed) = bus.session_epoch_ns("replay");
+    let resume_after = if resumed && *speed > 0.0 {
+        monotonic_ns().saturating_sub(start)
+    } else {
+        0
+    };
+    let mut skipped = [0u64; Topic::ALL.len()];
+    let mut skipping = resume_after > 0;
     let rounds = if *looped && !trace.samples.is_empty() {
         u64::MAX
     } else {
@@ -84,6 +94,17 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     for (shift, sample) in samples {
         if *speed > 0.0 {
             let after = (sample.source_time_ns() + shift - t0) as f64 / speed;
+            if (after as u64) < resume_after {
+                // Due before the restart: sent by the dead replay, or lost while none ran
+                // (each topic's seq counts its samples in order, sent or not).
+                skipped[sample.topic() as usize] += 1;
+                continue;
+            }
+            if std::mem::take(&mut skipping) {
+                glove_out.skip_to(skipped[Topic::Glove as usize]);
+                tracker_out.skip_to(skipped[Topic::Tracker as usize]);
+                joints_out.skip_to(skipped[Topic::Joints as usize]);
+            }
             sleep_until_ns(start + after as u64);
         } else if sample.makes_a_hand() {
             while answered.map_or(0, |a| a + 1) + IN_FLIGHT <= hands_sent && !shutdown::requested()
