@@ -121,8 +121,14 @@ fn run_stage(
             &session,
             &bus,
             renderer::RenderSettings::from_session_framed(&session.renderer, &session.scene),
+            // A restarted renderer writes its frames beside the dead one's, in a folder of
+            // its own (numbering starts again), so that none of them is overwritten.
             args.frames_dir.map(|dir| renderer::FramesRequest {
-                dir,
+                dir: if args.restart > 0 {
+                    dir.join(format!("restart-{}", args.restart))
+                } else {
+                    dir
+                },
                 every_nth: session.renderer.frames_every,
             }),
             args.preview,
