@@ -866,7 +866,10 @@ fn markdown(r: &Report, quick: bool) -> String {
         if quick { ", --quick: 16 and 64 blocks, 2 timed runs" } else { ", 5 timed runs after a warm-up" }
     );
     s += &scaling_table(r);
-    s += &"\n\n## Ablation\n\nEach effect on and off on the same scene, 5 interleaved runs a side after a warm-up, mean us per step of the whole run; noise: half the larger side's max - min, at least what one reading of the clock costs here ({clock:.3} us: a difference below it is below what the timing resolves). `work`: a scene of `config/scenes/` the effect acts in (on - off is the effect's work, and the two sides do different things); `idle`: the idle field (64 resting cubes, a two-point hand 5 m away), timed after 1 s of settling untimed, where the effect has nothing to do and turning it off changes no pose, so on - off is what its pass costs by being in the step at all (the floor's rest -> none has no idle case: without a floor nothing rests, so the idle field's cubes stay in the step's active set). An effect that is off is not in the step's pass list (`Passes`): off runs none of its code.\n\n".replace("{clock:.3}", &format!("{:.3}", r.clock_us));
+    s += &format!(
+        "\n\n## Ablation\n\nEach effect on and off on the same scene, 5 interleaved runs a side after a warm-up, mean us per step of the whole run; noise: half the larger side's max - min, at least what one reading of the clock costs here ({clock:.3} us: a difference below it is below what the timing resolves). `work`: a scene of `config/scenes/` the effect acts in (on - off is the effect's work, and the two sides do different things); `idle`: the idle field (64 resting cubes, a two-point hand 5 m away), timed after 1 s of settling untimed, where the effect has nothing to do and turning it off changes no pose, so on - off is what its pass costs by being in the step at all (the floor's rest -> none has no idle case: without a floor nothing rests, so the idle field's cubes stay in the step's active set). An effect that is off is not in the step's pass list (`Passes`): off runs none of its code.\n\n",
+        clock = r.clock_us
+    );
     s += &ablation_table(r);
     s += "\n";
     s

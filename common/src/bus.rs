@@ -1269,20 +1269,26 @@ struct SeqStore {
     words: std::ptr::NonNull<std::sync::atomic::AtomicU64>,
 }
 
+/// Opens (creating it, 0600, keeping what it holds) a file of the session folder that a
+/// process keeps for its restart: a publisher's [`SeqStore`], the stepper's hand log.
+pub(crate) fn open_restart_file(path: &StdPath) -> std::io::Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .mode(0o600)
+        .open(path)
+}
+
 /// The bytes a [`SeqStore`] maps.
 const SEQ_STORE_BYTES: usize = 16;
 
 impl SeqStore {
     fn open(path: &StdPath) -> std::io::Result<SeqStore> {
-        use std::os::unix::fs::OpenOptionsExt;
         use std::os::unix::io::AsRawFd;
-        let file = std::fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .mode(0o600)
-            .open(path)?;
+        let file = open_restart_file(path)?;
         if file.metadata()?.len() < SEQ_STORE_BYTES as u64 {
             file.set_len(SEQ_STORE_BYTES as u64)?;
         }

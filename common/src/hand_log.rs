@@ -48,16 +48,8 @@ impl HandLog {
     /// Opens (or creates) the log at `path` and returns the samples already in it. A sample
     /// whose copy a kill cut short is not counted (the count is stored after the copy).
     pub fn open(path: &Path) -> Result<(HandLog, Vec<HandSample>), String> {
-        use std::os::unix::fs::OpenOptionsExt;
         let what = |e: std::io::Error| format!("the stepper's hand log {}: {e}", path.display());
-        let file = std::fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .mode(0o600)
-            .open(path)
-            .map_err(what)?;
+        let file = crate::bus::open_restart_file(path).map_err(what)?;
         let size = file.metadata().map_err(what)?.len() as usize;
         let mut log = HandLog {
             file,

@@ -112,17 +112,9 @@ mod tests {
         for us in origin_us {
             origin.record(us * 1000).unwrap();
         }
-        StageReport {
-            stage: Stage::Stepper,
-            histograms: [new_histogram(), new_histogram(), origin, new_histogram()],
-            counters: Vec::new(),
-            final_report: false,
-            silence_ns: 0,
-            heard_at: std::time::Instant::now(),
-            devices: Vec::new(),
-            cpu_s: None,
-            first_output_ns: 0,
-        }
+        let mut report = StageReport::empty(Stage::Stepper);
+        report.histograms[Metric::Origin as usize] = origin;
+        report
     }
 
     /// The last second's p99 is that of the samples since the previous line, and a breach of
