@@ -827,6 +827,7 @@ impl Bus {
             notifier,
             capacity: self.slice_capacity,
             next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
+            skipped: 0,
             kept,
         })
     }
@@ -1064,20 +1065,37 @@ pub const MAX_WAIT: usize = 8;
 /// wake-ups. Unlike iceoryx2's WaitSet it allocates nothing per wake-up (it polls the
 /// listeners' descriptors on the stack), so it can sit on the per-sample path.
 pub fn wait_any(inlets: &[&dyn Wakeable], timeout: Duration) -> Result<(), BusError> {
+    wait_any_or(inlets, None, timeout)
+}
+
+/// [`wait_any`], also woken when `other` (a descriptor of the caller's: an eventfd another
+/// thread writes, say) is readable; reading it is the caller's. The bridge sleeps so on its
+/// inlets and on the samples its zenoh callback queued, in one thread, without polling.
+pub fn wait_any_or(
+    inlets: &[&dyn Wakeable],
+    other: Option<std::os::fd::RawFd>,
+    timeout: Duration,
+) -> Result<(), BusError> {
     use iceoryx2::prelude::FileDescriptorBased;
     let n = inlets.len().min(MAX_WAIT);
     let mut fds = [libc::pollfd {
         fd: -1,
         events: 0,
         revents: 0,
-    }; MAX_WAIT];
+    }; MAX_WAIT + 1];
     for (slot, inlet) in fds.iter_mut().zip(inlets) {
         // SAFETY: the descriptor stays owned by the listener, which outlives this call; we only
         // poll it.
         slot.fd = unsafe { inlet.listener().file_descriptor().native_handle() };
         slot.events = libc::POLLIN;
     }
-    poll_readable(&mut fds[..n], timeout)?;
+    let mut watched = n;
+    if let Some(fd) = other {
+        fds[n].fd = fd;
+        fds[n].events = libc::POLLIN;
+        watched += 1;
+    }
+    poll_readable(&mut fds[..watched], timeout)?;
     for inlet in &inlets[..n] {
         let _ = inlet.listener().try_wait(|_| {});
     }
@@ -1185,6 +1203,15 @@ impl<P: TopicSpec> Outlet<P> {
             .map_err(|e| send_err(format!("{e:?}")))?;
         self.next_seq += 1;
         Ok(sent)
+    }
+
+    /// Sends `value` as [`Outlet::publish`] does, under seq `seq` if no later seq has gone
+    /// out (the seqs skipped count as this outlet's gaps), else under the next: the bridge
+    /// forwards another machine's samples with their own seqs, so what the link lost shows as
+    /// gaps here and in every reader.
+    pub fn publish_as(&mut self, value: &P::Sample, seq: u64) -> Result<Stamp, BusError> {
+        self.skip_to(seq);
+        self.publish(value)
     }
 
     pub fn topic(&self) -> Topic {
@@ -1399,6 +1426,7 @@ pub struct SliceOutlet<P: SliceTopicSpec> {
     capacity: usize,
     next_seq: u64,
     /// As [`Outlet`]'s.
+    skipped: u64,
     kept: Option<SeqStore>,
 }
 
@@ -1461,9 +1489,24 @@ impl<P: SliceTopicSpec> SliceOutlet<P> {
         self.capacity
     }
 
+    /// As [`Outlet::publish_as`]: `publish_with` under seq `seq` unless a later one went out.
+    pub fn publish_with_as(
+        &mut self,
+        seq: u64,
+        len: usize,
+        write_header: impl FnOnce(&mut P::Header),
+        element: impl FnMut(usize) -> P::Element,
+    ) -> Result<Stamp, BusError> {
+        if seq > self.next_seq {
+            self.skipped += seq - self.next_seq;
+            self.next_seq = seq;
+        }
+        self.publish_with(len, write_header, element)
+    }
+
     /// This outlet's counter for the latency report.
     pub fn counter(&self) -> TopicCounter {
-        sent_counter(P::TOPIC, self.next_seq, 0)
+        sent_counter(P::TOPIC, self.next_seq, self.skipped)
     }
 }
 

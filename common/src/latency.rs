@@ -119,9 +119,23 @@ impl LatencyRecorder {
         let ns = sent.publish_ns.saturating_sub(sent.origin_ns);
         self.record(Metric::Process, ns);
         self.record(Metric::Origin, ns);
-        let silence = sent.publish_ns.saturating_sub(self.last_output_ns);
+        self.delivered(sent.publish_ns);
+    }
+
+    /// A source delivered a sample at `publish_ns`: the silence before it counts.
+    pub fn delivered(&mut self, publish_ns: u64) {
+        let silence = publish_ns.saturating_sub(self.last_output_ns);
         self.longest_silence_ns = self.longest_silence_ns.max(silence);
-        self.last_output_ns = sent.publish_ns;
+        self.last_output_ns = publish_ns;
+    }
+
+    /// A source that waits for someone else to start (the bridge of a remote-fed session:
+    /// the other half may start later) counts its silences from its first sample on.
+    pub fn delivered_after_waiting(&mut self, publish_ns: u64) {
+        if self.first_output_ns == 0 {
+            self.last_output_ns = publish_ns;
+        }
+        self.delivered(publish_ns);
     }
 
     /// Writes this recorder's histograms and the given topic counters into `sample`.

@@ -236,33 +236,33 @@ topic_table! {
         Glove: GloveSample {
             name: "glove",
             buffer: 1024,
-            max_publishers: 2,
-            publishers: [Acquisition, Replay],
-            readers: [Kinematics, Recorder],
+            max_publishers: 3,
+            publishers: [Acquisition, Replay, Bridge],
+            readers: [Kinematics, Recorder, Bridge],
         },
         /// The wrist pose from the 6-DoF tracker.
         Tracker: TrackerSample {
             name: "tracker",
             buffer: 1024,
-            max_publishers: 2,
-            publishers: [Acquisition, Replay],
-            readers: [Kinematics, Recorder],
+            max_publishers: 3,
+            publishers: [Acquisition, Replay, Bridge],
+            readers: [Kinematics, Recorder, Bridge],
         },
         /// Whole-hand joint poses (an OpenXR hand), replayed from a recording or a CARL file.
         Joints: JointsSample {
             name: "joints",
             buffer: 1024,
             max_publishers: 2,
-            publishers: [Replay],
-            readers: [Kinematics, Recorder],
+            publishers: [Replay, Bridge],
+            readers: [Kinematics, Recorder, Bridge],
         },
         /// The hand model: finger check points and the palm, as the stepper reads them.
         Hand: HandSample {
             name: "hand",
             buffer: 1024,
             max_publishers: 2,
-            publishers: [Kinematics],
-            readers: [Stepper, Renderer, Recorder],
+            publishers: [Kinematics, Bridge],
+            readers: [Stepper, Renderer, Recorder, Bridge],
         },
         /// The blocks' states after each step (the replay reads it to pace itself): a header
         /// and one block state per block of the scene.
@@ -270,16 +270,16 @@ topic_table! {
             name: "world",
             buffer: 1024,
             max_publishers: 2,
-            publishers: [Stepper],
-            readers: [Renderer, Replay, Recorder],
+            publishers: [Stepper, Bridge],
+            readers: [Renderer, Replay, Recorder, Bridge],
         },
         /// One drawn frame's timing.
         Frame: FrameSample {
             name: "frame",
             buffer: 256,
             max_publishers: 2,
-            publishers: [Renderer],
-            readers: [Recorder],
+            publishers: [Renderer, Bridge],
+            readers: [Recorder, Bridge],
         },
         /// Each stage's latency report, about once a second; the launcher (no stage) reads
         /// them, and a recording does not keep them (they go into the session report).
@@ -287,7 +287,7 @@ topic_table! {
             name: "latency",
             buffer: 32,
             max_publishers: 8,
-            publishers: [Acquisition, Replay, Kinematics, Stepper, Renderer, Recorder],
+            publishers: [Acquisition, Replay, Kinematics, Stepper, Renderer, Recorder, Bridge],
             readers: [],
         },
     }
@@ -344,16 +344,22 @@ pub enum Stage {
     Stepper = 3,
     Renderer = 4,
     Recorder = 5,
+    /// Forwards chosen topics between this session's bus and other machines (zenoh) or a
+    /// live Foxglove view: a reader of what it sends out, the publisher of what it takes in.
+    /// It is a reader of every topic and a publisher of every sample topic in the table, but
+    /// it opens ports only on the topics its session names ([`crate::config::session::Bridge`]).
+    Bridge = 6,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 6] = [
+    pub const ALL: [Stage; 7] = [
         Stage::Acquisition,
         Stage::Replay,
         Stage::Kinematics,
         Stage::Stepper,
         Stage::Renderer,
         Stage::Recorder,
+        Stage::Bridge,
     ];
 
     /// The name used on the command line (`handblocks service NAME`) and in reports.
@@ -365,6 +371,7 @@ impl Stage {
             Stage::Stepper => "stepper",
             Stage::Renderer => "renderer",
             Stage::Recorder => "recorder",
+            Stage::Bridge => "bridge",
         }
     }
 

@@ -135,5 +135,6 @@ fn run_stage(
         ),
         Stage::Recorder => recorder::service::run(&session, &bus),
         Stage::Replay => replay::service::run(&session, &bus),
+        Stage::Bridge => bridge::service::run(&session, &bus),
     }
 }

@@ -7,6 +7,7 @@
 pub mod devices;
 pub mod hand;
 mod reader;
+pub mod remote;
 pub mod scene;
 pub mod session;
 

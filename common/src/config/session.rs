@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use super::devices::{self, GloveConfig, TrackerConfig};
 use super::hand::HandModelSpec;
 use super::reader::{parse_file, Reader};
+pub use super::remote::{BridgeSettings, LinkRole, RemoteLink};
 use super::scene::{HandKey, HandPoseSpec, HandScript, Scene};
 use super::ConfigError;
 
@@ -26,6 +27,9 @@ pub struct Session {
     pub wait: crate::bus::WaitStrategy,
     /// `[supervise]`: what the launcher does when a process dies mid-session.
     pub supervise: Supervise,
+    /// `[remote]`, `[source] kind = "remote"` and `[viewer]`: what the bridge process forwards
+    /// beyond this machine's shared memory (issue 17); off unless a key asks for it.
+    pub bridge: BridgeSettings,
 }
 
 /// `[supervise] restart`: what the launcher does when a process exits mid-session without
@@ -106,6 +110,9 @@ pub enum Source {
         offset: [f64; 3],
         looped: bool,
     },
+    /// Another machine's session, over zenoh: the bridge publishes what it takes in
+    /// (`session.bridge.link`), and this session renders and records it (a viewer).
+    Remote,
 }
 
 impl Source {
@@ -114,6 +121,7 @@ impl Source {
             Source::Scripted { .. } => "scripted",
             Source::Devices { .. } => "devices",
             Source::Replay { .. } => "replay",
+            Source::Remote => "remote",
         }
     }
 }
@@ -353,7 +361,27 @@ impl Session {
             .ok_or_else(|| r.err("scene", "required: the scene file, relative to this file"))?;
         let scene_file = dir.join(&scene_name);
         let mut scene = Scene::load(&scene_file)?;
-        let source = source(r.table("source")?, dir)?;
+        let (source, remote_source) = source(r.table("source")?, dir)?;
+        let link = match (remote_source, r.table("remote")?) {
+            (Some(_), Some(_)) => {
+                return Err(r.err(
+                    "remote",
+                    "not with [source] kind = \"remote\": a remote-fed session's link is \
+                     [source] (endpoint, role, key, subscribe); [remote] is for the session \
+                     whose source is on this machine",
+                ))
+            }
+            (Some(link), None) => Some(link),
+            (None, Some(t)) => Some(super::remote::remote_table(t)?),
+            (None, None) => None,
+        };
+        let bridge = BridgeSettings {
+            link,
+            foxglove: match r.table("viewer")? {
+                Some(t) => super::remote::viewer_table(t)?,
+                None => None,
+            },
+        };
         if matches!(source, Source::Scripted { .. }) && scene.hand.is_none() {
             // Any scene can be launched: without a [hand] the hand rests out of the way.
             scene.hand = Some(hand_at_rest(&scene));
@@ -383,6 +411,7 @@ impl Session {
             },
             wait: pipeline(r.table("pipeline")?)?,
             supervise: supervise(r.table("supervise")?)?,
+            bridge,
         };
         r.finish()?;
         Ok(session)
@@ -454,11 +483,17 @@ pub fn hand_at_rest(scene: &Scene) -> HandScript {
     }
 }
 
-fn source(r: Option<Reader>, dir: &Path) -> Result<Source, ConfigError> {
+/// `[source]`, and for `kind = "remote"` the link it is fed by.
+fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>), ConfigError> {
     let Some(r) = r else {
-        return Ok(Source::Scripted { rate_hz: 120.0 });
+        return Ok((Source::Scripted { rate_hz: 120.0 }, None));
     };
-    let s = match r.choice("kind", &["scripted", "devices", "replay"])? {
+    let mut link = None;
+    let s = match r.choice("kind", &["scripted", "devices", "replay", "remote"])? {
+        "remote" => {
+            link = Some(super::remote::remote_source(&r)?);
+            Source::Remote
+        }
         "devices" => {
             let table = |key: &'static str| -> Result<&toml::Table, ConfigError> {
                 match r.raw(key) {
@@ -509,7 +544,7 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<Source, ConfigError> {
         },
     };
     r.finish()?;
-    Ok(s)
+    Ok((s, link))
 }
 
 fn renderer(r: Option<Reader>) -> Result<RendererSettings, ConfigError> {

@@ -191,7 +191,13 @@ pub struct LaunchOutcome {
 
 /// The readers of a session, in the order they stop (after the source): pipeline order.
 fn readers(session: &Session) -> Vec<Stage> {
-    let mut v = vec![Stage::Kinematics, Stage::Stepper];
+    // A remote-fed session (a viewer) has no pipeline of its own: the bridge is its source.
+    let remote_fed = matches!(session.source, Source::Remote);
+    let mut v = if remote_fed {
+        Vec::new()
+    } else {
+        vec![Stage::Kinematics, Stage::Stepper]
+    };
     if session.renderer.mode != RenderMode::Off {
         v.push(Stage::Renderer);
     }
@@ -200,15 +206,28 @@ fn readers(session: &Session) -> Vec<Stage> {
     if session.recorder.file.is_some() {
         v.push(Stage::Recorder);
     }
+    // The bridge reads what it sends out (and, for a Foxglove view, what it shows).
+    if session.bridge.is_on() && !remote_fed {
+        v.push(Stage::Bridge);
+    }
     v
 }
 
 /// Subscribers each topic must have before the source may start: as many as the topic table
-/// names readers of it among `stages`.
-fn expected_subscribers(stages: &[Stage]) -> Vec<(Topic, usize)> {
+/// names readers of it among `stages`, the bridge counted only on `bridge_inputs` (the table
+/// names it a reader of every topic; a session says which it reads).
+fn expected_subscribers(stages: &[Stage], bridge_inputs: &[Topic]) -> Vec<(Topic, usize)> {
     Topic::ALL
         .into_iter()
-        .map(|t| (t, t.readers_among(stages)))
+        .map(|t| {
+            let n = t
+                .readers()
+                .iter()
+                .filter(|s| stages.contains(s))
+                .filter(|s| **s != Stage::Bridge || bridge_inputs.contains(&t))
+                .count();
+            (t, n)
+        })
         .filter(|(_, n)| *n > 0)
         .collect()
 }
@@ -257,6 +276,10 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     let world_json = std::fs::read_to_string(bus_config.root.join("outcome.json"))
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
+    // The bridge left what it did there too.
+    let bridge_json = std::fs::read_to_string(bus_config.root.join("bridge.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
     // Every process is reaped and every port dropped by now: the files are ours to remove.
     let cleanup = bus_config.remove_resources();
     let mut report = result?;
@@ -265,6 +288,7 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
         reason,
     })?;
     report.meta.world = world_json;
+    report.meta.bridge = bridge_json;
     let preview = opts.preview.clone().filter(|p| {
         report.meta.renderer_skipped.is_none() && p.metadata().is_ok_and(|m| m.len() > 0)
     });
@@ -377,6 +401,7 @@ fn run_session(
         seconds: facts.seconds,
         renderer_skipped,
         world: None,
+        bridge: None,
     };
     Ok(report)
 }
@@ -494,7 +519,10 @@ fn start_readers(
     for stage in stages.iter().rev() {
         procs.push(starter.start(*stage, placement, 0)?);
     }
-    let renderer_skipped = wait_until_connected(services, &mut stages, &mut procs)?;
+    let bridge_inputs = session
+        .bridge
+        .inputs(!matches!(session.source, Source::Remote));
+    let renderer_skipped = wait_until_connected(services, &mut stages, &bridge_inputs, &mut procs)?;
     if let Some(line) = &renderer_skipped {
         eprintln!("handblocks: {line}");
         // The pipeline was placed apart from a renderer that is not there: give it every CPU.
@@ -518,13 +546,17 @@ fn start_source(
     placement: &Placement,
     procs: &mut Vec<ServiceProcess>,
 ) -> Result<Stage, LaunchError> {
-    let source = match session.source {
-        Source::Replay { .. } => Stage::Replay,
-        _ => Stage::Acquisition,
+    let (source, outputs): (Stage, Vec<Topic>) = match session.source {
+        Source::Replay { .. } => (Stage::Replay, Stage::Replay.recorded_outputs().collect()),
+        Source::Remote => (Stage::Bridge, session.bridge.outputs()),
+        _ => (
+            Stage::Acquisition,
+            Stage::Acquisition.recorded_outputs().collect(),
+        ),
     };
     procs.push(starter.start(source, placement, 0)?);
     procs.reverse();
-    wait_for_source(services, source, procs)?;
+    wait_for_source(services, source, &outputs, procs)?;
     Ok(source)
 }
 
@@ -889,9 +921,10 @@ fn wait_for_start(
 fn wait_until_connected(
     services: &Services,
     stages: &mut Vec<Stage>,
+    bridge_inputs: &[Topic],
     procs: &mut Vec<ServiceProcess>,
 ) -> Result<Option<String>, LaunchError> {
-    let Err(e) = wait_for_readers(services, stages, procs) else {
+    let Err(e) = wait_for_readers(services, stages, bridge_inputs, procs) else {
         return Ok(None);
     };
     let skipped = procs.iter_mut().position(|p| {
@@ -904,7 +937,7 @@ fn wait_until_connected(
     };
     procs.remove(i);
     stages.retain(|s| *s != Stage::Renderer);
-    wait_for_readers(services, stages, procs)?;
+    wait_for_readers(services, stages, bridge_inputs, procs)?;
     Ok(Some(
         "renderer skipped: no GPU adapter (no Vulkan driver found), so no frames and no \
          preview; to draw, install one: sudo apt-get install mesa-vulkan-drivers libvulkan1 \
@@ -918,9 +951,10 @@ fn wait_until_connected(
 fn wait_for_readers(
     services: &Services,
     stages: &[Stage],
+    bridge_inputs: &[Topic],
     procs: &mut [ServiceProcess],
 ) -> Result<(), LaunchError> {
-    let expected = expected_subscribers(stages);
+    let expected = expected_subscribers(stages, bridge_inputs);
     wait_for_start(procs, || {
         let mut missing: Vec<String> = expected
             .iter()
@@ -935,16 +969,19 @@ fn wait_for_readers(
     })
 }
 
-/// The source attached: the publishers of its samples (the topics the table names it a
-/// publisher of, its latency report aside) exist, so the session's time can start.
+/// The source attached: the publishers of its samples (`outputs`: the topics the table names
+/// it a publisher of, its latency report aside; a remote-fed session's bridge, those it takes
+/// in) exist, so the session's time can start.
 fn wait_for_source(
     services: &Services,
     source: Stage,
+    outputs: &[Topic],
     procs: &mut [ServiceProcess],
 ) -> Result<(), LaunchError> {
     wait_for_start(procs, || {
-        let missing: Vec<&str> = source
-            .recorded_outputs()
+        let missing: Vec<&str> = outputs
+            .iter()
+            .copied()
             .filter(|t| services.publishers(*t) == 0)
             .map(|t| t.name())
             .collect();
@@ -997,7 +1034,7 @@ mod tests {
             Stage::Recorder,
         ];
         assert_eq!(
-            expected_subscribers(&all),
+            expected_subscribers(&all, &[]),
             [
                 (Topic::Glove, 2),
                 (Topic::Tracker, 2),
@@ -1008,12 +1045,26 @@ mod tests {
             ]
         );
         assert_eq!(
-            expected_subscribers(&[Stage::Kinematics, Stage::Stepper]),
+            expected_subscribers(&[Stage::Kinematics, Stage::Stepper], &[]),
             [
                 (Topic::Glove, 1),
                 (Topic::Tracker, 1),
                 (Topic::Joints, 1),
                 (Topic::Hand, 1),
+            ]
+        );
+        // The bridge counts on the topics its session sends, not on every one it could.
+        assert_eq!(
+            expected_subscribers(
+                &[Stage::Kinematics, Stage::Stepper, Stage::Bridge],
+                &[Topic::Hand, Topic::World]
+            ),
+            [
+                (Topic::Glove, 1),
+                (Topic::Tracker, 1),
+                (Topic::Joints, 1),
+                (Topic::Hand, 2),
+                (Topic::World, 1),
             ]
         );
     }

@@ -80,7 +80,8 @@ impl Placement {
     pub fn cpus_of(&self, stage: Stage) -> Option<libc::cpu_set_t> {
         let (pipeline, consumers) = self.sets?;
         Some(match stage {
-            Stage::Renderer | Stage::Recorder => consumers,
+            // The bridge is a consumer too: what it sends is off the pipeline's path.
+            Stage::Renderer | Stage::Recorder | Stage::Bridge => consumers,
             Stage::Acquisition | Stage::Replay | Stage::Kinematics | Stage::Stepper => pipeline,
         })
     }

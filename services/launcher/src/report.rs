@@ -298,6 +298,9 @@ pub struct Meta {
     pub renderer_skipped: Option<String>,
     /// The world's outcome (`simulate --json`'s form), when the stepper wrote it.
     pub world: Option<Value>,
+    /// What the bridge did (`bridge.json`: the link, what crossed it, the clock estimate),
+    /// when the session had one.
+    pub bridge: Option<Value>,
 }
 
 impl Default for Meta {
@@ -313,6 +316,7 @@ impl Default for Meta {
             seconds: 0.0,
             renderer_skipped: None,
             world: None,
+            bridge: None,
         }
     }
 }
@@ -489,9 +493,12 @@ impl Report {
         let frames = self
             .stage(Stage::Renderer)
             .map_or(0, |s| s.summary(Metric::Photon).count);
+        // The world's publisher: the stepper, or the bridge of a remote-fed session.
         let worlds = self
             .stage(Stage::Stepper)
-            .map_or(0, |s| s.summary(Metric::Origin).count);
+            .map(|s| s.summary(Metric::Origin).count)
+            .or_else(|| self.topics.get(&Topic::World).map(|f| f.published))
+            .unwrap_or(0);
         // While a restarted renderer was down there were no frames to draw: judged without it.
         let drawing_s = (facts.seconds - facts.renderer_down_s).max(0.5);
         let fps = frames as f64 / drawing_s;
@@ -519,6 +526,61 @@ impl Report {
         let s = self.stage(Stage::Renderer)?;
         let n = s.summary(Metric::Photon).count;
         (n > 0 && self.meta.seconds > 0.0).then(|| n as f64 / self.meta.seconds)
+    }
+
+    /// One line on the bridge: what crossed the link and the clock it was stamped by.
+    pub fn bridge_line(&self) -> Option<String> {
+        let b = self.meta.bridge.as_ref()?;
+        let mut parts = Vec::new();
+        if let Some(l) = b.get("link").filter(|l| !l.is_null()) {
+            let counts = |k: &str| {
+                l.get(k)
+                    .and_then(|m| m.as_object())
+                    .map(|m| {
+                        m.iter()
+                            .map(|(t, n)| format!("{t} {n}"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    })
+                    .filter(|s| !s.is_empty())
+            };
+            parts.push(format!(
+                "bridge: {} {} ({} peer(s) at the end)",
+                l["role"].as_str().unwrap_or("?"),
+                l["endpoint"].as_str().unwrap_or("?"),
+                l["peers_at_end"]
+            ));
+            if let Some(s) = counts("sent") {
+                parts.push(format!("sent {s}"));
+            }
+            if let Some(s) = counts("taken_in") {
+                parts.push(format!("taken in {s}"));
+            }
+            match l.get("clock").filter(|c| !c.is_null()) {
+                Some(c) => parts.push(format!(
+                    "the other clock is {:.1} us from ours, +/- {:.1} us ({} round trips)",
+                    c["offset_ns"].as_f64().unwrap_or(0.0) / 1e3,
+                    c["uncertainty_ns"].as_f64().unwrap_or(0.0) / 1e3,
+                    c["exchanges"]
+                )),
+                None if l["subscribe"].as_array().is_some_and(|a| !a.is_empty()) => {
+                    parts.push("the other clock was never reached".into())
+                }
+                None => {}
+            }
+            let dropped =
+                l["queue_full"].as_u64().unwrap_or(0) + l["malformed"].as_u64().unwrap_or(0);
+            if dropped > 0 {
+                parts.push(format!(
+                    "dropped {dropped} ({} queue full, {} malformed)",
+                    l["queue_full"], l["malformed"]
+                ));
+            }
+        }
+        if let Some(port) = b.get("foxglove").and_then(|f| f.get("port")) {
+            parts.push(format!("Foxglove view served on port {port}"));
+        }
+        (!parts.is_empty()).then(|| parts.join("; "))
     }
 
     fn stage(&self, stage: Stage) -> Option<&StageReport> {
@@ -690,6 +752,9 @@ impl Report {
         if let Some(s) = &self.meta.renderer_skipped {
             out.push_str(&format!("\n{s}\n"));
         }
+        if let Some(line) = self.bridge_line() {
+            out.push_str(&format!("\n{line}\n"));
+        }
         if !self.restarts.is_empty() {
             out.push_str(&format!(
                 "\n{:<12} {:>3} {:>8} {:>12}  {:<28} lost at the restart\n",
@@ -857,6 +922,7 @@ impl Report {
             },
             "failures": self.failures,
             "world": m.world,
+            "bridge": m.bridge,
         })
     }
 }

@@ -76,6 +76,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         hand_model: HandModelSpec::default(),
         wait: common::bus::WaitStrategy::Event,
         supervise: Default::default(),
+        bridge: Default::default(),
     };
     let config = BusConfig::for_session(&BusConfig::fresh_id())?;
     let bus = Bus::open(&config, "photon")?;

@@ -50,6 +50,7 @@ fn session() -> Session {
         hand_model: HandModelSpec::default(),
         wait: common::bus::WaitStrategy::Event,
         supervise: Default::default(),
+        bridge: Default::default(),
     }
 }
 

@@ -1,0 +1,454 @@
+//! The bridge process: one loop that sleeps on its inlets and on the samples its zenoh link
+//! took in (one descriptor more in the same `ppoll`), and on each wake-up
+//! 1. sends out: every sample of the topics it reads goes, as a recording's bytes, to the link
+//!    (if the topic is sent) and to the Foxglove view (if a client wants it);
+//! 2. takes in: every sample the link queued is checked, its stamps moved onto this machine's
+//!    clock, and published on this session's bus under its own seq (so a link's losses are
+//!    gaps every reader counts), and shown in the view;
+//! 3. reports its latencies like any stage: hop (publish -> here: across the link for what it
+//!    takes in, by the clock estimate), its own processing, and origin -> out.
+//!
+//! When it stops it leaves `bridge.json` in the session folder (what it sent and took in, what
+//! it dropped and why, the clock estimate and how it was made); the launcher puts it in the
+//! session report under `bridge`.
+
+use std::collections::BTreeMap;
+use std::error::Error;
+use std::time::Duration;
+
+use common::bus::{
+    wait_any_or, Bus, BusError, Inlet, Outlet, SliceInlet, SliceOutlet, Stamped, Wakeable,
+};
+use common::config::session::{LinkRole, Source};
+use common::config::Session;
+use common::latency::{Metric, Reporter};
+use common::topic::{SliceTopicSpec, TopicSpec, TopicVisitor};
+use common::{monotonic_ns, shutdown, topics, Stage, Stamp, Topic, TopicCounter};
+
+use crate::clock::ClockOffset;
+use crate::link::Link;
+use crate::viewer::Viewer;
+
+/// The longest sleep without a sample: the loop reports and notices a stop this often.
+const IDLE_WAIT: Duration = Duration::from_millis(50);
+/// While samples wait for the first clock estimate, the loop looks again this often.
+const CLOCK_WAIT: Duration = Duration::from_millis(5);
+
+/// What the bridge counts besides its ports' counters (the `bridge.json` it leaves).
+#[derive(Default)]
+struct Counts {
+    sent: BTreeMap<&'static str, u64>,
+    taken_in: BTreeMap<&'static str, u64>,
+    /// Messages from the link that are not samples of their topic (with the first reason).
+    malformed: u64,
+    first_malformed: Option<String>,
+    /// Sends the link refused (with the first reason).
+    send_errors: u64,
+    first_send_error: Option<String>,
+}
+
+/// What a sample read from the bus goes to.
+struct Out {
+    link: Option<Link>,
+    viewer: Option<Viewer>,
+    message: Vec<u8>,
+    reporter: Reporter,
+    counts: Counts,
+}
+
+impl Out {
+    /// Sends `self.message` (a sample of `topic` received at `received_ns`) to the link and the
+    /// view, and records the bridge's own time and the sample's age.
+    fn send(&mut self, topic: Topic, received_ns: u64, stamp: &Stamp) {
+        self.reporter.recorder.hop(stamp, received_ns);
+        if let Some(link) = &self.link {
+            match link.put(topic, &self.message) {
+                Ok(true) => *self.counts.sent.entry(topic.name()).or_default() += 1,
+                Ok(false) => {}
+                Err(e) => {
+                    self.counts.send_errors += 1;
+                    if self.counts.first_send_error.is_none() {
+                        eprintln!("handblocks bridge: sending {} failed: {e}", topic.name());
+                        self.counts.first_send_error = Some(e);
+                    }
+                }
+            }
+        }
+        if let Some(v) = &mut self.viewer {
+            v.observe(topic, &self.message, received_ns);
+        }
+        let done = monotonic_ns();
+        self.reporter
+            .recorder
+            .record(Metric::Process, done.saturating_sub(received_ns));
+        self.reporter
+            .recorder
+            .record(Metric::Origin, done.saturating_sub(stamp.origin_ns));
+    }
+}
+
+/// One topic the bridge reads from the bus, whatever its sample type.
+trait Input {
+    fn wakeable(&self) -> &dyn Wakeable;
+    fn drain(&self, out: &mut Out) -> Result<(), BusError>;
+    fn counter(&self) -> TopicCounter;
+}
+
+impl<P: TopicSpec> Input for Inlet<P> {
+    fn wakeable(&self) -> &dyn Wakeable {
+        self
+    }
+    fn drain(&self, out: &mut Out) -> Result<(), BusError> {
+        while let Some(s) = self.receive()? {
+            let received = monotonic_ns();
+            recording::encode_sample(s.payload(), &mut out.message);
+            out.send(P::TOPIC, received, s.stamp());
+        }
+        Ok(())
+    }
+    fn counter(&self) -> TopicCounter {
+        Inlet::counter(self)
+    }
+}
+
+impl<P: SliceTopicSpec> Input for SliceInlet<P> {
+    fn wakeable(&self) -> &dyn Wakeable {
+        self
+    }
+    fn drain(&self, out: &mut Out) -> Result<(), BusError> {
+        while let Some(s) = self.receive()? {
+            let received = monotonic_ns();
+            recording::encode_slice(P::TOPIC, s.user_header(), s.payload(), &mut out.message);
+            out.send(P::TOPIC, received, s.user_header().stamp());
+        }
+        Ok(())
+    }
+    fn counter(&self) -> TopicCounter {
+        SliceInlet::counter(self)
+    }
+}
+
+/// One topic the bridge publishes on the bus, taken in from the link.
+trait Output {
+    fn topic(&self) -> Topic;
+    /// Publishes `message` (from the other machine) with its origin moved onto our clock by
+    /// `offset_ns` (theirs minus ours), under its own seq; returns the stamp it went with.
+    fn forward(&mut self, message: &[u8], offset_ns: i64) -> Result<Stamp, String>;
+    fn counter(&self) -> TopicCounter;
+}
+
+impl<P: TopicSpec> Output for Outlet<P> {
+    fn topic(&self) -> Topic {
+        P::TOPIC
+    }
+    fn forward(&mut self, message: &[u8], offset_ns: i64) -> Result<Stamp, String> {
+        let mut sample: P::Sample =
+            recording::decode_sample(P::TOPIC, message).map_err(|e| e.to_string())?;
+        let stamp = sample.stamp_mut();
+        let seq = stamp.seq;
+        stamp.origin_ns = ClockOffset::to_ours(offset_ns, stamp.origin_ns);
+        self.publish_as(&sample, seq).map_err(|e| e.to_string())
+    }
+    fn counter(&self) -> TopicCounter {
+        Outlet::counter(self)
+    }
+}
+
+/// A slice topic's outlet and the element count this session's scene gives it.
+struct SliceOutput<P: SliceTopicSpec> {
+    outlet: SliceOutlet<P>,
+    elements: usize,
+}
+
+impl<P: SliceTopicSpec> Output for SliceOutput<P> {
+    fn topic(&self) -> Topic {
+        P::TOPIC
+    }
+    fn forward(&mut self, message: &[u8], offset_ns: i64) -> Result<Stamp, String> {
+        let (header, body): (P::Header, &[u8]) =
+            recording::decode_slice(P::TOPIC, message).map_err(|e| e.to_string())?;
+        let size = std::mem::size_of::<P::Element>();
+        let n = body.len() / size;
+        if n != self.elements {
+            return Err(format!(
+                "a {} sample of {n} elements; this session's scene gives {}: both halves of a \
+                 session must name the same scene",
+                P::TOPIC.name(),
+                self.elements
+            ));
+        }
+        let seq = header.stamp().seq;
+        self.outlet
+            .publish_with_as(
+                seq,
+                n,
+                |h| {
+                    *h = header;
+                    let st = h.stamp_mut();
+                    st.origin_ns = ClockOffset::to_ours(offset_ns, st.origin_ns);
+                },
+                // SAFETY: `body` holds exactly `n` elements (checked above); every element
+                // type is plain old data (any bit pattern valid), read unaligned.
+                |i| unsafe {
+                    std::ptr::read_unaligned(body[i * size..].as_ptr() as *const P::Element)
+                },
+            )
+            .map_err(|e| e.to_string())
+    }
+    fn counter(&self) -> TopicCounter {
+        self.outlet.counter()
+    }
+}
+
+/// Opens an inlet on each topic of `inputs` and an outlet on each of `outputs`.
+struct OpenPorts<'b> {
+    bus: &'b Bus,
+    inputs: Vec<Topic>,
+    outputs: Vec<Topic>,
+    world_elements: usize,
+    opened_in: Vec<Box<dyn Input>>,
+    opened_out: Vec<Box<dyn Output>>,
+}
+
+impl TopicVisitor for OpenPorts<'_> {
+    type Error = BusError;
+    fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
+        if self.inputs.contains(&P::TOPIC) {
+            self.opened_in.push(Box::new(self.bus.inlet::<P>()?));
+        }
+        if self.outputs.contains(&P::TOPIC) {
+            self.opened_out.push(Box::new(self.bus.outlet::<P>()?));
+        }
+        Ok(())
+    }
+    fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
+        if self.inputs.contains(&P::TOPIC) {
+            self.opened_in.push(Box::new(self.bus.slice_inlet::<P>()?));
+        }
+        if self.outputs.contains(&P::TOPIC) {
+            self.opened_out.push(Box::new(SliceOutput {
+                outlet: self.bus.slice_outlet::<P>()?,
+                elements: self.world_elements,
+            }));
+        }
+        Ok(())
+    }
+}
+
+/// Runs until asked to stop.
+pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn Error>> {
+    let settings = &session.bridge;
+    let remote_fed = matches!(session.source, Source::Remote);
+    let inputs = settings.inputs(!remote_fed);
+    let outputs = settings.outputs();
+    let link = match &settings.link {
+        Some(l) => {
+            let link = Link::open(l)?;
+            eprintln!(
+                "handblocks bridge: {} {} (key {}): sending {}, taking in {}",
+                match l.role {
+                    LinkRole::Listen => "listening on",
+                    LinkRole::Connect => "connecting to",
+                },
+                l.endpoint,
+                l.key,
+                names(&l.publish),
+                names(&l.subscribe),
+            );
+            Some(link)
+        }
+        None => None,
+    };
+    let viewer = match &settings.foxglove {
+        Some((host, port)) => {
+            // A remote-fed view shows what the link brings; a local one what the bus carries.
+            let served = if remote_fed {
+                outputs.clone()
+            } else {
+                inputs.clone()
+            };
+            let v = Viewer::start(host, *port, &session.scene, &served)?;
+            eprintln!(
+                "handblocks bridge: Foxglove view on ws://{host}:{} (in Foxglove: Open \
+                 connection -> Foxglove WebSocket; topics {} and /scene)",
+                v.port,
+                served
+                    .iter()
+                    .map(|t| format!("/{}", t.name()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+            Some(v)
+        }
+        None => None,
+    };
+    let mut ports = OpenPorts {
+        bus,
+        inputs,
+        outputs,
+        world_elements: session.scene.blocks.len(),
+        opened_in: Vec::new(),
+        opened_out: Vec::new(),
+    };
+    Topic::visit_each(&mut ports)?;
+    let OpenPorts {
+        opened_in: ins,
+        opened_out: mut outs,
+        ..
+    } = ports;
+    let mut out = Out {
+        link,
+        viewer,
+        message: Vec::new(),
+        reporter: Reporter::new(Stage::Bridge, bus.outlet::<topics::Latency>()?),
+        counts: Counts::default(),
+    };
+    let wakeables: Vec<&dyn Wakeable> = ins.iter().map(|i| i.wakeable()).collect();
+    let wake_fd = out
+        .link
+        .as_ref()
+        .filter(|_| !outs.is_empty())
+        .map(|l| l.wake_fd());
+    let mut counters: Vec<TopicCounter> = Vec::with_capacity(ins.len() + outs.len());
+    loop {
+        let stopping = shutdown::requested();
+        if !stopping {
+            let waiting_for_clock = out
+                .link
+                .as_ref()
+                .is_some_and(|l| l.clock.offset_ns().is_none() && !l.incoming.is_empty());
+            let timeout = if waiting_for_clock {
+                CLOCK_WAIT
+            } else {
+                IDLE_WAIT
+            };
+            if wakeables.is_empty() && (wake_fd.is_none() || waiting_for_clock) {
+                std::thread::sleep(timeout);
+            } else {
+                wait_any_or(&wakeables, wake_fd, timeout)?;
+            }
+        }
+        for i in &ins {
+            i.drain(&mut out)?;
+        }
+        take_in(&mut out, &mut outs, remote_fed);
+        counters.clear();
+        counters.extend(ins.iter().map(|i| i.counter()));
+        counters.extend(outs.iter().map(|o| o.counter()));
+        counters.truncate(common::samples::MAX_TOPIC_COUNTERS);
+        if stopping {
+            let summary = summary(session, &out);
+            let folder = bus.session_folder().join("bridge.json");
+            if let Err(e) = std::fs::write(&folder, summary.to_string()) {
+                eprintln!("handblocks bridge: cannot write {}: {e}", folder.display());
+            }
+            if let Some(v) = out.viewer.take() {
+                v.stop();
+            }
+            if let Some(l) = out.link.take() {
+                l.close();
+            }
+            return Ok(out.reporter.finish(&counters)?);
+        }
+        out.reporter.maybe_report(&counters)?;
+    }
+}
+
+/// Publishes what the link queued, once the other clock is known (until then it waits in the
+/// queue: a sample's stamps cannot be placed on our timeline without it).
+fn take_in(out: &mut Out, outs: &mut [Box<dyn Output>], remote_fed: bool) {
+    let Some(link) = &out.link else { return };
+    link.clear_wake();
+    let Some(offset) = link.clock.offset_ns() else {
+        return;
+    };
+    while let Ok(item) = link.incoming.try_recv() {
+        let bytes = item.bytes.to_bytes();
+        let Some(output) = outs.iter_mut().find(|o| o.topic() == item.topic) else {
+            continue;
+        };
+        let sent = recording::message_stamp(&bytes);
+        match output.forward(&bytes, offset) {
+            Ok(stamp) => {
+                let r = &mut out.reporter.recorder;
+                if let Some(theirs) = sent {
+                    // The hop across the link: their publish, on our clock, to our receipt.
+                    r.record(
+                        Metric::Hop,
+                        item.arrived_ns
+                            .saturating_sub(ClockOffset::to_ours(offset, theirs.publish_ns)),
+                    );
+                }
+                if remote_fed {
+                    r.delivered_after_waiting(stamp.publish_ns);
+                }
+                r.output(item.arrived_ns, &stamp);
+                *out.counts.taken_in.entry(item.topic.name()).or_default() += 1;
+                if let Some(v) = &mut out.viewer {
+                    v.observe(item.topic, &bytes, item.arrived_ns);
+                }
+            }
+            Err(why) => {
+                out.counts.malformed += 1;
+                if out.counts.first_malformed.is_none() {
+                    eprintln!(
+                        "handblocks bridge: dropped a {} sample from the link: {why}",
+                        item.topic.name()
+                    );
+                    out.counts.first_malformed = Some(why);
+                }
+            }
+        }
+    }
+}
+
+fn names(topics: &[Topic]) -> String {
+    if topics.is_empty() {
+        return "nothing".into();
+    }
+    topics
+        .iter()
+        .map(|t| t.name())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// `bridge.json`: what the bridge did, for the session report.
+fn summary(session: &Session, out: &Out) -> serde_json::Value {
+    use serde_json::json;
+    let link = session.bridge.link.as_ref().map(|l| {
+        let clock = out.link.as_ref().and_then(|k| {
+            k.clock.offset_ns().map(|offset| {
+                json!({
+                    "offset_ns": offset,
+                    "uncertainty_ns": k.clock.uncertainty_ns(),
+                    "exchanges": k.clock.exchanges(),
+                    "method": "round trips to the sender's clock over the link (a zenoh query \
+                               on KEY/clock/TOPIC): offset = their clock - the midpoint of ours, \
+                               from the shortest round trip of the last 64; uncertainty is half \
+                               that round trip",
+                })
+            })
+        });
+        json!({
+            "endpoint": l.endpoint,
+            "role": l.role.name(),
+            "key": l.key,
+            "publish": l.publish.iter().map(|t| t.name()).collect::<Vec<_>>(),
+            "subscribe": l.subscribe.iter().map(|t| t.name()).collect::<Vec<_>>(),
+            "peers_at_end": out.link.as_ref().map_or(0, |k| k.peers()),
+            "sent": out.counts.sent,
+            "taken_in": out.counts.taken_in,
+            "queue_full": out.link.as_ref().map_or(0, |k| k.queue_full.load(std::sync::atomic::Ordering::Relaxed)),
+            "malformed": out.counts.malformed,
+            "first_malformed": out.counts.first_malformed,
+            "send_errors": out.counts.send_errors,
+            "first_send_error": out.counts.first_send_error,
+            "clock": clock,
+        })
+    });
+    json!({
+        "link": link,
+        "foxglove": out.viewer.as_ref().map(|v| json!({"port": v.port})),
+    })
+}
