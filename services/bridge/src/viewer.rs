@@ -45,6 +45,8 @@ enum BlockShape {
 }
 
 pub struct Viewer {
+    /// The channels' and the server's context: they hold it weakly, so it lives here.
+    _context: Arc<foxglove::Context>,
     server: Option<WebSocketServerHandle>,
     channels: Vec<(Topic, Arc<RawChannel>)>,
     scene: Channel<SceneUpdate>,
@@ -149,6 +151,7 @@ impl Viewer {
             })?;
         let port = server.port();
         Ok(Viewer {
+            _context: context,
             server: Some(server),
             channels,
             scene: scene_channel,

@@ -1,0 +1,542 @@
+//! Issue 17, beyond one machine: a session on one host, its renderer and recorder on another,
+//! joined by the bridge over zenoh; and a live Foxglove view.
+//!
+//! Two hosts are two network namespaces joined by a veth pair (10.77.N.1 and 10.77.N.2), each
+//! half of the session running inside its own with its own iceoryx2 bus, so the samples cross a
+//! real (virtual) network link. Where namespaces cannot be made (not root, no CAP_NET_ADMIN),
+//! the halves run over loopback with their own buses, and the test says so. Both namespaces
+//! share this machine's CLOCK_MONOTONIC, so the clock offset the bridges estimate must come out
+//! near 0: that checks the estimate.
+//!
+//! The figures the issue asks for are printed (`--nocapture` shows them): the bridged hop
+//! beside the local iceoryx2 hop, the remote session's origin -> photon, and what a killed
+//! viewer cost the local session.
+
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use common::bus::BusConfig;
+use common::{Topic, WorldHeader, WorldSample};
+use recording::Recording;
+use serde_json::Value;
+
+mod support;
+use support::{assert_nothing_left, both, repo, Scratch, EXE};
+
+/// Two hosts: network namespaces joined by a veth pair, or this machine's loopback.
+struct Hosts {
+    /// (namespace, address) of the session's host and the viewer's host.
+    local: (Option<String>, String),
+    remote: (Option<String>, String),
+}
+
+impl Hosts {
+    /// Namespaces `hb<tag><pid>a` / `...b` when `ip netns` works here, else loopback.
+    fn new(tag: &str, subnet: u8) -> Hosts {
+        let pid = std::process::id() % 100_000;
+        let (a, b) = (format!("hb{tag}{pid}a"), format!("hb{tag}{pid}b"));
+        let (va, vb) = (format!("hv{tag}{pid}a"), format!("hv{tag}{pid}b"));
+        let net = format!("10.77.{subnet}");
+        let ip = |args: &[&str]| {
+            Command::new("ip")
+                .args(args)
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .status()
+                .is_ok_and(|s| s.success())
+        };
+        let made = ip(&["netns", "add", &a])
+            && ip(&["netns", "add", &b])
+            && ip(&["link", "add", &va, "type", "veth", "peer", "name", &vb])
+            && ip(&["link", "set", &va, "netns", &a])
+            && ip(&["link", "set", &vb, "netns", &b])
+            && ip(&["-n", &a, "addr", "add", &format!("{net}.1/24"), "dev", &va])
+            && ip(&["-n", &b, "addr", "add", &format!("{net}.2/24"), "dev", &vb])
+            && ip(&["-n", &a, "link", "set", &va, "up"])
+            && ip(&["-n", &b, "link", "set", &vb, "up"])
+            && ip(&["-n", &a, "link", "set", "lo", "up"])
+            && ip(&["-n", &b, "link", "set", "lo", "up"]);
+        if made {
+            eprintln!("two hosts: network namespaces {a} ({net}.1) and {b} ({net}.2), veth");
+            Hosts {
+                local: (Some(a), format!("{net}.1")),
+                remote: (Some(b), format!("{net}.2")),
+            }
+        } else {
+            let _ = ip(&["netns", "del", &a]);
+            let _ = ip(&["netns", "del", &b]);
+            eprintln!(
+                "network namespaces unavailable here (not root?): the two halves run over \
+                 loopback, each on its own iceoryx2 bus"
+            );
+            Hosts {
+                local: (None, "127.0.0.1".into()),
+                remote: (None, "127.0.0.1".into()),
+            }
+        }
+    }
+
+    /// `handblocks ARGS` on a host (inside its namespace, if any).
+    fn command(host: &(Option<String>, String)) -> Command {
+        match &host.0 {
+            Some(ns) => {
+                let mut c = Command::new("ip");
+                c.args(["netns", "exec", ns, EXE]);
+                c
+            }
+            None => Command::new(EXE),
+        }
+    }
+}
+
+impl Drop for Hosts {
+    fn drop(&mut self) {
+        for ns in [&self.local.0, &self.remote.0].into_iter().flatten() {
+            // Deleting a namespace removes its end of the veth pair, and so the pair.
+            let _ = Command::new("ip").args(["netns", "del", ns]).status();
+        }
+    }
+}
+
+/// A port free on this machine now (namespaces have ports of their own; loopback shares).
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+/// Starts `handblocks launch SESSION` on `host` for `seconds`, recording to `rec`, with
+/// `--set` overrides.
+fn launch(
+    host: &(Option<String>, String),
+    session: &str,
+    id: &str,
+    seconds: f64,
+    report: &Path,
+    rec: &Path,
+    sets: &[String],
+) -> Child {
+    let mut c = Hosts::command(host);
+    c.current_dir(repo())
+        .args(["launch", "--quiet", "--force", "--no-preview"])
+        .args(["--duration", &seconds.to_string()])
+        .args(["--bus-id", id, "--report"])
+        .arg(report)
+        .arg("--record")
+        .arg(rec);
+    for s in sets {
+        c.args(["--set", s]);
+    }
+    c.arg(repo().join("config/sessions").join(session))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run handblocks")
+}
+
+fn report(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap_or_default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The viewer's overrides: its link to `endpoint`, a small headless renderer, and a budget a
+/// software rasteriser on a loaded CI machine keeps (the frame rate is not what is tested).
+fn viewer_sets(endpoint: &str, key: &str) -> Vec<String> {
+    vec![
+        format!("source.endpoint={endpoint}"),
+        format!("source.key={key}"),
+        "renderer.width=160".into(),
+        "renderer.height=120".into(),
+        "renderer.shadows=false".into(),
+        "budget.frame_rate_margin=1.0".into(),
+        "budget.origin_to_photon_p99_ms=2000".into(),
+    ]
+}
+
+fn local_sets(endpoint: &str, key: &str) -> Vec<String> {
+    vec![
+        format!("remote.endpoint={endpoint}"),
+        format!("remote.key={key}"),
+        // Judged here on what must hold on any machine: nothing dropped locally.
+        "budget.origin_to_world_p99_us=1000000".into(),
+    ]
+}
+
+/// A world with its wall-clock stamp fields (origin, publish: each machine's own clock) zeroed,
+/// as bytes: what must be identical on both sides.
+fn world_bytes(w: &WorldSample) -> Vec<u8> {
+    let mut header: WorldHeader = w.header;
+    header.stamp.origin_ns = 0;
+    header.stamp.publish_ns = 0;
+    let mut out = Vec::new();
+    recording::encode_slice(Topic::World, &header, &w.blocks, &mut out);
+    out
+}
+
+fn p(v: &Value, path: &[&str]) -> f64 {
+    let mut x = v;
+    for k in path {
+        x = &x[*k];
+    }
+    x.as_f64().unwrap_or(f64::NAN)
+}
+
+/// The viewer starts first and waits for the session (either start order works: its link
+/// keeps trying); the session runs 3 s on one host, the viewer renders and records on the
+/// other. Every world the viewer recorded is the session's own world of that seq, bit for bit
+/// but for the two wall-clock stamp fields; once the link was up none was lost; the clock
+/// offset the bridge estimated is the true one (0: one clock) within its stated uncertainty.
+#[test]
+fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
+    let dir = Scratch::new("remote-same");
+    let hosts = Hosts::new("s", 31);
+    let port = free_port();
+    let endpoint = format!("tcp/{}:{port}", hosts.local.1);
+    let key = format!("hbtest/same{}", std::process::id());
+    let (local_id, viewer_id) = (
+        format!("rmS{}", std::process::id()),
+        format!("rmV{}", std::process::id()),
+    );
+    let (local_rec, viewer_rec) = (dir.path("local.mcap"), dir.path("viewer.mcap"));
+    let (local_rep, viewer_rep) = (dir.path("local.json"), dir.path("viewer.json"));
+
+    let viewer = launch(
+        &hosts.remote,
+        "remote-viewer.toml",
+        &viewer_id,
+        9.0,
+        &viewer_rep,
+        &viewer_rec,
+        &viewer_sets(&endpoint, &key),
+    );
+    std::thread::sleep(Duration::from_millis(1500));
+    let local = launch(
+        &hosts.local,
+        "live-remote.toml",
+        &local_id,
+        3.0,
+        &local_rep,
+        &local_rec,
+        &local_sets(&format!("tcp/{}:{port}", hosts.local.1), &key),
+    );
+    let local_out = local.wait_with_output().unwrap();
+    let viewer_out = viewer.wait_with_output().unwrap();
+    assert!(local_out.status.success(), "{}", both(&local_out));
+    assert!(viewer_out.status.success(), "{}", both(&viewer_out));
+    assert_nothing_left(&local_id);
+    assert_nothing_left(&viewer_id);
+
+    let local_worlds: Vec<WorldSample> = Recording::open(&local_rec).unwrap().worlds().collect();
+    let viewer_worlds: Vec<WorldSample> = Recording::open(&viewer_rec).unwrap().worlds().collect();
+    assert!(
+        local_worlds.len() >= 300,
+        "{} local worlds",
+        local_worlds.len()
+    );
+    let by_seq: std::collections::BTreeMap<u64, &WorldSample> = local_worlds
+        .iter()
+        .map(|w| (w.header.stamp.seq, w))
+        .collect();
+    for w in &viewer_worlds {
+        let theirs = by_seq
+            .get(&w.header.stamp.seq)
+            .unwrap_or_else(|| panic!("world seq {} was never published", w.header.stamp.seq));
+        assert_eq!(
+            world_bytes(w),
+            world_bytes(theirs),
+            "world seq {}",
+            w.header.stamp.seq
+        );
+    }
+    let (first, last) = (
+        viewer_worlds.first().unwrap().header.stamp.seq,
+        viewer_worlds.last().unwrap().header.stamp.seq,
+    );
+    assert_eq!(
+        viewer_worlds.len() as u64,
+        last - first + 1,
+        "worlds lost on the link once it was up"
+    );
+    assert_eq!(last, local_worlds.last().unwrap().header.stamp.seq);
+    assert!(
+        viewer_worlds.len() * 2 >= local_worlds.len(),
+        "the viewer got {} of {} worlds",
+        viewer_worlds.len(),
+        local_worlds.len()
+    );
+
+    let v = report(&viewer_rep);
+    let l = report(&local_rep);
+    let clock = &v["bridge"]["link"]["clock"];
+    let (offset, uncertainty) = (p(clock, &["offset_ns"]), p(clock, &["uncertainty_ns"]));
+    assert!(
+        offset.abs() <= uncertainty.max(1000.0) + 1000.0,
+        "one clock, yet an offset of {offset} ns +/- {uncertainty}: {clock}"
+    );
+    assert_eq!(v["session"]["source"], "remote");
+    assert_eq!(
+        l["bridge"]["link"]["sent"]["world"].as_u64(),
+        Some(local_worlds.len() as u64)
+    );
+    eprintln!(
+        "worlds: local {}, viewer {} (from seq {first}; the link came up after the session \
+         started)\nclock offset {offset:.0} ns +/- {uncertainty:.0} ns over {} round trips\n\
+         bridged hop (stepper publish there -> bridge here) p50 {:.0} / p99 {:.0} us; local \
+         iceoryx2 hop to the stepper p50 {:.0} / p99 {:.0} us, to the local bridge p50 {:.0} / p99 \
+         {:.0} us\nremote origin -> photon p50 {:.1} / p99 {:.1} ms; remote origin -> bridge \
+         out p50 {:.0} / p99 {:.0} us",
+        local_worlds.len(),
+        viewer_worlds.len(),
+        clock["exchanges"],
+        p(&v, &["stages", "bridge", "hop_us", "p50"]),
+        p(&v, &["stages", "bridge", "hop_us", "p99"]),
+        p(&l, &["stages", "stepper", "hop_us", "p50"]),
+        p(&l, &["stages", "stepper", "hop_us", "p99"]),
+        p(&l, &["stages", "bridge", "hop_us", "p50"]),
+        p(&l, &["stages", "bridge", "hop_us", "p99"]),
+        p(&v, &["stages", "renderer", "photon_us", "p50"]) / 1e3,
+        p(&v, &["stages", "renderer", "photon_us", "p99"]) / 1e3,
+        p(&v, &["stages", "bridge", "origin_us", "p50"]),
+        p(&v, &["stages", "bridge", "origin_us", "p99"]),
+    );
+}
+
+/// The session starts first; a viewer joins, and is SIGKILLed mid-session with its whole
+/// process set: the session goes on untouched (exit 0, budget kept, nothing dropped, every
+/// world still sent to the link), and its bridge said what it sent.
+#[test]
+fn killing_the_viewer_does_not_disturb_the_session() {
+    let dir = Scratch::new("remote-kill");
+    let hosts = Hosts::new("k", 32);
+    let port = free_port();
+    let endpoint = format!("tcp/{}:{port}", hosts.local.1);
+    let key = format!("hbtest/kill{}", std::process::id());
+    let (local_id, viewer_id) = (
+        format!("rmK{}", std::process::id()),
+        format!("rmW{}", std::process::id()),
+    );
+    let (local_rep, viewer_rep) = (dir.path("local.json"), dir.path("viewer.json"));
+    let local = launch(
+        &hosts.local,
+        "live-remote.toml",
+        &local_id,
+        5.0,
+        &local_rep,
+        &dir.path("local.mcap"),
+        &local_sets(&endpoint, &key),
+    );
+    std::thread::sleep(Duration::from_millis(700));
+    let mut viewer = launch(
+        &hosts.remote,
+        "remote-viewer.toml",
+        &viewer_id,
+        30.0,
+        &viewer_rep,
+        &dir.path("viewer.mcap"),
+        &viewer_sets(&endpoint, &key),
+    );
+    // Until the viewer's recording has worlds in it (it is receiving), then kill everything
+    // of it: its launcher and every process of its bus.
+    let deadline = Instant::now() + Duration::from_secs(4);
+    let viewer_mcap = dir.path("viewer.mcap");
+    while Instant::now() < deadline
+        && std::fs::metadata(&viewer_mcap).map_or(0, |m| m.len()) < 20_000
+    {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let killed_at = Instant::now();
+    // The launcher first: its processes see their parent's pipe close and stop; any still
+    // there a moment later are killed too.
+    let _ = viewer.kill();
+    let _ = viewer.wait();
+    let stages = ["bridge", "renderer", "recorder"];
+    let gone_by = Instant::now() + Duration::from_secs(5);
+    while Instant::now() < gone_by {
+        let left: Vec<u32> = stages
+            .iter()
+            .filter_map(|s| support::find_service_now(s, &viewer_id))
+            .collect();
+        if left.is_empty() {
+            break;
+        }
+        if Instant::now() + Duration::from_secs(4) > gone_by {
+            for pid in left {
+                let _ = Command::new("kill")
+                    .args(["-KILL", &pid.to_string()])
+                    .status();
+            }
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let local_out = local.wait_with_output().unwrap();
+    assert!(local_out.status.success(), "{}", both(&local_out));
+    assert_nothing_left(&local_id);
+    // What the killed viewer left (its launcher could not clean up): removed here.
+    if let Ok(bus) = BusConfig::for_session(&viewer_id) {
+        let _ = bus.remove_resources();
+    }
+
+    let l = report(&local_rep);
+    assert_eq!(l["budget"]["ok"], true, "{}", l["budget"]);
+    let worlds = l["topics"]["world"]["published"].as_u64().unwrap();
+    assert!(worlds >= 500, "{worlds} worlds in 5 s");
+    assert_eq!(l["topics"]["world"]["dropped"].as_u64(), Some(0));
+    assert_eq!(l["bridge"]["link"]["sent"]["world"].as_u64(), Some(worlds));
+    eprintln!(
+        "viewer killed {:.1} s into the session; the session: {worlds} worlds, 0 dropped, \
+         origin -> world p50 {:.0} / p99 {:.0} us, its bridge's hop p99 {:.0} us, sent {} \
+         worlds to the link; {} peer(s) at the end",
+        killed_at.elapsed().as_secs_f64(),
+        p(&l, &["stages", "stepper", "origin_us", "p50"]),
+        p(&l, &["stages", "stepper", "origin_us", "p99"]),
+        p(&l, &["stages", "bridge", "hop_us", "p99"]),
+        l["bridge"]["link"]["sent"]["world"],
+        l["bridge"]["link"]["peers_at_end"],
+    );
+}
+
+/// `[viewer] foxglove`: a Foxglove WebSocket client (the protocol, spoken here by tungstenite)
+/// connects, sees the session's channels advertised with the recording's schemas and the
+/// scene, subscribes to `/world` and decodes a world state of the scene's blocks.
+#[test]
+fn a_foxglove_client_subscribes_and_decodes_a_world() {
+    use tungstenite::client::IntoClientRequest;
+    use tungstenite::Message;
+
+    let dir = Scratch::new("foxglove");
+    let port = free_port();
+    let id = format!("rmF{}", std::process::id());
+    let rep = dir.path("report.json");
+    let session = repo().join("config/sessions/live.toml");
+    let child = Command::new(EXE)
+        .current_dir(repo())
+        .args([
+            "launch",
+            "--quiet",
+            "--no-preview",
+            "--duration",
+            "5",
+            "--bus-id",
+            &id,
+        ])
+        .args(["--set", "renderer.mode=off"])
+        // What is tested is the view, not this (shared, loaded) machine's latency.
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .args(["--set", &format!("viewer.foxglove=127.0.0.1:{port}")])
+        .arg("--report")
+        .arg(&rep)
+        .arg(&session)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run handblocks");
+
+    let deadline = Instant::now() + Duration::from_secs(4);
+    let mut socket = loop {
+        let mut req = format!("ws://127.0.0.1:{port}")
+            .into_client_request()
+            .unwrap();
+        req.headers_mut()
+            .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+        match tungstenite::connect(req) {
+            Ok((s, _)) => break s,
+            Err(e) if Instant::now() < deadline => {
+                let _ = e;
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            Err(e) => panic!("no Foxglove server on port {port}: {e}"),
+        }
+    };
+    let mut world_channel = None;
+    let mut scene_schema = None;
+    let mut world: Option<WorldSample> = None;
+    let until = Instant::now() + Duration::from_secs(4);
+    while world.is_none() && Instant::now() < until {
+        match socket.read().expect("a message") {
+            Message::Text(t) => {
+                let v: Value = serde_json::from_str(&t).unwrap();
+                if v["op"] == "advertise" {
+                    for c in v["channels"].as_array().unwrap() {
+                        if c["topic"] == "/world" {
+                            assert_eq!(c["encoding"], "cdr");
+                            assert_eq!(c["schemaName"], "handblocks/msg/WorldSample");
+                            assert_eq!(c["schemaEncoding"], "ros2msg");
+                            world_channel = c["id"].as_u64();
+                            let sub = serde_json::json!({
+                                "op": "subscribe",
+                                "subscriptions": [{"id": 1, "channelId": c["id"]}],
+                            });
+                            socket.send(Message::text(sub.to_string())).unwrap();
+                        }
+                        if c["topic"] == "/scene" {
+                            scene_schema = c["schemaName"].as_str().map(String::from);
+                        }
+                    }
+                }
+            }
+            Message::Binary(b) => {
+                // opcode 1 (message data), subscription id, log time, the message.
+                assert_eq!(b[0], 1);
+                assert_eq!(u32::from_le_bytes(b[1..5].try_into().unwrap()), 1);
+                let (header, body) =
+                    recording::decode_slice::<WorldHeader>(Topic::World, &b[13..]).unwrap();
+                let blocks = body
+                    .chunks_exact(std::mem::size_of::<common::BlockState>())
+                    .map(|c| unsafe {
+                        std::ptr::read_unaligned(c.as_ptr() as *const common::BlockState)
+                    })
+                    .collect();
+                world = Some(WorldSample { header, blocks });
+            }
+            _ => {}
+        }
+    }
+    drop(socket);
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", both(&out));
+    assert_nothing_left(&id);
+    assert!(world_channel.is_some(), "/world was never advertised");
+    assert_eq!(scene_schema.as_deref(), Some("foxglove.SceneUpdate"));
+    let world = world.expect("no world state arrived");
+    let scene = common::config::Session::load(&session).unwrap().scene;
+    assert_eq!(world.blocks.len(), scene.blocks.len());
+    assert_eq!(world.header.block_count as usize, scene.blocks.len());
+    for b in &world.blocks {
+        assert!(b.pose.position.iter().all(|x| x.is_finite()));
+    }
+    let r = report(&rep);
+    assert!(
+        r["bridge"]["foxglove"]["port"].as_u64() == Some(port as u64),
+        "{}",
+        r["bridge"]
+    );
+}
+
+/// Bad link settings are refused before anything starts, naming the file, key and form.
+#[test]
+fn bad_link_settings_name_the_key_and_the_form() {
+    let session = repo().join("config/sessions/live-remote.toml");
+    for (set, says) in [
+        ("remote.endpoint=udp/1.2.3.4:7447", "remote.endpoint"),
+        ("remote.endpoint=tcp/1.2.3.4", "has no port"),
+        ("remote.publish=[\"hand\", \"stars\"]", "is not a topic"),
+        ("remote.key=handblocks/*", "no wildcards"),
+        ("remote.subscribe=[\"world\"]", "also in publish"),
+        ("viewer.foxglove=localhost", "HOST:PORT"),
+    ] {
+        let out: Output = Command::new(EXE)
+            .current_dir(repo())
+            .args(["launch", "--duration", "1", "--set", set])
+            .arg(&session)
+            .output()
+            .unwrap();
+        let text = both(&out);
+        assert_eq!(out.status.code(), Some(2), "{set}: {text}");
+        assert!(text.contains(says), "{set}: {text}");
+        assert!(text.contains("live-remote.toml"), "{set}: {text}");
+    }
+    let _: PathBuf = session;
+}
