@@ -597,8 +597,12 @@ fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() 
         serde_json::from_str(&std::fs::read_to_string(out.join("transport.json")).unwrap())
             .unwrap();
     let rows = v["transport"].as_array().unwrap();
-    assert_eq!(rows.len(), 4 * 5 * 2);
-    for t in ["iceoryx2", "iceoryx2-poll", "uds", "tcp"] {
+    assert_eq!(rows.len(), 5 * 5 * 2);
+    assert_eq!(
+        v["zenoh_over_iceoryx2"].as_array().map(|a| a.len()),
+        Some(5 * 2)
+    );
+    for t in ["iceoryx2", "iceoryx2-poll", "uds", "tcp", "zenoh"] {
         for bytes in [64u64, 1024, 65536, 1 << 20, 4 << 20] {
             for rate in [120.0, 0.0] {
                 let row = rows

@@ -7,7 +7,11 @@
 //! * `iceoryx2-poll`: the same service, the reader spinning on `receive` (no wake-up);
 //! * `uds`: a Unix domain stream socket, the reader blocking in `read` (copies in and out of
 //!   the kernel);
-//! * `tcp`: TCP over loopback, `TCP_NODELAY`, the same framing.
+//! * `tcp`: TCP over loopback, `TCP_NODELAY`, the same framing;
+//! * `zenoh`: the bridge's hop across machines (issue 17), here over loopback: a zenoh peer
+//!   publishing as the bridge does (TCP, express, `CongestionControl::Drop`, so a reader that
+//!   falls behind loses samples rather than slowing the writer) to a subscriber woken by zenoh's
+//!   own threads.
 //!
 //! The writer is a second process (this executable's hidden `bench-transport-peer`). For each
 //! sample it writes the payload (a pattern: a producer writes its data once, into the loaned
@@ -53,14 +57,16 @@ pub enum Transport {
     Iceoryx2Poll,
     Uds,
     Tcp,
+    Zenoh,
 }
 
 impl Transport {
-    pub const ALL: [Transport; 4] = [
+    pub const ALL: [Transport; 5] = [
         Transport::Iceoryx2,
         Transport::Iceoryx2Poll,
         Transport::Uds,
         Transport::Tcp,
+        Transport::Zenoh,
     ];
 
     /// The name in the JSON, the tables and `--transport`.
@@ -70,6 +76,7 @@ impl Transport {
             Transport::Iceoryx2Poll => "iceoryx2-poll",
             Transport::Uds => "uds",
             Transport::Tcp => "tcp",
+            Transport::Zenoh => "zenoh",
         }
     }
 
@@ -86,7 +93,7 @@ impl Transport {
 #[derive(Debug, Clone, PartialEq)]
 pub struct PeerArgs {
     pub transport: Transport,
-    /// A bus id (iceoryx2), a socket path (uds) or `127.0.0.1:PORT` (tcp).
+    /// A bus id (iceoryx2), a socket path (uds) or `127.0.0.1:PORT` (tcp, zenoh).
     pub endpoint: String,
     pub bytes: usize,
     /// Samples per second; 0 = flat out.
@@ -220,6 +227,44 @@ pub fn peer(a: &PeerArgs) -> Result<(), Box<dyn std::error::Error>> {
             common::shutdown::watch_parent_pipe();
             common::shutdown::wait_for_release(Duration::from_secs(10));
         }
+        Transport::Zenoh => {
+            use zenoh::Wait;
+            let session = zenoh::open(zenoh_config(&a.endpoint, false)?)
+                .wait()
+                .map_err(|e| e.to_string())?;
+            let publisher = session
+                .declare_publisher(ZENOH_KEY)
+                .congestion_control(zenoh::qos::CongestionControl::Drop)
+                .priority(zenoh::qos::Priority::InteractiveHigh)
+                .express(true)
+                .wait()
+                .map_err(|e| e.to_string())?;
+            // Not before the reader's subscription is known here: what went out before would
+            // be lost to nobody, not to the link.
+            let until = Instant::now() + Duration::from_secs(20);
+            while !publisher
+                .matching_status()
+                .wait()
+                .map_err(|e| e.to_string())?
+                .matching()
+            {
+                if Instant::now() > until {
+                    return Err("zenoh: the reader never subscribed".into());
+                }
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            let mut buf = vec![0u8; a.bytes];
+            let start = monotonic_ns();
+            for k in 0..a.count {
+                pace(start, k, a.rate_hz);
+                stamp(&mut buf, k);
+                publisher.put(&buf[..]).wait().map_err(|e| e.to_string())?;
+            }
+            // Stay until the reader has everything (zenoh sends from its own threads).
+            common::shutdown::watch_parent_pipe();
+            common::shutdown::wait_for_release(Duration::from_secs(10));
+            let _ = session.close().wait();
+        }
         Transport::Uds | Transport::Tcp => {
             let mut stream: Box<dyn Write> = if a.transport == Transport::Uds {
                 Box::new(UnixStream::connect(&a.endpoint)?)
@@ -239,6 +284,29 @@ pub fn peer(a: &PeerArgs) -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     Ok(())
+}
+
+/// The key of the zenoh runs (each reader listens on a port of its own, and finds no one by
+/// multicast, so runs never hear each other).
+const ZENOH_KEY: &str = "handblocks/bench/transport";
+
+/// A zenoh peer on TCP: the reader listens on `endpoint` (`127.0.0.1:PORT`), the writer
+/// connects to it, as the bridge's two halves do.
+fn zenoh_config(endpoint: &str, listen: bool) -> Result<zenoh::Config, String> {
+    let mut c = zenoh::Config::default();
+    let ep = format!("[\"tcp/{endpoint}\"]");
+    let set = |c: &mut zenoh::Config, k: &str, v: &str| {
+        c.insert_json5(k, v).map_err(|e| format!("zenoh {k}: {e}"))
+    };
+    set(&mut c, "mode", "\"peer\"")?;
+    set(&mut c, "scouting/multicast/enabled", "false")?;
+    if listen {
+        set(&mut c, "listen/endpoints", &ep)?;
+    } else {
+        set(&mut c, "listen/endpoints", "[]")?;
+        set(&mut c, "connect/endpoints", &ep)?;
+    }
+    Ok(c)
 }
 
 type ByteService =
@@ -377,6 +445,51 @@ fn measure(exe: &Path, a: &PeerArgs) -> Result<Row, Box<dyn std::error::Error>> 
             })();
             let _ = config.remove_resources();
             result?;
+        }
+        Transport::Zenoh => {
+            use zenoh::Wait;
+            let port = TcpListener::bind("127.0.0.1:0")?.local_addr()?.port();
+            let args = PeerArgs {
+                endpoint: format!("127.0.0.1:{port}"),
+                ..a.clone()
+            };
+            let session = zenoh::open(zenoh_config(&args.endpoint, true)?)
+                .wait()
+                .map_err(|e| e.to_string())?;
+            let subscriber = session
+                .declare_subscriber(ZENOH_KEY)
+                .wait()
+                .map_err(|e| e.to_string())?;
+            let mut child = spawn_peer(exe, &args)?;
+            // Until the last sample, or (flat out, where the link may drop it) a second with
+            // nothing after the writer began.
+            let mut last_arrival = Instant::now();
+            loop {
+                if Instant::now() > deadline {
+                    let _ = child.kill();
+                    return Err(late().into());
+                }
+                match subscriber.recv_timeout(Duration::from_millis(100)) {
+                    Ok(Some(sample)) => {
+                        let bytes = sample.payload().to_bytes();
+                        record(read_u64(&bytes, 0));
+                        first.get_or_insert_with(Instant::now);
+                        last_arrival = Instant::now();
+                        if read_u64(&bytes, 8) + 1 == a.count {
+                            break;
+                        }
+                    }
+                    Ok(None) => {
+                        if first.is_some() && last_arrival.elapsed() > Duration::from_secs(1) {
+                            break;
+                        }
+                    }
+                    Err(e) => return Err(format!("zenoh: {e}").into()),
+                }
+            }
+            drop(child.stdin.take());
+            let _ = child.wait();
+            let _ = session.close().wait();
         }
         Transport::Uds | Transport::Tcp => {
             let mut buf = vec![0u8; a.bytes];
@@ -540,10 +653,29 @@ fn write_outputs(rows: &[Row], b: &TransportBench) -> Result<Value, Box<dyn std:
             }
         }
     }
+    // The bridged hop (zenoh) against the local one (iceoryx2, woken): what leaving the
+    // machine costs, per payload.
+    let mut bridged = Vec::new();
+    for &bytes in &PAYLOADS {
+        for rate in [PACED_HZ, 0.0] {
+            if let (Some(i), Some(z)) = (
+                find(rows, Transport::Iceoryx2, bytes, rate),
+                find(rows, Transport::Zenoh, bytes, rate),
+            ) {
+                let (si, sz) = (Summary::of(&i.histogram), Summary::of(&z.histogram));
+                bridged.push(json!({
+                    "payload_bytes": bytes, "rate_hz": rate,
+                    "zenoh_p50_over_iceoryx2_p50": round2(sz.p50 / si.p50),
+                    "zenoh_p99_over_iceoryx2_p99": round2(sz.p99 / si.p99),
+                }));
+            }
+        }
+    }
     let value = json!({
         "quick": b.quick,
         "transport": rows.iter().map(Row::json).collect::<Vec<_>>(),
         "uds_over_iceoryx2": ratios,
+        "zenoh_over_iceoryx2": bridged,
     });
     std::fs::write(
         b.out_dir.join("transport.json"),
@@ -574,7 +706,7 @@ fn round2(v: f64) -> f64 {
 fn markdown(rows: &[Row], quick: bool) -> String {
     let mut md = String::from("# handblocks bench latency transport\n\n");
     md.push_str(&format!(
-        "One hop between two processes, publish -> receive (the writer's clock when the payload is written to the reader's clock when it is the reader's to read), {}. `iceoryx2`: zero-copy, the reader woken by an event and sleeping in `ppoll`; `iceoryx2-poll`: the reader spinning on `receive`; `uds`: a Unix stream socket; `tcp`: loopback, `TCP_NODELAY`. Flat out: back to back; a socket blocks the writer (queueing counts), iceoryx2 overwrites the oldest unread sample 8 behind (the pipeline's setting), so it may deliver fewer than it was sent.\n\n",
+        "One hop between two processes, publish -> receive (the writer's clock when the payload is written to the reader's clock when it is the reader's to read), {}. `iceoryx2`: zero-copy, the reader woken by an event and sleeping in `ppoll`; `iceoryx2-poll`: the reader spinning on `receive`; `uds`: a Unix stream socket; `tcp`: loopback, `TCP_NODELAY`; `zenoh`: the bridge's hop across machines, here over loopback (TCP, express, dropping when the link is full). Flat out: back to back; a socket blocks the writer (queueing counts), iceoryx2 overwrites the oldest unread sample 8 behind (the pipeline's setting), so it may deliver fewer than it was sent.\n\n",
         if quick { "quick run (1 s paced, 500 samples flat out)" } else { "5 s paced, up to 5000 samples (1 GiB) flat out" }
     ));
     md.push_str("| transport | payload | rate | p50 (us) | p90 | p99 | p99.9 | max | delivered / sent | throughput (/s) |\n|---|---|---|---|---|---|---|---|---|---|\n");
@@ -613,6 +745,24 @@ fn markdown(rows: &[Row], quick: bool) -> String {
                     if rate > 0.0 { "120 Hz" } else { "flat out" },
                     su.p50 / si.p50,
                     su.p99 / si.p99
+                ));
+            }
+        }
+    }
+    md.push_str("\n## The bridged hop (zenoh, loopback) as a multiple of the local one (iceoryx2, woken; same run)\n\n| payload | rate | p50 | p99 |\n|---|---|---|---|\n");
+    for &bytes in &PAYLOADS {
+        for rate in [PACED_HZ, 0.0] {
+            if let (Some(i), Some(z)) = (
+                find(rows, Transport::Iceoryx2, bytes, rate),
+                find(rows, Transport::Zenoh, bytes, rate),
+            ) {
+                let (si, sz) = (Summary::of(&i.histogram), Summary::of(&z.histogram));
+                md.push_str(&format!(
+                    "| {} | {} | {:.2}x | {:.2}x |\n",
+                    size_name(bytes),
+                    if rate > 0.0 { "120 Hz" } else { "flat out" },
+                    sz.p50 / si.p50,
+                    sz.p99 / si.p99
                 ));
             }
         }
