@@ -203,6 +203,9 @@ fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
     let (local_rec, viewer_rec) = (dir.path("local.mcap"), dir.path("viewer.mcap"));
     let (local_rep, viewer_rep) = (dir.path("local.json"), dir.path("viewer.json"));
 
+    // Both directions: the viewer sends its frame stats back, the session records them.
+    let mut sets = viewer_sets(&endpoint, &key);
+    sets.push("source.publish=[\"frame\"]".into());
     let viewer = launch(
         &hosts.remote,
         "remote-viewer.toml",
@@ -210,9 +213,11 @@ fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
         9.0,
         &viewer_rep,
         &viewer_rec,
-        &viewer_sets(&endpoint, &key),
+        &sets,
     );
     std::thread::sleep(Duration::from_millis(1500));
+    let mut sets = local_sets(&endpoint, &key);
+    sets.push("remote.subscribe=[\"frame\"]".into());
     let local = launch(
         &hosts.local,
         "live-remote.toml",
@@ -220,7 +225,7 @@ fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
         3.0,
         &local_rep,
         &local_rec,
-        &local_sets(&format!("tcp/{}:{port}", hosts.local.1), &key),
+        &sets,
     );
     let local_out = local.wait_with_output().unwrap();
     let viewer_out = viewer.wait_with_output().unwrap();
@@ -281,12 +286,23 @@ fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
         l["bridge"]["link"]["sent"]["world"].as_u64(),
         Some(local_worlds.len() as u64)
     );
+    // The other way: the viewer's frame stats reached the session and its recording.
+    let frames_back = Recording::open(&local_rec)
+        .unwrap()
+        .samples::<common::FrameSample>(Topic::Frame)
+        .count();
+    assert!(frames_back > 0, "no frame stats came back: {}", l["bridge"]);
+    assert!(
+        l["bridge"]["link"]["clock"]["offset_ns"].is_number(),
+        "{}",
+        l["bridge"]
+    );
     eprintln!(
         "worlds: local {}, viewer {} (from seq {first}; the link came up after the session \
          started)\nclock offset {offset:.0} ns +/- {uncertainty:.0} ns over {} round trips\n\
          bridged hop (stepper publish there -> bridge here) p50 {:.0} / p99 {:.0} us; local \
          iceoryx2 hop to the stepper p50 {:.0} / p99 {:.0} us, to the local bridge p50 {:.0} / p99 \
-         {:.0} us\nremote origin -> photon p50 {:.1} / p99 {:.1} ms; remote origin -> bridge \
+         {:.0} us\n{frames_back} frame stats came back\nremote origin -> photon p50 {:.1} / p99 {:.1} ms; remote origin -> bridge \
          out p50 {:.0} / p99 {:.0} us",
         local_worlds.len(),
         viewer_worlds.len(),
@@ -348,6 +364,7 @@ fn killing_the_viewer_does_not_disturb_the_session() {
         std::thread::sleep(Duration::from_millis(50));
     }
     let killed_at = Instant::now();
+    let killed_ns = common::monotonic_ns();
     // The launcher first: its processes see their parent's pipe close and stop; any still
     // there a moment later are killed too.
     let _ = viewer.kill();
@@ -378,6 +395,53 @@ fn killing_the_viewer_does_not_disturb_the_session() {
     if let Ok(bus) = BusConfig::for_session(&viewer_id) {
         let _ = bus.remove_resources();
     }
+
+    // What the dropped link cost the session, from its own recording: the age of each world
+    // as it was published (origin -> world), in the 1.5 s before the kill and after it, and
+    // the longest pause between two worlds after it.
+    let local_worlds: Vec<WorldSample> = Recording::open(&dir.path("local.mcap"))
+        .unwrap()
+        .worlds()
+        .collect();
+    let window = 1_500_000_000u64;
+    let ages = |from: u64, to: u64| {
+        let mut v: Vec<u64> = local_worlds
+            .iter()
+            .map(|w| w.header.stamp)
+            .filter(|s| s.publish_ns >= from && s.publish_ns < to)
+            .map(|s| s.publish_ns - s.origin_ns)
+            .collect();
+        v.sort_unstable();
+        let at = |q: f64| {
+            v.get(((v.len() as f64 * q) as usize).min(v.len().saturating_sub(1)))
+                .copied()
+        };
+        let us = |x: Option<u64>| x.map_or(f64::NAN, |ns| ns as f64 / 1e3);
+        (v.len(), us(at(0.5)), us(at(0.99)))
+    };
+    let before = ages(killed_ns.saturating_sub(window), killed_ns);
+    let after = ages(killed_ns, killed_ns + window);
+    let longest_pause_ms = local_worlds
+        .windows(2)
+        .filter(|w| w[1].header.stamp.publish_ns > killed_ns)
+        .map(|w| w[1].header.stamp.publish_ns - w[0].header.stamp.publish_ns)
+        .max()
+        .unwrap_or(0) as f64
+        / 1e6;
+    eprintln!(
+        "origin -> world around the kill: before {} worlds p50 {:.0} / p99 {:.0} us; after {} \
+         worlds p50 {:.0} / p99 {:.0} us; longest pause between worlds after it {longest_pause_ms:.1} ms",
+        before.0, before.1, before.2, after.0, after.1, after.2
+    );
+    assert!(
+        after.0 > 100,
+        "the session published {} worlds after the kill",
+        after.0
+    );
+    assert!(
+        longest_pause_ms < 100.0,
+        "the session paused {longest_pause_ms} ms after the kill"
+    );
 
     let l = report(&local_rep);
     assert_eq!(l["budget"]["ok"], true, "{}", l["budget"]);

@@ -16,6 +16,7 @@
 //! role = "connect"                 # the default for a remote source
 //! key = "handblocks/live"
 //! subscribe = ["hand", "world"]    # the default; must hold both (the renderer reads them)
+//! publish = ["frame"]              # optional: the renderer's frame stats, sent back
 //!
 //! [viewer]
 //! foxglove = "127.0.0.1:8765"      # serve the live topics over the Foxglove WebSocket protocol
@@ -251,9 +252,20 @@ pub(crate) fn remote_source(r: &Reader) -> Result<RemoteLink, ConfigError> {
         endpoint: endpoint(r, None)?,
         role: role(r, LinkRole::Connect)?,
         key: key(r)?,
-        publish: Vec::new(),
+        publish: topics(r, "publish", &[])?,
         subscribe: topics(r, "subscribe", &[Topic::Hand, Topic::World])?,
     };
+    // A viewer's own stages publish only the renderer's frame stats: those it may send back.
+    if let Some(t) = link.publish.iter().find(|t| !matches!(t, Topic::Frame)) {
+        return Err(r.err(
+            "publish",
+            format!(
+                "{:?} is not published here: a remote-fed session sends back only \"frame\" \
+                 (its renderer's frame stats)",
+                t.name()
+            ),
+        ));
+    }
     for needed in [Topic::Hand, Topic::World] {
         if !link.subscribe.contains(&needed) {
             return Err(r.err(
