@@ -22,6 +22,7 @@
 //! | `session`     | `common::config::Session::load` (a valid scene beside it)          |
 //! | `hand`        | `common::config::hand::HandModelSpec::load`                        |
 //! | `calibration` | `acquisition::devices::Calibration::parse`                         |
+//! | `link`        | `recording::decode_sample` / `decode_slice`: a sample from another machine (the bridge) |
 
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
@@ -44,7 +45,7 @@ use replay::{CarlTrace, HandTrace};
 pub type Target = (&'static str, fn(&[u8]));
 
 /// Every target by name, in the order the harnesses run them.
-pub const TARGETS: [Target; 8] = [
+pub const TARGETS: [Target; 9] = [
     ("cyberglove", cyberglove),
     ("fastrak", fastrak),
     ("carl", carl),
@@ -53,6 +54,7 @@ pub const TARGETS: [Target; 8] = [
     ("session", session),
     ("hand", hand),
     ("calibration", calibration),
+    ("link", link),
 ];
 
 /// The target called `name`.
@@ -688,5 +690,51 @@ mod tests {
             }
         }
         remove_scratch_dir();
+    }
+}
+
+/// `link`: a sample as the bridge takes it off a zenoh link from another machine (issue 17):
+/// the first byte picks the topic (of the recorded ones, in table order), the rest is its
+/// message. A message that decodes is exactly the sample it holds: encoding the sample again
+/// gives the message back (a world's, but for the CDR padding after its count).
+pub fn link(data: &[u8]) {
+    use common::{BlockState, WorldHeader};
+    let Some((&which, message)) = data.split_first() else {
+        return;
+    };
+    let topic = Topic::RECORDED[usize::from(which) % Topic::RECORDED.len()];
+    let mut out = Vec::new();
+    fn round_trip<T: common::bus::Stamped>(topic: Topic, message: &[u8], out: &mut Vec<u8>) {
+        if let Ok(sample) = recording::decode_sample::<T>(topic, message) {
+            recording::encode_sample(&sample, out);
+            assert_eq!(out.as_slice(), message, "{topic:?}");
+        }
+    }
+    match topic {
+        Topic::Glove => round_trip::<GloveSample>(topic, message, &mut out),
+        Topic::Tracker => round_trip::<TrackerSample>(topic, message, &mut out),
+        Topic::Joints => round_trip::<JointsSample>(topic, message, &mut out),
+        Topic::Hand => round_trip::<HandSample>(topic, message, &mut out),
+        Topic::Frame => round_trip::<FrameSample>(topic, message, &mut out),
+        Topic::World => {
+            if let Ok((header, body)) = recording::decode_slice::<WorldHeader>(topic, message) {
+                let size = std::mem::size_of::<BlockState>();
+                assert_eq!(body.len() % size, 0);
+                let blocks: Vec<BlockState> = body
+                    .chunks_exact(size)
+                    // SAFETY: whole elements of plain old data, read unaligned.
+                    .map(|c| unsafe { std::ptr::read_unaligned(c.as_ptr() as *const BlockState) })
+                    .collect();
+                recording::encode_slice(topic, &header, &blocks, &mut out);
+                // The CDR header, the header and the count agree; then the padding (ours is
+                // zeros, theirs any bytes) and the elements, which agree.
+                let count_end = 4 + std::mem::size_of::<WorldHeader>() + 4;
+                let body_at = message.len() - body.len();
+                assert_eq!(out.len(), message.len());
+                assert_eq!(out[..count_end], message[..count_end]);
+                assert_eq!(out[body_at..], message[body_at..]);
+            }
+        }
+        Topic::Latency => {}
     }
 }

@@ -194,10 +194,40 @@ fn unsafe_zeroed_hand() -> HandSample {
     unsafe { std::mem::zeroed() }
 }
 
+/// The `link` seeds: a hand and a world of 3 blocks as the bridge sends them (the topic's
+/// index among the recorded topics, then the recording's message).
+#[test]
+#[ignore = "writes fuzz/corpus/link: run it by hand to regenerate those seeds"]
+fn write_link_seeds() {
+    let index = |t: Topic| Topic::RECORDED.iter().position(|r| *r == t).unwrap() as u8;
+    let mut hand = unsafe_zeroed_hand();
+    hand.stamp = stamp(7);
+    hand.finger_count = 1;
+    hand.finger_point_count[0] = 2;
+    hand.finger_points[0][1] = [0.01, 0.02, 0.03];
+    let mut msg = Vec::new();
+    recording::encode_sample(&hand, &mut msg);
+    put(
+        "link",
+        "seed-hand",
+        &[&[index(Topic::Hand)][..], &msg].concat(),
+    );
+    let mut world = WorldSample::with_blocks(3);
+    world.header.stamp = stamp(8);
+    world.blocks[1].pose.position = [0.1, 0.05, 0.0];
+    recording::encode_slice(Topic::World, &world.header, &world.blocks, &mut msg);
+    put(
+        "link",
+        "seed-world",
+        &[&[index(Topic::World)][..], &msg].concat(),
+    );
+}
+
 /// Writes the generated seeds and copies the text ones from config/.
 #[test]
 #[ignore = "writes fuzz/corpus: run it by hand to regenerate the seeds"]
 fn write_seeds() {
+    write_link_seeds();
     // cyberglove: byte 0 = size (0 -> 18, 1 -> 22), byte 1 = chunk size (0 = all at once).
     let mut s = vec![1, 0];
     for k in 0..5 {
@@ -381,6 +411,17 @@ fn check_valid(target: &str, name: &str, bytes: &[u8], dir: &Path) {
             let t = CarlTrace::parse(Path::new(name), bytes).unwrap_or_else(|e| panic!("{e}"));
             assert!(!t.samples.is_empty(), "{what}");
             assert_eq!(t.damage.is_some(), name.contains("cut-off"), "{what}");
+        }
+        "link" => {
+            let topic = Topic::RECORDED[usize::from(bytes[0]) % Topic::RECORDED.len()];
+            let ok = match topic {
+                Topic::World => {
+                    recording::decode_slice::<common::WorldHeader>(topic, &bytes[1..]).is_ok()
+                }
+                Topic::Hand => recording::decode_sample::<HandSample>(topic, &bytes[1..]).is_ok(),
+                t => panic!("{what}: no seed of {t:?} expected"),
+            };
+            assert!(ok, "{what} does not decode");
         }
         "mcap" => {
             let r = Recording::parse(Path::new(name), bytes).unwrap_or_else(|e| panic!("{e}"));
