@@ -304,15 +304,27 @@ impl World {
         if passes.hand {
             // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
             //    action; then R13 ends the grasps they no longer confirm.
-            if let Some(h) = hand {
-                hand_contacts.decide_actions(blocks, active, grid, h, prev, settings, passes.grasp);
-            }
+            let acted = match hand {
+                Some(h) => hand_contacts.decide_actions(
+                    blocks,
+                    active,
+                    grid,
+                    h,
+                    prev,
+                    settings,
+                    passes.grasp,
+                ),
+                None => false,
+            };
             end_grasps(blocks, active, settings.inertia);
-            // 2. Hand-driven motion (R5, R4, R6), then carry (R10).
-            if let Some(h) = hand {
-                move_by_hand(blocks, active, h, prev, settings, fingers);
-            }
-            if passes.carry {
+            // 2. Hand-driven motion (R5, R4, R6), then carry (R10) from the blocks it moved. A
+            //    hand that acts on nothing (far from every block, or no hand) moves nothing and
+            //    carries nothing: neither stage runs, not even a pass over the active set.
+            let moved = match hand {
+                Some(h) if acted => move_by_hand(blocks, active, h, prev, settings, fingers),
+                _ => false,
+            };
+            if passes.carry && moved {
                 carry.carry(blocks, active, grid, settings.hull_eps);
             }
         }
