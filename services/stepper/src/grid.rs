@@ -273,6 +273,7 @@ impl BlockGrid {
             self.rebuild(blocks);
         }
         self.found.clear();
+        debug_assert!(self.slots.len() < NONE as usize);
         // The callers' own tests decide; this one only has to keep every block they would
         // accept, whatever the rounding of a distance far from the origin: the cells searched
         // and the sphere test below both reach `slack` further.
@@ -315,9 +316,9 @@ impl BlockGrid {
                     continue;
                 }
                 bucket.visited = query;
+                // NONE is past every index: the end of the list and the bounds check are one.
                 let mut k = bucket.head;
-                while k != NONE {
-                    let s = &slots[k as usize];
+                while let Some(s) = slots.get(k as usize) {
                     // Most of a column's blocks are above or below the query: its height
                     // alone rejects them (|dy| > q >= within, so the sphere test below would
                     // too: the answer is the same, for a subtraction and a comparison).

@@ -316,7 +316,11 @@ impl World {
                 ),
                 None => false,
             };
-            end_grasps(blocks, active, settings.inertia);
+            // R5 grasps only with hand = "grasp": without it no block is ever grasped, and R13
+            // has nothing to end (no pass over the active set: ~16 instructions a block).
+            if passes.grasp {
+                end_grasps(blocks, active, settings.inertia);
+            }
             // 2. Hand-driven motion (R5, R4, R6), then carry (R10) from the blocks it moved. A
             //    hand that acts on nothing (far from every block, or no hand) moves nothing and
             //    carries nothing: neither stage runs, not even a pass over the active set.
