@@ -11,10 +11,13 @@
 //! blocks stand on a floor and a world is wide, not tall. A column's blocks above and below a
 //! query are rejected by one comparison of heights, which is cheaper than visiting the cells of
 //! a third axis: on a rain of 1024 cubes (`bench stepper`'s falling field; callgrind) a query
-//! walked ~11.4 cubic cells and 10 candidates for ~1090 instructions, and walks ~5 columns and
-//! ~19 candidates (~6 of them at its height) for ~740; a falling block also stays in its column,
-//! so telling the grid of its move costs a comparison, not a division (~130 -> ~55
-//! instructions). A tall tower costs a query one height comparison per block of its column.
+//! walked ~11.4 cubic cells and 10 candidates for ~1090 instructions, and walks ~4.4 columns
+//! and ~17 candidates (~5 of them at its height) for ~650 (with free motion's mid-step sphere,
+//! `motion::free_motion`); a falling block also stays in its column, so telling the grid of its
+//! move costs a comparison, not a division (~130 -> ~55 instructions). The candidates' records
+//! are small and side by side, so the walk also misses the cache less: the rain's step went
+//! from ~1.56M to ~1.05M instructions and from ~275 to ~140 us (mean, `stepper_profile`, the
+//! other core busy). A tall tower costs a query one height comparison per block of its column.
 //!
 //! It is a hash grid: columns hash into a fixed table of buckets (four times the blocks),
 //! each a linked list through the blocks, so memory is O(blocks) however far apart they are
