@@ -254,6 +254,32 @@ impl BlockGrid {
         }
     }
 
+    /// Whether no block's bounding sphere can come within `reach` of the box [lo, hi]: every
+    /// centre the grid holds is farther than that from it along an axis, and none is not
+    /// finite. One comparison of boxes, for a caller (the hand's stage) that would otherwise
+    /// ask [`near_any_order`](Self::near_any_order) and find nothing. With it, and the hand's
+    /// stages skipping what a hand that acts on nothing needs, a far hand costs a step ~330
+    /// instructions over no hand (callgrind, `stepper_profile idle`, which steps from the
+    /// start: most of it the grid's sync of cubes still settling), ~820 before.
+    pub(crate) fn nothing_near_box(
+        &mut self,
+        blocks: &[Block],
+        lo: DVec3,
+        hi: DVec3,
+        reach: f64,
+    ) -> bool {
+        if !self.built {
+            self.rebuild(blocks);
+        }
+        // As `near_any_order`'s own early out: a slack for the rounding far from the origin
+        // (a NaN compares false: not provably apart).
+        let slack = 1e-9 * (1.0 + lo.abs().max(hi.abs()).max_element() + reach);
+        let m = reach + self.max_radius + slack;
+        self.unplaced.is_empty()
+            && ((lo - m - slack).cmpgt(self.seen_hi).any()
+                || (hi + m + slack).cmplt(self.seen_lo).any())
+    }
+
     /// Every block whose bounding sphere comes within `reach` of `centre` (and maybe a
     /// little more: a slack covers rounding), by index. A caller whose own test is "the
     /// spheres come within m" asks with reach = its own radius + m.
@@ -386,8 +412,13 @@ mod tests {
         let mut grid = BlockGrid::new(&blocks);
         let far = DVec3::new(5.0, 0.5, 0.0);
         assert!(grid.near(&blocks, far, 0.05).is_empty());
+        let (lo, hi) = (far - 0.01, far + 0.01);
+        assert!(grid.nothing_near_box(&blocks, lo, hi, 0.05));
+        // Just within reach of the box along x: not provably apart.
+        assert!(!grid.nothing_near_box(&blocks, lo, hi, 5.0 - 1.9 - 0.01 - 0.02));
         blocks[3].pos = DVec3::new(5.0, 0.48, 0.01);
         grid.moved(3, blocks[3].pos);
+        assert!(!grid.nothing_near_box(&blocks, lo, hi, 0.05));
         assert_eq!(grid.near(&blocks, far, 0.05), &[3]);
         assert_eq!(
             grid.near(&blocks, DVec3::new(-3.0, 0.0, 0.0), 0.1),

@@ -358,6 +358,10 @@ impl HandContacts {
         // `near` accepts (a superset; `near` decides). In no order: each block's action is its
         // own, and the first entries are minima.
         grid.sync(blocks, active);
+        // Nothing near the hand (a hand far from every block): one comparison of boxes.
+        if grid.nothing_near_box(blocks, lo, hi, eps) {
+            return false;
+        }
         let candidates: &[u32] =
             grid.near_any_order(blocks, (lo + hi) * 0.5, 0.5 * (hi - lo).length() + eps);
         // Nothing near the hand: no block has an action to decide.
