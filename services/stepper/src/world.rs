@@ -330,6 +330,11 @@ impl World {
             };
             if passes.carry && moved {
                 carry.carry(blocks, active, grid, settings.hull_eps);
+            } else if !passes.free_motion {
+                // The grid must see every block that moved before it goes quiet (a block the
+                // floor stage moved last step is active in this one): free motion, which tells
+                // it otherwise, is off. The stage that skipped the carry keeps its sync.
+                grid.sync(blocks, active);
             }
         }
         // 3a. Supported stacking (R14, when the scene asks for it): blocks on blocks are judged
