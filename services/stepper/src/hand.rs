@@ -318,7 +318,8 @@ impl HandContacts {
 
     /// Stage 1: R1-R3 for every block near the hand (`hand` now, `prev` the hand of the
     /// previous step, P- and W-): decides each block's hand action. `grasp` says whether R5 may
-    /// grasp (hand = "grasp"); otherwise two contacts always push (R6).
+    /// grasp (hand = "grasp"); otherwise two contacts always push (R6). Whether it gave any
+    /// block an action: when not, stage 2 has nothing to move.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn decide_actions(
         &mut self,
@@ -329,7 +330,7 @@ impl HandContacts {
         prev: Option<&HandSample>,
         settings: &Settings,
         grasp: bool,
-    ) {
+    ) -> bool {
         let eps = settings.contact_eps;
         let hull_eps = settings.hull_eps;
         // Broad phase: the box around every check point now and before.
@@ -350,18 +351,22 @@ impl HandContacts {
         hi += DVec3::splat(eps);
         // A hand without check points touches nothing.
         if !lo.cmple(hi).all() {
-            return;
+            return false;
         }
         let near = |b: &Block| (b.pos.max(lo).min(hi) - b.pos).length() <= b.poly.radius + eps;
         // The grid's blocks within the box's half diagonal (and eps) of its centre: every block
         // `near` accepts (a superset; `near` decides). In no order: each block's action is its
         // own, and the first entries are minima.
         grid.sync(blocks, active);
+        // Nothing near the hand (a hand far from every block): one comparison of boxes.
+        if grid.nothing_near_box(blocks, lo, hi, eps) {
+            return false;
+        }
         let candidates: &[u32] =
             grid.near_any_order(blocks, (lo + hi) * 0.5, 0.5 * (hi - lo).length() + eps);
         // Nothing near the hand: no block has an action to decide.
         if candidates.is_empty() {
-            return;
+            return false;
         }
         let first = first_entries(
             candidates
@@ -373,6 +378,7 @@ impl HandContacts {
             hull_eps,
         );
         let contacts = &mut self.contacts;
+        let mut acted = false;
         for &j in candidates {
             let i = j as usize;
             let b = &mut blocks[i];
@@ -416,9 +422,11 @@ impl HandContacts {
             if action != HandAction::None {
                 // The hand acts on it: a resting block joins the step.
                 active.insert(i);
+                acted = true;
             }
             b.action = action;
         }
+        acted
     }
 }
 
@@ -444,7 +452,8 @@ pub(crate) fn end_grasps(blocks: &mut [Block], active: &BlockSet, inertia: bool)
 }
 
 /// Stage 2: R5 grasp (rigidly with the wrist), R4 one-point push, R6 translation, as stage 1
-/// decided them; `fingers` are the check points as drawn, which R5 relocates.
+/// decided them; `fingers` are the check points as drawn, which R5 relocates. Whether it moved
+/// any block (R10 carries from those).
 pub(crate) fn move_by_hand(
     blocks: &mut [Block],
     active: &BlockSet,
@@ -452,7 +461,7 @@ pub(crate) fn move_by_hand(
     prev: Option<&HandSample>,
     settings: &Settings,
     fingers: &mut Fingers,
-) {
+) -> bool {
     // R5's wrist motion, worked out for the first grasped block (a hand that acts on nothing
     // costs this stage a pass over the active set and nothing more).
     let wrist_motion = || {
@@ -467,6 +476,7 @@ pub(crate) fn move_by_hand(
     let eps = settings.contact_eps;
     let hull_eps = settings.hull_eps;
     let mut any_grasp = false;
+    let mut any_moved = false;
     // Stage 1 put every block the hand acts on in `active`.
     for i in active.iter() {
         let b = &mut blocks[i];
@@ -488,6 +498,7 @@ pub(crate) fn move_by_hand(
                 b.moved = Moved::Hand;
                 b.mode = BlockMode::Grasped;
                 any_grasp = true;
+                any_moved = true;
             }
             HandAction::Push { c, b: bp } => {
                 // R4.
@@ -499,6 +510,7 @@ pub(crate) fn move_by_hand(
                     b.v = p.t;
                     b.moved = Moved::Hand;
                     b.mode = BlockMode::Pushed;
+                    any_moved = true;
                 }
             }
             HandAction::Translate(t) => {
@@ -507,12 +519,14 @@ pub(crate) fn move_by_hand(
                 b.v = t;
                 b.moved = Moved::Hand;
                 b.mode = BlockMode::Pushed;
+                any_moved = true;
             }
         }
     }
     if any_grasp {
         relocate_fingers(blocks, hand, fingers);
     }
+    any_moved
 }
 
 /// R5: check points that end inside a grasped block are moved to its surface (nearest point),

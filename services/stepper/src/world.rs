@@ -304,16 +304,37 @@ impl World {
         if passes.hand {
             // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
             //    action; then R13 ends the grasps they no longer confirm.
-            if let Some(h) = hand {
-                hand_contacts.decide_actions(blocks, active, grid, h, prev, settings, passes.grasp);
+            let acted = match hand {
+                Some(h) => hand_contacts.decide_actions(
+                    blocks,
+                    active,
+                    grid,
+                    h,
+                    prev,
+                    settings,
+                    passes.grasp,
+                ),
+                None => false,
+            };
+            // R5 grasps only with hand = "grasp": without it no block is ever grasped, and R13
+            // has nothing to end (no pass over the active set: ~16 instructions a block).
+            if passes.grasp {
+                end_grasps(blocks, active, settings.inertia);
             }
-            end_grasps(blocks, active, settings.inertia);
-            // 2. Hand-driven motion (R5, R4, R6), then carry (R10).
-            if let Some(h) = hand {
-                move_by_hand(blocks, active, h, prev, settings, fingers);
-            }
-            if passes.carry {
+            // 2. Hand-driven motion (R5, R4, R6), then carry (R10) from the blocks it moved. A
+            //    hand that acts on nothing (far from every block, or no hand) moves nothing and
+            //    carries nothing: neither stage runs, not even a pass over the active set.
+            let moved = match hand {
+                Some(h) if acted => move_by_hand(blocks, active, h, prev, settings, fingers),
+                _ => false,
+            };
+            if passes.carry && moved {
                 carry.carry(blocks, active, grid, settings.hull_eps);
+            } else if !passes.free_motion {
+                // The grid must see every block that moved before it goes quiet (a block the
+                // floor stage moved last step is active in this one): free motion, which tells
+                // it otherwise, is off. The stage that skipped the carry keeps its sync.
+                grid.sync(blocks, active);
             }
         }
         // 3a. Supported stacking (R14, when the scene asks for it): blocks on blocks are judged
