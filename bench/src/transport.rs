@@ -636,41 +636,26 @@ fn write_outputs(rows: &[Row], b: &TransportBench) -> Result<Value, Box<dyn std:
             percentile_distribution(&r.histogram, 1000.0),
         )?;
     }
-    // iceoryx2 (woken) against the Unix socket, per payload: the case for shared memory.
-    let mut ratios = Vec::new();
-    for &bytes in &PAYLOADS {
-        for rate in [PACED_HZ, 0.0] {
-            if let (Some(i), Some(u)) = (
-                find(rows, Transport::Iceoryx2, bytes, rate),
-                find(rows, Transport::Uds, bytes, rate),
-            ) {
-                let (si, su) = (Summary::of(&i.histogram), Summary::of(&u.histogram));
-                ratios.push(json!({
-                    "payload_bytes": bytes, "rate_hz": rate,
-                    "uds_p50_over_iceoryx2_p50": round2(su.p50 / si.p50),
-                    "uds_p99_over_iceoryx2_p99": round2(su.p99 / si.p99),
-                }));
-            }
-        }
-    }
-    // The bridged hop (zenoh) against the local one (iceoryx2, woken): what leaving the
-    // machine costs, per payload.
-    let mut bridged = Vec::new();
-    for &bytes in &PAYLOADS {
-        for rate in [PACED_HZ, 0.0] {
-            if let (Some(i), Some(z)) = (
-                find(rows, Transport::Iceoryx2, bytes, rate),
-                find(rows, Transport::Zenoh, bytes, rate),
-            ) {
-                let (si, sz) = (Summary::of(&i.histogram), Summary::of(&z.histogram));
-                bridged.push(json!({
-                    "payload_bytes": bytes, "rate_hz": rate,
-                    "zenoh_p50_over_iceoryx2_p50": round2(sz.p50 / si.p50),
-                    "zenoh_p99_over_iceoryx2_p99": round2(sz.p99 / si.p99),
-                }));
-            }
-        }
-    }
+    // iceoryx2 (woken) against the Unix socket, per payload: the case for shared memory; and
+    // the bridged hop (zenoh) against it: what leaving the machine costs.
+    let ratios_json = |t: Transport, p50_key: &str, p99_key: &str| -> Vec<Value> {
+        over_iceoryx2(rows, t)
+            .into_iter()
+            .map(|(bytes, rate, p50, p99)| {
+                json!({"payload_bytes": bytes, "rate_hz": rate, p50_key: round2(p50), p99_key: round2(p99)})
+            })
+            .collect()
+    };
+    let ratios = ratios_json(
+        Transport::Uds,
+        "uds_p50_over_iceoryx2_p50",
+        "uds_p99_over_iceoryx2_p99",
+    );
+    let bridged = ratios_json(
+        Transport::Zenoh,
+        "zenoh_p50_over_iceoryx2_p50",
+        "zenoh_p99_over_iceoryx2_p99",
+    );
     let value = json!({
         "quick": b.quick,
         "transport": rows.iter().map(Row::json).collect::<Vec<_>>(),
@@ -693,6 +678,24 @@ fn write_outputs(rows: &[Row], b: &TransportBench) -> Result<Value, Box<dyn std:
         hgrm_dir.display()
     );
     Ok(value)
+}
+
+/// `t`'s p50 and p99 as multiples of the woken iceoryx2 hop's, per payload and rate, for the
+/// rows measured in this run.
+fn over_iceoryx2(rows: &[Row], t: Transport) -> Vec<(usize, f64, f64, f64)> {
+    let mut out = Vec::new();
+    for &bytes in &PAYLOADS {
+        for rate in [PACED_HZ, 0.0] {
+            if let (Some(i), Some(o)) = (
+                find(rows, Transport::Iceoryx2, bytes, rate),
+                find(rows, t, bytes, rate),
+            ) {
+                let (si, so) = (Summary::of(&i.histogram), Summary::of(&o.histogram));
+                out.push((bytes, rate, so.p50 / si.p50, so.p99 / si.p99));
+            }
+        }
+    }
+    out
 }
 
 fn round2(v: f64) -> f64 {
@@ -731,40 +734,22 @@ fn markdown(rows: &[Row], quick: bool) -> String {
             r.throughput_hz
         ));
     }
-    md.push_str("\n## The Unix socket's latency as a multiple of iceoryx2's (same run)\n\n| payload | rate | p50 | p99 |\n|---|---|---|---|\n");
-    for &bytes in &PAYLOADS {
-        for rate in [PACED_HZ, 0.0] {
-            if let (Some(i), Some(u)) = (
-                find(rows, Transport::Iceoryx2, bytes, rate),
-                find(rows, Transport::Uds, bytes, rate),
-            ) {
-                let (si, su) = (Summary::of(&i.histogram), Summary::of(&u.histogram));
-                md.push_str(&format!(
-                    "| {} | {} | {:.2}x | {:.2}x |\n",
-                    size_name(bytes),
-                    if rate > 0.0 { "120 Hz" } else { "flat out" },
-                    su.p50 / si.p50,
-                    su.p99 / si.p99
-                ));
-            }
-        }
-    }
-    md.push_str("\n## The bridged hop (zenoh, loopback) as a multiple of the local one (iceoryx2, woken; same run)\n\n| payload | rate | p50 | p99 |\n|---|---|---|---|\n");
-    for &bytes in &PAYLOADS {
-        for rate in [PACED_HZ, 0.0] {
-            if let (Some(i), Some(z)) = (
-                find(rows, Transport::Iceoryx2, bytes, rate),
-                find(rows, Transport::Zenoh, bytes, rate),
-            ) {
-                let (si, sz) = (Summary::of(&i.histogram), Summary::of(&z.histogram));
-                md.push_str(&format!(
-                    "| {} | {} | {:.2}x | {:.2}x |\n",
-                    size_name(bytes),
-                    if rate > 0.0 { "120 Hz" } else { "flat out" },
-                    sz.p50 / si.p50,
-                    sz.p99 / si.p99
-                ));
-            }
+    for (t, title) in [
+        (Transport::Uds, "The Unix socket's latency as a multiple of iceoryx2's (same run)"),
+        (
+            Transport::Zenoh,
+            "The bridged hop (zenoh, loopback) as a multiple of the local one (iceoryx2, woken; same run)",
+        ),
+    ] {
+        md.push_str(&format!(
+            "\n## {title}\n\n| payload | rate | p50 | p99 |\n|---|---|---|---|\n"
+        ));
+        for (bytes, rate, p50, p99) in over_iceoryx2(rows, t) {
+            md.push_str(&format!(
+                "| {} | {} | {p50:.2}x | {p99:.2}x |\n",
+                size_name(bytes),
+                if rate > 0.0 { "120 Hz" } else { "flat out" },
+            ));
         }
     }
     md
