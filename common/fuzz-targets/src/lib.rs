@@ -661,38 +661,6 @@ pub fn generate(seed: u64, text: bool, out: &mut Vec<u8>) {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn mutations_are_deterministic_and_differ() {
-        let input = b"CARL\x01\0\0\0 some bytes to mutate";
-        let (mut a, mut b) = (Vec::new(), Vec::new());
-        mutate(7, input, &mut a);
-        mutate(7, input, &mut b);
-        assert_eq!(a, b);
-        let distinct: std::collections::HashSet<Vec<u8>> = (0..100)
-            .map(|s| {
-                mutate(s, input, &mut a);
-                a.clone()
-            })
-            .collect();
-        assert!(distinct.len() > 90, "{}", distinct.len());
-        mutate(3, b"", &mut a); // an empty input still mutates
-    }
-
-    #[test]
-    fn every_target_takes_empty_and_short_inputs() {
-        for (_, t) in TARGETS {
-            for d in [&b""[..], b"\0", b"\xff\xff", b"0123"] {
-                t(d);
-            }
-        }
-        remove_scratch_dir();
-    }
-}
-
 /// `link`: a sample as the bridge takes it off a zenoh link from another machine (issue 17):
 /// the first byte picks the topic (of the recorded ones, in table order), the rest is its
 /// message. A message that decodes is exactly the sample it holds: encoding the sample again
@@ -736,5 +704,37 @@ pub fn link(data: &[u8]) {
             }
         }
         Topic::Latency => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mutations_are_deterministic_and_differ() {
+        let input = b"CARL\x01\0\0\0 some bytes to mutate";
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        mutate(7, input, &mut a);
+        mutate(7, input, &mut b);
+        assert_eq!(a, b);
+        let distinct: std::collections::HashSet<Vec<u8>> = (0..100)
+            .map(|s| {
+                mutate(s, input, &mut a);
+                a.clone()
+            })
+            .collect();
+        assert!(distinct.len() > 90, "{}", distinct.len());
+        mutate(3, b"", &mut a); // an empty input still mutates
+    }
+
+    #[test]
+    fn every_target_takes_empty_and_short_inputs() {
+        for (_, t) in TARGETS {
+            for d in [&b""[..], b"\0", b"\xff\xff", b"0123"] {
+                t(d);
+            }
+        }
+        remove_scratch_dir();
     }
 }
