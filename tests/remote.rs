@@ -100,6 +100,30 @@ impl Drop for Hosts {
     }
 }
 
+/// One test's two halves: the hosts, the session's endpoint (on the session's host, a free
+/// port), a zenoh key and a bus id per half, all of them the test's own.
+struct Halves {
+    hosts: Hosts,
+    endpoint: String,
+    key: String,
+    local_id: String,
+    viewer_id: String,
+}
+
+impl Halves {
+    fn new(tag: &str, subnet: u8) -> Halves {
+        let hosts = Hosts::new(tag, subnet);
+        let pid = std::process::id();
+        Halves {
+            endpoint: format!("tcp/{}:{}", hosts.local.1, free_port()),
+            key: format!("hbtest/{tag}{pid}"),
+            local_id: format!("rm{tag}L{pid}"),
+            viewer_id: format!("rm{tag}V{pid}"),
+            hosts,
+        }
+    }
+}
+
 /// A port free on this machine now (namespaces have ports of their own; loopback shares).
 fn free_port() -> u16 {
     TcpListener::bind("127.0.0.1:0")
@@ -192,14 +216,13 @@ fn p(v: &Value, path: &[&str]) -> f64 {
 #[test]
 fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
     let dir = Scratch::new("remote-same");
-    let hosts = Hosts::new("s", 31);
-    let port = free_port();
-    let endpoint = format!("tcp/{}:{port}", hosts.local.1);
-    let key = format!("hbtest/same{}", std::process::id());
-    let (local_id, viewer_id) = (
-        format!("rmS{}", std::process::id()),
-        format!("rmV{}", std::process::id()),
-    );
+    let Halves {
+        hosts,
+        endpoint,
+        key,
+        local_id,
+        viewer_id,
+    } = Halves::new("s", 31);
     let (local_rec, viewer_rec) = (dir.path("local.mcap"), dir.path("viewer.mcap"));
     let (local_rep, viewer_rep) = (dir.path("local.json"), dir.path("viewer.json"));
 
@@ -326,14 +349,13 @@ fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
 #[test]
 fn killing_the_viewer_does_not_disturb_the_session() {
     let dir = Scratch::new("remote-kill");
-    let hosts = Hosts::new("k", 32);
-    let port = free_port();
-    let endpoint = format!("tcp/{}:{port}", hosts.local.1);
-    let key = format!("hbtest/kill{}", std::process::id());
-    let (local_id, viewer_id) = (
-        format!("rmK{}", std::process::id()),
-        format!("rmW{}", std::process::id()),
-    );
+    let Halves {
+        hosts,
+        endpoint,
+        key,
+        local_id,
+        viewer_id,
+    } = Halves::new("k", 32);
     let (local_rep, viewer_rep) = (dir.path("local.json"), dir.path("viewer.json"));
     let local = launch(
         &hosts.local,

@@ -36,6 +36,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::bus::BusConfig;
+use common::config::session::LinkRole;
 use common::latency::{new_histogram, Summary};
 use common::monotonic_ns;
 use hdrhistogram::Histogram;
@@ -229,15 +230,13 @@ pub fn peer(a: &PeerArgs) -> Result<(), Box<dyn std::error::Error>> {
         }
         Transport::Zenoh => {
             use zenoh::Wait;
-            let session = zenoh::open(zenoh_config(&a.endpoint, false)?)
-                .wait()
-                .map_err(|e| e.to_string())?;
-            let publisher = session
-                .declare_publisher(ZENOH_KEY)
-                .congestion_control(zenoh::qos::CongestionControl::Drop)
-                .priority(zenoh::qos::Priority::InteractiveHigh)
-                .express(true)
-                .wait()
+            let session = zenoh::open(bridge::link::peer_config(
+                &format!("tcp/{}", a.endpoint),
+                LinkRole::Connect,
+            )?)
+            .wait()
+            .map_err(|e| e.to_string())?;
+            let publisher = bridge::link::declare_sender(&session, ZENOH_KEY.to_string())
                 .map_err(|e| e.to_string())?;
             // Not before the reader's subscription is known here: what went out before would
             // be lost to nobody, not to the link.
@@ -287,27 +286,9 @@ pub fn peer(a: &PeerArgs) -> Result<(), Box<dyn std::error::Error>> {
 }
 
 /// The key of the zenoh runs (each reader listens on a port of its own, and finds no one by
-/// multicast, so runs never hear each other).
+/// multicast, so runs never hear each other). Both sides are set up as the bridge's are
+/// (`bridge::link::peer_config`, `declare_sender`).
 const ZENOH_KEY: &str = "handblocks/bench/transport";
-
-/// A zenoh peer on TCP: the reader listens on `endpoint` (`127.0.0.1:PORT`), the writer
-/// connects to it, as the bridge's two halves do.
-fn zenoh_config(endpoint: &str, listen: bool) -> Result<zenoh::Config, String> {
-    let mut c = zenoh::Config::default();
-    let ep = format!("[\"tcp/{endpoint}\"]");
-    let set = |c: &mut zenoh::Config, k: &str, v: &str| {
-        c.insert_json5(k, v).map_err(|e| format!("zenoh {k}: {e}"))
-    };
-    set(&mut c, "mode", "\"peer\"")?;
-    set(&mut c, "scouting/multicast/enabled", "false")?;
-    if listen {
-        set(&mut c, "listen/endpoints", &ep)?;
-    } else {
-        set(&mut c, "listen/endpoints", "[]")?;
-        set(&mut c, "connect/endpoints", &ep)?;
-    }
-    Ok(c)
-}
 
 type ByteService =
     iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>;
@@ -453,9 +434,12 @@ fn measure(exe: &Path, a: &PeerArgs) -> Result<Row, Box<dyn std::error::Error>> 
                 endpoint: format!("127.0.0.1:{port}"),
                 ..a.clone()
             };
-            let session = zenoh::open(zenoh_config(&args.endpoint, true)?)
-                .wait()
-                .map_err(|e| e.to_string())?;
+            let session = zenoh::open(bridge::link::peer_config(
+                &format!("tcp/{}", args.endpoint),
+                LinkRole::Listen,
+            )?)
+            .wait()
+            .map_err(|e| e.to_string())?;
             let subscriber = session
                 .declare_subscriber(ZENOH_KEY)
                 .wait()

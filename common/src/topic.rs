@@ -5,7 +5,8 @@
 //! listing topics again: the bus's typed ports ([`crate::bus::Bus::outlet`] and
 //! [`crate::bus::Bus::inlet`] take a marker type from [`topics`], so a port's sample type is
 //! its topic's and a wrong pairing does not compile), the services the launcher creates, the
-//! subscribers it waits for before starting the source ([`Topic::readers_among`]), the
+//! subscribers it waits for before starting the source ([`Topic::readers`]; the bridge, a
+//! reader of every topic in the table, counted on those its session names), the
 //! source's topics ([`Stage::recorded_outputs`]), and the recording's channels
 //! ([`Topic::RECORDED`]: the topics the recorder reads).
 

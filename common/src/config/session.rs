@@ -418,6 +418,14 @@ impl Session {
     }
 }
 
+impl Session {
+    /// The topics this session's bridge reads from its bus ([`BridgeSettings::inputs`]; a
+    /// remote-fed session's view shows what its link brings, not what its bus carries).
+    pub fn bridge_inputs(&self) -> Vec<crate::topic::Topic> {
+        self.bridge.inputs(!matches!(self.source, Source::Remote))
+    }
+}
+
 /// `[pipeline] wait`: "event" (sleep until woken, the default), "spin" (poll always, for
 /// machines with cores to spare) or "adaptive" (sleep until shortly before the next sample is
 /// due, then poll a bounded window, then sleep on the event).

@@ -109,18 +109,19 @@ pub struct Link {
     pub endpoint: String,
 }
 
-/// zenoh's configuration for one link: a peer, on TCP, that listens on or connects to
-/// `endpoint` (retrying every 100-500 ms until the other side answers, so the halves start in
-/// either order), and finds no one by multicast (a session talks to whom its file names).
-fn config(link: &RemoteLink) -> Result<zenoh::Config, String> {
+/// zenoh's configuration for one side of a link: a peer, on TCP, that listens on or connects
+/// to `endpoint` (`tcp/HOST:PORT`; a connecting side retries every 100-500 ms until the other
+/// answers, so the halves start in either order), and finds no one by multicast (a session
+/// talks to whom its file names). The latency bench's zenoh rows use it too.
+pub fn peer_config(endpoint: &str, role: LinkRole) -> Result<zenoh::Config, String> {
     let mut c = zenoh::Config::default();
     let set = |c: &mut zenoh::Config, k: &str, v: &str| {
         c.insert_json5(k, v).map_err(|e| format!("{k} = {v}: {e}"))
     };
     set(&mut c, "mode", "\"peer\"")?;
     set(&mut c, "scouting/multicast/enabled", "false")?;
-    let endpoint = serde_json::to_string(&[&link.endpoint]).map_err(|e| e.to_string())?;
-    match link.role {
+    let endpoint = serde_json::to_string(&[endpoint]).map_err(|e| e.to_string())?;
+    match role {
         LinkRole::Listen => {
             set(&mut c, "listen/endpoints", &endpoint)?;
         }
@@ -137,6 +138,21 @@ fn config(link: &RemoteLink) -> Result<zenoh::Config, String> {
         }
     }
     Ok(c)
+}
+
+/// A publisher on `key` as the bridge sends: dropping rather than blocking when the link is
+/// full (backpressure never reaches the pipeline), high priority, and express (not batched:
+/// a world state goes out as soon as it is put). The latency bench's zenoh writer uses it too.
+pub fn declare_sender(
+    session: &zenoh::Session,
+    key: String,
+) -> Result<Publisher<'static>, zenoh::Error> {
+    session
+        .declare_publisher(key)
+        .congestion_control(CongestionControl::Drop)
+        .priority(Priority::InteractiveHigh)
+        .express(true)
+        .wait()
 }
 
 fn eventfd() -> Result<OwnedFd, LinkError> {
@@ -164,7 +180,7 @@ impl Link {
             endpoint: link.endpoint.clone(),
             reason,
         };
-        let session = zenoh::open(config(link).map_err(open_err)?)
+        let session = zenoh::open(peer_config(&link.endpoint, link.role).map_err(open_err)?)
             .wait()
             .map_err(|e| open_err(e.to_string()))?;
         let declare_err = |key: &str, e: zenoh::Error| LinkError::Declare {
@@ -175,14 +191,7 @@ impl Link {
         let mut clock_answers = Vec::new();
         for &topic in &link.publish {
             let key = format!("{}/{}", link.key, topic.name());
-            let p = session
-                .declare_publisher(key.clone())
-                .congestion_control(CongestionControl::Drop)
-                .priority(Priority::InteractiveHigh)
-                // Not batched with others: a world state goes out as soon as it is put.
-                .express(true)
-                .wait()
-                .map_err(|e| declare_err(&key, e))?;
+            let p = declare_sender(&session, key.clone()).map_err(|e| declare_err(&key, e))?;
             publishers.push((topic, p));
             let clock_key = format!("{}/clock/{}", link.key, topic.name());
             let q = session

@@ -239,7 +239,7 @@ impl TopicVisitor for OpenPorts<'_> {
 pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn Error>> {
     let settings = &session.bridge;
     let remote_fed = matches!(session.source, Source::Remote);
-    let inputs = settings.inputs(!remote_fed);
+    let inputs = session.bridge_inputs();
     let outputs = settings.outputs();
     let link = match &settings.link {
         Some(l) => {
@@ -357,7 +357,11 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn Error>> {
 /// Publishes what the link queued, once the other clock is known (until then it waits in the
 /// queue: a sample's stamps cannot be placed on our timeline without it).
 fn take_in(out: &mut Out, outs: &mut [Box<dyn Output>], remote_fed: bool) {
-    let Some(link) = &out.link else { return };
+    // Nothing taken in: no wake-ups to clear (a session that only sends pays no read(2) per
+    // sample here).
+    let Some(link) = out.link.as_ref().filter(|_| !outs.is_empty()) else {
+        return;
+    };
     link.clear_wake();
     let Some(offset) = link.clock.offset_ns() else {
         return;

@@ -519,9 +519,7 @@ fn start_readers(
     for stage in stages.iter().rev() {
         procs.push(starter.start(*stage, placement, 0)?);
     }
-    let bridge_inputs = session
-        .bridge
-        .inputs(!matches!(session.source, Source::Remote));
+    let bridge_inputs = session.bridge_inputs();
     let renderer_skipped = wait_until_connected(services, &mut stages, &bridge_inputs, &mut procs)?;
     if let Some(line) = &renderer_skipped {
         eprintln!("handblocks: {line}");
