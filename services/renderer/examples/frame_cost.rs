@@ -1,6 +1,7 @@
 //! Time of `Renderer::render` (draw both eyes, wait for the GPU) alone, per frame content.
-//! `cargo run -p renderer --release --example frame_cost -- [WIDTH HEIGHT] [FRAMES] [GAP_MS]`
-//! (GAP_MS: idle time between frames, as a paced loop has)
+//! `cargo run -p renderer --release --example frame_cost -- [WIDTH HEIGHT] [FRAMES] [GAP_MS] [BLOCKS]`
+//! (GAP_MS: idle time between frames, as a paced loop has; BLOCKS: 8 by default, laid out on a
+//! square grid 8 cm apart like config/scenes/field-1024.toml)
 
 use std::path::PathBuf;
 
@@ -19,7 +20,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let frames = a.get(2).copied().unwrap_or(200);
     let gap = std::time::Duration::from_millis(a.get(3).copied().unwrap_or(0) as u64);
-    let blocks = 8;
+    let blocks = a.get(4).copied().unwrap_or(8) as usize;
+    let side = (blocks as f64).sqrt().ceil() as usize;
     let scene = Scene {
         file: PathBuf::from("cost"),
         world: WorldSettings::default(),
@@ -37,8 +39,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let mut world = WorldSample::with_blocks(blocks);
     for (i, b) in world.blocks[..blocks].iter_mut().enumerate() {
-        let a = i as f64 * 0.8;
-        b.pose.position = [0.3 * a.cos(), 0.03, 0.3 * a.sin()];
+        let (col, row) = ((i % side) as f64, (i / side) as f64);
+        let half = (side as f64 - 1.0) / 2.0;
+        b.pose.position = [0.08 * (col - half), 0.03, 0.08 * (row - half)];
         b.pose.rotation = [0.0, 0.0, 0.0, 1.0];
         b.mode = BlockMode::Resting as u32;
     }
@@ -52,7 +55,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ..RenderSettings::default()
         };
         let mut r = Renderer::new_headless(&settings, &scene)?;
-        for (name, wld) in [("floor only", &empty), ("8 blocks", &world)] {
+        let label = format!("{blocks} blocks");
+        for (name, wld) in [("floor only", &empty), (label.as_str(), &world)] {
             let mut t = Vec::new();
             for i in 0..frames + 10 {
                 std::thread::sleep(gap);

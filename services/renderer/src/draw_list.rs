@@ -54,13 +54,14 @@ const PALM_INSTANCE: u32 = 1;
 /// One instanced draw of blocks: their shared mesh's vertex range and their instances.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BlockDraw {
-    pub vertices: Range<u32>,
+    /// The mesh's range of the index buffer.
+    pub indices: Range<u32>,
     pub instances: Range<u32>,
 }
 
 /// The blocks of one mesh, fixed by the scene.
 struct MeshGroup {
-    vertices: Range<u32>,
+    indices: Range<u32>,
     /// Scene indices of its blocks, ascending.
     blocks: Vec<u32>,
 }
@@ -84,15 +85,15 @@ pub struct DrawList {
 }
 
 impl DrawList {
-    /// A draw list for a scene whose blocks have these vertex ranges (equal ranges: one mesh,
+    /// A draw list for a scene whose blocks have these index ranges (equal ranges: one mesh,
     /// drawn instanced); blocks of a world beyond them are not drawn.
     pub fn new(block_meshes: &[Range<u32>]) -> DrawList {
         let mut groups: Vec<MeshGroup> = Vec::new();
         for (i, mesh) in block_meshes.iter().enumerate() {
-            match groups.iter_mut().find(|g| g.vertices == *mesh) {
+            match groups.iter_mut().find(|g| g.indices == *mesh) {
                 Some(g) => g.blocks.push(i as u32),
                 None => groups.push(MeshGroup {
-                    vertices: mesh.clone(),
+                    indices: mesh.clone(),
                     blocks: vec![i as u32],
                 }),
             }
@@ -166,7 +167,7 @@ impl DrawList {
             let end = self.instances.len() as u32;
             if end > start {
                 self.blocks.push(BlockDraw {
-                    vertices: g.vertices.clone(),
+                    indices: g.indices.clone(),
                     instances: start..end,
                 });
             }
@@ -232,7 +233,7 @@ impl DrawList {
             for p in t {
                 self.palm_vertices.push(Vertex {
                     position: p.as_vec3().to_array(),
-                    edge: 1.0,
+                    edge: [1.0; 4],
                 });
             }
         }
@@ -304,7 +305,7 @@ mod tests {
         let mut d = DrawList::new(&meshes);
         d.build(w.view(), &h);
         assert_eq!(d.blocks.len(), 1);
-        assert_eq!(d.blocks[0].vertices, 0..36);
+        assert_eq!(d.blocks[0].indices, 0..36);
         assert_eq!(d.blocks[0].instances.len(), 1);
         assert_eq!(d.block_instance[1..], [u32::MAX, u32::MAX]);
         assert_eq!(d.joints.len(), 2); // the NaN point is skipped
@@ -350,7 +351,7 @@ mod tests {
         let mut d = DrawList::new(&meshes);
         d.build(w.view(), &HandSample::default());
         assert_eq!(d.blocks.len(), 2, "two meshes, two draws");
-        assert_eq!(d.blocks[0].vertices, 36..72);
+        assert_eq!(d.blocks[0].indices, 36..72);
         assert_eq!(d.blocks[0].instances.len(), n.div_ceil(3));
         assert_eq!(d.blocks[1].instances.len(), n - n.div_ceil(3));
         for (i, b) in w.blocks.iter().enumerate() {

@@ -2,13 +2,20 @@
 //! joints, placed per frame by instance matrices), and one mesh per scene block (the shapes
 //! crate's solid, the one the stepper simulates).
 //!
-//! Vertices carry only a position and an "edge weight": faces are triangle fans from each
-//! polygon's centre, whose centre vertex has weight 1 and whose rim vertices have 0, so the
-//! interpolated weight is 0 exactly on the polygon's outline. The fragment shader darkens
-//! pixels within about a pixel of 0 (`w / fwidth(w)`), which draws every block edge at a
-//! constant screen width in the same pass, without a line pipeline (lines are 1 px in wgpu
-//! and need their own depth bias). Normals come from screen derivatives in the shader, so
-//! every face is flat-shaded.
+//! Vertices carry only a position and four "edge weights", each 0 along some of the polygon's
+//! edges and none 0 inside it, so the smallest of them is 0 exactly on the polygon's outline.
+//! A triangle face is one triangle (its barycentric coordinates), a quadrilateral two (its
+//! u, 1-u, v, 1-v: affine across both halves of a parallelogram, and 0 along its four sides
+//! whatever its shape, never along the diagonal), any larger polygon a fan from its centre
+//! (weight 1 at the centre, 0 on the rim). The fragment shader darkens pixels within about a
+//! pixel of 0 (`w / fwidth(w)`), which draws every block edge at a constant screen width in
+//! the same pass, without a line pipeline (lines are 1 px in wgpu and need their own depth
+//! bias). Normals come from screen derivatives in the shader, so every face is flat-shaded.
+//!
+//! Why not a fan everywhere (one weight, fewer attributes): a software rasteriser (llvmpipe)
+//! pays per triangle, and a cube's fans are 24 triangles where its quads are 12; a field of
+//! 1024 cubes in stereo, with shadows, took 18 ms a frame in triangle set-up alone at 16 x 16
+//! pixels (8 ms with quads). Every mesh is indexed too (each distinct vertex once).
 
 use std::ops::Range;
 
@@ -21,17 +28,20 @@ use shapes::Solid;
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub struct Vertex {
     pub position: [f32; 3],
-    /// 1 at a face's centre, 0 on its outline (see the module doc).
-    pub edge: f32,
+    /// Edge weights: the smallest is 0 exactly on the face's outline (see the module doc);
+    /// all 1 on meshes drawn without edges; the floor grid's line strength in the first.
+    pub edge: [f32; 4],
 }
 
 /// Half the floor's side, metres: blocks stay within ~1 m of the origin; the floor fills the
 /// view behind them.
 pub const FLOOR_HALF: f32 = 4.0;
 
-/// All static meshes in one vertex buffer, and where each lies in it.
+/// All static meshes in one vertex and one index buffer, and where each lies in the index
+/// buffer (each range is drawn with `draw_indexed`, base vertex 0).
 pub struct Meshes {
     pub vertices: Vec<Vertex>,
+    pub indices: Vec<u32>,
     pub floor: Range<u32>,
     /// The floor grid, as a line list (see [`grid_lines`]).
     pub grid: Range<u32>,
@@ -52,11 +62,11 @@ pub struct ShapeError {
 
 impl Meshes {
     pub fn build(shapes: &[&ShapeSpec]) -> Result<Meshes, ShapeError> {
-        let mut vertices = Vec::new();
-        let floor = push(&mut vertices, floor_triangles());
-        let grid = push(&mut vertices, grid_lines());
-        let cylinder = push(&mut vertices, cylinder_triangles(12));
-        let sphere = push(&mut vertices, sphere_triangles(12, 6));
+        let mut buffers = IndexedBuffers::default();
+        let floor = buffers.push(floor_triangles());
+        let grid = buffers.push(grid_lines());
+        let cylinder = buffers.push(cylinder_triangles(12));
+        let sphere = buffers.push(sphere_triangles(12, 6));
         let mut blocks = Vec::with_capacity(shapes.len());
         // Each distinct shape once: scenes hold few (a linear search over them is enough).
         let mut distinct: Vec<(&ShapeSpec, Range<u32>)> = Vec::new();
@@ -66,12 +76,13 @@ impl Meshes {
                 continue;
             }
             let solid = Solid::from_spec(s).map_err(|problem| ShapeError { block: i, problem })?;
-            let range = push(&mut vertices, solid_triangles(&solid));
+            let range = buffers.push(solid_triangles(&solid));
             distinct.push((s, range.clone()));
             blocks.push(range);
         }
         Ok(Meshes {
-            vertices,
+            vertices: buffers.vertices,
+            indices: buffers.indices,
             floor,
             grid,
             cylinder,
@@ -81,13 +92,41 @@ impl Meshes {
     }
 }
 
-fn push(out: &mut Vec<Vertex>, tris: Vec<Vertex>) -> Range<u32> {
-    let start = out.len() as u32;
-    out.extend(tris);
-    start..out.len() as u32
+/// The shared vertex and index buffers being filled.
+#[derive(Default)]
+struct IndexedBuffers {
+    vertices: Vec<Vertex>,
+    indices: Vec<u32>,
+}
+
+impl IndexedBuffers {
+    /// Appends a mesh given as a plain primitive list (triangles or lines), each distinct
+    /// vertex once (equal bits, within this mesh); returns its index range.
+    fn push(&mut self, primitives: Vec<Vertex>) -> Range<u32> {
+        let mut seen: std::collections::HashMap<Vec<u32>, u32> = Default::default();
+        let start = self.indices.len() as u32;
+        for v in primitives {
+            let bits = [v.position.as_slice(), v.edge.as_slice()]
+                .concat()
+                .iter()
+                .map(|x| x.to_bits())
+                .collect::<Vec<u32>>();
+            let next = self.vertices.len() as u32;
+            let index = *seen.entry(bits).or_insert(next);
+            if index == next {
+                self.vertices.push(v);
+            }
+            self.indices.push(index);
+        }
+        start..self.indices.len() as u32
+    }
 }
 
 fn v(p: DVec3, edge: f32) -> Vertex {
+    v4(p, [edge; 4])
+}
+
+fn v4(p: DVec3, edge: [f32; 4]) -> Vertex {
     Vertex {
         position: p.as_vec3().to_array(),
         edge,
@@ -95,10 +134,30 @@ fn v(p: DVec3, edge: f32) -> Vertex {
 }
 
 /// A block's mesh: each face of its solid (centred on G, where the world sample's pose puts
-/// the block) as a fan from its centre (edge weight 1) to its outline (edge weight 0).
+/// the block) as one triangle, two (a quadrilateral) or a fan, with edge weights that are 0
+/// on its outline (module doc).
 pub fn solid_triangles(p: &Solid) -> Vec<Vertex> {
     let mut out = Vec::new();
     for f in &p.faces {
+        let corner = |k: usize| p.vertices[f[k]];
+        if f.len() == 3 {
+            // Barycentric: weight k is 0 on the side opposite corner k.
+            out.extend([
+                v4(corner(0), [1.0, 0.0, 0.0, 1.0]),
+                v4(corner(1), [0.0, 1.0, 0.0, 1.0]),
+                v4(corner(2), [0.0, 0.0, 1.0, 1.0]),
+            ]);
+            continue;
+        }
+        if f.len() == 4 {
+            // Corners at (u, v) = (0, 0), (1, 0), (1, 1), (0, 1); weights u, 1-u, v, 1-v.
+            let uv = |k: usize| {
+                let (u, v) = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)][k];
+                v4(corner(k), [u, 1.0 - u, v, 1.0 - v])
+            };
+            out.extend([uv(0), uv(1), uv(2), uv(0), uv(2), uv(3)]);
+            continue;
+        }
         let c = f.iter().map(|&i| p.vertices[i]).sum::<DVec3>() / f.len() as f64;
         for k in 0..f.len() {
             let a = p.vertices[f[k]];
@@ -223,6 +282,39 @@ mod tests {
             let p = Solid::from_spec(&spec).unwrap();
             assert!(outward(&solid_triangles(&p), DVec3::ZERO), "{spec:?}");
         }
+    }
+
+    #[test]
+    fn indexing_keeps_every_triangle_and_stores_each_distinct_vertex_once() {
+        let cube = ShapeSpec::Box { size: [0.1; 3] };
+        let meshes = Meshes::build(&[&cube, &cube]).unwrap();
+        let tris = solid_triangles(&Solid::from_spec(&cube).unwrap());
+        let range = meshes.blocks[0].clone();
+        assert_eq!(meshes.blocks[1], range, "equal shapes share one mesh");
+        let drawn: Vec<Vertex> = meshes.indices[range.start as usize..range.end as usize]
+            .iter()
+            .map(|&i| meshes.vertices[i as usize])
+            .collect();
+        assert_eq!(drawn, tris, "the same triangles, in the same order");
+        let mut used: Vec<u32> = meshes.indices[range.start as usize..range.end as usize].to_vec();
+        used.sort_unstable();
+        used.dedup();
+        let mut distinct: Vec<Vec<u32>> = tris
+            .iter()
+            .map(|v| {
+                v.position
+                    .iter()
+                    .chain(&v.edge)
+                    .map(|x| x.to_bits())
+                    .collect()
+            })
+            .collect();
+        distinct.sort_unstable();
+        distinct.dedup();
+        // Two triangles a face; a corner is one vertex where its faces give it equal weights.
+        assert_eq!(tris.len(), 36);
+        assert_eq!(used.len(), distinct.len());
+        assert!(used.len() < 24, "{}", used.len());
     }
 
     #[test]

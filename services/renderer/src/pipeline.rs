@@ -90,7 +90,7 @@ pub fn scene_pipelines(device: &wgpu::Device, module: &wgpu::ShaderModule) -> Sc
         bind_group_layouts: &[Some(&layout)],
         immediate_size: 0,
     });
-    let vertex_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
+    let vertex_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4];
     let instance_attrs = wgpu::vertex_attr_array![
         2 => Float32x4, 3 => Float32x4, 4 => Float32x4, 5 => Float32x4, 6 => Float32x4
     ];
@@ -152,9 +152,12 @@ pub fn scene_pipelines(device: &wgpu::Device, module: &wgpu::ShaderModule) -> Sc
     ScenePipelines {
         floor: make("floor", "vs_main", "fs_floor", TRIANGLES, true, true),
         grid: make("grid", "vs_main", "fs_grid", LINES, false, false),
-        // A projected shadow's winding depends on the light; shadows overlap without
-        // darkening twice because each writes the same colour and none writes depth.
-        shadow: make("shadow", "vs_shadow", "fs_shadow", TRIANGLES, false, false),
+        // Shadows overlap without darkening twice because each writes the same colour and
+        // none writes depth. Culled: a closed mesh projected onto the floor covers its shadow
+        // twice, once with the faces towards the light and once with those away from it, and
+        // the two sets wind opposite ways as the camera sees the floor, so culling one keeps a
+        // whole shadow at half the triangles and pixels.
+        shadow: make("shadow", "vs_shadow", "fs_shadow", TRIANGLES, true, false),
         solid: make("solid", "vs_main", "fs_solid", TRIANGLES, true, true),
         layout,
     }

@@ -69,6 +69,7 @@ pub struct Renderer {
     module: wgpu::ShaderModule,
     bind_group: wgpu::BindGroup,
     vertex_buf: wgpu::Buffer,
+    index_buf: wgpu::Buffer,
     palm_buf: wgpu::Buffer,
     instance_buf: wgpu::Buffer,
     meshes: Meshes,
@@ -231,6 +232,11 @@ impl Renderer {
             contents: bytemuck::cast_slice(&meshes.vertices),
             usage: wgpu::BufferUsages::VERTEX,
         });
+        let index_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("mesh indices"),
+            contents: bytemuck::cast_slice(&meshes.indices),
+            usage: wgpu::BufferUsages::INDEX,
+        });
         let palm_buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("palm"),
             size: (PALM_VERTEX_CAPACITY * std::mem::size_of::<Vertex>()) as u64,
@@ -284,6 +290,7 @@ impl Renderer {
             module,
             bind_group,
             vertex_buf,
+            index_buf,
             palm_buf,
             instance_buf,
             meshes,
@@ -380,30 +387,34 @@ impl Renderer {
                 pass.set_bind_group(0, &self.bind_group, &[eye * EYE_UNIFORM_STRIDE as u32]);
                 pass.set_vertex_buffer(1, self.instance_buf.slice(..));
                 pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
+                pass.set_index_buffer(self.index_buf.slice(..), wgpu::IndexFormat::Uint32);
                 pass.set_pipeline(&self.scene.floor);
                 let fi = list.floor_instance;
-                pass.draw(self.meshes.floor.clone(), fi..fi + 1);
+                pass.draw_indexed(self.meshes.floor.clone(), 0, fi..fi + 1);
+                // Solids first: they write depth, so the shadows and grid lines under them
+                // fail the depth test before any shading (what the shadows cost is then only
+                // the floor they darken).
                 let pipelines: &[&wgpu::RenderPipeline] = if self.settings.shadows {
-                    &[&self.scene.shadow, &self.scene.grid, &self.scene.solid]
+                    &[&self.scene.solid, &self.scene.shadow, &self.scene.grid]
                 } else {
-                    &[&self.scene.grid, &self.scene.solid]
+                    &[&self.scene.solid, &self.scene.grid]
                 };
                 for p in pipelines {
                     pass.set_pipeline(p);
                     pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
                     if std::ptr::eq(*p, &self.scene.grid) {
-                        // Over the floor and the shadows, under everything else.
-                        pass.draw(self.meshes.grid.clone(), fi..fi + 1);
+                        // Over the floor and the shadows, under everything else (depth).
+                        pass.draw_indexed(self.meshes.grid.clone(), 0, fi..fi + 1);
                         continue;
                     }
                     for b in &list.blocks {
-                        pass.draw(b.vertices.clone(), b.instances.clone());
+                        pass.draw_indexed(b.indices.clone(), 0, b.instances.clone());
                     }
                     if !list.segments.is_empty() {
-                        pass.draw(self.meshes.cylinder.clone(), list.segments.clone());
+                        pass.draw_indexed(self.meshes.cylinder.clone(), 0, list.segments.clone());
                     }
                     if !list.joints.is_empty() {
-                        pass.draw(self.meshes.sphere.clone(), list.joints.clone());
+                        pass.draw_indexed(self.meshes.sphere.clone(), 0, list.joints.clone());
                     }
                     if palm_n > 0 {
                         pass.set_vertex_buffer(0, self.palm_buf.slice(..));

@@ -18,7 +18,8 @@ struct EyeUniform {
 
 struct VIn {
     @location(0) position: vec3<f32>,
-    @location(1) edge: f32,
+    // Edge weights: the smallest is 0 on a face's outline (mesh.rs).
+    @location(1) edge: vec4<f32>,
     @location(2) m0: vec4<f32>,
     @location(3) m1: vec4<f32>,
     @location(4) m2: vec4<f32>,
@@ -30,7 +31,7 @@ struct VIn {
 struct VOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) world: vec3<f32>,
-    @location(1) edge: f32,
+    @location(1) edge: vec4<f32>,
     @location(2) color: vec4<f32>,
 };
 
@@ -61,7 +62,7 @@ fn vs_shadow(v: VIn) -> VOut {
     var o: VOut;
     o.clip = eye.view_proj * vec4<f32>(p, 1.0);
     o.world = p;
-    o.edge = 1.0;
+    o.edge = vec4<f32>(1.0);
     o.color = v.color;
     return o;
 }
@@ -87,7 +88,7 @@ fn fs_shadow(i: VOut) -> @location(0) vec4<f32> {
 @fragment
 fn fs_grid(i: VOut) -> @location(0) vec4<f32> {
     let dist = length(eye.eye_pos.xyz - i.world);
-    let k = i.edge * clamp(2.0 - dist / 2.0, 0.0, 1.0);
+    let k = i.edge.x * clamp(2.0 - dist / 2.0, 0.0, 1.0);
     return vec4<f32>(mix(FLOOR * floor_light(), vec3<f32>(0.10, 0.10, 0.11), k), 1.0);
 }
 
@@ -103,8 +104,9 @@ fn fs_solid(i: VOut) -> @location(0) vec4<f32> {
     // Contact shading: darker within 3 cm of the floor, so resting and hovering differ.
     let contact = mix(0.6, 1.0, smoothstep(0.0, 0.03, i.world.y));
     var c = i.color.rgb * (0.3 + 0.7 * diffuse) * contact;
-    // Polygon edges: about 1.5 px wide wherever the edge weight reaches 0.
-    let e = i.edge / max(fw, 1e-6);
+    // Polygon edges: about 1.5 px wide wherever an edge weight reaches 0.
+    let d = i.edge / max(fw, vec4<f32>(1e-6));
+    let e = min(min(d.x, d.y), min(d.z, d.w));
     let k = (1.0 - smoothstep(0.5, 1.5, e)) * i.color.a;
     c = mix(c, i.color.rgb * 0.1, k);
     return vec4<f32>(c, 1.0);
