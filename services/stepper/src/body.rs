@@ -1,6 +1,8 @@
 //! One block's state: what docs/model.md "Conventions" says the stepper keeps per block (pose, v,
 //! floor contact set, mode), plus the per-step scratch the rules pass between stages.
 
+use std::sync::Arc;
+
 use glam::{DQuat, DVec3};
 
 use common::BlockMode;
@@ -71,35 +73,30 @@ pub enum HandAction {
 }
 
 /// A block of the world.
+///
+/// `repr(C)`, in this order: a step's passes over the active set (stages 0 to 5) and the
+/// broad phase's reads of a neighbour (`interference::boxes_apart`: pos, the box, both
+/// rotations) touch the first fields, so they share the fewest cache lines; what only some
+/// steps read (the name, R13's history, R14's set) comes last. A field of 4096 blocks is ~2 MB
+/// of blocks, past the L2 cache, and a step sweeps the active ones several times.
 #[derive(Debug, Clone)]
+#[repr(C)]
 pub struct Block {
-    pub name: String,
-    pub poly: Polyhedron,
     /// Position of G.
     pub pos: DVec3,
-    /// Unit quaternion, body to world.
-    pub rot: DQuat,
-    /// The inertia v: G's displacement per step (docs/model.md "Conventions").
-    pub v: DVec3,
-    pub mode: BlockMode,
-    /// Floor contact vertices after the last step (R8).
-    pub floor: VertexSet,
-
-    // ---- per-step scratch ----
-    /// Vertices in world orientation relative to G, for `rel_rot`.
-    pub rel: Vec<DVec3>,
-    pub rel_rot: DQuat,
     /// The box of `rel` (world axes, relative to G): the broad phase's exact "cannot meet"
     /// test before a GJK query (`interference::boxes_apart`).
     pub rel_lo: DVec3,
     pub rel_hi: DVec3,
-    pub start_pos: DVec3,
-    pub start_rot: DQuat,
+    /// Unit quaternion, body to world.
+    pub rot: DQuat,
+    /// The rotation `rel` was computed for.
+    pub rel_rot: DQuat,
+    /// The inertia v: G's displacement per step (docs/model.md "Conventions").
+    pub v: DVec3,
+    pub mode: BlockMode,
     pub mode_before: BlockMode,
     pub moved: Moved,
-    /// R7's d before R12 cut it (R9's Gm on the landing step).
-    pub intended: DVec3,
-    pub action: HandAction,
     /// Set when R3 ends a grasp this step (R13).
     pub released: bool,
     /// R14 decided this block this step (held or tipped): stages 3 and 4 leave it alone.
@@ -108,6 +105,22 @@ pub struct Block {
     /// judges again the resting and supported blocks it touches ("a block whose supporter
     /// moved is judged again in the next step").
     pub stirred: bool,
+    /// Floor contact vertices after the last step (R8).
+    pub floor: VertexSet,
+    pub start_pos: DVec3,
+    pub start_rot: DQuat,
+    /// R7's d before R12 cut it (R9's Gm on the landing step).
+    pub intended: DVec3,
+    /// Shared by every block of the same shape (`World::new`): a field of 4096 equal cubes
+    /// holds one hull, which stays in the cache, instead of 4096 copies of it (~1 KB each
+    /// with parry's) that a step's queries fetched from memory one block at a time.
+    pub poly: Arc<Polyhedron>,
+    /// Vertices in world orientation relative to G, for `rel_rot`.
+    pub rel: Vec<DVec3>,
+    pub action: HandAction,
+
+    // ---- read by some steps only ----
+    pub name: String,
     /// R14: the blocks this block tipped over as the root of a tipping load (bit j: block j),
     /// kept while it still rests on them. Its weight rests on their edge, not on them as a
     /// load: they do not count it in their G_L.
@@ -121,12 +134,13 @@ pub struct Block {
 impl Block {
     pub fn new(
         name: String,
-        poly: Polyhedron,
+        poly: impl Into<Arc<Polyhedron>>,
         pos: DVec3,
         rot: DQuat,
         v: DVec3,
         window: usize,
     ) -> Block {
+        let poly = poly.into();
         let n = poly.vertices.len();
         let mut b = Block {
             name,

@@ -11,10 +11,11 @@
 
 use std::fmt;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use glam::{DQuat, DVec3};
 
-use common::config::scene::{FloorEffect, HandEffect, Stacking};
+use common::config::scene::{FloorEffect, HandEffect, ShapeSpec, Stacking};
 use common::config::Scene;
 use common::{BlockMode, BlockState, HandSample, Pose, WorldHeader, WorldSample, MAX_SCENE_BLOCKS};
 
@@ -133,6 +134,9 @@ impl World {
         };
         let mut blocks = Vec::with_capacity(scene.blocks.len());
         let mut max_vertices = 0;
+        // Each distinct shape's hull once, shared by its blocks (body.rs: `Block::poly`).
+        // Scenes hold few distinct shapes: a linear search.
+        let mut hulls: Vec<(&ShapeSpec, Arc<Polyhedron>)> = Vec::new();
         for spec in &scene.blocks {
             // Scenes built in code (benchmarks, tools) skip the loader's checks: repeat the
             // ones the model relies on.
@@ -151,8 +155,17 @@ impl World {
                 ));
             }
             let q = q.normalize();
-            let poly = Polyhedron::from_spec(&spec.shape)
-                .map_err(|p| err(scene, Some(&spec.name), format!("shape: {p}")))?;
+            let poly = match hulls.iter().find(|(shape, _)| **shape == spec.shape) {
+                Some((_, hull)) => Arc::clone(hull),
+                None => {
+                    let hull = Arc::new(
+                        Polyhedron::from_spec(&spec.shape)
+                            .map_err(|p| err(scene, Some(&spec.name), format!("shape: {p}")))?,
+                    );
+                    hulls.push((&spec.shape, Arc::clone(&hull)));
+                    hull
+                }
+            };
             if poly.vertices.len() > 256 {
                 return Err(err(
                     scene,
