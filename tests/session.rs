@@ -358,6 +358,24 @@ fn the_latency_benchmark_reports_ratios_to_its_peer() {
                 w["cpu_s"][stage].as_f64().unwrap() >= 0.0,
                 "{wait}: {stage}"
             );
+            // The adaptive stages' per-arrival traces, summarised (bench/src/latency.rs).
+            if wait == "adaptive" {
+                let t = &w["trace"][stage];
+                let arrivals: u64 = [
+                    "found_by_polling",
+                    "published_before_window",
+                    "published_in_window_not_seen",
+                    "published_after_window",
+                    "before_any_window",
+                ]
+                .iter()
+                .map(|k| t[k].as_u64().unwrap_or_else(|| panic!("{stage}: {k}: {t}")))
+                .sum();
+                assert!(arrivals > 0, "{stage}: {t}");
+                assert!(dir
+                    .path(&format!("bench/wait-trace/wait-{stage}.csv"))
+                    .exists());
+            }
         }
     }
     // The suite's file: a row per stage hop, origin -> world and the bare hop.

@@ -182,6 +182,14 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
             "bench latency: the session with [pipeline] wait = {wait:?} for {:.0} s ...",
             b.seconds
         );
+        // The adaptive stages keep a record per arrival (where the publish fell against the
+        // window they polled in), written into DIR/wait-trace as they stop. The launcher's
+        // threads have ended here: nothing reads the environment while it changes.
+        let traces = b.out_dir.join("wait-trace");
+        if wait == "adaptive" {
+            std::fs::create_dir_all(&traces)?;
+            std::env::set_var(common::bus::Waiter::TRACE_ENV, &traces);
+        }
         let o = launcher::launch(&launcher::LaunchOptions {
             session: b.session.clone(),
             duration: Some(Duration::from_secs_f64(b.seconds)),
@@ -190,8 +198,13 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
                 "pipeline.wait=\"{wait}\""
             ))?],
             ..launcher::LaunchOptions::default()
-        })?;
-        waits.push(wait_row(wait, &o.report));
+        });
+        std::env::remove_var(common::bus::Waiter::TRACE_ENV);
+        let mut row = wait_row(wait, &o?.report);
+        if wait == "adaptive" {
+            row["trace"] = wait_traces(&traces);
+        }
+        waits.push(row);
     }
     table.push_str(&format!(
         "\n{:<20} {:>10} {:>10}   CPU seconds per stage\n",
@@ -212,6 +225,9 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
                     .join(", "))
                 .unwrap_or_default()
         ));
+    }
+    if let Some(t) = waits.iter().find_map(|w| w.get("trace")) {
+        table.push_str(&wait_trace_lines(t));
     }
     print!("{table}");
     let value = json!({
@@ -301,6 +317,79 @@ fn figure(report: &launcher::report::Report, bare_hop: &Histogram<u64>) -> Figur
         panel_width: 560,
         panel_height: 400,
     }
+}
+
+/// What an adaptive session's per-arrival traces (`DIR/wait-trace/wait-STAGE.csv`, written
+/// by `Waiter::finish`) say, per stage: how many arrivals the poll window caught, where the
+/// others' publishes fell against their windows, and the time from a publish to the wait's
+/// return (p50) for those found by polling and those woken by the event.
+fn wait_traces(dir: &std::path::Path) -> Value {
+    let mut out = serde_json::Map::new();
+    for stage in ["kinematics", "stepper"] {
+        let Ok(text) = std::fs::read_to_string(dir.join(format!("wait-{stage}.csv"))) else {
+            continue;
+        };
+        let (mut polled, mut early, mut inside, mut late, mut no_window) = (0u64, 0, 0, 0, 0);
+        let (mut by_poll, mut by_event) = (Vec::new(), Vec::new());
+        for line in text.lines().skip(1) {
+            let f: Vec<i128> = line.split(',').filter_map(|x| x.parse().ok()).collect();
+            let [_, publish, close, returned, was_polled] = f[..] else {
+                continue;
+            };
+            let to_return_us = (returned - publish) as f64 / 1e3;
+            if close == 0 {
+                no_window += 1;
+            } else if was_polled == 1 {
+                polled += 1;
+                by_poll.push(to_return_us);
+            } else {
+                by_event.push(to_return_us);
+                if publish < 0 {
+                    early += 1;
+                } else if publish <= close {
+                    inside += 1;
+                } else {
+                    late += 1;
+                }
+            }
+        }
+        let p50 = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v.get(v.len() / 2).copied()
+        };
+        out.insert(
+            stage.to_string(),
+            json!({"found_by_polling": polled, "published_before_window": early,
+                "published_in_window_not_seen": inside, "published_after_window": late,
+                "before_any_window": no_window,
+                "publish_to_return_p50_us_polled": p50(by_poll),
+                "publish_to_return_p50_us_woken": p50(by_event)}),
+        );
+    }
+    Value::Object(out)
+}
+
+/// The adaptive traces' summary as table lines.
+fn wait_trace_lines(t: &Value) -> String {
+    let mut s = String::from(
+        "
+adaptive, per arrival (DIR/wait-trace): found by polling / published before, inside \
+         (not seen), after the window; publish -> return p50 polled / woken (us)\n",
+    );
+    for (stage, v) in t.as_object().into_iter().flatten() {
+        let n = |k: &str| v[k].as_u64().unwrap_or(0);
+        let us = |k: &str| v[k].as_f64().map_or("-".to_string(), |x| format!("{x:.1}"));
+        s.push_str(&format!(
+            "  {stage:<12} {} / {}, {}, {};  {} / {}\n",
+            n("found_by_polling"),
+            n("published_before_window"),
+            n("published_in_window_not_seen"),
+            n("published_after_window"),
+            us("publish_to_return_p50_us_polled"),
+            us("publish_to_return_p50_us_woken"),
+        ));
+    }
+    s
 }
 
 /// One wait strategy's session: origin -> world, and each stage's CPU seconds.

@@ -886,11 +886,12 @@ pub enum WaitStrategy {
     /// Sleep on the inlets' events until one wakes the process (~65 us on a 2-vCPU VM).
     #[default]
     Event,
-    /// Poll the inlets always: the ~2 us hop, for a core per stage.
+    /// Poll the inlets always: the ~2 us hop, for a core per stage (each look gives the CPU
+    /// to any other thread ready on it: a stage sharing its CPU does not starve its sender).
     Spin,
     /// Sleep on the event until shortly before the next sample is due (the source's period
     /// and the last arrival are known), poll for a bounded window around it, then sleep on the
-    /// event again.
+    /// event again (polling as `Spin` does).
     Adaptive,
 }
 
@@ -922,6 +923,56 @@ pub struct Waiter {
     /// Arrivals found in the poll window, and all arrivals: how often the prediction held.
     pub in_window: u64,
     pub arrivals: u64,
+    /// The last adaptive wait's window (open, close; 0, 0 without one) and when it returned.
+    window_ns: (u64, u64),
+    returned_ns: u64,
+    /// Per-arrival records, when asked for (`Waiter::trace_to`): preallocated, kept while
+    /// there is room.
+    trace: Option<Vec<WaitRecord>>,
+}
+
+/// One arrival as an adaptive wait saw it (`Waiter::trace_to`): where the sample's publish
+/// fell against the window the waiter predicted, and how the wait ended. What shows why a
+/// prediction misses, sample by sample (docs/design.md, "Waiting for a sample").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct WaitRecord {
+    /// The sample's publish (the sender's stamp), ns on CLOCK_MONOTONIC.
+    pub publish_ns: u64,
+    /// The window the wait polled in (0, 0: none yet, no period known).
+    pub open_ns: u64,
+    pub close_ns: u64,
+    /// When the wait returned.
+    pub returned_ns: u64,
+    /// Found by polling in the window (else woken by its event, or already there).
+    pub polled: bool,
+}
+
+impl WaitRecord {
+    /// The record as a CSV line (the header is [`WaitRecord::CSV_HEADER`]), times relative
+    /// to the window's opening (the publish's, where there is no window).
+    pub fn csv(&self) -> String {
+        let base = if self.open_ns > 0 {
+            self.open_ns
+        } else {
+            self.publish_ns
+        } as i128;
+        let rel = |t: u64| t as i128 - base;
+        format!(
+            "{},{},{},{},{}",
+            self.publish_ns,
+            rel(self.publish_ns),
+            if self.open_ns > 0 {
+                rel(self.close_ns)
+            } else {
+                0
+            },
+            rel(self.returned_ns),
+            u8::from(self.polled)
+        )
+    }
+
+    pub const CSV_HEADER: &'static str =
+        "publish_ns,publish_after_open_ns,close_after_open_ns,returned_after_open_ns,polled";
 }
 
 /// The poll window's half-width beyond the predicted wake lateness.
@@ -943,7 +994,78 @@ impl Waiter {
             polled: false,
             in_window: 0,
             arrivals: 0,
+            window_ns: (0, 0),
+            returned_ns: 0,
+            trace: None,
         }
+    }
+
+    /// Keeps a [`WaitRecord`] per arrival, up to `capacity` (allocated here, once), for
+    /// [`Waiter::trace`].
+    pub fn keep_trace(&mut self, capacity: usize) {
+        self.trace = Some(Vec::with_capacity(capacity));
+    }
+
+    /// The records kept (empty unless [`Waiter::keep_trace`] was called).
+    pub fn trace(&self) -> &[WaitRecord] {
+        self.trace.as_deref().unwrap_or(&[])
+    }
+
+    /// The environment variable that asks every adaptive stage for its per-arrival trace: a
+    /// folder, where each writes `wait-STAGE.csv` as it stops.
+    pub const TRACE_ENV: &'static str = "HANDBLOCKS_WAIT_TRACE";
+
+    /// A waiter as a stage makes it: with a trace when `HANDBLOCKS_WAIT_TRACE` names a folder
+    /// and the strategy is adaptive (the first 65,536 arrivals: ~9 minutes at 120 Hz).
+    pub fn for_stage(strategy: WaitStrategy) -> Waiter {
+        let mut w = Waiter::new(strategy);
+        if strategy == WaitStrategy::Adaptive && std::env::var_os(Self::TRACE_ENV).is_some() {
+            w.keep_trace(1 << 16);
+        }
+        w
+    }
+
+    /// How an adaptive stage's waits went, in a line, and its trace written as
+    /// `$HANDBLOCKS_WAIT_TRACE/wait-STAGE.csv` when one was kept. Where each publish fell
+    /// against its window: before it opened (the wait slept through it: the period or the
+    /// wake-up was mispredicted), inside it but not found by polling (the sender could not run
+    /// while this stage polled: they share a CPU), or after it closed.
+    pub fn finish(&self, stage: &str) -> String {
+        let (mut early, mut missed, mut late) = (0, 0, 0);
+        for r in self.trace() {
+            if r.open_ns == 0 || r.polled {
+                continue;
+            }
+            if r.publish_ns < r.open_ns {
+                early += 1;
+            } else if r.publish_ns <= r.close_ns {
+                missed += 1;
+            } else {
+                late += 1;
+            }
+        }
+        let mut line = format!(
+            "handblocks {stage}: adaptive wait: {} of {} arrivals found in the poll window",
+            self.in_window, self.arrivals
+        );
+        if let (Some(trace), Some(dir)) = (&self.trace, std::env::var_os(Self::TRACE_ENV)) {
+            let path = std::path::Path::new(&dir).join(format!("wait-{stage}.csv"));
+            let mut text = String::from(WaitRecord::CSV_HEADER);
+            for r in trace {
+                text.push('\n');
+                text.push_str(&r.csv());
+            }
+            text.push('\n');
+            line += &format!(
+                "; of the others, published before the window {early}, inside it but not seen \
+                 by polling {missed}, after it {late}"
+            );
+            match std::fs::write(&path, text) {
+                Ok(()) => line += &format!("; trace: {}", path.display()),
+                Err(e) => line += &format!("; trace not written to {}: {e}", path.display()),
+            }
+        }
+        line
     }
 
     pub fn strategy(&self) -> WaitStrategy {
@@ -952,14 +1074,25 @@ impl Waiter {
 
     /// Returns when any of `inlets` may have a sample, or after `timeout`.
     pub fn wait(&mut self, inlets: &[&dyn Wakeable], timeout: Duration) -> Result<(), BusError> {
-        let any = || inlets.iter().any(|i| i.has_samples());
         self.polled = false;
+        self.window_ns = (0, 0);
+        let r = self.wait_by_strategy(inlets, timeout);
+        self.returned_ns = monotonic_ns();
+        r
+    }
+
+    fn wait_by_strategy(
+        &mut self,
+        inlets: &[&dyn Wakeable],
+        timeout: Duration,
+    ) -> Result<(), BusError> {
+        let any = || inlets.iter().any(|i| i.has_samples());
         match self.strategy {
             WaitStrategy::Event => wait_any(inlets, timeout),
             WaitStrategy::Spin => {
                 let end = monotonic_ns() + timeout.as_nanos() as u64;
                 while !any() && monotonic_ns() < end {
-                    std::hint::spin_loop();
+                    poll_pause();
                 }
                 self.drain_wakeups(inlets);
                 Ok(())
@@ -974,6 +1107,7 @@ impl Waiter {
                     let due = last + self.period_ns;
                     let open = due.saturating_sub(self.wake_late_ns + POLL_MARGIN_NS);
                     let close = due + self.wake_late_ns + POLL_MARGIN_NS;
+                    self.window_ns = (open, close);
                     // Sleep until the window opens, or a sample wakes us first. A wake-up
                     // with nothing to read (the notification of a sample already taken by
                     // polling arrives after it) sleeps again: polling from there would spin
@@ -993,7 +1127,7 @@ impl Waiter {
                     }
                     let close = close.min(end);
                     while !any() && monotonic_ns() < close {
-                        std::hint::spin_loop();
+                        poll_pause();
                     }
                     if any() {
                         self.polled = true;
@@ -1014,6 +1148,15 @@ impl Waiter {
     pub fn arrived(&mut self, now_ns: u64) {
         self.arrivals += 1;
         self.in_window += u64::from(self.polled);
+        if let Some(trace) = self.trace.as_mut().filter(|t| t.len() < t.capacity()) {
+            trace.push(WaitRecord {
+                publish_ns: now_ns,
+                open_ns: self.window_ns.0,
+                close_ns: self.window_ns.1,
+                returned_ns: self.returned_ns,
+                polled: self.polled,
+            });
+        }
         if let Some(last) = self.last_arrival_ns {
             let gap = now_ns.saturating_sub(last);
             if self.period_ns == 0 {
@@ -1030,6 +1173,18 @@ impl Waiter {
             let _ = inlet.listener().try_wait(|_| {});
         }
     }
+}
+
+/// Between two looks at the inlets while polling: gives the CPU to any other thread that is
+/// ready to run on it, else returns at once (~1 us). A bare spin starved the sender whenever
+/// it shared the poller's CPU (the launcher puts a session's pipeline on one CPU on a 2-CPU
+/// machine): per-arrival traces (`HANDBLOCKS_WAIT_TRACE`) showed the scripted source's
+/// 120 Hz publishes spread over 7.6-9.0 ms apart while two stages polled windows up to 1 ms
+/// wide, 2 of 480 samples found by polling, and `spin` took origin -> world to 5.6 ms.
+#[inline]
+fn poll_pause() {
+    // SAFETY: sched_yield takes no arguments and only reschedules this thread.
+    unsafe { libc::sched_yield() };
 }
 
 /// Sleeps until one of `fds` is readable or `timeout` passes, to the nanosecond (`ppoll`;
@@ -1575,5 +1730,38 @@ mod tests {
         assert_eq!(w.period_ns, before);
         assert_eq!(w.arrivals, 22);
         assert_eq!(w.in_window, 0, "nothing was polled");
+    }
+
+    /// A trace keeps one record per arrival, up to its capacity, with the window the wait
+    /// polled in, and reads back as CSV relative to the window's opening.
+    #[test]
+    fn a_kept_trace_records_each_arrival_against_its_window() {
+        let mut w = Waiter::new(WaitStrategy::Adaptive);
+        w.keep_trace(2);
+        for (k, polled) in [(0u64, false), (1, true), (2, false)] {
+            w.window_ns = (1_000 + k * 10_000, 1_500 + k * 10_000);
+            w.returned_ns = 1_300 + k * 10_000;
+            w.polled = polled;
+            w.arrived(1_200 + k * 10_000);
+        }
+        assert_eq!(w.arrivals, 3);
+        assert_eq!(w.in_window, 1);
+        let t = w.trace();
+        assert_eq!(t.len(), 2, "capacity 2: the third is counted, not kept");
+        assert_eq!(
+            t[1],
+            WaitRecord {
+                publish_ns: 11_200,
+                open_ns: 11_000,
+                close_ns: 11_500,
+                returned_ns: 11_300,
+                polled: true
+            }
+        );
+        assert_eq!(t[1].csv(), "11200,200,500,300,1");
+        assert_eq!(
+            WaitRecord::CSV_HEADER.split(',').count(),
+            t[0].csv().split(',').count()
+        );
     }
 }

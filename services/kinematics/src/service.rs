@@ -26,7 +26,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     let mut reporter = Reporter::new(Stage::Kinematics, bus.outlet::<topics::Latency>()?);
 
     let mut hands = HandStream::new(model);
-    let mut waiter = Waiter::new(session.wait);
+    let mut waiter = Waiter::for_stage(session.wait);
     loop {
         let stopping = shutdown::requested();
         if !stopping {
@@ -77,10 +77,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         ];
         if stopping {
             if waiter.strategy() == WaitStrategy::Adaptive {
-                eprintln!(
-                    "handblocks kinematics: adaptive wait: {} of {} arrivals found in the poll window",
-                    waiter.in_window, waiter.arrivals
-                );
+                eprintln!("{}", waiter.finish("kinematics"));
             }
             return Ok(reporter.finish(&counters)?);
         }

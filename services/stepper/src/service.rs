@@ -92,7 +92,7 @@ pub fn run_with_outcome(
         None
     };
     let mut reporter = Reporter::new(Stage::Stepper, bus.outlet::<topics::Latency>()?);
-    let mut waiter = Waiter::new(session.wait);
+    let mut waiter = Waiter::for_stage(session.wait);
     loop {
         let stopping = shutdown::requested();
         if !stopping {
@@ -130,10 +130,7 @@ pub fn run_with_outcome(
         let counters = [hand_in.counter(), world_out.counter()];
         if stopping {
             if waiter.strategy() == WaitStrategy::Adaptive {
-                eprintln!(
-                    "handblocks stepper: adaptive wait: {} of {} arrivals found in the poll window",
-                    waiter.in_window, waiter.arrivals
-                );
+                eprintln!("{}", waiter.finish("stepper"));
             }
             if let Some(dir) = outcome_dir {
                 write_outcome(
