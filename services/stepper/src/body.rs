@@ -72,15 +72,9 @@ pub enum HandAction {
     Grasp,
 }
 
-/// A block of the world.
-///
-/// `repr(C)`, in this order: a step's passes over the active set (stages 0 to 5) and the
-/// broad phase's reads of a neighbour (`interference::boxes_apart`: pos, the box, both
-/// rotations) touch the first fields, so they share the fewest cache lines; what only some
-/// steps read (the name, R13's history, R14's set) comes last. A field of 4096 blocks is ~2 MB
-/// of blocks, past the L2 cache, and a step sweeps the active ones several times.
+/// A block of the world: first what a step's passes read of every active block, then what only
+/// some steps read.
 #[derive(Debug, Clone)]
-#[repr(C)]
 pub struct Block {
     /// Position of G.
     pub pos: DVec3,
