@@ -329,30 +329,28 @@ fn wait_traces(dir: &std::path::Path) -> Value {
         let Ok(text) = std::fs::read_to_string(dir.join(format!("wait-{stage}.csv"))) else {
             continue;
         };
-        let (mut polled, mut early, mut inside, mut late, mut no_window) = (0u64, 0, 0, 0, 0);
-        let (mut by_poll, mut by_event) = (Vec::new(), Vec::new());
-        for line in text.lines().skip(1) {
-            let f: Vec<i128> = line.split(',').filter_map(|x| x.parse().ok()).collect();
-            let [_, publish, close, returned, was_polled] = f[..] else {
-                continue;
-            };
-            let to_return_us = (returned - publish) as f64 / 1e3;
-            if close == 0 {
-                no_window += 1;
-            } else if was_polled == 1 {
-                polled += 1;
-                by_poll.push(to_return_us);
-            } else {
-                by_event.push(to_return_us);
-                if publish < 0 {
-                    early += 1;
-                } else if publish <= close {
-                    inside += 1;
-                } else {
-                    late += 1;
-                }
-            }
-        }
+        use common::bus::{WaitOutcome, WaitRecord};
+        let records: Vec<WaitRecord> = text
+            .lines()
+            .skip(1)
+            .filter_map(WaitRecord::from_csv)
+            .collect();
+        let count = |o: WaitOutcome| records.iter().filter(|r| r.outcome() == o).count();
+        let to_return_us = |polled: bool| -> Vec<f64> {
+            records
+                .iter()
+                .filter(|r| r.open_ns != 0 && r.polled == polled)
+                .map(|r| (r.returned_ns as f64 - r.publish_ns as f64) / 1e3)
+                .collect()
+        };
+        let (polled, early, inside, late, no_window) = (
+            count(WaitOutcome::Polled),
+            count(WaitOutcome::Early),
+            count(WaitOutcome::Inside),
+            count(WaitOutcome::Late),
+            count(WaitOutcome::NoWindow),
+        );
+        let (by_poll, by_event) = (to_return_us(true), to_return_us(false));
         let p50 = |mut v: Vec<f64>| {
             v.sort_by(f64::total_cmp);
             v.get(v.len() / 2).copied()

@@ -947,7 +947,57 @@ pub struct WaitRecord {
     pub polled: bool,
 }
 
+/// Where an arrival fell against its adaptive wait's window.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WaitOutcome {
+    /// No window yet (no period known).
+    NoWindow,
+    /// Found by polling in the window.
+    Polled,
+    /// Published before the window opened (the wait slept through it).
+    Early,
+    /// Published inside the window but not seen by polling (the sender could not run).
+    Inside,
+    /// Published after the window closed.
+    Late,
+}
+
 impl WaitRecord {
+    pub fn outcome(&self) -> WaitOutcome {
+        if self.open_ns == 0 {
+            WaitOutcome::NoWindow
+        } else if self.polled {
+            WaitOutcome::Polled
+        } else if self.publish_ns < self.open_ns {
+            WaitOutcome::Early
+        } else if self.publish_ns <= self.close_ns {
+            WaitOutcome::Inside
+        } else {
+            WaitOutcome::Late
+        }
+    }
+
+    /// A record back from a [`WaitRecord::csv`] line (times relative to the window's
+    /// opening, as written); `None` for a line that is not one.
+    pub fn from_csv(line: &str) -> Option<WaitRecord> {
+        let f: Vec<i128> = line
+            .split(',')
+            .map(|x| x.parse().ok())
+            .collect::<Option<_>>()?;
+        let [publish_ns, publish, close, returned, polled] = f[..] else {
+            return None;
+        };
+        let open = publish_ns - publish;
+        let at = |t: i128| u64::try_from(open + t).ok();
+        Some(WaitRecord {
+            publish_ns: u64::try_from(publish_ns).ok()?,
+            open_ns: if close == 0 { 0 } else { at(0)? },
+            close_ns: if close == 0 { 0 } else { at(close)? },
+            returned_ns: at(returned)?,
+            polled: polled == 1,
+        })
+    }
+
     /// The record as a CSV line (the header is [`WaitRecord::CSV_HEADER`]), times relative
     /// to the window's opening (the publish's, where there is no window).
     pub fn csv(&self) -> String {
@@ -1031,19 +1081,12 @@ impl Waiter {
     /// wake-up was mispredicted), inside it but not found by polling (the sender could not run
     /// while this stage polled: they share a CPU), or after it closed.
     pub fn finish(&self, stage: &str) -> String {
-        let (mut early, mut missed, mut late) = (0, 0, 0);
-        for r in self.trace() {
-            if r.open_ns == 0 || r.polled {
-                continue;
-            }
-            if r.publish_ns < r.open_ns {
-                early += 1;
-            } else if r.publish_ns <= r.close_ns {
-                missed += 1;
-            } else {
-                late += 1;
-            }
-        }
+        let count = |o: WaitOutcome| self.trace().iter().filter(|r| r.outcome() == o).count();
+        let (early, missed, late) = (
+            count(WaitOutcome::Early),
+            count(WaitOutcome::Inside),
+            count(WaitOutcome::Late),
+        );
         let mut line = format!(
             "handblocks {stage}: adaptive wait: {} of {} arrivals found in the poll window",
             self.in_window, self.arrivals
@@ -1077,7 +1120,9 @@ impl Waiter {
         self.polled = false;
         self.window_ns = (0, 0);
         let r = self.wait_by_strategy(inlets, timeout);
-        self.returned_ns = monotonic_ns();
+        if self.trace.is_some() {
+            self.returned_ns = monotonic_ns();
+        }
         r
     }
 
@@ -1759,6 +1804,7 @@ mod tests {
             }
         );
         assert_eq!(t[1].csv(), "11200,200,500,300,1");
+        assert_eq!(WaitRecord::from_csv(&t[1].csv()), Some(t[1]));
         assert_eq!(
             WaitRecord::CSV_HEADER.split(',').count(),
             t[0].csv().split(',').count()

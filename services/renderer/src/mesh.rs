@@ -103,16 +103,13 @@ impl IndexedBuffers {
     /// Appends a mesh given as a plain primitive list (triangles or lines), each distinct
     /// vertex once (equal bits, within this mesh); returns its index range.
     fn push(&mut self, primitives: Vec<Vertex>) -> Range<u32> {
-        let mut seen: std::collections::HashMap<Vec<u32>, u32> = Default::default();
+        let mut seen: std::collections::HashMap<[u32; 7], u32> = Default::default();
         let start = self.indices.len() as u32;
         for v in primitives {
-            let bits = [v.position.as_slice(), v.edge.as_slice()]
-                .concat()
-                .iter()
-                .map(|x| x.to_bits())
-                .collect::<Vec<u32>>();
+            let [x, y, z] = v.position.map(f32::to_bits);
+            let [a, b, c, d] = v.edge.map(f32::to_bits);
             let next = self.vertices.len() as u32;
-            let index = *seen.entry(bits).or_insert(next);
+            let index = *seen.entry([x, y, z, a, b, c, d]).or_insert(next);
             if index == next {
                 self.vertices.push(v);
             }
