@@ -72,24 +72,26 @@ pub enum HandAction {
     Grasp,
 }
 
-/// A block of the world: first what a step's passes read of every active block, then what only
-/// some steps read.
+/// A block of the world, laid out by what a step reads of it. A rain of 4096 blocks is ~2 MB
+/// of blocks, past the L2 cache, so each of a step's passes over the active blocks (free
+/// motion, the floor, stage 5) fetches from memory every cache line of a block that it reads:
+/// the fields every pass reads share the first line, and a falling block's step reads three or
+/// four of its lines in each pass, not all eight (callgrind's cache simulation, `README`'s
+/// stepper memory paragraph). `repr(C)` keeps the order written; `align(64)` starts every
+/// block on a line.
 #[derive(Debug, Clone)]
+#[repr(C, align(64))]
 pub struct Block {
+    // ---- line 0: every pass ----
     /// Position of G.
     pub pos: DVec3,
-    /// The box of `rel` (world axes, relative to G): the broad phase's exact "cannot meet"
-    /// test before a GJK query (`interference::boxes_apart`).
-    pub rel_lo: DVec3,
-    pub rel_hi: DVec3,
-    /// Unit quaternion, body to world.
-    pub rot: DQuat,
-    /// The rotation `rel` was computed for.
-    pub rel_rot: DQuat,
     /// The inertia v: G's displacement per step (docs/model.md "Conventions").
     pub v: DVec3,
+    /// Shared by every block of the same shape (`World::new`): a field of 4096 equal cubes
+    /// holds one hull, which stays in the cache, instead of 4096 copies of it (~1 KB each
+    /// with parry's) that a step's queries fetched from memory one block at a time.
+    pub poly: Arc<Polyhedron>,
     pub mode: BlockMode,
-    pub mode_before: BlockMode,
     pub moved: Moved,
     /// Set when R3 ends a grasp this step (R13).
     pub released: bool,
@@ -99,21 +101,52 @@ pub struct Block {
     /// judges again the resting and supported blocks it touches ("a block whose supporter
     /// moved is judged again in the next step").
     pub stirred: bool,
-    /// Floor contact vertices after the last step (R8).
-    pub floor: VertexSet,
+
+    // ---- line 1: the box (read by every query that meets this block), stage 5's flags ----
+    /// The box of `rel` (world axes, relative to G): the broad phase's exact "cannot meet"
+    /// test before a GJK query (`interference::boxes_apart`).
+    pub rel_lo: DVec3,
+    pub rel_hi: DVec3,
+    pub mode_before: BlockMode,
+    /// Whether `rel_lo` and `rel_hi` bound the block: false only when the rotation holds a NaN
+    /// (its rotated vertices bound nothing), and then the stages that read the box take their
+    /// slow, exact path instead.
+    pub box_exact: bool,
+    /// Whether `action` is not `HandAction::None`: stage 0 and stage 5 read this flag, not the
+    /// action (on a later line), which only the hand's stages need.
+    acted: bool,
+    /// Whether the rotation changed this step: `start_rot` holds the one it started with.
+    /// Stage 0 clears it rather than copying the rotation, and stage 5 compares rotations only
+    /// when it is set.
+    turned: bool,
+    /// Whether `floor` holds a vertex: free motion and the floor stage read this, and a block
+    /// in the air never has its contact set's line fetched.
+    on_floor: bool,
+    pub grasp_history_len: usize,
+
+    // ---- line 2: what stage 5 reads (the start, the rotation it publishes) ----
     pub start_pos: DVec3,
-    pub start_rot: DQuat,
-    /// R7's d before R12 cut it (R9's Gm on the landing step).
+    /// Unit quaternion, body to world. Private: it changes only through
+    /// [`Block::set_rotation`] (and [`Block::rotate_about`]), which rotate `rel` and its box
+    /// with it, so `rel`, `rel_lo` and `rel_hi` are always those of this rotation and no stage
+    /// has to check (the check read two quaternions a block in every pass that used the box).
+    rot: DQuat,
+    pub grasp_history_next: usize,
+
+    // ---- line 3: the floor stage's contact set, and R7's d ----
+    /// Floor contact vertices after the last step (R8). Private: written with
+    /// [`Block::set_floor`], which keeps `on_floor`.
+    floor: VertexSet,
+    /// R7's d before R12 cut it (R9's Gm on the landing step). Meaningful only in a step that
+    /// free motion moved the block (`Moved::Free`), which writes it: stage 0 leaves it.
     pub intended: DVec3,
-    /// Shared by every block of the same shape (`World::new`): a field of 4096 equal cubes
-    /// holds one hull, which stays in the cache, instead of 4096 copies of it (~1 KB each
-    /// with parry's) that a step's queries fetched from memory one block at a time.
-    pub poly: Arc<Polyhedron>,
-    /// Vertices in world orientation relative to G, for `rel_rot`.
-    pub rel: Vec<DVec3>,
-    pub action: HandAction,
 
     // ---- read by some steps only ----
+    /// The rotation at the step's start; meaningful while `turned` is set.
+    start_rot: DQuat,
+    /// Vertices in world orientation relative to G, for `rot`.
+    pub rel: Vec<DVec3>,
+    action: HandAction,
     pub name: String,
     /// R14: the blocks this block tipped over as the root of a tipping load (bit j: block j),
     /// kept while it still rests on them. Its weight rests on their edge, not on them as a
@@ -121,8 +154,6 @@ pub struct Block {
     pub tipped_over: BlockSet,
     /// R13: the last `throw_window` grasped displacements (ring buffer) and how many are valid.
     pub grasp_history: Vec<DVec3>,
-    pub grasp_history_len: usize,
-    pub grasp_history_next: usize,
 }
 
 impl Block {
@@ -145,8 +176,8 @@ impl Block {
             mode: BlockMode::Free,
             floor: VertexSet::EMPTY,
             rel: Vec::with_capacity(n),
-            rel_rot: DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0),
             rel_lo: DVec3::ZERO,
+            box_exact: false,
             rel_hi: DVec3::ZERO,
             start_pos: pos,
             start_rot: rot,
@@ -154,6 +185,9 @@ impl Block {
             moved: Moved::No,
             intended: DVec3::ZERO,
             action: HandAction::None,
+            acted: false,
+            turned: false,
+            on_floor: false,
             released: false,
             judged: false,
             stirred: true,
@@ -163,21 +197,105 @@ impl Block {
             grasp_history_len: 0,
             grasp_history_next: 0,
         };
-        b.refresh_rel();
+        b.rotate_rel();
         b
     }
 
-    /// Recomputes the rotated vertices if the rotation changed since the last call.
-    pub fn refresh_rel(&mut self) {
-        if self.rel_rot != self.rot || self.rel.len() != self.poly.vertices.len() {
-            crate::geometry::rotate_vertices(&self.poly, self.rot, &mut self.rel);
-            self.rel_rot = self.rot;
-            let (lo, hi) = self.rel.iter().fold(
-                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-                |(lo, hi), v| (lo.min(*v), hi.max(*v)),
-            );
-            (self.rel_lo, self.rel_hi) = (lo, hi);
+    /// The rotation, body to world.
+    #[inline]
+    pub fn rot(&self) -> DQuat {
+        self.rot
+    }
+
+    /// Turns the block to `rot` (a unit quaternion), its rotated vertices and their box with it.
+    pub fn set_rotation(&mut self, rot: DQuat) {
+        if !self.turned {
+            self.start_rot = self.rot;
+            self.turned = true;
         }
+        // An equal rotation (a zero's sign aside) has `rel` already: the same bits.
+        let same = rot == self.rot;
+        self.rot = rot;
+        if !same {
+            self.rotate_rel();
+        }
+    }
+
+    /// Whether the rotation is not the one the step started with (stage 5's "turned": R14
+    /// judges again what touches it). A rotation holding a NaN never equals itself, as when
+    /// this compared the rotation with a copy taken at the step's start.
+    #[inline]
+    pub fn turned_this_step(&self) -> bool {
+        if self.turned {
+            self.rot != self.start_rot
+        } else {
+            !self.box_exact
+        }
+    }
+
+    /// Floor contact vertices after the last step (R8).
+    #[inline]
+    pub fn floor(&self) -> &VertexSet {
+        &self.floor
+    }
+
+    /// Whether a vertex is in floor contact (`floor()` is not empty), read off line 1.
+    #[inline]
+    pub fn on_floor(&self) -> bool {
+        self.on_floor
+    }
+
+    /// The floor stage's contact set (R8).
+    #[inline]
+    pub fn set_floor(&mut self, set: VertexSet) {
+        self.on_floor = !set.is_empty();
+        self.floor = set;
+    }
+
+    /// The hand's action on the block this step (stage 1's decision).
+    #[inline]
+    pub fn action(&self) -> HandAction {
+        self.action
+    }
+
+    /// Whether the hand acts on it this step (`action()` is not `None`), read off line 1.
+    #[inline]
+    pub fn acted(&self) -> bool {
+        self.acted
+    }
+
+    /// Stage 1 decided the hand's action on it.
+    #[inline]
+    pub fn set_action(&mut self, action: HandAction) {
+        self.acted = action != HandAction::None;
+        self.action = action;
+    }
+
+    /// Stage 0: the block starts the step where it is, with nothing done to it yet. Writes
+    /// lines 0-2 only (the action only when there was one, the start rotation not at all:
+    /// `turned` says it is the rotation now; `intended` not at all: free motion writes it
+    /// before anything reads it).
+    #[inline]
+    pub fn begin_step(&mut self) {
+        self.start_pos = self.pos;
+        self.turned = false;
+        self.mode_before = self.mode;
+        self.moved = Moved::No;
+        if self.acted {
+            self.set_action(HandAction::None);
+        }
+        self.released = false;
+    }
+
+    /// `rel` and its box for the current rotation.
+    fn rotate_rel(&mut self) {
+        crate::geometry::rotate_vertices(&self.poly, self.rot, &mut self.rel);
+        let (lo, hi) = self.rel.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), v| (lo.min(*v), hi.max(*v)),
+        );
+        (self.rel_lo, self.rel_hi) = (lo, hi);
+        self.box_exact = !self.rot.is_nan();
     }
 
     /// The lowest vertex's height above the floor, relative to G (min of rel.y).
@@ -216,7 +334,124 @@ impl Block {
     pub fn rotate_about(&mut self, q: DQuat, pivot_rel: DVec3) {
         // G' = C + q (G - C), with C = G + pivot_rel: G' - G = pivot_rel - q pivot_rel.
         self.pos += pivot_rel - q * pivot_rel;
-        self.rot = (q * self.rot).normalize();
-        self.refresh_rel();
+        self.set_rotation((q * self.rot).normalize());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::mem::{align_of, offset_of, size_of};
+
+    use super::*;
+
+    /// The cache lines of a block are what `Block`'s comment says they are: a falling block's
+    /// step reads lines 0 and 1 in every pass, 2 in stage 5, 3 where free motion writes R7's
+    /// d; everything else lies after them. A field added in the wrong place fails here, not as a
+    /// slower rain nobody measures.
+    #[test]
+    fn the_fields_every_pass_reads_share_the_first_cache_lines() {
+        assert_eq!(align_of::<Block>(), 64);
+        let line = |offset: usize, size: usize| {
+            let first = offset / 64;
+            assert_eq!(
+                first,
+                (offset + size - 1) / 64,
+                "a field straddles two lines"
+            );
+            first
+        };
+        macro_rules! line_of {
+            ($field:ident, $t:ty) => {
+                line(offset_of!(Block, $field), size_of::<$t>())
+            };
+        }
+        for l in [
+            line_of!(pos, DVec3),
+            line_of!(v, DVec3),
+            line_of!(poly, Arc<Polyhedron>),
+            line_of!(mode, BlockMode),
+            line_of!(moved, Moved),
+            line_of!(released, bool),
+            line_of!(judged, bool),
+            line_of!(stirred, bool),
+        ] {
+            assert_eq!(l, 0);
+        }
+        for l in [
+            line_of!(rel_lo, DVec3),
+            line_of!(rel_hi, DVec3),
+            line_of!(mode_before, BlockMode),
+            line_of!(box_exact, bool),
+            line_of!(acted, bool),
+            line_of!(turned, bool),
+            line_of!(on_floor, bool),
+        ] {
+            assert_eq!(l, 1);
+        }
+        assert_eq!(line_of!(start_pos, DVec3), 2);
+        assert_eq!(line_of!(rot, DQuat), 2);
+        assert_eq!(line_of!(floor, VertexSet), 3);
+        assert_eq!(line_of!(intended, DVec3), 3);
+        for cold in [
+            offset_of!(Block, start_rot),
+            offset_of!(Block, rel),
+            offset_of!(Block, action),
+            offset_of!(Block, name),
+            offset_of!(Block, tipped_over),
+            offset_of!(Block, grasp_history),
+        ] {
+            assert!(
+                cold >= offset_of!(Block, intended) + size_of::<DVec3>(),
+                "a field read by some steps only among the hot ones"
+            );
+        }
+    }
+
+    /// The flags that stand in for their fields agree with them through every writer:
+    /// `on_floor` with the contact set, `acted` with the action, `turned_this_step` with a
+    /// comparison of the rotation against the step's start (NaN included).
+    #[test]
+    fn the_flags_agree_with_what_they_stand_for() {
+        let poly =
+            Polyhedron::from_spec(&common::config::scene::ShapeSpec::Box { size: [0.04; 3] })
+                .unwrap();
+        let mut b = Block::new(
+            String::new(),
+            poly,
+            DVec3::ONE,
+            DQuat::IDENTITY,
+            DVec3::ZERO,
+            1,
+        );
+        b.begin_step();
+        assert!(!b.on_floor() && !b.acted() && !b.turned_this_step());
+        let mut set = VertexSet::EMPTY;
+        set.insert(3);
+        b.set_floor(set);
+        assert!(b.on_floor());
+        b.set_floor(VertexSet::EMPTY);
+        assert!(!b.on_floor());
+        b.set_action(HandAction::Grasp);
+        assert!(b.acted() && b.action() == HandAction::Grasp);
+        b.begin_step();
+        assert!(!b.acted() && b.action() == HandAction::None);
+        // Turned and back: the same rotation as at the start, not turned.
+        let q = DQuat::from_rotation_y(0.3);
+        b.set_rotation(q);
+        assert!(b.turned_this_step());
+        b.set_rotation(DQuat::IDENTITY);
+        assert!(!b.turned_this_step());
+        b.set_rotation(q);
+        b.begin_step();
+        assert!(!b.turned_this_step() && b.rot() == q);
+        // The box follows the rotation.
+        let (lo, hi) = (b.rel_lo, b.rel_hi);
+        b.set_rotation(DQuat::IDENTITY);
+        assert!(b.rel_lo != lo || b.rel_hi != hi);
+        assert!((b.rel_hi - DVec3::splat(0.02)).length() < 1e-12);
+        // A rotation holding a NaN never equals itself: turned every step, no exact box.
+        b.set_rotation(DQuat::from_xyzw(f64::NAN, 0.0, 0.0, 1.0));
+        b.begin_step();
+        assert!(b.turned_this_step() && !b.box_exact);
     }
 }

@@ -33,7 +33,6 @@ pub enum Stability {
 /// R8: lifts the block out of the floor by its deepest vertex, and returns the contact set
 /// (vertices with y <= contact_eps) and the lift.
 pub(crate) fn lift_and_contacts(b: &mut Block, contact_eps: f64) -> (VertexSet, f64) {
-    b.refresh_rel();
     let low = b.pos.y + b.lowest_rel_y();
     let lift = if low < 0.0 { -low } else { 0.0 };
     b.pos.y += lift;
@@ -306,8 +305,10 @@ impl Floor {
             // exactly rel's lowest y): R8 lifts nothing and finds no contact, so what follows
             // comes to "no floor contact", without a pass over the vertices. Most blocks of a
             // rain take this path every step.
-            if b.rel_rot == b.rot && b.pos.y + b.rel_lo.y > eps {
-                b.floor = VertexSet::EMPTY;
+            if b.box_exact && b.pos.y + b.rel_lo.y > eps {
+                if b.on_floor() {
+                    b.set_floor(VertexSet::EMPTY);
+                }
                 if b.moved != Moved::Stacked
                     && matches!(b.mode, BlockMode::Resting | BlockMode::Tipping)
                 {
@@ -315,13 +316,13 @@ impl Floor {
                 }
                 continue;
             }
-            let prev = b.floor;
+            let prev = *b.floor();
             let (set, _) = lift_and_contacts(b, eps);
             let by_hand = matches!(b.moved, Moved::Hand | Moved::Carried);
             if b.moved == Moved::Stacked {
                 // R14 turned it (its R9): after the rotation apply R8 again, nothing more.
                 let impact = set.has_new_vs(&prev);
-                b.floor = set;
+                b.set_floor(set);
                 if impact {
                     events.emit(EventKind::Impact, i);
                 }
@@ -329,7 +330,7 @@ impl Floor {
             }
             if b.mode == BlockMode::Grasped || set.is_empty() {
                 // R5: of the floor rules only R8's lift applies to a grasped block.
-                b.floor = set;
+                b.set_floor(set);
                 if set.is_empty() && matches!(b.mode, BlockMode::Resting | BlockMode::Tipping) {
                     b.mode = BlockMode::Free;
                 }
@@ -384,7 +385,7 @@ impl Floor {
                     }
                     Stability::Tipping { pivot, axis, theta } => {
                         let before = b.pos;
-                        turned_from = Some((b.pos, b.rot, set));
+                        turned_from = Some((b.pos, b.rot(), set));
                         b.rotate_about(DQuat::from_axis_angle(axis, theta), pivot);
                         let turned = b.pos - before;
                         // After the rotation apply R8 again.
@@ -405,7 +406,7 @@ impl Floor {
             if impact || by_hand {
                 b.v = DVec3::ZERO;
             }
-            b.floor = set;
+            b.set_floor(set);
             // R14: blocks that touch are not held by R11, so an R9 turn on the floor may swing a
             // block into the neighbour it leans on. It does not turn then: it leans on it.
             if let Some((pos, rot, set)) = turned_from {
@@ -421,9 +422,8 @@ impl Floor {
                 {
                     let b = &mut blocks[i];
                     b.pos = pos;
-                    b.rot = rot;
-                    b.refresh_rel();
-                    b.floor = set;
+                    b.set_rotation(rot);
+                    b.set_floor(set);
                     b.v = DVec3::ZERO;
                     if !by_hand {
                         b.mode = BlockMode::Resting;

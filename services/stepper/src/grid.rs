@@ -220,12 +220,17 @@ impl BlockGrid {
     pub(crate) fn sync(&mut self, blocks: &[Block], moved: &crate::block_set::BlockSet) {
         if self.built {
             for i in moved.iter() {
-                // Most of the set has not moved since the grid last saw it (a move by free
-                // motion or a carry tells the grid at once).
-                if blocks[i].pos != self.slots[i].centre {
-                    self.moved(i, blocks[i].pos);
-                }
+                self.stands_at(i, blocks[i].pos);
             }
+        }
+    }
+
+    /// Block i stands at `pos`, which may be where the grid last saw it: most blocks a sync
+    /// looks at have not moved since (a move by free motion or a carry tells the grid at once).
+    #[inline]
+    pub(crate) fn stands_at(&mut self, i: usize, pos: DVec3) {
+        if self.built && pos != self.slots[i].centre {
+            self.moved(i, pos);
         }
     }
 

@@ -145,7 +145,7 @@ pub(crate) fn first_entries<'a>(
     let mut first = [[f64::INFINITY; MAX_FINGER_POINTS]; MAX_FINGERS];
     let fc = (hand.finger_count as usize).min(MAX_FINGERS);
     for b in blocks {
-        let inv = b.rot.conjugate();
+        let inv = b.rot().conjugate();
         let to_body = |p: [f64; 3]| inv * (DVec3::from_array(p) - b.pos);
         for (f, row) in first.iter_mut().enumerate().take(fc) {
             let np = (hand.finger_point_count[f] as usize).min(MAX_FINGER_POINTS);
@@ -173,13 +173,13 @@ pub(crate) fn block_contacts(
     first: &FirstEntries,
     contacts: &mut Vec<Contact>,
 ) {
-    let inv = b.rot.conjugate();
+    let inv = b.rot().conjugate();
     let to_body = |p: [f64; 3]| inv * (DVec3::from_array(p) - b.pos);
     let poly = &b.poly;
     let out = |c: DVec3, n: DVec3, bb: DVec3| Contact {
-        c: b.rot * c,
-        n: b.rot * n,
-        b: b.rot * bb,
+        c: b.rot() * c,
+        n: b.rot() * n,
+        b: b.rot() * bb,
     };
     // The block's box in its body frame: R2's broad phase below.
     let (body_lo, body_hi) = poly.vertices.iter().fold(
@@ -356,8 +356,8 @@ impl HandContacts {
         let near = |b: &Block| (b.pos.max(lo).min(hi) - b.pos).length() <= b.poly.radius + eps;
         // The grid's blocks within the box's half diagonal (and eps) of its centre: every block
         // `near` accepts (a superset; `near` decides). In no order: each block's action is its
-        // own, and the first entries are minima.
-        grid.sync(blocks, active);
+        // own, and the first entries are minima. The grid sees every block where the last step
+        // left it (its stage 5), and nothing has moved since.
         // Nothing near the hand (a hand far from every block): one comparison of boxes.
         if grid.nothing_near_box(blocks, lo, hi, eps) {
             return false;
@@ -424,7 +424,7 @@ impl HandContacts {
                 active.insert(i);
                 acted = true;
             }
-            b.action = action;
+            b.set_action(action);
         }
         acted
     }
@@ -439,7 +439,7 @@ pub(crate) fn end_grasps(blocks: &mut [Block], active: &BlockSet, inertia: bool)
     // A grasped block is never at rest: it is in `active`.
     for i in active.iter() {
         let b = &mut blocks[i];
-        if b.mode == BlockMode::Grasped && b.action != HandAction::Grasp {
+        if b.mode == BlockMode::Grasped && b.action() != HandAction::Grasp {
             b.released = true;
             b.mode = BlockMode::Free;
             b.v = if inertia {
@@ -480,7 +480,10 @@ pub(crate) fn move_by_hand(
     // Stage 1 put every block the hand acts on in `active`.
     for i in active.iter() {
         let b = &mut blocks[i];
-        match b.action {
+        if !b.acted() {
+            continue;
+        }
+        match b.action() {
             HandAction::None => {}
             HandAction::Grasp => {
                 // R5: pose <- W W-^-1 pose.
@@ -491,8 +494,7 @@ pub(crate) fn move_by_hand(
                 let new_pos = w_pos + dq * (b.pos - wm_pos);
                 let d = new_pos - b.pos;
                 b.pos = new_pos;
-                b.rot = (dq * b.rot).normalize();
-                b.refresh_rel();
+                b.set_rotation((dq * b.rot()).normalize());
                 b.push_grasp_displacement(d);
                 b.v = d;
                 b.moved = Moved::Hand;
@@ -524,27 +526,29 @@ pub(crate) fn move_by_hand(
         }
     }
     if any_grasp {
-        relocate_fingers(blocks, hand, fingers);
+        relocate_fingers(blocks, active, hand, fingers);
     }
     any_moved
 }
 
 /// R5: check points that end inside a grasped block are moved to its surface (nearest point),
 /// for drawing; P- stays the hand's own sample.
-fn relocate_fingers(blocks: &[Block], hand: &HandSample, fingers: &mut Fingers) {
+fn relocate_fingers(blocks: &[Block], active: &BlockSet, hand: &HandSample, fingers: &mut Fingers) {
     let fc = (hand.finger_count as usize).min(MAX_FINGERS);
     for f in 0..fc {
         for k in 0..(hand.finger_point_count[f] as usize).min(MAX_FINGER_POINTS) {
             let p = DVec3::from_array(fingers.points[f][k]);
-            for b in blocks {
+            // A grasped block is never at rest: in `active`, lowest index first (the order of a
+            // loop over every block, without the loop: a point costs the active blocks).
+            for b in active.iter().map(|i| &blocks[i]) {
                 if b.mode != BlockMode::Grasped {
                     continue;
                 }
-                let local = b.rot.conjugate() * (p - b.pos);
+                let local = b.rot().conjugate() * (p - b.pos);
                 let (s, face) = b.poly.max_face_distance(local);
                 if s < 0.0 {
                     let on = local - b.poly.faces[face].normal * s;
-                    fingers.points[f][k] = (b.pos + b.rot * on).to_array();
+                    fingers.points[f][k] = (b.pos + b.rot() * on).to_array();
                     break;
                 }
             }

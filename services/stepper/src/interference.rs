@@ -27,27 +27,38 @@ use crate::settings::{Passes, Settings};
 /// The pair's poses with block `a`'s G as the origin (precision far from the world origin).
 fn rel_poses(a: &Block, b: &Block) -> (Pose, Pose) {
     (
-        Pose::from_parts(DVec3::ZERO, a.rot),
-        Pose::from_parts(b.pos - a.pos, b.rot),
+        Pose::from_parts(DVec3::ZERO, a.rot()),
+        Pose::from_parts(b.pos - a.pos, b.rot()),
     )
 }
 
 /// [`sat_depth`] of the pair as they stand (b's offset from a's G): > 0 overlap, < 0 gap.
 pub(crate) fn pair_depth(a: &Block, b: &Block) -> f64 {
     let off = b.pos - a.pos;
-    sat_depth(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off)
+    sat_depth(&a.poly, a.rot(), &a.rel, &b.poly, b.rot(), &b.rel, off)
 }
 
 /// [`sat_axis`] of the pair as they stand: (depth, unit axis from a to b).
 pub(crate) fn pair_axis(a: &Block, b: &Block, tie: f64) -> (f64, DVec3) {
     let off = b.pos - a.pos;
-    sat_axis(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off, tie)
+    sat_axis(&a.poly, a.rot(), &a.rel, &b.poly, b.rot(), &b.rel, off, tie)
 }
 
 /// [`sat_allows_motion`] of a moving by `d` past b as they stand.
 fn pair_allows_motion(a: &Block, b: &Block, d: DVec3, eps: f64, hull_eps: f64) -> bool {
     let (off, (pa, pb)) = (b.pos - a.pos, (&a.poly, &b.poly));
-    sat_allows_motion(pa, a.rot, &a.rel, pb, b.rot, &b.rel, off, d, eps, hull_eps)
+    sat_allows_motion(
+        pa,
+        a.rot(),
+        &a.rel,
+        pb,
+        b.rot(),
+        &b.rel,
+        off,
+        d,
+        eps,
+        hull_eps,
+    )
 }
 
 /// Whether the bounding spheres of a and b come within `margin`.
@@ -60,10 +71,11 @@ fn near(a: &Block, b: &Block, margin: f64) -> bool {
 /// axis: their boxes (of the rotated vertices) cannot come within `margin`, so neither can
 /// the blocks, and a GJK query would find them apart. Exact, and a few comparisons where GJK
 /// costs hundreds: side by side in a field or a rain, the bounding spheres of neighbours
-/// overlap but their boxes do not. Says false (ask GJK) if either box is not up to date.
+/// overlap but their boxes do not. Says false (ask GJK) if either box bounds nothing (a
+/// rotation with a NaN: `Block::box_exact`).
 #[inline]
 pub(crate) fn boxes_apart(a: &Block, d: DVec3, b: &Block, margin: f64) -> bool {
-    if a.rel_rot != a.rot || b.rel_rot != b.rot {
+    if !a.box_exact || !b.box_exact {
         return false;
     }
     // b relative to a's G, as the queries pose them.
@@ -248,8 +260,8 @@ pub(crate) fn cast_fraction(
     let mut toi = 1.0f64;
     if passes.floor && d.y < 0.0 {
         // Translation only: the lowest vertex leads; exact. (Its box's floor is that vertex's
-        // height when the box is up to date: no pass over the vertices.)
-        let lowest = if a.rel_rot == a.rot {
+        // height when the box is exact: no pass over the vertices.)
+        let lowest = if a.box_exact {
             a.rel_lo.y
         } else {
             a.lowest_rel_y()
@@ -323,7 +335,7 @@ pub(crate) fn turn_enters_neighbour(
         if after <= hull_eps {
             continue;
         }
-        let before = sat_depth(&a.poly, rot, turned, &b.poly, b.rot, &b.rel, b.pos - pos);
+        let before = sat_depth(&a.poly, rot, turned, &b.poly, b.rot(), &b.rel, b.pos - pos);
         if after > before.max(hull_eps) {
             return true;
         }

@@ -214,7 +214,6 @@ impl Support {
         f.sleeping.difference_with(active);
         for i in active.iter() {
             let b = &mut blocks[i];
-            b.refresh_rel();
             b.judged = false;
             if b.moved != Moved::No || b.mode == BlockMode::Grasped {
                 // The hand moved or holds it (R4-R6, R5, R10): not judged, never a load.
@@ -286,10 +285,10 @@ impl Support {
                     let start = self.points.len();
                     contact_points(
                         &u.poly,
-                        u.rot,
+                        u.rot(),
                         &u.rel,
                         &l.poly,
-                        l.rot,
+                        l.rot(),
                         &l.rel,
                         l.pos - u.pos,
                         eps,
@@ -368,7 +367,7 @@ impl Support {
                 // sleeping block woken on the floor (its load may have left), which R9 would
                 // skip: judged here by the same test.
                 let woken_resting =
-                    woken.contains(i) && b.mode == BlockMode::Resting && !b.floor.is_empty();
+                    woken.contains(i) && b.mode == BlockMode::Resting && b.on_floor();
                 if !woken_resting {
                     b.tipped_over.clear();
                     if b.mode == BlockMode::Supported {
@@ -395,7 +394,7 @@ impl Support {
         for j in s_mask.iter() {
             let bj = &blocks[j];
             let off = bj.pos - gpos - gl;
-            for k in bj.floor.iter().take_while(|&k| k < bj.rel.len()) {
+            for k in bj.floor().iter().take_while(|&k| k < bj.rel.len()) {
                 self.cut.push(bj.rel[k] + off);
             }
         }
@@ -461,7 +460,7 @@ impl Support {
                 theta = theta.min(landing_angle(
                     &bj.rel,
                     bj.pos.y,
-                    &bj.floor,
+                    bj.floor(),
                     pj,
                     axis,
                     settings.angle_eps,
@@ -476,7 +475,7 @@ impl Support {
                 let bj = &blocks[j];
                 let pj = pivot + (gpos - bj.pos);
                 let shift = pj - q * pj;
-                let rot = (q * bj.rot).normalize();
+                let rot = (q * bj.rot()).normalize();
                 let mut turned_ready = false;
                 for (k, bk) in blocks.iter().enumerate() {
                     if s_mask.contains(k) {
@@ -491,16 +490,16 @@ impl Support {
                         rotate_vertices(&bj.poly, rot, turned);
                         turned_ready = true;
                     }
-                    let after = sat_depth(&bj.poly, rot, turned, &bk.poly, bk.rot, &bk.rel, off);
+                    let after = sat_depth(&bj.poly, rot, turned, &bk.poly, bk.rot(), &bk.rel, off);
                     if after <= hull_eps {
                         continue;
                     }
                     let before = sat_depth(
                         &bj.poly,
-                        bj.rot,
+                        bj.rot(),
                         &bj.rel,
                         &bk.poly,
-                        bk.rot,
+                        bk.rot(),
                         &bk.rel,
                         bk.pos - bj.pos,
                     );

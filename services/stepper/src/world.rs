@@ -20,7 +20,7 @@ use common::config::Scene;
 use common::{BlockMode, BlockState, HandSample, Pose, WorldHeader, WorldSample, MAX_SCENE_BLOCKS};
 
 use crate::block_set::BlockSet;
-use crate::body::{Block, HandAction, Moved};
+use crate::body::{Block, Moved};
 use crate::event::StepEvents;
 pub use crate::event::{Event, EventKind};
 use crate::floor::Floor;
@@ -229,7 +229,7 @@ impl World {
                 if off.length() > a.poly.radius + b.poly.radius + w.contact_eps {
                     continue;
                 }
-                let depth = sat_depth(&a.poly, a.rot, &a.rel, &b.poly, b.rot, &b.rel, off);
+                let depth = sat_depth(&a.poly, a.rot(), &a.rel, &b.poly, b.rot(), &b.rel, off);
                 if depth > w.contact_eps {
                     return Err(err(
                         scene,
@@ -317,6 +317,9 @@ impl World {
         //    block between steps.
         events.begin(self.steps);
         fingers.copy_from(hand);
+        // Whether a stage moved blocks without telling the grid (the hand's, R14's) since the
+        // last step's stage 5 brought it up to date: free motion then syncs it first.
+        let mut grid_behind = false;
         if passes.hand {
             // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
             //    action; then R13 ends the grasps they no longer confirm.
@@ -346,22 +349,19 @@ impl World {
             };
             if passes.carry && moved {
                 carry.carry(blocks, active, grid, settings.hull_eps);
-            } else if !passes.free_motion {
-                // The grid must see every block that moved before it goes quiet (a block the
-                // floor stage moved last step is active in this one): free motion, which tells
-                // it otherwise, is off. The stage that skipped the carry keeps its sync.
-                grid.sync(blocks, active);
             }
+            grid_behind |= moved;
         }
         // 3a. Supported stacking (R14, when the scene asks for it): blocks on blocks are judged
         //     bottom up, held or tipped with their load.
         if passes.supported {
             support.judge_stacks(blocks, active, settings, passes);
+            grid_behind = true;
         }
         // 3. Free motion (R7, with R12) for the rest, except blocks held by R11 or R14. Without
         //    gravity and inertia nothing moves freely, and R11 has nothing to hold.
         if passes.free_motion {
-            free_motion(blocks, active, grid, settings, passes);
+            free_motion(blocks, active, grid, grid_behind, settings, passes);
         }
         // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting.
         if passes.floor {
@@ -369,7 +369,7 @@ impl World {
         }
         // 5. Releases (R13) take effect for the next step; modes and events are settled, and
         //    this hand is the next step's previous one.
-        finish_step(blocks, active, quiet, events, states);
+        finish_step(blocks, active, quiet, grid, events, states);
         *prev_hand = hand.copied();
     }
 
@@ -435,10 +435,10 @@ impl World {
     pub fn block(&self, i: usize) -> Option<BlockView> {
         self.blocks.get(i).map(|b| BlockView {
             position: b.pos,
-            rotation: b.rot,
+            rotation: b.rot(),
             mode: b.mode,
             v: b.v,
-            floor_contacts: b.floor.len(),
+            floor_contacts: b.floor().len(),
         })
     }
 
@@ -447,7 +447,7 @@ impl World {
         self.blocks
             .get(i)
             .into_iter()
-            .flat_map(|b| b.poly.vertices.iter().map(move |v| b.pos + b.rot * *v))
+            .flat_map(|b| b.poly.vertices.iter().map(move |v| b.pos + b.rot() * *v))
     }
 
     /// The scene file this world came from.
@@ -456,21 +456,14 @@ impl World {
     }
 }
 
-/// Stage 0: the step's start pose and mode of every block, and nothing done to it yet. A block
-/// outside `active` was left so by stage 5 (`quiet_down`).
-/// Stage 0 for one block: it starts the next step where it is, with nothing done to it yet.
-/// Done by stage 5 for every block it leaves active (and by `World::new` before the first
-/// step) rather than by a pass of its own at the start of the step: a pass over the active set
-/// is a pass over memory, and in a field of 4096 falling blocks (~2 MB of blocks, past the L2
-/// cache) each pass cost a step ~27,000 cache misses (callgrind's cache simulation).
+/// Stage 0 for one block: it starts the next step where it is, with nothing done to it yet
+/// ([`Block::begin_step`]). Done by stage 5 for every block it leaves active (and by
+/// `World::new` before the first step) rather than by a pass of its own at the start of the
+/// step: a pass over the active set is a pass over memory, and in a field of 4096 falling
+/// blocks (~2 MB of blocks, past the L2 cache) each pass cost a step ~27,000 cache misses
+/// (callgrind's cache simulation).
 fn begin_block(b: &mut Block) {
-    b.start_pos = b.pos;
-    b.start_rot = b.rot;
-    b.mode_before = b.mode;
-    b.moved = Moved::No;
-    b.intended = DVec3::ZERO;
-    b.action = HandAction::None;
-    b.released = false;
+    b.begin_step();
 }
 
 /// Block `b`'s entry of the `world` sample: the pose of G and the mode.
@@ -478,7 +471,7 @@ fn state_of(b: &Block) -> BlockState {
     BlockState {
         pose: Pose {
             position: b.pos.to_array(),
-            rotation: b.rot.to_array(),
+            rotation: b.rot().to_array(),
         },
         mode: b.mode as u32,
         _reserved: 0,
@@ -494,6 +487,7 @@ fn finish_step(
     blocks: &mut [Block],
     active: &mut BlockSet,
     quiet: &mut BlockSet,
+    grid: &mut BlockGrid,
     events: &mut StepEvents,
     states: &mut [BlockState],
 ) {
@@ -501,8 +495,11 @@ fn finish_step(
     for i in active.iter() {
         let b = &mut blocks[i];
         states[i] = state_of(b);
+        // The grid sees every block where this step left it (the floor stage's moves, the
+        // hand's): the next step's stages query it without a pass of their own to sync it.
+        grid.stands_at(i, b.pos);
         // R14 judges again what touches a block that moved or changed mode.
-        b.stirred = b.pos != b.start_pos || b.rot != b.start_rot || b.mode != b.mode_before;
+        b.stirred = b.pos != b.start_pos || b.turned_this_step() || b.mode != b.mode_before;
         if b.released {
             events.emit(EventKind::Release, i);
         }
@@ -515,11 +512,10 @@ fn finish_step(
             && !b.stirred
             && !b.released
             && b.moved == Moved::No
-            && b.action == HandAction::None
+            && !b.acted()
         {
             // What R14's first pass would do to it in every later step while it sleeps
             // outside the active set (`Support::judge_with` skips it).
-            b.refresh_rel();
             b.judged = false;
             quiet.insert(i);
         }
