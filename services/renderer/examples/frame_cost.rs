@@ -1,7 +1,10 @@
 //! Time of `Renderer::render` (draw both eyes, wait for the GPU) alone, per frame content.
 //! `cargo run -p renderer --release --example frame_cost -- [WIDTH HEIGHT] [FRAMES] [GAP_MS] [BLOCKS]`
 //! (GAP_MS: idle time between frames, as a paced loop has; BLOCKS: 8 by default, laid out on a
-//! square grid 8 cm apart like config/scenes/field-1024.toml)
+//! square grid 8 cm apart like config/scenes/field-1024.toml). The blocks rest; each size is
+//! timed drawn whole every frame (the static layer off), from the static layer's image, and
+//! from it with one block pushed a little every frame (its layer unchanged), and with one of
+//! the layer's blocks moving every frame (a redraw of the layer each frame: the worst case).
 
 use std::path::PathBuf;
 
@@ -55,11 +58,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ..RenderSettings::default()
         };
         let mut r = Renderer::new_headless(&settings, &scene)?;
-        let label = format!("{blocks} blocks");
-        for (name, wld) in [("floor only", &empty), (label.as_str(), &world)] {
+        let whole = format!("{blocks} blocks, drawn whole");
+        let layered = format!("{blocks} blocks at rest, static layer");
+        let one_live = format!("{blocks} blocks, 1 pushed, static layer");
+        let redrawn = format!("{blocks} blocks, 1 of the layer moved a frame");
+        let cases: [(&str, &WorldSample, bool, Option<BlockMode>); 5] = [
+            ("floor only", &empty, false, None),
+            (&whole, &world, false, None),
+            (&layered, &world, true, None),
+            (&one_live, &world, true, Some(BlockMode::Pushed)),
+            (&redrawn, &world, true, Some(BlockMode::Resting)),
+        ];
+        for (name, wld, layer, moving) in cases {
+            r.set_static_layer(layer);
+            let mut wld = wld.clone();
             let mut t = Vec::new();
             for i in 0..frames + 10 {
                 std::thread::sleep(gap);
+                if let (Some(mode), Some(b)) = (moving, wld.blocks.first_mut()) {
+                    b.mode = mode as u32;
+                    b.pose.position[1] = 0.03 + 0.001 * (i % 2) as f64;
+                }
                 let f = r.render(wld.view(), &hand)?;
                 if i >= 10 {
                     t.push((f.done_ns - f.started_ns) as f64 / 1e6);

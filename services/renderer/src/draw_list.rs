@@ -69,8 +69,11 @@ struct MeshGroup {
 /// A frame's draws.
 pub struct DrawList {
     pub instances: Vec<Instance>,
-    /// One per mesh with a block to draw this frame.
+    /// One per mesh with a block to draw live this frame.
     pub blocks: Vec<BlockDraw>,
+    /// One per mesh with a block in the static layer (`static_layer.rs`): drawn only when
+    /// that layer's image is redrawn.
+    pub static_blocks: Vec<BlockDraw>,
     /// Which instance each block got this frame (u32::MAX: not drawn), in scene order.
     pub block_instance: Vec<u32>,
     groups: Vec<MeshGroup>,
@@ -101,6 +104,7 @@ impl DrawList {
         DrawList {
             instances: Vec::with_capacity(instance_capacity(block_meshes.len())),
             blocks: Vec::with_capacity(groups.len()),
+            static_blocks: Vec::with_capacity(groups.len()),
             block_instance: vec![u32::MAX; block_meshes.len()],
             groups,
             floor_instance: FLOOR_INSTANCE,
@@ -128,10 +132,22 @@ fn finite3(p: &[f64; 3]) -> Option<DVec3> {
 }
 
 impl DrawList {
-    /// Fills the list for `world` and `hand`.
+    /// Fills the list for `world` and `hand`, every block live.
     pub fn build(&mut self, world: WorldView<'_>, hand: &HandSample) {
+        self.build_layered(world, hand, &[]);
+    }
+
+    /// Fills the list for `world` and `hand`: the blocks `in_static_layer` marks (by scene
+    /// index; past its end, none) in `static_blocks`, the others in `blocks`.
+    pub fn build_layered(
+        &mut self,
+        world: WorldView<'_>,
+        hand: &HandSample,
+        in_static_layer: &[bool],
+    ) {
         self.instances.clear();
         self.blocks.clear();
+        self.static_blocks.clear();
         self.block_instance.fill(u32::MAX);
         self.instances
             .push(instance(Mat4::IDENTITY, [0.0; 3], false));
@@ -139,37 +155,47 @@ impl DrawList {
 
         let states = world.blocks();
         for g in &self.groups {
-            let start = self.instances.len() as u32;
-            for &i in &g.blocks {
-                let Some(b) = states.get(i as usize) else {
-                    break; // ascending: the rest are past the world's blocks too
-                };
-                if !b.pose.is_finite() {
-                    continue;
+            for layer_static in [true, false] {
+                let start = self.instances.len() as u32;
+                for &i in &g.blocks {
+                    let Some(b) = states.get(i as usize) else {
+                        break; // ascending: the rest are past the world's blocks too
+                    };
+                    if in_static_layer.get(i as usize).copied().unwrap_or(false) != layer_static {
+                        continue;
+                    }
+                    if !b.pose.is_finite() {
+                        continue;
+                    }
+                    let q = DQuat::from_array(b.pose.rotation);
+                    let len = q.length();
+                    if !(len > 0.5 && len < 2.0) {
+                        continue; // not a rotation: skip rather than draw a sheared block
+                    }
+                    let model = Mat4::from_rotation_translation(
+                        (q / len).as_quat(),
+                        DVec3::from_array(b.pose.position).as_vec3(),
+                    );
+                    let mode = if world.grasped_block == i as i32 {
+                        BlockMode::Grasped
+                    } else {
+                        b.mode()
+                    };
+                    self.block_instance[i as usize] = self.instances.len() as u32;
+                    self.instances.push(instance(model, mode_color(mode), true));
                 }
-                let q = DQuat::from_array(b.pose.rotation);
-                let len = q.length();
-                if !(len > 0.5 && len < 2.0) {
-                    continue; // not a rotation: skip rather than draw a sheared block
+                let end = self.instances.len() as u32;
+                if end > start {
+                    let draws = if layer_static {
+                        &mut self.static_blocks
+                    } else {
+                        &mut self.blocks
+                    };
+                    draws.push(BlockDraw {
+                        indices: g.indices.clone(),
+                        instances: start..end,
+                    });
                 }
-                let model = Mat4::from_rotation_translation(
-                    (q / len).as_quat(),
-                    DVec3::from_array(b.pose.position).as_vec3(),
-                );
-                let mode = if world.grasped_block == i as i32 {
-                    BlockMode::Grasped
-                } else {
-                    b.mode()
-                };
-                self.block_instance[i as usize] = self.instances.len() as u32;
-                self.instances.push(instance(model, mode_color(mode), true));
-            }
-            let end = self.instances.len() as u32;
-            if end > start {
-                self.blocks.push(BlockDraw {
-                    indices: g.indices.clone(),
-                    instances: start..end,
-                });
             }
         }
 

@@ -26,6 +26,7 @@ pub mod preview;
 pub mod renderer;
 pub mod service;
 pub mod settings;
+pub mod static_layer;
 pub mod window;
 
 pub use camera::CameraSettings;

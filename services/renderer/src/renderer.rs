@@ -5,6 +5,9 @@
 //! side-by-side output. The anaglyph is a second, full-screen pass that reads both halves; a
 //! window gets the same pass into its surface. "Photon" is when the frame's GPU work is
 //! complete: after submitting, the renderer waits for that submission on the device.
+//!
+//! A frame starts from the static layer's image (the floor and the resting blocks away from the
+//! hand, `static_layer.rs`), redrawn only when one of them changed, and draws the rest on it.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -15,7 +18,7 @@ use glam::Vec3;
 use wgpu::util::DeviceExt;
 
 use crate::camera::{stereo, EyeView};
-use crate::draw_list::{instance_capacity, DrawList, PALM_VERTEX_CAPACITY};
+use crate::draw_list::{instance_capacity, BlockDraw, DrawList, PALM_VERTEX_CAPACITY};
 use crate::error::RenderError;
 use crate::image::Image;
 use crate::mesh::{Meshes, Vertex};
@@ -25,6 +28,7 @@ use crate::pipeline::{
     EYE_UNIFORM_STRIDE,
 };
 use crate::settings::{OutputMode, RenderSettings};
+use crate::static_layer::{LayerFrame, StaticLayer};
 
 /// A frame's GPU work should take milliseconds; a device that needs this long is lost.
 const GPU_TIMEOUT: Duration = Duration::from_secs(10);
@@ -64,7 +68,16 @@ pub struct Renderer {
     queue: wgpu::Queue,
     eyes: wgpu::Texture,
     eyes_view: wgpu::TextureView,
+    depth: wgpu::Texture,
     depth_view: wgpu::TextureView,
+    /// The static layer's image (`static_layer.rs`): colour and depth, as `eyes` and `depth`.
+    layer_color: wgpu::Texture,
+    layer_color_view: wgpu::TextureView,
+    layer_depth: wgpu::Texture,
+    layer_depth_view: wgpu::TextureView,
+    layer: StaticLayer,
+    /// Whether frames start from the static layer's image (on unless a caller turns it off).
+    use_layer: bool,
     scene: ScenePipelines,
     module: wgpu::ShaderModule,
     bind_group: wgpu::BindGroup,
@@ -170,6 +183,7 @@ impl Renderer {
             COLOR_FORMAT,
             wgpu::TextureUsages::RENDER_ATTACHMENT
                 | wgpu::TextureUsages::COPY_SRC
+                | wgpu::TextureUsages::COPY_DST
                 | wgpu::TextureUsages::TEXTURE_BINDING,
         );
         let eyes_view = eyes.create_view(&Default::default());
@@ -178,9 +192,14 @@ impl Renderer {
             2 * w,
             h,
             DEPTH_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_DST,
         );
         let depth_view = depth.create_view(&Default::default());
+        let layer_usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+        let layer_color = texture("static layer", 2 * w, h, COLOR_FORMAT, layer_usage);
+        let layer_color_view = layer_color.create_view(&Default::default());
+        let layer_depth = texture("static layer depth", 2 * w, h, DEPTH_FORMAT, layer_usage);
+        let layer_depth_view = layer_depth.create_view(&Default::default());
         let module = shader(&device);
         let scene_p = scene_pipelines(&device, &module);
 
@@ -285,7 +304,14 @@ impl Renderer {
             queue,
             eyes,
             eyes_view,
+            depth,
             depth_view,
+            layer_color,
+            layer_color_view,
+            layer_depth,
+            layer_depth_view,
+            layer: StaticLayer::new(meshes.blocks.len()),
+            use_layer: true,
             scene: scene_p,
             module,
             bind_group,
@@ -331,14 +357,40 @@ impl Renderer {
         }
     }
 
+    /// Whether frames start from the static layer's image (`static_layer.rs`; on by default).
+    /// Off, every frame draws every block: the same bytes, at the whole scene's cost.
+    pub fn set_static_layer(&mut self, on: bool) {
+        self.use_layer = on;
+        self.layer.clear();
+    }
+
+    /// How many blocks the static layer held in the last frame.
+    pub fn static_layer_blocks(&self) -> usize {
+        self.layer.len()
+    }
+
     /// Draws one frame of `world` and `hand` and waits until the GPU has finished it.
+    ///
+    /// A frame is drawn in two layers (`static_layer.rs`): the static one (the floor, the
+    /// resting blocks of the layer and their shadows), drawn again only when it changed and
+    /// otherwise copied from its image, and the live one on top (the other blocks, the hand,
+    /// their shadows, the grid lines).
     pub fn render(
         &mut self,
         world: WorldView<'_>,
         hand: &HandSample,
     ) -> Result<FrameTimes, RenderError> {
         let started_ns = monotonic_ns();
-        self.list.build(world, hand);
+        let layer = if self.use_layer {
+            self.layer.update(world, hand)
+        } else {
+            LayerFrame::Off
+        };
+        let members: &[bool] = match layer {
+            LayerFrame::Off => &[],
+            _ => self.layer.members(),
+        };
+        self.list.build_layered(world, hand, members);
         let list = &self.list;
         self.queue
             .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&list.instances));
@@ -351,77 +403,65 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("frame"),
             });
-        {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("eyes"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &self.eyes_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: 0.30,
-                            g: 0.36,
-                            b: 0.45,
-                            a: 1.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            let (w, h) = (self.settings.width as f32, self.settings.height as f32);
-            let palm_n = list.palm_vertices.len() as u32;
+        if layer == LayerFrame::Redraw {
+            let mut pass = self.scene_pass(
+                &mut encoder,
+                "static layer",
+                &self.layer_color_view,
+                &self.layer_depth_view,
+                true,
+            );
             for eye in 0..2u32 {
-                pass.set_viewport(eye as f32 * w, 0.0, w, h, 0.0, 1.0);
-                pass.set_bind_group(0, &self.bind_group, &[eye * EYE_UNIFORM_STRIDE as u32]);
-                pass.set_vertex_buffer(1, self.instance_buf.slice(..));
-                pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
-                pass.set_index_buffer(self.index_buf.slice(..), wgpu::IndexFormat::Uint32);
-                pass.set_pipeline(&self.scene.floor);
-                let fi = list.floor_instance;
-                pass.draw_indexed(self.meshes.floor.clone(), 0, fi..fi + 1);
+                self.begin_eye(&mut pass, eye);
+                self.draw_floor(&mut pass);
+                pass.set_pipeline(&self.scene.solid);
+                Self::draw_blocks(&mut pass, &list.static_blocks);
+                if self.settings.shadows {
+                    pass.set_pipeline(&self.scene.shadow);
+                    Self::draw_blocks(&mut pass, &list.static_blocks);
+                }
+            }
+        }
+        if layer != LayerFrame::Off {
+            let size = self.eyes.size();
+            encoder.copy_texture_to_texture(
+                self.layer_color.as_image_copy(),
+                self.eyes.as_image_copy(),
+                size,
+            );
+            encoder.copy_texture_to_texture(
+                self.layer_depth.as_image_copy(),
+                self.depth.as_image_copy(),
+                size,
+            );
+        }
+        {
+            let mut pass = self.scene_pass(
+                &mut encoder,
+                "live layer",
+                &self.eyes_view,
+                &self.depth_view,
+                layer == LayerFrame::Off,
+            );
+            for eye in 0..2u32 {
+                self.begin_eye(&mut pass, eye);
+                if layer == LayerFrame::Off {
+                    self.draw_floor(&mut pass);
+                }
                 // Solids first: they write depth, so the shadows and grid lines under them
                 // fail the depth test before any shading (what the shadows cost is then only
                 // the floor they darken).
-                let pipelines: &[&wgpu::RenderPipeline] = if self.settings.shadows {
-                    &[&self.scene.solid, &self.scene.shadow, &self.scene.grid]
-                } else {
-                    &[&self.scene.solid, &self.scene.grid]
-                };
-                for p in pipelines {
-                    pass.set_pipeline(p);
-                    pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
-                    if std::ptr::eq(*p, &self.scene.grid) {
-                        // Over the floor and the shadows, under everything else (depth).
-                        pass.draw_indexed(self.meshes.grid.clone(), 0, fi..fi + 1);
-                        continue;
-                    }
-                    for b in &list.blocks {
-                        pass.draw_indexed(b.indices.clone(), 0, b.instances.clone());
-                    }
-                    if !list.segments.is_empty() {
-                        pass.draw_indexed(self.meshes.cylinder.clone(), 0, list.segments.clone());
-                    }
-                    if !list.joints.is_empty() {
-                        pass.draw_indexed(self.meshes.sphere.clone(), 0, list.joints.clone());
-                    }
-                    if palm_n > 0 {
-                        pass.set_vertex_buffer(0, self.palm_buf.slice(..));
-                        let pi = list.palm_instance;
-                        pass.draw(0..palm_n, pi..pi + 1);
-                    }
+                pass.set_pipeline(&self.scene.solid);
+                self.draw_live(&mut pass);
+                if self.settings.shadows {
+                    pass.set_pipeline(&self.scene.shadow);
+                    self.draw_live(&mut pass);
                 }
+                // Over the floor and the shadows, under everything else (depth).
+                pass.set_pipeline(&self.scene.grid);
+                pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
+                let fi = list.floor_instance;
+                pass.draw_indexed(self.meshes.grid.clone(), 0, fi..fi + 1);
             }
         }
         if let Some(a) = &self.anaglyph {
@@ -460,6 +500,101 @@ impl Renderer {
             submitted_ns,
             done_ns: monotonic_ns(),
         })
+    }
+
+    /// A pass of the scene into `color` and `depth`, cleared (`clear`) or loaded: the layer's
+    /// image stores its depth for the frames that start from it; a frame's is discarded.
+    fn scene_pass<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        label: &str,
+        color: &wgpu::TextureView,
+        depth: &wgpu::TextureView,
+        clear: bool,
+    ) -> wgpu::RenderPass<'e> {
+        let background = wgpu::Color {
+            r: 0.30,
+            g: 0.36,
+            b: 0.45,
+            a: 1.0,
+        };
+        let layer_image = std::ptr::eq(depth, &self.layer_depth_view);
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some(label),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: color,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: if clear {
+                        wgpu::LoadOp::Clear(background)
+                    } else {
+                        wgpu::LoadOp::Load
+                    },
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: if clear {
+                        wgpu::LoadOp::Clear(1.0)
+                    } else {
+                        wgpu::LoadOp::Load
+                    },
+                    store: if layer_image {
+                        wgpu::StoreOp::Store
+                    } else {
+                        wgpu::StoreOp::Discard
+                    },
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+    }
+
+    /// One eye's viewport, uniforms and buffers.
+    fn begin_eye(&self, pass: &mut wgpu::RenderPass<'_>, eye: u32) {
+        let (w, h) = (self.settings.width as f32, self.settings.height as f32);
+        pass.set_viewport(eye as f32 * w, 0.0, w, h, 0.0, 1.0);
+        pass.set_bind_group(0, &self.bind_group, &[eye * EYE_UNIFORM_STRIDE as u32]);
+        pass.set_vertex_buffer(1, self.instance_buf.slice(..));
+        pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
+        pass.set_index_buffer(self.index_buf.slice(..), wgpu::IndexFormat::Uint32);
+    }
+
+    fn draw_floor(&self, pass: &mut wgpu::RenderPass<'_>) {
+        pass.set_pipeline(&self.scene.floor);
+        let fi = self.list.floor_instance;
+        pass.draw_indexed(self.meshes.floor.clone(), 0, fi..fi + 1);
+    }
+
+    fn draw_blocks(pass: &mut wgpu::RenderPass<'_>, draws: &[BlockDraw]) {
+        for b in draws {
+            pass.draw_indexed(b.indices.clone(), 0, b.instances.clone());
+        }
+    }
+
+    /// The live blocks and the hand, with the pipeline set (solid or shadow).
+    fn draw_live(&self, pass: &mut wgpu::RenderPass<'_>) {
+        let list = &self.list;
+        pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
+        Self::draw_blocks(pass, &list.blocks);
+        if !list.segments.is_empty() {
+            pass.draw_indexed(self.meshes.cylinder.clone(), 0, list.segments.clone());
+        }
+        if !list.joints.is_empty() {
+            pass.draw_indexed(self.meshes.sphere.clone(), 0, list.joints.clone());
+        }
+        let palm_n = list.palm_vertices.len() as u32;
+        if palm_n > 0 {
+            pass.set_vertex_buffer(0, self.palm_buf.slice(..));
+            let pi = list.palm_instance;
+            pass.draw(0..palm_n, pi..pi + 1);
+        }
     }
 
     /// The last frame as the output mode shows it: side by side and separate give both eyes

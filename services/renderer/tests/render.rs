@@ -551,3 +551,90 @@ fn a_floating_block_casts_one_whole_shadow_whatever_its_orientation() {
         }
     }
 }
+
+/// The static layer (`static_layer.rs`) changes what a frame costs, never what it shows: a
+/// frame started from the layer's image has the bytes of the same frame drawn by a renderer
+/// that never saw an earlier one, whether a live block moved (the image is reused), a block of
+/// the layer moved (it is redrawn), a resting block was grasped, or blocks came to rest; and
+/// with blocks clear of the floor (no 0.8 mm shadow plane between a side and the floor, where
+/// the two layers' order shows) it is also the frame drawn whole, the layer off.
+#[test]
+fn a_frame_from_the_static_layer_is_the_frame_drawn_from_scratch() {
+    let above = CameraSettings {
+        eye: [0.0, 0.6, 0.5],
+        target: [0.0, 0.0, 0.0],
+        ..CameraSettings::default()
+    };
+    let s = RenderSettings {
+        camera: above,
+        ..settings(OutputMode::SideBySide, true)
+    };
+    let positions: Vec<[f64; 3]> = (0..16)
+        .map(|i| {
+            [
+                0.08 * (i % 4) as f64 - 0.12,
+                0.02,
+                0.08 * (i / 4) as f64 - 0.12,
+            ]
+        })
+        .collect();
+    let mut w = world(&positions, BlockMode::Resting);
+    let hand = HandSample::default();
+    let fresh = |w: &WorldSample, layer: bool| {
+        let mut r = renderer(&s, 16);
+        r.set_static_layer(layer);
+        draw(&mut r, w, &hand)
+    };
+    let mut r = renderer(&s, 16);
+    let first = draw(&mut r, &w, &hand);
+    assert_eq!(r.static_layer_blocks(), 16);
+    assert!(first.rgba == fresh(&w, true).rgba);
+    // A block is pushed out of the layer (redrawn without it), then moves live (reused).
+    w.blocks[5].mode = BlockMode::Pushed as u32;
+    w.blocks[5].pose.position[0] += 0.01;
+    assert!(draw(&mut r, &w, &hand).rgba == fresh(&w, true).rgba);
+    assert_eq!(r.static_layer_blocks(), 15);
+    for step in 0..3 {
+        w.blocks[5].pose.position[0] += 0.01;
+        w.blocks[5].pose.rotation = [
+            0.0,
+            (0.1 * step as f64).sin(),
+            0.0,
+            (0.1 * step as f64).cos(),
+        ];
+        assert!(
+            draw(&mut r, &w, &hand).rgba == fresh(&w, true).rgba,
+            "live step {step}"
+        );
+        assert_eq!(r.static_layer_blocks(), 15);
+    }
+    // A block of the layer moves without leaving rest (a nudge): redrawn.
+    w.blocks[10].pose.position[2] += 0.005;
+    assert!(draw(&mut r, &w, &hand).rgba == fresh(&w, true).rgba);
+    // Grasped: out of the layer, in the grasp colour.
+    w.header.grasped_block = 0;
+    assert!(draw(&mut r, &w, &hand).rgba == fresh(&w, true).rgba);
+    assert_eq!(r.static_layer_blocks(), 14);
+    // Blocks clear of the floor: the layered frame is the frame drawn whole.
+    let mut high = world(&positions, BlockMode::Resting);
+    for b in &mut high.blocks {
+        b.pose.position[1] = 0.1;
+    }
+    high.blocks[3].mode = BlockMode::Free as u32;
+    let mut r = renderer(&s, 16);
+    draw(&mut r, &high, &hand);
+    high.blocks[3].pose.position[1] = 0.09;
+    let layered = draw(&mut r, &high, &hand);
+    assert_eq!(r.static_layer_blocks(), 15);
+    let whole = fresh(&high, false);
+    let differ = layered
+        .rgba
+        .chunks(4)
+        .zip(whole.rgba.chunks(4))
+        .filter(|(a, b)| a != b)
+        .count();
+    assert_eq!(
+        differ, 0,
+        "{differ} pixels differ from the frame drawn whole"
+    );
+}
