@@ -8,7 +8,9 @@
 //!   along the middle row at cube height, pushing the few it meets). Every step is timed on its
 //!   own; p50 and p99 over the timed runs, the mean count of blocks not resting ("active"),
 //!   the time per active block, the fitted exponent of time against N (least squares on
-//!   log-log), and the paper model's time as a ratio to the precise model's.
+//!   log-log), and the paper model's time as a ratio to the precise model's. The timed runs go
+//!   round the sizes (run 1 of each, then run 2, ...), so the machine's slow spells fall on
+//!   every size alike.
 //! * **Contenders**: the paper model; the precise one at its `[precise]` defaults (the
 //!   reference of `bench accuracy`: 8 substeps, sleeping off, because sleeping would freeze a
 //!   block tipping slowly); and the precise one at the cheapest setting that keeps a settled
@@ -342,32 +344,50 @@ pub fn cheapest_still() -> Result<(PreciseSettings, Cheap), String> {
     ))
 }
 
-fn scaling_row(
+/// The scaling rows of one contender in one situation, one per size. Each size is warmed up
+/// once, then the timed runs go round the sizes (run 1 of every size, then run 2, ...), so a
+/// slow minute of this shared machine falls on every size alike rather than on the one being
+/// timed then (timing the sizes one after the other, a slow spell during the 4096 field's runs
+/// alone moved the fitted exponent by several hundredths).
+fn scaling_rows(
     c: Contender,
     situation: Situation,
-    n: usize,
+    sizes: &[usize],
     runs: usize,
-) -> Result<ScalingRow, String> {
-    let mut scene = field(n, situation, c.model);
-    c.apply(&mut scene);
+) -> Result<Vec<ScalingRow>, String> {
     let (settle, steps) = (situation.settle(), situation.steps());
-    run_steps(&scene, settle, steps)?; // warm-up
-    let mut all = Vec::new();
-    let mut active = 0.0;
-    for _ in 0..runs {
-        let (t, a) = run_steps(&scene, settle, steps)?;
-        all.extend(t);
-        active = a;
+    let mut scenes = Vec::with_capacity(sizes.len());
+    for &n in sizes {
+        let mut scene = field(n, situation, c.model);
+        c.apply(&mut scene);
+        run_steps(&scene, settle, steps)?; // warm-up
+        scenes.push(scene);
     }
-    all.sort_by(f64::total_cmp);
-    Ok(ScalingRow {
-        model: c.name,
-        situation,
-        blocks: n,
-        active,
-        us_per_step_p50: percentile(&all, 0.5),
-        us_per_step_p99: percentile(&all, 0.99),
-    })
+    let mut all: Vec<Vec<f64>> = vec![Vec::new(); sizes.len()];
+    let mut active = vec![0.0; sizes.len()];
+    for _ in 0..runs {
+        for (k, scene) in scenes.iter().enumerate() {
+            let (t, a) = run_steps(scene, settle, steps)?;
+            all[k].extend(t);
+            active[k] = a;
+        }
+    }
+    Ok(sizes
+        .iter()
+        .zip(all.iter_mut())
+        .zip(active)
+        .map(|((&n, times), active)| {
+            times.sort_by(f64::total_cmp);
+            ScalingRow {
+                model: c.name,
+                situation,
+                blocks: n,
+                active,
+                us_per_step_p50: percentile(times, 0.5),
+                us_per_step_p99: percentile(times, 0.99),
+            }
+        })
+        .collect())
 }
 
 /// The least-squares slope of ln(p50) on ln(N) over the rows of one (model, situation).
@@ -606,30 +626,26 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
         },
     ];
     let mut scaling = Vec::new();
-    let jobs: Vec<(Contender, Situation, usize)> = contenders
+    let jobs: Vec<(Contender, Situation)> = contenders
         .iter()
-        .flat_map(|&m| {
-            let measured = &measured;
-            Situation::ALL
-                .iter()
-                .flat_map(move |&s| measured.iter().map(move |&n| (m, s, n)))
-        })
+        .flat_map(|&m| Situation::ALL.iter().map(move |&s| (m, s)))
         .collect();
-    for (k, &(m, s, n)) in jobs.iter().enumerate() {
-        let r = scaling_row(m, s, n, runs)?;
-        eprintln!(
-            "stepper: scaling [{}/{}] {} {} x{}: p50 {:.1} us, p99 {:.1} us, {:.1} active ({:.0} s so far)",
-            k + 1,
-            jobs.len(),
-            r.model,
-            s.name(),
-            n,
-            r.us_per_step_p50,
-            r.us_per_step_p99,
-            r.active,
-            started.elapsed().as_secs_f64()
-        );
-        scaling.push(r);
+    for (k, &(m, s)) in jobs.iter().enumerate() {
+        for r in scaling_rows(m, s, &measured, runs)? {
+            eprintln!(
+                "stepper: scaling [{}/{}] {} {} x{}: p50 {:.1} us, p99 {:.1} us, {:.1} active ({:.0} s so far)",
+                k + 1,
+                jobs.len(),
+                r.model,
+                s.name(),
+                r.blocks,
+                r.us_per_step_p50,
+                r.us_per_step_p99,
+                r.active,
+                started.elapsed().as_secs_f64()
+            );
+            scaling.push(r);
+        }
     }
     for (n, why) in &not_run {
         eprintln!("stepper: scaling x{n}: not run: {why}");
@@ -863,7 +879,7 @@ fn markdown(r: &Report, quick: bool) -> String {
     s += &format!(
         "Both models in one run ({:.0} s{}); the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed runs; active: blocks not resting, mean per step.\n\n",
         r.seconds,
-        if quick { ", --quick: 16 and 64 blocks, 2 timed runs" } else { ", 5 timed runs after a warm-up" }
+        if quick { ", --quick: 16 and 64 blocks, 2 timed runs" } else { ", 5 timed runs after a warm-up, going round the sizes" }
     );
     s += &scaling_table(r);
     s += &format!(

@@ -93,6 +93,12 @@ impl StepEvents {
         });
     }
 
+    /// Moves `later`'s events after this list's (no allocation within the capacity).
+    pub(crate) fn append(&mut self, later: &mut StepEvents) {
+        self.events.extend_from_slice(&later.events);
+        later.events.clear();
+    }
+
     pub(crate) fn as_slice(&self) -> &[Event] {
         &self.events
     }

@@ -10,7 +10,6 @@ use glam::{DQuat, DVec2, DVec3};
 
 use common::BlockMode;
 
-use crate::block_set::BlockSet;
 use crate::body::{Block, Moved, VertexSet};
 use crate::event::{EventKind, StepEvents};
 use crate::geometry::{convex_hull_2d, point_segment_2d};
@@ -264,12 +263,16 @@ impl Floor {
         }
     }
 
-    /// Stage 4: R8 then R9 for every block that moved or is in floor contact and not resting;
-    /// R8's impacts go to `events`.
-    pub(crate) fn land(
+    /// Stage 4 for block i (R8 then R9), if it moved or is in floor contact and not resting;
+    /// R8's impact goes to `events`. Called by the step's last pass, block by block in the
+    /// active set's order, just before stage 5 settles the same block (`World::step`): a
+    /// block's floor stage reads of the others only their poses (R14's check of a turn against
+    /// its neighbours), which stage 5 does not change, so doing the two stages block by block
+    /// is doing them one after the other, in one pass over memory instead of two.
+    pub(crate) fn land_block(
         &mut self,
         blocks: &mut [Block],
-        active: &BlockSet,
+        i: usize,
         settings: &Settings,
         passes: &Passes,
         events: &mut StepEvents,
@@ -279,161 +282,151 @@ impl Floor {
             hull_eps: settings.hull_eps,
             angle_eps: settings.angle_eps,
         };
-        // A block outside `active` rests untouched: it would be skipped just below.
-        for i in active.iter() {
+        {
+            let b = &blocks[i];
+            // Resting and untouched: skipped entirely. Every other block is looked at, also
+            // one that did not move: a block that starts on the floor has its first impact
+            // on step 1, and a block R11 held may be resting on the floor.
+            if b.moved == Moved::No && b.mode == BlockMode::Resting {
+                return;
+            }
+            // R14 held it this step, or holds it asleep: R9 has nothing to add.
+            if passes.supported
+                && b.moved == Moved::No
+                && (b.judged || b.mode == BlockMode::Supported)
             {
-                let b = &blocks[i];
-                // Resting and untouched: skipped entirely. Every other block is looked at, also
-                // one that did not move: a block that starts on the floor has its first impact
-                // on step 1, and a block R11 held may be resting on the floor.
-                if b.moved == Moved::No && b.mode == BlockMode::Resting {
-                    continue;
-                }
-                // R14 held it this step, or holds it asleep: R9 has nothing to add.
-                if passes.supported
-                    && b.moved == Moved::No
-                    && (b.judged || b.mode == BlockMode::Supported)
-                {
-                    continue;
-                }
+                return;
             }
-            let g_step = settings.g_step;
-            let inertia = settings.inertia;
-            let tipping = passes.tipping;
-            let b = &mut blocks[i];
-            // In the air (its lowest vertex above contact_eps, read off its box, which is
-            // exactly rel's lowest y): R8 lifts nothing and finds no contact, so what follows
-            // comes to "no floor contact", without a pass over the vertices. Most blocks of a
-            // rain take this path every step.
-            if b.box_exact && b.pos.y + b.rel_lo.y > eps {
-                if b.on_floor() {
-                    b.set_floor(VertexSet::EMPTY);
-                }
-                if b.moved != Moved::Stacked
-                    && matches!(b.mode, BlockMode::Resting | BlockMode::Tipping)
-                {
-                    b.mode = BlockMode::Free;
-                }
-                continue;
+        }
+        let g_step = settings.g_step;
+        let inertia = settings.inertia;
+        let tipping = passes.tipping;
+        let b = &mut blocks[i];
+        // In the air (its lowest vertex above contact_eps, read off its box, which is
+        // exactly rel's lowest y): R8 lifts nothing and finds no contact, so what follows
+        // comes to "no floor contact", without a pass over the vertices. Most blocks of a
+        // rain take this path every step.
+        if b.box_exact && b.pos.y + b.rel_lo.y > eps {
+            if b.on_floor() {
+                b.set_floor(VertexSet::EMPTY);
             }
-            let prev = *b.floor();
-            let (set, _) = lift_and_contacts(b, eps);
-            let by_hand = matches!(b.moved, Moved::Hand | Moved::Carried);
-            if b.moved == Moved::Stacked {
-                // R14 turned it (its R9): after the rotation apply R8 again, nothing more.
-                let impact = set.has_new_vs(&prev);
-                b.set_floor(set);
-                if impact {
-                    events.emit(EventKind::Impact, i);
-                }
-                continue;
+            if b.moved != Moved::Stacked
+                && matches!(b.mode, BlockMode::Resting | BlockMode::Tipping)
+            {
+                b.mode = BlockMode::Free;
             }
-            if b.mode == BlockMode::Grasped || set.is_empty() {
-                // R5: of the floor rules only R8's lift applies to a grasped block.
-                b.set_floor(set);
-                if set.is_empty() && matches!(b.mode, BlockMode::Resting | BlockMode::Tipping) {
-                    b.mode = BlockMode::Free;
-                }
-                if set.has_new_vs(&prev) {
-                    events.emit(EventKind::Impact, i);
-                }
-                continue;
-            }
-            let mut set = set;
-            let mut impact = set.has_new_vs(&prev);
-            // The pose an R9 turn started from (R14 checks it against the neighbours).
-            let mut turned_from = None;
-            if !tipping {
-                // floor = "rest": R8 only; a block on the floor stays (no rebound, no slide).
-                b.v = DVec3::ZERO;
-                if !by_hand {
-                    b.mode = BlockMode::Resting;
-                }
-            } else {
-                // R9's Gm: after a push g_step (the hand's motion is not inertia); on the
-                // landing step R7's d before R12 cut it; otherwise v + g_step.
-                let gm = match b.moved {
-                    Moved::Hand | Moved::Carried => g_step,
-                    Moved::Free => b.intended,
-                    _ => {
-                        if inertia {
-                            b.v + g_step
-                        } else {
-                            g_step
-                        }
-                    }
-                };
-                match stability(
-                    &b.rel,
-                    b.pos.y,
-                    &set,
-                    gm,
-                    p9,
-                    &mut self.hull_in,
-                    &mut self.hull_out,
-                ) {
-                    // R11 holds a block that touches another: R9 may find it resting on the
-                    // floor, but never tips it (it "stays where it is").
-                    Stability::Tipping { .. } if b.mode == BlockMode::Supported => {
-                        b.v = DVec3::ZERO;
-                    }
-                    Stability::Resting => {
-                        b.v = DVec3::ZERO;
-                        if !by_hand {
-                            b.mode = BlockMode::Resting;
-                        }
-                    }
-                    Stability::Tipping { pivot, axis, theta } => {
-                        let before = b.pos;
-                        turned_from = Some((b.pos, b.rot(), set));
-                        b.rotate_about(DQuat::from_axis_angle(axis, theta), pivot);
-                        let turned = b.pos - before;
-                        // After the rotation apply R8 again.
-                        let (after, _) = lift_and_contacts(b, eps);
-                        set = after;
-                        impact |= set.has_new_vs(&prev);
-                        b.v = if inertia { turned } else { DVec3::ZERO };
-                        if b.moved == Moved::No || b.moved == Moved::Free {
-                            b.moved = Moved::Tipped;
-                        }
-                        if !by_hand {
-                            b.mode = BlockMode::Tipping;
-                        }
-                    }
-                }
-            }
-            // R8: on an impact the inertia is dropped; after a push, perfect friction.
-            if impact || by_hand {
-                b.v = DVec3::ZERO;
-            }
+            return;
+        }
+        let prev = *b.floor();
+        let (set, _) = lift_and_contacts(b, eps);
+        let by_hand = matches!(b.moved, Moved::Hand | Moved::Carried);
+        if b.moved == Moved::Stacked {
+            // R14 turned it (its R9): after the rotation apply R8 again, nothing more.
+            let impact = set.has_new_vs(&prev);
             b.set_floor(set);
-            // R14: blocks that touch are not held by R11, so an R9 turn on the floor may swing a
-            // block into the neighbour it leans on. It does not turn then: it leans on it.
-            if let Some((pos, rot, set)) = turned_from {
-                if passes.supported
-                    && turn_enters_neighbour(
-                        blocks,
-                        i,
-                        pos,
-                        rot,
-                        settings.hull_eps,
-                        &mut self.turned,
-                    )
-                {
-                    let b = &mut blocks[i];
-                    b.pos = pos;
-                    b.set_rotation(rot);
-                    b.set_floor(set);
+            if impact {
+                events.emit(EventKind::Impact, i);
+            }
+            return;
+        }
+        if b.mode == BlockMode::Grasped || set.is_empty() {
+            // R5: of the floor rules only R8's lift applies to a grasped block.
+            b.set_floor(set);
+            if set.is_empty() && matches!(b.mode, BlockMode::Resting | BlockMode::Tipping) {
+                b.mode = BlockMode::Free;
+            }
+            if set.has_new_vs(&prev) {
+                events.emit(EventKind::Impact, i);
+            }
+            return;
+        }
+        let mut set = set;
+        let mut impact = set.has_new_vs(&prev);
+        // The pose an R9 turn started from (R14 checks it against the neighbours).
+        let mut turned_from = None;
+        if !tipping {
+            // floor = "rest": R8 only; a block on the floor stays (no rebound, no slide).
+            b.v = DVec3::ZERO;
+            if !by_hand {
+                b.mode = BlockMode::Resting;
+            }
+        } else {
+            // R9's Gm: after a push g_step (the hand's motion is not inertia); on the
+            // landing step R7's d before R12 cut it; otherwise v + g_step.
+            let gm = match b.moved {
+                Moved::Hand | Moved::Carried => g_step,
+                Moved::Free => b.intended,
+                _ => {
+                    if inertia {
+                        b.v + g_step
+                    } else {
+                        g_step
+                    }
+                }
+            };
+            match stability(
+                &b.rel,
+                b.pos.y,
+                &set,
+                gm,
+                p9,
+                &mut self.hull_in,
+                &mut self.hull_out,
+            ) {
+                // R11 holds a block that touches another: R9 may find it resting on the
+                // floor, but never tips it (it "stays where it is").
+                Stability::Tipping { .. } if b.mode == BlockMode::Supported => {
+                    b.v = DVec3::ZERO;
+                }
+                Stability::Resting => {
                     b.v = DVec3::ZERO;
                     if !by_hand {
                         b.mode = BlockMode::Resting;
                     }
-                    continue;
+                }
+                Stability::Tipping { pivot, axis, theta } => {
+                    let before = b.pos;
+                    turned_from = Some((b.pos, b.rot(), set));
+                    b.rotate_about(DQuat::from_axis_angle(axis, theta), pivot);
+                    let turned = b.pos - before;
+                    // After the rotation apply R8 again.
+                    let (after, _) = lift_and_contacts(b, eps);
+                    set = after;
+                    impact |= set.has_new_vs(&prev);
+                    b.v = if inertia { turned } else { DVec3::ZERO };
+                    if b.moved == Moved::No || b.moved == Moved::Free {
+                        b.moved = Moved::Tipped;
+                    }
+                    if !by_hand {
+                        b.mode = BlockMode::Tipping;
+                    }
                 }
             }
-            if impact {
-                events.emit(EventKind::Impact, i);
+        }
+        // R8: on an impact the inertia is dropped; after a push, perfect friction.
+        if impact || by_hand {
+            b.v = DVec3::ZERO;
+        }
+        b.set_floor(set);
+        // R14: blocks that touch are not held by R11, so an R9 turn on the floor may swing a
+        // block into the neighbour it leans on. It does not turn then: it leans on it.
+        if let Some((pos, rot, set)) = turned_from {
+            if passes.supported
+                && turn_enters_neighbour(blocks, i, pos, rot, settings.hull_eps, &mut self.turned)
+            {
+                let b = &mut blocks[i];
+                b.pos = pos;
+                b.set_rotation(rot);
+                b.set_floor(set);
+                b.v = DVec3::ZERO;
+                if !by_hand {
+                    b.mode = BlockMode::Resting;
+                }
+                return;
             }
+        }
+        if impact {
+            events.emit(EventKind::Impact, i);
         }
     }
 }

@@ -87,6 +87,8 @@ pub struct World {
     active: BlockSet,
     /// Stage 5's blocks that leave `active`.
     quiet: BlockSet,
+    /// Stage 5's events of the step, appended to `events` after the floor stage's.
+    settled: StepEvents,
     /// Each block's `world` sample entry (pose of G, mode) as the last step left it, side by
     /// side: stage 5 rewrites the active blocks' entries (a block outside `active` did not
     /// change). Publishing a world then reads 64 contiguous bytes a block instead of
@@ -275,6 +277,8 @@ impl World {
             grid,
             active,
             quiet: BlockSet::new(n),
+            // Stage 5 reports at most a release and a mode change a block.
+            settled: StepEvents::with_capacity(2 * n + 16),
             states,
             support: Support::new(
                 if e.stacking == Stacking::Supported {
@@ -308,6 +312,7 @@ impl World {
             grid,
             active,
             quiet,
+            settled,
             states,
             ..
         } = self;
@@ -363,13 +368,22 @@ impl World {
         if passes.free_motion {
             free_motion(blocks, active, grid, grid_behind, settings, passes);
         }
-        // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting.
-        if passes.floor {
-            floor.land(blocks, active, settings, passes, events);
+        // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting;
+        // 5. releases (R13) take effect for the next step; modes and events are settled, and
+        //    this hand is the next step's previous one. Both in one pass, block by block (a
+        //    block's floor stage reads of the others only their poses, which stage 5 leaves;
+        //    `Floor::land_block`): stage 5's events wait in `settled` so that the list reads
+        //    as the two stages one after the other (every impact, then the rest).
+        quiet.clear();
+        settled.begin(self.steps);
+        for i in active.iter() {
+            if passes.floor {
+                floor.land_block(blocks, i, settings, passes, events);
+            }
+            finish_block(i, &mut blocks[i], quiet, grid, settled, states);
         }
-        // 5. Releases (R13) take effect for the next step; modes and events are settled, and
-        //    this hand is the next step's previous one.
-        finish_step(blocks, active, quiet, grid, events, states);
+        active.difference_with(quiet);
+        events.append(settled);
         *prev_hand = hand.copied();
     }
 
@@ -478,51 +492,46 @@ fn state_of(b: &Block) -> BlockState {
     }
 }
 
-/// Stage 5: the step's releases (R13) and mode changes as events, and which blocks R14 judges
-/// again in the next step (those that moved or changed mode). A block that rests and that
-/// nothing moved, turned, released or acted on this step leaves `active`: until a stage
-/// touches it, no step looks at it. Every block it passes over ends with its scratch as the
-/// next step's stage 0 sets it (`begin_block`).
-fn finish_step(
-    blocks: &mut [Block],
-    active: &mut BlockSet,
+/// Stage 5 for block i: the step's release (R13) and mode change as events, and whether R14
+/// judges what touches it again in the next step (it moved or changed mode). A block that
+/// rests and that nothing moved, turned, released or acted on this step goes into `quiet`, to
+/// leave `active`: until a stage touches it, no step looks at it. It ends with its scratch as
+/// the next step's stage 0 sets it (`begin_block`).
+fn finish_block(
+    i: usize,
+    b: &mut Block,
     quiet: &mut BlockSet,
     grid: &mut BlockGrid,
     events: &mut StepEvents,
     states: &mut [BlockState],
 ) {
-    quiet.clear();
-    for i in active.iter() {
-        let b = &mut blocks[i];
-        states[i] = state_of(b);
-        // The grid sees every block where this step left it (the floor stage's moves, the
-        // hand's): the next step's stages query it without a pass of their own to sync it.
-        grid.stands_at(i, b.pos);
-        // R14 judges again what touches a block that moved or changed mode.
-        b.stirred = b.pos != b.start_pos || b.turned_this_step() || b.mode != b.mode_before;
-        if b.released {
-            events.emit(EventKind::Release, i);
-        }
-        if b.mode_before != b.mode {
-            if let Some(k) = EventKind::on_entering(b.mode) {
-                events.emit(k, i);
-            }
-        }
-        if b.mode == BlockMode::Resting
-            && !b.stirred
-            && !b.released
-            && b.moved == Moved::No
-            && !b.acted()
-        {
-            // What R14's first pass would do to it in every later step while it sleeps
-            // outside the active set (`Support::judge_with` skips it).
-            b.judged = false;
-            quiet.insert(i);
-        }
-        // The next step's stage 0, for the blocks that stay active and those that sleep.
-        begin_block(b);
+    states[i] = state_of(b);
+    // The grid sees every block where this step left it (the floor stage's moves, the
+    // hand's): the next step's stages query it without a pass of their own to sync it.
+    grid.stands_at(i, b.pos);
+    // R14 judges again what touches a block that moved or changed mode.
+    b.stirred = b.pos != b.start_pos || b.turned_this_step() || b.mode != b.mode_before;
+    if b.released {
+        events.emit(EventKind::Release, i);
     }
-    active.difference_with(quiet);
+    if b.mode_before != b.mode {
+        if let Some(k) = EventKind::on_entering(b.mode) {
+            events.emit(k, i);
+        }
+    }
+    if b.mode == BlockMode::Resting
+        && !b.stirred
+        && !b.released
+        && b.moved == Moved::No
+        && !b.acted()
+    {
+        // What R14's first pass would do to it in every later step while it sleeps
+        // outside the active set (`Support::judge_with` skips it).
+        b.judged = false;
+        quiet.insert(i);
+    }
+    // The next step's stage 0, for the blocks that stay active and those that sleep.
+    begin_block(b);
 }
 
 /// A read-only view of one block's state.
