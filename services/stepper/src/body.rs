@@ -122,7 +122,10 @@ pub struct Block {
     /// Whether `floor` holds a vertex: free motion and the floor stage read this, and a block
     /// in the air never has its contact set's line fetched.
     on_floor: bool,
-    pub grasp_history_len: usize,
+    /// Whether free motion kept R7's d in `intended` this step: only when R12 cut it or R14
+    /// slid it. Otherwise d is the displacement it took (v with inertia, g_step without), and
+    /// the floor stage works it out from those (`Block::free_d`) without the line 3 write.
+    pub intended_kept: bool,
 
     // ---- line 2: what stage 5 reads (the start, the rotation it publishes) ----
     pub start_pos: DVec3,
@@ -131,14 +134,16 @@ pub struct Block {
     /// with it, so `rel`, `rel_lo` and `rel_hi` are always those of this rotation and no stage
     /// has to check (the check read two quaternions a block in every pass that used the box).
     rot: DQuat,
+    /// (Fills line 2: read by R13's grasps only.)
     pub grasp_history_next: usize,
 
     // ---- line 3: the floor stage's contact set, and R7's d ----
     /// Floor contact vertices after the last step (R8). Private: written with
     /// [`Block::set_floor`], which keeps `on_floor`.
     floor: VertexSet,
-    /// R7's d before R12 cut it (R9's Gm on the landing step). Meaningful only in a step that
-    /// free motion moved the block (`Moved::Free`), which writes it: stage 0 leaves it.
+    /// R7's d before R12 cut it (R9's Gm on the landing step), when `intended_kept`.
+    /// Meaningful only in a step that free motion moved the block (`Moved::Free`), which
+    /// writes it: stage 0 leaves it.
     pub intended: DVec3,
 
     // ---- read by some steps only ----
@@ -154,6 +159,7 @@ pub struct Block {
     pub tipped_over: BlockSet,
     /// R13: the last `throw_window` grasped displacements (ring buffer) and how many are valid.
     pub grasp_history: Vec<DVec3>,
+    pub grasp_history_len: usize,
 }
 
 impl Block {
@@ -188,6 +194,7 @@ impl Block {
             acted: false,
             turned: false,
             on_floor: false,
+            intended_kept: false,
             released: false,
             judged: false,
             stirred: true,
@@ -230,6 +237,20 @@ impl Block {
             self.rot != self.start_rot
         } else {
             !self.box_exact
+        }
+    }
+
+    /// R7's d of this step, for a block free motion moved (`Moved::Free`): kept when R12 cut
+    /// it or R14 slid it, else the displacement taken, which is d bit for bit (`inertia` and
+    /// `g_step`: the scene's, as free motion used them).
+    #[inline]
+    pub fn free_d(&self, inertia: bool, g_step: DVec3) -> DVec3 {
+        if self.intended_kept {
+            self.intended
+        } else if inertia {
+            self.v
+        } else {
+            DVec3::ZERO + g_step
         }
     }
 
@@ -385,6 +406,7 @@ mod tests {
             line_of!(acted, bool),
             line_of!(turned, bool),
             line_of!(on_floor, bool),
+            line_of!(intended_kept, bool),
         ] {
             assert_eq!(l, 1);
         }

@@ -13,6 +13,7 @@ use common::BlockMode;
 use crate::body::{Block, Moved, VertexSet};
 use crate::event::{EventKind, StepEvents};
 use crate::geometry::{convex_hull_2d, point_segment_2d};
+use crate::grid::BlockGrid;
 use crate::interference::turn_enters_neighbour;
 use crate::settings::{Passes, Settings};
 
@@ -272,6 +273,7 @@ impl Floor {
     pub(crate) fn land_block(
         &mut self,
         blocks: &mut [Block],
+        grid: &mut BlockGrid,
         i: usize,
         settings: &Settings,
         passes: &Passes,
@@ -355,7 +357,7 @@ impl Floor {
             // landing step R7's d before R12 cut it; otherwise v + g_step.
             let gm = match b.moved {
                 Moved::Hand | Moved::Carried => g_step,
-                Moved::Free => b.intended,
+                Moved::Free => b.free_d(inertia, g_step),
                 _ => {
                     if inertia {
                         b.v + g_step
@@ -412,7 +414,15 @@ impl Floor {
         // block into the neighbour it leans on. It does not turn then: it leans on it.
         if let Some((pos, rot, set)) = turned_from {
             if passes.supported
-                && turn_enters_neighbour(blocks, i, pos, rot, settings.hull_eps, &mut self.turned)
+                && turn_enters_neighbour(
+                    blocks,
+                    grid,
+                    i,
+                    pos,
+                    rot,
+                    settings.hull_eps,
+                    &mut self.turned,
+                )
             {
                 let b = &mut blocks[i];
                 b.pos = pos;

@@ -316,9 +316,12 @@ pub(crate) fn cast_fraction(
 
 /// R14 for R9's turns on the floor: whether block i, turned from the pose (`pos`, `rot`) to
 /// where it is now, entered another block deeper than it was (or than `hull_eps`). `turned` is
-/// the caller's scratch for i's vertices at `rot`.
+/// the caller's scratch for i's vertices at `rot`. The blocks it looks at are the grid's near
+/// i (an "any": in no order), not every block: the grid must see every other block where it
+/// is (the floor stage's pass keeps it so, `World::step`).
 pub(crate) fn turn_enters_neighbour(
     blocks: &[Block],
+    grid: &mut BlockGrid,
     i: usize,
     pos: DVec3,
     rot: DQuat,
@@ -327,7 +330,11 @@ pub(crate) fn turn_enters_neighbour(
 ) -> bool {
     let a = &blocks[i];
     rotate_vertices(&a.poly, rot, turned);
-    for (k, b) in blocks.iter().enumerate() {
+    for &k in grid
+        .near_any_order(blocks, a.pos, a.poly.radius + hull_eps)
+        .iter()
+    {
+        let (k, b) = (k as usize, &blocks[k as usize]);
         if k == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + hull_eps {
             continue;
         }

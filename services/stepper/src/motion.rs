@@ -158,7 +158,12 @@ pub(crate) fn free_motion(
         // R12: stop at the first time of impact; v is the actual displacement.
         let f = cast_fraction(blocks, near, i, path, settings, passes);
         let b = &mut blocks[i];
-        b.intended = d;
+        // d is kept only when the step taken is not d itself (R12 cut it, R14 slid it): a block
+        // falling freely does not write the line `intended` is on (`Block::free_d`).
+        b.intended_kept = f != 1.0 || passes.supported;
+        if b.intended_kept {
+            b.intended = d;
+        }
         let actual = path * f;
         b.translate(actual);
         b.v = if settings.inertia {

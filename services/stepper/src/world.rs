@@ -367,6 +367,7 @@ impl World {
         //    gravity and inertia nothing moves freely, and R11 has nothing to hold.
         if passes.free_motion {
             free_motion(blocks, active, grid, grid_behind, settings, passes);
+            grid_behind = false;
         }
         // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting;
         // 5. releases (R13) take effect for the next step; modes and events are settled, and
@@ -376,9 +377,15 @@ impl World {
         //    as the two stages one after the other (every impact, then the rest).
         quiet.clear();
         settled.begin(self.steps);
+        // R14's check of an R9 turn asks the grid for the turning block's neighbours: it must
+        // see every block where it is (stage 5 tells it of each block the floor stage moved,
+        // before the next block's turn is checked).
+        if passes.supported && passes.floor && grid_behind {
+            grid.sync(blocks, active);
+        }
         for i in active.iter() {
             if passes.floor {
-                floor.land_block(blocks, i, settings, passes, events);
+                floor.land_block(blocks, grid, i, settings, passes, events);
             }
             finish_block(i, &mut blocks[i], quiet, grid, settled, states);
         }
