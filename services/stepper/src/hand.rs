@@ -99,6 +99,42 @@ pub fn is_usable(h: &HandSample) -> bool {
     true
 }
 
+/// The box of a hand's check points ((+inf, -inf) for none): the hand's broad phase. Worked out
+/// once per sample (`World::step`), which is then the box "now" of its step and "before" of the
+/// next.
+pub(crate) fn check_point_box(h: &HandSample) -> (DVec3, DVec3) {
+    let (mut lo, mut hi) = EMPTY_BOX;
+    for f in 0..(h.finger_count as usize).min(MAX_FINGERS) {
+        for p in &h.finger_points[f][..(h.finger_point_count[f] as usize).min(MAX_FINGER_POINTS)] {
+            let p = DVec3::from_array(*p);
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+    }
+    (lo, hi)
+}
+
+/// The box of no points.
+pub(crate) const EMPTY_BOX: (DVec3, DVec3) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+
+/// Stage 1's broad phase: the box of the hand's check points now and before (each sample's
+/// box worked out once, `check_point_box`), grown by `eps`; None when the hand can touch no
+/// block: it has no check points, or the box is farther from every block than a touch (one
+/// comparison with the box of every centre the grid holds). A far hand then costs its stage
+/// this and no more, not a call into `HandContacts::decide_actions`.
+#[inline]
+pub(crate) fn hand_reach(
+    blocks: &[Block],
+    grid: &mut BlockGrid,
+    now: (DVec3, DVec3),
+    before: (DVec3, DVec3),
+    eps: f64,
+) -> Option<(DVec3, DVec3)> {
+    let lo = now.0.min(before.0) - DVec3::splat(eps);
+    let hi = now.1.max(before.1) + DVec3::splat(eps);
+    (lo.cmple(hi).all() && !grid.nothing_near_box(blocks, lo, hi, eps)).then_some((lo, hi))
+}
+
 fn wrist_of(p: &Pose) -> (DVec3, DQuat) {
     let q = DQuat::from_array(p.rotation);
     let q = if q.length_squared() > 0.0 {
@@ -328,40 +364,20 @@ impl HandContacts {
         grid: &mut BlockGrid,
         hand: &HandSample,
         prev: Option<&HandSample>,
+        reach: (DVec3, DVec3),
         settings: &Settings,
         grasp: bool,
     ) -> bool {
         let eps = settings.contact_eps;
         let hull_eps = settings.hull_eps;
-        // Broad phase: the box around every check point now and before.
-        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        let mut grow = |p: [f64; 3]| {
-            let p = DVec3::from_array(p);
-            lo = lo.min(p);
-            hi = hi.max(p);
-        };
-        for hs in [Some(hand), prev].into_iter().flatten() {
-            for f in 0..(hs.finger_count as usize).min(MAX_FINGERS) {
-                for k in 0..(hs.finger_point_count[f] as usize).min(MAX_FINGER_POINTS) {
-                    grow(hs.finger_points[f][k]);
-                }
-            }
-        }
-        lo -= DVec3::splat(eps);
-        hi += DVec3::splat(eps);
-        // A hand without check points touches nothing.
-        if !lo.cmple(hi).all() {
-            return false;
-        }
+        // Broad phase: the box around every check point now and before, grown by eps (`reach`,
+        // `hand_reach`: the caller has already found it near a block).
+        let (lo, hi) = reach;
         let near = |b: &Block| (b.pos.max(lo).min(hi) - b.pos).length() <= b.poly.radius + eps;
         // The grid's blocks within the box's half diagonal (and eps) of its centre: every block
         // `near` accepts (a superset; `near` decides). In no order: each block's action is its
         // own, and the first entries are minima. The grid sees every block where the last step
         // left it (its stage 5), and nothing has moved since.
-        // Nothing near the hand (a hand far from every block): one comparison of boxes.
-        if grid.nothing_near_box(blocks, lo, hi, eps) {
-            return false;
-        }
         let candidates: &[u32] =
             grid.near_any_order(blocks, (lo + hi) * 0.5, 0.5 * (hi - lo).length() + eps);
         // Nothing near the hand: no block has an action to decide.

@@ -28,7 +28,9 @@ use crate::geometry::{sat_depth, Polyhedron};
 use crate::grid::BlockGrid;
 // The check points as drawn are the hand's (R5 relocates them); the precise model fills the same.
 pub(crate) use crate::hand::Fingers;
-use crate::hand::{end_grasps, is_usable, move_by_hand, HandContacts};
+use crate::hand::{
+    check_point_box, end_grasps, hand_reach, is_usable, move_by_hand, HandContacts, EMPTY_BOX,
+};
 use crate::interference::Carry;
 use crate::motion::free_motion;
 use crate::settings::{Passes, Settings};
@@ -70,6 +72,8 @@ pub struct World {
     events: StepEvents,
     /// The hand at the previous step (P-, W-), when there was one.
     prev_hand: Option<HandSample>,
+    /// The box of its check points (`hand::check_point_box`; empty without one).
+    prev_hand_box: (DVec3, DVec3),
     /// The check points as drawn (R5's relocation).
     fingers: Fingers,
     // ---- the stages that keep scratch, each its own, preallocated so that a step does not
@@ -270,6 +274,7 @@ impl World {
             steps: 0,
             events: StepEvents::with_capacity(16 * n + 16),
             prev_hand: None,
+            prev_hand_box: EMPTY_BOX,
             fingers: Fingers::NONE,
             hand_contacts: HandContacts::new(),
             carry: Carry::new(n),
@@ -304,6 +309,7 @@ impl World {
             blocks,
             events,
             prev_hand,
+            prev_hand_box,
             fingers,
             hand_contacts,
             carry,
@@ -329,15 +335,23 @@ impl World {
             // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
             //    action; then R13 ends the grasps they no longer confirm.
             let acted = match hand {
-                Some(h) => hand_contacts.decide_actions(
-                    blocks,
-                    active,
-                    grid,
-                    h,
-                    prev,
-                    settings,
-                    passes.grasp,
-                ),
+                Some(h) => {
+                    let (now, before) = (check_point_box(h), *prev_hand_box);
+                    *prev_hand_box = now;
+                    match hand_reach(blocks, grid, now, before, settings.contact_eps) {
+                        Some(reach) => hand_contacts.decide_actions(
+                            blocks,
+                            active,
+                            grid,
+                            h,
+                            prev,
+                            reach,
+                            settings,
+                            passes.grasp,
+                        ),
+                        None => false,
+                    }
+                }
                 None => false,
             };
             // R5 grasps only with hand = "grasp": without it no block is ever grasped, and R13
@@ -392,6 +406,11 @@ impl World {
         active.difference_with(quiet);
         events.append(settled);
         *prev_hand = hand.copied();
+        if hand.is_none() {
+            // With a hand, stage 1 kept its box for the next step (and without the hand's
+            // stages nothing reads it).
+            *prev_hand_box = EMPTY_BOX;
+        }
     }
 
     /// Sets the hand the next step takes as its previous one (P-, W-) without stepping: a
@@ -399,6 +418,7 @@ impl World {
     /// here so that the first step sees the hand's motion, not a standing start.
     pub fn set_previous_hand(&mut self, hand: Option<&HandSample>) {
         self.prev_hand = hand.filter(|h| is_usable(h)).copied();
+        self.prev_hand_box = self.prev_hand.as_ref().map_or(EMPTY_BOX, check_point_box);
     }
 
     /// The `world` sample's header: steps, block count, the grasped block and the check points
