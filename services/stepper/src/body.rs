@@ -292,8 +292,10 @@ impl Block {
         self.action = action;
     }
 
-    /// Stage 0: the block starts the step where it is, with nothing done to it yet. Writes
-    /// lines 0-2 only (the action only when there was one, the start rotation not at all:
+    /// Stage 0: the block starts the step where it is, with nothing done to it yet. Done by the
+    /// last step's stage 5 in its pass (and by `World::new` before the first step), not by a
+    /// pass of its own: a pass over the active set is a pass over memory (in a rain of 4096
+    /// blocks, ~27,000 cache misses a step, callgrind). Writes lines 0-2 only (the action only when there was one, the start rotation not at all:
     /// `turned` says it is the rotation now; `intended` not at all: free motion writes it
     /// before anything reads it).
     #[inline]

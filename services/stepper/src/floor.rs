@@ -1,7 +1,7 @@
 //! The floor (paper 3.2): R8 impact and R9 stability, evaluated relative to G (vertices as
 //! rotation * body vertex, G' - G = t * Gm) so that far from the origin nothing changes.
 //!
-//! Stage 4 of `World::step` is `Floor::land`, with its own hull buffers; R9's [`stability`]
+//! Stage 4 of `World::step` is `Floor::land_block`, with its own hull buffers; R9's [`stability`]
 //! and its hull cases are shared with R14 (`support`).
 
 use std::f64::consts::TAU;

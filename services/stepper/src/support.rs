@@ -206,7 +206,7 @@ impl Support {
         for set in [&mut f.awake, &mut f.stir, &mut f.fixed] {
             set.clear();
         }
-        // A block outside the active set rests untouched since it left (`finish_step`): not
+        // A block outside the active set rests untouched since it left (`finish_block`): not
         // moved, stirred, released or grasped, its rotated vertices fresh and `judged` clear,
         // so it is sleeping, as the loop below would find it. Only the active blocks are
         // looked at: a field nothing touches costs R14 a few word operations, not a loop.

@@ -264,7 +264,7 @@ impl World {
         let mut active = BlockSet::new(n);
         (0..n).for_each(|i| active.insert(i));
         // Stage 0 for the first step (the last step's stage 5 does it for the others).
-        blocks.iter_mut().for_each(begin_block);
+        blocks.iter_mut().for_each(Block::begin_step);
         let states = blocks.iter().map(state_of).collect();
         Ok(World {
             file: scene.file.clone(),
@@ -324,7 +324,7 @@ impl World {
         } = self;
         let prev = prev_hand.as_ref();
         // 0. Every block starts the step where it is, with nothing done to it yet: the last
-        //    step's stage 5 left it so (`begin_block`, in the same pass), and nothing changes a
+        //    step's stage 5 left it so (`Block::begin_step`, in the same pass), and nothing changes a
         //    block between steps.
         events.begin(self.steps);
         fingers.copy_from(hand);
@@ -497,16 +497,6 @@ impl World {
     }
 }
 
-/// Stage 0 for one block: it starts the next step where it is, with nothing done to it yet
-/// ([`Block::begin_step`]). Done by stage 5 for every block it leaves active (and by
-/// `World::new` before the first step) rather than by a pass of its own at the start of the
-/// step: a pass over the active set is a pass over memory, and in a field of 4096 falling
-/// blocks (~2 MB of blocks, past the L2 cache) each pass cost a step ~27,000 cache misses
-/// (callgrind's cache simulation).
-fn begin_block(b: &mut Block) {
-    b.begin_step();
-}
-
 /// Block `b`'s entry of the `world` sample: the pose of G and the mode.
 fn state_of(b: &Block) -> BlockState {
     BlockState {
@@ -523,7 +513,7 @@ fn state_of(b: &Block) -> BlockState {
 /// judges what touches it again in the next step (it moved or changed mode). A block that
 /// rests and that nothing moved, turned, released or acted on this step goes into `quiet`, to
 /// leave `active`: until a stage touches it, no step looks at it. It ends with its scratch as
-/// the next step's stage 0 sets it (`begin_block`).
+/// the next step's stage 0 sets it (`Block::begin_step`).
 fn finish_block(
     i: usize,
     b: &mut Block,
@@ -558,7 +548,7 @@ fn finish_block(
         quiet.insert(i);
     }
     // The next step's stage 0, for the blocks that stay active and those that sleep.
-    begin_block(b);
+    b.begin_step();
 }
 
 /// A read-only view of one block's state.
