@@ -43,6 +43,17 @@ pub struct FrameTimes {
     pub done_ns: u64,
 }
 
+/// What a scene pass draws into.
+#[derive(Debug, Clone, Copy)]
+enum PassTarget {
+    /// The static layer's image, drawn afresh; its depth is kept for the frames that start
+    /// from it.
+    LayerImage,
+    /// The frame: on a copy of the layer's image, or (`from_nothing`, the layer off) on a
+    /// cleared target; its depth is discarded when the frame is done.
+    Frame { from_nothing: bool },
+}
+
 /// A window's surface and the pass that fills it.
 pub(crate) struct Presenter {
     pub surface: wgpu::Surface<'static>,
@@ -404,13 +415,7 @@ impl Renderer {
                 label: Some("frame"),
             });
         if layer == LayerFrame::Redraw {
-            let mut pass = self.scene_pass(
-                &mut encoder,
-                "static layer",
-                &self.layer_color_view,
-                &self.layer_depth_view,
-                true,
-            );
+            let mut pass = self.scene_pass(&mut encoder, PassTarget::LayerImage);
             for eye in 0..2u32 {
                 self.begin_eye(&mut pass, eye);
                 self.draw_floor(&mut pass);
@@ -436,13 +441,8 @@ impl Renderer {
             );
         }
         {
-            let mut pass = self.scene_pass(
-                &mut encoder,
-                "live layer",
-                &self.eyes_view,
-                &self.depth_view,
-                layer == LayerFrame::Off,
-            );
+            let from_nothing = layer == LayerFrame::Off;
+            let mut pass = self.scene_pass(&mut encoder, PassTarget::Frame { from_nothing });
             for eye in 0..2u32 {
                 self.begin_eye(&mut pass, eye);
                 if layer == LayerFrame::Off {
@@ -502,15 +502,11 @@ impl Renderer {
         })
     }
 
-    /// A pass of the scene into `color` and `depth`, cleared (`clear`) or loaded: the layer's
-    /// image stores its depth for the frames that start from it; a frame's is discarded.
+    /// A pass of the scene into `target`.
     fn scene_pass<'e>(
         &self,
         encoder: &'e mut wgpu::CommandEncoder,
-        label: &str,
-        color: &wgpu::TextureView,
-        depth: &wgpu::TextureView,
-        clear: bool,
+        target: PassTarget,
     ) -> wgpu::RenderPass<'e> {
         let background = wgpu::Color {
             r: 0.30,
@@ -518,7 +514,22 @@ impl Renderer {
             b: 0.45,
             a: 1.0,
         };
-        let layer_image = std::ptr::eq(depth, &self.layer_depth_view);
+        let (label, color, depth, clear, keep_depth) = match target {
+            PassTarget::LayerImage => (
+                "static layer",
+                &self.layer_color_view,
+                &self.layer_depth_view,
+                true,
+                true,
+            ),
+            PassTarget::Frame { from_nothing } => (
+                "live layer",
+                &self.eyes_view,
+                &self.depth_view,
+                from_nothing,
+                false,
+            ),
+        };
         encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some(label),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -542,7 +553,7 @@ impl Renderer {
                     } else {
                         wgpu::LoadOp::Load
                     },
-                    store: if layer_image {
+                    store: if keep_depth {
                         wgpu::StoreOp::Store
                     } else {
                         wgpu::StoreOp::Discard
