@@ -134,16 +134,19 @@ fn finite3(p: &[f64; 3]) -> Option<DVec3> {
 impl DrawList {
     /// Fills the list for `world` and `hand`, every block live.
     pub fn build(&mut self, world: WorldView<'_>, hand: &HandSample) {
-        self.build_layered(world, hand, &[]);
+        self.build_layered(world, hand, &[], false);
     }
 
     /// Fills the list for `world` and `hand`: the blocks `in_static_layer` marks (by scene
-    /// index; past its end, none) in `static_blocks`, the others in `blocks`.
+    /// index; past its end, none) in `static_blocks` when `draw_static` (the layer's image is
+    /// drawn this frame), else not at all (a frame that reuses the image neither builds nor
+    /// uploads their instances); the others in `blocks`.
     pub fn build_layered(
         &mut self,
         world: WorldView<'_>,
         hand: &HandSample,
         in_static_layer: &[bool],
+        draw_static: bool,
     ) {
         self.instances.clear();
         self.blocks.clear();
@@ -155,7 +158,12 @@ impl DrawList {
 
         let states = world.blocks();
         for g in &self.groups {
-            for layer_static in [true, false] {
+            let layers: &[bool] = if draw_static {
+                &[true, false]
+            } else {
+                &[false]
+            };
+            for &layer_static in layers {
                 let start = self.instances.len() as u32;
                 for &i in &g.blocks {
                     let Some(b) = states.get(i as usize) else {

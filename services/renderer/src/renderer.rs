@@ -401,7 +401,8 @@ impl Renderer {
             LayerFrame::Off => &[],
             _ => self.layer.members(),
         };
-        self.list.build_layered(world, hand, members);
+        self.list
+            .build_layered(world, hand, members, layer == LayerFrame::Redraw);
         let list = &self.list;
         self.queue
             .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&list.instances));
