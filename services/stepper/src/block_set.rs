@@ -124,26 +124,57 @@ impl BlockSet {
         }
     }
 
+    /// The indices in the set and not in `other` (of the same world), lowest first.
+    pub fn iter_except<'a>(&'a self, other: &'a BlockSet) -> impl Iterator<Item = usize> + 'a {
+        self.words
+            .iter()
+            .zip(&other.words)
+            .enumerate()
+            .flat_map(|(k, (&w, &not))| bits(k, w & !not))
+    }
+
     /// The indices in the set, lowest first.
     pub fn iter(&self) -> impl Iterator<Item = usize> + '_ {
-        self.words.iter().enumerate().flat_map(|(k, &w)| {
-            let mut m = w;
-            std::iter::from_fn(move || {
-                if m == 0 {
-                    None
-                } else {
-                    let i = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    Some(k * 64 + i)
-                }
-            })
-        })
+        self.words.iter().enumerate().flat_map(|(k, &w)| bits(k, w))
     }
+}
+
+/// The indices of word `k`'s set bits `w`, lowest first.
+#[inline]
+fn bits(k: usize, w: u64) -> impl Iterator<Item = usize> {
+    let mut m = w;
+    std::iter::from_fn(move || {
+        if m == 0 {
+            None
+        } else {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            Some(k * 64 + i)
+        }
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `iter_except` yields what `iter` yields of the set less the other, across words.
+    #[test]
+    fn iter_except_yields_the_difference_lowest_first() {
+        let (mut s, mut t) = (BlockSet::new(200), BlockSet::new(200));
+        for i in [0, 5, 63, 64, 100, 130, 199] {
+            s.insert(i);
+        }
+        for i in [5, 64, 131, 199] {
+            t.insert(i);
+        }
+        assert_eq!(s.iter_except(&t).collect::<Vec<_>>(), [0, 63, 100, 130]);
+        assert_eq!(
+            s.iter_except(&BlockSet::new(200)).collect::<Vec<_>>(),
+            s.iter().collect::<Vec<_>>()
+        );
+        assert_eq!(s.iter_except(&s).count(), 0);
+    }
 
     /// `fill_to(n)` holds exactly 0..n, at word edges too.
     #[test]

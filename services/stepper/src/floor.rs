@@ -245,6 +245,28 @@ pub(crate) fn landing_angle(
     best
 }
 
+/// Whether block b is in the air: its lowest vertex above contact_eps, read off its box, which
+/// is exactly `rel`'s lowest y. R8 then lifts nothing and finds no contact, and the floor stage
+/// comes to [`leave_the_floor`] without a pass over the vertices: most blocks of a rain, every
+/// step. False when the box bounds nothing (`Block::box_exact`): the stage's exact path decides.
+#[inline]
+pub(crate) fn in_the_air(b: &Block, contact_eps: f64) -> bool {
+    b.box_exact && b.pos.y + b.rel_lo.y > contact_eps
+}
+
+/// The floor stage (R8, R9) of a block [`in_the_air`]: no floor contact, and a block that
+/// rested or tipped (not turned by R14) is free. It reads and writes this block only, so it
+/// may be done for a block as soon as the block's pose is final for the step.
+#[inline]
+pub(crate) fn leave_the_floor(b: &mut Block) {
+    if b.on_floor() {
+        b.set_floor(VertexSet::EMPTY);
+    }
+    if b.moved != Moved::Stacked && matches!(b.mode, BlockMode::Resting | BlockMode::Tipping) {
+        b.mode = BlockMode::Free;
+    }
+}
+
 /// Stage 4 (R8, R9) with its own scratch: the 2-D hull buffers of R9 and, for R14, a block's
 /// vertices at the pose an R9 turn started from (preallocated for the scene's largest hull, so
 /// that a step does not allocate).
@@ -304,19 +326,8 @@ impl Floor {
         let inertia = settings.inertia;
         let tipping = passes.tipping;
         let b = &mut blocks[i];
-        // In the air (its lowest vertex above contact_eps, read off its box, which is
-        // exactly rel's lowest y): R8 lifts nothing and finds no contact, so what follows
-        // comes to "no floor contact", without a pass over the vertices. Most blocks of a
-        // rain take this path every step.
-        if b.box_exact && b.pos.y + b.rel_lo.y > eps {
-            if b.on_floor() {
-                b.set_floor(VertexSet::EMPTY);
-            }
-            if b.moved != Moved::Stacked
-                && matches!(b.mode, BlockMode::Resting | BlockMode::Tipping)
-            {
-                b.mode = BlockMode::Free;
-            }
+        if in_the_air(b, eps) {
+            leave_the_floor(b);
             return;
         }
         let prev = *b.floor();

@@ -5,7 +5,6 @@ use glam::DVec3;
 
 use common::BlockMode;
 
-use crate::block_set::BlockSet;
 use crate::body::{Block, Moved};
 use crate::grid::BlockGrid;
 use crate::interference::{cast_fraction, slide_along_sides, touches_another};
@@ -60,121 +59,113 @@ pub fn push_one_point(
     Some(PushOutcome { t, r, theta, axis })
 }
 
-/// Stage 3: R7 (with R12) for every block the hand did not move and that is not grasped,
-/// resting, tipping or in floor contact (the floor stage moves those), except blocks R11
-/// holds. A block released this step (R13) waits for the next.
-pub(crate) fn free_motion(
+/// Stage 3 for block i: R7 (with R12) if the hand did not move it and it is not grasped,
+/// resting, tipping or in floor contact (the floor stage moves those), unless R11 holds it.
+/// A block released this step (R13) waits for the next. True when it moved it (`Moved::Free`).
+///
+/// Called block by block in the active set's order (`World::step`); the grid must see every
+/// block where it is (the last step's stage 5 left it so, and `BlockGrid::sync` after the
+/// hand's and R14's moves), and each move here tells it.
+pub(crate) fn move_freely(
     blocks: &mut [Block],
-    active: &BlockSet,
+    i: usize,
     grid: &mut BlockGrid,
-    grid_behind: bool,
     settings: &Settings,
     passes: &Passes,
-) {
-    // The last step's stage 5 left the grid seeing every block; the hand and R14 move only
-    // active blocks, and when they did (`grid_behind`) a sync of those, with each move below,
-    // keeps every query exact. Without them the sync would be a pass over the active blocks
-    // (in a rain of 4096, ~3 cache misses a block) that finds nothing to do.
-    if grid_behind {
-        grid.sync(blocks, active);
-    }
+) -> bool {
     let eps = settings.contact_eps;
-    // Every block not at rest is active (and a resting one is skipped below in any case).
-    for i in active.iter() {
+    {
+        let b = &blocks[i];
+        if b.moved != Moved::No
+            || b.released
+            || b.mode == BlockMode::Grasped
+            || b.mode == BlockMode::Resting
         {
-            let b = &blocks[i];
-            // A block released this step starts flying in the next (R13, "Order of one
-            // step" 5).
-            if b.moved != Moved::No
-                || b.released
-                || b.mode == BlockMode::Grasped
-                || b.mode == BlockMode::Resting
-            {
-                continue;
-            }
+            return false;
         }
-        // R14 decided it in stage 3a, or holds it asleep (supported, untouched).
-        if passes.supported {
-            let b = &blocks[i];
-            if b.judged || b.mode == BlockMode::Supported {
-                continue;
-            }
-        }
-        // One query for all of this block's tests: R11's touch (spheres within eps of the
-        // block where it stands), R14's slide (the same) and R12's cast along d (spheres within
-        // |d| / 2 of the sphere at mid-step, `cast_fraction`'s own test). Without R14 the cast
-        // is along d itself, and one sphere about the mid-step centre holds both: radius +
-        // eps + |d| / 2 (a block within eps of the start is within that of the middle). With
-        // R14 the cast is along the slid path (no longer than d, but turned), so the sphere is
-        // about the start: radius + eps + |d|. Half the reach of a falling block's query on the
-        // rain (|d| ~ 2 cm at p50): fewer columns and fewer candidates at its height. In no
-        // order: R11's is an "any", R12's a minimum; the slide, whose result depends on the
-        // order, sorts them.
-        // R7: d = v + g_step (v is not changed before it is used below).
-        let d = if settings.inertia {
-            blocks[i].v
-        } else {
-            DVec3::ZERO
-        } + settings.g_step;
-        let near: &mut [u32] = if passes.blocks {
-            let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
-            if passes.supported {
-                grid.near_any_order(blocks, pos, r + eps + d.length())
-            } else {
-                grid.near_any_order(blocks, pos + d * 0.5, r + eps + 0.5 * d.length())
-            }
-        } else {
-            &mut []
-        };
-        // R11 (paper): a block that touches another is not affected by gravity or inertia.
-        if passes.blocks && !passes.supported && touches_another(blocks, near, i, eps) {
-            let b = &mut blocks[i];
-            b.mode = BlockMode::Supported;
-            b.v = DVec3::ZERO;
-            continue;
-        }
-        {
-            let b = &mut blocks[i];
-            if b.mode == BlockMode::Supported {
-                b.mode = BlockMode::Free;
-            }
-            // In floor contact: the floor stage decides (R9's Gm = v + g_step).
-            if passes.floor && b.on_floor() {
-                continue;
-            }
-        }
-        // R7: d = v + g_step; no rotation.
-        if d == DVec3::ZERO {
-            continue;
-        }
-        // R14: a block against another's side slides down along it (side contacts hold
-        // nothing up). Without R14 a touching block is held by R11 and never gets here.
-        let path = if passes.supported {
-            near.sort_unstable();
-            slide_along_sides(blocks, near, i, d, settings)
-        } else {
-            d
-        };
-        // R12: stop at the first time of impact; v is the actual displacement.
-        let f = cast_fraction(blocks, near, i, path, settings, passes);
-        let b = &mut blocks[i];
-        // d is kept only when the step taken is not d itself (R12 cut it, R14 slid it): a block
-        // falling freely does not write the line `intended` is on (`Block::free_d`).
-        b.intended_kept = f != 1.0 || passes.supported;
-        if b.intended_kept {
-            b.intended = d;
-        }
-        let actual = path * f;
-        b.translate(actual);
-        b.v = if settings.inertia {
-            actual
-        } else {
-            DVec3::ZERO
-        };
-        b.moved = Moved::Free;
-        b.mode = BlockMode::Free;
-        grid.moved(i, b.pos);
     }
+    // R14 decided it in stage 3a, or holds it asleep (supported, untouched).
+    if passes.supported {
+        let b = &blocks[i];
+        if b.judged || b.mode == BlockMode::Supported {
+            return false;
+        }
+    }
+    // One query for all of this block's tests: R11's touch (spheres within eps of the
+    // block where it stands), R14's slide (the same) and R12's cast along d (spheres within
+    // |d| / 2 of the sphere at mid-step, `cast_fraction`'s own test). Without R14 the cast
+    // is along d itself, and one sphere about the mid-step centre holds both: radius +
+    // eps + |d| / 2 (a block within eps of the start is within that of the middle). With
+    // R14 the cast is along the slid path (no longer than d, but turned), so the sphere is
+    // about the start: radius + eps + |d|. Half the reach of a falling block's query on the
+    // rain (|d| ~ 2 cm at p50): fewer columns and fewer candidates at its height. In no
+    // order: R11's is an "any", R12's a minimum; the slide, whose result depends on the
+    // order, sorts them.
+    // R7: d = v + g_step (v is not changed before it is used below).
+    let d = if settings.inertia {
+        blocks[i].v
+    } else {
+        DVec3::ZERO
+    } + settings.g_step;
+    let near: &mut [u32] = if passes.blocks {
+        let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
+        if passes.supported {
+            grid.near_any_order(blocks, pos, r + eps + d.length())
+        } else {
+            grid.near_any_order(blocks, pos + d * 0.5, r + eps + 0.5 * d.length())
+        }
+    } else {
+        &mut []
+    };
+    // R11 (paper): a block that touches another is not affected by gravity or inertia.
+    if passes.blocks && !passes.supported && touches_another(blocks, near, i, eps) {
+        let b = &mut blocks[i];
+        b.mode = BlockMode::Supported;
+        b.v = DVec3::ZERO;
+        return false;
+    }
+    {
+        let b = &mut blocks[i];
+        if b.mode == BlockMode::Supported {
+            b.mode = BlockMode::Free;
+        }
+        // In floor contact: the floor stage decides (R9's Gm = v + g_step).
+        if passes.floor && b.on_floor() {
+            return false;
+        }
+    }
+    // R7: d = v + g_step; no rotation.
+    if d == DVec3::ZERO {
+        return false;
+    }
+    // R14: a block against another's side slides down along it (side contacts hold
+    // nothing up). Without R14 a touching block is held by R11 and never gets here.
+    let path = if passes.supported {
+        near.sort_unstable();
+        slide_along_sides(blocks, near, i, d, settings)
+    } else {
+        d
+    };
+    // R12: stop at the first time of impact; v is the actual displacement.
+    let f = cast_fraction(blocks, near, i, path, settings, passes);
+    let b = &mut blocks[i];
+    // d is kept only when the step taken is not d itself (R12 cut it, R14 slid it): a block
+    // falling freely does not write the line `intended` is on (`Block::free_d`).
+    b.intended_kept = f != 1.0 || passes.supported;
+    if b.intended_kept {
+        b.intended = d;
+    }
+    let actual = path * f;
+    b.translate(actual);
+    b.v = if settings.inertia {
+        actual
+    } else {
+        DVec3::ZERO
+    };
+    b.moved = Moved::Free;
+    b.mode = BlockMode::Free;
+    grid.moved(i, b.pos);
+    true
 }
 
 #[cfg(test)]

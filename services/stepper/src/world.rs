@@ -27,12 +27,13 @@ use crate::floor::Floor;
 use crate::geometry::{sat_depth, Polyhedron};
 use crate::grid::BlockGrid;
 // The check points as drawn are the hand's (R5 relocates them); the precise model fills the same.
+use crate::floor::{in_the_air, leave_the_floor};
 pub(crate) use crate::hand::Fingers;
 use crate::hand::{
     check_point_box, end_grasps, hand_reach, is_usable, move_by_hand, HandContacts, EMPTY_BOX,
 };
 use crate::interference::Carry;
-use crate::motion::free_motion;
+use crate::motion::move_freely;
 use crate::settings::{Passes, Settings};
 use crate::support::Support;
 
@@ -91,6 +92,10 @@ pub struct World {
     active: BlockSet,
     /// Stage 5's blocks that leave `active`.
     quiet: BlockSet,
+    /// The blocks that free motion left in the air, with no mode change: their floor stage and
+    /// stage 5 are done in free motion's pass (`World::step`, stage 3), and the last pass skips
+    /// them.
+    flown: BlockSet,
     /// Stage 5's events of the step, appended to `events` after the floor stage's.
     settled: StepEvents,
     /// Each block's `world` sample entry (pose of G, mode) as the last step left it, side by
@@ -282,6 +287,7 @@ impl World {
             grid,
             active,
             quiet: BlockSet::new(n),
+            flown: BlockSet::new(n),
             // Stage 5 reports at most a release and a mode change a block.
             settled: StepEvents::with_capacity(2 * n + 16),
             states,
@@ -318,6 +324,7 @@ impl World {
             grid,
             active,
             quiet,
+            flown,
             settled,
             states,
             ..
@@ -377,27 +384,54 @@ impl World {
             support.judge_stacks(blocks, active, settings, passes);
             grid_behind = true;
         }
+        quiet.clear();
+        flown.clear();
+        settled.begin(self.steps);
         // 3. Free motion (R7, with R12) for the rest, except blocks held by R11 or R14. Without
-        //    gravity and inertia nothing moves freely, and R11 has nothing to hold.
+        //    gravity and inertia nothing moves freely, and R11 has nothing to hold. The grid
+        //    must see the hand's and R14's moves first.
         if passes.free_motion {
-            free_motion(blocks, active, grid, grid_behind, settings, passes);
-            grid_behind = false;
+            if grid_behind {
+                grid.sync(blocks, active);
+                grid_behind = false;
+            }
+            for i in active.iter() {
+                if !move_freely(blocks, i, grid, settings, passes) {
+                    continue;
+                }
+                // A block it left in the air (most of a rain) has its floor stage and stage 5
+                // now, while its lines are in the cache, instead of in the last pass: both
+                // read and write this block only (`leave_the_floor`, `finish_block`), and no
+                // later block's free motion reads what they change (it reads poses and boxes,
+                // which they leave). Only when stage 5 reports nothing, so that `settled`
+                // lists its events in block order.
+                let b = &mut blocks[i];
+                if (!passes.floor || in_the_air(b, settings.contact_eps))
+                    && b.mode == b.mode_before
+                    && !b.released
+                {
+                    if passes.floor {
+                        leave_the_floor(b);
+                    }
+                    finish_block(i, b, quiet, grid, settled, states);
+                    flown.insert(i);
+                }
+            }
         }
         // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting;
         // 5. releases (R13) take effect for the next step; modes and events are settled, and
         //    this hand is the next step's previous one. Both in one pass, block by block (a
         //    block's floor stage reads of the others only their poses, which stage 5 leaves;
         //    `Floor::land_block`): stage 5's events wait in `settled` so that the list reads
-        //    as the two stages one after the other (every impact, then the rest).
-        quiet.clear();
-        settled.begin(self.steps);
+        //    as the two stages one after the other (every impact, then the rest). The blocks
+        //    free motion left flying had both already.
         // R14's check of an R9 turn asks the grid for the turning block's neighbours: it must
         // see every block where it is (stage 5 tells it of each block the floor stage moved,
         // before the next block's turn is checked).
         if passes.supported && passes.floor && grid_behind {
             grid.sync(blocks, active);
         }
-        for i in active.iter() {
+        for i in active.iter_except(flown) {
             if passes.floor {
                 floor.land_block(blocks, grid, i, settings, passes, events);
             }
