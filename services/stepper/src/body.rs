@@ -73,18 +73,21 @@ pub enum HandAction {
 }
 
 /// A block of the world, laid out by what a step reads of it. A rain of 4096 blocks is ~2 MB
-/// of blocks, past the L2 cache, so each of a step's passes over the active blocks (free
-/// motion, the floor, stage 5) fetches from memory every cache line of a block that it reads:
-/// the fields every pass reads share the first line, and a falling block's step reads three or
-/// four of its lines in each pass, not all eight (callgrind's cache simulation, `README`'s
-/// stepper memory paragraph). `repr(C)` keeps the order written; `align(64)` starts every
-/// block on a line.
+/// of blocks, past the L2 cache, so each line of a block that a step reads is fetched from
+/// memory, once a pass: the fields every pass reads share the first line, the box and the
+/// flags that stand in for colder fields the second, and a block that falls through the air
+/// has its whole step in free motion's pass (`World::step`), reading and writing those two
+/// lines only (callgrind's cache simulation of the rain: 2.76M -> 1.32M last-level read
+/// misses over 120 steps with the last two of these, `README`'s stepper memory paragraph).
+/// `repr(C)` keeps the order written; `align(64)` starts every block on a line.
 #[derive(Debug, Clone)]
 #[repr(C, align(64))]
 pub struct Block {
     // ---- line 0: every pass ----
-    /// Position of G.
-    pub pos: DVec3,
+    /// Position of G. Private: it changes only through the methods that keep the step's
+    /// start (`translate`, `rotate_about`, `lift`, `set_position`, and free motion's
+    /// `translate_unrecorded`), so that the start is written only when a block moves.
+    pos: DVec3,
     /// The inertia v: G's displacement per step (docs/model.md "Conventions").
     pub v: DVec3,
     /// Shared by every block of the same shape (`World::new`): a field of 4096 equal cubes
@@ -126,9 +129,16 @@ pub struct Block {
     /// slid it. Otherwise d is the displacement it took (v with inertia, g_step without), and
     /// the floor stage works it out from those (`Block::free_d`) without the line 3 write.
     pub intended_kept: bool,
+    /// Whether `start_pos` holds where the block started this step: set by the first move of
+    /// the step (stage 0 clears it rather than copying the position, as for `turned`).
+    shifted: bool,
 
-    // ---- line 2: what stage 5 reads (the start, the rotation it publishes) ----
-    pub start_pos: DVec3,
+    // ---- line 2: the start of a block that moved, the rotation ----
+    // A falling block's step does not read this line: free motion tells stage 5 where the
+    // block started (`translate_unrecorded`), and stage 5 publishes the rotation only when it
+    // changed (`rotated`).
+    /// Where G was at the step's start; meaningful while `shifted` is set.
+    start_pos: DVec3,
     /// Unit quaternion, body to world. Private: it changes only through
     /// [`Block::set_rotation`] (and [`Block::rotate_about`]), which rotate `rel` and its box
     /// with it, so `rel`, `rel_lo` and `rel_hi` are always those of this rotation and no stage
@@ -195,6 +205,7 @@ impl Block {
             turned: false,
             on_floor: false,
             intended_kept: false,
+            shifted: false,
             released: false,
             judged: false,
             stirred: true,
@@ -212,6 +223,85 @@ impl Block {
     #[inline]
     pub fn rot(&self) -> DQuat {
         self.rot
+    }
+
+    /// The position of G.
+    #[inline]
+    pub fn pos(&self) -> DVec3 {
+        self.pos
+    }
+
+    /// Where G was at the step's start.
+    #[inline]
+    pub fn start_pos(&self) -> DVec3 {
+        if self.shifted {
+            self.start_pos
+        } else {
+            self.pos
+        }
+    }
+
+    /// Every move of G goes through here first: the step's first keeps where it started.
+    #[inline]
+    fn keep_start(&mut self) {
+        if !self.shifted {
+            self.start_pos = self.pos;
+            self.shifted = true;
+        }
+    }
+
+    /// Whether G is not where it started the step (stage 5's "moved": R14 judges again what
+    /// touches it). A position holding a NaN never equals itself, as when this compared the
+    /// position with a copy taken at the step's start.
+    #[inline]
+    pub fn shifted_this_step(&self) -> bool {
+        if self.shifted {
+            self.pos != self.start_pos
+        } else {
+            self.pos.is_nan()
+        }
+    }
+
+    /// Whether the rotation was set this step (it may be the one it started with): stage 5
+    /// publishes it only then.
+    #[inline]
+    pub fn rotated(&self) -> bool {
+        self.turned
+    }
+
+    /// Puts G at `pos` (rotation unchanged).
+    #[inline]
+    pub fn set_position(&mut self, pos: DVec3) {
+        self.keep_start();
+        self.pos = pos;
+    }
+
+    /// Raises G by `dy` (R8's lift).
+    #[inline]
+    pub fn lift(&mut self, dy: f64) {
+        self.keep_start();
+        self.pos.y += dy;
+    }
+
+    /// Free motion's move of G by `d`, without keeping the start: returns where the block
+    /// started the step, and the caller either ends the block's step with it (stage 5 is told
+    /// it: a block free motion leaves flying, `World::step`) or hands it to
+    /// [`Block::record_start`] before anything else reads or moves the block. So a falling
+    /// block's step never writes the line the start is on.
+    #[inline]
+    pub fn translate_unrecorded(&mut self, d: DVec3) -> DVec3 {
+        let start = self.start_pos();
+        self.pos += d;
+        start
+    }
+
+    /// Keeps `start`, from [`Block::translate_unrecorded`], as where the block started.
+    #[inline]
+    pub fn record_start(&mut self, start: DVec3) {
+        if !self.shifted {
+            self.start_pos = start;
+            self.shifted = true;
+        }
     }
 
     /// Turns the block to `rot` (a unit quaternion), its rotated vertices and their box with it.
@@ -295,12 +385,13 @@ impl Block {
     /// Stage 0: the block starts the step where it is, with nothing done to it yet. Done by the
     /// last step's stage 5 in its pass (and by `World::new` before the first step), not by a
     /// pass of its own: a pass over the active set is a pass over memory (in a rain of 4096
-    /// blocks, ~27,000 cache misses a step, callgrind). Writes lines 0-2 only (the action only when there was one, the start rotation not at all:
-    /// `turned` says it is the rotation now; `intended` not at all: free motion writes it
+    /// blocks, ~27,000 cache misses a step, callgrind). Writes lines 0 and 1 only: the action
+    /// only when there was one; the start position and rotation not at all (`shifted` and
+    /// `turned` say they are the ones now); `intended` not at all (free motion writes it
     /// before anything reads it).
     #[inline]
     pub fn begin_step(&mut self) {
-        self.start_pos = self.pos;
+        self.shifted = false;
         self.turned = false;
         self.mode_before = self.mode;
         self.moved = Moved::No;
@@ -350,12 +441,14 @@ impl Block {
     /// Translates the block (rotation unchanged).
     #[inline]
     pub fn translate(&mut self, d: DVec3) {
+        self.keep_start();
         self.pos += d;
     }
 
     /// Rotates the block by `q` about the point G + `pivot_rel` (world orientation).
     pub fn rotate_about(&mut self, q: DQuat, pivot_rel: DVec3) {
         // G' = C + q (G - C), with C = G + pivot_rel: G' - G = pivot_rel - q pivot_rel.
+        self.keep_start();
         self.pos += pivot_rel - q * pivot_rel;
         self.set_rotation((q * self.rot).normalize());
     }
@@ -409,6 +502,7 @@ mod tests {
             line_of!(turned, bool),
             line_of!(on_floor, bool),
             line_of!(intended_kept, bool),
+            line_of!(shifted, bool),
         ] {
             assert_eq!(l, 1);
         }
@@ -477,5 +571,46 @@ mod tests {
         b.set_rotation(DQuat::from_xyzw(f64::NAN, 0.0, 0.0, 1.0));
         b.begin_step();
         assert!(b.turned_this_step() && !b.box_exact);
+    }
+
+    /// `shifted_this_step` agrees with comparing the position against a copy taken at the
+    /// step's start, through every writer (a move and back, a zero move, NaN), and the start
+    /// free motion hands over (`translate_unrecorded`) is that copy, recorded or not.
+    #[test]
+    fn the_start_position_is_the_one_the_step_began_with() {
+        let poly =
+            Polyhedron::from_spec(&common::config::scene::ShapeSpec::Box { size: [0.04; 3] })
+                .unwrap();
+        let start = DVec3::new(1.0, 0.5, -2.0);
+        let mut b = Block::new(String::new(), poly, start, DQuat::IDENTITY, DVec3::ZERO, 1);
+        b.begin_step();
+        assert!(!b.shifted_this_step() && b.start_pos() == start);
+        b.translate(DVec3::ZERO);
+        assert!(!b.shifted_this_step());
+        b.translate(DVec3::X);
+        b.lift(0.25);
+        assert!(b.shifted_this_step() && b.start_pos() == start);
+        b.set_position(start);
+        assert!(!b.shifted_this_step(), "moved and back: where it started");
+        b.rotate_about(DQuat::from_rotation_y(0.5), DVec3::X);
+        assert!(b.shifted_this_step() && b.start_pos() == start);
+        let now = b.pos();
+        b.begin_step();
+        assert!(!b.shifted_this_step() && b.start_pos() == now);
+        // Free motion's move: the start handed over, then recorded (or not, the step ending).
+        let from = b.translate_unrecorded(DVec3::Y);
+        assert_eq!(from, now);
+        b.record_start(from);
+        assert!(b.shifted_this_step() && b.start_pos() == now);
+        b.translate(DVec3::Z);
+        assert_eq!(
+            b.translate_unrecorded(DVec3::Y),
+            now,
+            "an earlier move kept the start"
+        );
+        // A position holding a NaN never equals itself: shifted every step.
+        b.set_position(DVec3::new(f64::NAN, 0.0, 0.0));
+        b.begin_step();
+        assert!(b.shifted_this_step());
     }
 }

@@ -33,12 +33,12 @@ pub enum Stability {
 /// R8: lifts the block out of the floor by its deepest vertex, and returns the contact set
 /// (vertices with y <= contact_eps) and the lift.
 pub(crate) fn lift_and_contacts(b: &mut Block, contact_eps: f64) -> (VertexSet, f64) {
-    let low = b.pos.y + b.lowest_rel_y();
+    let low = b.pos().y + b.lowest_rel_y();
     let lift = if low < 0.0 { -low } else { 0.0 };
-    b.pos.y += lift;
+    b.lift(lift);
     let mut set = VertexSet::EMPTY;
     for (i, v) in b.rel.iter().enumerate() {
-        if b.pos.y + v.y <= contact_eps {
+        if b.pos().y + v.y <= contact_eps {
             set.insert(i);
         }
     }
@@ -251,7 +251,7 @@ pub(crate) fn landing_angle(
 /// step. False when the box bounds nothing (`Block::box_exact`): the stage's exact path decides.
 #[inline]
 pub(crate) fn in_the_air(b: &Block, contact_eps: f64) -> bool {
-    b.box_exact && b.pos.y + b.rel_lo.y > contact_eps
+    b.box_exact && b.pos().y + b.rel_lo.y > contact_eps
 }
 
 /// The floor stage (R8, R9) of a block [`in_the_air`]: no floor contact, and a block that
@@ -379,7 +379,7 @@ impl Floor {
             };
             match stability(
                 &b.rel,
-                b.pos.y,
+                b.pos().y,
                 &set,
                 gm,
                 p9,
@@ -398,10 +398,10 @@ impl Floor {
                     }
                 }
                 Stability::Tipping { pivot, axis, theta } => {
-                    let before = b.pos;
-                    turned_from = Some((b.pos, b.rot(), set));
+                    let before = b.pos();
+                    turned_from = Some((b.pos(), b.rot(), set));
                     b.rotate_about(DQuat::from_axis_angle(axis, theta), pivot);
-                    let turned = b.pos - before;
+                    let turned = b.pos() - before;
                     // After the rotation apply R8 again.
                     let (after, _) = lift_and_contacts(b, eps);
                     set = after;
@@ -436,7 +436,7 @@ impl Floor {
                 )
             {
                 let b = &mut blocks[i];
-                b.pos = pos;
+                b.set_position(pos);
                 b.set_rotation(rot);
                 b.set_floor(set);
                 b.v = DVec3::ZERO;

@@ -117,7 +117,7 @@ impl BlockGrid {
             slots: blocks
                 .iter()
                 .map(|b| Slot {
-                    centre: b.pos,
+                    centre: b.pos(),
                     radius: b.poly.radius,
                     next: NONE,
                     bucket: NONE,
@@ -209,7 +209,7 @@ impl BlockGrid {
         self.buckets.iter_mut().for_each(|b| b.head = NONE);
         self.unplaced.clear();
         for (i, b) in blocks.iter().enumerate() {
-            self.insert(i, b.pos);
+            self.insert(i, b.pos());
         }
         self.built = true;
     }
@@ -220,7 +220,7 @@ impl BlockGrid {
     pub(crate) fn sync(&mut self, blocks: &[Block], moved: &crate::block_set::BlockSet) {
         if self.built {
             for i in moved.iter() {
-                self.stands_at(i, blocks[i].pos);
+                self.stands_at(i, blocks[i].pos());
             }
         }
     }
@@ -404,7 +404,7 @@ mod tests {
             .filter(|&j| {
                 let b = &blocks[j as usize];
                 // As the stages test it: not farther (a NaN distance is not farther).
-                let d = (b.pos - c).length();
+                let d = (b.pos() - c).length();
                 d <= reach + b.poly.radius || d.is_nan()
             })
             .collect()
@@ -424,8 +424,8 @@ mod tests {
         assert!(grid.nothing_near_box(&blocks, lo, hi, 0.05));
         // Just within reach of the box along x: not provably apart.
         assert!(!grid.nothing_near_box(&blocks, lo, hi, 5.0 - 1.9 - 0.01 - 0.02));
-        blocks[3].pos = DVec3::new(5.0, 0.48, 0.01);
-        grid.moved(3, blocks[3].pos);
+        blocks[3].set_position(DVec3::new(5.0, 0.48, 0.01));
+        grid.moved(3, blocks[3].pos());
         assert!(!grid.nothing_near_box(&blocks, lo, hi, 0.05));
         assert_eq!(grid.near(&blocks, far, 0.05), &[3]);
         assert_eq!(
@@ -465,8 +465,8 @@ mod tests {
             assert!(got.contains(&301), "a block not finite is in every answer");
             // Move one block and tell the grid.
             let i = (rnd() * 300.0) as usize;
-            blocks[i].pos += DVec3::new(rnd() - 0.5, 0.0, rnd() - 0.5) * 0.4;
-            grid.moved(i, blocks[i].pos);
+            blocks[i].translate(DVec3::new(rnd() - 0.5, 0.0, rnd() - 0.5) * 0.4);
+            grid.moved(i, blocks[i].pos());
         }
     }
 }

@@ -182,7 +182,7 @@ pub(crate) fn first_entries<'a>(
     let fc = (hand.finger_count as usize).min(MAX_FINGERS);
     for b in blocks {
         let inv = b.rot().conjugate();
-        let to_body = |p: [f64; 3]| inv * (DVec3::from_array(p) - b.pos);
+        let to_body = |p: [f64; 3]| inv * (DVec3::from_array(p) - b.pos());
         for (f, row) in first.iter_mut().enumerate().take(fc) {
             let np = (hand.finger_point_count[f] as usize).min(MAX_FINGER_POINTS);
             for (k, t_first) in row.iter_mut().enumerate().take(np) {
@@ -210,7 +210,7 @@ pub(crate) fn block_contacts(
     contacts: &mut Vec<Contact>,
 ) {
     let inv = b.rot().conjugate();
-    let to_body = |p: [f64; 3]| inv * (DVec3::from_array(p) - b.pos);
+    let to_body = |p: [f64; 3]| inv * (DVec3::from_array(p) - b.pos());
     let poly = &b.poly;
     let out = |c: DVec3, n: DVec3, bb: DVec3| Contact {
         c: b.rot() * c,
@@ -373,7 +373,7 @@ impl HandContacts {
         // Broad phase: the box around every check point now and before, grown by eps (`reach`,
         // `hand_reach`: the caller has already found it near a block).
         let (lo, hi) = reach;
-        let near = |b: &Block| (b.pos.max(lo).min(hi) - b.pos).length() <= b.poly.radius + eps;
+        let near = |b: &Block| (b.pos().max(lo).min(hi) - b.pos()).length() <= b.poly.radius + eps;
         // The grid's blocks within the box's half diagonal (and eps) of its centre: every block
         // `near` accepts (a superset; `near` decides). In no order: each block's action is its
         // own, and the first entries are minima. The grid sees every block where the last step
@@ -507,9 +507,9 @@ pub(crate) fn move_by_hand(
                     b.grasp_history_len = 0;
                 }
                 let (w_pos, wm_pos, dq) = *grasp_motion.get_or_insert_with(wrist_motion);
-                let new_pos = w_pos + dq * (b.pos - wm_pos);
-                let d = new_pos - b.pos;
-                b.pos = new_pos;
+                let new_pos = w_pos + dq * (b.pos() - wm_pos);
+                let d = new_pos - b.pos();
+                b.set_position(new_pos);
                 b.set_rotation((dq * b.rot()).normalize());
                 b.push_grasp_displacement(d);
                 b.v = d;
@@ -560,11 +560,11 @@ fn relocate_fingers(blocks: &[Block], active: &BlockSet, hand: &HandSample, fing
                 if b.mode != BlockMode::Grasped {
                     continue;
                 }
-                let local = b.rot().conjugate() * (p - b.pos);
+                let local = b.rot().conjugate() * (p - b.pos());
                 let (s, face) = b.poly.max_face_distance(local);
                 if s < 0.0 {
                     let on = local - b.poly.faces[face].normal * s;
-                    fingers.points[f][k] = (b.pos + b.rot() * on).to_array();
+                    fingers.points[f][k] = (b.pos() + b.rot() * on).to_array();
                     break;
                 }
             }

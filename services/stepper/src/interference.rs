@@ -28,25 +28,25 @@ use crate::settings::{Passes, Settings};
 fn rel_poses(a: &Block, b: &Block) -> (Pose, Pose) {
     (
         Pose::from_parts(DVec3::ZERO, a.rot()),
-        Pose::from_parts(b.pos - a.pos, b.rot()),
+        Pose::from_parts(b.pos() - a.pos(), b.rot()),
     )
 }
 
 /// [`sat_depth`] of the pair as they stand (b's offset from a's G): > 0 overlap, < 0 gap.
 pub(crate) fn pair_depth(a: &Block, b: &Block) -> f64 {
-    let off = b.pos - a.pos;
+    let off = b.pos() - a.pos();
     sat_depth(&a.poly, a.rot(), &a.rel, &b.poly, b.rot(), &b.rel, off)
 }
 
 /// [`sat_axis`] of the pair as they stand: (depth, unit axis from a to b).
 pub(crate) fn pair_axis(a: &Block, b: &Block, tie: f64) -> (f64, DVec3) {
-    let off = b.pos - a.pos;
+    let off = b.pos() - a.pos();
     sat_axis(&a.poly, a.rot(), &a.rel, &b.poly, b.rot(), &b.rel, off, tie)
 }
 
 /// [`sat_allows_motion`] of a moving by `d` past b as they stand.
 fn pair_allows_motion(a: &Block, b: &Block, d: DVec3, eps: f64, hull_eps: f64) -> bool {
-    let (off, (pa, pb)) = (b.pos - a.pos, (&a.poly, &b.poly));
+    let (off, (pa, pb)) = (b.pos() - a.pos(), (&a.poly, &b.poly));
     sat_allows_motion(
         pa,
         a.rot(),
@@ -64,7 +64,7 @@ fn pair_allows_motion(a: &Block, b: &Block, d: DVec3, eps: f64, hull_eps: f64) -
 /// Whether the bounding spheres of a and b come within `margin`.
 #[inline]
 fn near(a: &Block, b: &Block, margin: f64) -> bool {
-    (b.pos - a.pos).length() <= a.poly.radius + b.poly.radius + margin
+    (b.pos() - a.pos()).length() <= a.poly.radius + b.poly.radius + margin
 }
 
 /// Whether a, swept by `d`, and b as it stands are more than `margin` apart along a world
@@ -79,7 +79,7 @@ pub(crate) fn boxes_apart(a: &Block, d: DVec3, b: &Block, margin: f64) -> bool {
         return false;
     }
     // b relative to a's G, as the queries pose them.
-    let off = b.pos - a.pos;
+    let off = b.pos() - a.pos();
     let (a_lo, a_hi) = (a.rel_lo + d.min(DVec3::ZERO), a.rel_hi + d.max(DVec3::ZERO));
     let (b_lo, b_hi) = (off + b.rel_lo, off + b.rel_hi);
     (b_lo - a_hi).max_element() > margin || (a_lo - b_hi).max_element() > margin
@@ -163,7 +163,7 @@ impl Carry {
             if blocks[root].moved != Moved::Hand {
                 continue;
             }
-            let t = blocks[root].pos - blocks[root].start_pos;
+            let t = blocks[root].pos() - blocks[root].start_pos();
             if t == DVec3::ZERO {
                 continue;
             }
@@ -175,7 +175,7 @@ impl Carry {
                 head += 1;
                 // The blocks whose spheres reach i's (overlapping's own first test), by index.
                 self.near.clear();
-                let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
+                let (pos, r) = (blocks[i].pos(), blocks[i].poly.radius);
                 self.near
                     .extend_from_slice(grid.near_any_order(blocks, pos, r));
                 self.near.sort_unstable();
@@ -190,7 +190,7 @@ impl Carry {
                         b.moved = Moved::Carried;
                         b.mode = BlockMode::Carried;
                         active.insert(j);
-                        grid.moved(j, b.pos);
+                        grid.moved(j, b.pos());
                         queue.push(j);
                     }
                 }
@@ -226,7 +226,7 @@ pub(crate) fn slide_along_sides(
     let eps = settings.contact_eps;
     let mut d = d;
     for (j, b) in near.iter().map(|&j| (j as usize, &blocks[j as usize])) {
-        if j == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + eps {
+        if j == i || (b.pos() - a.pos()).length() > a.poly.radius + b.poly.radius + eps {
             continue;
         }
         // The separating axis itself (no tie-break): the face the block slides along.
@@ -266,7 +266,7 @@ pub(crate) fn cast_fraction(
         } else {
             a.lowest_rel_y()
         };
-        let bottom = a.pos.y + lowest;
+        let bottom = a.pos().y + lowest;
         toi = toi.min((bottom / -d.y).max(0.0));
     }
     if passes.blocks {
@@ -277,13 +277,13 @@ pub(crate) fn cast_fraction(
             stop_at_penetration: false,
             compute_impact_geometry_on_penetration: false,
         };
-        let mid = a.pos + d * 0.5;
+        let mid = a.pos() + d * 0.5;
         for (j, b) in near.iter().map(|&j| (j as usize, &blocks[j as usize])) {
             if j == i {
                 continue;
             }
             // Broad phase: the swept sphere against b's sphere.
-            if (b.pos - mid).length() > a.poly.radius + b.poly.radius + 0.5 * len {
+            if (b.pos() - mid).length() > a.poly.radius + b.poly.radius + 0.5 * len {
                 continue;
             }
             // R14 lets blocks that touch move (R11 holds them): a blocker the block already
@@ -331,18 +331,26 @@ pub(crate) fn turn_enters_neighbour(
     let a = &blocks[i];
     rotate_vertices(&a.poly, rot, turned);
     for &k in grid
-        .near_any_order(blocks, a.pos, a.poly.radius + hull_eps)
+        .near_any_order(blocks, a.pos(), a.poly.radius + hull_eps)
         .iter()
     {
         let (k, b) = (k as usize, &blocks[k as usize]);
-        if k == i || (b.pos - a.pos).length() > a.poly.radius + b.poly.radius + hull_eps {
+        if k == i || (b.pos() - a.pos()).length() > a.poly.radius + b.poly.radius + hull_eps {
             continue;
         }
         let after = pair_depth(a, b);
         if after <= hull_eps {
             continue;
         }
-        let before = sat_depth(&a.poly, rot, turned, &b.poly, b.rot(), &b.rel, b.pos - pos);
+        let before = sat_depth(
+            &a.poly,
+            rot,
+            turned,
+            &b.poly,
+            b.rot(),
+            &b.rel,
+            b.pos() - pos,
+        );
         if after > before.max(hull_eps) {
             return true;
         }
@@ -395,7 +403,7 @@ mod tests {
         for _ in 0..20_000 {
             let a = block(&mut rnd, DVec3::new(1.0, 0.5, -2.0));
             let off = DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * 0.25;
-            let b = block(&mut rnd, a.pos + off);
+            let b = block(&mut rnd, a.pos() + off);
             let d = DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * 0.1;
             checked += 1;
             if boxes_apart(&a, DVec3::ZERO, &b, eps + BOX_SLACK) {

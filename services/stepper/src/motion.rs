@@ -61,18 +61,21 @@ pub fn push_one_point(
 
 /// Stage 3 for block i: R7 (with R12) if the hand did not move it and it is not grasped,
 /// resting, tipping or in floor contact (the floor stage moves those), unless R11 holds it.
-/// A block released this step (R13) waits for the next. True when it moved it (`Moved::Free`).
+/// A block released this step (R13) waits for the next. When it moved it (`Moved::Free`):
+/// where the block started the step, which the caller must record (`Block::record_start`)
+/// unless it ends the block's step with it.
 ///
 /// Called block by block in the active set's order (`World::step`); the grid must see every
 /// block where it is (the last step's stage 5 left it so, and `BlockGrid::sync` after the
 /// hand's and R14's moves), and each move here tells it.
+#[inline]
 pub(crate) fn move_freely(
     blocks: &mut [Block],
     i: usize,
     grid: &mut BlockGrid,
     settings: &Settings,
     passes: &Passes,
-) -> bool {
+) -> Option<DVec3> {
     let eps = settings.contact_eps;
     {
         let b = &blocks[i];
@@ -81,14 +84,14 @@ pub(crate) fn move_freely(
             || b.mode == BlockMode::Grasped
             || b.mode == BlockMode::Resting
         {
-            return false;
+            return None;
         }
     }
     // R14 decided it in stage 3a, or holds it asleep (supported, untouched).
     if passes.supported {
         let b = &blocks[i];
         if b.judged || b.mode == BlockMode::Supported {
-            return false;
+            return None;
         }
     }
     // One query for all of this block's tests: R11's touch (spheres within eps of the
@@ -108,7 +111,7 @@ pub(crate) fn move_freely(
         DVec3::ZERO
     } + settings.g_step;
     let near: &mut [u32] = if passes.blocks {
-        let (pos, r) = (blocks[i].pos, blocks[i].poly.radius);
+        let (pos, r) = (blocks[i].pos(), blocks[i].poly.radius);
         if passes.supported {
             grid.near_any_order(blocks, pos, r + eps + d.length())
         } else {
@@ -122,7 +125,7 @@ pub(crate) fn move_freely(
         let b = &mut blocks[i];
         b.mode = BlockMode::Supported;
         b.v = DVec3::ZERO;
-        return false;
+        return None;
     }
     {
         let b = &mut blocks[i];
@@ -131,12 +134,12 @@ pub(crate) fn move_freely(
         }
         // In floor contact: the floor stage decides (R9's Gm = v + g_step).
         if passes.floor && b.on_floor() {
-            return false;
+            return None;
         }
     }
     // R7: d = v + g_step; no rotation.
     if d == DVec3::ZERO {
-        return false;
+        return None;
     }
     // R14: a block against another's side slides down along it (side contacts hold
     // nothing up). Without R14 a touching block is held by R11 and never gets here.
@@ -156,7 +159,7 @@ pub(crate) fn move_freely(
         b.intended = d;
     }
     let actual = path * f;
-    b.translate(actual);
+    let start = b.translate_unrecorded(actual);
     b.v = if settings.inertia {
         actual
     } else {
@@ -164,8 +167,8 @@ pub(crate) fn move_freely(
     };
     b.moved = Moved::Free;
     b.mode = BlockMode::Free;
-    grid.moved(i, b.pos);
-    true
+    grid.moved(i, b.pos());
+    Some(start)
 }
 
 #[cfg(test)]

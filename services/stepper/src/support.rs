@@ -158,7 +158,7 @@ impl Support {
 /// Whether the bounding spheres of a and b come within `margin`.
 #[inline]
 fn near(a: &Block, b: &Block, margin: f64) -> bool {
-    (b.pos - a.pos).length() <= a.poly.radius + b.poly.radius + margin
+    (b.pos() - a.pos()).length() <= a.poly.radius + b.poly.radius + margin
 }
 
 impl Support {
@@ -290,7 +290,7 @@ impl Support {
                         &l.poly,
                         l.rot(),
                         &l.rel,
-                        l.pos - u.pos,
+                        l.pos() - u.pos(),
                         eps,
                         start + MAX_PAIR_POINTS,
                         &mut self.points,
@@ -380,27 +380,27 @@ impl Support {
         l.s_mask.copy_from(&l.load);
         l.s_mask.insert(i);
         let s_mask = &l.s_mask;
-        let gpos = blocks[i].pos;
+        let gpos = blocks[i].pos();
         // G_L relative to b's G (precision far from the origin), and the cut's contact points.
         let mut vol = 0.0;
         let mut moment = DVec3::ZERO;
         for j in s_mask.iter() {
             let bj = &blocks[j];
             vol += bj.poly.volume;
-            moment += (bj.pos - gpos) * bj.poly.volume;
+            moment += (bj.pos() - gpos) * bj.poly.volume;
         }
         let gl = moment / vol;
         self.cut.clear();
         for j in s_mask.iter() {
             let bj = &blocks[j];
-            let off = bj.pos - gpos - gl;
+            let off = bj.pos() - gpos - gl;
             for k in bj.floor().iter().take_while(|&k| k < bj.rel.len()) {
                 self.cut.push(bj.rel[k] + off);
             }
         }
         for e in &self.edges {
             if s_mask.contains(e.upper) && !s_mask.contains(e.lower) {
-                let off = blocks[e.upper].pos - gpos - gl;
+                let off = blocks[e.upper].pos() - gpos - gl;
                 for p in &self.points[e.start..e.end] {
                     self.cut.push(*p + off);
                 }
@@ -456,10 +456,10 @@ impl Support {
         if passes.floor {
             for j in s_mask.iter() {
                 let bj = &blocks[j];
-                let pj = pivot + (gpos - bj.pos);
+                let pj = pivot + (gpos - bj.pos());
                 theta = theta.min(landing_angle(
                     &bj.rel,
-                    bj.pos.y,
+                    bj.pos().y,
                     bj.floor(),
                     pj,
                     axis,
@@ -473,7 +473,7 @@ impl Support {
             let q = DQuat::from_axis_angle(axis, theta);
             for j in s_mask.iter() {
                 let bj = &blocks[j];
-                let pj = pivot + (gpos - bj.pos);
+                let pj = pivot + (gpos - bj.pos());
                 let shift = pj - q * pj;
                 let rot = (q * bj.rot()).normalize();
                 let mut turned_ready = false;
@@ -482,7 +482,7 @@ impl Support {
                         continue;
                     }
                     // G's new place; the turn about G does not change the bounding sphere.
-                    let off = (bk.pos - bj.pos) - shift;
+                    let off = (bk.pos() - bj.pos()) - shift;
                     if off.length() > bj.poly.radius + bk.poly.radius + hull_eps {
                         continue;
                     }
@@ -501,7 +501,7 @@ impl Support {
                         &bk.poly,
                         bk.rot(),
                         &bk.rel,
-                        bk.pos - bj.pos,
+                        bk.pos() - bj.pos(),
                     );
                     // Never deeper than it already is (or than hull_eps, when it only
                     // touches): a turn may not creep into a neighbour step by step.
@@ -542,7 +542,7 @@ impl Support {
         let q = DQuat::from_axis_angle(axis, theta);
         for j in s_mask.iter() {
             let bj = &mut blocks[j];
-            let pj = pivot + (gpos - bj.pos);
+            let pj = pivot + (gpos - bj.pos());
             bj.rotate_about(q, pj);
             bj.v = DVec3::ZERO;
             bj.moved = Moved::Stacked;

@@ -210,7 +210,7 @@ impl World {
         // Geometric validation (the loader checks form and ranges, we check shapes).
         if e.floor != FloorEffect::None {
             for b in &blocks {
-                let low = b.pos.y + b.lowest_rel_y();
+                let low = b.pos().y + b.lowest_rel_y();
                 if low < -w.contact_eps {
                     return Err(err(
                         scene,
@@ -230,13 +230,13 @@ impl World {
         for i in 0..blocks.len() {
             let near = grid.near_any_order(
                 &blocks,
-                blocks[i].pos,
+                blocks[i].pos(),
                 blocks[i].poly.radius + w.contact_eps,
             );
             near.sort_unstable();
             for j in near.iter().map(|&j| j as usize).filter(|&j| j > i) {
                 let (a, b) = (&blocks[i], &blocks[j]);
-                let off = b.pos - a.pos;
+                let off = b.pos() - a.pos();
                 if off.length() > a.poly.radius + b.poly.radius + w.contact_eps {
                     continue;
                 }
@@ -396,9 +396,9 @@ impl World {
                 grid_behind = false;
             }
             for i in active.iter() {
-                if !move_freely(blocks, i, grid, settings, passes) {
+                let Some(start) = move_freely(blocks, i, grid, settings, passes) else {
                     continue;
-                }
+                };
                 // A block it left in the air (most of a rain) has its floor stage and stage 5
                 // now, while its lines are in the cache, instead of in the last pass: both
                 // read and write this block only (`leave_the_floor`, `finish_block`), and no
@@ -413,8 +413,10 @@ impl World {
                     if passes.floor {
                         leave_the_floor(b);
                     }
-                    finish_block(i, b, quiet, grid, settled, states);
+                    finish_block(i, b, Some(start), quiet, grid, settled, states);
                     flown.insert(i);
+                } else {
+                    b.record_start(start);
                 }
             }
         }
@@ -435,7 +437,7 @@ impl World {
             if passes.floor {
                 floor.land_block(blocks, grid, i, settings, passes, events);
             }
-            finish_block(i, &mut blocks[i], quiet, grid, settled, states);
+            finish_block(i, &mut blocks[i], None, quiet, grid, settled, states);
         }
         active.difference_with(quiet);
         events.append(settled);
@@ -509,7 +511,7 @@ impl World {
     /// Block `i`'s centre of gravity, rotation, mode and inertia v (per step).
     pub fn block(&self, i: usize) -> Option<BlockView> {
         self.blocks.get(i).map(|b| BlockView {
-            position: b.pos,
+            position: b.pos(),
             rotation: b.rot(),
             mode: b.mode,
             v: b.v,
@@ -522,7 +524,7 @@ impl World {
         self.blocks
             .get(i)
             .into_iter()
-            .flat_map(|b| b.poly.vertices.iter().map(move |v| b.pos + b.rot() * *v))
+            .flat_map(|b| b.poly.vertices.iter().map(move |v| b.pos() + b.rot() * *v))
     }
 
     /// The scene file this world came from.
@@ -535,7 +537,7 @@ impl World {
 fn state_of(b: &Block) -> BlockState {
     BlockState {
         pose: Pose {
-            position: b.pos.to_array(),
+            position: b.pos().to_array(),
             rotation: b.rot().to_array(),
         },
         mode: b.mode as u32,
@@ -547,21 +549,35 @@ fn state_of(b: &Block) -> BlockState {
 /// judges what touches it again in the next step (it moved or changed mode). A block that
 /// rests and that nothing moved, turned, released or acted on this step goes into `quiet`, to
 /// leave `active`: until a stage touches it, no step looks at it. It ends with its scratch as
-/// the next step's stage 0 sets it (`Block::begin_step`).
+/// the next step's stage 0 sets it (`Block::begin_step`). `start`: where the block started
+/// the step, when free motion moved it and did not record it (`Block::translate_unrecorded`).
+#[allow(clippy::too_many_arguments)]
 fn finish_block(
     i: usize,
     b: &mut Block,
+    start: Option<DVec3>,
     quiet: &mut BlockSet,
     grid: &mut BlockGrid,
     events: &mut StepEvents,
     states: &mut [BlockState],
 ) {
-    states[i] = state_of(b);
+    // The entry's rotation changes only when the block's did (a block's line 2, read only
+    // then: a falling block's step does not fetch it).
+    let state = &mut states[i];
+    state.pose.position = b.pos().to_array();
+    if b.rotated() {
+        state.pose.rotation = b.rot().to_array();
+    }
+    state.mode = b.mode as u32;
     // The grid sees every block where this step left it (the floor stage's moves, the
     // hand's): the next step's stages query it without a pass of their own to sync it.
-    grid.stands_at(i, b.pos);
+    grid.stands_at(i, b.pos());
     // R14 judges again what touches a block that moved or changed mode.
-    b.stirred = b.pos != b.start_pos || b.turned_this_step() || b.mode != b.mode_before;
+    let shifted = match start {
+        Some(start) => b.pos() != start,
+        None => b.shifted_this_step(),
+    };
+    b.stirred = shifted || b.turned_this_step() || b.mode != b.mode_before;
     if b.released {
         events.emit(EventKind::Release, i);
     }
