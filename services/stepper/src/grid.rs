@@ -19,7 +19,8 @@
 //! from ~1.56M to ~1.05M instructions and from ~275 to ~140 us (mean, `stepper_profile`, the
 //! other core busy). A tall tower costs a query one height comparison per block of its column.
 //!
-//! It is a hash grid: columns hash into a fixed table of buckets (four times the blocks),
+//! It is a hash grid: columns fold into a fixed table of buckets (four times the blocks; the
+//! columns modulo the table's sides, so that neighbouring columns are neighbouring buckets),
 //! each a linked list through the blocks, so memory is O(blocks) however far apart they are
 //! (the hard cases put blocks 10,000 km from the origin).
 //!
@@ -69,8 +70,12 @@ pub(crate) struct BlockGrid {
     /// buckets a query beat 27 of half the size by a third on a rain of 1024 cubes).
     cell: f64,
     max_radius: f64,
-    /// The buckets: a power of two, four times the blocks.
+    /// The buckets: a power of two, four times the blocks (at least 16), `mask` + 1.
     buckets: Vec<Bucket>,
+    mask: usize,
+    /// The bits of a bucket's index that hold the column's x (the low ones; z the rest).
+    x_bits: u32,
+    x_mask: usize,
     /// Each block's record, by index.
     slots: Vec<Slot>,
     /// Blocks whose centre is not finite: candidates of every query.
@@ -104,7 +109,11 @@ impl BlockGrid {
         let n = blocks.len();
         let max_radius = blocks.iter().map(|b| b.poly.radius).fold(0.0, f64::max);
         let buckets = (4 * n).next_power_of_two().max(16);
+        let x_bits = buckets.trailing_zeros().div_ceil(2);
         BlockGrid {
+            mask: buckets - 1,
+            x_bits,
+            x_mask: (1 << x_bits) - 1,
             cell: (4.0 * max_radius).max(1e-6),
             max_radius,
             buckets: vec![
@@ -138,21 +147,59 @@ impl BlockGrid {
         (x.is_finite() && p.y.is_finite() && z.is_finite()).then(|| [floor_i64(x), floor_i64(z)])
     }
 
-    /// A column's hash is the xor of one product per axis, so a query's loop works out x's
-    /// product once per row rather than both per column.
+    /// The table's sides for the blocks' spread (when the grid is built): the x side covers
+    /// the columns the blocks span in x, and the z side theirs, as far as the table's bits go,
+    /// shared in proportion to the spans' logarithms when they do not. A row of blocks longer
+    /// than a square table's side would otherwise wrap onto itself and walk the blocks of every
+    /// wrap in each query. Only speed depends on it: any sides give the same answers.
+    fn shape_table(&mut self, blocks: &[Block]) {
+        let bits = self.mask.count_ones();
+        let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
+        for c in blocks.iter().filter_map(|b| self.cell_of(b.pos())) {
+            for k in 0..2 {
+                lo[k] = lo[k].min(c[k]);
+                hi[k] = hi[k].max(c[k]);
+            }
+        }
+        // Bits to hold a span of columns (plus the query's reach past each end).
+        let need = |k: usize| -> u32 {
+            let span = hi[k].saturating_sub(lo[k]).saturating_add(3).max(1) as u64;
+            u64::BITS - (span - 1).leading_zeros()
+        };
+        let x_bits = if lo[0] > hi[0] {
+            bits.div_ceil(2)
+        } else {
+            let (nx, nz) = (need(0), need(1));
+            if nx + nz <= bits {
+                // Both fit: the spare bits go to both sides alike.
+                nx + (bits - nx - nz) / 2
+            } else {
+                (bits * nx).div_ceil(nx + nz).min(bits)
+            }
+        };
+        self.x_bits = x_bits;
+        self.x_mask = (1 << x_bits) - 1;
+    }
+
+    /// A column's bucket is its x and z cells modulo the table's sides (a torus of
+    /// `2^x_bits` by `2^(bits - x_bits)` columns, [`shape_table`](Self::shape_table)):
+    /// neighbouring columns have neighbouring buckets, so a query's 2 x 2 columns are two lines
+    /// of the table, and the next block's query (its neighbour in the field) the same two,
+    /// where a scrambling hash put each column on a line of its own. Columns a side's width
+    /// apart share a bucket: the walk's height and sphere tests reject the far one, as they
+    /// reject any collision.
     #[inline]
-    fn hash_x(x: i64) -> i64 {
-        x.wrapping_mul(73_856_093)
+    fn hash_x(&self, x: i64) -> usize {
+        (x as u64 as usize) & self.x_mask
     }
 
     #[inline]
-    fn hash_z(z: i64) -> i64 {
-        z.wrapping_mul(83_492_791)
+    fn hash_z(&self, z: i64) -> usize {
+        ((z as u64 as usize) << self.x_bits) & self.mask
     }
 
     fn hash(&self, c: [i64; 2]) -> usize {
-        let h = Self::hash_x(c[0]) ^ Self::hash_z(c[1]);
-        (h as u64 as usize) & (self.buckets.len() - 1)
+        self.hash_x(c[0]) | self.hash_z(c[1])
     }
 
     #[inline]
@@ -206,6 +253,7 @@ impl BlockGrid {
     }
 
     fn rebuild(&mut self, blocks: &[Block]) {
+        self.shape_table(blocks);
         self.buckets.iter_mut().for_each(|b| b.head = NONE);
         self.unplaced.clear();
         for (i, b) in blocks.iter().enumerate() {
@@ -338,14 +386,15 @@ impl BlockGrid {
             self.buckets.iter_mut().for_each(|b| b.visited = 0);
             self.query = 1;
         }
-        let (query, mask) = (self.query, self.buckets.len() - 1);
+        let query = self.query;
+        let (x_bits, x_mask, mask) = (self.x_bits, self.x_mask, self.mask);
         let (buckets, slots, found) = (&mut self.buckets, &self.slots, &mut self.found);
         let mut x = lo[0];
         while x <= hi[0] {
-            let hx = Self::hash_x(x);
+            let hx = (x as u64 as usize) & x_mask;
             let mut z = lo[1];
             while z <= hi[1] {
-                let h = ((hx ^ Self::hash_z(z)) as u64 as usize) & mask;
+                let h = hx | (((z as u64 as usize) << x_bits) & mask);
                 z += 1;
                 let bucket = &mut buckets[h];
                 // Most buckets are empty (a quarter of a block each): no mark to leave.
@@ -408,6 +457,32 @@ mod tests {
                 d <= reach + b.poly.radius || d.is_nan()
             })
             .collect()
+    }
+
+    /// Columns a side of the table apart share a bucket: a query finds the blocks near it and
+    /// none of the others walked with them. A world wider than the table in both x and z (a
+    /// diagonal row of 8 cubes, 32 buckets, spanning ~100 x ~50 columns) must wrap.
+    #[test]
+    fn columns_that_share_a_bucket_answer_only_what_is_near() {
+        let spots: Vec<DVec3> = (0..8)
+            .map(|k| DVec3::new(-1.0 + k as f64 * 2.0, 0.5, 3.0 - k as f64))
+            .collect();
+        let blocks: Vec<Block> = spots.iter().map(|&p| cube_at(p, 0.04)).collect();
+        let mut grid = BlockGrid::new(&blocks);
+        assert!(grid.near(&blocks, spots[0], 0.01).len() == 1, "built");
+        let mut buckets: Vec<usize> = spots
+            .iter()
+            .map(|&p| grid.hash(grid.cell_of(p).unwrap()))
+            .collect();
+        buckets.sort_unstable();
+        buckets.dedup();
+        assert!(buckets.len() < spots.len(), "some blocks share a bucket");
+        for (i, &p) in spots.iter().enumerate() {
+            for reach in [0.0, 0.01, 0.05] {
+                assert_eq!(grid.near(&blocks, p, reach), &within(&blocks, p, reach)[..]);
+            }
+            assert_eq!(grid.near(&blocks, p, 0.01), &[i as u32]);
+        }
     }
 
     /// A query that cannot reach any centre the grid holds answers at once, and a block moved
