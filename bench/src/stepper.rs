@@ -16,11 +16,14 @@
 //!   block tipping slowly); and the precise one at the cheapest setting that keeps a settled
 //!   field still (`precise-cheap`: sleeping on, one solver iteration, the fewest substeps that
 //!   pass [`cheapest_still`], found in the same run, not chosen by hand).
-//! * **Ablation**: per effect, on and off, `runs` times each, interleaved (on, off, on, off,
-//!   ...) so that a slow moment of the machine falls on both sides; the median, min and max of
-//!   each side's time per step. `noise_us` is what a setting measures against itself here:
-//!   half the larger of the two sides' max - min, and at least what one reading of the clock
-//!   costs (measured in the run: a difference below it is below what the timing resolves). Two cases per effect: `work`, a scene of
+//! * **Ablation**: per effect, on and off, 9 runs each (`--quick`: 5), interleaved (on, off,
+//!   on, off, ...); the median, min and max of each side's time per step, and of the
+//!   differences of the pairs of runs (run k on - run k off: back to back, so that a slow
+//!   moment of the machine falls on both). An effect's cost is within noise when the pairs'
+//!   differences are not all of one sign, beyond what one reading of the clock costs
+//!   (measured in the run: a difference below it is below what the timing resolves); by
+//!   chance, all 9 fall on one side 0.4 % of the time. `noise_us`: half the pairs' max - min,
+//!   at least that reading. Two cases per effect: `work`, a scene of
 //!   `config/scenes/` the effect acts in (on - off is the effect's work; the two sides do
 //!   different things), and `idle`, the idle field (64 resting cubes, a hand 5 m away), timed
 //!   after a settling second (its first step is work: the first impacts, every block judged
@@ -54,7 +57,7 @@ use crate::plot::{Figure, Panel, Series};
 /// `handblocks bench stepper`'s options.
 pub struct StepperBench {
     pub out_dir: PathBuf,
-    /// Sizes up to 64 blocks, 2 timed runs (5 otherwise), 5 ablation runs a side.
+    /// Sizes up to 64 blocks, 2 timed runs (5 otherwise), 5 ablation runs a side (9).
     pub quick: bool,
 }
 
@@ -128,7 +131,12 @@ pub struct AblationRow {
     pub scene: String,
     pub on: Spread,
     pub off: Spread,
+    /// `on - off` of each pair of runs (run k of on against run k of off, back to back).
+    pub diff: Spread,
+    /// Half the paired differences' max - min, at least what one reading of the clock costs.
     pub noise_us: f64,
+    /// What one reading of the clock costs here (us).
+    pub clock_us: f64,
 }
 
 /// Median, min and max of a side's time per step over its runs (microseconds).
@@ -141,6 +149,13 @@ pub struct Spread {
 
 impl Spread {
     fn of(mut v: Vec<f64>) -> Spread {
+        if v.is_empty() {
+            return Spread {
+                median: f64::NAN,
+                min: f64::NAN,
+                max: f64::NAN,
+            };
+        }
         v.sort_by(f64::total_cmp);
         Spread {
             median: v[v.len() / 2],
@@ -151,9 +166,14 @@ impl Spread {
 }
 
 impl AblationRow {
-    /// Whether on and off are indistinguishable here.
+    /// Whether on and off are indistinguishable here: the paired runs' differences do not all
+    /// lie on one side of zero (beyond what the clock resolves). Pairs, not each side's spread:
+    /// a slow spell of the machine falls on both runs of a pair, and the two sides' medians
+    /// of separate runs differed by more than half a side's spread on the precise model's
+    /// tipping -> rest idle row, where both sides run the same code (rapier has no "rest").
+    /// A difference of one sign in all 9 pairs happens by chance 0.4 % of the time.
     pub fn within_noise(&self) -> bool {
-        (self.on.median - self.off.median).abs() <= self.noise_us
+        self.diff.min - self.clock_us <= 0.0 && self.diff.max + self.clock_us >= 0.0
     }
 }
 
@@ -500,6 +520,9 @@ pub fn idle_field(model: ModelKind) -> Scene {
     scene
 }
 
+/// Runs a side of each ablation row (`--quick`: 5).
+const ABLATION_RUNS: usize = 9;
+
 /// Untimed steps before the idle field's timed ones (1 s at 120 Hz).
 const IDLE_SETTLE_STEPS: u64 = 120;
 
@@ -545,6 +568,7 @@ fn ablation_row(
         a.push(mean_us(&on, settle)?);
         b.push(mean_us(&off, settle)?);
     }
+    let diff = Spread::of(a.iter().zip(&b).map(|(x, y)| x - y).collect());
     let (on, off) = (Spread::of(a), Spread::of(b));
     Ok(AblationRow {
         model: model_name(model),
@@ -555,9 +579,11 @@ fn ablation_row(
         } else {
             pair.scene.to_string()
         },
-        noise_us: (0.5 * (on.max - on.min).max(off.max - off.min)).max(clock_us),
+        noise_us: (0.5 * (diff.max - diff.min)).max(clock_us),
+        clock_us,
         on,
         off,
+        diff,
     })
 }
 
@@ -661,7 +687,7 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
     for (n, why) in &not_run {
         eprintln!("stepper: scaling x{n}: not run: {why}");
     }
-    let ab_runs = 5;
+    let ab_runs = if b.quick { 5 } else { ABLATION_RUNS };
     let mut ablation = Vec::new();
     let cases: Vec<(bool, &Pair)> = [false, true]
         .iter()
@@ -757,6 +783,8 @@ fn to_json(r: &Report) -> Value {
             json!({"model": a.model, "effect": a.effect, "case": a.case, "scene": a.scene,
                    "on_us": num(a.on.median), "off_us": num(a.off.median),
                    "noise_us": num(a.noise_us),
+                   "diff_median_us": num(a.diff.median), "diff_min_us": num(a.diff.min),
+                   "diff_max_us": num(a.diff.max),
                    "on_min_us": num(a.on.min), "on_max_us": num(a.on.max),
                    "off_min_us": num(a.off.min), "off_max_us": num(a.off.max),
                    "within_noise": a.within_noise()})
@@ -862,11 +890,11 @@ pub fn scaling_table(r: &Report) -> String {
 /// The ablation table.
 pub fn ablation_table(r: &Report) -> String {
     let mut s = String::from(
-        "| model | effect (on -> off) | case | scene | on: median [min, max] (us/step) | off: median [min, max] | on - off | noise | within noise |\n|---|---|---|---|---|---|---|---|---|\n",
+        "| model | effect (on -> off) | case | scene | on: median [min, max] (us/step) | off: median [min, max] | on - off, paired: median [min, max] | noise | within noise |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     for a in &r.ablation {
         s += &format!(
-            "| {} | {} | {} | {} | {:.2} [{:.2}, {:.2}] | {:.2} [{:.2}, {:.2}] | {:+.2} | {:.2} | {} |\n",
+            "| {} | {} | {} | {} | {:.2} [{:.2}, {:.2}] | {:.2} [{:.2}, {:.2}] | {:+.2} [{:+.2}, {:+.2}] | {:.2} | {} |\n",
             a.model,
             a.effect,
             a.case,
@@ -877,7 +905,9 @@ pub fn ablation_table(r: &Report) -> String {
             a.off.median,
             a.off.min,
             a.off.max,
-            a.on.median - a.off.median,
+            a.diff.median,
+            a.diff.min,
+            a.diff.max,
             a.noise_us,
             if a.within_noise() { "yes" } else { "no" }
         );
@@ -894,8 +924,10 @@ fn markdown(r: &Report, quick: bool) -> String {
     );
     s += &scaling_table(r);
     s += &format!(
-        "\n\n## Ablation\n\nEach effect on and off on the same scene, 5 interleaved runs a side after a warm-up, mean us per step of the whole run; noise: half the larger side's max - min, at least what one reading of the clock costs here ({clock:.3} us: a difference below it is below what the timing resolves). `work`: a scene of `config/scenes/` the effect acts in (on - off is the effect's work, and the two sides do different things); `idle`: the idle field (64 resting cubes, a two-point hand 5 m away), timed after 1 s of settling untimed, where the effect has nothing to do and turning it off changes no pose, so on - off is what its pass costs by being in the step at all (the floor's rest -> none has no idle case: without a floor nothing rests, so the idle field's cubes stay in the step's active set). An effect that is off is not in the step's pass list (`Passes`): off runs none of its code.\n\n",
-        clock = r.clock_us
+        "\n\n## Ablation\n\nEach effect on and off on the same scene, {runs} interleaved runs a side after a warm-up (on, off, on, off, ...), mean us per step of the whole run; on - off: the difference of each pair of runs (back to back, so a slow spell of the machine falls on both), median [min, max]; within noise: the pairs' differences are not all of one sign, beyond what one reading of the clock costs here ({clock:.3} us: a difference below it is below what the timing resolves; by chance, all {runs} of one sign happens {chance:.1} % of the time); noise: half the pairs' max - min, at least that reading. `work`: a scene of `config/scenes/` the effect acts in (on - off is the effect's work, and the two sides do different things); `idle`: the idle field (64 resting cubes, a two-point hand 5 m away), timed after 1 s of settling untimed, where the effect has nothing to do and turning it off changes no pose, so on - off is what its pass costs by being in the step at all (the floor's rest -> none has no idle case: without a floor nothing rests, so the idle field's cubes stay in the step's active set). An effect that is off is not in the step's pass list (`Passes`): off runs none of its code.\n\n",
+        clock = r.clock_us,
+        runs = if quick { 5 } else { ABLATION_RUNS },
+        chance = 100.0 * 0.5f64.powi(if quick { 5 } else { ABLATION_RUNS } as i32 - 1),
     );
     s += &ablation_table(r);
     s += "\n";
