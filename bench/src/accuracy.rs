@@ -28,7 +28,7 @@ use common::config::Scene;
 use stepper::geometry::Polyhedron;
 use stepper::{BareFingersHand, HandSource, Model};
 
-use crate::plot::{pareto_front, Figure, Panel, Series};
+use crate::plot::{pareto_front, Figure, Legend, Panel, Series};
 
 /// Options of `handblocks bench accuracy`.
 pub struct AccuracyBench {
@@ -1283,6 +1283,7 @@ fn figure(summary: &[Point], pareto: &[Point]) -> Figure {
             log_y: true,
             series,
             marked,
+            legend: Legend::UpperRight,
         });
     }
     Figure {

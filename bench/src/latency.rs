@@ -17,7 +17,7 @@ use common::{monotonic_ns, topics, HandSample, Stage, Stamp};
 use hdrhistogram::Histogram;
 use serde_json::{json, Value};
 
-use crate::plot::{Figure, Panel, Series};
+use crate::plot::{Figure, Legend, Panel, Series};
 
 /// Options of `handblocks bench latency`.
 pub struct LatencyBench {
@@ -307,6 +307,7 @@ fn figure(report: &launcher::report::Report, bare_hop: &Histogram<u64>) -> Figur
         log_y: true,
         series,
         marked: Vec::new(),
+        legend: Legend::UpperRight,
     };
     Figure {
         panels: vec![

@@ -18,7 +18,7 @@ use serde_json::{json, Map, Value};
 
 use crate::hgrm::percentile_distribution;
 use crate::latency::summary_json;
-use crate::plot::{Figure, Panel, Series};
+use crate::plot::{Figure, Legend, Panel, Series};
 
 /// The source rate under load.
 pub const LOAD_RATE_HZ: u32 = 1000;
@@ -220,6 +220,7 @@ fn figure(report: &launcher::report::Report) -> Figure {
             .map(|s| Series::nines(s.stage.name(), &s.histograms[metric as usize]))
             .collect(),
         marked: Vec::new(),
+        legend: Legend::UpperRight,
     };
     Figure {
         panels: vec![

@@ -53,6 +53,19 @@ pub struct Panel {
     pub series: Vec<Series>,
     /// Drawn as rings over the series' points, joined by a dashed-looking thin line.
     pub marked: Vec<(f64, f64)>,
+    /// The corner the legend goes in: the one the data leaves empty.
+    pub legend: Legend,
+}
+
+/// Where a panel's legend goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Legend {
+    /// In the upper right corner, over whatever data is there.
+    UpperRight,
+    /// In the upper left corner, above the data: the y axis reaches a third higher (on its
+    /// own scale) than the data, for a legend of up to ~9 series over series that rise from
+    /// left to right.
+    AboveData,
 }
 
 /// Panels on a grid.
@@ -234,7 +247,10 @@ where
     if text {
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(match panel.legend {
+                Legend::AboveData => SeriesLabelPosition::UpperLeft,
+                Legend::UpperRight => SeriesLabelPosition::UpperRight,
+            })
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(180, 180, 180))
             .label_font(("sans-serif", 12))
@@ -270,7 +286,14 @@ impl Figure {
                     .iter()
                     .flat_map(|s| s.points.iter().map(|p| p.1));
                 let (x0, x1) = range(xs, panel.log_x);
-                let (y0, y1) = range(ys, panel.log_y);
+                let (y0, mut y1) = range(ys, panel.log_y);
+                if panel.legend == Legend::AboveData {
+                    y1 = if panel.log_y {
+                        y1 * (y1 / y0).powf(0.55)
+                    } else {
+                        y1 + 0.55 * (y1 - y0)
+                    };
+                }
                 let r = match (panel.log_x, panel.log_y) {
                     (true, true) => draw_panel(
                         area,
@@ -367,6 +390,7 @@ mod tests {
                     points: vec![(1.0, 2.0), (10.0, 0.5)],
                 }],
                 marked: vec![(1.0, 2.0)],
+                legend: Legend::UpperRight,
             }],
             columns: 1,
             panel_width: 200,

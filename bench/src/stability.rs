@@ -15,7 +15,7 @@ use std::time::Instant;
 use serde_json::{json, Value};
 use stepper::hard_cases::{self, Case, Figures, Variant, CASES};
 
-use crate::plot::{Figure, Panel, Series};
+use crate::plot::{Figure, Legend, Panel, Series};
 
 /// `handblocks bench stability`'s options.
 pub struct StabilityBench {
@@ -288,6 +288,7 @@ fn figure(rows: &[Row]) -> Figure {
             .filter(|s| !s.points.is_empty())
             .collect(),
         marked: Vec::new(),
+        legend: Legend::UpperRight,
     })
     .collect();
     Figure {

@@ -52,7 +52,7 @@ use common::{BlockMode, HandSample, MAX_SCENE_BLOCKS};
 use serde_json::{json, Value};
 use stepper::{BareFingersHand, Model};
 
-use crate::plot::{Figure, Panel, Series};
+use crate::plot::{Figure, Legend, Panel, Series};
 
 /// `handblocks bench stepper`'s options.
 pub struct StepperBench {
@@ -961,6 +961,7 @@ fn figure(rows: &[ScalingRow]) -> Figure {
             log_y: true,
             series,
             marked: Vec::new(),
+            legend: Legend::AboveData,
         }],
         columns: 1,
         panel_width: 900,

@@ -44,7 +44,7 @@ use iceoryx2::prelude::*;
 use serde_json::{json, Value};
 
 use crate::hgrm::percentile_distribution;
-use crate::plot::{Figure, Panel, Series};
+use crate::plot::{Figure, Legend, Panel, Series};
 
 /// The payloads measured, bytes.
 pub const PAYLOADS: [usize; 5] = [64, 1024, 64 << 10, 1 << 20, 4 << 20];
@@ -757,6 +757,7 @@ fn figure(rows: &[Row]) -> Figure {
                 .map(|r| Series::nines(r.transport.name(), &r.histogram))
                 .collect(),
             marked: Vec::new(),
+            legend: Legend::UpperRight,
         })
         .collect();
     Figure {
