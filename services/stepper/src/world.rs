@@ -23,11 +23,10 @@ use crate::block_set::BlockSet;
 use crate::body::{Block, Moved};
 use crate::event::StepEvents;
 pub use crate::event::{Event, EventKind};
-use crate::floor::Floor;
+use crate::floor::{in_the_air, leave_the_floor, Floor};
 use crate::geometry::{sat_depth, Polyhedron};
 use crate::grid::BlockGrid;
 // The check points as drawn are the hand's (R5 relocates them); the precise model fills the same.
-use crate::floor::{in_the_air, leave_the_floor};
 pub(crate) use crate::hand::Fingers;
 use crate::hand::{
     check_point_box, end_grasps, hand_reach, is_usable, move_by_hand, HandContacts, EMPTY_BOX,
