@@ -10,7 +10,7 @@ use std::time::{Duration, Instant, SystemTime};
 use serde_json::Value;
 
 mod support;
-use support::{assert_nothing_left, both, repo, Scratch, EXE};
+use support::{assert_nothing_left, both, repo, Scratch, CEILINGS, EXE};
 
 /// One session at a time: the README's run command writes the default preview path, and its
 /// budget (frame rate, origin -> world) is the live session's, judged on a machine that other
@@ -37,77 +37,11 @@ fn run_script(args: &[&str], env: &[(&str, &str)]) -> Output {
         .expect("run ./run")
 }
 
-/// The budget verdicts that measure this machine rather than the program: latency and frame
-/// rate. The live session's budget is judged for real (that is the product), but a test that
-/// runs it on a shared two-core VM would fail whenever another job takes the CPUs.
-const TIMING_KEYS: [&str; 3] = [
-    "origin_to_world_p99_us",
-    "origin_to_photon_p99_ms",
-    "frame_hz",
-];
-
-/// Three: a quiet machine passes at the first; a busy or slow one gets two more chances.
-const TRIES: u32 = 3;
-
-/// How a judged run ended.
-struct Judged {
-    out: Output,
-    /// It failed on timing alone in every try: each violation it named is one of
-    /// [`TIMING_KEYS`] and nothing else went wrong.
-    timing_only: bool,
-}
-
-impl Judged {
-    /// Whether the run did what it should: exit 0, or exit 1 for the machine's timing alone.
-    /// Speed is judged by the benchmarks against a peer measured in the same run, never by a
-    /// test: on this shared VM the bare two-process hop alone has measured p99 4.3 ms and
-    /// llvmpipe 56 frames per second on a bad hour, when no session could keep the default
-    /// budget (1 ms origin -> world, then 67.5 frames per second; live.toml asks 45 now).
-    fn ran(&self) -> bool {
-        self.out.status.success() || self.timing_only
-    }
-}
-
-/// [`run_script`], tried again (at most [`TRIES`] tries) while a try fails on timing alone.
-/// Each such try is printed, so a slow machine shows in the test's output instead of failing
-/// it; any other failure is returned at once.
-fn run_script_judged(args: &[&str], env: &[(&str, &str)], report_file: &std::path::Path) -> Judged {
-    let mut tries = 0;
-    loop {
-        tries += 1;
-        let out = run_script(args, env);
-        let timing_only = !out.status.success()
-            && out.status.code() == Some(1)
-            && std::fs::read_to_string(report_file)
-                .ok()
-                .and_then(|t| serde_json::from_str::<Value>(&t).ok())
-                .and_then(|r| {
-                    let failed = r["failures"].as_array().is_some_and(|f| !f.is_empty());
-                    let v = r["budget"]["violations"].as_array()?.clone();
-                    Some(
-                        !failed
-                            && !v.is_empty()
-                            && v.iter().all(|x| {
-                                x.as_str()
-                                    .is_some_and(|x| TIMING_KEYS.iter().any(|k| x.starts_with(k)))
-                            }),
-                    )
-                })
-                .unwrap_or(false);
-        if !timing_only || tries == TRIES {
-            if timing_only {
-                eprintln!(
-                    "every try failed on timing alone: this machine is too slow or busy for the \
-                     default budget now; the run itself is judged, not its speed"
-                );
-            }
-            return Judged { out, timing_only };
-        }
-        eprintln!(
-            "try {tries} failed on timing alone (a busy machine), trying again:\n{}",
-            both(&out)
-        );
-    }
+/// `./run ARGS` held to the tests' [`CEILINGS`]: the run itself is judged, not this machine's
+/// speed (`bench latency` judges that against a peer measured in the same run).
+fn run_script_within_ceilings(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let all: Vec<&str> = args.iter().copied().chain(CEILINGS).collect();
+    run_script(&all, env)
 }
 
 fn launch(args: &[&str]) -> Output {
@@ -133,7 +67,7 @@ fn the_readme_run_command_runs_the_live_session_and_leaves_a_preview() {
     let started = SystemTime::now();
     // 5 s: a p99 over a few hundred samples is decided by its handful of worst, and the first
     // second (processes faulting in their shared memory) has the slowest of them.
-    let judged = run_script_judged(
+    let out = run_script_within_ceilings(
         &[
             "--duration",
             "5",
@@ -143,25 +77,18 @@ fn the_readme_run_command_runs_the_live_session_and_leaves_a_preview() {
             report_file.to_str().unwrap(),
         ],
         &[],
-        &report_file,
     );
-    let out = &judged.out;
-    let text = both(out);
-    assert!(judged.ran(), "{text}");
+    let text = both(&out);
+    assert!(out.status.success(), "{text}");
     assert_nothing_left(&id);
     // What the world came to, the table's terms, the preview's path and the verdict.
-    let verdict = if judged.timing_only {
-        "budget: VIOLATED"
-    } else {
-        "budget: ok"
-    };
     for want in [
         "what the world came to",
         "grasp    red",
         "release  red",
         "origin->out  the sample's origin",
         "preview: out/live-preview.png (animated PNG",
-        verdict,
+        "budget: ok",
     ] {
         assert!(text.contains(want), "no {want:?} in:\n{text}");
     }
@@ -193,6 +120,13 @@ fn the_readme_run_command_runs_the_live_session_and_leaves_a_preview() {
     assert!(r["renderer"]["skipped"].is_null());
     assert!(r["renderer"]["frames_per_second"].as_f64().unwrap() > 0.0);
     assert_eq!(r["world"]["blocks"][0]["name"], "red");
+    assert_eq!(r["budget"]["ok"], true, "{}", r["budget"]);
+    // Nothing lost on the way, on any machine.
+    for t in ["glove", "tracker", "hand", "world"] {
+        assert_eq!(r["topics"][t]["dropped"], 0, "{t}: {}", r["topics"][t]);
+        assert_eq!(r["topics"][t]["gaps"], 0, "{t}: {}", r["topics"][t]);
+        assert!(r["topics"][t]["published"].as_u64().unwrap() > 0, "{t}");
+    }
 }
 
 #[test]
@@ -203,11 +137,8 @@ fn without_a_vulkan_driver_the_run_command_still_runs_and_names_what_it_skipped(
     let report_file = dir.path("report.json");
     // The Vulkan loader reads only these manifests: none exists, so no driver loads.
     let nowhere = "/nonexistent/handblocks-no-driver.json";
-    // What this test judges is the skip, not the machine's timing. Without a renderer the CPUs sit idle between
-    // samples, and on a VM a halted vCPU can take milliseconds to wake: `bench latency` here
-    // once measured the bare two-process hop at p99 4.3 ms on an idle machine, when no
-    // pipeline could keep a 1 ms budget. So the timing key is set out of reach.
-    let out = run_script_judged(
+    // What this test judges is the skip, held to the tests' ceilings, not the machine's timing.
+    let out = run_script_within_ceilings(
         &[
             "--duration",
             "4",
@@ -215,13 +146,9 @@ fn without_a_vulkan_driver_the_run_command_still_runs_and_names_what_it_skipped(
             &id,
             "--report",
             report_file.to_str().unwrap(),
-            "--set",
-            "budget.origin_to_world_p99_us=1000000",
         ],
         &[("VK_ICD_FILENAMES", nowhere), ("VK_DRIVER_FILES", nowhere)],
-        &report_file,
-    )
-    .out;
+    );
     let text = both(&out);
     assert!(out.status.success(), "{text}");
     assert_nothing_left(&id);
@@ -350,8 +277,8 @@ fn record_refuses_to_overwrite_a_recording_unless_forced() {
         "--set",
         "renderer.mode=off",
         // What is tested is the file, not this machine's latency.
-        "--set",
-        "budget.origin_to_world_p99_us=1000000",
+        CEILINGS[0],
+        CEILINGS[1],
         "--record",
         file.to_str().unwrap(),
         "--force",
@@ -443,7 +370,7 @@ fn a_bus_id_in_use_is_named_as_such() {
         .args(["launch", "--quiet", "--duration", "6", "--bus-id", &id])
         .args(["--set", "renderer.mode=off"])
         // What is tested is the second launch, not this machine's latency.
-        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .args(CEILINGS)
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()

@@ -13,7 +13,7 @@ use serde_json::Value;
 mod support;
 use support::{
     assert_nothing_left, assert_same_poses, find_service, find_service_now, launch_and_kill,
-    launch_session, repo, Scratch, EXE,
+    launch_session, repo, Scratch, CEILINGS_TOML, EXE,
 };
 
 /// A session over the repository's grasp-throw scene with the given extra tables.
@@ -42,7 +42,7 @@ fn samples_flow_through_every_stage_in_order_with_no_drops() {
         "flow.toml",
         &format!(
             "[source]\nkind = \"scripted\"\nrate_hz = 120\n[renderer]\nmode = \"headless\"\nwidth = 160\nheight = 120\n\
-             [recorder]\nfile = {:?}\n[budget]\nframe_hz = 60\nmax_dropped = 0\n",
+             [recorder]\nfile = {:?}\n[budget]\n{CEILINGS_TOML}max_dropped = 0\n",
             log.to_string_lossy()
         ),
     );
