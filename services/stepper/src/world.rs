@@ -17,7 +17,10 @@ use glam::{DQuat, DVec3};
 
 use common::config::scene::{FloorEffect, HandEffect, ShapeSpec, Stacking};
 use common::config::Scene;
-use common::{BlockMode, BlockState, HandSample, Pose, WorldHeader, WorldSample, MAX_SCENE_BLOCKS};
+use common::{
+    BlockMode, BlockState, HandSample, Pose, WorldHeader, WorldSample, MAX_FINGERS,
+    MAX_FINGER_POINTS, MAX_PALM_VERTICES, MAX_SCENE_BLOCKS,
+};
 
 use crate::block_set::BlockSet;
 use crate::body::{Block, Moved};
@@ -103,6 +106,72 @@ pub struct World {
     /// gathering from every block's large state: a live stepper that sleeps between samples
     /// steps with cold caches, and the gather was the larger part of its time at 1024 blocks.
     states: Vec<BlockState>,
+    /// Where the world's own frame is in the scene's: a point on the floor near the blocks
+    /// ([`local_origin`]). Blocks, the hand and every stage work in the world's frame, so a
+    /// scene far from the scene's origin computes with numbers of the size it computes with
+    /// at the origin: f64 rounds a position at 99 km to 1.5e-11 m, and a step's `pos + d` there
+    /// lost that much every step, which a toppling stack or a tip past an edge amplified to
+    /// 0.2 mm (and a block came to rest 17 um above the floor). Poses and check points cross
+    /// into this frame where the world takes them (the scene, the hand) and out where it
+    /// gives them (the `world` sample, [`World::block`]). Zero for a scene within 32 m of
+    /// the origin: nothing moves and not a bit changes there.
+    anchor: DVec3,
+    /// The hand of this step in the world's frame (when `anchor` is not zero): the sample
+    /// translated once, where it enters, into preallocated space.
+    hand_local: HandSample,
+}
+
+/// The world frame's origin for blocks at `positions` (scene frame): the middle of their box
+/// in x and z, rounded to a multiple of [`ANCHOR_GRID_M`] (a power of two: exact, and zero for
+/// every scene within 32 m of the origin), on the floor (y = 0: the floor stays the plane
+/// y = 0). The world keeps it for its life; a block's position in the world frame is its scene
+/// position less the anchor, exact to the scene value's own rounding.
+pub fn local_origin(positions: impl Iterator<Item = [f64; 3]>) -> DVec3 {
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for p in positions {
+        let p = DVec3::from_array(p);
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    if !(lo.is_finite() && hi.is_finite()) {
+        return DVec3::ZERO;
+    }
+    let mid = (lo + hi) * 0.5;
+    let snap = |v: f64| {
+        if v.abs() < 32.0 {
+            0.0
+        } else {
+            (v / ANCHOR_GRID_M).round() * ANCHOR_GRID_M
+        }
+    };
+    DVec3::new(snap(mid.x), 0.0, snap(mid.z))
+}
+
+/// The anchor's grid: 64 m.
+pub const ANCHOR_GRID_M: f64 = 1.0;
+
+/// `p` (world frame) in the scene's frame. Not even an addition when the anchor is zero (an
+/// addition of zero would turn -0.0 into 0.0).
+#[inline]
+fn to_scene(p: DVec3, anchor: DVec3) -> DVec3 {
+    if anchor == DVec3::ZERO {
+        p
+    } else {
+        p + anchor
+    }
+}
+
+/// `h` moved by `by` (every point, the palm and the wrist) into `out`.
+fn translate_hand(h: &HandSample, by: DVec3, out: &mut HandSample) {
+    *out = *h;
+    let shift = |p: &mut [f64; 3]| *p = (DVec3::from_array(*p) + by).to_array();
+    for f in 0..(h.finger_count as usize).min(MAX_FINGERS) {
+        let n = (h.finger_point_count[f] as usize).min(MAX_FINGER_POINTS);
+        out.finger_points[f][..n].iter_mut().for_each(shift);
+    }
+    let n = (h.palm_vertex_count as usize).min(MAX_PALM_VERTICES);
+    out.palm_vertices[..n].iter_mut().for_each(shift);
+    shift(&mut out.wrist.position);
 }
 
 fn err(scene: &Scene, block: Option<&str>, problem: impl Into<String>) -> WorldError {
@@ -147,6 +216,7 @@ impl World {
         // Each distinct shape's hull once, shared by its blocks (body.rs: `Block::poly`).
         // Scenes hold few distinct shapes: a linear search.
         let mut hulls: Vec<(&ShapeSpec, Arc<Polyhedron>)> = Vec::new();
+        let anchor = local_origin(scene.blocks.iter().map(|b| b.position));
         for spec in &scene.blocks {
             // Scenes built in code (benchmarks, tools) skip the loader's checks: repeat the
             // ones the model relies on.
@@ -195,7 +265,7 @@ impl World {
             blocks.push(Block::new(
                 spec.name.clone(),
                 poly,
-                DVec3::from_array(spec.position),
+                DVec3::from_array(spec.position) - anchor,
                 q,
                 v,
                 w.throw_window as usize,
@@ -269,7 +339,7 @@ impl World {
         (0..n).for_each(|i| active.insert(i));
         // Stage 0 for the first step (the last step's stage 5 does it for the others).
         blocks.iter_mut().for_each(Block::begin_step);
-        let states = blocks.iter().map(state_of).collect();
+        let states = blocks.iter().map(|b| state_of(b, anchor)).collect();
         Ok(World {
             file: scene.file.clone(),
             settings,
@@ -298,7 +368,30 @@ impl World {
                 },
                 max_vertices,
             ),
+            anchor,
+            hand_local: HandSample::default(),
         })
+    }
+
+    /// The world frame's origin in the scene's ([`local_origin`]).
+    pub fn anchor(&self) -> DVec3 {
+        self.anchor
+    }
+
+    /// `hand` in the world's frame: itself when the anchor is zero, else translated into
+    /// `hand_local`.
+    fn hand_in_world_frame<'a>(
+        anchor: DVec3,
+        hand: Option<&'a HandSample>,
+        hand_local: &'a mut HandSample,
+    ) -> Option<&'a HandSample> {
+        match hand {
+            Some(h) if anchor != DVec3::ZERO => {
+                translate_hand(h, -anchor, hand_local);
+                Some(hand_local)
+            }
+            other => other,
+        }
     }
 
     /// Exactly one fixed step (dt = 1 / step_hz) with the hand's pose at this step; the world
@@ -306,7 +399,6 @@ impl World {
     /// "no hand this step". docs/model.md "Order of one step", each stage handed what it reads
     /// and writes:
     pub fn step(&mut self, hand: Option<&HandSample>) {
-        let hand = hand.filter(|h| is_usable(h));
         self.steps += 1;
         let World {
             settings,
@@ -326,8 +418,12 @@ impl World {
             flown,
             settled,
             states,
+            anchor,
+            hand_local,
             ..
         } = self;
+        let anchor = *anchor;
+        let hand = World::hand_in_world_frame(anchor, hand.filter(|h| is_usable(h)), hand_local);
         let prev = prev_hand.as_ref();
         // 0. Every block starts the step where it is, with nothing done to it yet: the last
         //    step's stage 5 left it so (`Block::begin_step`, in the same pass), and nothing changes a
@@ -412,7 +508,7 @@ impl World {
                     if passes.floor {
                         leave_the_floor(b);
                     }
-                    finish_block(i, b, Some(start), quiet, grid, settled, states);
+                    finish_block(i, b, Some(start), quiet, grid, settled, states, anchor);
                     flown.insert(i);
                 } else {
                     b.record_start(start);
@@ -436,7 +532,16 @@ impl World {
             if passes.floor {
                 floor.land_block(blocks, grid, i, settings, passes, events);
             }
-            finish_block(i, &mut blocks[i], None, quiet, grid, settled, states);
+            finish_block(
+                i,
+                &mut blocks[i],
+                None,
+                quiet,
+                grid,
+                settled,
+                states,
+                anchor,
+            );
         }
         active.difference_with(quiet);
         events.append(settled);
@@ -452,7 +557,12 @@ impl World {
     /// caller that knows the hand before the first step (a scripted hand at t = 0) gives it
     /// here so that the first step sees the hand's motion, not a standing start.
     pub fn set_previous_hand(&mut self, hand: Option<&HandSample>) {
-        self.prev_hand = hand.filter(|h| is_usable(h)).copied();
+        self.prev_hand = World::hand_in_world_frame(
+            self.anchor,
+            hand.filter(|h| is_usable(h)),
+            &mut self.hand_local,
+        )
+        .copied();
         self.prev_hand_box = self.prev_hand.as_ref().map_or(EMPTY_BOX, check_point_box);
     }
 
@@ -471,6 +581,14 @@ impl World {
         out.finger_count = self.fingers.count;
         out.finger_point_count = self.fingers.point_count;
         out.finger_points = self.fingers.points;
+        if self.anchor != DVec3::ZERO {
+            for f in 0..(out.finger_count as usize).min(MAX_FINGERS) {
+                let n = (out.finger_point_count[f] as usize).min(MAX_FINGER_POINTS);
+                for p in &mut out.finger_points[f][..n] {
+                    *p = (DVec3::from_array(*p) + self.anchor).to_array();
+                }
+            }
+        }
     }
 
     /// Block `i`'s state in the `world` sample: the pose of G and the mode.
@@ -510,7 +628,7 @@ impl World {
     /// Block `i`'s centre of gravity, rotation, mode and inertia v (per step).
     pub fn block(&self, i: usize) -> Option<BlockView> {
         self.blocks.get(i).map(|b| BlockView {
-            position: b.pos(),
+            position: to_scene(b.pos(), self.anchor),
             rotation: b.rot(),
             mode: b.mode,
             v: b.v,
@@ -520,10 +638,13 @@ impl World {
 
     /// Block `i`'s vertices in the world frame (for tests and tools).
     pub fn block_vertices(&self, i: usize) -> impl Iterator<Item = DVec3> + '_ {
-        self.blocks
-            .get(i)
-            .into_iter()
-            .flat_map(|b| b.poly.vertices.iter().map(move |v| b.pos() + b.rot() * *v))
+        self.blocks.get(i).into_iter().flat_map(move |b| {
+            let anchor = self.anchor;
+            b.poly
+                .vertices
+                .iter()
+                .map(move |v| to_scene(b.pos(), anchor) + b.rot() * *v)
+        })
     }
 
     /// The scene file this world came from.
@@ -533,10 +654,10 @@ impl World {
 }
 
 /// Block `b`'s entry of the `world` sample: the pose of G and the mode.
-fn state_of(b: &Block) -> BlockState {
+fn state_of(b: &Block, anchor: DVec3) -> BlockState {
     BlockState {
         pose: Pose {
-            position: b.pos().to_array(),
+            position: to_scene(b.pos(), anchor).to_array(),
             rotation: b.rot().to_array(),
         },
         mode: b.mode as u32,
@@ -559,11 +680,12 @@ fn finish_block(
     grid: &mut BlockGrid,
     events: &mut StepEvents,
     states: &mut [BlockState],
+    anchor: DVec3,
 ) {
     // The entry's rotation changes only when the block's did (a block's line 2, read only
     // then: a falling block's step does not fetch it).
     let state = &mut states[i];
-    state.pose.position = b.pos().to_array();
+    state.pose.position = to_scene(b.pos(), anchor).to_array();
     if b.rotated() {
         state.pose.rotation = b.rot().to_array();
     }
