@@ -36,6 +36,9 @@ pub struct Row {
     pub result: String,
     /// Set where the precise model is known to fail the criterion (the reason).
     pub known_failure: Option<String>,
+    /// The known failure's figure as this run measured it ("figure = value unit", and when it
+    /// left its band, that it did).
+    pub known_figure: Option<String>,
     /// Drift, sink, penetration, decision, time to rest, non-finite count, hash.
     pub figures: Figures,
     pub us_per_step: f64,
@@ -59,7 +62,11 @@ fn one(case: &Case, v: Variant) -> Row {
     let o = hard_cases::run(case, v);
     let verdict = hard_cases::judge(case, v, &o);
     let f = hard_cases::figures(case, &o);
-    let known = hard_cases::criterion(case, v).1.map(str::to_string);
+    let known = hard_cases::known_failure(case, v);
+    // A known failure's figure, measured by this run (Err: outside its band, said so).
+    let measured = known.map(|k| match k.measured(&o) {
+        Ok(m) | Err(m) => m,
+    });
     Row {
         case: case.name.into(),
         model: v.label().into(),
@@ -68,7 +75,8 @@ fn one(case: &Case, v: Variant) -> Row {
         result: match verdict {
             Ok(s) | Err(s) => s.replace('|', "/"),
         },
-        known_failure: known,
+        known_failure: known.map(|k| k.why.to_string()),
+        known_figure: measured,
         figures: f,
         us_per_step: o.us_per_step,
     }
@@ -164,6 +172,7 @@ fn write_json(path: &Path, rows: &[Row]) -> Result<(), Box<dyn std::error::Error
         .map(|r| {
             json!({"case": r.case, "model": r.model, "criterion": r.criterion,
                    "passed": r.passed, "result": r.result, "known_failure": r.known_failure,
+                   "known_figure": r.known_figure,
                    "drift_m": num(r.figures.drift_m), "sink_mm": num(r.figures.sink_mm),
                    "penetration_m": num(r.figures.penetration_m),
                    "decision": r.figures.decision.map(|(e, g)| json!({"expected": if e { "stands" } else { "falls" }, "got": if g { "stands" } else { "falls" }})),
@@ -199,9 +208,10 @@ fn markdown(rows: &[Row], quick: bool, seconds: f64) -> String {
             r.model,
             if r.passed { "yes" } else { "**no**" },
             r.result,
-            r.known_failure
-                .as_ref()
-                .map_or(String::new(), |k| format!(" (known failure: {k})"))
+            r.known_failure.as_ref().map_or(String::new(), |k| format!(
+                " (known failure: {k}; measured: {})",
+                r.known_figure.as_deref().unwrap_or("-")
+            ))
         );
     }
     s
