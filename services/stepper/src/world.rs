@@ -122,8 +122,9 @@ pub struct World {
 }
 
 /// The world frame's origin for blocks at `positions` (scene frame): the middle of their box
-/// in x and z, rounded to a multiple of [`ANCHOR_GRID_M`] (a power of two: exact, and zero for
-/// every scene within 32 m of the origin), on the floor (y = 0: the floor stays the plane
+/// in x and z, rounded to a whole multiple of [`ANCHOR_GRID_M`] (exact), and zero for every
+/// scene whose middle is within [`ANCHOR_NEAR_M`] of the origin; on the floor (y = 0: the
+/// floor stays the plane
 /// y = 0). The world keeps it for its life; a block's position in the world frame is its scene
 /// position less the anchor, exact to the scene value's own rounding.
 pub fn local_origin(positions: impl Iterator<Item = [f64; 3]>) -> DVec3 {
@@ -138,7 +139,7 @@ pub fn local_origin(positions: impl Iterator<Item = [f64; 3]>) -> DVec3 {
     }
     let mid = (lo + hi) * 0.5;
     let snap = |v: f64| {
-        if v.abs() < 32.0 {
+        if v.abs() < ANCHOR_NEAR_M {
             0.0
         } else {
             (v / ANCHOR_GRID_M).round() * ANCHOR_GRID_M
@@ -147,8 +148,16 @@ pub fn local_origin(positions: impl Iterator<Item = [f64; 3]>) -> DVec3 {
     DVec3::new(snap(mid.x), 0.0, snap(mid.z))
 }
 
-/// The anchor's grid: 64 m.
+/// The anchor's grid: 1 m. A scene moved by whole metres then has the shift itself as its
+/// anchor, and its blocks' positions in the world frame are the moved scene's less the shift,
+/// exactly: the far run computes what the origin run of that (rounded) scene computes, bit for
+/// bit. A coarser grid leaves up to half of it in every position, and positions of tens of
+/// metres round a hundred times coarser than the origin run's (64 m: the far-from-origin scene
+/// moved 1 km along x ended 3e-5 m from its origin run).
 pub const ANCHOR_GRID_M: f64 = 1.0;
+
+/// Within this of the origin the anchor is zero: such a scene computes as it always has.
+pub const ANCHOR_NEAR_M: f64 = 32.0;
 
 /// `p` (world frame) in the scene's frame. Not even an addition when the anchor is zero (an
 /// addition of zero would turn -0.0 into 0.0).
