@@ -77,26 +77,45 @@ impl Fingers {
     }
 }
 
-/// A hand sample the rules can use: counts in range and every used value finite. A hand with
-/// NaN (a device glitch) is treated as absent for that step.
-pub fn is_usable(h: &HandSample) -> bool {
-    if !h.wrist.is_finite() || h.finger_count as usize > MAX_FINGERS {
-        return false;
+/// How far from the scene's origin a hand's check points and wrist may be, in x, y and z:
+/// 1000 km. A scene lies within 100 km of its origin (the loader's range); a sample beyond
+/// this is a device's or a file's garbage, and its coordinates (a joint at 1e20 m in a trace)
+/// overflowed the broad phase's cell arithmetic and hung the step.
+pub const HAND_RANGE_M: f64 = 1e6;
+
+/// Why the rules cannot use a hand sample (None: they can): counts out of range, a used value
+/// not finite (a device glitch), or a point beyond [`HAND_RANGE_M`]. Such a hand is absent for
+/// that step; the stepper counts and names it where it enters.
+pub fn unusable_because(h: &HandSample) -> Option<&'static str> {
+    let far = |p: &[f64; 3]| p.iter().any(|c| c.abs() > HAND_RANGE_M);
+    if h.finger_count as usize > MAX_FINGERS {
+        return Some("more fingers than a hand sample holds");
+    }
+    if !h.wrist.is_finite() {
+        return Some("its wrist pose is not finite");
+    }
+    if far(&h.wrist.position) {
+        return Some("its wrist is farther than 1000 km from the origin");
     }
     for f in 0..h.finger_count as usize {
         let n = h.finger_point_count[f] as usize;
         if n > MAX_FINGER_POINTS {
-            return false;
+            return Some("more points on a finger than a hand sample holds");
         }
-        if !h.finger_points[f][..n]
-            .iter()
-            .flatten()
-            .all(|v| v.is_finite())
-        {
-            return false;
+        let points = &h.finger_points[f][..n];
+        if !points.iter().flatten().all(|v| v.is_finite()) {
+            return Some("a check point is not finite");
+        }
+        if points.iter().any(far) {
+            return Some("a check point is farther than 1000 km from the origin");
         }
     }
-    true
+    None
+}
+
+/// A hand sample the rules can use ([`unusable_because`] finds nothing).
+pub fn is_usable(h: &HandSample) -> bool {
+    unusable_because(h).is_none()
 }
 
 /// The box of a hand's check points ((+inf, -inf) for none): the hand's broad phase. Worked out

@@ -56,6 +56,7 @@ pub fn run_with_outcome(
         events: Vec::with_capacity(OUTCOME_EVENTS),
         events_not_kept: 0,
         clock_jumps_told: 0,
+        refused_hands: 0,
     };
     let hand_in = bus.inlet::<topics::Hand>()?;
     let mut world_out = bus.slice_outlet::<topics::World>()?;
@@ -132,6 +133,13 @@ pub fn run_with_outcome(
             if waiter.strategy() == WaitStrategy::Adaptive {
                 eprintln!("{}", waiter.finish("stepper"));
             }
+            if stepping.refused_hands > 0 {
+                eprintln!(
+                    "handblocks stepper: {} hand samples refused (not finite, or beyond \
+                     1000 km): no hand for their steps",
+                    stepping.refused_hands
+                );
+            }
             if let Some(dir) = outcome_dir {
                 write_outcome(
                     dir,
@@ -155,6 +163,8 @@ struct Stepping {
     events: Vec<crate::world::Event>,
     events_not_kept: u64,
     clock_jumps_told: u64,
+    /// Hand samples refused where they entered (`hand::unusable_because`).
+    refused_hands: u64,
 }
 
 impl Stepping {
@@ -162,7 +172,17 @@ impl Stepping {
     /// or bad counts: the world holds). `tell`: say a jump of the source's clock (a restart
     /// taking the dead stepper's hands again does not say it twice).
     fn take(&mut self, hand: &HandSample, tell: bool) {
-        if !crate::hand::is_usable(hand) {
+        if let Some(why) = crate::hand::unusable_because(hand) {
+            // Refused where it enters: the world holds. The first is named; the count is said
+            // when the stepper stops.
+            self.refused_hands += 1;
+            if tell && self.refused_hands == 1 {
+                eprintln!(
+                    "handblocks stepper: hand sample seq {} refused: {why} (no hand for its \
+                     steps; later refusals are counted)",
+                    hand.stamp.seq
+                );
+            }
             return;
         }
         let Stepping {

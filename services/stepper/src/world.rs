@@ -116,8 +116,8 @@ pub struct World {
     /// gives them (the `world` sample, [`World::block`]). Zero for a scene within 32 m of
     /// the origin: nothing moves and not a bit changes there.
     anchor: DVec3,
-    /// Hand samples refused where they entered: a non-finite value, or a point farther than
-    /// [`HAND_RANGE_M`] from the world (each is "no hand this step", as a NaN always was).
+    /// Hand samples refused where they entered the world (`hand::unusable_because`: a value
+    /// not finite, a point beyond `hand::HAND_RANGE_M`): each is "no hand this step".
     rejected_hands: u64,
     /// The hand of this step in the world's frame (when `anchor` is not zero): the sample
     /// translated once, where it enters, into preallocated space.
@@ -171,29 +171,6 @@ fn to_scene(p: DVec3, anchor: DVec3) -> DVec3 {
     } else {
         p + anchor
     }
-}
-
-/// How far from the world's anchor a hand's check points, palm and wrist may be: 1000 km. A
-/// scene lies within 100 km of its origin (the loader's range); a sample beyond this is a
-/// device's or a file's garbage, and its coordinates (a joint at 1e20 m in a trace) would
-/// overflow the broad phase's cell arithmetic. Checked once, where the sample enters the world.
-pub const HAND_RANGE_M: f64 = 1e6;
-
-/// Whether every point `h` uses lies within [`HAND_RANGE_M`] of `anchor` in x, y and z (a NaN
-/// does not).
-fn within_range(h: &HandSample, anchor: DVec3) -> bool {
-    let near = |p: &[f64; 3]| {
-        (DVec3::from_array(*p) - anchor)
-            .abs()
-            .cmple(DVec3::splat(HAND_RANGE_M))
-            .all()
-    };
-    let fingers = (0..(h.finger_count as usize).min(MAX_FINGERS)).all(|f| {
-        let n = (h.finger_point_count[f] as usize).min(MAX_FINGER_POINTS);
-        h.finger_points[f][..n].iter().all(near)
-    });
-    let n = (h.palm_vertex_count as usize).min(MAX_PALM_VERTICES);
-    fingers && h.palm_vertices[..n].iter().all(near) && near(&h.wrist.position)
 }
 
 /// `h` moved by `by` (every point, the palm and the wrist) into `out`.
@@ -409,7 +386,7 @@ impl World {
         })
     }
 
-    /// Hand samples this world refused where they entered ([`HAND_RANGE_M`], non-finite values).
+    /// Hand samples this world refused where they entered (`hand::unusable_because`).
     pub fn rejected_hand_samples(&self) -> u64 {
         self.rejected_hands
     }
@@ -464,7 +441,7 @@ impl World {
             ..
         } = self;
         let anchor = *anchor;
-        let usable = hand.filter(|h| is_usable(h) && within_range(h, anchor));
+        let usable = hand.filter(|h| is_usable(h));
         self.rejected_hands += u64::from(hand.is_some() && usable.is_none());
         let hand = World::hand_in_world_frame(anchor, usable, hand_local);
         let prev = prev_hand.as_ref();
@@ -602,7 +579,7 @@ impl World {
     pub fn set_previous_hand(&mut self, hand: Option<&HandSample>) {
         self.prev_hand = World::hand_in_world_frame(
             self.anchor,
-            hand.filter(|h| is_usable(h) && within_range(h, self.anchor)),
+            hand.filter(|h| is_usable(h)),
             &mut self.hand_local,
         )
         .copied();
