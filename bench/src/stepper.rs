@@ -14,8 +14,15 @@
 //! * **Contenders**: the paper model; the precise one at its `[precise]` defaults (the
 //!   reference of `bench accuracy`: 8 substeps, sleeping off, because sleeping would freeze a
 //!   block tipping slowly); and the precise one at the cheapest setting that keeps a settled
-//!   field still (`precise-cheap`: sleeping on, one solver iteration, the fewest substeps that
-//!   pass [`cheapest_still`], found in the same run, not chosen by hand).
+//!   field still (`precise-cheap`: the least solver work, over substeps, solver iterations,
+//!   sleeping and CCD, with which a settled pyramid of cubes, block on block, stands and
+//!   neither moves nor turns: [`cheapest_still`], found in the same run, not chosen by hand).
+//! * **The wrapper's share**: a precise step is rapier's `PhysicsPipeline::step` plus our
+//!   wrapper around it (the hand's colliders, the choice of bullets, the modes and events);
+//!   the world times the pipeline call itself ([`stepper::PreciseWorld::pipeline_ns`]), so
+//!   each precise row also gives the wrapper's time per step (p50) and its share of the whole
+//!   step (its time over all timed steps over theirs): the precise model is charged for rapier,
+//!   and what is ours shows.
 //! * **Ablation**: per effect, on and off, 9 runs each (`--quick`: 5), interleaved (on, off,
 //!   on, off, ...); the median, min and max of each side's time per step, and of the
 //!   differences of the pairs of runs (run k on - run k off: back to back, so that a slow
@@ -116,6 +123,10 @@ pub struct ScalingRow {
     pub active: f64,
     pub us_per_step_p50: f64,
     pub us_per_step_p99: f64,
+    /// The precise model's wrapper: its time per step (p50, us) and its share of the step
+    /// (its time over all timed steps over theirs); NaN for the paper model.
+    pub wrapper_us_p50: f64,
+    pub wrapper_share: f64,
 }
 
 /// One effect's on/off pair.
@@ -236,18 +247,32 @@ pub fn field(n: usize, situation: Situation, model: ModelKind) -> Scene {
     }
 }
 
+/// What [`run_steps`] measured: each timed step's time (us), for the precise model each timed
+/// step's wrapper time (us: the step less rapier's pipeline call; empty for the paper model),
+/// and the mean count of blocks not resting.
+struct Timed {
+    times: Vec<f64>,
+    wrapper: Vec<f64>,
+    active: f64,
+}
+
+/// Nanoseconds a precise world has spent in rapier's pipeline so far (None: the paper model).
+fn pipeline_ns(model: &Model) -> Option<u64> {
+    match model {
+        Model::Precise(w) => Some(w.pipeline_ns()),
+        _ => None,
+    }
+}
+
 /// Times `steps` steps of `scene`, each on its own, after `settle` untimed ones; with
 /// `count_active`, also the mean count of blocks not resting (else 0). The count is a pass
 /// over every block between two steps: a timed run leaves it out, so that the bench's own
 /// bookkeeping does not sweep the step's data out of the caches before each timed step (at
 /// 4096 blocks that pass reads ~0.8 MB, more than this machine's L2); it is the same in every
-/// run (the model is deterministic), so the untimed warm-up counts it.
-fn run_steps(
-    scene: &Scene,
-    settle: u64,
-    steps: u64,
-    count_active: bool,
-) -> Result<(Vec<f64>, f64), String> {
+/// run (the model is deterministic), so the untimed warm-up counts it. Under the precise model
+/// the wrapper's time is the step's less what the world's own clock put on rapier's pipeline
+/// call inside it (two readings of a counter around the timed call, outside it).
+fn run_steps(scene: &Scene, settle: u64, steps: u64, count_active: bool) -> Result<Timed, String> {
     let mut model = Model::new(scene).map_err(|e| format!("{}: {e}", scene.file.display()))?;
     let hand = BareFingersHand::from_scene(scene);
     let dt = 1.0 / scene.world.step_hz;
@@ -257,19 +282,29 @@ fn run_steps(
         model.step(sample(k).as_ref());
     }
     let mut times = Vec::with_capacity(steps as usize);
+    let mut wrapper = Vec::with_capacity(steps as usize);
     let mut active = 0usize;
     for k in settle + 1..=settle + steps {
         let h = sample(k);
+        let before = pipeline_ns(&model);
         let t0 = Instant::now();
         model.step(h.as_ref());
-        times.push(t0.elapsed().as_secs_f64() * 1e6);
+        let us = t0.elapsed().as_secs_f64() * 1e6;
+        times.push(us);
+        if let (Some(a), Some(b)) = (before, pipeline_ns(&model)) {
+            wrapper.push(us - b.saturating_sub(a) as f64 * 1e-3);
+        }
         if count_active {
             active += (0..model.block_count())
                 .filter(|&i| model.block(i).is_some_and(|b| b.mode != BlockMode::Resting))
                 .count();
         }
     }
-    Ok((times, active as f64 / steps.max(1) as f64))
+    Ok(Timed {
+        times,
+        wrapper,
+        active: active as f64 / steps.max(1) as f64,
+    })
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -317,62 +352,221 @@ impl Contender {
     }
 }
 
-/// Substeps tried for the cheap precise setting, fewest first.
+/// Substeps, solver iterations per substep, sleeping and CCD tried for the cheap precise
+/// setting (every combination: 48).
 const CHEAP_SUBSTEPS: [u32; 4] = [1, 2, 4, 8];
-/// "Still": no cube of the settled field moves more than this over its second second.
+const CHEAP_ITERATIONS: [u32; 3] = [1, 2, 4];
+const CHEAP_SLEEP: [bool; 2] = [true, false];
+const CHEAP_CCD: [bool; 2] = [false, true];
+/// "Still": no cube of the settled field moves more than this over its second second...
 pub const STILL_M: f64 = 1e-5;
+/// ... nor turns more than this (rad): a turn that moves a 4 cm cube's corner by `STILL_M`.
+pub const STILL_RAD: f64 = STILL_M / (CUBE * 0.866_025_403_784_438_6);
+/// "Stands": over its first second no cube drifts more than a quarter of its size from where it
+/// was built nor turns more than 5 degrees (a pyramid that falls apart moves its cubes by
+/// their size; a soft contact's sag is millimetres).
+pub const STAND_M: f64 = CUBE / 4.0;
+pub const STAND_RAD: f64 = 5.0 * std::f64::consts::PI / 180.0;
+/// Rows of the judged pyramid: 8 cubes at its base, 36 in all.
+const PYRAMID_ROWS: usize = 8;
 
-/// The precise model's cheapest setting that keeps a settled field still: sleeping on, one
-/// solver iteration, and the fewest substeps with which no cube of the 64-cube resting field,
-/// after a first second to settle, moves more than [`STILL_M`] over the next second. Returns
-/// the setting and what was found ([`Cheap`]: each tried setting's largest move, and the
-/// chosen one's sag, the largest drop in the first second: its contacts' give).
+/// The field the cheap setting is judged on: a pyramid of 4 cm cubes, 8 at its base, each row
+/// one fewer and shifted half a cube, every cube face to face with its neighbours in the row
+/// and on the two below it (block on block, and on the floor): what a settled field of stacked
+/// blocks asks of the solver, where a field of cubes apart from each other asks only the
+/// floor (and answered 1 substep whatever the solver did between blocks).
+pub fn pyramid_field() -> Scene {
+    let mut blocks = Vec::new();
+    for row in 0..PYRAMID_ROWS {
+        let count = PYRAMID_ROWS - row;
+        let x0 = -(count as f64 - 1.0) * CUBE / 2.0;
+        for k in 0..count {
+            blocks.push(cube(
+                format!("p{row}_{k}"),
+                x0 + k as f64 * CUBE,
+                CUBE / 2.0 + row as f64 * CUBE,
+                0.0,
+            ));
+        }
+    }
+    Scene {
+        file: PathBuf::from(format!(
+            "<bench stepper: pyramid of {} cubes>",
+            blocks.len()
+        )),
+        world: WorldSettings {
+            model: ModelKind::Precise,
+            ..WorldSettings::default()
+        },
+        effects: Effects::default(),
+        blocks,
+        hand: None,
+    }
+}
+
+/// One setting tried for the cheap precise setting, and what it did on the pyramid.
+#[derive(Debug, Clone, Copy)]
+pub struct CheapTry {
+    pub substeps: u32,
+    pub solver_iterations: u32,
+    pub sleep: bool,
+    pub ccd: bool,
+    /// Over the first second: the largest drift of a cube from where it was built (m), its
+    /// largest turn (rad), and the largest drop (the contacts' give, m).
+    pub drift_m: f64,
+    pub drift_rad: f64,
+    pub sag_m: f64,
+    /// Over the second second: the largest move of a cube (m) and its largest turn (rad).
+    pub moved_m: f64,
+    pub turned_rad: f64,
+    /// Mean time per step over the two seconds (us), for the record: the choice does not read
+    /// it (see [`cheapest_still`]).
+    pub us_per_step: f64,
+}
+
+impl CheapTry {
+    /// The pyramid stood through its first second and was still through its second.
+    pub fn still(&self) -> bool {
+        self.drift_m <= STAND_M
+            && self.drift_rad <= STAND_RAD
+            && self.moved_m <= STILL_M
+            && self.turned_rad <= STILL_RAD
+    }
+
+    /// The solver's work per step, as rapier's step scales with it: substeps times iterations.
+    fn work(&self) -> u32 {
+        self.substeps * self.solver_iterations
+    }
+
+    /// The order of cheapness: the least solver work; then fewer substeps (a substep also
+    /// integrates and refreshes the contacts, an iteration only solves); then sleeping (a
+    /// sleeping body costs nothing) and no CCD (no bullets to choose, no sweeps), which never
+    /// add work.
+    fn cost_key(&self) -> (u32, u32, bool, bool) {
+        (self.work(), self.substeps, !self.sleep, self.ccd)
+    }
+
+    fn settings(&self) -> PreciseSettings {
+        PreciseSettings {
+            substeps: self.substeps,
+            solver_iterations: self.solver_iterations,
+            sleep: self.sleep,
+            ccd: self.ccd,
+            ..PreciseSettings::default()
+        }
+    }
+}
+
+/// Runs the pyramid two seconds under `t`'s setting and fills in what it did.
+fn try_cheap(mut t: CheapTry) -> Result<CheapTry, String> {
+    let mut scene = pyramid_field();
+    scene.world.precise = t.settings();
+    let mut model = Model::new(&scene).map_err(|e| format!("{}: {e}", scene.file.display()))?;
+    let poses = |m: &Model| -> Vec<(glam::DVec3, glam::DQuat)> {
+        (0..m.block_count())
+            .filter_map(|i| m.block(i).map(|b| (b.position, b.rotation)))
+            .collect()
+    };
+    let start = poses(&model);
+    let second = scene.world.step_hz.round() as u64;
+    let t0 = Instant::now();
+    for _ in 0..second {
+        model.step(None);
+    }
+    let settled = poses(&model);
+    for _ in 0..second {
+        model.step(None);
+    }
+    t.us_per_step = t0.elapsed().as_secs_f64() * 1e6 / (2 * second) as f64;
+    let end = poses(&model);
+    let worst = |a: &[(glam::DVec3, glam::DQuat)], b: &[(glam::DVec3, glam::DQuat)]| {
+        a.iter().zip(b).fold((0.0f64, 0.0f64), |(m, r), (p, q)| {
+            (m.max((q.0 - p.0).length()), r.max(q.1.angle_between(p.1)))
+        })
+    };
+    // A cube lost from the model (a count that differs) fails every test below.
+    let lost = if start.len() == scene.blocks.len() && end.len() == start.len() {
+        0.0
+    } else {
+        f64::INFINITY
+    };
+    (t.drift_m, t.drift_rad) = worst(&start, &settled);
+    (t.moved_m, t.turned_rad) = worst(&settled, &end);
+    t.drift_m += lost;
+    t.moved_m += lost;
+    t.sag_m = start
+        .iter()
+        .zip(&settled)
+        .map(|(a, b)| a.0.y - b.0.y)
+        .fold(0.0, f64::max);
+    Ok(t)
+}
+
+/// The precise model's cheapest setting that keeps a settled field still: every combination
+/// of substeps, solver iterations, sleeping and CCD ([`CHEAP_SUBSTEPS`] ...) runs the 36-cube
+/// pyramid ([`pyramid_field`]) for two seconds; a setting keeps it still when it stood through
+/// the first second ([`STAND_M`], [`STAND_RAD`]) and no cube moved more than [`STILL_M`] nor
+/// turned more than [`STILL_RAD`] over the second. Of those, the cheapest by the solver work
+/// it asks for ([`CheapTry::cost_key`]), not by the clock: on this shared machine two runs'
+/// timings differ by more than neighbouring settings' costs, and a settled field that sleeps
+/// costs next to nothing whatever its substeps, so a timed choice would pick by noise (each
+/// setting's time is reported beside it). Bounded: 48 runs of 240 steps of 36 cubes, a few
+/// seconds. Returns the setting and every setting's record ([`Cheap`]).
 pub fn cheapest_still() -> Result<(PreciseSettings, Cheap), String> {
     let mut tried = Vec::new();
     for substeps in CHEAP_SUBSTEPS {
-        let p = PreciseSettings {
-            substeps,
-            solver_iterations: 1,
-            sleep: true,
-            ..PreciseSettings::default()
-        };
-        let mut scene = field(64, Situation::Resting, ModelKind::Precise);
-        scene.world.precise = p;
-        let mut model = Model::new(&scene).map_err(|e| format!("{}: {e}", scene.file.display()))?;
-        let start: Vec<f64> = (0..model.block_count())
-            .filter_map(|i| model.block(i).map(|b| b.position.y))
-            .collect();
-        let settle = scene.world.step_hz.round() as u64;
-        for _ in 0..settle {
-            model.step(None);
-        }
-        let settled: Vec<_> = (0..model.block_count())
-            .filter_map(|i| model.block(i).map(|b| b.position))
-            .collect();
-        let sag = settled
-            .iter()
-            .zip(&start)
-            .map(|(p, y0)| y0 - p.y)
-            .fold(0.0, f64::max);
-        for _ in 0..settle {
-            model.step(None);
-        }
-        let moved = (0..model.block_count())
-            .filter_map(|i| model.block(i).map(|b| (b.position - settled[i]).length()))
-            .fold(0.0, f64::max);
-        tried.push((substeps, moved));
-        if moved <= STILL_M {
-            let cheap = Cheap {
-                substeps,
-                tried,
-                sag_m: sag,
-            };
-            return Ok((p, cheap));
+        for solver_iterations in CHEAP_ITERATIONS {
+            for sleep in CHEAP_SLEEP {
+                for ccd in CHEAP_CCD {
+                    tried.push(try_cheap(CheapTry {
+                        substeps,
+                        solver_iterations,
+                        sleep,
+                        ccd,
+                        drift_m: f64::NAN,
+                        drift_rad: f64::NAN,
+                        sag_m: f64::NAN,
+                        moved_m: f64::NAN,
+                        turned_rad: f64::NAN,
+                        us_per_step: f64::NAN,
+                    })?);
+                }
+            }
         }
     }
-    Err(format!(
-        "no setting tried keeps a settled field still ({tried:?}: substeps, largest move in m)"
-    ))
+    let best = tried
+        .iter()
+        .filter(|t| t.still())
+        .min_by_key(|t| t.cost_key())
+        .copied();
+    match best {
+        Some(chosen) => Ok((chosen.settings(), Cheap { chosen, tried })),
+        None => Err(format!(
+            "no setting tried keeps a settled pyramid still: {}",
+            tried
+                .iter()
+                .map(CheapTry::describe)
+                .collect::<Vec<_>>()
+                .join("; ")
+        )),
+    }
+}
+
+impl CheapTry {
+    /// e.g. `2 x 1, sleep on, ccd off: moved 3.1e-7 m, turned 2.0e-6 rad (drift 1.2 mm)`.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} x {}, sleep {}, ccd {}: moved {:.1e} m, turned {:.1e} rad (first second: drift {:.2} mm, {:.2} deg)",
+            self.substeps,
+            self.solver_iterations,
+            if self.sleep { "on" } else { "off" },
+            if self.ccd { "on" } else { "off" },
+            self.moved_m,
+            self.turned_rad,
+            self.drift_m * 1e3,
+            self.drift_rad.to_degrees()
+        )
+    }
 }
 
 /// The scaling rows of one contender in one situation, one per size. Each size is warmed up
@@ -393,22 +587,31 @@ fn scaling_rows(
         let mut scene = field(n, situation, c.model);
         c.apply(&mut scene);
         // The warm-up, and the count of active blocks (the same in every run).
-        let (_, a) = run_steps(&scene, settle, steps, true)?;
-        active.push(a);
+        active.push(run_steps(&scene, settle, steps, true)?.active);
         scenes.push(scene);
     }
     let mut all: Vec<Vec<f64>> = vec![Vec::new(); sizes.len()];
+    let mut wrapper: Vec<Vec<f64>> = vec![Vec::new(); sizes.len()];
     for _ in 0..runs {
         for (k, scene) in scenes.iter().enumerate() {
-            all[k].extend(run_steps(scene, settle, steps, false)?.0);
+            let t = run_steps(scene, settle, steps, false)?;
+            all[k].extend(t.times);
+            wrapper[k].extend(t.wrapper);
         }
     }
     Ok(sizes
         .iter()
-        .zip(all.iter_mut())
+        .zip(all.iter_mut().zip(wrapper.iter_mut()))
         .zip(active)
-        .map(|((&n, times), active)| {
+        .map(|((&n, (times, wrapper)), active)| {
+            let total: f64 = times.iter().sum();
+            let share = if wrapper.is_empty() || total <= 0.0 {
+                f64::NAN
+            } else {
+                wrapper.iter().sum::<f64>() / total
+            };
             times.sort_by(f64::total_cmp);
+            wrapper.sort_by(f64::total_cmp);
             ScalingRow {
                 model: c.name,
                 situation,
@@ -416,6 +619,8 @@ fn scaling_rows(
                 active,
                 us_per_step_p50: percentile(times, 0.5),
                 us_per_step_p99: percentile(times, 0.99),
+                wrapper_us_p50: percentile(wrapper, 0.5),
+                wrapper_share: share,
             }
         })
         .collect())
@@ -498,7 +703,7 @@ const PAIRS: &[Pair] = &[
 /// untimed steps.
 fn mean_us(scene: &Scene, settle: u64) -> Result<f64, String> {
     let steps = stepper::default_frames(scene);
-    let (t, _) = run_steps(scene, settle, steps, false)?;
+    let t = run_steps(scene, settle, steps, false)?.times;
     Ok(t.iter().sum::<f64>() / t.len().max(1) as f64)
 }
 
@@ -587,13 +792,11 @@ fn ablation_row(
     })
 }
 
-/// The precise model's cheap setting, as found in this run.
+/// The precise model's cheap setting, as found in this run: the chosen setting's record and
+/// every setting's, in the order tried.
 pub struct Cheap {
-    pub substeps: u32,
-    /// (substeps, largest move of a settled cube over a second, m) per setting tried.
-    pub tried: Vec<(u32, f64)>,
-    /// The chosen setting's sag in its first second, m.
-    pub sag_m: f64,
+    pub chosen: CheapTry,
+    pub tried: Vec<CheapTry>,
 }
 
 /// What one run of the benchmark measured.
@@ -643,15 +846,11 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
     let models = [ModelKind::Paper, ModelKind::Precise];
     let (cheap, found) = cheapest_still()?;
     eprintln!(
-        "stepper: the precise model's cheapest setting that keeps a settled field still: {} substeps, 1 iteration, sleeping on (tried {}; sag {:.2} mm)",
-        cheap.substeps,
-        found
-            .tried
-            .iter()
-            .map(|(s, m)| format!("{s} substeps: {m:.1e} m"))
-            .collect::<Vec<_>>()
-            .join(", "),
-        found.sag_m * 1e3
+        "stepper: the precise model's cheapest setting that keeps a settled pyramid still: {} ({} of {} settings keep it still; {:.0} s so far)",
+        found.chosen.describe(),
+        found.tried.iter().filter(|t| t.still()).count(),
+        found.tried.len(),
+        started.elapsed().as_secs_f64()
     );
     let contenders = [
         Contender::PAPER,
@@ -766,7 +965,9 @@ fn to_json(r: &Report) -> Value {
         .map(|s| {
             json!({"model": s.model, "situation": s.situation.name(), "blocks": s.blocks,
                    "active": num(s.active), "us_per_step_p50": num(s.us_per_step_p50),
-                   "us_per_step_p99": num(s.us_per_step_p99)})
+                   "us_per_step_p99": num(s.us_per_step_p99),
+                   "wrapper_us_p50": num(s.wrapper_us_p50),
+                   "wrapper_share": num(s.wrapper_share)})
         })
         .collect();
     let mut exponents = Vec::new();
@@ -795,9 +996,19 @@ fn to_json(r: &Report) -> Value {
         .iter()
         .map(|(n, why)| json!({"blocks": n, "why": why}))
         .collect();
-    let cheap = json!({"substeps": r.cheap.substeps, "solver_iterations": 1, "sleep": true,
-        "still_m": STILL_M, "sag_m": num(r.cheap.sag_m),
-        "tried": r.cheap.tried.iter().map(|(s, m)| json!({"substeps": s, "moved_m": num(*m)})).collect::<Vec<_>>()});
+    let row = |t: &CheapTry| {
+        json!({"substeps": t.substeps, "solver_iterations": t.solver_iterations,
+               "sleep": t.sleep, "ccd": t.ccd, "still": t.still(),
+               "drift_m": num(t.drift_m), "drift_rad": num(t.drift_rad), "sag_m": num(t.sag_m),
+               "moved_m": num(t.moved_m), "turned_rad": num(t.turned_rad),
+               "us_per_step": num(t.us_per_step)})
+    };
+    let c = &r.cheap.chosen;
+    let cheap = json!({"substeps": c.substeps, "solver_iterations": c.solver_iterations,
+        "sleep": c.sleep, "ccd": c.ccd, "sag_m": num(c.sag_m),
+        "field": format!("pyramid of {} cubes ({} at its base), 1 s to settle, judged over the next", pyramid_field().blocks.len(), PYRAMID_ROWS),
+        "still_m": STILL_M, "still_rad": STILL_RAD, "stand_m": STAND_M, "stand_rad": STAND_RAD,
+        "tried": r.cheap.tried.iter().map(row).collect::<Vec<_>>()});
     json!({"scaling": scaling, "exponents": exponents, "not_run": not_run,
            "precise_cheap": cheap,
            "ablation": ablation, "clock_reading_us": num(r.clock_us),
@@ -810,7 +1021,7 @@ const NAMES: [&str; 3] = ["paper", "precise", "precise-cheap"];
 /// The scaling table: one line per (situation, N), the contenders side by side.
 pub fn scaling_table(r: &Report) -> String {
     let mut s = String::from(
-        "| situation | blocks | paper: active, p50 / p99 (us) | paper us per active block | precise: active, p50 / p99 | precise-cheap: active, p50 / p99 | precise / paper | precise-cheap / paper |\n|---|---|---|---|---|---|---|---|\n",
+        "| situation | blocks | paper: active, p50 / p99 (us) | paper us per active block | precise: active, p50 / p99 | precise-cheap: active, p50 / p99 | precise / paper | precise-cheap / paper | precise: wrapper p50 (us), share | precise-cheap: wrapper p50, share |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for sit in Situation::ALL {
         let mut sizes: Vec<usize> = r
@@ -842,8 +1053,14 @@ pub fn scaling_table(r: &Report) -> String {
                 }
                 _ => "-".into(),
             };
+            let wrapper = |x: Option<&ScalingRow>| {
+                x.filter(|x| x.wrapper_share.is_finite())
+                    .map_or("-".to_string(), |x| {
+                        format!("{:.1}, {:.1} %", x.wrapper_us_p50, 100.0 * x.wrapper_share)
+                    })
+            };
             s += &format!(
-                "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
                 sit.name(),
                 n,
                 cell(p),
@@ -855,24 +1072,39 @@ pub fn scaling_table(r: &Report) -> String {
                 cell(q),
                 cell(c),
                 ratio(q),
-                ratio(c)
+                ratio(c),
+                wrapper(q),
+                wrapper(c)
             );
         }
     }
     for (n, why) in &r.not_run {
-        s += &format!("| all | {n} | not run: {why} | | | | | |\n");
+        s += &format!("| all | {n} | not run: {why} | | | | | | | |\n");
     }
+    let c = &r.cheap.chosen;
     s += &format!(
-        "\nprecise-cheap: {} substeps, 1 solver iteration, sleeping on: the fewest substeps (of {:?}) with which no cube of a settled 64-cube field moves over {STILL_M:.0e} m in its second second (tried: {}; its sag in the first second {:.2} mm).\n",
-        r.cheap.substeps,
+        "\nprecise-cheap: {} substeps x {} solver iteration(s) per substep, sleeping {}, CCD {}: the least solver work (substeps x iterations, then fewer substeps, sleeping, no CCD) of {} settings (substeps {:?} x iterations {:?} x sleeping on/off x CCD on/off) with which a pyramid of {} cubes, block on block, stands through its first second (no cube drifts over {:.0} mm nor turns over {:.0} deg) and no cube moves over {STILL_M:.0e} m nor turns over {STILL_RAD:.1e} rad in its second (its sag {:.2} mm, {:.1} us per step). {} of the {} keep it still; the fewest substeps that do: {}.\n",
+        c.substeps,
+        c.solver_iterations,
+        if c.sleep { "on" } else { "off" },
+        if c.ccd { "on" } else { "off" },
+        r.cheap.tried.len(),
         CHEAP_SUBSTEPS,
+        CHEAP_ITERATIONS,
+        pyramid_field().blocks.len(),
+        STAND_M * 1e3,
+        STAND_RAD.to_degrees(),
+        c.sag_m * 1e3,
+        c.us_per_step,
+        r.cheap.tried.iter().filter(|t| t.still()).count(),
+        r.cheap.tried.len(),
         r.cheap
             .tried
             .iter()
-            .map(|(s, m)| format!("{s}: {m:.1e} m"))
-            .collect::<Vec<_>>()
-            .join(", "),
-        r.cheap.sag_m * 1e3
+            .filter(|t| t.still())
+            .map(|t| t.substeps)
+            .min()
+            .map_or("-".to_string(), |s| s.to_string()),
     );
     s += "\nfitted exponent of p50 against N (least squares, log-log):";
     for m in NAMES {
@@ -918,7 +1150,7 @@ pub fn ablation_table(r: &Report) -> String {
 fn markdown(r: &Report, quick: bool) -> String {
     let mut s = String::from("# handblocks bench stepper\n\n");
     s += &format!(
-        "Both models in one run ({:.0} s{}); the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed runs; active: blocks not resting, mean per step.\n\n",
+        "Both models in one run ({:.0} s{}); the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed runs; active: blocks not resting, mean per step; wrapper: a precise step less rapier's own `PhysicsPipeline::step` call (timed inside the world), p50 and its share of all the timed steps' time.\n\n",
         r.seconds,
         if quick { ", --quick: 16 and 64 blocks, 2 timed runs" } else { ", 5 timed runs after a warm-up, going round the sizes" }
     );
@@ -985,6 +1217,42 @@ mod tests {
     }
 
     #[test]
+    fn the_cheap_search_tells_a_pyramid_that_falls_from_one_that_stands_still() {
+        let pyramid = pyramid_field();
+        assert_eq!(pyramid.blocks.len(), 36);
+        Model::new(&pyramid).unwrap_or_else(|e| panic!("the pyramid: {e}"));
+        let t = |substeps, solver_iterations, sleep, ccd| {
+            try_cheap(CheapTry {
+                substeps,
+                solver_iterations,
+                sleep,
+                ccd,
+                drift_m: f64::NAN,
+                drift_rad: f64::NAN,
+                sag_m: f64::NAN,
+                moved_m: f64::NAN,
+                turned_rad: f64::NAN,
+                us_per_step: f64::NAN,
+            })
+            .unwrap()
+        };
+        // One substep, awake: it comes apart (a cube moves by centimetres in the second second).
+        let loose = t(1, 1, false, false);
+        assert!(
+            !loose.still() && loose.moved_m > 1e-2,
+            "{}",
+            loose.describe()
+        );
+        // The reference setting: it stands, still, sagging less than a millimetre.
+        let reference = t(8, 2, false, true);
+        assert!(
+            reference.still() && reference.sag_m < 1e-3,
+            "{}",
+            reference.describe()
+        );
+    }
+
+    #[test]
     fn the_exponent_of_a_power_law_is_its_power() {
         let rows: Vec<ScalingRow> = [16usize, 64, 256]
             .iter()
@@ -995,6 +1263,8 @@ mod tests {
                 active: n as f64,
                 us_per_step_p50: 0.5 * (n as f64).powf(1.5),
                 us_per_step_p99: 0.0,
+                wrapper_us_p50: f64::NAN,
+                wrapper_share: f64::NAN,
             })
             .collect();
         let e = exponent(&rows, "paper", Situation::Falling).unwrap();

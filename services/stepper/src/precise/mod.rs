@@ -12,17 +12,28 @@
 //! own grasp rule (R3's grasp_angle over the contact normals).
 //!
 //! Time is the paper model's: one [`PreciseWorld::step`] is one fixed step of 1 / step_hz, the
-//! stepper's timeline decides how many steps a hand sample brings, and nothing reads a clock.
+//! stepper's timeline decides how many steps a hand sample brings, and nothing the model
+//! computes reads a clock (one step reads it twice, around rapier's own step, only to tell
+//! `bench stepper` what our wrapper costs beside rapier: [`PreciseWorld::pipeline_ns`]).
 //! rapier without its `parallel` feature is deterministic for the same binary and inputs, so
 //! two runs give identical bytes.
+//!
+//! The wrapper's own work per step is kept near-linear and off the bodies that need none: the
+//! choice of bullets finds meeting swept boxes with a grid (module `bullets`) and touches only
+//! the bodies whose CCD flag changes; the mode derivation skips bodies that slept through the
+//! step (module [`modes`]).
 //!
 //! No rapier type leaves this module: the rest of the crate sees poses, modes and events
 //! through [`crate::model::Model`].
 
+mod bullets;
 mod hand;
 mod modes;
+#[cfg(test)]
+mod tests;
 
 use std::path::PathBuf;
+use std::time::Instant;
 
 use glam::{DQuat, DVec3};
 use rapier3d_f64::prelude::{
@@ -66,6 +77,14 @@ struct PreciseBlock {
     /// its bounding sphere about G, for the choice of this step's bullets.
     thickness: f64,
     radius: f64,
+    /// Whether its body is one of rapier's bullets now (`ccd_enabled`), and the last step that
+    /// chose it: `choose_bullets` switches the flag only when the choice changes.
+    bullet: bool,
+    chosen_at: u64,
+    /// The last step whose mode derivation judged it, and the mode that derivation found before
+    /// `carried` (what a neighbour's `carried` test reads).
+    judged_at: u64,
+    judged: BlockMode,
 }
 
 /// The scene under rapier3d: see the module documentation.
@@ -85,10 +104,29 @@ pub struct PreciseWorld {
     /// Scratch of the mode derivation, kept so that a step does not allocate.
     touches: Vec<modes::Touches>,
     modes: Vec<BlockMode>,
-    /// Scratch of the bullet choice: fast blocks (motion this step, index) and the swept
-    /// boxes of the chosen bullets.
+    /// Scratch of the bullet choice: fast blocks (motion this step, index), fastest first,
+    /// and their swept boxes' grid.
     fast: Vec<(f64, usize)>,
-    bullet_boxes: Vec<(DVec3, DVec3)>,
+    choice: bullets::BulletChoice,
+    /// The blocks whose bodies are bullets now.
+    bullets: Vec<usize>,
+    /// Block index of each body (by the body handle's arena index; `u32::MAX`: not a block), to
+    /// read the island manager's awake bodies as blocks.
+    block_of_body: Vec<u32>,
+    /// Blocks whose bodies were awake after the previous step, and the blocks the mode
+    /// derivation judges this step (scratch).
+    awake_before: Vec<usize>,
+    awake_now: Vec<usize>,
+    judge: Vec<usize>,
+    /// Scratch of the mode derivation's pass over every contact pair (module [`modes`]), and
+    /// how many blocks are grasped now (`carried` needs one).
+    swept: Vec<modes::Swept>,
+    grasped: usize,
+    /// Judge every block every step by its own contact query, asleep or not (the derivation
+    /// as it was before sleeping bodies were skipped and pairs swept: the tests' reference).
+    judge_all: bool,
+    /// Nanoseconds spent in rapier's `PhysicsPipeline::step` since the world was built.
+    pipeline_ns: u64,
 }
 
 impl PreciseWorld {
@@ -134,6 +172,7 @@ impl PreciseWorld {
             physics.colliders.insert(floor);
         }
         let mut blocks = Vec::with_capacity(scene.blocks.len());
+        let mut block_of_body = Vec::with_capacity(scene.blocks.len());
         for (i, spec) in scene.blocks.iter().enumerate() {
             let bad = |problem: String| WorldError {
                 file: scene.file.clone(),
@@ -181,6 +220,11 @@ impl PreciseWorld {
             let thickness = collider.shape().ccd_thickness();
             let radius = collider.shape().compute_local_bounding_sphere().radius;
             let body = physics.bodies.insert(body);
+            let slot = body.into_raw_parts().0 as usize;
+            if block_of_body.len() <= slot {
+                block_of_body.resize(slot + 1, u32::MAX);
+            }
+            block_of_body[slot] = i as u32;
             let collider =
                 physics
                     .colliders
@@ -194,6 +238,10 @@ impl PreciseWorld {
                 floor_contacts: 0,
                 thickness,
                 radius,
+                bullet: false,
+                chosen_at: 0,
+                judged_at: 0,
+                judged: BlockMode::Free,
             });
         }
         let hand =
@@ -203,7 +251,17 @@ impl PreciseWorld {
             touches: Vec::with_capacity(n),
             modes: Vec::with_capacity(n),
             fast: Vec::with_capacity(n),
-            bullet_boxes: Vec::with_capacity(n),
+            choice: bullets::BulletChoice::default(),
+            bullets: Vec::with_capacity(n),
+            block_of_body,
+            // Every body starts awake (and is judged after the first step).
+            awake_before: (0..n).collect(),
+            awake_now: Vec::with_capacity(n),
+            judge: Vec::with_capacity(n),
+            swept: Vec::with_capacity(n),
+            grasped: 0,
+            judge_all: false,
+            pipeline_ns: 0,
             file: scene.file.clone(),
             physics,
             events: Vec::with_capacity(16 * blocks.len() + 16),
@@ -252,7 +310,9 @@ impl PreciseWorld {
         if self.settings.ccd {
             self.choose_bullets();
         }
+        let t0 = Instant::now();
         self.physics.step();
+        self.pipeline_ns += t0.elapsed().as_nanos() as u64;
         self.settle_modes();
         self.fingers.copy_from(hand);
         self.prev_hand = hand.copied();
@@ -267,6 +327,12 @@ impl PreciseWorld {
     /// half its thinnest extent in the step), fastest first, and not when its swept box meets a
     /// faster bullet's (that bullet sweeps it: the two are swept against each other once).
     /// Slow blocks are never bullets: they are the targets.
+    ///
+    /// The meeting boxes come from a grid ([`bullets::BulletChoice`]: near-linear, the same
+    /// choice as testing each block against every bullet so far, which cost ~8 M box tests a
+    /// step in a rain of 4096 cubes), and only a body whose flag changes is written: rapier's
+    /// `get_mut` files a body as modified, and every modified body is re-examined by the
+    /// pipeline's next step.
     fn choose_bullets(&mut self) {
         let dt = self.dt;
         let g = self.physics.gravity;
@@ -282,30 +348,40 @@ impl PreciseWorld {
         // Fastest first; equal motions by index (deterministic).
         self.fast
             .sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        self.bullet_boxes.clear();
-        for b in &self.blocks {
-            let body = self.physics.bodies.get_mut(b.body).expect("a block's body");
-            if body.is_ccd_enabled() {
-                body.enable_ccd(false);
-            }
-        }
+        self.choice.clear();
         for &(motion, i) in &self.fast {
             let b = &self.blocks[i];
             let body = &self.physics.bodies[b.body];
             let p0 = body.translation();
             let p1 = p0 + (body.linvel() + g * dt) * dt;
             let reach = DVec3::splat(b.radius + (motion - (p1 - p0).length()).max(0.0));
-            let (lo, hi) = (p0.min(p1) - reach, p0.max(p1) + reach);
-            let meets = self
-                .bullet_boxes
-                .iter()
-                .any(|(l, h)| lo.cmple(*h).all() && l.cmple(hi).all());
-            if !meets {
-                self.bullet_boxes.push((lo, hi));
-                let body = self.physics.bodies.get_mut(b.body).expect("a block's body");
-                body.enable_ccd(true);
+            self.choice.push(p0.min(p1) - reach, p0.max(p1) + reach);
+        }
+        let step = self.steps;
+        for &rank in self.choice.choose() {
+            let i = self.fast[rank as usize].1;
+            let b = &mut self.blocks[i];
+            b.chosen_at = step;
+            if !b.bullet {
+                b.bullet = true;
+                self.bullets.push(i);
+                if let Some(body) = self.physics.bodies.get_mut(b.body) {
+                    body.enable_ccd(true);
+                }
             }
         }
+        let (blocks, bodies) = (&mut self.blocks, &mut self.physics.bodies);
+        self.bullets.retain(|&i| {
+            let b = &mut blocks[i];
+            if b.chosen_at == step {
+                return true;
+            }
+            b.bullet = false;
+            if let Some(body) = bodies.get_mut(b.body) {
+                body.enable_ccd(false);
+            }
+            false
+        });
     }
 
     fn emit(&mut self, kind: EventKind, block: usize) {
@@ -396,5 +472,12 @@ impl PreciseWorld {
     /// The settings this world runs with.
     pub fn settings(&self) -> &PreciseSettings {
         &self.settings
+    }
+
+    /// Nanoseconds spent inside rapier's `PhysicsPipeline::step` over every step so far: the
+    /// rest of a step's time is our wrapper's (hand colliders, bullets, modes), which
+    /// `bench stepper` reports apart so that the precise model is not charged for it unseen.
+    pub fn pipeline_ns(&self) -> u64 {
+        self.pipeline_ns
     }
 }
