@@ -198,6 +198,14 @@ fn readers(session: &Session) -> Vec<Stage> {
     } else {
         vec![Stage::Kinematics, Stage::Stepper]
     };
+    // A bridge that takes topics in from the other machine publishes them here: it stops
+    // before their readers (the renderer, the recorder), or what it publishes after they
+    // drained is lost (a frame taken in after the recorder stopped counted as dropped). It
+    // still stops after the stepper, whose hand and world it drains to send them.
+    let bridge_publishes = session.bridge.is_on() && !session.bridge.outputs().is_empty();
+    if bridge_publishes && !remote_fed {
+        v.push(Stage::Bridge);
+    }
     if session.renderer.mode != RenderMode::Off {
         v.push(Stage::Renderer);
     }
@@ -207,7 +215,7 @@ fn readers(session: &Session) -> Vec<Stage> {
         v.push(Stage::Recorder);
     }
     // The bridge reads what it sends out (and, for a Foxglove view, what it shows).
-    if session.bridge.is_on() && !remote_fed {
+    if session.bridge.is_on() && !remote_fed && !bridge_publishes {
         v.push(Stage::Bridge);
     }
     v
