@@ -425,6 +425,24 @@ pub struct CheapTry {
 }
 
 impl CheapTry {
+    /// A setting not tried yet: its figures are NaN until [`try_cheap`] measures them.
+    fn untried(substeps: u32, solver_iterations: u32, sleep: bool, ccd: bool) -> CheapTry {
+        CheapTry {
+            substeps,
+            solver_iterations,
+            sleep,
+            ccd,
+            drift_m: f64::NAN,
+            drift_rad: f64::NAN,
+            sag_m: f64::NAN,
+            moved_m: f64::NAN,
+            turned_rad: f64::NAN,
+            us_per_step: f64::NAN,
+        }
+    }
+}
+
+impl CheapTry {
     /// The pyramid stood through its first second and was still through its second.
     pub fn still(&self) -> bool {
         self.drift_m <= STAND_M
@@ -518,18 +536,12 @@ pub fn cheapest_still() -> Result<(PreciseSettings, Cheap), String> {
         for solver_iterations in CHEAP_ITERATIONS {
             for sleep in CHEAP_SLEEP {
                 for ccd in CHEAP_CCD {
-                    tried.push(try_cheap(CheapTry {
+                    tried.push(try_cheap(CheapTry::untried(
                         substeps,
                         solver_iterations,
                         sleep,
                         ccd,
-                        drift_m: f64::NAN,
-                        drift_rad: f64::NAN,
-                        sag_m: f64::NAN,
-                        moved_m: f64::NAN,
-                        turned_rad: f64::NAN,
-                        us_per_step: f64::NAN,
-                    })?);
+                    ))?);
                 }
             }
         }
@@ -1222,19 +1234,7 @@ mod tests {
         assert_eq!(pyramid.blocks.len(), 36);
         Model::new(&pyramid).unwrap_or_else(|e| panic!("the pyramid: {e}"));
         let t = |substeps, solver_iterations, sleep, ccd| {
-            try_cheap(CheapTry {
-                substeps,
-                solver_iterations,
-                sleep,
-                ccd,
-                drift_m: f64::NAN,
-                drift_rad: f64::NAN,
-                sag_m: f64::NAN,
-                moved_m: f64::NAN,
-                turned_rad: f64::NAN,
-                us_per_step: f64::NAN,
-            })
-            .unwrap()
+            try_cheap(CheapTry::untried(substeps, solver_iterations, sleep, ccd)).unwrap()
         };
         // One substep, awake: it comes apart (a cube moves by centimetres in the second second).
         let loose = t(1, 1, false, false);
