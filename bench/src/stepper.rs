@@ -8,9 +8,11 @@
 //!   along the middle row at cube height, pushing the few it meets). Every step is timed on its
 //!   own; p50 and p99 over the timed runs, the mean count of blocks not resting ("active"),
 //!   the time per active block, the fitted exponent of time against N (least squares on
-//!   log-log), and the paper model's time as a ratio to the precise model's. The timed runs go
-//!   round the sizes (run 1 of each, then run 2, ...), so the machine's slow spells fall on
-//!   every size alike.
+//!   log-log), and the precise contenders' time as a ratio to the paper model's, taken round by
+//!   round (median [min, max] over the rounds). The timed runs are interleaved: a round goes
+//!   round the sizes and, within a size, round the contenders (paper, precise, precise-cheap,
+//!   then the next size, ...), so the machine's slow spells fall on every model and size alike,
+//!   and the two runs a ratio compares are seconds apart.
 //! * **Contenders**: the paper model; the precise one at its `[precise]` defaults (the
 //!   reference of `bench accuracy`: 8 substeps, sleeping off, because sleeping would freeze a
 //!   block tipping slowly); and the precise one at the cheapest setting that keeps a settled
@@ -127,6 +129,9 @@ pub struct ScalingRow {
     /// (its time over all timed steps over theirs); NaN for the paper model.
     pub wrapper_us_p50: f64,
     pub wrapper_share: f64,
+    /// The p50 of each timed round (us), in round order: the ratio of two contenders is taken
+    /// round by round ([`round_ratios`]).
+    pub round_p50: Vec<f64>,
 }
 
 /// One effect's on/off pair.
@@ -581,61 +586,101 @@ impl CheapTry {
     }
 }
 
-/// The scaling rows of one contender in one situation, one per size. Each size is warmed up
-/// once, then the timed runs go round the sizes (run 1 of every size, then run 2, ...), so a
-/// slow minute of this shared machine falls on every size alike rather than on the one being
-/// timed then (timing the sizes one after the other, a slow spell during the 4096 field's runs
-/// alone moved the fitted exponent by several hundredths).
+/// The scaling rows of every contender in one situation, one per (contender, size). Each
+/// (size, contender) is warmed up once; then each round goes round the sizes and, within a
+/// size, round the contenders (paper, precise, precise-cheap, then the next size, ...), so that
+/// a slow minute of this shared machine falls on every model and every size alike rather than
+/// on the one being timed then (timing the models one after the other, the machine's speed
+/// drifted by a third between them; timing the sizes one after the other, a slow spell during
+/// the 4096 field's runs alone moved the fitted exponent by several hundredths). Each row keeps
+/// its p50 of each round, so that the ratio of two contenders is known per round, from runs
+/// seconds apart.
 fn scaling_rows(
-    c: Contender,
+    contenders: &[Contender],
     situation: Situation,
     sizes: &[usize],
     runs: usize,
 ) -> Result<Vec<ScalingRow>, String> {
     let (settle, steps) = (situation.settle(), situation.steps());
-    let mut scenes = Vec::with_capacity(sizes.len());
-    let mut active = Vec::with_capacity(sizes.len());
+    // Indexed [size][contender].
+    let mut scenes = Vec::with_capacity(sizes.len() * contenders.len());
+    let mut active = Vec::with_capacity(sizes.len() * contenders.len());
     for &n in sizes {
-        let mut scene = field(n, situation, c.model);
-        c.apply(&mut scene);
-        // The warm-up, and the count of active blocks (the same in every run).
-        active.push(run_steps(&scene, settle, steps, true)?.active);
-        scenes.push(scene);
-    }
-    let mut all: Vec<Vec<f64>> = vec![Vec::new(); sizes.len()];
-    let mut wrapper: Vec<Vec<f64>> = vec![Vec::new(); sizes.len()];
-    for _ in 0..runs {
-        for (k, scene) in scenes.iter().enumerate() {
-            let t = run_steps(scene, settle, steps, false)?;
-            all[k].extend(t.times);
-            wrapper[k].extend(t.wrapper);
+        for c in contenders {
+            let mut scene = field(n, situation, c.model);
+            c.apply(&mut scene);
+            // The warm-up, and the count of active blocks (the same in every run).
+            active.push(run_steps(&scene, settle, steps, true)?.active);
+            scenes.push(scene);
         }
     }
-    Ok(sizes
+    let mut all: Vec<Vec<f64>> = vec![Vec::new(); scenes.len()];
+    let mut wrapper: Vec<Vec<f64>> = vec![Vec::new(); scenes.len()];
+    let mut rounds: Vec<Vec<f64>> = vec![Vec::with_capacity(runs); scenes.len()];
+    for _ in 0..runs {
+        for (k, scene) in scenes.iter().enumerate() {
+            let mut t = run_steps(scene, settle, steps, false)?;
+            all[k].extend_from_slice(&t.times);
+            wrapper[k].extend(t.wrapper);
+            t.times.sort_by(f64::total_cmp);
+            rounds[k].push(percentile(&t.times, 0.5));
+        }
+    }
+    let mut rows = Vec::with_capacity(scenes.len());
+    for (k, ((times, wrapper), round_p50)) in all
+        .iter_mut()
+        .zip(wrapper.iter_mut())
+        .zip(rounds)
+        .enumerate()
+    {
+        let (n, c) = (
+            sizes[k / contenders.len()],
+            contenders[k % contenders.len()],
+        );
+        let total: f64 = times.iter().sum();
+        let share = if wrapper.is_empty() || total <= 0.0 {
+            f64::NAN
+        } else {
+            wrapper.iter().sum::<f64>() / total
+        };
+        times.sort_by(f64::total_cmp);
+        wrapper.sort_by(f64::total_cmp);
+        rows.push(ScalingRow {
+            model: c.name,
+            situation,
+            blocks: n,
+            active: active[k],
+            us_per_step_p50: percentile(times, 0.5),
+            us_per_step_p99: percentile(times, 0.99),
+            wrapper_us_p50: percentile(wrapper, 0.5),
+            wrapper_share: share,
+            round_p50,
+        });
+    }
+    Ok(rows)
+}
+
+/// `model`'s p50 over the paper model's, round by round (the two timed seconds apart in each
+/// round), for one (situation, N): the ratios, in round order, and their median [min, max].
+pub fn round_ratios(
+    rows: &[ScalingRow],
+    model: &str,
+    situation: Situation,
+    blocks: usize,
+) -> Option<(Vec<f64>, Spread)> {
+    let get = |m: &str| {
+        rows.iter()
+            .find(|r| r.model == m && r.situation == situation && r.blocks == blocks)
+    };
+    let (p, q) = (get("paper")?, get(model)?);
+    let ratios: Vec<f64> = p
+        .round_p50
         .iter()
-        .zip(all.iter_mut().zip(wrapper.iter_mut()))
-        .zip(active)
-        .map(|((&n, (times, wrapper)), active)| {
-            let total: f64 = times.iter().sum();
-            let share = if wrapper.is_empty() || total <= 0.0 {
-                f64::NAN
-            } else {
-                wrapper.iter().sum::<f64>() / total
-            };
-            times.sort_by(f64::total_cmp);
-            wrapper.sort_by(f64::total_cmp);
-            ScalingRow {
-                model: c.name,
-                situation,
-                blocks: n,
-                active,
-                us_per_step_p50: percentile(times, 0.5),
-                us_per_step_p99: percentile(times, 0.99),
-                wrapper_us_p50: percentile(wrapper, 0.5),
-                wrapper_share: share,
-            }
-        })
-        .collect())
+        .zip(&q.round_p50)
+        .filter(|(p, _)| **p > 0.0)
+        .map(|(p, q)| q / p)
+        .collect();
+    (!ratios.is_empty()).then(|| (ratios.clone(), Spread::of(ratios)))
 }
 
 /// The least-squares slope of ln(p50) on ln(N) over the rows of one (model, situation).
@@ -874,16 +919,12 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
         },
     ];
     let mut scaling = Vec::new();
-    let jobs: Vec<(Contender, Situation)> = contenders
-        .iter()
-        .flat_map(|&m| Situation::ALL.iter().map(move |&s| (m, s)))
-        .collect();
-    for (k, &(m, s)) in jobs.iter().enumerate() {
-        for r in scaling_rows(m, s, &measured, runs)? {
+    for (k, &s) in Situation::ALL.iter().enumerate() {
+        for r in scaling_rows(&contenders, s, &measured, runs)? {
             eprintln!(
                 "stepper: scaling [{}/{}] {} {} x{}: p50 {:.1} us, p99 {:.1} us, {:.1} active ({:.0} s so far)",
                 k + 1,
-                jobs.len(),
+                Situation::ALL.len(),
                 r.model,
                 s.name(),
                 r.blocks,
@@ -979,9 +1020,30 @@ fn to_json(r: &Report) -> Value {
                    "active": num(s.active), "us_per_step_p50": num(s.us_per_step_p50),
                    "us_per_step_p99": num(s.us_per_step_p99),
                    "wrapper_us_p50": num(s.wrapper_us_p50),
-                   "wrapper_share": num(s.wrapper_share)})
+                   "wrapper_share": num(s.wrapper_share),
+                   "round_p50_us": s.round_p50.iter().map(|&v| num(v)).collect::<Vec<_>>()})
         })
         .collect();
+    let mut ratios = Vec::new();
+    for sit in Situation::ALL {
+        let mut sizes: Vec<usize> = r
+            .scaling
+            .iter()
+            .filter(|x| x.situation == sit)
+            .map(|x| x.blocks)
+            .collect();
+        sizes.sort_unstable();
+        sizes.dedup();
+        for n in sizes {
+            for m in &NAMES[1..] {
+                if let Some((per_round, s)) = round_ratios(&r.scaling, m, sit, n) {
+                    ratios.push(json!({"model": m, "over": "paper", "situation": sit.name(),
+                        "blocks": n, "per_round": per_round.iter().map(|&v| num(v)).collect::<Vec<_>>(),
+                        "median": num(s.median), "min": num(s.min), "max": num(s.max)}));
+                }
+            }
+        }
+    }
     let mut exponents = Vec::new();
     for m in NAMES {
         for s in Situation::ALL {
@@ -1021,7 +1083,7 @@ fn to_json(r: &Report) -> Value {
         "field": format!("pyramid of {} cubes ({} at its base), 1 s to settle, judged over the next", pyramid_field().blocks.len(), PYRAMID_ROWS),
         "still_m": STILL_M, "still_rad": STILL_RAD, "stand_m": STAND_M, "stand_rad": STAND_RAD,
         "tried": r.cheap.tried.iter().map(row).collect::<Vec<_>>()});
-    json!({"scaling": scaling, "exponents": exponents, "not_run": not_run,
+    json!({"scaling": scaling, "ratios_to_paper": ratios, "exponents": exponents, "not_run": not_run,
            "precise_cheap": cheap,
            "ablation": ablation, "clock_reading_us": num(r.clock_us),
            "seconds": num(r.seconds)})
@@ -1030,10 +1092,19 @@ fn to_json(r: &Report) -> Value {
 /// The contenders' names, in table order.
 const NAMES: [&str; 3] = ["paper", "precise", "precise-cheap"];
 
+/// A ratio as the tables print it: whole numbers from 10 up, one decimal below.
+fn times(x: f64) -> String {
+    if x >= 10.0 {
+        format!("{x:.0}x")
+    } else {
+        format!("{x:.1}x")
+    }
+}
+
 /// The scaling table: one line per (situation, N), the contenders side by side.
 pub fn scaling_table(r: &Report) -> String {
     let mut s = String::from(
-        "| situation | blocks | paper: active, p50 / p99 (us) | paper us per active block | precise: active, p50 / p99 | precise-cheap: active, p50 / p99 | precise / paper | precise-cheap / paper | precise: wrapper p50 (us), share | precise-cheap: wrapper p50, share |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| situation | blocks | paper: active, p50 / p99 (us) | paper us per active block | precise: active, p50 / p99 | precise-cheap: active, p50 / p99 | precise / paper, per round: median [min, max] | precise-cheap / paper, per round | precise: wrapper p50 (us), share | precise-cheap: wrapper p50, share |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for sit in Situation::ALL {
         let mut sizes: Vec<usize> = r
@@ -1059,11 +1130,10 @@ pub fn scaling_table(r: &Report) -> String {
                     )
                 })
             };
-            let ratio = |q: Option<&ScalingRow>| match (p, q) {
-                (Some(p), Some(q)) if p.us_per_step_p50 > 0.0 => {
-                    format!("{:.0}x", q.us_per_step_p50 / p.us_per_step_p50)
-                }
-                _ => "-".into(),
+            let ratio = |m: &str| {
+                round_ratios(&r.scaling, m, sit, n).map_or("-".to_string(), |(_, s)| {
+                    format!("{} [{}, {}]", times(s.median), times(s.min), times(s.max))
+                })
             };
             let wrapper = |x: Option<&ScalingRow>| {
                 x.filter(|x| x.wrapper_share.is_finite())
@@ -1083,8 +1153,8 @@ pub fn scaling_table(r: &Report) -> String {
                 }),
                 cell(q),
                 cell(c),
-                ratio(q),
-                ratio(c),
+                ratio("precise"),
+                ratio("precise-cheap"),
                 wrapper(q),
                 wrapper(c)
             );
@@ -1162,9 +1232,9 @@ pub fn ablation_table(r: &Report) -> String {
 fn markdown(r: &Report, quick: bool) -> String {
     let mut s = String::from("# handblocks bench stepper\n\n");
     s += &format!(
-        "Both models in one run ({:.0} s{}); the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed runs; active: blocks not resting, mean per step; wrapper: a precise step less rapier's own `PhysicsPipeline::step` call (timed inside the world), p50 and its share of all the timed steps' time.\n\n",
+        "Both models in one run ({:.0} s{}); the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed rounds; a ratio to the paper model is taken round by round (each round's p50 over the paper model's p50 of the same round, timed seconds apart), median [min, max] over the rounds; active: blocks not resting, mean per step; wrapper: a precise step less rapier's own `PhysicsPipeline::step` call (timed inside the world), p50 and its share of all the timed steps' time.\n\n",
         r.seconds,
-        if quick { ", --quick: 16 and 64 blocks, 2 timed runs" } else { ", 5 timed runs after a warm-up, going round the sizes" }
+        if quick { ", --quick: 16 and 64 blocks, 2 timed rounds" } else { ", 5 timed rounds after a warm-up; a round goes round the sizes and, within a size, round the contenders (paper, precise, precise-cheap)" }
     );
     s += &scaling_table(r);
     s += &format!(
@@ -1265,11 +1335,37 @@ mod tests {
                 us_per_step_p99: 0.0,
                 wrapper_us_p50: f64::NAN,
                 wrapper_share: f64::NAN,
+                round_p50: Vec::new(),
             })
             .collect();
         let e = exponent(&rows, "paper", Situation::Falling).unwrap();
         assert!((e - 1.5).abs() < 1e-9, "{e}");
         assert!(exponent(&rows, "precise", Situation::Falling).is_none());
+    }
+
+    #[test]
+    fn ratios_are_taken_round_by_round() {
+        let row = |model, round_p50: Vec<f64>| ScalingRow {
+            model,
+            situation: Situation::Falling,
+            blocks: 64,
+            active: 64.0,
+            us_per_step_p50: 0.0,
+            us_per_step_p99: 0.0,
+            wrapper_us_p50: f64::NAN,
+            wrapper_share: f64::NAN,
+            round_p50,
+        };
+        // A slow round slows both models: per round the ratio stays 10, pooled it would not.
+        let rows = [
+            row("paper", vec![1.0, 3.0, 1.0]),
+            row("precise", vec![10.0, 30.0, 10.0]),
+        ];
+        let (per_round, s) = round_ratios(&rows, "precise", Situation::Falling, 64).unwrap();
+        assert_eq!(per_round, vec![10.0, 10.0, 10.0]);
+        assert_eq!((s.median, s.min, s.max), (10.0, 10.0, 10.0));
+        assert!(round_ratios(&rows, "precise-cheap", Situation::Falling, 64).is_none());
+        assert!(round_ratios(&rows, "precise", Situation::Resting, 64).is_none());
     }
 
     #[test]
