@@ -53,6 +53,16 @@ fn launch(args: &[&str]) -> Output {
         .expect("run handblocks")
 }
 
+/// `launch --quiet --duration 1 --bus-id ID ARGS...`: a session that is refused before it
+/// starts, or runs for a second.
+fn launch_for_a_second(id: &str, args: &[&str]) -> Output {
+    let all: Vec<&str> = ["--quiet", "--duration", "1", "--bus-id", id]
+        .into_iter()
+        .chain(args.iter().copied())
+        .collect();
+    launch(&all)
+}
+
 fn report(path: &std::path::Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).expect("the report")).expect("JSON")
 }
@@ -253,17 +263,15 @@ fn record_refuses_to_overwrite_a_recording_unless_forced() {
     let file = dir.path("live.mcap");
     std::fs::write(&file, b"an earlier recording").unwrap();
     let id = unique_id("overwrite");
-    let out = launch(&[
-        "--quiet",
-        "--duration",
-        "1",
-        "--bus-id",
+    let out = launch_for_a_second(
         &id,
-        "--set",
-        "renderer.mode=off",
-        "--record",
-        file.to_str().unwrap(),
-    ]);
+        &[
+            "--set",
+            "renderer.mode=off",
+            "--record",
+            file.to_str().unwrap(),
+        ],
+    );
     let text = both(&out);
     assert_eq!(out.status.code(), Some(2), "{text}");
     assert!(text.contains("exists; pass --force"), "{text}");
@@ -297,6 +305,97 @@ fn record_refuses_to_overwrite_a_recording_unless_forced() {
         "{text}"
     );
     assert!(text.contains("(UTC)") && text.contains(" KB,"), "{text}");
+}
+
+/// Issue 28: a session never writes through a link nor over a file the user did not ask to
+/// replace. Without --force, a link (dangling or not) or a file at `--record`, `--report` or a
+/// frame of `--frames-dir` is refused before anything starts, and nothing is written at a
+/// link's target; with --force the link itself is replaced, its target untouched, and what
+/// the session writes is private (0600).
+#[test]
+fn outputs_at_a_link_or_a_file_are_refused_and_force_replaces_the_link() {
+    use std::os::unix::fs::{symlink, PermissionsExt};
+    let _one = one_at_a_time();
+    let dir = Scratch::new("links");
+    let victim = dir.path("victim");
+    std::fs::write(&victim, b"keep").unwrap();
+    let nowhere = dir.path("nowhere");
+    let (rec, report_at) = (dir.path("rec.mcap"), dir.path("report.json"));
+    symlink(&nowhere, &rec).unwrap();
+    symlink(&victim, &report_at).unwrap();
+    let frames = dir.path("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    std::fs::write(frames.join("frame_000001.png"), b"an earlier frame").unwrap();
+    let id = unique_id("links");
+    // Renderer off, held to the ceilings (what is tested is the files), then `extra`.
+    let run = |extra: &[&str]| {
+        let args: Vec<&str> = ["--set", "renderer.mode=off", CEILINGS[0], CEILINGS[1]]
+            .into_iter()
+            .chain(extra.iter().copied())
+            .collect();
+        launch_for_a_second(&id, &args)
+    };
+    let (rec_s, report_s) = (rec.to_str().unwrap(), report_at.to_str().unwrap());
+    // Each refused on its own, naming the option and that it is a link.
+    for (args, says) in [
+        (vec!["--record", rec_s], "--record: "),
+        (vec!["--report", report_s], "--report: "),
+    ] {
+        let out = run(&args);
+        let text = both(&out);
+        assert_eq!(out.status.code(), Some(2), "{text}");
+        assert!(
+            text.contains(says)
+                && text.contains(
+                    "(a symbolic link: a session never writes through one); pass --force"
+                ),
+            "{text}"
+        );
+    }
+    let out = launch_for_a_second(
+        &id,
+        &[
+            "--set",
+            "renderer.mode=headless",
+            "--frames-dir",
+            frames.to_str().unwrap(),
+        ],
+    );
+    let text = both(&out);
+    assert_eq!(out.status.code(), Some(2), "{text}");
+    assert!(
+        text.contains("--frames-dir: ") && text.contains("frame_000001.png exists"),
+        "{text}"
+    );
+    assert_eq!(
+        std::fs::read(frames.join("frame_000001.png")).unwrap(),
+        b"an earlier frame"
+    );
+    // An ordinary file at --report is refused too.
+    let plain = dir.path("plain.json");
+    std::fs::write(&plain, b"an earlier report").unwrap();
+    let out = run(&["--report", plain.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", both(&out));
+    assert_eq!(std::fs::read(&plain).unwrap(), b"an earlier report");
+    assert!(
+        !nowhere.exists(),
+        "a file was created at the dangling link's target"
+    );
+    assert_eq!(std::fs::read(&victim).unwrap(), b"keep");
+
+    // --force: the links are replaced by the session's own private files.
+    let out = run(&["--record", rec_s, "--report", report_s, "--force"]);
+    assert!(out.status.success(), "{}", both(&out));
+    assert_nothing_left(&id);
+    for f in [&rec, &report_at] {
+        let meta = std::fs::symlink_metadata(f).unwrap();
+        assert!(meta.file_type().is_file(), "{} is not a file", f.display());
+        assert_eq!(meta.permissions().mode() & 0o777, 0o600, "{}", f.display());
+    }
+    // The report is whole JSON.
+    report(&report_at);
+    assert!(!nowhere.exists());
+    assert_eq!(std::fs::read(&victim).unwrap(), b"keep");
 }
 
 #[test]
@@ -385,6 +484,51 @@ fn a_bus_id_in_use_is_named_as_such() {
     );
     assert!(first.wait().unwrap().success());
     assert_nothing_left(&id);
+}
+
+/// Issue 28: a /dev/shm file of the session's prefix or a session folder that another user
+/// owns is refused and named, never deleted, also as root (who could delete it). Run as root
+/// only (only root can make a file another user's); elsewhere it says it was skipped.
+#[test]
+fn another_users_resources_are_refused_and_named_never_deleted() {
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: getuid has no preconditions.
+    if unsafe { libc::getuid() } != 0 {
+        eprintln!("skipped: only root can plant another user's files");
+        return;
+    }
+    let nobody = 65534;
+    for planted in ["shm", "folder"] {
+        let id = unique_id(&format!("fo{}", &planted[..1]));
+        let bus = common::bus::BusConfig::for_session(&id).unwrap();
+        let path = match planted {
+            "shm" => std::path::PathBuf::from(format!("/dev/shm/{}planted", bus.prefix)),
+            _ => bus.root.clone(),
+        };
+        if planted == "shm" {
+            std::fs::write(&path, b"theirs").unwrap();
+        } else {
+            std::fs::create_dir_all(&path).unwrap();
+        }
+        std::os::unix::fs::chown(&path, Some(nobody), Some(nobody)).unwrap();
+        let out = launch_for_a_second(&id, &["--set", "renderer.mode=off"]);
+        let text = both(&out);
+        let kept = std::fs::symlink_metadata(&path).map(|m| m.uid());
+        // Clean up before asserting, so that a failure leaves nothing of another user's.
+        if planted == "shm" {
+            let _ = std::fs::remove_file(&path);
+        } else {
+            let _ = std::fs::remove_dir_all(&path);
+        }
+        assert_eq!(out.status.code(), Some(2), "{planted}: {text}");
+        assert!(
+            text.contains(&path.display().to_string())
+                && text.contains(&format!("belongs to uid {nobody}")),
+            "{planted}: {text}"
+        );
+        assert_eq!(kept.ok(), Some(nobody), "{planted}: deleted: {text}");
+        assert_nothing_left(&id);
+    }
 }
 
 #[test]

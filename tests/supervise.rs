@@ -329,8 +329,8 @@ fn a_process_that_dies_past_max_restarts_fails_the_session() {
 }
 
 /// A launcher killed with SIGKILL cannot restart anything: its children notice (their stdin
-/// pipe closes) and exit, and the next launch on the same bus id starts clean with no manual
-/// step, supervised or not.
+/// pipe closes) and exit; the next sweep (any launch, any bus id) removes what it left at once
+/// and says so, and the next launch on the same bus id starts clean with no manual step.
 #[test]
 fn a_killed_launcher_takes_its_children_with_it_and_the_next_launch_starts_clean() {
     let dir = Scratch::new("sv-launcher");
@@ -355,7 +355,28 @@ fn a_killed_launcher_takes_its_children_with_it_and_the_next_launch_starts_clean
         );
         std::thread::sleep(Duration::from_millis(20));
     }
+    // Issue 28: what the killed launcher left (its /dev/shm files, its folder) goes at the
+    // next sweep, by any launcher, whatever its bus id, at once (its launcher record names a
+    // process that is gone), and the sweep says what it removed. A parallel test's launch may
+    // sweep it first: then it is gone already.
+    let left = common::bus::BusConfig::for_session(&id).unwrap();
+    let said = common::bus::BusConfig::sweep_abandoned();
+    let key = left
+        .root
+        .file_name()
+        .unwrap()
+        .to_string_lossy()
+        .into_owned();
+    if let Some(line) = said.iter().find(|l| l.contains(&key)) {
+        assert!(
+            line.starts_with(&format!("removed abandoned session {key} "))
+                && line.contains("in /dev/shm and its folder"),
+            "{line}"
+        );
+    }
+    support::assert_nothing_left(&id);
     std::fs::remove_file(&rec).unwrap();
+    std::fs::remove_file(&report_file).unwrap_or(());
     let again = start(&s, &id, 1.0, &report_file);
     let out = finish(again, &id);
     assert!(out.status.success(), "{}", both(&out));

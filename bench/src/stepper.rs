@@ -1026,15 +1026,7 @@ fn to_json(r: &Report) -> Value {
         .collect();
     let mut ratios = Vec::new();
     for sit in Situation::ALL {
-        let mut sizes: Vec<usize> = r
-            .scaling
-            .iter()
-            .filter(|x| x.situation == sit)
-            .map(|x| x.blocks)
-            .collect();
-        sizes.sort_unstable();
-        sizes.dedup();
-        for n in sizes {
+        for n in sizes_of(&r.scaling, sit) {
             for m in &NAMES[1..] {
                 if let Some((per_round, s)) = round_ratios(&r.scaling, m, sit, n) {
                     ratios.push(json!({"model": m, "over": "paper", "situation": sit.name(),
@@ -1092,6 +1084,18 @@ fn to_json(r: &Report) -> Value {
 /// The contenders' names, in table order.
 const NAMES: [&str; 3] = ["paper", "precise", "precise-cheap"];
 
+/// The sizes measured in a situation, ascending.
+fn sizes_of(rows: &[ScalingRow], situation: Situation) -> Vec<usize> {
+    let mut sizes: Vec<usize> = rows
+        .iter()
+        .filter(|x| x.situation == situation)
+        .map(|x| x.blocks)
+        .collect();
+    sizes.sort_unstable();
+    sizes.dedup();
+    sizes
+}
+
 /// A ratio as the tables print it: whole numbers from 10 up, one decimal below.
 fn times(x: f64) -> String {
     if x >= 10.0 {
@@ -1107,15 +1111,7 @@ pub fn scaling_table(r: &Report) -> String {
         "| situation | blocks | paper: active, p50 / p99 (us) | paper us per active block | precise: active, p50 / p99 | precise-cheap: active, p50 / p99 | precise / paper, per round: median [min, max] | precise-cheap / paper, per round | precise: wrapper p50 (us), share | precise-cheap: wrapper p50, share |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for sit in Situation::ALL {
-        let mut sizes: Vec<usize> = r
-            .scaling
-            .iter()
-            .filter(|x| x.situation == sit)
-            .map(|x| x.blocks)
-            .collect();
-        sizes.sort_unstable();
-        sizes.dedup();
-        for n in sizes {
+        for n in sizes_of(&r.scaling, sit) {
             let get = |m: &str| {
                 r.scaling
                     .iter()

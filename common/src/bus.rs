@@ -264,11 +264,15 @@ impl BusConfig {
     }
 
     /// Removes what sessions of other launchers left behind when those launchers were killed
-    /// (SIGKILL leaves no chance to clean up): every session folder whose processes are all
-    /// gone. Their processes notice the launcher's death themselves (their stdin pipe closes)
-    /// and exit. Returns the ids of the sessions removed.
+    /// (SIGKILL leaves no chance to clean up), whatever their bus ids: every session folder of
+    /// this user's whose processes are all gone and whose launcher is gone too (the pid and
+    /// start time it recorded, [`BusConfig::claim_as_launcher`], name no running process), or,
+    /// for a folder with no such record, that has been untouched for [`ABANDONED_AFTER`].
+    /// Their processes notice the launcher's death themselves (their stdin pipe closes) and
+    /// exit. A folder or /dev/shm file another user owns is never removed (also as root): it
+    /// is named and left. Returns one line per session: what was removed, or left and why.
     pub fn sweep_abandoned() -> Vec<String> {
-        let mut removed = Vec::new();
+        let mut said = Vec::new();
         let bases = [
             base_dir(&std::env::temp_dir()),
             base_dir(StdPath::new("/tmp")),
@@ -286,21 +290,62 @@ impl BusConfig {
             if session.root != entry.path() {
                 continue;
             }
-            // A session being set up right now has its folder before its first node: only
-            // folders untouched for a while can be abandoned.
-            let age = entry
-                .metadata()
-                .and_then(|m| m.modified())
-                .ok()
-                .and_then(|t| t.elapsed().ok());
-            if age.is_none_or(|a| a < ABANDONED_AFTER) {
+            let abandoned = match session.launcher_gone() {
+                Some(gone) => gone,
+                None => {
+                    // No launcher record (a session being set up right now has its folder
+                    // before it): only folders untouched for a while can be abandoned.
+                    let age = entry
+                        .metadata()
+                        .and_then(|m| m.modified())
+                        .ok()
+                        .and_then(|t| t.elapsed().ok());
+                    age.is_some_and(|a| a >= ABANDONED_AFTER)
+                }
+            };
+            if !abandoned || session.has_live_processes() {
                 continue;
             }
-            if !session.has_live_processes() && session.remove_resources().is_ok() {
-                removed.push(id);
+            let shm = session.leftover_shm_files().len();
+            match session.remove_resources() {
+                Ok(_) => said.push(format!(
+                    "removed abandoned session {id} (its launcher and processes are gone): \
+                     {shm} file(s) of prefix {} in /dev/shm and its folder {}",
+                    session.prefix,
+                    session.root.display()
+                )),
+                Err(e) => said.push(format!("left abandoned session {id} alone: {e}")),
             }
         }
-        removed
+        said
+    }
+
+    /// Records this process as the launcher of the session, in the session's folder (created
+    /// private, 0700): its pid and its start time, so that a sweep by another launcher
+    /// ([`BusConfig::sweep_abandoned`]) knows at once when this one was killed, and a pid
+    /// reused by another process is not taken for it.
+    pub fn claim_as_launcher(&self) -> Result<(), BusError> {
+        if let Some(base) = self.root.parent() {
+            make_private_dir(base)?;
+        }
+        make_private_dir(&self.root)?;
+        let pid = std::process::id();
+        let started = process_start_ticks(pid).unwrap_or(0);
+        let file = self.root.join(LAUNCHER_FILE);
+        std::fs::write(&file, format!("{pid} {started}\n"))
+            .map_err(|e| BusError::Config(format!("cannot write {}: {e}", file.display())))
+    }
+
+    /// Whether the launcher the session's folder names is gone: Some(true) when no process
+    /// of that pid and start time runs, Some(false) when it does, None without a record.
+    fn launcher_gone(&self) -> Option<bool> {
+        let text = std::fs::read_to_string(self.root.join(LAUNCHER_FILE)).ok()?;
+        let mut words = text.split_whitespace().map(|w| w.parse::<u64>().ok());
+        let (Some(Some(pid)), Some(Some(started))) = (words.next(), words.next()) else {
+            return None;
+        };
+        let pid = u32::try_from(pid).ok()?;
+        Some(process_start_ticks(pid).is_none_or(|now| now != started))
     }
 
     /// How many samples of `topic` its supervised publishers have sent so far: the largest
@@ -333,6 +378,12 @@ impl BusConfig {
     /// process of the session lives (iceoryx2 0.10 keeps one management file per prefix).
     /// Returns how many entries were removed.
     pub fn remove_resources(&self) -> std::io::Result<usize> {
+        // Another user's file or folder is refused, never deleted (as root too, which the
+        // file system would let delete anything): nothing is removed then.
+        let shm = self.leftover_shm_files();
+        for f in shm.iter().chain(std::iter::once(&self.root)) {
+            refuse_foreign(f)?;
+        }
         let mut removed = 0;
         for f in self.leftover_shm_files() {
             std::fs::remove_file(&f)?;
@@ -347,6 +398,37 @@ impl BusConfig {
             let _ = std::fs::remove_dir(parent);
         }
         Ok(removed)
+    }
+}
+
+/// The file in a session's folder naming its launcher ([`BusConfig::claim_as_launcher`]).
+const LAUNCHER_FILE: &str = "launcher";
+
+/// When process `pid` started (clock ticks after boot, /proc/PID/stat's 22nd field): with the
+/// pid, which the kernel reuses, it names one process. None when no such process runs.
+fn process_start_ticks(pid: u32) -> Option<u64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // The command name (field 2) is in parentheses and may hold spaces: count after it.
+    let rest = &stat[stat.rfind(')')? + 1..];
+    rest.split_whitespace().nth(19)?.parse().ok()
+}
+
+/// An error naming `path` when it exists and another user owns it.
+fn refuse_foreign(path: &StdPath) -> std::io::Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: as in base_dir.
+    let uid = unsafe { libc::getuid() };
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.uid() != uid => Err(std::io::Error::new(
+            std::io::ErrorKind::PermissionDenied,
+            format!(
+                "{} belongs to uid {}, not this user (uid {uid}): refusing to remove it; \
+                 its owner can, or choose another --bus-id",
+                path.display(),
+                m.uid()
+            ),
+        )),
+        _ => Ok(()),
     }
 }
 

@@ -12,6 +12,7 @@ pub mod config;
 pub mod glove;
 pub mod hand_log;
 pub mod latency;
+pub mod output;
 pub mod samples;
 pub mod shutdown;
 pub mod stamp;

@@ -228,7 +228,10 @@ pub struct LaunchArgs {
     /// No animated preview (a headless session writes one by default).
     #[arg(long)]
     pub no_preview: bool,
-    /// Overwrite the recording (--record or [recorder] file) if it exists.
+    /// Replace what is at the recording's path (--record or [recorder] file, and its restart
+    /// segments), --report's path and --frames-dir's frame_*.png: the file or link itself is
+    /// removed (never a link's target) and the session writes its own, private (0600). Without
+    /// it, any of these that exists is refused before anything starts.
     #[arg(long)]
     pub force: bool,
     /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM).

@@ -23,6 +23,7 @@
 //! | `hand`        | `common::config::hand::HandModelSpec::load`                        |
 //! | `calibration` | `acquisition::devices::Calibration::parse`                         |
 //! | `link`        | `recording::decode_sample` / `decode_slice`: a sample from another machine (the bridge) |
+//! | `stepper_hand`| `stepper::Model::step` under both models, fed hand samples with arbitrary values |
 
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
@@ -45,7 +46,7 @@ use replay::{CarlTrace, HandTrace};
 pub type Target = (&'static str, fn(&[u8]));
 
 /// Every target by name, in the order the harnesses run them.
-pub const TARGETS: [Target; 9] = [
+pub const TARGETS: [Target; 10] = [
     ("cyberglove", cyberglove),
     ("fastrak", fastrak),
     ("carl", carl),
@@ -55,6 +56,7 @@ pub const TARGETS: [Target; 9] = [
     ("hand", hand),
     ("calibration", calibration),
     ("link", link),
+    ("stepper_hand", stepper_hand),
 ];
 
 /// The target called `name`.
@@ -704,6 +706,120 @@ pub fn link(data: &[u8]) {
             }
         }
         Topic::Latency => {}
+    }
+}
+
+/// Steps of one `stepper_hand` input.
+pub const STEPPER_STEPS: u64 = 48;
+/// The bound on one step of `stepper_hand`: a step of these small scenes takes microseconds
+/// (paper) to a millisecond (precise); a second is a hang whatever else runs on the machine.
+pub const STEPPER_STEP_BOUND: std::time::Duration = std::time::Duration::from_secs(1);
+/// Bytes of one `stepper_hand` record: step, kind, index (u16 LE), value (f64 LE).
+pub const STEPPER_RECORD: usize = 12;
+
+/// The scenes `stepper_hand` steps: a push and a grasp with a thrown block (every rule of a
+/// hand at work), under each model.
+fn stepper_scenes() -> &'static [Scene; 2] {
+    static SCENES: std::sync::OnceLock<[Scene; 2]> = std::sync::OnceLock::new();
+    SCENES.get_or_init(|| {
+        let load = |name: &str| {
+            let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../../config/scenes")
+                .join(name);
+            // Our own files: a harness that cannot read them cannot fuzz anything.
+            Scene::load(&file).unwrap_or_else(|e| panic!("{e}"))
+        };
+        [load("push.toml"), load("grasp-throw-fingers.toml")]
+    })
+}
+
+/// Applies one `stepper_hand` record to a hand sample: `kind` picks what it sets (mod 8: a
+/// check point's coordinate, the wrist's position or rotation, the finger count, a finger's
+/// point count, a finger's radius, the palm vertex count, a palm vertex's coordinate, or no
+/// hand this step), `index` which one, `value` the value (its bits for a count).
+fn apply_hand_record(kind: u8, index: u16, value: f64, hand: &mut Option<HandSample>) {
+    use common::{MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
+    let Some(h) = hand.as_mut() else {
+        return;
+    };
+    let i = usize::from(index);
+    let bits = value.to_bits() as u32;
+    match kind % 8 {
+        0 => {
+            let i = i % (MAX_FINGERS * MAX_FINGER_POINTS * 3);
+            h.finger_points[i / (MAX_FINGER_POINTS * 3)][i / 3 % MAX_FINGER_POINTS][i % 3] = value;
+        }
+        1 => match i % 7 {
+            k @ 0..=2 => h.wrist.position[k] = value,
+            k => h.wrist.rotation[k - 3] = value,
+        },
+        2 => h.finger_count = bits,
+        3 => h.finger_point_count[i % MAX_FINGERS] = bits,
+        4 => h.finger_radius[i % MAX_FINGERS] = value,
+        5 => h.palm_vertex_count = bits,
+        6 => {
+            let i = i % (MAX_PALM_VERTICES * 3);
+            h.palm_vertices[i / 3][i % 3] = value;
+        }
+        _ => *hand = None,
+    }
+}
+
+/// `stepper_hand` (issue 28): the stepper driven by hand samples with arbitrary values, as a
+/// trace, a recording, a device or a remote peer could send them. Byte 0 picks the model (bit
+/// 0: paper or precise) and the scene (bit 1: push or grasp-throw-fingers); the rest is records
+/// of [`STEPPER_RECORD`] bytes: the step (mod [`STEPPER_STEPS`]), what to set
+/// ([`apply_hand_record`]), which, and the value. Each step's sample is the scene's scripted
+/// hand with that step's records applied. Promises: every step ends within
+/// [`STEPPER_STEP_BOUND`] (a coordinate of 1e20 once hung it), the world counts exactly the
+/// samples `hand::unusable_because` refuses, and every block's pose stays finite.
+pub fn stepper_hand(data: &[u8]) {
+    use common::config::scene::ModelKind;
+    use stepper::{BareFingersHand, HandSource, Model};
+    let Some((&pick, records)) = data.split_first() else {
+        return;
+    };
+    let mut scene = stepper_scenes()[usize::from(pick >> 1 & 1)].clone();
+    scene.world.model = if pick & 1 == 0 {
+        ModelKind::Paper
+    } else {
+        ModelKind::Precise
+    };
+    let mut model = Model::new(&scene).unwrap_or_else(|e| panic!("{e}"));
+    let Some(mut script) = BareFingersHand::from_scene(&scene) else {
+        panic!("{}: a scene with a scripted hand", scene.file.display());
+    };
+    let dt = 1.0 / scene.world.step_hz;
+    model.set_previous_hand(script.hand_at(0, 0.0).as_ref());
+    let mut refused = 0u64;
+    for n in 1..=STEPPER_STEPS {
+        let mut hand = script.hand_at(n, n as f64 * dt);
+        for r in records.chunks_exact(STEPPER_RECORD) {
+            if u64::from(r[0]) % STEPPER_STEPS == n - 1 {
+                let value = f64::from_le_bytes(r[4..12].try_into().expect("8 bytes"));
+                apply_hand_record(r[1], u16::from_le_bytes([r[2], r[3]]), value, &mut hand);
+            }
+        }
+        refused += u64::from(hand.as_ref().is_some_and(|h| !stepper::hand::is_usable(h)));
+        let t0 = std::time::Instant::now();
+        model.step(hand.as_ref());
+        let took = t0.elapsed();
+        assert!(
+            took < STEPPER_STEP_BOUND,
+            "step {n} took {took:?}: the stepper hangs on this hand: {hand:?}"
+        );
+        assert_eq!(model.rejected_hand_samples(), refused, "step {n}: {hand:?}");
+        for b in 0..model.block_count() {
+            let Some(block) = model.block(b) else {
+                continue;
+            };
+            assert!(
+                block.position.is_finite() && block.rotation.is_finite(),
+                "step {n}: block {b} at {:?} {:?}",
+                block.position,
+                block.rotation
+            );
+        }
     }
 }
 

@@ -194,6 +194,56 @@ fn unsafe_zeroed_hand() -> HandSample {
     unsafe { std::mem::zeroed() }
 }
 
+/// The `stepper_hand` seeds and the inputs of issue 28 that once hung the stepper (byte 0:
+/// bit 0 the precise model, bit 1 the grasp scene; then records of step, kind, index, value:
+/// `fuzz_targets::stepper_hand`).
+#[test]
+#[ignore = "writes fuzz/corpus/stepper_hand: run it by hand to regenerate those inputs"]
+fn write_stepper_hand_seeds() {
+    let record = |step: u8, kind: u8, index: u16, value: f64| {
+        let mut r = vec![step, kind];
+        r.extend(index.to_le_bytes());
+        r.extend(value.to_le_bytes());
+        r
+    };
+    let input = |pick: u8, records: &[Vec<u8>]| [vec![pick], records.concat()].concat();
+    let h = "stepper_hand";
+    put(h, "seed-paper-push", &input(0, &[record(5, 0, 1, 0.3)]));
+    put(
+        h,
+        "seed-precise-grasp",
+        &input(3, &[record(20, 4, 0, 0.01)]),
+    );
+    put(
+        h,
+        "seed-precise-push-no-hand",
+        &input(1, &[record(9, 7, 0, 0.0)]),
+    );
+    put(
+        h,
+        "regression-check-point-at-1e20-paper",
+        &input(0, &[record(10, 0, 0, 1e20)]),
+    );
+    put(
+        h,
+        "regression-wrist-at-5e14-paper-grasp",
+        &input(2, &[record(10, 1, 0, 5e14)]),
+    );
+    put(
+        h,
+        "regression-nan-radius-precise",
+        &input(3, &[record(10, 4, 0, f64::NAN)]),
+    );
+    put(
+        h,
+        "regression-palm-vertex-at-1e300-precise",
+        &input(
+            3,
+            &[record(10, 5, 0, f64::from_bits(4)), record(10, 6, 0, 1e300)],
+        ),
+    );
+}
+
 /// The `link` seeds: a hand and a world of 3 blocks as the bridge sends them (the topic's
 /// index among the recorded topics, then the recording's message).
 #[test]
@@ -228,6 +278,7 @@ fn write_link_seeds() {
 #[ignore = "writes fuzz/corpus: run it by hand to regenerate the seeds"]
 fn write_seeds() {
     write_link_seeds();
+    write_stepper_hand_seeds();
     // cyberglove: byte 0 = size (0 -> 18, 1 -> 22), byte 1 = chunk size (0 = all at once).
     let mut s = vec![1, 0];
     for k in 0..5 {
@@ -432,6 +483,16 @@ fn check_valid(target: &str, name: &str, bytes: &[u8], dir: &Path) {
                 "{what}: {:?}",
                 r.damage
             );
+        }
+        "stepper_hand" => {
+            // Whole records, each a modest value: the scripted hand, slightly changed.
+            let records = &bytes[1..];
+            assert_eq!(records.len() % fuzz_targets::STEPPER_RECORD, 0, "{what}");
+            for r in records.chunks_exact(fuzz_targets::STEPPER_RECORD) {
+                let v = f64::from_le_bytes(r[4..12].try_into().unwrap());
+                assert!(v.is_finite() && v.abs() < 1.0, "{what}: {v}");
+            }
+            fuzz_targets::stepper_hand(bytes);
         }
         _ => {
             let file = dir.join(format!("{target}-{name}"));

@@ -195,6 +195,8 @@ fn budget(target: &str) -> (u64, u64) {
         "mcap" => (15_000, 15_000),
         "hand" => (6_000, 4_000),
         "scene" | "session" => (2_000, 3_000),
+        // 48 steps of a small scene an input, half of them under rapier: ~1 ms an input.
+        "stepper_hand" => (400, 400),
         _ => (1_000, 1_000),
     };
     let env = |k: &str, d: u64| {
@@ -375,6 +377,11 @@ fn calibration() {
 #[test]
 fn link() {
     run("link");
+}
+
+#[test]
+fn stepper_hand() {
+    run("stepper_hand");
 }
 
 /// Regenerates one input named by a failure (`HB_FUZZ_INPUT=<target>/<file>/<seed>`, or

@@ -424,7 +424,9 @@ pub struct RecordingWriter {
 }
 
 impl RecordingWriter {
-    /// Creates `path` (and its folder) and writes the header, schemas and channels.
+    /// Creates `path` (and its folder) new and private (0600: a recording holds a person's hand
+    /// motion; an existing file or link there is an error) and writes the header, schemas and
+    /// channels.
     pub fn create(path: &Path) -> Result<RecordingWriter, RecordingError> {
         RecordingWriter::create_with(path, &[])
     }
@@ -448,7 +450,9 @@ impl RecordingWriter {
                 std::fs::create_dir_all(dir).map_err(io)?;
             }
         }
-        let file = BufWriter::with_capacity(1 << 16, File::create(path).map_err(io)?);
+        // New and private: an existing file or a link at `path` is refused, never written
+        // through (`common::output`; the launcher's --force removed the entry before).
+        let file = BufWriter::with_capacity(1 << 16, common::output::create_new(path).map_err(io)?);
         let mut mcap = mcap::WriteOptions::new()
             .profile(PROFILE)
             .library(concat!("handblocks ", env!("CARGO_PKG_VERSION")))
@@ -1351,6 +1355,29 @@ mod tests {
         };
         g.angles[3] = seq as f64 * 0.01;
         g
+    }
+
+    /// A restart's segment (`NAME.1.mcap`) with a link planted there mid-session: the writer
+    /// refuses it, and nothing is written at the link's target (issue 28).
+    #[test]
+    fn a_link_at_the_path_is_refused_not_written_through() {
+        let (target, link) = (scratch("victim"), scratch("planted.1"));
+        std::fs::write(&target, b"keep").unwrap();
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        let err = RecordingWriter::create(&link).err().expect("refused");
+        assert!(err.to_string().contains("planted.1"), "{err}");
+        assert_eq!(std::fs::read(&target).unwrap(), b"keep");
+        let path = scratch("private");
+        let _ = std::fs::remove_file(&path);
+        RecordingWriter::create(&path).unwrap().finish().unwrap();
+        let mode = std::os::unix::fs::PermissionsExt::mode(
+            &std::fs::metadata(&path).unwrap().permissions(),
+        );
+        assert_eq!(mode & 0o777, 0o600);
+        for f in [target, link, path] {
+            std::fs::remove_file(f).unwrap();
+        }
     }
 
     #[test]

@@ -35,6 +35,13 @@ pub enum LaunchError {
         file: PathBuf,
         from_option: bool,
     },
+    /// An output the user names (`what`: "--report", "--frames-dir") is taken (a file, or a
+    /// link, which a session never writes through) and `--force` was not given.
+    OutputExists {
+        what: &'static str,
+        path: PathBuf,
+        link: bool,
+    },
     /// An output (`what`: "the recording", "--report", "the preview") names a folder.
     OutputIsFolder { what: &'static str, path: PathBuf },
     /// The folder for an output cannot be created.
@@ -60,8 +67,6 @@ pub enum LaunchError {
         prefix: String,
         reason: io::Error,
     },
-    /// The session's own folder cannot be created.
-    SessionFolder { root: PathBuf, reason: io::Error },
     /// A service process could not be started.
     Spawn {
         stage: Stage,
@@ -132,10 +137,27 @@ impl fmt::Display for LaunchError {
                 } else {
                     write!(f, "{}: `recorder.file`", session.display())?;
                 }
+                let link = if common::output::is_link(file) {
+                    " (a symbolic link: a session never writes through one)"
+                } else {
+                    ""
+                };
                 write!(
                     f,
-                    ": {} exists; pass --force to overwrite it, or record to another file",
+                    ": {} exists{link}; pass --force to replace it, or record to another file",
                     file.display()
+                )
+            }
+            LaunchError::OutputExists { what, path, link } => {
+                let link = if *link {
+                    " (a symbolic link: a session never writes through one)"
+                } else {
+                    ""
+                };
+                write!(
+                    f,
+                    "{what}: {} exists{link}; pass --force to replace it, or give another path",
+                    path.display()
                 )
             }
             LaunchError::OutputIsFolder { what, path } => write!(
@@ -167,11 +189,6 @@ impl fmt::Display for LaunchError {
                 f,
                 "--bus-id {id}: files of an earlier session with that id are left ({prefix}) \
                  and cannot be removed: {reason}"
-            ),
-            LaunchError::SessionFolder { root, reason } => write!(
-                f,
-                "cannot create the session's folder {}: {reason}",
-                root.display()
             ),
             LaunchError::Spawn { stage, exe, reason } => write!(
                 f,

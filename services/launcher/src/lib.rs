@@ -127,7 +127,7 @@ pub fn preflight(opts: &LaunchOptions, session: &Session) -> Result<(), LaunchEr
         };
         let existing = (0..=restarts)
             .map(|n| recording_segment(rec, n))
-            .find(|f| f.exists());
+            .find(|f| common::output::taken(f));
         if let Some(file) = existing.filter(|_| !opts.force) {
             return Err(LaunchError::RecordingExists {
                 session: session.file.clone(),
@@ -138,18 +138,55 @@ pub fn preflight(opts: &LaunchOptions, session: &Session) -> Result<(), LaunchEr
         check_writable("the recording", rec)?;
     }
     if let Some(report) = &opts.report {
+        if common::output::taken(report) && !opts.force {
+            return Err(LaunchError::OutputExists {
+                what: "--report",
+                path: report.clone(),
+                link: common::output::is_link(report),
+            });
+        }
         check_writable("--report", report)?;
     }
+    if let Some(dir) = &opts.frames_dir {
+        if let Some(frame) = frames_in(dir).first().filter(|_| !opts.force) {
+            return Err(LaunchError::OutputExists {
+                what: "--frames-dir",
+                path: frame.clone(),
+                link: common::output::is_link(frame),
+            });
+        }
+    }
     if let Some(preview) = &opts.preview {
+        // The session's own output at a fixed path, replaced each run (renamed over: a link
+        // there is replaced, not followed).
         check_writable("the preview", preview)?;
     }
     Ok(())
 }
 
-/// `path` can be written: its folder exists or can be made, and it is not a folder. Nothing is
-/// left behind that was not there.
+/// The frames an earlier session left in `dir` (`frame_*.png`, links too): a session writes
+/// its frames new, so these are refused without `--force` and removed with it.
+fn frames_in(dir: &Path) -> Vec<PathBuf> {
+    let mut frames: Vec<PathBuf> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| {
+            let name = e.file_name();
+            let name = name.to_string_lossy();
+            name.starts_with("frame_") && name.ends_with(".png")
+        })
+        .map(|e| e.path())
+        .collect();
+    frames.sort();
+    frames
+}
+
+/// `path` can be written: it is not a folder, and its folder exists (or can be made) and takes
+/// a new file. `path` itself is not opened (that would follow a link there): a probe file of
+/// its own is created beside it and removed.
 fn check_writable(what: &'static str, path: &Path) -> Result<(), LaunchError> {
-    if path.is_dir() {
+    if std::fs::symlink_metadata(path).is_ok_and(|m| m.is_dir()) {
         return Err(LaunchError::OutputIsFolder {
             what,
             path: path.to_path_buf(),
@@ -163,20 +200,11 @@ fn check_writable(what: &'static str, path: &Path) -> Result<(), LaunchError> {
             reason,
         })?;
     }
-    let existed = path.exists();
-    std::fs::OpenOptions::new()
-        .append(true)
-        .create(true)
-        .open(path)
-        .map_err(|reason| LaunchError::OutputUnwritable {
-            what,
-            path: path.to_path_buf(),
-            reason,
-        })?;
-    if !existed {
-        let _ = std::fs::remove_file(path);
-    }
-    Ok(())
+    common::output::check_folder_writable(path).map_err(|reason| LaunchError::OutputUnwritable {
+        what,
+        path: path.to_path_buf(),
+        reason,
+    })
 }
 
 /// How a launch ended.
@@ -248,8 +276,8 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     // The world topic is sized from the scene; every stage opens the bus the same way.
     let bus_config = BusConfig::for_session_of(&id, &session)?;
     shutdown::install_signal_handlers();
-    for stale in BusConfig::sweep_abandoned() {
-        eprintln!("handblocks: removed the shared memory of abandoned session {stale}");
+    for said in BusConfig::sweep_abandoned() {
+        eprintln!("handblocks: {said}");
     }
     if bus_config.has_live_processes() {
         return Err(LaunchError::BusIdInUse { id });
@@ -265,18 +293,35 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
             })?;
     }
     let supervised = session.supervise.restart == RestartPolicy::OnFailure;
-    if let (Some(rec), true, true) = (&session.recorder.file, opts.force, supervised) {
-        // Forced over an earlier recording: the segments a restart would write go with it,
-        // so that no stale `name.1.mcap` sits beside the new recording as if a restart had
-        // written it (preflight refused them without --force).
-        for n in 1..=session.supervise.max_restarts {
-            let _ = std::fs::remove_file(recording_segment(rec, n));
+    if opts.force {
+        // Forced: what is at the outputs' paths goes, the entry itself (a link, never its
+        // target), and the outputs are then created new. The recording's restart segments go
+        // with it, so that no stale `name.1.mcap` sits beside the new recording as if a
+        // restart had written it (preflight refused all of these without --force).
+        let mut replaced: Vec<PathBuf> = Vec::new();
+        if let Some(rec) = &session.recorder.file {
+            let restarts = if supervised {
+                session.supervise.max_restarts
+            } else {
+                0
+            };
+            replaced.extend((0..=restarts).map(|n| recording_segment(rec, n)));
+        }
+        replaced.extend(opts.report.iter().cloned());
+        replaced.extend(opts.frames_dir.iter().flat_map(|d| frames_in(d)));
+        for path in replaced {
+            common::output::remove_for_replace(&path).map_err(|reason| {
+                LaunchError::OutputUnwritable {
+                    what: "--force",
+                    path,
+                    reason,
+                }
+            })?;
         }
     }
-    std::fs::create_dir_all(&bus_config.root).map_err(|reason| LaunchError::SessionFolder {
-        root: bus_config.root.clone(),
-        reason,
-    })?;
+    // The session's folder, with this launcher named in it: a later launch (any bus id)
+    // sweeps it at once if this launcher is killed.
+    bus_config.claim_as_launcher()?;
 
     let result = run_session(opts, &session, &bus_config);
     // The stepper left the world's outcome in the session's folder when it stopped.
@@ -1009,7 +1054,8 @@ fn collect(latency: &Inlet<topics::Latency>, reports: &mut BTreeMap<Stage, Stage
     }
 }
 
-/// Writes the report JSON to `path`, creating its folder.
+/// Writes the report JSON to `path`, creating its folder: a new private file (mode 0600: it
+/// holds a person's hand motion).
 pub fn write_report(report: &Report, path: &Path) -> Result<(), LaunchError> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|reason| LaunchError::ReportFolder {
@@ -1018,10 +1064,14 @@ pub fn write_report(report: &Report, path: &Path) -> Result<(), LaunchError> {
         })?;
     }
     let text = serde_json::to_string_pretty(&report.json()).map_err(LaunchError::ReportJson)?;
-    std::fs::write(path, text + "\n").map_err(|reason| LaunchError::ReportWrite {
-        path: path.to_path_buf(),
-        reason,
-    })
+    // Created new and private (a link or a file planted there since the launch is refused,
+    // never written through; `--force` removed what was there before the session started).
+    common::output::create_new(path)
+        .and_then(|mut f| std::io::Write::write_all(&mut f, (text + "\n").as_bytes()))
+        .map_err(|reason| LaunchError::ReportWrite {
+            path: path.to_path_buf(),
+            reason,
+        })
 }
 
 #[cfg(test)]

@@ -6,11 +6,13 @@ use std::path::Path;
 use crate::error::RenderError;
 use crate::image::Image;
 
-/// Writes `img` as an 8-bit sRGB RGBA PNG.
+/// Writes `img` as an 8-bit sRGB RGBA PNG, a new private file (`common::output::create_new`:
+/// an existing file or a link at `path` is refused, never written through; the launcher's
+/// `--force` removed an earlier session's frames).
 pub fn write_png(path: &Path, img: &Image) -> Result<(), RenderError> {
     let io =
         |e: &dyn std::fmt::Display| RenderError::Io(format!("writing {}: {e}", path.display()));
-    let file = std::fs::File::create(path).map_err(|e| io(&e))?;
+    let file = common::output::create_new(path).map_err(|e| io(&e))?;
     let mut enc = ::png::Encoder::new(BufWriter::new(file), img.width, img.height);
     enc.set_color(::png::ColorType::Rgba);
     enc.set_depth(::png::BitDepth::Eight);

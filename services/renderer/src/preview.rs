@@ -218,29 +218,34 @@ impl FrameStore {
         self.frames.push(self.scratch.rgba.clone());
     }
 
+    /// Writes the animated PNG whole beside `path` and renames it over `path`
+    /// (`common::output::replace`): the preview is the session's own output at a fixed path,
+    /// replaced each run; a link there is replaced, never written through; private (0600).
     fn write(&self, path: &Path) -> Result<(), RenderError> {
         let io =
             |e: &dyn std::fmt::Display| RenderError::Io(format!("writing {}: {e}", path.display()));
         if self.frames.is_empty() {
             return Err(io(&"no frame was drawn"));
         }
-        let file = std::fs::File::create(path).map_err(|e| io(&e))?;
-        let mut enc = ::png::Encoder::new(std::io::BufWriter::new(file), self.width, self.height);
-        enc.set_color(::png::ColorType::Rgb);
-        enc.set_depth(::png::BitDepth::Eight);
-        enc.set_source_srgb(::png::SrgbRenderingIntent::Perceptual);
-        enc.set_compression(::png::Compression::Balanced);
-        enc.set_animated(self.frames.len() as u32, 0)
-            .map_err(|e| io(&e))?;
-        // Each kept frame stands for keep_every preview periods.
-        let delay_ms = (1000.0 / PREVIEW_HZ) as u32 * self.keep_every.max(1);
-        enc.set_frame_delay(delay_ms.min(u32::from(u16::MAX)) as u16, 1000)
-            .map_err(|e| io(&e))?;
-        let mut w = enc.write_header().map_err(|e| io(&e))?;
-        for f in &self.frames {
-            w.write_image_data(f).map_err(|e| io(&e))?;
-        }
-        w.finish().map_err(|e| io(&e))
+        let encode = |file: &mut std::fs::File| -> Result<(), ::png::EncodingError> {
+            let mut enc =
+                ::png::Encoder::new(std::io::BufWriter::new(file), self.width, self.height);
+            enc.set_color(::png::ColorType::Rgb);
+            enc.set_depth(::png::BitDepth::Eight);
+            enc.set_source_srgb(::png::SrgbRenderingIntent::Perceptual);
+            enc.set_compression(::png::Compression::Balanced);
+            enc.set_animated(self.frames.len() as u32, 0)?;
+            // Each kept frame stands for keep_every preview periods.
+            let delay_ms = (1000.0 / PREVIEW_HZ) as u32 * self.keep_every.max(1);
+            enc.set_frame_delay(delay_ms.min(u32::from(u16::MAX)) as u16, 1000)?;
+            let mut w = enc.write_header()?;
+            for f in &self.frames {
+                w.write_image_data(f)?;
+            }
+            w.finish()
+        };
+        common::output::replace(path, |file| encode(file).map_err(std::io::Error::other))
+            .map_err(|e| io(&e))
     }
 }
 

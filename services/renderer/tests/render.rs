@@ -349,8 +349,16 @@ fn output_modes_write_the_files_they_promise() {
     ] {
         let mut r = renderer(&settings(mode, true), 1);
         let img = draw(&mut r, &w, &hand);
+        let dir = dir.join(format!("{mode:?}"));
+        std::fs::create_dir_all(&dir).unwrap();
         let paths = write_frame(&dir, 7, mode, &img, &mut scratch).unwrap();
         assert_eq!(paths.len(), files);
+        // A frame is a new private file: written again, it is refused, not overwritten.
+        assert!(write_frame(&dir, 7, mode, &img, &mut scratch).is_err());
+        let private = std::os::unix::fs::PermissionsExt::mode(
+            &std::fs::metadata(&paths[0]).unwrap().permissions(),
+        );
+        assert_eq!(private & 0o777, 0o600);
         for (i, p) in paths.iter().enumerate() {
             let back = read_png(p).unwrap();
             assert_eq!((back.width, back.height), (width, H), "{}", p.display());

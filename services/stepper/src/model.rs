@@ -57,6 +57,15 @@ impl Model {
         }
     }
 
+    /// Hand samples the world refused where they entered (`hand::unusable_because`); for
+    /// each, the hand held its last good pose.
+    pub fn rejected_hand_samples(&self) -> u64 {
+        match self {
+            Model::Paper(w) => w.rejected_hand_samples(),
+            Model::Precise(w) => w.rejected_hand_samples(),
+        }
+    }
+
     /// The hand the first step takes as its previous one (see [`World::set_previous_hand`]).
     pub fn set_previous_hand(&mut self, hand: Option<&HandSample>) {
         match self {

@@ -57,6 +57,7 @@ pub fn run_with_outcome(
         events_not_kept: 0,
         clock_jumps_told: 0,
         refused_hands: 0,
+        first_refused: None,
     };
     let hand_in = bus.inlet::<topics::Hand>()?;
     let mut world_out = bus.slice_outlet::<topics::World>()?;
@@ -135,8 +136,8 @@ pub fn run_with_outcome(
             }
             if stepping.refused_hands > 0 {
                 eprintln!(
-                    "handblocks stepper: {} hand samples refused (not finite, or beyond \
-                     1000 km): no hand for their steps",
+                    "handblocks stepper: {} hand samples refused (a value not finite, or out \
+                     of range): the hand held its last good pose",
                     stepping.refused_hands
                 );
             }
@@ -148,6 +149,7 @@ pub fn run_with_outcome(
                     &stepping.events,
                     stepping.events_not_kept,
                     stepping.timeline.jumps(),
+                    (stepping.refused_hands, stepping.first_refused),
                 );
             }
             return Ok(reporter.finish(&counters)?);
@@ -163,8 +165,10 @@ struct Stepping {
     events: Vec<crate::world::Event>,
     events_not_kept: u64,
     clock_jumps_told: u64,
-    /// Hand samples refused where they entered (`hand::unusable_because`).
+    /// Hand samples refused where they entered (`hand::unusable_because`), and the first's
+    /// seq and why.
     refused_hands: u64,
+    first_refused: Option<(u64, &'static str)>,
 }
 
 impl Stepping {
@@ -176,10 +180,11 @@ impl Stepping {
             // Refused where it enters: the world holds. The first is named; the count is said
             // when the stepper stops.
             self.refused_hands += 1;
+            self.first_refused.get_or_insert((hand.stamp.seq, why));
             if tell && self.refused_hands == 1 {
                 eprintln!(
-                    "handblocks stepper: hand sample seq {} refused: {why} (no hand for its \
-                     steps; later refusals are counted)",
+                    "handblocks stepper: hand sample seq {} refused: {why} (the hand holds \
+                     its last good pose; later refusals are counted)",
                     hand.stamp.seq
                 );
             }
@@ -229,9 +234,12 @@ fn write_outcome(
     events: &[crate::world::Event],
     not_kept: u64,
     clock_jumps: u64,
+    (refused_hands, first_refused): (u64, Option<(u64, &'static str)>),
 ) {
     let mut report = crate::simulate::outcome(world, &session.scene, events);
     report.clock_jumps = clock_jumps;
+    report.refused_hands = refused_hands;
+    report.first_refused = first_refused;
     let mut text = report.to_text();
     if not_kept > 0 {
         text.push_str(&format!("  ... and {not_kept} later events, not kept\n"));

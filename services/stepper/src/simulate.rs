@@ -172,6 +172,11 @@ pub struct Report {
     /// Times the hand's source clock jumped by more than `timeline::MAX_CATCH_UP_NS` between
     /// two samples (each brought one step, not a catch-up): 0 for a sound trace.
     pub clock_jumps: u64,
+    /// Hand samples refused where they entered (`hand::unusable_because`): the hand held its
+    /// last good pose over them. 0 for a sound trace.
+    pub refused_hands: u64,
+    /// The first refused sample: its seq and why.
+    pub first_refused: Option<(u64, &'static str)>,
 }
 
 /// Steps `simulate` takes when the command line gives no `--frames`: the scripted hand's
@@ -224,7 +229,15 @@ pub fn simulate_samples(
     let mut events = Vec::new();
     let mut timeline = Timeline::new(scene.world.step_hz);
     let limit = frames.unwrap_or(u64::MAX);
+    let (mut refused_hands, mut first_refused) = (0, None);
     for hand in hands {
+        if let Some(why) = crate::hand::unusable_because(hand) {
+            // Refused where it enters, as the stepper process refuses it: no steps of its own;
+            // the next good sample's steps bridge from the last good one.
+            refused_hands += 1;
+            first_refused.get_or_insert((hand.stamp.seq, why));
+            continue;
+        }
         if !timeline.started() {
             world.set_previous_hand(Some(hand));
         }
@@ -235,7 +248,7 @@ pub fn simulate_samples(
             }
         });
     }
-    let last = hands.last();
+    let last = hands.iter().rev().find(|h| crate::hand::is_usable(h));
     let end = frames.unwrap_or(world.steps() + (2.0 * scene.world.step_hz) as u64);
     while world.steps() < end {
         world.step(last);
@@ -244,6 +257,8 @@ pub fn simulate_samples(
     let steps = world.steps();
     let mut out = report(&world, scene, steps, events);
     out.clock_jumps = timeline.jumps();
+    out.refused_hands = refused_hands;
+    out.first_refused = first_refused;
     Ok(out)
 }
 
@@ -289,6 +304,8 @@ fn report(world: &Model, scene: &Scene, frames: u64, events: Vec<EventReport>) -
         blocks,
         events,
         clock_jumps: 0,
+        refused_hands: 0,
+        first_refused: None,
     }
 }
 
@@ -360,6 +377,9 @@ impl Report {
         if self.clock_jumps > 0 {
             let _ = write!(o, ", \"clock_jumps\": {}", self.clock_jumps);
         }
+        if self.refused_hands > 0 {
+            let _ = write!(o, ", \"refused_hands\": {}", self.refused_hands);
+        }
         o.push_str("}\n");
         o
     }
@@ -400,6 +420,19 @@ impl Report {
                 self.clock_jumps,
                 crate::timeline::MAX_CATCH_UP_NS / 1_000_000_000
             );
+        }
+        if self.refused_hands > 0 {
+            let _ = write!(
+                o,
+                "{} hand sample(s) refused where they entered: the hand held its last good pose",
+                self.refused_hands
+            );
+            match self.first_refused {
+                Some((seq, why)) => {
+                    let _ = writeln!(o, " (the first, seq {seq}: {why})");
+                }
+                None => o.push('\n'),
+            }
         }
         if self.events.is_empty() {
             o.push_str("events: none\n");

@@ -117,7 +117,8 @@ pub struct World {
     /// the origin: nothing moves and not a bit changes there.
     anchor: DVec3,
     /// Hand samples refused where they entered the world (`hand::unusable_because`: a value
-    /// not finite, a point beyond `hand::HAND_RANGE_M`): each is "no hand this step".
+    /// not finite, a point beyond `hand::HAND_RANGE_M`): the hand holds its last good pose
+    /// for that step.
     rejected_hands: u64,
     /// The hand of this step in the world's frame (when `anchor` is not zero): the sample
     /// translated once, where it enters, into preallocated space.
@@ -413,8 +414,9 @@ impl World {
     }
 
     /// Exactly one fixed step (dt = 1 / step_hz) with the hand's pose at this step; the world
-    /// keeps the previous one itself (P-, W-). `None`, or a hand with a non-finite value, is
-    /// "no hand this step". docs/model.md "Order of one step", each stage handed what it reads
+    /// keeps the previous one itself (P-, W-). `None` is "no hand this step"; a hand the rules
+    /// cannot use (`hand::unusable_because`: a value not finite, a point out of range) is
+    /// refused and counted, and the hand holds its last good pose. docs/model.md "Order of one step", each stage handed what it reads
     /// and writes:
     pub fn step(&mut self, hand: Option<&HandSample>) {
         self.steps += 1;
@@ -441,9 +443,22 @@ impl World {
             ..
         } = self;
         let anchor = *anchor;
-        let usable = hand.filter(|h| is_usable(h));
-        self.rejected_hands += u64::from(hand.is_some() && usable.is_none());
-        let hand = World::hand_in_world_frame(anchor, usable, hand_local);
+        let refused = hand.is_some_and(|h| !is_usable(h));
+        self.rejected_hands += u64::from(refused);
+        let hand = if refused {
+            // Refused where it enters: the hand holds its last good pose (already in this
+            // frame), so a glitch of one sample neither drops what the hand grasps nor moves
+            // it; a hand that was absent stays absent.
+            match prev_hand.as_ref() {
+                Some(last_good) => {
+                    *hand_local = *last_good;
+                    Some(&*hand_local)
+                }
+                None => None,
+            }
+        } else {
+            World::hand_in_world_frame(anchor, hand, hand_local)
+        };
         let prev = prev_hand.as_ref();
         // 0. Every block starts the step where it is, with nothing done to it yet: the last
         //    step's stage 5 left it so (`Block::begin_step`, in the same pass), and nothing changes a

@@ -725,7 +725,7 @@ position = [0.0, 0.005, 0.0]
 // Robustness.
 
 #[test]
-fn a_hand_with_nan_is_absent_for_that_step_and_a_grasp_ends() {
+fn a_hand_with_nan_is_refused_and_the_hand_holds_its_grasp() {
     let s = scene_file("grasp-throw-fingers");
     let mut hand = stepper::BareFingersHand::from_scene(&s).unwrap();
     let mut w = World::new(&s).unwrap();
@@ -741,7 +741,10 @@ fn a_hand_with_nan_is_absent_for_that_step_and_a_grasp_ends() {
     w.step(Some(&bad));
     let v = w.block(0).unwrap();
     assert!(v.position.is_finite() && v.rotation.is_finite());
-    assert!(w.events().iter().any(|e| e.kind == EventKind::Release));
+    // Refused, counted, and the hand held its last good pose: the grasp goes on.
+    assert_eq!(w.rejected_hand_samples(), 1);
+    assert!(w.events().iter().all(|e| e.kind != EventKind::Release));
+    assert_eq!(v.mode, BlockMode::Grasped);
 }
 
 #[test]

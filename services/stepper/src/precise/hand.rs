@@ -14,18 +14,15 @@ use rapier3d_f64::prelude::{
     RigidBodyHandle, SharedShape,
 };
 
-use common::{HandSample, MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
+use common::{HandSample, MAX_FINGERS, MAX_FINGER_POINTS};
 
 use super::PhysicsWorld;
 use super::KIND_HAND;
 
-/// The paper model's usability check, plus what only colliders need: finite radii and palm
-/// vertices, and counts within the sample's arrays.
+/// The usability check both models share (`crate::hand::unusable_because`: it covers the radii
+/// and palm vertices colliders are built from, too).
 pub(super) fn is_usable(h: &HandSample) -> bool {
     crate::hand::is_usable(h)
-        && (h.palm_vertex_count as usize) <= MAX_PALM_VERTICES
-        && h.finger_radius.iter().all(|r| r.is_finite() && *r >= 0.0)
-        && h.palm().iter().flatten().all(|v| v.is_finite())
 }
 
 /// One finger segment (or a one-point finger's ball).

@@ -100,6 +100,8 @@ pub struct PreciseWorld {
     steps: u64,
     events: Vec<Event>,
     prev_hand: Option<HandSample>,
+    /// Hand samples refused where they entered (`hand::unusable_because`).
+    rejected_hands: u64,
     fingers: Fingers,
     /// Scratch of the mode derivation, kept so that a step does not allocate.
     touches: Vec<modes::Touches>,
@@ -273,12 +275,18 @@ impl PreciseWorld {
             release_angle: w.release_angle,
             steps: 0,
             prev_hand: None,
+            rejected_hands: 0,
             fingers: Fingers {
                 count: 0,
                 point_count: [0; MAX_FINGERS],
                 points: [[[0.0; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
             },
         })
+    }
+
+    /// Hand samples this world refused where they entered (`hand::unusable_because`).
+    pub fn rejected_hand_samples(&self) -> u64 {
+        self.rejected_hands
     }
 
     /// The hand the first step starts from (see `World::set_previous_hand`): the kinematic
@@ -290,12 +298,26 @@ impl PreciseWorld {
         }
     }
 
-    /// One fixed step of 1 / step_hz with the hand's pose at this step (None, or a hand with
-    /// a non-finite value: no hand this step, its colliders are switched off).
+    /// One fixed step of 1 / step_hz with the hand's pose at this step (None: no hand this
+    /// step, its colliders are switched off; a hand the rules cannot use, a value not finite
+    /// or out of range: refused and counted, the hand holds its last good pose).
     pub fn step(&mut self, hand: Option<&HandSample>) {
         self.steps += 1;
         self.events.clear();
-        let hand = hand.filter(|h| hand::is_usable(h));
+        // A hand the rules cannot use is refused where it enters, and the hand holds its last
+        // good pose, as in the paper model.
+        let held = match hand {
+            Some(h) if !hand::is_usable(h) => {
+                self.rejected_hands += 1;
+                self.prev_hand
+            }
+            _ => None,
+        };
+        let hand = if held.is_some() {
+            held.as_ref()
+        } else {
+            hand.filter(|h| hand::is_usable(h))
+        };
         if let Some(bodies) = self.hand.as_mut() {
             match hand {
                 Some(h) => {
