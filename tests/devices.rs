@@ -187,10 +187,12 @@ fn garbage_and_rejected_device_records_are_in_the_session_report() {
         count("garbage_bytes") + count("rejected_records") >= 2,
         "{tracker}"
     );
-    // Every valid record was published, but for the one or two read as the session stopped.
+    // Every valid record was published, those read as the session stopped too (a fresh
+    // tests/run once saw 3 of them unpublished while the machine was loaded), unless the
+    // publisher fell behind the drivers (said, as dropped).
     let published = v["topics"]["tracker"]["published"].as_u64().unwrap();
     assert!(
-        count("samples").abs_diff(published) <= 2,
+        count("samples") == published || stderr.contains("were dropped"),
         "{tracker} vs {published}"
     );
     assert!(

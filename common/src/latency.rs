@@ -66,8 +66,9 @@ pub struct LatencyRecorder {
     /// A source's last output (its start before the first), and its longest silence so far.
     last_output_ns: u64,
     longest_silence_ns: u64,
-    /// When the first output's age was recorded (0: none yet).
+    /// When the first output's age was recorded (0: none yet), and the last's.
     first_output_ns: u64,
+    recorded_last_ns: u64,
 }
 
 impl LatencyRecorder {
@@ -84,6 +85,7 @@ impl LatencyRecorder {
             last_output_ns: monotonic_ns(),
             longest_silence_ns: 0,
             first_output_ns: 0,
+            recorded_last_ns: 0,
         }
     }
 
@@ -91,8 +93,13 @@ impl LatencyRecorder {
     pub fn record(&mut self, metric: Metric, ns: u64) {
         self.histograms[metric as usize].saturating_record(ns.max(1));
         // Every stage records its output's age (origin -> out) as it publishes or writes it.
-        if metric == Metric::Origin && self.first_output_ns == 0 {
-            self.first_output_ns = monotonic_ns();
+        // When it first and last did (one read of the clock per output, vDSO: tens of ns).
+        if metric == Metric::Origin {
+            let now = monotonic_ns();
+            if self.first_output_ns == 0 {
+                self.first_output_ns = now;
+            }
+            self.recorded_last_ns = now;
         }
     }
 
@@ -148,6 +155,7 @@ impl LatencyRecorder {
         sample.stage = self.stage as u32;
         sample.final_report = final_report as u32;
         sample.first_output_ns = self.first_output_ns;
+        sample.last_output_ns = self.recorded_last_ns;
         sample.silence_ns = self
             .longest_silence_ns
             .max(monotonic_ns().saturating_sub(self.last_output_ns));

@@ -439,6 +439,10 @@ pub struct LatencySample {
     /// When this process first published what it makes (CLOCK_MONOTONIC ns; 0: not yet): the
     /// launcher takes a restarted process's downtime up to it.
     pub first_output_ns: u64,
+    /// When it last did (CLOCK_MONOTONIC ns; 0: not yet): with `first_output_ns`, the span in
+    /// which it made anything, over which the launcher judges a rate (a viewer started before
+    /// its session had no worlds to draw then).
+    pub last_output_ns: u64,
     pub counters: [TopicCounter; MAX_TOPIC_COUNTERS],
     /// The acquisition process with devices only: what each driver counted (issue 16: the
     /// drivers counted rejected and garbage records, and no report showed them).
@@ -455,6 +459,7 @@ impl Default for LatencySample {
             final_report: 0,
             silence_ns: 0,
             first_output_ns: 0,
+            last_output_ns: 0,
             counters: [TopicCounter {
                 topic: u32::MAX,
                 ..Default::default()

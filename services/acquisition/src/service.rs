@@ -3,7 +3,7 @@
 
 use std::time::Duration;
 
-use common::bus::Bus;
+use common::bus::{Bus, Outlet};
 use common::config::session::Source;
 use common::config::Session;
 use common::latency::Reporter;
@@ -25,6 +25,27 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         )
         .into()),
     }
+}
+
+/// Publishes what a driver delivered (an error is said, not published).
+fn publish_device_event(
+    ev: DeviceEvent,
+    glove_out: &mut Outlet<topics::Glove>,
+    tracker_out: &mut Outlet<topics::Tracker>,
+    reporter: &mut Reporter,
+) -> Result<(), Box<dyn std::error::Error>> {
+    match ev {
+        DeviceEvent::Glove(g) => {
+            let sent = glove_out.publish(&g)?;
+            reporter.recorder.source_output(&sent);
+        }
+        DeviceEvent::Tracker(t) => {
+            let sent = tracker_out.publish(&t)?;
+            reporter.recorder.source_output(&sent);
+        }
+        DeviceEvent::Error(e) => eprintln!("handblocks acquisition: {e}"),
+    }
+    Ok(())
 }
 
 /// A CyberGlove and a FASTRAK: each driver reads on its own thread; this loop stamps and
@@ -53,21 +74,22 @@ fn run_devices(
     // there yet (or is unplugged) is reported and retried instead of failing the session.
     let readers = DeviceReaders::spawn(Some(Glove::new(gc)?), Some(Tracker::new(tc)?))?;
     while !shutdown::requested() {
-        match readers.recv_timeout(Duration::from_millis(50)) {
-            Some(DeviceEvent::Glove(g)) => {
-                let sent = glove_out.publish(&g)?;
-                reporter.recorder.source_output(&sent);
-            }
-            Some(DeviceEvent::Tracker(t)) => {
-                let sent = tracker_out.publish(&t)?;
-                reporter.recorder.source_output(&sent);
-            }
-            Some(DeviceEvent::Error(e)) => eprintln!("handblocks acquisition: {e}"),
-            None => {}
+        if let Some(ev) = readers.recv_timeout(Duration::from_millis(50)) {
+            publish_device_event(ev, &mut glove_out, &mut tracker_out, &mut reporter)?;
         }
         reporter.maybe_report(&[glove_out.counter(), tracker_out.counter()])?;
     }
-    let stats = readers.stop();
+    // What the drivers read as the session stopped is published too: a driver's count of
+    // samples is what was published.
+    let mut last_error = None;
+    let stats = readers.stop_delivering(|ev| {
+        if let Err(e) = publish_device_event(ev, &mut glove_out, &mut tracker_out, &mut reporter) {
+            last_error.get_or_insert(e);
+        }
+    });
+    if let Some(e) = last_error {
+        return Err(e);
+    }
     reporter.set_devices([
         stats.glove.device_counters(1),
         stats.tracker.device_counters(2),

@@ -24,8 +24,10 @@ pub struct StageReport {
     /// CPU time the stage's process used over the session (the launcher reads it as the
     /// process stops), seconds.
     pub cpu_s: Option<f64>,
-    /// When the process first published what it makes (CLOCK_MONOTONIC ns; 0: not yet).
+    /// When the process first published what it makes (CLOCK_MONOTONIC ns; 0: not yet), and
+    /// when it last did.
     pub first_output_ns: u64,
+    pub last_output_ns: u64,
 }
 
 impl StageReport {
@@ -58,6 +60,7 @@ impl StageReport {
                 .collect(),
             cpu_s: None,
             first_output_ns: sample.first_output_ns,
+            last_output_ns: sample.last_output_ns,
         })
     }
 
@@ -74,6 +77,7 @@ impl StageReport {
             devices: Vec::new(),
             cpu_s: None,
             first_output_ns: 0,
+            last_output_ns: 0,
         }
     }
 
@@ -98,6 +102,10 @@ impl StageReport {
             // Same bounds on both sides: adding cannot fail; were it to, the earlier stays.
             let _ = h.add(n);
         }
+        if self.first_output_ns == 0 {
+            self.first_output_ns = next.first_output_ns;
+        }
+        self.last_output_ns = self.last_output_ns.max(next.last_output_ns);
         let mut lost = Vec::new();
         for c in &next.counters {
             let at = self
@@ -499,12 +507,22 @@ impl Report {
             .map(|s| s.summary(Metric::Origin).count)
             .or_else(|| self.topics.get(&Topic::World).map(|f| f.published))
             .unwrap_or(0);
+        // Judged over the time there were worlds to draw: from the world publisher's first
+        // world to its last (a viewer started before its session, or left running after it,
+        // had nothing to draw then), or the whole session where that is not known.
+        let world_s = self.world_seconds(facts.seconds);
+        if worlds > 0 && world_s < 0.5 {
+            self.not_judged.push(format!(
+                "frame_hz: worlds arrived for only {world_s:.2} s, too short to measure a frame rate"
+            ));
+            return;
+        }
         // While a restarted renderer was down there were no frames to draw: judged without it.
-        let drawing_s = (facts.seconds - facts.renderer_down_s).max(0.5);
+        let drawing_s = (world_s - facts.renderer_down_s).max(0.5);
         let fps = frames as f64 / drawing_s;
         // A frame is drawn for each new world state: fewer worlds than frame_hz is not the
         // renderer's shortfall.
-        let world_hz = worlds as f64 / facts.seconds;
+        let world_hz = worlds as f64 / world_s.max(0.5);
         let wanted = b.frame_hz.min(world_hz);
         let floor = wanted * (1.0 - b.frame_rate_margin);
         if fps < floor {
@@ -521,11 +539,24 @@ impl Report {
         }
     }
 
-    /// Frames per second the renderer drew, when it drew.
+    /// How long there were worlds to draw: from the world publisher's (the stepper's, or the
+    /// bridge's of a remote-fed session) first world to its last, at most `seconds` (the
+    /// session's); `seconds` where that is not known.
+    fn world_seconds(&self, seconds: f64) -> f64 {
+        self.stage(Stage::Stepper)
+            .or_else(|| self.stage(Stage::Bridge))
+            .filter(|s| s.first_output_ns > 0 && s.last_output_ns > s.first_output_ns)
+            .map_or(seconds, |s| {
+                ((s.last_output_ns - s.first_output_ns) as f64 / 1e9).min(seconds)
+            })
+    }
+
+    /// Frames per second the renderer drew, over the time there were worlds to draw.
     pub fn frame_rate(&self) -> Option<f64> {
         let s = self.stage(Stage::Renderer)?;
         let n = s.summary(Metric::Photon).count;
-        (n > 0 && self.meta.seconds > 0.0).then(|| n as f64 / self.meta.seconds)
+        let over = self.world_seconds(self.meta.seconds);
+        (n > 0 && over > 0.0).then(|| n as f64 / over.max(0.5))
     }
 
     /// One line on the bridge: what crossed the link and the clock it was stamped by.
@@ -744,8 +775,9 @@ impl Report {
         out.push_str(TERMS);
         out.push('\n');
         if let Some(fps) = self.frame_rate() {
+            let over = self.world_seconds(self.meta.seconds);
             out.push_str(&format!(
-                "\nframes: {fps:.1} per second over {:.1} s\n",
+                "\nframes: {fps:.1} per second over the {over:.1} s worlds came in (of {:.1} s)\n",
                 self.meta.seconds
             ));
         }
@@ -974,6 +1006,7 @@ mod tests {
             final_report: true,
             silence_ns: silence_ms * 1_000_000,
             first_output_ns: 0,
+            last_output_ns: 0,
         }
     }
 
@@ -1013,6 +1046,51 @@ mod tests {
         let r = judged(300, 600, 10, &b);
         assert!(
             r.violations[0].contains("the world's rate 60.0"),
+            "{:?}",
+            r.violations
+        );
+    }
+
+    /// Issue 28: a remote viewer started 2 s before its session and left 5 s after it had
+    /// worlds for 5 s of its 12: its frame rate is judged over those 5 s, not diluted by the
+    /// 7 s without a world to draw; a renderer that stops drawing while worlds still come
+    /// still fails.
+    #[test]
+    fn frame_rate_is_judged_over_the_time_worlds_were_there() {
+        let b = Budget::default(); // frame_hz 90, margin 0.25
+        let facts = SessionFacts {
+            seconds: 12.0,
+            source: Stage::Bridge,
+            renders: true,
+            real_time: true,
+            renderer_down_s: 0.0,
+        };
+        let judge = |frames: u64| {
+            let mut bridge = stage(Stage::Bridge, Metric::Origin, 600, 0);
+            (bridge.first_output_ns, bridge.last_output_ns) = (2_000_000_000, 7_000_000_000);
+            // The bridge publishes the worlds it takes in.
+            bridge.counters.push(common::TopicCounter {
+                topic: Topic::World as u32,
+                role: 0,
+                count: 600,
+                gaps: 0,
+                last_seq: 599,
+            });
+            Report::build(
+                vec![bridge, stage(Stage::Renderer, Metric::Photon, frames, 0)],
+                &b,
+                Vec::new(),
+                &facts,
+            )
+        };
+        // 120 worlds a second for 5 s, drawn at 88 frames a second: kept (over 12 s it would
+        // read 36.7 frames a second).
+        let r = judge(440);
+        assert!(r.ok(), "{:?}", r.violations);
+        // Drawn for 2 s of the 5: 36 a second < 67.5.
+        let r = judge(180);
+        assert!(
+            r.violations[0].starts_with("frame_hz: 36.0 frames per second < 67.5"),
             "{:?}",
             r.violations
         );

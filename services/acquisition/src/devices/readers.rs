@@ -160,6 +160,33 @@ impl DeviceReaders {
         self.stop_inner()
     }
 
+    /// Stops both threads, then hands `deliver` every event they had sent and nobody took:
+    /// the records read as the session stopped are published too, so a driver's sample count
+    /// is what was published (but for samples the consumer fell behind on, `dropped`).
+    pub fn stop_delivering(mut self, mut deliver: impl FnMut(DeviceEvent)) -> ReaderStats {
+        self.stop.store(true, Ordering::Relaxed);
+        // The readers use try_send: they never block on the channel, so they end without it
+        // being drained, and what they sent stays in it for `deliver`.
+        let glove = self
+            .glove
+            .take()
+            .and_then(|h| h.join().ok())
+            .unwrap_or_default();
+        let tracker = self
+            .tracker
+            .take()
+            .and_then(|h| h.join().ok())
+            .unwrap_or_default();
+        while let Ok(ev) = self.rx.try_recv() {
+            deliver(ev);
+        }
+        ReaderStats {
+            glove,
+            tracker,
+            dropped: self.dropped(),
+        }
+    }
+
     fn stop_inner(&mut self) -> ReaderStats {
         self.stop.store(true, Ordering::Relaxed);
         // Unblock a reader waiting on a full channel: it uses try_send, so none does; drain
