@@ -164,44 +164,29 @@ impl DeviceReaders {
     /// the records read as the session stopped are published too, so a driver's sample count
     /// is what was published (but for samples the consumer fell behind on, `dropped`).
     pub fn stop_delivering(mut self, mut deliver: impl FnMut(DeviceEvent)) -> ReaderStats {
-        self.stop.store(true, Ordering::Relaxed);
         // The readers use try_send: they never block on the channel, so they end without it
         // being drained, and what they sent stays in it for `deliver`.
-        let glove = self
-            .glove
-            .take()
-            .and_then(|h| h.join().ok())
-            .unwrap_or_default();
-        let tracker = self
-            .tracker
-            .take()
-            .and_then(|h| h.join().ok())
-            .unwrap_or_default();
+        let stats = self.join_readers();
         while let Ok(ev) = self.rx.try_recv() {
             deliver(ev);
         }
-        ReaderStats {
-            glove,
-            tracker,
-            dropped: self.dropped(),
-        }
+        stats
     }
 
     fn stop_inner(&mut self) -> ReaderStats {
-        self.stop.store(true, Ordering::Relaxed);
         // Unblock a reader waiting on a full channel: it uses try_send, so none does; drain
         // anyway so the threads see an open channel until they notice the flag.
         while self.rx.try_recv().is_ok() {}
-        let glove = self
-            .glove
-            .take()
-            .and_then(|h| h.join().ok())
-            .unwrap_or_default();
-        let tracker = self
-            .tracker
-            .take()
-            .and_then(|h| h.join().ok())
-            .unwrap_or_default();
+        self.join_readers()
+    }
+
+    /// Tells both threads to stop and waits for them: their final counters.
+    fn join_readers(&mut self) -> ReaderStats {
+        self.stop.store(true, Ordering::Relaxed);
+        let join =
+            |h: Option<JoinHandle<LinkStats>>| h.and_then(|h| h.join().ok()).unwrap_or_default();
+        let glove = join(self.glove.take());
+        let tracker = join(self.tracker.take());
         ReaderStats {
             glove,
             tracker,
