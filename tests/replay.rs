@@ -168,8 +168,51 @@ fn a_speed_0_replay_of_a_10_khz_recording_reaches_every_reader_whole() {
     let id = format!("rp10k{}", std::process::id());
     let out = support::launch_session(&session, &id, 60.0, Some(&report));
     assert!(out.status.success(), "{}", support::both(&out));
+    every_reader_got(&report, recorded);
+
+    // Issue 28: the recorder, stopped (SIGSTOP) as the replay process starts and resumed
+    // 0.5 s later, had not yet connected to the replay's publishers: iceoryx2 skipped it once
+    // its buffer was full, and it lost 33 glove and 32 tracker samples, in 10 runs of 10. The
+    // replay now fills at most half its buffer until it has taken its first sample.
+    std::fs::remove_file(dir.path("again.mcap")).unwrap();
+    let report = dir.path("stopped.json");
+    let id = format!("rp10s{}", std::process::id());
+    let child = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--duration", "60", "--bus-id", &id])
+        .arg("--report")
+        .arg(&report)
+        .arg(&session)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    while support::find_service_now("replay", &id).is_none() {
+        assert!(std::time::Instant::now() < deadline, "no replay process");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let recorder = support::find_service_now("recorder", &id).expect("a recorder");
+    let signal = |s: &str| {
+        Command::new("kill")
+            .args([s, &recorder.to_string()])
+            .status()
+            .unwrap()
+    };
+    assert!(signal("-STOP").success());
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    assert!(signal("-CONT").success());
+    let out = child.wait_with_output().unwrap();
+    assert_nothing_left(&id);
+    assert!(out.status.success(), "{}", support::both(&out));
+    every_reader_got(&report, recorded);
+}
+
+/// Every reader of every pipeline topic received `recorded` samples, none dropped (the report at
+/// `report`).
+fn every_reader_got(report: &std::path::Path, recorded: u64) {
     let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap();
     for t in ["glove", "tracker", "hand", "world"] {
         assert_eq!(
             v["topics"][t]["published"].as_u64(),

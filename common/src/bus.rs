@@ -668,12 +668,41 @@ impl Bus {
         })
     }
 
-    /// A fresh count of received samples: on a restart, gaps count from the first sample.
-    fn seq_count(&self) -> SeqCount {
+    /// A fresh count of received samples of `topic`: on a restart, gaps count from the first
+    /// sample; on a lossless bus, the first sample marks the inlet connected ([`ConnectGate`]).
+    fn seq_count(&self, topic: Topic) -> SeqCount {
+        let connected_mark = self.is_lossless(topic).then(|| {
+            static INLETS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+            let n = INLETS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            self.root.join(format!(
+                "{CONNECTED_MARK}{}.{}.{}.{n}",
+                topic.name(),
+                self.node_name,
+                std::process::id()
+            ))
+        });
         SeqCount {
             from_first: self.restart() > 0,
+            connected_mark: Cell::new(connected_mark),
             ..SeqCount::default()
         }
+    }
+
+    /// On a lossless bus, what an outlet of `topic` waits for before it may fill a reader's
+    /// buffer ([`ConnectGate`]); None elsewhere.
+    fn connect_gate(
+        &self,
+        topic: Topic,
+        buffer: usize,
+        subscribers: impl Fn() -> usize + 'static,
+    ) -> Option<ConnectGate> {
+        self.is_lossless(topic).then(|| ConnectGate {
+            topic,
+            root: self.root.clone(),
+            free: (buffer as u64 / 2).max(1),
+            sent: 0,
+            subscribers: Box::new(subscribers),
+        })
     }
 
     /// True when `topic` waits for its slowest reader on this bus ([`BusConfig::lossless`]).
@@ -839,20 +868,24 @@ impl Bus {
             topic: topic.name(),
             reason: e,
         };
-        let publisher = self
-            .pubsub::<P>()?
+        let service = self.pubsub::<P>()?;
+        let publisher = service
             .publisher_builder()
             .max_loaned_samples(2)
             .create()
             .map_err(|e| port_err(format!("{e:?}")))?;
         let notifier = self.notifier(topic)?;
         let kept = self.seq_store(topic)?;
+        let gate = self.connect_gate(topic, topic.subscriber_buffer(), move || {
+            service.dynamic_config().number_of_subscribers()
+        });
         Ok(Outlet {
             publisher,
             notifier,
             next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
             skipped: kept.as_ref().map_or(0, |k| k.load(1)),
             kept,
+            gate,
         })
     }
 
@@ -882,7 +915,7 @@ impl Bus {
         Ok(Inlet {
             subscriber,
             listener,
-            seqs: self.seq_count(),
+            seqs: self.seq_count(topic),
         })
     }
 
@@ -895,8 +928,8 @@ impl Bus {
             topic: topic.name(),
             reason: e,
         };
-        let publisher = self
-            .slice_pubsub::<P>()?
+        let service = self.slice_pubsub::<P>()?;
+        let publisher = service
             .publisher_builder()
             .initial_max_slice_len(self.slice_capacity)
             .max_loaned_samples(2)
@@ -904,6 +937,9 @@ impl Bus {
             .map_err(|e| port_err(format!("{e:?}")))?;
         let notifier = self.notifier(topic)?;
         let kept = self.seq_store(topic)?;
+        let gate = self.connect_gate(topic, self.slice_buffer::<P>(), move || {
+            service.dynamic_config().number_of_subscribers()
+        });
         Ok(SliceOutlet {
             publisher,
             notifier,
@@ -911,6 +947,7 @@ impl Bus {
             next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
             skipped: 0,
             kept,
+            gate,
         })
     }
 
@@ -931,7 +968,7 @@ impl Bus {
         Ok(SliceInlet {
             subscriber,
             listener,
-            seqs: self.seq_count(),
+            seqs: self.seq_count(topic),
         })
     }
 }
@@ -1455,6 +1492,8 @@ pub struct Outlet<P: TopicSpec> {
     skipped: u64,
     /// A supervised process's next seq (and skipped), kept where its restart finds it.
     kept: Option<SeqStore>,
+    /// On a lossless bus, until every reader is connected ([`ConnectGate`]).
+    gate: Option<ConnectGate>,
 }
 
 impl<P: TopicSpec> Outlet<P> {
@@ -1465,6 +1504,7 @@ impl<P: TopicSpec> Outlet<P> {
             topic: P::TOPIC.name(),
             reason: e,
         };
+        ConnectGate::pass(&mut self.gate)?;
         let sample = self
             .publisher
             .loan_uninit()
@@ -1522,6 +1562,76 @@ impl<P: TopicSpec> Outlet<P> {
     }
 }
 
+/// What names the files with which inlets on a lossless bus say they are connected.
+const CONNECTED_MARK: &str = "connected.";
+
+/// Issue 28: a lossless publisher must not fill the buffer of a reader that is not yet
+/// connected to it. iceoryx2 connects a subscriber to a publisher that appeared after it only
+/// when the subscriber next receives; until then its buffer fills, and once full, a send with
+/// back-pressure does not wait for it but skips it ("to prevent a deadlock on sender side").
+/// A speed-0 replay sends its first thousand samples in tens of milliseconds: a reader that
+/// was descheduled just then (the recorder, niced beside a renderer compiling its shaders)
+/// lost 33 glove and 32 tracker samples. So on a lossless bus each inlet marks itself
+/// connected when its first sample arrives (a file in the session's folder), and each outlet
+/// sends at most half its readers' buffer until there are as many marks of its topic as the
+/// topic has subscribers. It costs a branch per sample after that, and nothing on a bus that
+/// is not lossless.
+struct ConnectGate {
+    topic: Topic,
+    root: PathBuf,
+    /// Samples that may go before every reader is connected.
+    free: u64,
+    sent: u64,
+    /// The topic's subscribers now.
+    subscribers: Box<dyn Fn() -> usize>,
+}
+
+impl ConnectGate {
+    /// Lets the next sample go: at once while it fits in the readers' buffers, else once
+    /// every reader is connected (then the gate is gone), or when the process is asked to
+    /// stop.
+    fn pass(gate: &mut Option<ConnectGate>) -> Result<(), BusError> {
+        let Some(g) = gate else { return Ok(()) };
+        if g.sent < g.free {
+            g.sent += 1;
+            return Ok(());
+        }
+        let started = std::time::Instant::now();
+        let mut said = Duration::ZERO;
+        loop {
+            let readers = (g.subscribers)();
+            let connected = g.connected();
+            if connected >= readers || crate::shutdown::requested() {
+                break;
+            }
+            // Waiting this long means a reader does not run: say so, every 5 s.
+            if started.elapsed() >= said + Duration::from_secs(5) {
+                said = started.elapsed();
+                eprintln!(
+                    "handblocks: the {} topic waits {:.0} s for {} of its {readers} readers to                      take their first sample (a lossless session sends nothing a reader could                      miss)",
+                    g.topic.name(),
+                    said.as_secs_f64(),
+                    readers - connected
+                );
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        *gate = None;
+        Ok(())
+    }
+
+    /// Inlets of this topic that have marked themselves connected.
+    fn connected(&self) -> usize {
+        let prefix = format!("{CONNECTED_MARK}{}.", self.topic.name());
+        std::fs::read_dir(&self.root).map_or(0, |entries| {
+            entries
+                .flatten()
+                .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+                .count()
+        })
+    }
+}
+
 /// A publisher's counter: samples sent, seqs skipped (never sent), the last seq.
 fn sent_counter(topic: Topic, next_seq: u64, skipped: u64) -> TopicCounter {
     TopicCounter {
@@ -1542,6 +1652,9 @@ struct SeqCount {
     last_seq: Cell<Option<u64>>,
     /// A restarted reader: the samples before its first were its dead incarnation's to count.
     from_first: bool,
+    /// On a lossless bus: the file this inlet creates on its first sample ([`ConnectGate`]);
+    /// taken (None) once created.
+    connected_mark: Cell<Option<PathBuf>>,
 }
 
 impl SeqCount {
@@ -1557,6 +1670,26 @@ impl SeqCount {
         self.gaps.set(self.gaps.get() + missed);
         self.last_seq.set(Some(seq));
         self.received.set(self.received.get() + 1);
+    }
+
+    /// After a sample was seen: on the first, says so to a lossless publisher's
+    /// [`ConnectGate`] (once; one compare per sample after that).
+    fn mark_connected(&self, topic: Topic) -> Result<(), BusError> {
+        if self.received.get() != 1 {
+            return Ok(());
+        }
+        let Some(path) = self.connected_mark.take() else {
+            return Ok(());
+        };
+        open_restart_file(&path)
+            .map(drop)
+            .map_err(|e| BusError::Receive {
+                topic: topic.name(),
+                reason: format!(
+                    "cannot tell the publisher this reader is connected ({}): {e}",
+                    path.display()
+                ),
+            })
     }
 
     fn counter(&self, topic: Topic) -> TopicCounter {
@@ -1676,6 +1809,7 @@ impl<P: TopicSpec> Inlet<P> {
         })?;
         if let Some(s) = &sample {
             self.seqs.saw(s.payload().stamp().seq);
+            self.seqs.mark_connected(P::TOPIC)?;
         }
         Ok(sample)
     }
@@ -1710,6 +1844,7 @@ pub struct SliceOutlet<P: SliceTopicSpec> {
     /// As [`Outlet`]'s.
     skipped: u64,
     kept: Option<SeqStore>,
+    gate: Option<ConnectGate>,
 }
 
 impl<P: SliceTopicSpec> SliceOutlet<P> {
@@ -1733,6 +1868,7 @@ impl<P: SliceTopicSpec> SliceOutlet<P> {
                 self.capacity
             )));
         }
+        ConnectGate::pass(&mut self.gate)?;
         let mut sample = self
             .publisher
             .loan_slice_uninit(len)
@@ -1809,6 +1945,7 @@ impl<P: SliceTopicSpec> SliceInlet<P> {
         })?;
         if let Some(s) = &sample {
             self.seqs.saw(s.user_header().stamp().seq);
+            self.seqs.mark_connected(P::TOPIC)?;
         }
         Ok(sample)
     }

@@ -87,3 +87,42 @@ fn a_restarted_stage_goes_on_with_its_seq_and_epoch() {
     cfg.remove_resources().unwrap();
     assert!(cfg.leftover_shm_files().is_empty());
 }
+
+/// Issue 28: a reader that has not received since a lossless publisher appeared is not yet
+/// connected to it, and iceoryx2 skips such a reader once its buffer is full rather than wait
+/// for it; a speed-0 replay lost 33 glove and 32 tracker samples at a recorder that was
+/// descheduled as the replay started. A lossless outlet now fills at most half a reader's
+/// buffer until every reader has taken its first sample: a reader that sleeps through the
+/// start still gets every sample.
+#[test]
+fn a_lossless_publisher_waits_for_a_reader_that_has_not_yet_received() {
+    let cfg = config("gate").with_lossless(true);
+    {
+        let launcher = Bus::open(&cfg, "launcher").unwrap();
+        let _services = launcher.create_services().unwrap();
+        let reader = Bus::open(&cfg, "recorder").unwrap();
+        let inlet = reader.inlet::<topics::Glove>().unwrap();
+        let n = 3 * common::Topic::Glove.subscriber_buffer() as u64;
+        let source = cfg.clone();
+        let publisher = std::thread::spawn(move || {
+            let bus = Bus::open(&source, "replay").unwrap();
+            let mut out = bus.outlet::<topics::Glove>().unwrap();
+            for _ in 0..n {
+                out.publish(&GloveSample::default()).unwrap();
+            }
+            out.counter().count
+        });
+        // The reader does not run while the source starts (a descheduled process).
+        std::thread::sleep(Duration::from_millis(300));
+        let deadline = std::time::Instant::now() + Duration::from_secs(30);
+        while inlet.received() < n && std::time::Instant::now() < deadline {
+            let _ = inlet.wait(Duration::from_millis(20));
+            while inlet.receive().unwrap().is_some() {}
+        }
+        assert_eq!(publisher.join().unwrap(), n);
+        let c = inlet.counter();
+        assert_eq!((c.count, c.gaps), (n, 0), "every sample, none skipped");
+    }
+    cfg.remove_resources().unwrap();
+    assert!(cfg.leftover_shm_files().is_empty());
+}
