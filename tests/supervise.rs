@@ -299,6 +299,54 @@ fn each_killed_process_is_restarted_and_the_session_completes() {
         recorder["lost"]
     );
     assert!(recorder["lost"]["hand"].as_u64().unwrap() > 0, "{recorder}");
+
+    // Issue 28: the recorder's loss is what its recording misses, counted from the seqs the
+    // two segments hold: its unwritten chunk and what came while it was down (the restart's
+    // reader-side count, samples published while it was down, is a part of it).
+    let seqs = |part: &Recording, t: Topic| {
+        let s = part.stats()[t as usize];
+        (s.first_seq, s.last_seq)
+    };
+    let inspect = Command::new(EXE)
+        .args(["inspect", "--json"])
+        .arg(&rec)
+        .output()
+        .unwrap();
+    let inspected: Value = serde_json::from_slice(&inspect.stdout).unwrap();
+    for (t, name) in [
+        (Topic::Glove, "glove"),
+        (Topic::Tracker, "tracker"),
+        (Topic::Hand, "hand"),
+        (Topic::World, "world"),
+    ] {
+        let missing = seqs(&second, t).0 - (seqs(&first, t).1 + 1);
+        assert_eq!(
+            recorder["missing_from_recording"][name]
+                .as_u64()
+                .unwrap_or(0),
+            missing,
+            "{name}: {recorder}"
+        );
+        assert!(
+            missing >= recorder["lost"][name].as_u64().unwrap(),
+            "{recorder}"
+        );
+        assert_eq!(
+            inspected["segments"][1]["missing_before"][name]["lost"]
+                .as_u64()
+                .unwrap_or(0),
+            missing,
+            "{name}: {inspected}"
+        );
+    }
+    eprintln!(
+        "recorder: the recording misses {} (reader-side lost {}; [recorder] flush_ms = 500)",
+        recorder["missing_from_recording"], recorder["lost"]
+    );
+    assert!(
+        stdout.contains("no segment of the recording holds"),
+        "{stdout}"
+    );
 }
 
 /// Past `max_restarts` the session fails at once, as with `restart = "never"`.

@@ -5,14 +5,25 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::{Duration, UNIX_EPOCH};
 
-use recording::{Recording, RecordingError};
+use recording::{Recording, RecordingError, SegmentChain};
+
+/// The most segments `inspect` follows (a recorder restarted this often is a broken setup).
+const MAX_SEGMENTS: u32 = 1000;
 
 /// Lists the recording; 0 when it is intact, 1 when it is damaged (what could be read is
 /// listed), an error when it cannot be read at all.
 pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
     // Counts and gaps come from every message; no sample needs to stay in memory.
-    let rec = Recording::open_topics(path, &[])?;
-    let summary = rec.summary();
+    // A session whose recorder was restarted went on in NAME.1.mcap, ...: what no segment
+    // holds between them is the restarts' loss (issue 28).
+    let has_segments =
+        std::fs::symlink_metadata(common::config::session::recording_segment(path, 1)).is_ok();
+    let (summary, chain) = if has_segments {
+        let chain = SegmentChain::open(path, MAX_SEGMENTS)?;
+        (chain.summaries[0].clone(), Some(chain))
+    } else {
+        (Recording::open_topics(path, &[])?.summary(), None)
+    };
     let file_bytes = std::fs::metadata(path).map_or(0, |m| m.len());
     let utc = |ns: u64| launcher::report::rfc3339(UNIX_EPOCH + Duration::from_nanos(ns));
     let (start, end) = match summary.span_unix_ns {
@@ -31,9 +42,37 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                 })
             })
             .collect();
+        let segments: Option<Vec<serde_json::Value>> = chain.as_ref().map(|c| {
+            c.files
+                .iter()
+                .zip(&c.summaries)
+                .enumerate()
+                .map(|(k, (f, s))| {
+                    let missing: serde_json::Map<String, serde_json::Value> = k
+                        .checked_sub(1)
+                        .and_then(|j| c.gaps.get(j))
+                        .into_iter()
+                        .flatten()
+                        .map(|g| {
+                            (
+                                g.topic.name().to_string(),
+                                serde_json::json!({"lost": g.lost(), "from_seq": g.from_seq, "next_seq": g.next_seq}),
+                            )
+                        })
+                        .collect();
+                    serde_json::json!({
+                        "file": f.display().to_string(),
+                        "messages": s.messages,
+                        "complete": s.complete,
+                        "missing_before": missing,
+                    })
+                })
+                .collect()
+        });
         println!(
             "{}",
             serde_json::json!({
+                "segments": segments,
                 "file": path.display().to_string(),
                 "bytes": file_bytes,
                 "start": start,
@@ -93,10 +132,52 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
         if let Some(d) = &summary.damage {
             println!("damage: {d}");
         }
+        if let Some(c) = &chain {
+            print_segments(c);
+        }
     }
     Ok(if summary.complete {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
     })
+}
+
+/// The segments after the file, and what no segment holds between each two.
+fn print_segments(chain: &SegmentChain) {
+    println!(
+        "\nthe recorder was restarted; the recording goes on in {} more segment(s):",
+        chain.files.len() - 1
+    );
+    for (k, (f, s)) in chain.files.iter().zip(&chain.summaries).enumerate().skip(1) {
+        let missing = chain.gaps.get(k - 1).map_or(String::new(), |gaps| {
+            if gaps.is_empty() {
+                "none missing before it".to_string()
+            } else {
+                let each: Vec<String> = gaps
+                    .iter()
+                    .map(|g| {
+                        format!(
+                            "{} {} (seq {} to {})",
+                            g.topic.name(),
+                            g.lost(),
+                            g.from_seq,
+                            g.next_seq - 1
+                        )
+                    })
+                    .collect();
+                format!("in no segment before it: {}", each.join(", "))
+            }
+        });
+        println!(
+            "  {}: {} messages, {}; {missing}",
+            f.display(),
+            s.messages,
+            if s.complete { "complete" } else { "damaged" },
+        );
+    }
+    println!(
+        "(counted from the seqs: the dead recorder's unwritten chunk, at most [recorder] \
+         flush_ms of samples, and those published while none ran)"
+    );
 }

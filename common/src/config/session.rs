@@ -187,6 +187,26 @@ impl Default for RendererSettings {
 pub struct RecorderSettings {
     /// None: the recorder runs (it counts what flows) but writes no file.
     pub file: Option<PathBuf>,
+    /// `flush_ms`: a chunk of the recording is handed to the operating system once it is this
+    /// old (or `chunk_kib` big): a crash of the recorder loses at most this much of each
+    /// topic. Smaller chunks compress less well and cost a write each.
+    pub flush_ms: u64,
+    /// `chunk_kib`: ... or once it holds this many KiB uncompressed.
+    pub chunk_kib: u64,
+}
+
+impl RecorderSettings {
+    pub const DEFAULT_FLUSH_MS: u64 = 500;
+    pub const DEFAULT_CHUNK_KIB: u64 = 1024;
+
+    /// No file, the default chunking.
+    pub fn off() -> RecorderSettings {
+        RecorderSettings {
+            file: None,
+            flush_ms: Self::DEFAULT_FLUSH_MS,
+            chunk_kib: Self::DEFAULT_CHUNK_KIB,
+        }
+    }
 }
 
 /// Where a recorder restarted for the `n`-th time writes (`[supervise]`): segment `n` beside
@@ -598,10 +618,16 @@ fn renderer(r: Option<Reader>) -> Result<RendererSettings, ConfigError> {
 
 fn recorder(r: Option<Reader>, dir: &Path) -> Result<RecorderSettings, ConfigError> {
     let Some(r) = r else {
-        return Ok(RecorderSettings { file: None });
+        return Ok(RecorderSettings::off());
     };
     let s = RecorderSettings {
         file: r.string("file")?.map(|f| dir.join(f)),
+        flush_ms: r.u64_in("flush_ms", RecorderSettings::DEFAULT_FLUSH_MS, 10..=60_000)?,
+        chunk_kib: r.u64_in(
+            "chunk_kib",
+            RecorderSettings::DEFAULT_CHUNK_KIB,
+            16..=65_536,
+        )?,
     };
     r.finish()?;
     Ok(s)
@@ -800,6 +826,19 @@ mod tests {
         let e = Session::load(&f).unwrap_err();
         assert_eq!(e.key, "budjet");
         assert!(e.problem.contains("allowed here: budget"), "{e}");
+
+        // The recorder's flush bound: a stated default, a checked range.
+        let f = write(
+            &d,
+            "s6.toml",
+            "scene = \"scene.toml\"\n[recorder]\nflush_ms = 5\n",
+        );
+        let e = Session::load(&f).unwrap_err();
+        assert_eq!(e.key, "recorder.flush_ms");
+        assert!(e.to_string().contains("allowed: 10 to 60000"), "{e}");
+        let f = write(&d, "s7.toml", "scene = \"scene.toml\"\n[recorder]\n");
+        let r = Session::load(&f).unwrap().recorder;
+        assert_eq!((r.flush_ms, r.chunk_kib), (500, 1024));
         std::fs::remove_dir_all(d).unwrap();
     }
 

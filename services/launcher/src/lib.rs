@@ -415,7 +415,10 @@ fn run_session(
         restarting,
         ..
     } = supervision;
-    let restarts = restarting.restarts;
+    let mut restarts = restarting.restarts;
+    if let Some(rec) = &restarting.recording {
+        count_recording_losses(rec, &mut restarts);
+    }
     drop(procs);
     drop(latency);
     drop(services);
@@ -555,6 +558,38 @@ impl<'a> Starter<'a> {
             exe: self.exe.to_path_buf(),
             reason,
         })
+    }
+}
+
+/// Issue 28: once the session has ended, each recorder restart's loss as its recording
+/// shows it: the seqs that neither the dead recorder's segment nor the next one holds.
+fn count_recording_losses(recording: &Path, restarts: &mut [Restart]) {
+    let last = restarts
+        .iter()
+        .filter(|r| r.stage == Stage::Recorder)
+        .map(|r| r.n)
+        .max();
+    let Some(last) = last else { return };
+    match recording::SegmentChain::open(recording, last + 1) {
+        Ok(chain) => {
+            for r in restarts.iter_mut().filter(|r| r.stage == Stage::Recorder) {
+                r.missing_from_recording = chain
+                    .gaps
+                    .get(r.n as usize - 1)
+                    .map(|g| g.iter().map(|g| (g.topic, g.lost())).collect());
+                if r.missing_from_recording.is_none() {
+                    r.segment_error = Some(format!(
+                        "its segment {} was not written",
+                        common::config::session::recording_segment(recording, r.n).display()
+                    ));
+                }
+            }
+        }
+        Err(e) => {
+            for r in restarts.iter_mut().filter(|r| r.stage == Stage::Recorder) {
+                r.segment_error = Some(e.to_string());
+            }
+        }
     }
 }
 
@@ -810,6 +845,8 @@ impl Supervision<'_> {
                 lost: None,
                 published_at_death,
                 segment,
+                missing_from_recording: None,
+                segment_error: None,
             });
             self.restarting.due.push((i, Instant::now() + wait));
         }

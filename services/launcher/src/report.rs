@@ -279,6 +279,12 @@ pub struct Restart {
     pub published_at_death: Vec<(Topic, u64)>,
     /// The recorder's: the segment the restarted recorder writes.
     pub segment: Option<String>,
+    /// The recorder's, read from the segments once the session ended: per topic, the samples
+    /// that neither the dead recorder's segment nor its restart's holds (its open chunk, and
+    /// what was published while none ran), counted from the seqs. None when not read (no
+    /// recording, or a segment could not be read: `segment_error` says why).
+    pub missing_from_recording: Option<Vec<(Topic, u64)>>,
+    pub segment_error: Option<String>,
 }
 
 impl Restart {
@@ -793,14 +799,21 @@ impl Report {
                 "restarted", "n", "at s", "downtime ms", "exit"
             ));
             for r in &self.restarts {
-                let lost = match &r.lost {
-                    Some(l) if !l.is_empty() => l
+                let lost = match (&r.missing_from_recording, &r.lost) {
+                    // A recorder's loss is what its recording misses.
+                    (Some(m), _) if !m.is_empty() => m
+                        .iter()
+                        .map(|(t, n)| format!("{} {n}", t.name()))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    (Some(_), _) => "-".into(),
+                    (None, Some(l)) if !l.is_empty() => l
                         .iter()
                         .map(|l| format!("{} {}", l.topic.name(), l.lost))
                         .collect::<Vec<_>>()
                         .join(", "),
-                    Some(_) => "-".into(),
-                    None => "? (no report after the restart)".into(),
+                    (None, Some(_)) => "-".into(),
+                    (None, None) => "? (no report after the restart)".into(),
                 };
                 out.push_str(&format!(
                     "{:<12} {:>3} {:>8.2} {:>12}  {:<28} {lost}\n",
@@ -814,11 +827,16 @@ impl Report {
                 if let Some(seg) = &r.segment {
                     out.push_str(&format!("{:<12} recording goes on in {seg}\n", ""));
                 }
+                if let Some(e) = &r.segment_error {
+                    out.push_str(&format!("{:<12} its loss is not counted: {e}\n", ""));
+                }
             }
             out.push_str(
                 "downtime: the exit noticed to the restarted process's first output; lost: \
                  samples published while it was down, never read by it (not counted as \
-                 dropped)\n",
+                 dropped); a recorder's: samples no segment of the recording holds, counted \
+                 from their seqs (its unwritten chunk, at most [recorder] flush_ms of them, \
+                 and those published while it was down)\n",
             );
         }
         for f in &self.failures {
@@ -924,6 +942,12 @@ impl Report {
                     "lost": lost,
                     "read_after_last_report": unreported,
                     "segment": r.segment,
+                    "missing_from_recording": r.missing_from_recording.as_ref().map(|m| {
+                        m.iter()
+                            .map(|(t, n)| (t.name().to_string(), json!(n)))
+                            .collect::<Map<String, Value>>()
+                    }),
+                    "segment_error": r.segment_error,
                 })
             })
             .collect();
@@ -1171,6 +1195,8 @@ mod tests {
             lost: Some(lost),
             published_at_death: Vec::new(),
             segment: None,
+            missing_from_recording: None,
+            segment_error: None,
         };
         assert_eq!(restart.downtime_s(), Some(0.15));
         let mut source = stage(Stage::Acquisition, Metric::Origin, 10, 0);

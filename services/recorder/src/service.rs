@@ -2,8 +2,10 @@
 //! the session's MCAP recording, and reports per topic what it received and the gaps in
 //! sequence numbers (the launcher puts them in the session report).
 //!
-//! A chunk of the recording is handed to the operating system as soon as it closes (every
-//! 1 MiB or 0.5 s), so a crash of any process, this one included, loses at most the open chunk.
+//! A chunk of the recording is handed to the operating system as soon as it closes (at
+//! `[recorder] chunk_kib` or once `flush_ms` old, 1024 KiB and 500 ms by default; checked on
+//! every wake-up, so a quiet topic's samples do not wait for the next), so a crash of any
+//! process, this one included, loses at most the open chunk.
 
 use std::time::Duration;
 
@@ -141,9 +143,14 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
                 ("scene", name(&session.scene_file)),
                 ("source", session.source.kind().to_string()),
             ];
+            let settings = &session.recorder;
             Some(
                 RecordingWriter::create_with(path, &about)
-                    .map_err(|e| format!("cannot record: {e}"))?,
+                    .map_err(|e| format!("cannot record: {e}"))?
+                    .flush_every(
+                        settings.flush_ms * 1_000_000,
+                        (settings.chunk_kib * 1024) as usize,
+                    ),
             )
         }
         None => None,
@@ -166,6 +173,9 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         }
         for channel in &channels {
             channel.drain(&mut log, &mut reporter)?;
+        }
+        if let Some(log) = &mut log {
+            log.close_chunk_if_due(monotonic_ns())?;
         }
         counters.clear();
         counters.extend(channels.iter().map(|c| c.counter()));

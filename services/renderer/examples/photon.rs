@@ -68,7 +68,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             height: h,
             ..RendererSettings::default()
         },
-        recorder: RecorderSettings { file: None },
+        recorder: RecorderSettings::off(),
         budget: Budget {
             frame_hz,
             ..Budget::default()

@@ -42,7 +42,7 @@ fn session() -> Session {
             height: 120,
             ..RendererSettings::default()
         },
-        recorder: RecorderSettings { file: None },
+        recorder: RecorderSettings::off(),
         budget: Budget {
             frame_hz: 60.0,
             ..Budget::default()
