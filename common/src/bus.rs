@@ -26,7 +26,10 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 
+pub use crate::config::session::WaitStrategy;
+use crate::output::open_restart_file;
 use crate::samples::{TopicCounter, MAX_SCENE_BLOCKS};
+pub use crate::stamp::Stamped;
 use crate::stamp::{monotonic_ns, Stamp};
 use crate::topic::{SliceTopicSpec, Topic, TopicSpec, TopicVisitor};
 
@@ -520,13 +523,6 @@ fn leftover_files(dir: &StdPath, prefix: &str) -> Vec<PathBuf> {
         .collect()
 }
 
-/// A sample type that starts with a [`Stamp`]; the topic table ([`crate::topic`]) implements
-/// it for each topic's sample type.
-pub trait Stamped: Copy + std::fmt::Debug + ZeroCopySend + 'static {
-    fn stamp(&self) -> &Stamp;
-    fn stamp_mut(&mut self) -> &mut Stamp;
-}
-
 /// One process's attachment to the session's bus.
 pub struct Bus {
     node: Node<ipc::Service>,
@@ -996,32 +992,6 @@ impl<P: SliceTopicSpec> Wakeable for SliceInlet<P> {
     }
     fn has_samples(&self) -> bool {
         self.subscriber.has_samples().unwrap_or(true)
-    }
-}
-
-/// How a stage waits for its next sample (`[pipeline] wait`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum WaitStrategy {
-    /// Sleep on the inlets' events until one wakes the process (~65 us on a 2-vCPU VM).
-    #[default]
-    Event,
-    /// Poll the inlets always: the ~2 us hop, for a core per stage (each look gives the CPU
-    /// to any other thread ready on it: a stage sharing its CPU does not starve its sender).
-    Spin,
-    /// Sleep on the event until shortly before the next sample is due (the source's period
-    /// and the last arrival are known), poll for a bounded window around it, then sleep on the
-    /// event again (polling as `Spin` does).
-    Adaptive,
-}
-
-impl WaitStrategy {
-    /// Its name as the session key `[pipeline] wait` gives it.
-    pub fn name(self) -> &'static str {
-        match self {
-            WaitStrategy::Event => "event",
-            WaitStrategy::Spin => "spin",
-            WaitStrategy::Adaptive => "adaptive",
-        }
     }
 }
 
@@ -1709,19 +1679,6 @@ impl SeqCount {
 /// call, no lock.
 struct SeqStore {
     words: std::ptr::NonNull<std::sync::atomic::AtomicU64>,
-}
-
-/// Opens (creating it, 0600, keeping what it holds) a file of the session folder that a
-/// process keeps for its restart: a publisher's [`SeqStore`], the stepper's hand log.
-pub(crate) fn open_restart_file(path: &StdPath) -> std::io::Result<std::fs::File> {
-    use std::os::unix::fs::OpenOptionsExt;
-    std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .create(true)
-        .truncate(false)
-        .mode(0o600)
-        .open(path)
 }
 
 /// The bytes a [`SeqStore`] maps.

@@ -10,7 +10,6 @@
 pub mod bus;
 pub mod config;
 pub mod glove;
-pub mod hand_log;
 pub mod latency;
 pub mod output;
 pub mod samples;

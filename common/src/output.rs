@@ -103,6 +103,19 @@ fn sibling(path: &Path, what: &str) -> PathBuf {
     path.with_file_name(format!(".{name}.{what}.{}.{n}", std::process::id()))
 }
 
+/// Opens (creating it, 0600, keeping what it holds) a file of the session folder that a
+/// process keeps for its restart: a publisher's seq store, the stepper's hand log. Not a
+/// user's output: the session folder is private (0700) and removed with the session.
+pub fn open_restart_file(path: &Path) -> io::Result<File> {
+    OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .mode(PRIVATE_MODE)
+        .open(path)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

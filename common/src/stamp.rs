@@ -81,3 +81,11 @@ pub fn sleep_until_ns(deadline_ns: u64) {
         )
     };
 }
+
+/// A sample type that starts with a [`Stamp`]; the topic table ([`crate::topic`]) implements
+/// it for each topic's sample type. Here, below the topics and the bus, so that the layers of
+/// the contract import only downwards: stamp <- samples <- topic <- config <- bus.
+pub trait Stamped: Copy + std::fmt::Debug + iceoryx2::prelude::ZeroCopySend + 'static {
+    fn stamp(&self) -> &Stamp;
+    fn stamp_mut(&mut self) -> &mut Stamp;
+}

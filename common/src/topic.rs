@@ -10,8 +10,8 @@
 //! source's topics ([`Stage::recorded_outputs`]), and the recording's channels
 //! ([`Topic::RECORDED`]: the topics the recorder reads).
 
-use crate::bus::Stamped;
 use crate::samples::*;
+use crate::stamp::Stamped;
 
 /// One topic at the type level: a marker type of [`topics`] names its [`Topic`] and its sample
 /// type, so that ports typed by it cannot carry another topic's samples. Only the table

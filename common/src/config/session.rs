@@ -24,7 +24,7 @@ pub struct Session {
     /// The hand model (`hand_model = "../hand.toml"`); the built-in adult hand when absent.
     pub hand_model: HandModelSpec,
     /// `[pipeline]`: how the pipeline's stages wait for their next sample.
-    pub wait: crate::bus::WaitStrategy,
+    pub wait: WaitStrategy,
     /// `[supervise]`: what the launcher does when a process dies mid-session.
     pub supervise: Supervise,
     /// `[remote]`, `[source] kind = "remote"` and `[viewer]`: what the bridge process forwards
@@ -178,6 +178,33 @@ impl Default for RendererSettings {
             shadows: true,
             frames_every: 1,
             own_cpus: true,
+        }
+    }
+}
+
+/// How a stage waits for its next sample (`[pipeline] wait`); [`crate::bus::Waiter`] waits
+/// by it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WaitStrategy {
+    /// Sleep on the inlets' events until one wakes the process (~65 us on a 2-vCPU VM).
+    #[default]
+    Event,
+    /// Poll the inlets always: the ~2 us hop, for a core per stage (each look gives the CPU
+    /// to any other thread ready on it: a stage sharing its CPU does not starve its sender).
+    Spin,
+    /// Sleep on the event until shortly before the next sample is due (the source's period
+    /// and the last arrival are known), poll for a bounded window around it, then sleep on the
+    /// event again (polling as `Spin` does).
+    Adaptive,
+}
+
+impl WaitStrategy {
+    /// Its name as the session key `[pipeline] wait` gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            WaitStrategy::Event => "event",
+            WaitStrategy::Spin => "spin",
+            WaitStrategy::Adaptive => "adaptive",
         }
     }
 }
@@ -449,8 +476,7 @@ impl Session {
 /// `[pipeline] wait`: "event" (sleep until woken, the default), "spin" (poll always, for
 /// machines with cores to spare) or "adaptive" (sleep until shortly before the next sample is
 /// due, then poll a bounded window, then sleep on the event).
-fn pipeline(r: Option<Reader>) -> Result<crate::bus::WaitStrategy, ConfigError> {
-    use crate::bus::WaitStrategy;
+fn pipeline(r: Option<Reader>) -> Result<WaitStrategy, ConfigError> {
     let Some(r) = r else {
         return Ok(WaitStrategy::default());
     };
@@ -715,7 +741,6 @@ mod tests {
     /// names the key and the choices.
     #[test]
     fn pipeline_wait_is_event_spin_or_adaptive() {
-        use crate::bus::WaitStrategy;
         let d = tmpdir("wait");
         write(&d, "scene.toml", SCENE);
         let load = |text: &str| Session::load(&write(&d, "w.toml", text));

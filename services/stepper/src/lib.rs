@@ -33,6 +33,7 @@ pub mod floor;
 pub mod geometry;
 pub(crate) mod grid;
 pub mod hand;
+pub mod hand_log;
 pub mod hard_cases;
 pub mod interference;
 pub mod model;

@@ -23,12 +23,12 @@
 
 use std::time::Duration;
 
+use crate::hand_log::HandLog;
 use crate::model::Model;
 use crate::timeline::Timeline;
 use common::bus::Bus;
 use common::bus::{WaitStrategy, Waiter};
 use common::config::Session;
-use common::hand_log::HandLog;
 use common::latency::Reporter;
 use common::{monotonic_ns, shutdown, topics, HandSample, Stage, Stamp};
 

@@ -14,8 +14,8 @@ use std::path::Path;
 use std::ptr::NonNull;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::samples::{HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
-use crate::stamp::Stamp;
+use common::samples::{HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
+use common::stamp::Stamp;
 
 /// The bytes of one sample in the log: its memory, which has no padding (checked here), so
 /// every byte copied is initialised.
@@ -49,7 +49,7 @@ impl HandLog {
     /// whose copy a kill cut short is not counted (the count is stored after the copy).
     pub fn open(path: &Path) -> Result<(HandLog, Vec<HandSample>), String> {
         let what = |e: std::io::Error| format!("the stepper's hand log {}: {e}", path.display());
-        let file = crate::bus::open_restart_file(path).map_err(what)?;
+        let file = common::output::open_restart_file(path).map_err(what)?;
         let size = file.metadata().map_err(what)?.len() as usize;
         let mut log = HandLog {
             file,
