@@ -1,0 +1,428 @@
+//! A session's resources: its /dev/shm prefix and its private folder, and removing what a
+//! dead session left.
+
+use super::*;
+
+/// Where one session's iceoryx2 resources live.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BusConfig {
+    /// The session id: letters, digits, `_` and `-`.
+    pub id: String,
+    /// Prefix of every file in /dev/shm (`hb_<id>_`).
+    pub prefix: String,
+    /// iceoryx2's root directory for this session (service and node bookkeeping).
+    pub root: PathBuf,
+    /// The most blocks one `world` sample carries: the session's scene's block count. It sizes
+    /// the world topic (each sample's memory, the subscribers' buffer depth), so every process
+    /// of a session must open the bus with the same value ([`BusConfig::with_world_blocks`]).
+    pub world_blocks: usize,
+    /// Every data topic without loss (a speed-0 replay, which promises every sample to every
+    /// reader): a publisher whose reader's buffer is full waits for it instead of overwriting
+    /// its oldest sample (iceoryx2's safe overflow off, back-pressure "retry until
+    /// delivered"). Live sessions keep safe overflow: a slow reader loses its oldest sample
+    /// rather than stalling the pipeline. The `latency` topic is never lossless. Every process
+    /// of a session must open the bus with the same value (services are created with it).
+    pub lossless: bool,
+}
+
+/// The longest Unix socket path (`sun_path` holds 108 bytes with its NUL).
+const MAX_SOCKET_PATH: usize = 107;
+/// What iceoryx2 0.10 puts after root + prefix in its longest socket path: a decimal u128 id
+/// (up to 39 digits) and `.event`.
+const SOCKET_NAME_TAIL: usize = 39 + ".event".len();
+/// The longest session key in file names (a longer id is hashed down to this).
+const MAX_KEY: usize = 12;
+
+impl BusConfig {
+    /// The resources of session `id`: prefix `hb_<key>_`, root `<base>/<key>/`, where `key` is
+    /// the id itself up to 12 characters, else `h` and 11 hex digits of its hash, and `base`
+    /// is `$TMPDIR/hb-iox2-<uid>` (this user's own folder, mode 0700), or `/tmp/hb-iox2-<uid>`
+    /// where `$TMPDIR` is too long. iceoryx2's event sockets live in the root with the prefix
+    /// in their names, and a Unix socket's path holds at most 107 bytes: root and prefix may
+    /// take at most 62 of them whatever the id and `$TMPDIR` (issue 16: an id of 44
+    /// characters the validator accepted broke every launch).
+    pub fn for_session(id: &str) -> Result<BusConfig, BusError> {
+        BusConfig::for_session_in(id, &std::env::temp_dir())
+    }
+
+    /// [`BusConfig::for_session`] with `tmp` for `$TMPDIR`.
+    pub fn for_session_in(id: &str, tmp: &StdPath) -> Result<BusConfig, BusError> {
+        if id.is_empty()
+            || id.len() > 48
+            || !id
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        {
+            return Err(BusError::Config(format!(
+                "session id {id:?} must be 1 to 48 letters, digits, `_` or `-`"
+            )));
+        }
+        let key = if id.len() <= MAX_KEY {
+            id.to_string()
+        } else {
+            // FNV-1a: stable across builds and platforms, unlike std's hasher.
+            let hash = id.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+                (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+            });
+            format!("h{:011x}", hash & 0xfff_ffff_ffff)
+        };
+        let prefix = format!("hb_{key}_");
+        let fits = |base: &StdPath| {
+            base.as_os_str().len() + 1 + key.len() + 1 + prefix.len() + SOCKET_NAME_TAIL
+                <= MAX_SOCKET_PATH
+        };
+        let base = [base_dir(tmp), base_dir(StdPath::new("/tmp"))]
+            .into_iter()
+            .find(|b| fits(b))
+            .ok_or_else(|| {
+                BusError::Config(format!(
+                    "no folder for the session's sockets: {} is too long for a Unix socket \
+                     path (at most {} bytes); set TMPDIR to a shorter folder",
+                    base_dir(tmp).display(),
+                    MAX_SOCKET_PATH - SOCKET_NAME_TAIL - prefix.len() - key.len() - 2
+                ))
+            })?;
+        Ok(BusConfig {
+            id: id.to_string(),
+            root: base.join(&key),
+            prefix,
+            world_blocks: DEFAULT_WORLD_BLOCKS,
+            lossless: false,
+        })
+    }
+
+    /// The session whose root folder is named `key` (as [`BusConfig::for_session`] names it).
+    fn for_key(key: &str) -> Option<BusConfig> {
+        (key.len() <= MAX_KEY)
+            .then(|| BusConfig::for_session(key).ok())
+            .flatten()
+    }
+
+    /// The same session with world samples of `blocks` blocks (its scene's count; 1 to
+    /// [`MAX_SCENE_BLOCKS`]).
+    pub fn with_world_blocks(mut self, blocks: usize) -> Result<BusConfig, BusError> {
+        if blocks == 0 || blocks > MAX_SCENE_BLOCKS {
+            return Err(BusError::Config(format!(
+                "world samples of {blocks} blocks: allowed 1 to {MAX_SCENE_BLOCKS}"
+            )));
+        }
+        self.world_blocks = blocks;
+        Ok(self)
+    }
+
+    /// The bus of session `id` as every process of `session` opens it: world samples sized
+    /// from its scene, lossless for a speed-0 replay (which promises every sample to every
+    /// reader, as fast as the slowest takes them).
+    pub fn for_session_of(
+        id: &str,
+        session: &crate::config::Session,
+    ) -> Result<BusConfig, BusError> {
+        let lossless = matches!(
+            session.source,
+            crate::config::session::Source::Replay { speed, .. } if speed == 0.0
+        );
+        Ok(BusConfig::for_session(id)?
+            .with_world_blocks(session.scene.blocks.len().max(1))?
+            .with_lossless(lossless))
+    }
+
+    /// The same session, lossless or not (see [`BusConfig::lossless`]).
+    pub fn with_lossless(mut self, lossless: bool) -> BusConfig {
+        self.lossless = lossless;
+        self
+    }
+
+    /// A fresh id for a new session: unique per process and moment.
+    pub fn fresh_id() -> String {
+        format!("s{}_{:x}", std::process::id(), monotonic_ns() & 0xffff_ffff)
+    }
+
+    /// The iceoryx2 configuration for this session.
+    pub fn iceoryx(&self) -> Result<Config, BusError> {
+        let mut config = Config::default();
+        let mut root = self.root.to_string_lossy().into_owned();
+        if !root.ends_with('/') {
+            root.push('/');
+        }
+        let root = iceoryx2::prelude::Path::new(root.as_bytes())
+            .map_err(|e| BusError::Config(format!("root path {root:?}: {e:?}")))?;
+        config.global.set_root_path(&root);
+        config.global.prefix = FileName::new(self.prefix.as_bytes())
+            .map_err(|e| BusError::Config(format!("prefix {:?}: {e:?}", self.prefix)))?;
+        Ok(config)
+    }
+
+    /// True while some process of this session still runs (an iceoryx2 node of it is alive,
+    /// or cannot be judged).
+    pub fn has_live_processes(&self) -> bool {
+        let Ok(config) = self.iceoryx() else {
+            return false;
+        };
+        let mut live = false;
+        let listed = Node::<ipc::Service>::list(&config, |state| {
+            if matches!(state, NodeState::Alive(_) | NodeState::Inaccessible(_)) {
+                live = true;
+                return CallbackProgression::Stop;
+            }
+            CallbackProgression::Continue
+        });
+        // If the node list cannot be read, assume the worst and leave the session alone.
+        live || listed.is_err()
+    }
+
+    /// Removes what sessions of other launchers left behind when those launchers were killed
+    /// (SIGKILL leaves no chance to clean up), whatever their bus ids: every session folder of
+    /// this user's whose processes are all gone and whose launcher is gone too (the pid and
+    /// start time it recorded, [`BusConfig::claim_as_launcher`], name no running process), or,
+    /// for a folder with no such record, that has been untouched for [`ABANDONED_AFTER`].
+    /// Their processes notice the launcher's death themselves (their stdin pipe closes) and
+    /// exit. A folder or /dev/shm file another user owns is never removed (also as root): it
+    /// is named and left. Returns one line per session: what was removed, or left and why.
+    pub fn sweep_abandoned() -> Vec<String> {
+        let mut said = Vec::new();
+        let bases = [
+            base_dir(&std::env::temp_dir()),
+            base_dir(StdPath::new("/tmp")),
+        ];
+        let entries = bases
+            .iter()
+            .take(if bases[0] == bases[1] { 1 } else { 2 })
+            .filter_map(|b| std::fs::read_dir(b).ok())
+            .flat_map(|e| e.flatten());
+        for entry in entries {
+            let id = entry.file_name().to_string_lossy().into_owned();
+            let Some(session) = BusConfig::for_key(&id) else {
+                continue;
+            };
+            if session.root != entry.path() {
+                continue;
+            }
+            let abandoned = match session.launcher_gone() {
+                Some(gone) => gone,
+                None => {
+                    // No launcher record (a session being set up right now has its folder
+                    // before it): only folders untouched for a while can be abandoned.
+                    let age = entry
+                        .metadata()
+                        .and_then(|m| m.modified())
+                        .ok()
+                        .and_then(|t| t.elapsed().ok());
+                    age.is_some_and(|a| a >= ABANDONED_AFTER)
+                }
+            };
+            if !abandoned || session.has_live_processes() {
+                continue;
+            }
+            let shm = session.leftover_shm_files().len();
+            match session.remove_resources() {
+                Ok(_) => said.push(format!(
+                    "removed abandoned session {id} (its launcher and processes are gone): \
+                     {shm} file(s) of prefix {} in /dev/shm and its folder {}",
+                    session.prefix,
+                    session.root.display()
+                )),
+                Err(e) => said.push(format!("left abandoned session {id} alone: {e}")),
+            }
+        }
+        said
+    }
+
+    /// Records this process as the launcher of the session, in the session's folder (created
+    /// private, 0700): its pid and its start time, so that a sweep by another launcher
+    /// ([`BusConfig::sweep_abandoned`]) knows at once when this one was killed, and a pid
+    /// reused by another process is not taken for it.
+    pub fn claim_as_launcher(&self) -> Result<(), BusError> {
+        if let Some(base) = self.root.parent() {
+            make_private_dir(base)?;
+        }
+        make_private_dir(&self.root)?;
+        let pid = std::process::id();
+        let started = process_start_ticks(pid).unwrap_or(0);
+        let file = self.root.join(LAUNCHER_FILE);
+        std::fs::write(&file, format!("{pid} {started}\n"))
+            .map_err(|e| BusError::Config(format!("cannot write {}: {e}", file.display())))
+    }
+
+    /// Whether the launcher the session's folder names is gone: Some(true) when no process
+    /// of that pid and start time runs, Some(false) when it does, None without a record.
+    fn launcher_gone(&self) -> Option<bool> {
+        let text = std::fs::read_to_string(self.root.join(LAUNCHER_FILE)).ok()?;
+        let mut words = text.split_whitespace().map(|w| w.parse::<u64>().ok());
+        let (Some(Some(pid)), Some(Some(started))) = (words.next(), words.next()) else {
+            return None;
+        };
+        let pid = u32::try_from(pid).ok()?;
+        Some(process_start_ticks(pid).is_none_or(|now| now != started))
+    }
+
+    /// How many samples of `topic` its supervised publishers have sent so far: the largest
+    /// next seq they keep in the session's folder ([`Bus::supervised`]); None when no
+    /// supervised publisher of it has sent. The launcher reads it when a reader dies, to tell
+    /// the samples published while it was down from those it read before it died.
+    pub fn published_count(&self, topic: Topic) -> Option<u64> {
+        let tail = format!(".{}", topic.name());
+        std::fs::read_dir(&self.root)
+            .ok()?
+            .flatten()
+            .filter(|e| {
+                let name = e.file_name().to_string_lossy().into_owned();
+                name.starts_with("seq.") && name.ends_with(&tail)
+            })
+            .filter_map(|e| {
+                let bytes = std::fs::read(e.path()).ok()?;
+                Some(u64::from_ne_bytes(bytes.get(..8)?.try_into().ok()?))
+            })
+            .max()
+    }
+
+    /// Files of this session still in /dev/shm.
+    pub fn leftover_shm_files(&self) -> Vec<PathBuf> {
+        leftover_files(StdPath::new("/dev/shm"), &self.prefix)
+    }
+
+    /// Removes what this session's iceoryx2 nodes leave behind once every one of them has
+    /// exited: files of its prefix in /dev/shm and its root directory. Call it only when no
+    /// process of the session lives (iceoryx2 0.10 keeps one management file per prefix).
+    /// Returns how many entries were removed.
+    pub fn remove_resources(&self) -> std::io::Result<usize> {
+        // Another user's file or folder is refused, never deleted (as root too, which the
+        // file system would let delete anything): nothing is removed then.
+        let shm = self.leftover_shm_files();
+        for f in shm.iter().chain(std::iter::once(&self.root)) {
+            refuse_foreign(f)?;
+        }
+        let mut removed = 0;
+        for f in self.leftover_shm_files() {
+            std::fs::remove_file(&f)?;
+            removed += 1;
+        }
+        if self.root.exists() {
+            std::fs::remove_dir_all(&self.root)?;
+            removed += 1;
+        }
+        // The shared parent folder goes too once the last session has left it.
+        if let Some(parent) = self.root.parent() {
+            let _ = std::fs::remove_dir(parent);
+        }
+        Ok(removed)
+    }
+}
+
+/// The file in a session's folder naming its launcher ([`BusConfig::claim_as_launcher`]).
+const LAUNCHER_FILE: &str = "launcher";
+
+/// When process `pid` started (clock ticks after boot, /proc/PID/stat's 22nd field): with the
+/// pid, which the kernel reuses, it names one process. None when no such process runs.
+fn process_start_ticks(pid: u32) -> Option<u64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // The command name (field 2) is in parentheses and may hold spaces: count after it.
+    let rest = &stat[stat.rfind(')')? + 1..];
+    rest.split_whitespace().nth(19)?.parse().ok()
+}
+
+/// An error naming `path` when it exists and another user owns it.
+fn refuse_foreign(path: &StdPath) -> std::io::Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: as in base_dir.
+    let uid = unsafe { libc::getuid() };
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.uid() != uid => Err(std::io::Error::new(
+            std::io::ErrorKind::PermissionDenied,
+            format!(
+                "{} belongs to uid {}, not this user (uid {uid}): refusing to remove it; \
+                 its owner can, or choose another --bus-id",
+                path.display(),
+                m.uid()
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// This user's folder of session roots under `tmp`.
+fn base_dir(tmp: &StdPath) -> PathBuf {
+    // SAFETY: getuid has no preconditions and cannot fail.
+    let uid = unsafe { libc::getuid() };
+    tmp.join(format!("hb-iox2-{uid}"))
+}
+
+/// Issue 16, private shared memory: the session's root folder (and this user's folder above
+/// it) is 0700 and this user's, so another local user can neither read the hand nor inject
+/// samples through the session's sockets and bookkeeping; a folder someone else owns, or that
+/// others may enter, is refused rather than used.
+pub(super) fn make_private_dir(dir: &StdPath) -> Result<(), BusError> {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+    match std::fs::DirBuilder::new().mode(0o700).create(dir) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+        Err(e) => {
+            return Err(BusError::Config(format!(
+                "cannot create the session folder {}: {e}",
+                dir.display()
+            )))
+        }
+    }
+    let meta = std::fs::symlink_metadata(dir).map_err(|e| {
+        BusError::Config(format!(
+            "cannot read the session folder {}: {e}",
+            dir.display()
+        ))
+    })?;
+    // SAFETY: as in base_dir.
+    let uid = unsafe { libc::getuid() };
+    if !meta.is_dir() || meta.uid() != uid {
+        return Err(BusError::Config(format!(
+            "{} is not a folder of this user's (uid {uid}; it belongs to uid {}): refusing to \
+             attach a session to resources it does not own; remove it or set TMPDIR elsewhere",
+            dir.display(),
+            meta.uid()
+        )));
+    }
+    // Exactly 0700: open to others is not private, and without the owner's x (a 0600 folder
+    // was seen once in a test run) a user other than root could not use it.
+    if meta.mode() & 0o777 != 0o700 {
+        std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700)).map_err(|e| {
+            BusError::Config(format!("cannot make {} private (0700): {e}", dir.display()))
+        })?;
+    }
+    Ok(())
+}
+
+/// Makes this session's files in /dev/shm this user's alone (0600): iceoryx2 creates its
+/// per-prefix management segment readable and writable by everyone. A file of the prefix
+/// that another user owns is refused.
+pub(super) fn make_shm_private(prefix: &str) -> Result<(), BusError> {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    // SAFETY: as in base_dir.
+    let uid = unsafe { libc::getuid() };
+    for f in leftover_files(StdPath::new("/dev/shm"), prefix) {
+        let Ok(meta) = std::fs::symlink_metadata(&f) else {
+            continue; // removed meanwhile
+        };
+        if meta.uid() != uid {
+            return Err(BusError::Config(format!(
+                "{} belongs to uid {}, not this user (uid {uid}): refusing to attach a session \
+                 to shared memory it does not own; choose another --bus-id",
+                f.display(),
+                meta.uid()
+            )));
+        }
+        if meta.mode() & 0o077 != 0 {
+            std::fs::set_permissions(&f, std::fs::Permissions::from_mode(0o600)).map_err(|e| {
+                BusError::Config(format!("cannot make {} private (0600): {e}", f.display()))
+            })?;
+        }
+    }
+    Ok(())
+}
+
+fn leftover_files(dir: &StdPath, prefix: &str) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    entries
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(prefix))
+        .map(|e| e.path())
+        .collect()
+}

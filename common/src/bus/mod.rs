@@ -1,0 +1,624 @@
+//! The bus: iceoryx2 publish-subscribe services, each paired with an event service of the same
+//! name, under a prefix and root path of the session's own.
+//!
+//! * [`BusConfig`] isolates one session (or one test) from every other: its own file prefix in
+//!   /dev/shm and its own root directory for iceoryx2's bookkeeping, removed by
+//!   [`BusConfig::remove_resources`] when the session ends.
+//! * [`Bus`] is one process's node. [`Bus::outlet`] gives an [`Outlet`] (publisher + notifier)
+//!   that stamps `seq` and `publish_ns` and counts what it sent; [`Bus::inlet`] gives an
+//!   [`Inlet`] (subscriber + listener) that counts what it received and the sequence gaps.
+//!   Both are typed by a topic's marker ([`crate::topics`]), which fixes their sample type: a
+//!   port cannot be opened with another topic's samples.
+//! * Service limits (subscribers, publishers, buffer depth) are fixed when a service is
+//!   created, so [`Bus::create_services`] creates every topic of the table
+//!   ([`crate::topic`]) with its sizing before any process attaches; every later open must
+//!   agree.
+//!
+//! By concept: `folder` (a session's /dev/shm prefix and private folder, and sweeping what a
+//! dead session left), this module (the node, the services, opening ports), `ports` (what an
+//! outlet and an inlet do per sample) and `wait` (sleeping on inlets, polling, the adaptive
+//! waiter).
+
+use std::cell::Cell;
+use std::fmt;
+use std::path::{Path as StdPath, PathBuf};
+use std::time::Duration;
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::sample::Sample;
+
+pub use crate::config::session::WaitStrategy;
+use crate::output::open_restart_file;
+use crate::samples::{TopicCounter, MAX_SCENE_BLOCKS};
+pub use crate::stamp::Stamped;
+use crate::stamp::{monotonic_ns, Stamp};
+use crate::topic::{SliceTopicSpec, Topic, TopicSpec, TopicVisitor};
+
+mod folder;
+mod ports;
+mod wait;
+
+pub use folder::BusConfig;
+use folder::*;
+use ports::*;
+pub use ports::{Inlet, Outlet, SliceInlet, SliceOutlet};
+use wait::*;
+pub use wait::{wait_any, wait_any_or, WaitOutcome, WaitRecord, Waiter, Wakeable, MAX_WAIT};
+
+/// A sample read from an [`Inlet`].
+pub type Received<T> = Sample<ipc::Service, T, ()>;
+/// A sample read from a [`SliceInlet`]: its header is iceoryx2's user header
+/// (`user_header()`), its elements the payload (`payload()`).
+pub type ReceivedSlice<P> =
+    Sample<ipc::Service, [<P as SliceTopicSpec>::Element], <P as SliceTopicSpec>::Header>;
+
+/// Most processes that attach to one topic (a recorder, a monitor and the `iox2` tool included).
+const MAX_SUBSCRIBERS: usize = 4;
+const MAX_NODES: usize = 16;
+/// How long a session folder must be untouched before a launcher may judge it abandoned.
+const ABANDONED_AFTER: Duration = Duration::from_secs(10);
+/// Blocks a world sample holds when a session does not say ([`BusConfig::world_blocks`]).
+pub const DEFAULT_WORLD_BLOCKS: usize = 128;
+/// Bytes of unread samples one subscriber of a slice topic may hold: its buffer depth is this
+/// over the sample size (at most the table's depth, at least [`MIN_SLICE_BUFFER`]). iceoryx2
+/// zeroes a publisher's whole data segment when it creates it, and that segment holds every
+/// subscriber's buffer, so a 4096-block world at the table's 1024 samples per subscriber would
+/// pin 1 GiB of /dev/shm; at 16 MiB it pins about 64 MiB (a 128-block world keeps all 1024).
+pub const SLICE_BUFFER_BYTES: usize = 16 << 20;
+/// The shallowest buffer a slice topic gets: 64 samples, half a second at 120 Hz.
+pub const MIN_SLICE_BUFFER: usize = 64;
+
+/// Something went wrong on the bus; each variant says which operation and which topic.
+#[derive(Debug)]
+pub enum BusError {
+    /// The session's prefix or root path is not usable by iceoryx2.
+    Config(String),
+    /// This process's node could not be created.
+    Node(String),
+    /// A service could not be created or opened (e.g. another build with a different sample
+    /// layout is attached: `IncompatibleTypes`).
+    Service { topic: &'static str, reason: String },
+    /// A publisher, subscriber, notifier or listener could not be created.
+    Port { topic: &'static str, reason: String },
+    /// A sample could not be loaned or sent.
+    Send { topic: &'static str, reason: String },
+    /// A sample could not be received.
+    Receive { topic: &'static str, reason: String },
+    /// Waiting for samples failed.
+    Wait(String),
+}
+
+impl fmt::Display for BusError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BusError::Config(r) => write!(f, "bus configuration: {r}"),
+            BusError::Node(r) => write!(f, "cannot create the iceoryx2 node: {r}"),
+            BusError::Service { topic, reason } => write!(
+                f,
+                "cannot open the `{topic}` service: {reason} (a process of another build may be attached; stop it or use another session id)"
+            ),
+            BusError::Port { topic, reason } => {
+                write!(f, "cannot attach to the `{topic}` service: {reason}")
+            }
+            BusError::Send { topic, reason } => write!(f, "cannot send on `{topic}`: {reason}"),
+            BusError::Receive { topic, reason } => {
+                write!(f, "cannot receive on `{topic}`: {reason}")
+            }
+            BusError::Wait(r) => write!(f, "waiting for samples failed: {r}"),
+        }
+    }
+}
+
+impl std::error::Error for BusError {}
+
+/// One process's attachment to the session's bus.
+pub struct Bus {
+    node: Node<ipc::Service>,
+    /// Elements a slice topic's sample holds at most ([`BusConfig::world_blocks`]).
+    slice_capacity: usize,
+    /// [`BusConfig::lossless`].
+    lossless: bool,
+    /// The session's folder ([`BusConfig::root`]).
+    root: PathBuf,
+    /// This node's name, which names its outlets' seq files.
+    node_name: String,
+    /// Set by [`Bus::supervised`]: this process may be restarted by the launcher.
+    supervised: Option<Supervised>,
+}
+
+/// What a stage the launcher may restart does differently ([`Bus::supervised`]).
+#[derive(Debug, Clone, Copy)]
+struct Supervised {
+    /// 0 for the first start, n for the n-th restart.
+    restart: u32,
+}
+
+impl Bus {
+    /// Creates this process's node, named e.g. after its stage.
+    pub fn open(config: &BusConfig, node_name: &str) -> Result<Bus, BusError> {
+        // Twice: another session that ends may remove this user's (empty) folder between the
+        // two creations.
+        let dirs = || -> Result<(), BusError> {
+            if let Some(base) = config.root.parent() {
+                make_private_dir(base)?;
+            }
+            make_private_dir(&config.root)
+        };
+        dirs().or_else(|_| dirs())?;
+        make_shm_private(&config.prefix)?;
+        let iox = config.iceoryx()?;
+        let name = NodeName::new(node_name).map_err(|e| BusError::Node(format!("{e:?}")))?;
+        let node = NodeBuilder::new()
+            .name(&name)
+            .config(&iox)
+            // Processes handle SIGINT/SIGTERM themselves (crate::shutdown), so that a stage can
+            // finish its final report before it exits.
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| BusError::Node(format!("{e:?}")))?;
+        // The node made the prefix's management segment (world-writable): make it private.
+        make_shm_private(&config.prefix)?;
+        Ok(Bus {
+            node,
+            slice_capacity: config.world_blocks,
+            lossless: config.lossless,
+            root: config.root.clone(),
+            node_name: node_name.to_string(),
+            supervised: None,
+        })
+    }
+
+    /// Issue 16, supervision: this process is a stage the launcher restarts when it dies
+    /// (`[supervise] restart = "on-failure"`); `restart` is 0 for its first start, n for its
+    /// n-th restart. Then
+    /// * every outlet keeps its next `seq` in a file of the session's folder, mapped into
+    ///   memory (a store per sample, no system call), so a restarted publisher goes on from
+    ///   where the dead one stopped: seq stays monotonic for every reader;
+    /// * on a restart, every inlet counts gaps from its first sample, not from seq 0: the
+    ///   samples before it were the dead process's to count (the launcher adds the two
+    ///   incarnations' counts and attributes the samples between them to the restart).
+    pub fn supervised(mut self, restart: u32) -> Bus {
+        self.supervised = Some(Supervised { restart });
+        self
+    }
+
+    /// The n-th restart this process is (0: its first start, or not supervised).
+    pub fn restart(&self) -> u32 {
+        self.supervised.map_or(0, |s| s.restart)
+    }
+
+    /// True when the launcher may restart this process ([`Bus::supervised`]).
+    pub fn is_supervised(&self) -> bool {
+        self.supervised.is_some()
+    }
+
+    /// The session's folder: private to this user, removed when the session ends. What a
+    /// restarted stage needs of its dead incarnation lives here.
+    pub fn session_folder(&self) -> &StdPath {
+        &self.root
+    }
+
+    /// The session's epoch for `name` (a source's timeline): CLOCK_MONOTONIC when it first
+    /// asked, kept in the session folder, so that a restarted source goes on on the same
+    /// timeline (its deadlines, its source times). Returns the epoch and whether it was kept
+    /// from an earlier incarnation. Unsupervised, it is simply now.
+    pub fn session_epoch_ns(&self, name: &str) -> (u64, bool) {
+        let now = monotonic_ns();
+        if self.supervised.is_none() {
+            return (now, false);
+        }
+        let path = self.root.join(format!("epoch.{name}"));
+        if let Some(kept) = std::fs::read_to_string(&path)
+            .ok()
+            .and_then(|t| t.trim().parse::<u64>().ok())
+        {
+            return (kept, true);
+        }
+        // Written whole by rename, so a process killed while writing leaves no half number.
+        let tmp = self.root.join(format!("epoch.{name}.tmp"));
+        if std::fs::write(&tmp, now.to_string())
+            .and_then(|()| std::fs::rename(&tmp, &path))
+            .is_err()
+        {
+            eprintln!(
+                "handblocks: cannot keep the epoch of {name} in {}: a restart of it will start \
+                 its timeline anew",
+                self.root.display()
+            );
+        }
+        (now, false)
+    }
+
+    /// Removes what processes of this session that died (SIGKILL, a crash) left on the bus:
+    /// their nodes, their ports in every service, their shared memory (iceoryx2's dead-node
+    /// cleanup). The dead processes must have been reaped. Returns the nodes removed and those
+    /// that could not be.
+    pub fn cleanup_dead_nodes(&self) -> (u64, u64) {
+        let state = self.node.try_cleanup_dead_nodes();
+        (state.cleanups, state.failed_cleanups)
+    }
+
+    /// Where this node keeps `topic`'s next seq, when it is supervised.
+    fn seq_store(&self, topic: Topic) -> Result<Option<SeqStore>, BusError> {
+        if self.supervised.is_none() {
+            return Ok(None);
+        }
+        let path = self
+            .root
+            .join(format!("seq.{}.{}", self.node_name, topic.name()));
+        SeqStore::open(&path).map(Some).map_err(|e| BusError::Port {
+            topic: topic.name(),
+            reason: format!("cannot keep its seq in {}: {e}", path.display()),
+        })
+    }
+
+    /// A fresh count of received samples of `topic`: on a restart, gaps count from the first
+    /// sample; on a lossless bus, the first sample marks the inlet connected ([`ConnectGate`]).
+    fn seq_count(&self, topic: Topic) -> SeqCount {
+        let connected_mark = self.is_lossless(topic).then(|| {
+            static INLETS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+            let n = INLETS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            self.root.join(format!(
+                "{CONNECTED_MARK}{}.{}.{}.{n}",
+                topic.name(),
+                self.node_name,
+                std::process::id()
+            ))
+        });
+        SeqCount {
+            from_first: self.restart() > 0,
+            connected_mark: Cell::new(connected_mark),
+            ..SeqCount::default()
+        }
+    }
+
+    /// On a lossless bus, what an outlet of `topic` waits for before it may fill a reader's
+    /// buffer ([`ConnectGate`]); None elsewhere.
+    fn connect_gate(
+        &self,
+        topic: Topic,
+        buffer: usize,
+        subscribers: impl Fn() -> usize + 'static,
+    ) -> Option<ConnectGate> {
+        self.is_lossless(topic).then(|| ConnectGate {
+            topic,
+            root: self.root.clone(),
+            free: (buffer as u64 / 2).max(1),
+            sent: 0,
+            subscribers: Box::new(subscribers),
+        })
+    }
+
+    /// True when `topic` waits for its slowest reader on this bus ([`BusConfig::lossless`]).
+    fn is_lossless(&self, topic: Topic) -> bool {
+        self.lossless && topic != Topic::Latency
+    }
+
+    /// The most elements a sample of a slice topic carries on this bus.
+    pub fn slice_capacity(&self) -> usize {
+        self.slice_capacity
+    }
+
+    /// Creates every topic of the session with its fixed sizing. The launcher calls this once
+    /// before it starts any process, and keeps the returned handles until the session ends.
+    pub fn create_services(&self) -> Result<Services, BusError> {
+        /// Creates each topic's service with its sample type, in table order.
+        struct Create<'b> {
+            bus: &'b Bus,
+            pubsub: Vec<Box<dyn AttachedPorts>>,
+        }
+        impl TopicVisitor for Create<'_> {
+            type Error = BusError;
+            fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
+                let service = self.bus.pubsub::<P>()?;
+                self.pubsub.push(Box::new(service));
+                Ok(())
+            }
+            fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
+                let service = self.bus.slice_pubsub::<P>()?;
+                self.pubsub.push(Box::new(SliceService::<P>(service)));
+                Ok(())
+            }
+        }
+        let mut create = Create {
+            bus: self,
+            pubsub: Vec::with_capacity(Topic::ALL.len()),
+        };
+        Topic::visit_each(&mut create)?;
+        Ok(Services {
+            pubsub: create.pubsub,
+            _events: Topic::ALL
+                .iter()
+                .map(|t| self.event(*t))
+                .collect::<Result<_, _>>()?,
+        })
+    }
+
+    /// Opens (or creates) topic `P`'s service, with its sample type and its row's sizing.
+    fn pubsub<P: TopicSpec>(&self) -> Result<PubSub<P::Sample>, BusError> {
+        let topic = P::TOPIC;
+        let name = service_name(topic)?;
+        self.node
+            .service_builder(&name)
+            .publish_subscribe::<P::Sample>()
+            .max_publishers(topic.max_publishers())
+            .max_subscribers(MAX_SUBSCRIBERS)
+            .max_nodes(MAX_NODES)
+            .subscriber_max_buffer_size(topic.subscriber_buffer())
+            .subscriber_max_borrowed_samples(4)
+            .history_size(0)
+            // A slow reader loses its oldest unread sample instead of stalling the publisher,
+            // but on a lossless bus (a speed-0 replay).
+            .enable_safe_overflow(!self.is_lossless(topic))
+            .open_or_create()
+            .map_err(|e| BusError::Service {
+                topic: topic.name(),
+                reason: format!("{e:?}"),
+            })
+    }
+
+    /// The subscriber buffer depth of slice topic `P` on this bus: the table's depth, or less
+    /// when samples are large ([`SLICE_BUFFER_BYTES`]).
+    pub fn slice_buffer<P: SliceTopicSpec>(&self) -> usize {
+        let sample = std::mem::size_of::<P::Header>()
+            + self.slice_capacity * std::mem::size_of::<P::Element>();
+        let depth = P::TOPIC.subscriber_buffer();
+        (SLICE_BUFFER_BYTES / sample.max(1)).clamp(MIN_SLICE_BUFFER.min(depth), depth)
+    }
+
+    /// Opens (or creates) slice topic `P`'s service: a user header and a slice payload, its
+    /// buffer depth from [`Bus::slice_buffer`].
+    fn slice_pubsub<P: SliceTopicSpec>(&self) -> Result<SlicePubSub<P>, BusError> {
+        let topic = P::TOPIC;
+        let name = service_name(topic)?;
+        self.node
+            .service_builder(&name)
+            .publish_subscribe::<[P::Element]>()
+            .user_header::<P::Header>()
+            .max_publishers(topic.max_publishers())
+            .max_subscribers(MAX_SUBSCRIBERS)
+            .max_nodes(MAX_NODES)
+            .subscriber_max_buffer_size(self.slice_buffer::<P>())
+            .subscriber_max_borrowed_samples(4)
+            .history_size(0)
+            .enable_safe_overflow(!self.is_lossless(topic))
+            .open_or_create()
+            .map_err(|e| BusError::Service {
+                topic: topic.name(),
+                reason: format!("{e:?}"),
+            })
+    }
+
+    /// The wake-up side of topic `topic`'s outlets.
+    fn notifier(&self, topic: Topic) -> Result<Notifier<ipc::Service>, BusError> {
+        self.event(topic)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| BusError::Port {
+                topic: topic.name(),
+                reason: format!("{e:?}"),
+            })
+    }
+
+    /// What an inlet of topic `topic` sleeps on.
+    fn listener(&self, topic: Topic) -> Result<Listener<ipc::Service>, BusError> {
+        self.event(topic)?
+            .listener_builder()
+            .create()
+            .map_err(|e| BusError::Port {
+                topic: topic.name(),
+                reason: format!("{e:?}"),
+            })
+    }
+
+    fn event(&self, topic: Topic) -> Result<EventService, BusError> {
+        let name = service_name(topic)?;
+        self.node
+            .service_builder(&name)
+            .event()
+            .max_listeners(8)
+            .max_notifiers(8)
+            .max_nodes(MAX_NODES)
+            .open_or_create()
+            .map_err(|e| BusError::Service {
+                topic: topic.name(),
+                reason: format!("{e:?}"),
+            })
+    }
+
+    /// A publisher on topic `P` (a marker of [`crate::topics`]) with its notifier. The outlet
+    /// sends `P`'s sample type and nothing else:
+    ///
+    /// ```no_run
+    /// # use common::{bus::Bus, topics, GloveSample};
+    /// # fn f(bus: &Bus) -> Result<(), common::bus::BusError> {
+    /// let mut glove = bus.outlet::<topics::Glove>()?;
+    /// glove.publish(&GloveSample::default())?;
+    /// # Ok(()) }
+    /// ```
+    ///
+    /// A hand sample on the glove topic does not compile:
+    ///
+    /// ```compile_fail
+    /// # use common::{bus::Bus, topics, HandSample};
+    /// # fn f(bus: &Bus) -> Result<(), common::bus::BusError> {
+    /// let mut glove = bus.outlet::<topics::Glove>()?;
+    /// glove.publish(&HandSample::default())?;
+    /// # Ok(()) }
+    /// ```
+    pub fn outlet<P: TopicSpec>(&self) -> Result<Outlet<P>, BusError> {
+        let topic = P::TOPIC;
+        let port_err = |e: String| BusError::Port {
+            topic: topic.name(),
+            reason: e,
+        };
+        let service = self.pubsub::<P>()?;
+        let publisher = service
+            .publisher_builder()
+            .max_loaned_samples(2)
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        let notifier = self.notifier(topic)?;
+        let kept = self.seq_store(topic)?;
+        let gate = self.connect_gate(topic, topic.subscriber_buffer(), move || {
+            service.dynamic_config().number_of_subscribers()
+        });
+        Ok(Outlet {
+            publisher,
+            notifier,
+            next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
+            skipped: kept.as_ref().map_or(0, |k| k.load(1)),
+            kept,
+            gate,
+        })
+    }
+
+    /// A subscriber on topic `P` (a marker of [`crate::topics`]) with its listener; it
+    /// receives `P`'s sample type:
+    ///
+    /// ```compile_fail
+    /// # use common::{bus::Bus, topics, HandSample};
+    /// # fn f(bus: &Bus) -> Result<(), common::bus::BusError> {
+    /// let glove = bus.inlet::<topics::Glove>()?;
+    /// let hand: Option<HandSample> = glove.receive()?.map(|s| *s.payload());
+    /// # Ok(()) }
+    /// ```
+    pub fn inlet<P: TopicSpec>(&self) -> Result<Inlet<P>, BusError> {
+        let topic = P::TOPIC;
+        let port_err = |e: String| BusError::Port {
+            topic: topic.name(),
+            reason: e,
+        };
+        let subscriber = self
+            .pubsub::<P>()?
+            .subscriber_builder()
+            .buffer_size(topic.subscriber_buffer())
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        let listener = self.listener(topic)?;
+        Ok(Inlet {
+            subscriber,
+            listener,
+            seqs: self.seq_count(topic),
+        })
+    }
+
+    /// A publisher on slice topic `P` (the `world` topic) with its notifier; each sample it
+    /// sends holds 0 to [`Bus::slice_capacity`] elements, written in place
+    /// ([`SliceOutlet::publish_with`]).
+    pub fn slice_outlet<P: SliceTopicSpec>(&self) -> Result<SliceOutlet<P>, BusError> {
+        let topic = P::TOPIC;
+        let port_err = |e: String| BusError::Port {
+            topic: topic.name(),
+            reason: e,
+        };
+        let service = self.slice_pubsub::<P>()?;
+        let publisher = service
+            .publisher_builder()
+            .initial_max_slice_len(self.slice_capacity)
+            .max_loaned_samples(2)
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        let notifier = self.notifier(topic)?;
+        let kept = self.seq_store(topic)?;
+        let gate = self.connect_gate(topic, self.slice_buffer::<P>(), move || {
+            service.dynamic_config().number_of_subscribers()
+        });
+        Ok(SliceOutlet {
+            publisher,
+            notifier,
+            capacity: self.slice_capacity,
+            next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
+            skipped: 0,
+            kept,
+            gate,
+        })
+    }
+
+    /// A subscriber on slice topic `P` with its listener.
+    pub fn slice_inlet<P: SliceTopicSpec>(&self) -> Result<SliceInlet<P>, BusError> {
+        let topic = P::TOPIC;
+        let port_err = |e: String| BusError::Port {
+            topic: topic.name(),
+            reason: e,
+        };
+        let subscriber = self
+            .slice_pubsub::<P>()?
+            .subscriber_builder()
+            .buffer_size(self.slice_buffer::<P>())
+            .create()
+            .map_err(|e| port_err(format!("{e:?}")))?;
+        let listener = self.listener(topic)?;
+        Ok(SliceInlet {
+            subscriber,
+            listener,
+            seqs: self.seq_count(topic),
+        })
+    }
+}
+
+fn service_name(topic: Topic) -> Result<ServiceName, BusError> {
+    ServiceName::new(topic.name()).map_err(|e| BusError::Config(format!("{e:?}")))
+}
+
+type PubSub<T> =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>;
+type SlicePubSub<P> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
+    ipc::Service,
+    [<P as SliceTopicSpec>::Element],
+    <P as SliceTopicSpec>::Header,
+>;
+type EventService = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
+
+/// The attachment counts of one publish-subscribe service, whatever its sample type.
+trait AttachedPorts {
+    fn subscribers(&self) -> usize;
+    fn publishers(&self) -> usize;
+}
+
+impl<T: Stamped> AttachedPorts for PubSub<T> {
+    fn subscribers(&self) -> usize {
+        self.dynamic_config().number_of_subscribers()
+    }
+    fn publishers(&self) -> usize {
+        self.dynamic_config().number_of_publishers()
+    }
+}
+
+/// A slice topic's service, as [`AttachedPorts`] (a newtype: the port factory's type names the
+/// topic's element and header types, which a blanket impl over them could not).
+struct SliceService<P: SliceTopicSpec>(SlicePubSub<P>);
+
+impl<P: SliceTopicSpec> AttachedPorts for SliceService<P> {
+    fn subscribers(&self) -> usize {
+        self.0.dynamic_config().number_of_subscribers()
+    }
+    fn publishers(&self) -> usize {
+        self.0.dynamic_config().number_of_publishers()
+    }
+}
+
+/// Every service of a session, created once by the launcher; it also reads how many ports are
+/// attached, to start the source only when every reader is there.
+pub struct Services {
+    /// The publish-subscribe services, indexed by `Topic as usize`.
+    pubsub: Vec<Box<dyn AttachedPorts>>,
+    /// Held so the event services keep the sizing they were created with.
+    _events: Vec<EventService>,
+}
+
+impl Services {
+    /// Subscribers attached to `topic` now.
+    pub fn subscribers(&self, topic: Topic) -> usize {
+        self.pubsub[topic as usize].subscribers()
+    }
+
+    /// Publishers attached to `topic` now.
+    pub fn publishers(&self, topic: Topic) -> usize {
+        self.pubsub[topic as usize].publishers()
+    }
+}
