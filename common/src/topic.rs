@@ -11,16 +11,30 @@
 //! ([`Topic::RECORDED`]: the topics the recorder reads).
 
 use crate::samples::*;
-use crate::stamp::Stamped;
+use crate::stamp::{Stamp, Stamped};
 
-/// One topic at the type level: a marker type of [`topics`] names its [`Topic`] and its sample
-/// type, so that ports typed by it cannot carry another topic's samples. Only the table
-/// declares topics (the trait is sealed).
-pub trait TopicSpec: sealed::Sealed + 'static {
-    /// What every sample of the topic is.
-    type Sample: Stamped;
+/// Any topic at the type level, fixed-size or slice: a marker type of [`topics`] names its
+/// [`Topic`] and how one of its samples lies in shared memory, as iceoryx2's ports see it (a
+/// payload, which may be a slice, and a user header). The bus's [`crate::bus::Inlet`] and
+/// [`crate::bus::Outlet`] are generic over it, as iceoryx2's `Publisher<S, Payload: ?Sized,
+/// UserHeader>` is, so one port type serves both kinds; what differs (how a sample is written)
+/// is in [`TopicSpec`] and [`SliceTopicSpec`]. Only the table declares topics (sealed).
+pub trait TopicLayout: sealed::Sealed + 'static {
+    /// iceoryx2's payload: the sample of a fixed-size topic, the elements of a slice topic.
+    type Payload: ?Sized + std::fmt::Debug + iceoryx2::prelude::IceoryxSend + 'static;
+    /// iceoryx2's user header: `()` for a fixed-size topic, the header of a slice topic.
+    type Header: std::fmt::Debug + iceoryx2::prelude::ZeroCopySend + 'static;
     /// The topic's runtime name, for service names, counters and messages.
     const TOPIC: Topic;
+    /// A sample's stamp: in the payload of a fixed-size topic, in the header of a slice one.
+    fn stamp<'s>(payload: &'s Self::Payload, header: &'s Self::Header) -> &'s Stamp;
+}
+
+/// A fixed-size topic: each sample is one value of `Sample`, carried as iceoryx2's payload,
+/// ports typed by the marker cannot carry another topic's samples.
+pub trait TopicSpec: TopicLayout<Payload = Self::Sample, Header = ()> {
+    /// What every sample of the topic is.
+    type Sample: Stamped;
 }
 
 mod sealed {
@@ -31,12 +45,11 @@ mod sealed {
 /// publisher chooses (the `world` topic: a [`WorldHeader`] and one [`BlockState`] per block of
 /// the scene). On the bus the header is iceoryx2's user header and the elements its slice
 /// payload, so a sample is sized from the scene and still read in place.
-pub trait SliceTopicSpec: sealed::Sealed + 'static {
-    /// The fixed part, which carries the stamp.
-    type Header: Stamped + Default;
+pub trait SliceTopicSpec:
+    TopicLayout<Payload = [Self::Element], Header: Stamped + Default>
+{
     /// One element of the slice.
     type Element: Copy + std::fmt::Debug + iceoryx2::prelude::ZeroCopySend + 'static;
-    const TOPIC: Topic;
 }
 
 /// Something done once per topic of the table with the topic's types in hand (creating its
@@ -53,16 +66,29 @@ pub trait TopicVisitor {
 /// slice of elements (`World: WorldHeader[BlockState]`).
 macro_rules! topic_kind {
     (spec $topic:ident, $sample:ident) => {
+        impl TopicLayout for $topic {
+            type Payload = $sample;
+            type Header = ();
+            const TOPIC: Topic = Topic::$topic;
+            fn stamp<'s>(payload: &'s $sample, _: &'s ()) -> &'s Stamp {
+                payload.stamp()
+            }
+        }
         impl TopicSpec for $topic {
             type Sample = $sample;
-            const TOPIC: Topic = Topic::$topic;
         }
     };
     (spec $topic:ident, $sample:ident, $elem:ident) => {
-        impl SliceTopicSpec for $topic {
+        impl TopicLayout for $topic {
+            type Payload = [$elem];
             type Header = $sample;
-            type Element = $elem;
             const TOPIC: Topic = Topic::$topic;
+            fn stamp<'s>(_: &'s [$elem], header: &'s $sample) -> &'s Stamp {
+                header.stamp()
+            }
+        }
+        impl SliceTopicSpec for $topic {
+            type Element = $elem;
         }
     };
     (visit $v:ident, $topic:ident) => {
@@ -185,8 +211,8 @@ macro_rules! topic_table {
         }
 
         /// The marker type of each topic, for the bus's typed ports: `bus.outlet::<topics::Hand>()`
-        /// is an outlet of `HandSample`s on `hand`; `bus.slice_outlet::<topics::World>(n)` one
-        /// of world headers with `n` block states each. The types have no values.
+        /// is an outlet of `HandSample`s on `hand`; `bus.slice_outlet::<topics::World>()` one
+        /// of world headers with up to the bus's slice capacity of block states each. The types have no values.
         pub mod topics {
             use super::*;
             $(
@@ -230,8 +256,9 @@ topic_table! {
     /// `bus.outlet::<topics::New>()` / `bus.inlet::<topics::New>()`; the services, the
     /// launcher's wait for readers, the recording's channels and the recorder's inlets follow
     /// from the row. A row `Name: Header[Element]` is a slice topic (a header and a run of
-    /// elements whose length the publisher picks, sized from the scene): its ports are
-    /// `bus.slice_outlet` / `bus.slice_inlet` and the recording writes it with `write_slice`.
+    /// elements whose length the publisher picks, sized from the scene): its outlet is
+    /// `bus.slice_outlet` (its inlet `bus.inlet`, as any) and the recording writes it with
+    /// `write_slice`.
     pub enum Topic {
         /// Finger joint angles from the data glove (or the scripted hand, or a replay).
         Glove: GloveSample {
@@ -474,6 +501,6 @@ mod tests {
         Topic::visit_each(&mut names).unwrap();
         let expected: Vec<_> = Topic::ALL.iter().map(|t| (*t, t.sample_size())).collect();
         assert_eq!(names.0, expected);
-        assert_eq!(<topics::Glove as TopicSpec>::TOPIC, Topic::Glove);
+        assert_eq!(<topics::Glove as TopicLayout>::TOPIC, Topic::Glove);
     }
 }

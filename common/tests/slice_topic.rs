@@ -31,7 +31,7 @@ fn world_samples_carry_the_scenes_blocks_in_place_and_refuse_more() {
     {
         let bus = Bus::open(&cfg, "test").unwrap();
         let _services = bus.create_services().unwrap();
-        let inlet = bus.slice_inlet::<topics::World>().unwrap();
+        let inlet = bus.inlet::<topics::World>().unwrap();
         let mut outlet = bus.slice_outlet::<topics::World>().unwrap();
         assert_eq!(outlet.capacity(), 300);
         let sent = outlet
@@ -47,7 +47,7 @@ fn world_samples_carry_the_scenes_blocks_in_place_and_refuse_more() {
             .unwrap();
         // A smaller sample on the same topic: the slice's length is the sample's own.
         outlet
-            .publish(
+            .publish_copy(
                 &WorldHeader {
                     block_count: 2,
                     ..Default::default()

@@ -53,7 +53,7 @@ impl BusConfig {
                 .chars()
                 .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
         {
-            return Err(BusError::Config(format!(
+            return Err(BusError::config(format!(
                 "session id {id:?} must be 1 to 48 letters, digits, `_` or `-`"
             )));
         }
@@ -75,7 +75,7 @@ impl BusConfig {
             .into_iter()
             .find(|b| fits(b))
             .ok_or_else(|| {
-                BusError::Config(format!(
+                BusError::config(format!(
                     "no folder for the session's sockets: {} is too long for a Unix socket \
                      path (at most {} bytes); set TMPDIR to a shorter folder",
                     base_dir(tmp).display(),
@@ -102,7 +102,7 @@ impl BusConfig {
     /// [`MAX_SCENE_BLOCKS`]).
     pub fn with_world_blocks(mut self, blocks: usize) -> Result<BusConfig, BusError> {
         if blocks == 0 || blocks > MAX_SCENE_BLOCKS {
-            return Err(BusError::Config(format!(
+            return Err(BusError::config(format!(
                 "world samples of {blocks} blocks: allowed 1 to {MAX_SCENE_BLOCKS}"
             )));
         }
@@ -145,10 +145,10 @@ impl BusConfig {
             root.push('/');
         }
         let root = iceoryx2::prelude::Path::new(root.as_bytes())
-            .map_err(|e| BusError::Config(format!("root path {root:?}: {e:?}")))?;
+            .map_err(|e| BusError::config(format!("root path {root:?}: {e:?}")))?;
         config.global.set_root_path(&root);
         config.global.prefix = FileName::new(self.prefix.as_bytes())
-            .map_err(|e| BusError::Config(format!("prefix {:?}: {e:?}", self.prefix)))?;
+            .map_err(|e| BusError::config(format!("prefix {:?}: {e:?}", self.prefix)))?;
         Ok(config)
     }
 
@@ -240,7 +240,7 @@ impl BusConfig {
         let started = process_start_ticks(pid).unwrap_or(0);
         let file = self.root.join(LAUNCHER_FILE);
         std::fs::write(&file, format!("{pid} {started}\n"))
-            .map_err(|e| BusError::Config(format!("cannot write {}: {e}", file.display())))
+            .map_err(|e| BusError::config(format!("cannot write {}: {e}", file.display())))
     }
 
     /// Whether the launcher the session's folder names is gone: Some(true) when no process
@@ -356,14 +356,14 @@ pub(super) fn make_private_dir(dir: &StdPath) -> Result<(), BusError> {
         Ok(()) => {}
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
         Err(e) => {
-            return Err(BusError::Config(format!(
+            return Err(BusError::config(format!(
                 "cannot create the session folder {}: {e}",
                 dir.display()
             )))
         }
     }
     let meta = std::fs::symlink_metadata(dir).map_err(|e| {
-        BusError::Config(format!(
+        BusError::config(format!(
             "cannot read the session folder {}: {e}",
             dir.display()
         ))
@@ -371,7 +371,7 @@ pub(super) fn make_private_dir(dir: &StdPath) -> Result<(), BusError> {
     // SAFETY: as in base_dir.
     let uid = unsafe { libc::getuid() };
     if !meta.is_dir() || meta.uid() != uid {
-        return Err(BusError::Config(format!(
+        return Err(BusError::config(format!(
             "{} is not a folder of this user's (uid {uid}; it belongs to uid {}): refusing to \
              attach a session to resources it does not own; remove it or set TMPDIR elsewhere",
             dir.display(),
@@ -382,7 +382,7 @@ pub(super) fn make_private_dir(dir: &StdPath) -> Result<(), BusError> {
     // was seen once in a test run) a user other than root could not use it.
     if meta.mode() & 0o777 != 0o700 {
         std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700)).map_err(|e| {
-            BusError::Config(format!("cannot make {} private (0700): {e}", dir.display()))
+            BusError::config(format!("cannot make {} private (0700): {e}", dir.display()))
         })?;
     }
     Ok(())
@@ -400,7 +400,7 @@ pub(super) fn make_shm_private(prefix: &str) -> Result<(), BusError> {
             continue; // removed meanwhile
         };
         if meta.uid() != uid {
-            return Err(BusError::Config(format!(
+            return Err(BusError::config(format!(
                 "{} belongs to uid {}, not this user (uid {uid}): refusing to attach a session \
                  to shared memory it does not own; choose another --bus-id",
                 f.display(),
@@ -409,7 +409,7 @@ pub(super) fn make_shm_private(prefix: &str) -> Result<(), BusError> {
         }
         if meta.mode() & 0o077 != 0 {
             std::fs::set_permissions(&f, std::fs::Permissions::from_mode(0o600)).map_err(|e| {
-                BusError::Config(format!("cannot make {} private (0600): {e}", f.display()))
+                BusError::config(format!("cannot make {} private (0600): {e}", f.display()))
             })?;
         }
     }

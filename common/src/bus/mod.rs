@@ -36,7 +36,7 @@ use crate::output::open_restart_file;
 use crate::samples::{TopicCounter, MAX_SCENE_BLOCKS};
 pub use crate::stamp::Stamped;
 use crate::stamp::{monotonic_ns, Stamp};
-use crate::topic::{SliceTopicSpec, Topic, TopicSpec, TopicVisitor};
+use crate::topic::{SliceTopicSpec, Topic, TopicLayout, TopicSpec, TopicVisitor};
 
 mod folder;
 mod ports;
@@ -45,16 +45,14 @@ mod wait;
 pub use folder::BusConfig;
 use folder::*;
 use ports::*;
-pub use ports::{Inlet, Outlet, SliceInlet, SliceOutlet};
+pub use ports::{Inlet, Outlet, PayloadKind, PubSubBuilder, PubSubService};
 use wait::*;
 pub use wait::{wait_any, wait_any_or, WaitOutcome, WaitRecord, Waiter, Wakeable, MAX_WAIT};
 
-/// A sample read from an [`Inlet`].
-pub type Received<T> = Sample<ipc::Service, T, ()>;
-/// A sample read from a [`SliceInlet`]: its header is iceoryx2's user header
-/// (`user_header()`), its elements the payload (`payload()`).
-pub type ReceivedSlice<P> =
-    Sample<ipc::Service, [<P as SliceTopicSpec>::Element], <P as SliceTopicSpec>::Header>;
+/// A sample read from an [`Inlet`] of topic `P`: of a fixed-size topic, `payload()` is the
+/// sample; of a slice topic, `user_header()` is its header and `payload()` its elements.
+pub type Received<P> =
+    Sample<ipc::Service, <P as TopicLayout>::Payload, <P as TopicLayout>::Header>;
 
 /// Most processes that attach to one topic (a recorder, a monitor and the `iox2` tool included).
 const MAX_SUBSCRIBERS: usize = 4;
@@ -72,24 +70,72 @@ pub const SLICE_BUFFER_BYTES: usize = 16 << 20;
 /// The shallowest buffer a slice topic gets: 64 samples, half a second at 120 Hz.
 pub const MIN_SLICE_BUFFER: usize = 64;
 
-/// Something went wrong on the bus; each variant says which operation and which topic.
+/// Why an operation on the bus failed: iceoryx2's typed error (downcast it, e.g. to
+/// `iceoryx2::service::publish_subscribe::PublishSubscribeOpenError`, to tell its cases apart),
+/// an I/O error, or our own words where we refused.
+pub type BusCause = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// Something went wrong on the bus; each variant says which operation and which topic, and
+/// keeps what failed underneath as its [`std::error::Error::source`].
 #[derive(Debug)]
 pub enum BusError {
     /// The session's prefix or root path is not usable by iceoryx2.
-    Config(String),
+    Config(BusCause),
     /// This process's node could not be created.
-    Node(String),
+    Node(BusCause),
     /// A service could not be created or opened (e.g. another build with a different sample
     /// layout is attached: `IncompatibleTypes`).
-    Service { topic: &'static str, reason: String },
+    Service {
+        topic: &'static str,
+        source: BusCause,
+    },
     /// A publisher, subscriber, notifier or listener could not be created.
-    Port { topic: &'static str, reason: String },
+    Port {
+        topic: &'static str,
+        source: BusCause,
+    },
     /// A sample could not be loaned or sent.
-    Send { topic: &'static str, reason: String },
+    Send {
+        topic: &'static str,
+        source: BusCause,
+    },
     /// A sample could not be received.
-    Receive { topic: &'static str, reason: String },
+    Receive {
+        topic: &'static str,
+        source: BusCause,
+    },
     /// Waiting for samples failed.
-    Wait(String),
+    Wait(BusCause),
+}
+
+impl BusError {
+    fn config(reason: impl Into<BusCause>) -> BusError {
+        BusError::Config(reason.into())
+    }
+    fn service(topic: Topic, e: impl Into<BusCause>) -> BusError {
+        BusError::Service {
+            topic: topic.name(),
+            source: e.into(),
+        }
+    }
+    fn port(topic: Topic, e: impl Into<BusCause>) -> BusError {
+        BusError::Port {
+            topic: topic.name(),
+            source: e.into(),
+        }
+    }
+    fn send(topic: Topic, e: impl Into<BusCause>) -> BusError {
+        BusError::Send {
+            topic: topic.name(),
+            source: e.into(),
+        }
+    }
+    fn receive(topic: Topic, e: impl Into<BusCause>) -> BusError {
+        BusError::Receive {
+            topic: topic.name(),
+            source: e.into(),
+        }
+    }
 }
 
 impl fmt::Display for BusError {
@@ -97,23 +143,33 @@ impl fmt::Display for BusError {
         match self {
             BusError::Config(r) => write!(f, "bus configuration: {r}"),
             BusError::Node(r) => write!(f, "cannot create the iceoryx2 node: {r}"),
-            BusError::Service { topic, reason } => write!(
+            BusError::Service { topic, source } => write!(
                 f,
-                "cannot open the `{topic}` service: {reason} (a process of another build may be attached; stop it or use another session id)"
+                "cannot open the `{topic}` service: {source} (a process of another build may be attached; stop it or use another session id)"
             ),
-            BusError::Port { topic, reason } => {
-                write!(f, "cannot attach to the `{topic}` service: {reason}")
+            BusError::Port { topic, source } => {
+                write!(f, "cannot attach to the `{topic}` service: {source}")
             }
-            BusError::Send { topic, reason } => write!(f, "cannot send on `{topic}`: {reason}"),
-            BusError::Receive { topic, reason } => {
-                write!(f, "cannot receive on `{topic}`: {reason}")
+            BusError::Send { topic, source } => write!(f, "cannot send on `{topic}`: {source}"),
+            BusError::Receive { topic, source } => {
+                write!(f, "cannot receive on `{topic}`: {source}")
             }
-            BusError::Wait(r) => write!(f, "waiting for samples failed: {r}"),
+            BusError::Wait(r) => write!(f, "waiting for samples failed (ppoll): {r}"),
         }
     }
 }
 
-impl std::error::Error for BusError {}
+impl std::error::Error for BusError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            BusError::Config(e) | BusError::Node(e) | BusError::Wait(e) => Some(e.as_ref()),
+            BusError::Service { source, .. }
+            | BusError::Port { source, .. }
+            | BusError::Send { source, .. }
+            | BusError::Receive { source, .. } => Some(source.as_ref()),
+        }
+    }
+}
 
 /// One process's attachment to the session's bus.
 pub struct Bus {
@@ -151,7 +207,7 @@ impl Bus {
         dirs().or_else(|_| dirs())?;
         make_shm_private(&config.prefix)?;
         let iox = config.iceoryx()?;
-        let name = NodeName::new(node_name).map_err(|e| BusError::Node(format!("{e:?}")))?;
+        let name = NodeName::new(node_name).map_err(|e| BusError::Node(e.into()))?;
         let node = NodeBuilder::new()
             .name(&name)
             .config(&iox)
@@ -159,7 +215,7 @@ impl Bus {
             // finish its final report before it exits.
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
-            .map_err(|e| BusError::Node(format!("{e:?}")))?;
+            .map_err(|e| BusError::Node(e.into()))?;
         // The node made the prefix's management segment (world-writable): make it private.
         make_shm_private(&config.prefix)?;
         Ok(Bus {
@@ -250,9 +306,11 @@ impl Bus {
         let path = self
             .root
             .join(format!("seq.{}.{}", self.node_name, topic.name()));
-        SeqStore::open(&path).map(Some).map_err(|e| BusError::Port {
-            topic: topic.name(),
-            reason: format!("cannot keep its seq in {}: {e}", path.display()),
+        SeqStore::open(&path).map(Some).map_err(|e| {
+            BusError::port(
+                topic,
+                format!("cannot keep its seq in {}: {e}", path.display()),
+            )
         })
     }
 
@@ -269,11 +327,7 @@ impl Bus {
                 std::process::id()
             ))
         });
-        SeqCount {
-            from_first: self.restart() > 0,
-            connected_mark: Cell::new(connected_mark),
-            ..SeqCount::default()
-        }
+        SeqCount::new(self.restart() > 0, connected_mark)
     }
 
     /// On a lossless bus, what an outlet of `topic` waits for before it may fill a reader's
@@ -284,13 +338,8 @@ impl Bus {
         buffer: usize,
         subscribers: impl Fn() -> usize + 'static,
     ) -> Option<ConnectGate> {
-        self.is_lossless(topic).then(|| ConnectGate {
-            topic,
-            root: self.root.clone(),
-            free: (buffer as u64 / 2).max(1),
-            sent: 0,
-            subscribers: Box::new(subscribers),
-        })
+        self.is_lossless(topic)
+            .then(|| ConnectGate::new(topic, self.root.clone(), buffer, subscribers))
     }
 
     /// True when `topic` waits for its slowest reader on this bus ([`BusConfig::lossless`]).
@@ -311,17 +360,23 @@ impl Bus {
             bus: &'b Bus,
             pubsub: Vec<Box<dyn AttachedPorts>>,
         }
-        impl TopicVisitor for Create<'_> {
-            type Error = BusError;
-            fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
+        impl Create<'_> {
+            fn create<P: TopicLayout>(&mut self) -> Result<(), BusError>
+            where
+                P::Payload: PayloadKind,
+            {
                 let service = self.bus.pubsub::<P>()?;
                 self.pubsub.push(Box::new(service));
                 Ok(())
             }
+        }
+        impl TopicVisitor for Create<'_> {
+            type Error = BusError;
+            fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
+                self.create::<P>()
+            }
             fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
-                let service = self.bus.slice_pubsub::<P>()?;
-                self.pubsub.push(Box::new(SliceService::<P>(service)));
-                Ok(())
+                self.create::<P>()
             }
         }
         let mut create = Create {
@@ -338,59 +393,45 @@ impl Bus {
         })
     }
 
-    /// Opens (or creates) topic `P`'s service, with its sample type and its row's sizing.
-    fn pubsub<P: TopicSpec>(&self) -> Result<PubSub<P::Sample>, BusError> {
-        let topic = P::TOPIC;
-        let name = service_name(topic)?;
-        self.node
-            .service_builder(&name)
-            .publish_subscribe::<P::Sample>()
-            .max_publishers(topic.max_publishers())
-            .max_subscribers(MAX_SUBSCRIBERS)
-            .max_nodes(MAX_NODES)
-            .subscriber_max_buffer_size(topic.subscriber_buffer())
-            .subscriber_max_borrowed_samples(4)
-            .history_size(0)
-            // A slow reader loses its oldest unread sample instead of stalling the publisher,
-            // but on a lossless bus (a speed-0 replay).
-            .enable_safe_overflow(!self.is_lossless(topic))
-            .open_or_create()
-            .map_err(|e| BusError::Service {
-                topic: topic.name(),
-                reason: format!("{e:?}"),
-            })
-    }
-
-    /// The subscriber buffer depth of slice topic `P` on this bus: the table's depth, or less
-    /// when samples are large ([`SLICE_BUFFER_BYTES`]).
-    pub fn slice_buffer<P: SliceTopicSpec>(&self) -> usize {
-        let sample = std::mem::size_of::<P::Header>()
-            + self.slice_capacity * std::mem::size_of::<P::Element>();
-        let depth = P::TOPIC.subscriber_buffer();
+    /// The subscriber buffer depth of `topic` on this bus: the table's depth, or for a slice
+    /// topic, less when its samples are large ([`SLICE_BUFFER_BYTES`]).
+    pub fn buffer(&self, topic: Topic) -> usize {
+        let depth = topic.subscriber_buffer();
+        let Some(element) = topic.element_size() else {
+            return depth;
+        };
+        let sample = topic.sample_size() + self.slice_capacity * element;
         (SLICE_BUFFER_BYTES / sample.max(1)).clamp(MIN_SLICE_BUFFER.min(depth), depth)
     }
 
-    /// Opens (or creates) slice topic `P`'s service: a user header and a slice payload, its
-    /// buffer depth from [`Bus::slice_buffer`].
-    fn slice_pubsub<P: SliceTopicSpec>(&self) -> Result<SlicePubSub<P>, BusError> {
+    /// The subscriber buffer depth of slice topic `P` on this bus ([`Bus::buffer`]).
+    pub fn slice_buffer<P: SliceTopicSpec>(&self) -> usize {
+        self.buffer(P::TOPIC)
+    }
+
+    /// Opens (or creates) topic `P`'s service, with its payload and header types and its
+    /// row's sizing ([`Bus::buffer`]).
+    fn pubsub<P: TopicLayout>(&self) -> Result<PubSub<P>, BusError>
+    where
+        P::Payload: PayloadKind,
+    {
         let topic = P::TOPIC;
         let name = service_name(topic)?;
-        self.node
+        let builder = self
+            .node
             .service_builder(&name)
-            .publish_subscribe::<[P::Element]>()
+            .publish_subscribe::<P::Payload>()
             .user_header::<P::Header>()
             .max_publishers(topic.max_publishers())
             .max_subscribers(MAX_SUBSCRIBERS)
             .max_nodes(MAX_NODES)
-            .subscriber_max_buffer_size(self.slice_buffer::<P>())
+            .subscriber_max_buffer_size(self.buffer(topic))
             .subscriber_max_borrowed_samples(4)
             .history_size(0)
-            .enable_safe_overflow(!self.is_lossless(topic))
-            .open_or_create()
-            .map_err(|e| BusError::Service {
-                topic: topic.name(),
-                reason: format!("{e:?}"),
-            })
+            // A slow reader loses its oldest unread sample instead of stalling the publisher,
+            // but on a lossless bus (a speed-0 replay).
+            .enable_safe_overflow(!self.is_lossless(topic));
+        P::Payload::open_or_create(builder).map_err(|e| BusError::service(topic, e))
     }
 
     /// The wake-up side of topic `topic`'s outlets.
@@ -398,10 +439,7 @@ impl Bus {
         self.event(topic)?
             .notifier_builder()
             .create()
-            .map_err(|e| BusError::Port {
-                topic: topic.name(),
-                reason: format!("{e:?}"),
-            })
+            .map_err(|e| BusError::port(topic, e))
     }
 
     /// What an inlet of topic `topic` sleeps on.
@@ -409,10 +447,7 @@ impl Bus {
         self.event(topic)?
             .listener_builder()
             .create()
-            .map_err(|e| BusError::Port {
-                topic: topic.name(),
-                reason: format!("{e:?}"),
-            })
+            .map_err(|e| BusError::port(topic, e))
     }
 
     fn event(&self, topic: Topic) -> Result<EventService, BusError> {
@@ -424,10 +459,7 @@ impl Bus {
             .max_notifiers(8)
             .max_nodes(MAX_NODES)
             .open_or_create()
-            .map_err(|e| BusError::Service {
-                topic: topic.name(),
-                reason: format!("{e:?}"),
-            })
+            .map_err(|e| BusError::service(topic, e))
     }
 
     /// A publisher on topic `P` (a marker of [`crate::topics`]) with its notifier. The outlet
@@ -451,34 +483,48 @@ impl Bus {
     /// # Ok(()) }
     /// ```
     pub fn outlet<P: TopicSpec>(&self) -> Result<Outlet<P>, BusError> {
-        let topic = P::TOPIC;
-        let port_err = |e: String| BusError::Port {
-            topic: topic.name(),
-            reason: e,
-        };
         let service = self.pubsub::<P>()?;
         let publisher = service
             .publisher_builder()
             .max_loaned_samples(2)
             .create()
-            .map_err(|e| port_err(format!("{e:?}")))?;
-        let notifier = self.notifier(topic)?;
-        let kept = self.seq_store(topic)?;
-        let gate = self.connect_gate(topic, topic.subscriber_buffer(), move || {
-            service.dynamic_config().number_of_subscribers()
-        });
-        Ok(Outlet {
-            publisher,
-            notifier,
-            next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
-            skipped: kept.as_ref().map_or(0, |k| k.load(1)),
-            kept,
-            gate,
-        })
+            .map_err(|e| BusError::port(P::TOPIC, e))?;
+        self.outlet_on(service, publisher, 1)
     }
 
-    /// A subscriber on topic `P` (a marker of [`crate::topics`]) with its listener; it
-    /// receives `P`'s sample type:
+    /// A publisher on slice topic `P` (the `world` topic) with its notifier; each sample it
+    /// sends holds 0 to [`Bus::slice_capacity`] elements, written in place
+    /// ([`Outlet::publish_with`]). (Only a slice publisher is told the longest slice it sends,
+    /// so its constructor is its own; the outlet is the same type.)
+    pub fn slice_outlet<P: SliceTopicSpec>(&self) -> Result<Outlet<P>, BusError> {
+        let service = self.pubsub::<P>()?;
+        let publisher = service
+            .publisher_builder()
+            .initial_max_slice_len(self.slice_capacity)
+            .max_loaned_samples(2)
+            .create()
+            .map_err(|e| BusError::port(P::TOPIC, e))?;
+        self.outlet_on(service, publisher, self.slice_capacity)
+    }
+
+    /// The outlet of `publisher`, with its notifier, kept seq and connect gate.
+    fn outlet_on<P: TopicLayout>(
+        &self,
+        service: PubSub<P>,
+        publisher: Publisher<ipc::Service, P::Payload, P::Header>,
+        capacity: usize,
+    ) -> Result<Outlet<P>, BusError> {
+        let topic = P::TOPIC;
+        let notifier = self.notifier(topic)?;
+        let kept = self.seq_store(topic)?;
+        let gate = self.connect_gate(topic, self.buffer(topic), move || {
+            service.dynamic_config().number_of_subscribers()
+        });
+        Ok(Outlet::new(publisher, notifier, capacity, kept, gate))
+    }
+
+    /// A subscriber on topic `P` (a marker of [`crate::topics`], fixed-size or slice) with its
+    /// listener; it receives `P`'s sample type:
     ///
     /// ```compile_fail
     /// # use common::{bus::Bus, topics, HandSample};
@@ -487,91 +533,29 @@ impl Bus {
     /// let hand: Option<HandSample> = glove.receive()?.map(|s| *s.payload());
     /// # Ok(()) }
     /// ```
-    pub fn inlet<P: TopicSpec>(&self) -> Result<Inlet<P>, BusError> {
+    pub fn inlet<P: TopicLayout>(&self) -> Result<Inlet<P>, BusError>
+    where
+        P::Payload: PayloadKind,
+    {
         let topic = P::TOPIC;
-        let port_err = |e: String| BusError::Port {
-            topic: topic.name(),
-            reason: e,
-        };
         let subscriber = self
             .pubsub::<P>()?
             .subscriber_builder()
-            .buffer_size(topic.subscriber_buffer())
+            .buffer_size(self.buffer(topic))
             .create()
-            .map_err(|e| port_err(format!("{e:?}")))?;
+            .map_err(|e| BusError::port(topic, e))?;
         let listener = self.listener(topic)?;
-        Ok(Inlet {
-            subscriber,
-            listener,
-            seqs: self.seq_count(topic),
-        })
-    }
-
-    /// A publisher on slice topic `P` (the `world` topic) with its notifier; each sample it
-    /// sends holds 0 to [`Bus::slice_capacity`] elements, written in place
-    /// ([`SliceOutlet::publish_with`]).
-    pub fn slice_outlet<P: SliceTopicSpec>(&self) -> Result<SliceOutlet<P>, BusError> {
-        let topic = P::TOPIC;
-        let port_err = |e: String| BusError::Port {
-            topic: topic.name(),
-            reason: e,
-        };
-        let service = self.slice_pubsub::<P>()?;
-        let publisher = service
-            .publisher_builder()
-            .initial_max_slice_len(self.slice_capacity)
-            .max_loaned_samples(2)
-            .create()
-            .map_err(|e| port_err(format!("{e:?}")))?;
-        let notifier = self.notifier(topic)?;
-        let kept = self.seq_store(topic)?;
-        let gate = self.connect_gate(topic, self.slice_buffer::<P>(), move || {
-            service.dynamic_config().number_of_subscribers()
-        });
-        Ok(SliceOutlet {
-            publisher,
-            notifier,
-            capacity: self.slice_capacity,
-            next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
-            skipped: 0,
-            kept,
-            gate,
-        })
-    }
-
-    /// A subscriber on slice topic `P` with its listener.
-    pub fn slice_inlet<P: SliceTopicSpec>(&self) -> Result<SliceInlet<P>, BusError> {
-        let topic = P::TOPIC;
-        let port_err = |e: String| BusError::Port {
-            topic: topic.name(),
-            reason: e,
-        };
-        let subscriber = self
-            .slice_pubsub::<P>()?
-            .subscriber_builder()
-            .buffer_size(self.slice_buffer::<P>())
-            .create()
-            .map_err(|e| port_err(format!("{e:?}")))?;
-        let listener = self.listener(topic)?;
-        Ok(SliceInlet {
-            subscriber,
-            listener,
-            seqs: self.seq_count(topic),
-        })
+        Ok(Inlet::new(subscriber, listener, self.seq_count(topic)))
     }
 }
 
 fn service_name(topic: Topic) -> Result<ServiceName, BusError> {
-    ServiceName::new(topic.name()).map_err(|e| BusError::Config(format!("{e:?}")))
+    ServiceName::new(topic.name()).map_err(BusError::config)
 }
 
-type PubSub<T> =
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>;
-type SlicePubSub<P> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
-    ipc::Service,
-    [<P as SliceTopicSpec>::Element],
-    <P as SliceTopicSpec>::Header,
->;
+/// A topic's publish-subscribe service (iceoryx2's port factory), its payload and header
+/// types those of the topic's marker.
+type PubSub<P> = PubSubService<<P as TopicLayout>::Payload, <P as TopicLayout>::Header>;
 type EventService = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
 
 /// The attachment counts of one publish-subscribe service, whatever its sample type.
@@ -580,25 +564,16 @@ trait AttachedPorts {
     fn publishers(&self) -> usize;
 }
 
-impl<T: Stamped> AttachedPorts for PubSub<T> {
+impl<Payload, Header> AttachedPorts for PubSubService<Payload, Header>
+where
+    Payload: ?Sized + fmt::Debug + IceoryxSend + 'static,
+    Header: fmt::Debug + ZeroCopySend + 'static,
+{
     fn subscribers(&self) -> usize {
         self.dynamic_config().number_of_subscribers()
     }
     fn publishers(&self) -> usize {
         self.dynamic_config().number_of_publishers()
-    }
-}
-
-/// A slice topic's service, as [`AttachedPorts`] (a newtype: the port factory's type names the
-/// topic's element and header types, which a blanket impl over them could not).
-struct SliceService<P: SliceTopicSpec>(SlicePubSub<P>);
-
-impl<P: SliceTopicSpec> AttachedPorts for SliceService<P> {
-    fn subscribers(&self) -> usize {
-        self.0.dynamic_config().number_of_subscribers()
-    }
-    fn publishers(&self) -> usize {
-        self.0.dynamic_config().number_of_publishers()
     }
 }
 

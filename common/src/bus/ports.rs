@@ -2,58 +2,110 @@
 //! what a restarted or lossless session adds to them.
 
 use super::*;
+use iceoryx2::port::ReceiveError;
+use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError;
 
-/// A publisher with its notifier: stamps `seq` and `publish_ns`, sends, wakes the readers.
-pub struct Outlet<P: TopicSpec> {
-    pub(super) publisher: Publisher<ipc::Service, P::Sample, ()>,
-    pub(super) notifier: Notifier<ipc::Service>,
-    pub(super) next_seq: u64,
-    /// Seqs this topic's source never sent ([`Outlet::skip_to`]).
-    pub(super) skipped: u64,
-    /// A supervised process's next seq (and skipped), kept where its restart finds it.
-    pub(super) kept: Option<SeqStore>,
-    /// On a lossless bus, until every reader is connected ([`ConnectGate`]).
-    pub(super) gate: Option<ConnectGate>,
+/// What iceoryx2 does differently for a fixed-size payload and for a slice of elements, and
+/// one generic port needs: opening the service and receiving (iceoryx2 has an impl of each per
+/// kind). Implemented, as iceoryx2's own `IceoryxSend` is, for every plain sample type and for
+/// every slice of them, so a topic's payload has it whichever its kind.
+pub trait PayloadKind: IceoryxSend + fmt::Debug + 'static {
+    /// Opens or creates the service `builder` describes.
+    fn open_or_create<H: fmt::Debug + ZeroCopySend>(
+        builder: PubSubBuilder<Self, H>,
+    ) -> Result<PubSubService<Self, H>, PublishSubscribeOpenOrCreateError>;
+    /// The next unread sample, or None.
+    fn receive<H: fmt::Debug + ZeroCopySend>(
+        subscriber: &Subscriber<ipc::Service, Self, H>,
+    ) -> Result<Option<Sample<ipc::Service, Self, H>>, ReceiveError>;
+    /// A received sample's payload.
+    fn payload<H: fmt::Debug + ZeroCopySend>(sample: &Sample<ipc::Service, Self, H>) -> &Self;
 }
 
-impl<P: TopicSpec> Outlet<P> {
-    /// Sends `value` with the next seq and `publish_ns` = now; returns the stamp it went with.
-    /// `value`'s `source_time_ns` and `origin_ns` travel as given.
-    pub fn publish(&mut self, value: &P::Sample) -> Result<Stamp, BusError> {
-        let send_err = |e: String| BusError::Send {
-            topic: P::TOPIC.name(),
-            reason: e,
-        };
-        ConnectGate::pass(&mut self.gate)?;
-        let sample = self
-            .publisher
-            .loan_uninit()
-            .map_err(|e| send_err(format!("{e:?}")))?;
-        let mut sample = sample.write_payload(*value);
-        let stamp = sample.payload_mut().stamp_mut();
-        stamp.seq = self.next_seq;
-        stamp.publish_ns = monotonic_ns();
-        let sent = *stamp;
-        // Kept before the send: a process killed between the two skips a seq (a gap its
-        // readers count) rather than sending one seq twice.
-        if let Some(kept) = &self.kept {
-            kept.store(0, self.next_seq + 1);
-        }
-        sample.send().map_err(|e| send_err(format!("{e:?}")))?;
-        self.notifier
-            .notify()
-            .map_err(|e| send_err(format!("{e:?}")))?;
-        self.next_seq += 1;
-        Ok(sent)
+impl<T: ZeroCopySend + fmt::Debug + 'static> PayloadKind for T {
+    fn open_or_create<H: fmt::Debug + ZeroCopySend>(
+        builder: PubSubBuilder<T, H>,
+    ) -> Result<PubSubService<T, H>, PublishSubscribeOpenOrCreateError> {
+        builder.open_or_create()
     }
+    fn receive<H: fmt::Debug + ZeroCopySend>(
+        subscriber: &Subscriber<ipc::Service, T, H>,
+    ) -> Result<Option<Sample<ipc::Service, T, H>>, ReceiveError> {
+        subscriber.receive()
+    }
+    fn payload<H: fmt::Debug + ZeroCopySend>(sample: &Sample<ipc::Service, T, H>) -> &T {
+        sample.payload()
+    }
+}
 
-    /// Sends `value` as [`Outlet::publish`] does, under seq `seq` if no later seq has gone
-    /// out (the seqs skipped count as this outlet's gaps), else under the next: the bridge
-    /// forwards another machine's samples with their own seqs, so what the link lost shows as
-    /// gaps here and in every reader.
-    pub fn publish_as(&mut self, value: &P::Sample, seq: u64) -> Result<Stamp, BusError> {
-        self.skip_to(seq);
-        self.publish(value)
+impl<T: ZeroCopySend + fmt::Debug + 'static> PayloadKind for [T] {
+    fn open_or_create<H: fmt::Debug + ZeroCopySend>(
+        builder: PubSubBuilder<[T], H>,
+    ) -> Result<PubSubService<[T], H>, PublishSubscribeOpenOrCreateError> {
+        builder.open_or_create()
+    }
+    fn receive<H: fmt::Debug + ZeroCopySend>(
+        subscriber: &Subscriber<ipc::Service, [T], H>,
+    ) -> Result<Option<Sample<ipc::Service, [T], H>>, ReceiveError> {
+        subscriber.receive()
+    }
+    fn payload<H: fmt::Debug + ZeroCopySend>(sample: &Sample<ipc::Service, [T], H>) -> &[T] {
+        sample.payload()
+    }
+}
+
+/// iceoryx2's description of a publish-subscribe service, before it is opened.
+pub type PubSubBuilder<Payload, Header> =
+    iceoryx2::service::builder::publish_subscribe::Builder<Payload, Header, ipc::Service>;
+/// iceoryx2's handle of an open publish-subscribe service, which makes its ports.
+pub type PubSubService<Payload, Header> =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, Payload, Header>;
+
+/// A publisher with its notifier, of any topic ([`TopicLayout`]: a fixed-size sample, or a
+/// header and a slice of elements): stamps `seq` and `publish_ns`, sends, wakes the readers,
+/// and counts what it sent. One type for both kinds, as iceoryx2's `Publisher` is; how a
+/// sample is written is the kind's: [`Outlet::publish`] for a fixed-size topic,
+/// [`Outlet::publish_with`] for a slice topic.
+pub struct Outlet<P: TopicLayout> {
+    publisher: Publisher<ipc::Service, P::Payload, P::Header>,
+    notifier: Notifier<ipc::Service>,
+    /// The most elements a sample holds (1 for a fixed-size topic).
+    capacity: usize,
+    next_seq: u64,
+    /// Seqs this topic's source never sent ([`Outlet::skip_to`]).
+    skipped: u64,
+    /// A supervised process's next seq (and skipped), kept where its restart finds it.
+    kept: Option<SeqStore>,
+    /// On a lossless bus, until every reader is connected ([`ConnectGate`]).
+    gate: Option<ConnectGate>,
+}
+
+/// A sample loaned from an outlet, written and not yet sent.
+type Loaned<P> = iceoryx2::sample_mut::SampleMut<
+    ipc::Service,
+    <P as TopicLayout>::Payload,
+    <P as TopicLayout>::Header,
+>;
+
+impl<P: TopicLayout> Outlet<P> {
+    /// An outlet on `publisher`: a supervised one goes on from the seq its dead incarnation
+    /// kept (`kept`).
+    pub(super) fn new(
+        publisher: Publisher<ipc::Service, P::Payload, P::Header>,
+        notifier: Notifier<ipc::Service>,
+        capacity: usize,
+        kept: Option<SeqStore>,
+        gate: Option<ConnectGate>,
+    ) -> Outlet<P> {
+        Outlet {
+            publisher,
+            notifier,
+            capacity,
+            next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
+            skipped: kept.as_ref().map_or(0, |k| k.load(1)),
+            kept,
+            gate,
+        }
     }
 
     pub fn topic(&self) -> Topic {
@@ -80,6 +132,112 @@ impl<P: TopicSpec> Outlet<P> {
             kept.store(0, self.next_seq);
         }
     }
+
+    /// The stamp's `seq` and `publish_ns` of the sample about to go.
+    fn stamp_next(&self, stamp: &mut Stamp) -> Stamp {
+        stamp.seq = self.next_seq;
+        stamp.publish_ns = monotonic_ns();
+        *stamp
+    }
+
+    /// Sends a written and stamped sample and wakes the readers; what every kind shares.
+    fn send(&mut self, sample: Loaned<P>, sent: Stamp) -> Result<Stamp, BusError> {
+        // Kept before the send: a process killed between the two skips a seq (a gap its
+        // readers count) rather than sending one seq twice.
+        if let Some(kept) = &self.kept {
+            kept.store(0, self.next_seq + 1);
+        }
+        sample.send().map_err(|e| BusError::send(P::TOPIC, e))?;
+        self.notifier
+            .notify()
+            .map_err(|e| BusError::send(P::TOPIC, e))?;
+        self.next_seq += 1;
+        Ok(sent)
+    }
+}
+
+impl<P: TopicSpec> Outlet<P> {
+    /// Sends `value` with the next seq and `publish_ns` = now; returns the stamp it went with.
+    /// `value`'s `source_time_ns` and `origin_ns` travel as given.
+    pub fn publish(&mut self, value: &P::Sample) -> Result<Stamp, BusError> {
+        ConnectGate::pass(&mut self.gate)?;
+        let sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(|e| BusError::send(P::TOPIC, e))?;
+        let mut sample = sample.write_payload(*value);
+        let sent = self.stamp_next(sample.payload_mut().stamp_mut());
+        self.send(sample, sent)
+    }
+
+    /// Sends `value` as [`Outlet::publish`] does, under seq `seq` if no later seq has gone
+    /// out (the seqs skipped count as this outlet's gaps), else under the next: the bridge
+    /// forwards another machine's samples with their own seqs, so what the link lost shows as
+    /// gaps here and in every reader.
+    pub fn publish_as(&mut self, value: &P::Sample, seq: u64) -> Result<Stamp, BusError> {
+        self.skip_to(seq);
+        self.publish(value)
+    }
+}
+
+impl<P: SliceTopicSpec> Outlet<P> {
+    /// Sends one sample of `len` elements: `write_header` fills the header (its stamp's
+    /// `source_time_ns` and `origin_ns` travel as written; `seq` and `publish_ns` are set
+    /// here), `element(i)` gives element `i`, written in place. Nothing is copied and nothing
+    /// allocated. Returns the stamp the sample went with.
+    pub fn publish_with(
+        &mut self,
+        len: usize,
+        write_header: impl FnOnce(&mut P::Header),
+        element: impl FnMut(usize) -> P::Element,
+    ) -> Result<Stamp, BusError> {
+        if len > self.capacity {
+            return Err(BusError::Send {
+                topic: P::TOPIC.name(),
+                source: format!(
+                    "a sample of {len} elements; this session's samples hold at most {}",
+                    self.capacity
+                )
+                .into(),
+            });
+        }
+        ConnectGate::pass(&mut self.gate)?;
+        let mut sample = self
+            .publisher
+            .loan_slice_uninit(len)
+            .map_err(|e| BusError::send(P::TOPIC, e))?;
+        write_header(sample.user_header_mut());
+        let mut sample = sample.write_from_fn(element);
+        let sent = self.stamp_next(sample.user_header_mut().stamp_mut());
+        self.send(sample, sent)
+    }
+
+    /// Sends a copy of `header` and `elements` (for tests and tools; a stage writes in place
+    /// with [`Outlet::publish_with`]).
+    pub fn publish_copy(
+        &mut self,
+        header: &P::Header,
+        elements: &[P::Element],
+    ) -> Result<Stamp, BusError> {
+        self.publish_with(elements.len(), |h| *h = *header, |i| elements[i])
+    }
+
+    /// The most elements a sample holds.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
+    /// As [`Outlet::publish_as`]: `publish_with` under seq `seq` unless a later one went out.
+    pub fn publish_with_as(
+        &mut self,
+        seq: u64,
+        len: usize,
+        write_header: impl FnOnce(&mut P::Header),
+        element: impl FnMut(usize) -> P::Element,
+    ) -> Result<Stamp, BusError> {
+        self.skip_to(seq);
+        self.publish_with(len, write_header, element)
+    }
 }
 
 /// What names the files with which inlets on a lossless bus say they are connected.
@@ -97,16 +255,33 @@ pub(super) const CONNECTED_MARK: &str = "connected.";
 /// topic has subscribers. It costs a branch per sample after that, and nothing on a bus that
 /// is not lossless.
 pub(super) struct ConnectGate {
-    pub(super) topic: Topic,
-    pub(super) root: PathBuf,
+    topic: Topic,
+    root: PathBuf,
     /// Samples that may go before every reader is connected.
-    pub(super) free: u64,
-    pub(super) sent: u64,
+    free: u64,
+    sent: u64,
     /// The topic's subscribers now.
-    pub(super) subscribers: Box<dyn Fn() -> usize>,
+    subscribers: Box<dyn Fn() -> usize>,
 }
 
 impl ConnectGate {
+    /// The gate of an outlet of `topic` whose readers each buffer `buffer` samples; the marks
+    /// are counted in the session's folder `root`.
+    pub(super) fn new(
+        topic: Topic,
+        root: PathBuf,
+        buffer: usize,
+        subscribers: impl Fn() -> usize + 'static,
+    ) -> ConnectGate {
+        ConnectGate {
+            topic,
+            root,
+            free: (buffer as u64 / 2).max(1),
+            sent: 0,
+            subscribers: Box::new(subscribers),
+        }
+    }
+
     /// Lets the next sample go: at once while it fits in the readers' buffers, else once
     /// every reader is connected (then the gate is gone), or when the process is asked to
     /// stop.
@@ -141,7 +316,7 @@ impl ConnectGate {
     }
 
     /// Inlets of this topic that have marked themselves connected.
-    pub(super) fn connected(&self) -> usize {
+    fn connected(&self) -> usize {
         let prefix = format!("{CONNECTED_MARK}{}.", self.topic.name());
         std::fs::read_dir(&self.root).map_or(0, |entries| {
             entries
@@ -167,18 +342,27 @@ fn sent_counter(topic: Topic, next_seq: u64, skipped: u64) -> TopicCounter {
 /// can be read while its listener is attached to a WaitSet.
 #[derive(Default)]
 pub(super) struct SeqCount {
-    pub(super) received: Cell<u64>,
-    pub(super) gaps: Cell<u64>,
-    pub(super) last_seq: Cell<Option<u64>>,
+    received: Cell<u64>,
+    gaps: Cell<u64>,
+    last_seq: Cell<Option<u64>>,
     /// A restarted reader: the samples before its first were its dead incarnation's to count.
-    pub(super) from_first: bool,
+    from_first: bool,
     /// On a lossless bus: the file this inlet creates on its first sample ([`ConnectGate`]);
     /// taken (None) once created.
-    pub(super) connected_mark: Cell<Option<PathBuf>>,
+    connected_mark: Cell<Option<PathBuf>>,
 }
 
 impl SeqCount {
-    pub(super) fn saw(&self, seq: u64) {
+    /// A fresh count: `from_first` for a restarted reader, `connected_mark` on a lossless bus.
+    pub(super) fn new(from_first: bool, connected_mark: Option<PathBuf>) -> SeqCount {
+        SeqCount {
+            from_first,
+            connected_mark: Cell::new(connected_mark),
+            ..SeqCount::default()
+        }
+    }
+
+    fn saw(&self, seq: u64) {
         // A seq that jumps ahead means samples were lost (overwritten unread, or never sent to
         // us); a seq that goes back means the publisher restarted.
         let missed = match self.last_seq.get() {
@@ -205,10 +389,11 @@ impl SeqCount {
             .map(drop)
             .map_err(|e| BusError::Receive {
                 topic: topic.name(),
-                reason: format!(
+                source: format!(
                     "cannot tell the publisher this reader is connected ({}): {e}",
                     path.display()
-                ),
+                )
+                .into(),
             })
     }
 
@@ -228,7 +413,7 @@ impl SeqCount {
 /// the process is killed) for its restart to read. A store is a plain memory write: no system
 /// call, no lock.
 pub(super) struct SeqStore {
-    pub(super) words: std::ptr::NonNull<std::sync::atomic::AtomicU64>,
+    words: std::ptr::NonNull<std::sync::atomic::AtomicU64>,
 }
 
 /// The bytes a [`SeqStore`] maps.
@@ -284,22 +469,38 @@ impl Drop for SeqStore {
     }
 }
 
-/// A subscriber with its listener: counts what arrives and the gaps in `seq`.
-pub struct Inlet<P: TopicSpec> {
-    pub(super) subscriber: Subscriber<ipc::Service, P::Sample, ()>,
-    pub(super) listener: Listener<ipc::Service>,
-    pub(super) seqs: SeqCount,
+/// A subscriber with its listener, of any topic: counts what arrives and the gaps in `seq`.
+pub struct Inlet<P: TopicLayout> {
+    subscriber: Subscriber<ipc::Service, P::Payload, P::Header>,
+    listener: Listener<ipc::Service>,
+    seqs: SeqCount,
 }
 
-impl<P: TopicSpec> Inlet<P> {
-    /// The next unread sample, zero-copy (it reads the publisher's memory), or None.
-    pub fn receive(&self) -> Result<Option<Received<P::Sample>>, BusError> {
-        let sample = self.subscriber.receive().map_err(|e| BusError::Receive {
-            topic: P::TOPIC.name(),
-            reason: format!("{e:?}"),
-        })?;
+impl<P: TopicLayout> Inlet<P>
+where
+    P::Payload: PayloadKind,
+{
+    pub(super) fn new(
+        subscriber: Subscriber<ipc::Service, P::Payload, P::Header>,
+        listener: Listener<ipc::Service>,
+        seqs: SeqCount,
+    ) -> Inlet<P> {
+        Inlet {
+            subscriber,
+            listener,
+            seqs,
+        }
+    }
+
+    /// The next unread sample, zero-copy (it reads the publisher's memory), or None. Of a
+    /// fixed-size topic, `payload()` is the sample; of a slice topic, `user_header()` is its
+    /// header and `payload()` its elements.
+    pub fn receive(&self) -> Result<Option<Received<P>>, BusError> {
+        let sample =
+            P::Payload::receive(&self.subscriber).map_err(|e| BusError::receive(P::TOPIC, e))?;
         if let Some(s) = &sample {
-            self.seqs.saw(s.payload().stamp().seq);
+            self.seqs
+                .saw(P::stamp(P::Payload::payload(s), s.user_header()).seq);
             self.seqs.mark_connected(P::TOPIC)?;
         }
         Ok(sample)
@@ -323,139 +524,14 @@ impl<P: TopicSpec> Inlet<P> {
     pub fn counter(&self) -> TopicCounter {
         self.seqs.counter(P::TOPIC)
     }
-}
 
-/// A publisher of a slice topic with its notifier: each sample is a header and 0 to
-/// `capacity` elements, written straight into shared memory by [`SliceOutlet::publish_with`].
-pub struct SliceOutlet<P: SliceTopicSpec> {
-    pub(super) publisher: Publisher<ipc::Service, [P::Element], P::Header>,
-    pub(super) notifier: Notifier<ipc::Service>,
-    pub(super) capacity: usize,
-    pub(super) next_seq: u64,
-    /// As [`Outlet`]'s.
-    pub(super) skipped: u64,
-    pub(super) kept: Option<SeqStore>,
-    pub(super) gate: Option<ConnectGate>,
-}
-
-impl<P: SliceTopicSpec> SliceOutlet<P> {
-    /// Sends one sample of `len` elements: `write_header` fills the header (its stamp's
-    /// `source_time_ns` and `origin_ns` travel as written; `seq` and `publish_ns` are set
-    /// here), `element(i)` gives element `i`, written in place. Nothing is copied and nothing
-    /// allocated. Returns the stamp the sample went with.
-    pub fn publish_with(
-        &mut self,
-        len: usize,
-        write_header: impl FnOnce(&mut P::Header),
-        element: impl FnMut(usize) -> P::Element,
-    ) -> Result<Stamp, BusError> {
-        let send_err = |e: String| BusError::Send {
-            topic: P::TOPIC.name(),
-            reason: e,
-        };
-        if len > self.capacity {
-            return Err(send_err(format!(
-                "a sample of {len} elements; this session's samples hold at most {}",
-                self.capacity
-            )));
-        }
-        ConnectGate::pass(&mut self.gate)?;
-        let mut sample = self
-            .publisher
-            .loan_slice_uninit(len)
-            .map_err(|e| send_err(format!("{e:?}")))?;
-        write_header(sample.user_header_mut());
-        let mut sample = sample.write_from_fn(element);
-        let stamp = sample.user_header_mut().stamp_mut();
-        stamp.seq = self.next_seq;
-        stamp.publish_ns = monotonic_ns();
-        let sent = *stamp;
-        // Kept before the send: a process killed between the two skips a seq (a gap its
-        // readers count) rather than sending one seq twice.
-        if let Some(kept) = &self.kept {
-            kept.store(0, self.next_seq + 1);
-        }
-        sample.send().map_err(|e| send_err(format!("{e:?}")))?;
-        self.notifier
-            .notify()
-            .map_err(|e| send_err(format!("{e:?}")))?;
-        self.next_seq += 1;
-        Ok(sent)
+    /// What [`Wakeable`] sleeps on.
+    pub(super) fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
     }
 
-    /// Sends a copy of `header` and `elements` (for tests and tools; a stage writes in place
-    /// with [`SliceOutlet::publish_with`]).
-    pub fn publish(
-        &mut self,
-        header: &P::Header,
-        elements: &[P::Element],
-    ) -> Result<Stamp, BusError> {
-        self.publish_with(elements.len(), |h| *h = *header, |i| elements[i])
-    }
-
-    /// The most elements a sample holds.
-    pub fn capacity(&self) -> usize {
-        self.capacity
-    }
-
-    /// As [`Outlet::publish_as`]: `publish_with` under seq `seq` unless a later one went out.
-    pub fn publish_with_as(
-        &mut self,
-        seq: u64,
-        len: usize,
-        write_header: impl FnOnce(&mut P::Header),
-        element: impl FnMut(usize) -> P::Element,
-    ) -> Result<Stamp, BusError> {
-        if seq > self.next_seq {
-            self.skipped += seq - self.next_seq;
-            self.next_seq = seq;
-        }
-        self.publish_with(len, write_header, element)
-    }
-
-    /// This outlet's counter for the latency report.
-    pub fn counter(&self) -> TopicCounter {
-        sent_counter(P::TOPIC, self.next_seq, self.skipped)
-    }
-}
-
-/// A subscriber of a slice topic with its listener; counts like an [`Inlet`].
-pub struct SliceInlet<P: SliceTopicSpec> {
-    pub(super) subscriber: Subscriber<ipc::Service, [P::Element], P::Header>,
-    pub(super) listener: Listener<ipc::Service>,
-    pub(super) seqs: SeqCount,
-}
-
-impl<P: SliceTopicSpec> SliceInlet<P> {
-    /// The next unread sample, zero-copy, or None: `user_header()` is its header, `payload()`
-    /// its elements.
-    pub fn receive(&self) -> Result<Option<ReceivedSlice<P>>, BusError> {
-        let sample = self.subscriber.receive().map_err(|e| BusError::Receive {
-            topic: P::TOPIC.name(),
-            reason: format!("{e:?}"),
-        })?;
-        if let Some(s) = &sample {
-            self.seqs.saw(s.user_header().stamp().seq);
-            self.seqs.mark_connected(P::TOPIC)?;
-        }
-        Ok(sample)
-    }
-
-    /// Sleeps until a sample may have arrived, or `timeout` passes; consumes the wake-ups.
-    pub fn wait(&self, timeout: Duration) -> Result<(), BusError> {
-        wait_on(&self.listener, timeout)
-    }
-
-    pub fn received(&self) -> u64 {
-        self.seqs.received.get()
-    }
-
-    pub fn topic(&self) -> Topic {
-        P::TOPIC
-    }
-
-    /// This inlet's counter for the latency report.
-    pub fn counter(&self) -> TopicCounter {
-        self.seqs.counter(P::TOPIC)
+    /// True when a sample waits (an error counts as one: the receive will say what it is).
+    pub(super) fn has_samples(&self) -> bool {
+        self.subscriber.has_samples().unwrap_or(true)
     }
 }

@@ -10,21 +10,15 @@ pub trait Wakeable {
     fn has_samples(&self) -> bool;
 }
 
-impl<P: TopicSpec> Wakeable for Inlet<P> {
+impl<P: TopicLayout> Wakeable for Inlet<P>
+where
+    P::Payload: PayloadKind,
+{
     fn listener(&self) -> &Listener<ipc::Service> {
-        &self.listener
+        Inlet::listener(self)
     }
     fn has_samples(&self) -> bool {
-        self.subscriber.has_samples().unwrap_or(true)
-    }
-}
-
-impl<P: SliceTopicSpec> Wakeable for SliceInlet<P> {
-    fn listener(&self) -> &Listener<ipc::Service> {
-        &self.listener
-    }
-    fn has_samples(&self) -> bool {
-        self.subscriber.has_samples().unwrap_or(true)
+        Inlet::has_samples(self)
     }
 }
 
@@ -374,7 +368,7 @@ fn poll_readable(fds: &mut [libc::pollfd], timeout: Duration) -> Result<(), BusE
     if r < 0 {
         let e = std::io::Error::last_os_error();
         if e.kind() != std::io::ErrorKind::Interrupted {
-            return Err(BusError::Wait(format!("ppoll: {e}")));
+            return Err(BusError::Wait(e.into()));
         }
     }
     Ok(())

@@ -16,9 +16,7 @@ use std::collections::BTreeMap;
 use std::error::Error;
 use std::time::Duration;
 
-use common::bus::{
-    wait_any_or, Bus, BusError, Inlet, Outlet, SliceInlet, SliceOutlet, Stamped, Wakeable,
-};
+use common::bus::{wait_any_or, Bus, BusError, Inlet, Outlet, Stamped, Wakeable};
 use common::config::session::{LinkRole, Source};
 use common::config::Session;
 use common::latency::{Metric, Reporter};
@@ -111,12 +109,16 @@ impl<P: TopicSpec> Input for Inlet<P> {
     }
 }
 
-impl<P: SliceTopicSpec> Input for SliceInlet<P> {
+/// A slice topic's inlet, as an [`Input`] (a type of its own: one generic impl for [`Inlet`]
+/// cannot tell how to encode each kind of sample).
+struct SliceInput<P: SliceTopicSpec>(Inlet<P>);
+
+impl<P: SliceTopicSpec> Input for SliceInput<P> {
     fn wakeable(&self) -> &dyn Wakeable {
-        self
+        &self.0
     }
     fn drain(&self, out: &mut Out) -> Result<(), BusError> {
-        while let Some(s) = self.receive()? {
+        while let Some(s) = self.0.receive()? {
             let received = monotonic_ns();
             recording::encode_slice(P::TOPIC, s.user_header(), s.payload(), &mut out.message);
             out.send(P::TOPIC, received, s.user_header().stamp());
@@ -124,7 +126,7 @@ impl<P: SliceTopicSpec> Input for SliceInlet<P> {
         Ok(())
     }
     fn counter(&self) -> TopicCounter {
-        SliceInlet::counter(self)
+        self.0.counter()
     }
 }
 
@@ -156,7 +158,7 @@ impl<P: TopicSpec> Output for Outlet<P> {
 
 /// A slice topic's outlet and the element count this session's scene gives it.
 struct SliceOutput<P: SliceTopicSpec> {
-    outlet: SliceOutlet<P>,
+    outlet: Outlet<P>,
     elements: usize,
 }
 
@@ -223,7 +225,8 @@ impl TopicVisitor for OpenPorts<'_> {
     }
     fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
         if self.inputs.contains(&P::TOPIC) {
-            self.opened_in.push(Box::new(self.bus.slice_inlet::<P>()?));
+            self.opened_in
+                .push(Box::new(SliceInput(self.bus.inlet::<P>()?)));
         }
         if self.outputs.contains(&P::TOPIC) {
             self.opened_out.push(Box::new(SliceOutput {

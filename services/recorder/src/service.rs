@@ -9,7 +9,7 @@
 
 use std::time::Duration;
 
-use common::bus::{wait_any, Bus, BusError, Inlet, SliceInlet, Stamped, Wakeable, MAX_WAIT};
+use common::bus::{wait_any, Bus, BusError, Inlet, Stamped, Wakeable, MAX_WAIT};
 use common::config::Session;
 use common::latency::Reporter;
 use common::topic::{SliceTopicSpec, TopicSpec, TopicVisitor};
@@ -58,9 +58,13 @@ impl<P: TopicSpec> Channel for Inlet<P> {
     }
 }
 
-impl<P: SliceTopicSpec> Channel for SliceInlet<P> {
+/// A slice topic's inlet, as a [`Channel`] (a type of its own: one generic impl for
+/// [`Inlet`] cannot tell how to write each kind of sample).
+struct SliceChannel<P: SliceTopicSpec>(Inlet<P>);
+
+impl<P: SliceTopicSpec> Channel for SliceChannel<P> {
     fn wakeable(&self) -> &dyn Wakeable {
-        self
+        &self.0
     }
 
     fn drain(
@@ -68,7 +72,7 @@ impl<P: SliceTopicSpec> Channel for SliceInlet<P> {
         log: &mut Option<RecordingWriter>,
         reporter: &mut Reporter,
     ) -> Result<(), Box<dyn std::error::Error>> {
-        while let Some(s) = self.receive()? {
+        while let Some(s) = self.0.receive()? {
             record_one(s.user_header().stamp(), log, reporter, |log| {
                 log.write_slice(P::TOPIC, s.user_header(), s.payload())
             })?;
@@ -77,7 +81,7 @@ impl<P: SliceTopicSpec> Channel for SliceInlet<P> {
     }
 
     fn counter(&self) -> TopicCounter {
-        SliceInlet::counter(self)
+        self.0.counter()
     }
 }
 
@@ -121,7 +125,8 @@ impl TopicVisitor for OpenChannels<'_> {
     }
     fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
         if P::TOPIC.is_recorded() {
-            self.channels.push(Box::new(self.bus.slice_inlet::<P>()?));
+            self.channels
+                .push(Box::new(SliceChannel(self.bus.inlet::<P>()?)));
         }
         Ok(())
     }

@@ -136,7 +136,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let sent = hand_out.publish(&hand)?;
         world.hand_seq = sent.seq;
         world.stamp = Stamp::at_origin(0, n);
-        world_out.publish(&world.header, &world.blocks)?;
+        world_out.publish_copy(&world.header, &world.blocks)?;
         n += 1;
         while let Some(f) = frames_in.receive()? {
             if start.elapsed() > warmup {

@@ -15,7 +15,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use common::bus::Bus;
-use common::bus::ReceivedSlice;
+use common::bus::Received;
 use common::config::session::RenderMode;
 use common::config::Session;
 use common::latency::{Metric, Reporter};
@@ -97,7 +97,7 @@ pub fn run_with_preview(
         };
         r.render(nothing, &HandSample::default())?;
     }
-    let world_in = bus.slice_inlet::<topics::World>()?;
+    let world_in = bus.inlet::<topics::World>()?;
     let hand_in = bus.inlet::<topics::Hand>()?;
     let mut frame_out = bus.outlet::<topics::Frame>()?;
     let mut reporter = Reporter::new(Stage::Renderer, bus.outlet::<topics::Latency>()?);
@@ -114,7 +114,7 @@ pub fn run_with_preview(
     let mut next_frame = monotonic_ns() + period_ns;
     let mut newest: Option<Stamp> = None; // the newest world's stamp, while it is undrawn
                                           // The newest world sample, held in place (read from the stepper's memory, not copied).
-    let mut world: Option<ReceivedSlice<topics::World>> = None;
+    let mut world: Option<Received<topics::World>> = None;
     let mut hands = Box::new([HandSample::default(); HAND_HISTORY]);
     let mut hand_next = 0usize;
     let mut superseded = 0u64;

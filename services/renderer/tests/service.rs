@@ -89,7 +89,7 @@ fn the_loop_draws_the_newest_world_publishes_photon_and_writes_every_nth_frame()
     while start.elapsed() < Duration::from_secs(1) {
         w.stamp = Stamp::at_origin(0, n);
         w.blocks[0].pose.position[0] = 0.1 * (n as f64 * 0.05).sin();
-        world_out.publish(&w.header, &w.blocks).unwrap();
+        world_out.publish_copy(&w.header, &w.blocks).unwrap();
         n += 1;
         while let Some(f) = frames_in.receive().unwrap() {
             frames.push(*f.payload());

@@ -56,7 +56,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     let mut glove_out = bus.outlet::<topics::Glove>()?;
     let mut tracker_out = bus.outlet::<topics::Tracker>()?;
     let mut joints_out = bus.outlet::<topics::Joints>()?;
-    let world_in = bus.slice_inlet::<topics::World>()?;
+    let world_in = bus.inlet::<topics::World>()?;
     let mut reporter = Reporter::new(Stage::Replay, bus.outlet::<topics::Latency>()?);
     let mut answered: Option<u64> = None; // the newest hand seq a world state answered
     let mut hands_sent: u64 = 0;
