@@ -1,0 +1,157 @@
+//! The messages: each sample as CDR bytes (the 4-byte little-endian header, then the sample's
+//! `#[repr(C)]` bytes, which for our layouts are its CDR serialisation) and back. A recording's
+//! messages and the bridge's (issue 17) are these bytes; every decoder checks a message's
+//! length against its topic before it reads a sample from it.
+
+use std::fmt;
+use std::mem::{size_of, size_of_val};
+
+use common::bus::Stamped;
+use common::stamp::Stamp;
+use common::topic::Topic;
+
+/// Message encoding of every channel: CDR (little-endian), which for our layouts is the 4-byte
+/// [`CDR_LE_HEADER`] and then the sample's `#[repr(C)]` bytes.
+pub const MESSAGE_ENCODING: &str = "cdr";
+/// The CDR encapsulation header of a little-endian plain CDR payload.
+pub const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
+
+/// The schema (message type) name and the sample's byte size of a topic (of a slice topic, its
+/// header's: see [`slice_message_bytes`]).
+pub fn sample_type(topic: Topic) -> (&'static str, usize) {
+    (topic.schema_name(), topic.sample_size())
+}
+
+/// Where a slice topic's elements start in its message (after the CDR header): after the
+/// header, the sequence's uint32 count and the padding that aligns the elements to 8 bytes.
+pub fn slice_elements_offset(topic: Topic) -> usize {
+    (topic.sample_size() + 4).next_multiple_of(8)
+}
+
+/// The bytes of a slice topic's message after the CDR header, with `elements` elements; None
+/// for a fixed-size topic.
+pub fn slice_message_bytes(topic: Topic, elements: usize) -> Option<usize> {
+    let element = topic.element_size()?;
+    Some(slice_elements_offset(topic) + elements * element)
+}
+
+/// A fixed-size sample's message, as a recording holds it and the bridge sends it (issue 17):
+/// the CDR header and the sample's bytes, into `out` (cleared first; no allocation once `out`
+/// has grown to the size).
+pub fn encode_sample<T: Stamped>(sample: &T, out: &mut Vec<u8>) {
+    // SAFETY: every sample type is #[repr(C)], Copy, and laid out without implicit padding
+    // (explicit `_reserved` fields fill it; `layout` lists them), so all bytes are initialised.
+    let bytes =
+        unsafe { std::slice::from_raw_parts(sample as *const T as *const u8, size_of::<T>()) };
+    out.clear();
+    out.extend_from_slice(&CDR_LE_HEADER);
+    out.extend_from_slice(bytes);
+}
+
+/// A slice topic's message: the CDR header, `header`'s bytes, then `elements` as a CDR
+/// sequence (count, padding to 8, elements), into `out` (cleared first).
+pub fn encode_slice<H: Stamped, E: Copy>(
+    topic: Topic,
+    header: &H,
+    elements: &[E],
+    out: &mut Vec<u8>,
+) {
+    // SAFETY: as in `encode_sample`: #[repr(C)] plain data without implicit padding
+    // (BlockState's `_reserved` fills its gap), so every byte is initialised.
+    let head =
+        unsafe { std::slice::from_raw_parts(header as *const H as *const u8, size_of::<H>()) };
+    let body = unsafe {
+        std::slice::from_raw_parts(elements.as_ptr() as *const u8, size_of_val(elements))
+    };
+    out.clear();
+    out.extend_from_slice(&CDR_LE_HEADER);
+    out.extend_from_slice(head);
+    out.extend_from_slice(&(elements.len() as u32).to_le_bytes());
+    let pad = slice_elements_offset(topic) - size_of::<H>() - 4;
+    out.extend_from_slice(&[0u8; 8][..pad]);
+    out.extend_from_slice(body);
+}
+
+/// Why a message is not a sample of its topic (bytes from another machine, a damaged file).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MessageError(pub String);
+
+impl fmt::Display for MessageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for MessageError {}
+
+/// The sample of a fixed-size topic's message (`encode_sample`'s inverse): the length must be
+/// the CDR header and exactly the sample. Any bit pattern of the right length is a sample (only
+/// integers and floats); what the values mean is the reader's to check.
+pub fn decode_sample<T: Stamped>(topic: Topic, message: &[u8]) -> Result<T, MessageError> {
+    let want = CDR_LE_HEADER.len() + size_of::<T>();
+    if topic.element_size().is_some() || size_of::<T>() != topic.sample_size() {
+        return Err(MessageError(format!(
+            "a {}-byte sample type is not `{}`'s",
+            size_of::<T>(),
+            topic.name()
+        )));
+    }
+    if message.len() != want || message[..4] != CDR_LE_HEADER {
+        return Err(MessageError(format!(
+            "a `{}` message is {want} bytes starting with the CDR little-endian header; this \
+             one is {} bytes",
+            topic.name(),
+            message.len()
+        )));
+    }
+    // SAFETY: the length matches; plain old data, read unaligned.
+    Ok(unsafe { std::ptr::read_unaligned(message[4..].as_ptr() as *const T) })
+}
+
+/// A slice topic's message (`encode_slice`'s inverse): its header and the bytes of its
+/// elements, whose count must agree with the message's length.
+pub fn decode_slice<H: Stamped>(topic: Topic, message: &[u8]) -> Result<(H, &[u8]), MessageError> {
+    let Some(element) = topic.element_size() else {
+        return Err(MessageError(format!(
+            "`{}` is not a slice topic",
+            topic.name()
+        )));
+    };
+    let start = CDR_LE_HEADER.len() + slice_elements_offset(topic);
+    let count_at = CDR_LE_HEADER.len() + size_of::<H>();
+    if size_of::<H>() != topic.sample_size()
+        || message.len() < start
+        || message[..4] != CDR_LE_HEADER
+    {
+        return Err(MessageError(format!(
+            "a `{}` message is at least {start} bytes starting with the CDR little-endian \
+             header; this one is {} bytes",
+            topic.name(),
+            message.len()
+        )));
+    }
+    let count = u32::from_le_bytes([
+        message[count_at],
+        message[count_at + 1],
+        message[count_at + 2],
+        message[count_at + 3],
+    ]) as usize;
+    let body = &message[start..];
+    if body.len() != count.saturating_mul(element) {
+        return Err(MessageError(format!(
+            "a `{}` message says {count} elements of {element} bytes but holds {} bytes of them",
+            topic.name(),
+            body.len()
+        )));
+    }
+    // SAFETY: the length is checked; plain old data, read unaligned.
+    let header = unsafe { std::ptr::read_unaligned(message[4..].as_ptr() as *const H) };
+    Ok((header, body))
+}
+
+/// The stamp at the start of any topic's message (every sample starts with it).
+pub fn message_stamp(message: &[u8]) -> Option<Stamp> {
+    let bytes = message.get(4..4 + size_of::<Stamp>())?;
+    // SAFETY: the length is checked; a stamp is four u64s, any bit pattern valid.
+    Some(unsafe { std::ptr::read_unaligned(bytes.as_ptr() as *const Stamp) })
+}
