@@ -5,11 +5,14 @@
 //! * [`load`]: the pipeline at 1 kHz for a minute, every topic recorded: the flow and latency.
 //! * [`accuracy`]: the paper model and the precise one (rapier3d) against exact answers, and
 //!   what each setting costs per step, measured in the same run.
+//! * [`hard_cases`]: the hard-case table, harness and criteria, shared by [`stability`] and the
+//!   suite (`tests/hard_suite.rs`, `tests/far_from_origin.rs`, `tests/r14.rs`).
 //! * [`stability`]: every hard case under both models, with its figures.
 //! * [`stepper`]: a step's cost against the world's size, and each effect's cost on and off.
 //! * [`plot`]: the figures (plotters into a PNG), shared by the reports.
 
 pub mod accuracy;
+pub mod hard_cases;
 pub mod hgrm;
 pub mod latency;
 pub mod load;

@@ -1,5 +1,5 @@
-//! `handblocks bench stability`: every hard case of `stepper::hard_cases` (the table the
-//! suite `services/stepper/tests/hard_suite.rs` runs) under the paper model (R1-R14, the scene
+//! `handblocks bench stability`: every hard case of [`crate::hard_cases`] (the table the
+//! suite `bench/tests/hard_suite.rs` runs) under the paper model (R1-R14, the scene
 //! as written), under R11 only where the case is a stack (the paper's floating stacks), and
 //! under the precise model (rapier3d) at its default `[precise]` settings, with its figures:
 //! drift and sink of the blocks that stayed, deepest penetration, the stands/falls decision
@@ -12,8 +12,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::hard_cases::{self, Case, Figures, Variant, CASES};
 use serde_json::{json, Value};
-use stepper::hard_cases::{self, Case, Figures, Variant, CASES};
 
 use crate::plot::{Figure, Legend, Panel, Series};
 
@@ -194,7 +194,7 @@ fn rest_text(t: Option<f64>) -> String {
 fn markdown(rows: &[Row], quick: bool, seconds: f64) -> String {
     let mut s = String::from("# handblocks bench stability\n\n");
     s += &format!(
-        "Every hard case (`config/scenes/hard/`, table `stepper::hard_cases`) under the paper model (R1-R14, `paper-R14`: the scene as written), under R11 only where the case is a stack (`paper`), and under the precise model (rapier3d, default `[precise]`). {} runs in {seconds:.0} s{}.\n\n",
+        "Every hard case (`config/scenes/hard/`, table `handblocks_bench::hard_cases`) under the paper model (R1-R14, `paper-R14`: the scene as written), under R11 only where the case is a stack (`paper`), and under the precise model (rapier3d, default `[precise]`). {} runs in {seconds:.0} s{}.\n\n",
         rows.len(),
         if quick { " (--quick: the slowest precise runs and two far-from-origin copies left out)" } else { "" }
     );

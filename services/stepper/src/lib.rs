@@ -34,7 +34,6 @@ pub mod geometry;
 pub(crate) mod grid;
 pub mod hand;
 pub mod hand_log;
-pub mod hard_cases;
 pub mod interference;
 pub mod model;
 pub mod motion;

@@ -13,7 +13,7 @@ use std::path::Path;
 use glam::{DQuat, DVec3};
 
 use common::config::Scene;
-use stepper::hard_cases::{self, Glitch, Outcome, Variant, CASES};
+use handblocks_bench::hard_cases::{self, Glitch, Outcome, Variant, CASES};
 use stepper::EventKind;
 
 const KM: f64 = 1000.0;
@@ -207,7 +207,7 @@ fn compare_hand_case(origin: &Outcome, far: &Outcome) -> Result<(f64, f64), Stri
 /// The scenes of `config/scenes/` without a hand (the CARL scenes have no hand of their own:
 /// their hand is a trace, not run here).
 fn handless_scenes() -> Vec<Scene> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/scenes");
     let mut files: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
         .filter_map(|e| e.ok().map(|e| e.path()))

@@ -1,8 +1,8 @@
 //! The hard-case suite (issue 13): the cases physics engines are judged by (notes/physics.md,
 //! notes/accuracy.md), each a scene file under `config/scenes/hard/` whose header comment states
-//! its criterion. The table, the harness and the criteria are `stepper::hard_cases` (shared with
-//! `handblocks bench stability`, which reports every figure); here one `#[test]` per case and
-//! model:
+//! its criterion. The table, the harness and the criteria are `handblocks_bench::hard_cases`
+//! (shared with `handblocks bench stability`, which reports every figure); here one `#[test]` per
+//! case and model:
 //! - `paper::*`: the paper model on the scene as written (R1-R14), its exact criterion;
 //! - `precise::*`: the precise model (rapier3d) at its default `[precise]` settings, with a
 //!   criterion fitted to a rigid-body engine (mm, stands/falls, no tunnelling). Where the engine
@@ -14,7 +14,7 @@
 //!   (`hard_cases::Known`), lies in its band; it prints the figure, and `bench stability`
 //!   shows it next to the paper model's result.
 
-use stepper::hard_cases::{self, Variant, CASES};
+use handblocks_bench::hard_cases::{self, Variant, CASES};
 
 /// Runs one case under `variant`; panics with the measured failure.
 fn run_case(name: &str, variant: Variant) {

@@ -16,6 +16,9 @@
 //!   fails a physical criterion the case says so ([`Precise::KnownFailure`]): the suite then
 //!   asserts only that the measured behaviour is finite and bounded, and the benchmark shows
 //!   the failure.
+//!
+//! Test and benchmark harness, not product: it lives in the bench crate, beside
+//! [`stability`](crate::stability), and reads the stepper only through its public API.
 
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
@@ -27,10 +30,10 @@ use common::config::scene::{ModelKind, Stacking};
 use common::config::Scene;
 use common::BlockMode;
 
-use crate::geometry::{rotate_vertices, sat_depth, Polyhedron};
-use crate::model::Model;
-use crate::world::{Event, EventKind};
-use crate::{BareFingersHand, HandSource};
+use stepper::geometry::{rotate_vertices, sat_depth, Polyhedron};
+use stepper::model::Model;
+use stepper::world::{Event, EventKind};
+use stepper::{BareFingersHand, HandSource};
 
 /// The ways a case can run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -179,7 +182,7 @@ pub struct Outcome {
 
 pub fn hard_file(file: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../config/scenes/hard")
+        .join("../config/scenes/hard")
         .join(file)
 }
 

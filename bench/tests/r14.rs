@@ -194,8 +194,8 @@ fn r14_r12_a_block_sliding_down_the_side_of_another_does_not_hang() {
 /// its G is beyond the base's edge).
 #[test]
 fn r14_every_scene_runs_under_supported_stacking() {
+    use handblocks_bench::hard_cases::overlaps;
     use stepper::geometry::Polyhedron;
-    use stepper::hard_cases::overlaps;
     for name in [
         "drop",
         "tip",
