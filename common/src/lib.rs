@@ -11,6 +11,7 @@ pub mod bus;
 pub mod config;
 pub mod glove;
 pub mod latency;
+pub mod node;
 pub mod output;
 pub mod samples;
 pub mod shutdown;

@@ -5,7 +5,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use common::bus::{Bus, BusConfig};
+use common::bus::{Bus, BusConfig, BusError};
 use common::config::session::{recording_segment, Override, RestartPolicy};
 use common::config::Session;
 use common::{shutdown, Stage};
@@ -26,12 +26,53 @@ pub struct ServiceArgs {
 pub enum ServiceError {
     /// NAME is none of the stages.
     Unknown { name: String },
-    /// The stage's process failed: its session, its bus, or its own work. The processes'
-    /// errors are their crates' own types, carried as they are (the launcher reads the line).
-    Failed {
-        stage: Stage,
-        error: Box<dyn std::error::Error>,
-    },
+    /// The stage's process failed: its session, its bus, or its own work.
+    Failed { stage: Stage, error: StageError },
+}
+
+/// What failed in a stage's process: setting it up (its session, its bus), or the stage's own
+/// work, each stage with its crate's error type.
+#[derive(Debug)]
+pub enum StageError {
+    Session(common::config::ConfigError),
+    Bus(BusError),
+    Acquisition(acquisition::service::AcquisitionError),
+    Kinematics(BusError),
+    Stepper(stepper::service::StepperError),
+    Renderer(renderer::RenderError),
+    Recorder(recorder::service::RecorderError),
+    Replay(replay::service::ReplayError),
+    Bridge(bridge::service::BridgeError),
+}
+
+impl fmt::Display for StageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StageError::Session(e) => write!(f, "{e}"),
+            StageError::Bus(e) | StageError::Kinematics(e) => write!(f, "{e}"),
+            StageError::Acquisition(e) => write!(f, "{e}"),
+            StageError::Stepper(e) => write!(f, "{e}"),
+            StageError::Renderer(e) => write!(f, "{e}"),
+            StageError::Recorder(e) => write!(f, "{e}"),
+            StageError::Replay(e) => write!(f, "{e}"),
+            StageError::Bridge(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for StageError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            StageError::Session(e) => Some(e),
+            StageError::Bus(e) | StageError::Kinematics(e) => Some(e),
+            StageError::Acquisition(e) => Some(e),
+            StageError::Stepper(e) => Some(e),
+            StageError::Renderer(e) => Some(e),
+            StageError::Recorder(e) => Some(e),
+            StageError::Replay(e) => Some(e),
+            StageError::Bridge(e) => Some(e),
+        }
+    }
 }
 
 impl ServiceError {
@@ -56,7 +97,14 @@ impl fmt::Display for ServiceError {
     }
 }
 
-impl std::error::Error for ServiceError {}
+impl std::error::Error for ServiceError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            ServiceError::Unknown { .. } => None,
+            ServiceError::Failed { error, .. } => Some(error),
+        }
+    }
+}
 
 /// Runs the stage until it is asked to stop. A renderer without a GPU adapter exits with
 /// [`launcher::RENDERER_SKIPPED_EXIT`] and no message: the launcher goes on without it and
@@ -76,15 +124,10 @@ pub fn run(
     };
     match run_stage(stage, session_file, bus_id, args) {
         Ok(()) => Ok(ExitCode::SUCCESS),
-        Err(error) => {
-            if matches!(
-                error.downcast_ref::<renderer::RenderError>(),
-                Some(renderer::RenderError::NoAdapter(_))
-            ) {
-                return Ok(ExitCode::from(launcher::RENDERER_SKIPPED_EXIT as u8));
-            }
-            Err(ServiceError::Failed { stage, error })
+        Err(StageError::Renderer(renderer::RenderError::NoAdapter(_))) => {
+            Ok(ExitCode::from(launcher::RENDERER_SKIPPED_EXIT as u8))
         }
+        Err(error) => Err(ServiceError::Failed { stage, error }),
     }
 }
 
@@ -93,8 +136,9 @@ fn run_stage(
     session_file: &Path,
     bus_id: &str,
     args: ServiceArgs,
-) -> Result<(), Box<dyn std::error::Error>> {
-    let mut session = Session::load_with(session_file, &args.overrides)?;
+) -> Result<(), StageError> {
+    let mut session =
+        Session::load_with(session_file, &args.overrides).map_err(StageError::Session)?;
     if args.record.is_some() {
         session.recorder.file = args.record;
     }
@@ -106,16 +150,21 @@ fn run_stage(
             .map(|f| recording_segment(&f, args.restart));
     }
     // Every process of a session opens the bus as the session says (world sizes, loss).
-    let config = BusConfig::for_session_of(bus_id, &session)?;
-    let mut bus = Bus::open(&config, stage.name())?;
+    let config = BusConfig::for_session_of(bus_id, &session).map_err(StageError::Bus)?;
+    let mut bus = Bus::open(&config, stage.name()).map_err(StageError::Bus)?;
     if session.supervise.restart == RestartPolicy::OnFailure {
         bus = bus.supervised(args.restart);
     }
     match stage {
-        Stage::Acquisition => acquisition::service::run(&session, &bus),
-        Stage::Kinematics => kinematics::service::run(&session, &bus),
+        Stage::Acquisition => {
+            acquisition::service::run(&session, &bus).map_err(StageError::Acquisition)
+        }
+        Stage::Kinematics => {
+            kinematics::service::run(&session, &bus).map_err(StageError::Kinematics)
+        }
         Stage::Stepper => {
             stepper::service::run_with_outcome(&session, &bus, args.outcome_dir.as_deref())
+                .map_err(StageError::Stepper)
         }
         Stage::Renderer => renderer::service::run_with_preview(
             &session,
@@ -132,9 +181,10 @@ fn run_stage(
                 every_nth: session.renderer.frames_every,
             }),
             args.preview,
-        ),
-        Stage::Recorder => recorder::service::run(&session, &bus),
-        Stage::Replay => replay::service::run(&session, &bus),
-        Stage::Bridge => bridge::service::run(&session, &bus),
+        )
+        .map_err(StageError::Renderer),
+        Stage::Recorder => recorder::service::run(&session, &bus).map_err(StageError::Recorder),
+        Stage::Replay => replay::service::run(&session, &bus).map_err(StageError::Replay),
+        Stage::Bridge => bridge::service::run(&session, &bus).map_err(StageError::Bridge),
     }
 }

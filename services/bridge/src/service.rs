@@ -13,22 +13,60 @@
 //! session report under `bridge`.
 
 use std::collections::BTreeMap;
-use std::error::Error;
+use std::fmt;
+use std::os::unix::io::RawFd;
+use std::path::PathBuf;
 use std::time::Duration;
 
-use common::bus::{wait_any_or, Bus, BusError, Inlet, Outlet, Stamped, Wakeable};
+use common::bus::{
+    wait_any_or, Bus, BusError, Inlet, Outlet, Stamped, WaitStrategy, Waiter, Wakeable, MAX_WAIT,
+};
 use common::config::session::{LinkRole, Source};
 use common::config::Session;
-use common::latency::{Metric, Reporter};
+use common::latency::{LatencyRecorder, Metric, Reporter};
+use common::node::{self, Counters, Pass, Task};
 use common::topic::{SliceTopicSpec, TopicSpec, TopicVisitor};
-use common::{monotonic_ns, shutdown, topics, Stage, Stamp, Topic, TopicCounter};
+use common::{monotonic_ns, Stage, Stamp, Topic, TopicCounter};
 
 use crate::clock::ClockOffset;
-use crate::link::Link;
-use crate::viewer::Viewer;
+use crate::link::{Link, LinkError};
+use crate::viewer::{Viewer, ViewerError};
 
-/// The longest sleep without a sample: the loop reports and notices a stop this often.
-const IDLE_WAIT: Duration = Duration::from_millis(50);
+/// Why the bridge process stopped with an error.
+#[derive(Debug)]
+pub enum BridgeError {
+    Bus(BusError),
+    /// The zenoh link could not be opened.
+    Link(LinkError),
+    /// The Foxglove view could not be started.
+    Viewer(ViewerError),
+}
+
+impl fmt::Display for BridgeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BridgeError::Bus(e) => write!(f, "{e}"),
+            BridgeError::Link(e) => write!(f, "{e}"),
+            BridgeError::Viewer(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for BridgeError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            BridgeError::Bus(e) => Some(e),
+            BridgeError::Link(e) => Some(e),
+            BridgeError::Viewer(e) => Some(e),
+        }
+    }
+}
+
+impl From<BusError> for BridgeError {
+    fn from(e: BusError) -> BridgeError {
+        BridgeError::Bus(e)
+    }
+}
 /// While samples wait for the first clock estimate, the loop looks again this often.
 const CLOCK_WAIT: Duration = Duration::from_millis(5);
 
@@ -50,15 +88,14 @@ struct Out {
     link: Option<Link>,
     viewer: Option<Viewer>,
     message: Vec<u8>,
-    reporter: Reporter,
     counts: Counts,
 }
 
 impl Out {
     /// Sends `self.message` (a sample of `topic` received at `received_ns`) to the link and the
     /// view, and records the bridge's own time and the sample's age.
-    fn send(&mut self, topic: Topic, received_ns: u64, stamp: &Stamp) {
-        self.reporter.recorder.hop(stamp, received_ns);
+    fn send(&mut self, r: &mut LatencyRecorder, topic: Topic, received_ns: u64, stamp: &Stamp) {
+        r.hop(stamp, received_ns);
         if let Some(link) = &self.link {
             match link.put(topic, &self.message) {
                 Ok(true) => *self.counts.sent.entry(topic.name()).or_default() += 1,
@@ -76,19 +113,15 @@ impl Out {
             v.observe(topic, &self.message, received_ns);
         }
         let done = monotonic_ns();
-        self.reporter
-            .recorder
-            .record(Metric::Process, done.saturating_sub(received_ns));
-        self.reporter
-            .recorder
-            .record(Metric::Origin, done.saturating_sub(stamp.origin_ns));
+        r.record(Metric::Process, done.saturating_sub(received_ns));
+        r.record(Metric::Origin, done.saturating_sub(stamp.origin_ns));
     }
 }
 
 /// One topic the bridge reads from the bus, whatever its sample type.
 trait Input {
     fn wakeable(&self) -> &dyn Wakeable;
-    fn drain(&self, out: &mut Out) -> Result<(), BusError>;
+    fn drain(&self, out: &mut Out, r: &mut LatencyRecorder) -> Result<(), BusError>;
     fn counter(&self) -> TopicCounter;
 }
 
@@ -96,11 +129,11 @@ impl<P: TopicSpec> Input for Inlet<P> {
     fn wakeable(&self) -> &dyn Wakeable {
         self
     }
-    fn drain(&self, out: &mut Out) -> Result<(), BusError> {
+    fn drain(&self, out: &mut Out, r: &mut LatencyRecorder) -> Result<(), BusError> {
         while let Some(s) = self.receive()? {
             let received = monotonic_ns();
             recording::encode_sample(s.payload(), &mut out.message);
-            out.send(P::TOPIC, received, s.stamp());
+            out.send(r, P::TOPIC, received, s.stamp());
         }
         Ok(())
     }
@@ -117,11 +150,11 @@ impl<P: SliceTopicSpec> Input for SliceInput<P> {
     fn wakeable(&self) -> &dyn Wakeable {
         &self.0
     }
-    fn drain(&self, out: &mut Out) -> Result<(), BusError> {
+    fn drain(&self, out: &mut Out, r: &mut LatencyRecorder) -> Result<(), BusError> {
         while let Some(s) = self.0.receive()? {
             let received = monotonic_ns();
             recording::encode_slice(P::TOPIC, s.user_header(), s.payload(), &mut out.message);
-            out.send(P::TOPIC, received, s.user_header().stamp());
+            out.send(r, P::TOPIC, received, s.user_header().stamp());
         }
         Ok(())
     }
@@ -239,14 +272,14 @@ impl TopicVisitor for OpenPorts<'_> {
 }
 
 /// Runs until asked to stop.
-pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn Error>> {
+pub fn run(session: &Session, bus: &Bus) -> Result<(), BridgeError> {
     let settings = &session.bridge;
     let remote_fed = matches!(session.source, Source::Remote);
     let inputs = session.bridge_inputs();
     let outputs = settings.outputs();
     let link = match &settings.link {
         Some(l) => {
-            let link = Link::open(l)?;
+            let link = Link::open(l).map_err(BridgeError::Link)?;
             eprintln!(
                 "handblocks bridge: {} {} (key {}): sending {}, taking in {}",
                 match l.role {
@@ -270,7 +303,8 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn Error>> {
             } else {
                 inputs.clone()
             };
-            let v = Viewer::start(host, *port, &session.scene, &served)?;
+            let v =
+                Viewer::start(host, *port, &session.scene, &served).map_err(BridgeError::Viewer)?;
             eprintln!(
                 "handblocks bridge: Foxglove view on ws://{host}:{} (in Foxglove: Open \
                  connection -> Foxglove WebSocket; topics {} and /scene)",
@@ -296,70 +330,122 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn Error>> {
     Topic::visit_each(&mut ports)?;
     let OpenPorts {
         opened_in: ins,
-        opened_out: mut outs,
+        opened_out: outs,
         ..
     } = ports;
-    let mut out = Out {
-        link,
-        viewer,
-        message: Vec::new(),
-        reporter: Reporter::new(Stage::Bridge, bus.outlet::<topics::Latency>()?),
-        counts: Counts::default(),
-    };
-    let wakeables: Vec<&dyn Wakeable> = ins.iter().map(|i| i.wakeable()).collect();
-    let wake_fd = out
-        .link
+    let wake_fd = link
         .as_ref()
         .filter(|_| !outs.is_empty())
         .map(|l| l.wake_fd());
-    let mut counters: Vec<TopicCounter> = Vec::with_capacity(ins.len() + outs.len());
-    loop {
-        let stopping = shutdown::requested();
-        if !stopping {
-            let waiting_for_clock = out
-                .link
-                .as_ref()
-                .is_some_and(|l| l.clock.offset_ns().is_none() && !l.incoming.is_empty());
-            let timeout = if waiting_for_clock {
-                CLOCK_WAIT
-            } else {
-                IDLE_WAIT
-            };
-            if wakeables.is_empty() && (wake_fd.is_none() || waiting_for_clock) {
+    let mut bridge = BridgeStage {
+        session,
+        summary_file: bus.session_folder().join("bridge.json"),
+        ins,
+        outs,
+        out: Out {
+            link,
+            viewer,
+            message: Vec::new(),
+            counts: Counts::default(),
+        },
+        wake_fd,
+        remote_fed,
+    };
+    // It sleeps on its inlets and its link at once, not by the session's wait strategy.
+    Ok(node::run(
+        Stage::Bridge,
+        bus,
+        WaitStrategy::Event,
+        &mut bridge,
+    )?)
+}
+
+/// The bridge stage: its inlets and outlets, the link and the view.
+struct BridgeStage<'s> {
+    session: &'s Session,
+    /// `bridge.json` in the session folder.
+    summary_file: PathBuf,
+    ins: Vec<Box<dyn Input>>,
+    outs: Vec<Box<dyn Output>>,
+    out: Out,
+    /// The link's descriptor that says samples were taken in (when any topic is).
+    wake_fd: Option<RawFd>,
+    remote_fed: bool,
+}
+
+impl Task for BridgeStage<'_> {
+    type Error = BusError;
+
+    fn wait(&mut self, _: &mut Waiter, _: Duration) -> Result<(), BusError> {
+        let waiting_for_clock = self
+            .out
+            .link
+            .as_ref()
+            .is_some_and(|l| l.clock.offset_ns().is_none() && !l.incoming.is_empty());
+        let timeout = if waiting_for_clock {
+            CLOCK_WAIT
+        } else {
+            node::IDLE_WAIT
+        };
+        let Some(first) = self.ins.first() else {
+            if self.wake_fd.is_none() || waiting_for_clock {
                 std::thread::sleep(timeout);
-            } else {
-                wait_any_or(&wakeables, wake_fd, timeout)?;
+                return Ok(());
             }
+            return wait_any_or(&[], self.wake_fd, timeout);
+        };
+        // On the stack: no allocation per wake-up (slots past the inlets are not watched).
+        let wakeables: [&dyn Wakeable; MAX_WAIT] =
+            std::array::from_fn(|i| self.ins.get(i).map_or(first.wakeable(), |c| c.wakeable()));
+        wait_any_or(
+            &wakeables[..self.ins.len().min(MAX_WAIT)],
+            self.wake_fd,
+            timeout,
+        )
+    }
+
+    fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
+        for i in &self.ins {
+            i.drain(&mut self.out, pass.recorder)?;
         }
-        for i in &ins {
-            i.drain(&mut out)?;
+        take_in(
+            &mut self.out,
+            pass.recorder,
+            &mut self.outs,
+            self.remote_fed,
+        );
+        Ok(())
+    }
+
+    fn counters(&self) -> Counters {
+        self.ins
+            .iter()
+            .map(|i| i.counter())
+            .chain(self.outs.iter().map(|o| o.counter()))
+            .collect()
+    }
+
+    fn stop(&mut self, _: &mut Reporter) -> Result<(), BusError> {
+        let summary = summary(self.session, &self.out);
+        if let Err(e) = std::fs::write(&self.summary_file, summary.to_string()) {
+            eprintln!(
+                "handblocks bridge: cannot write {}: {e}",
+                self.summary_file.display()
+            );
         }
-        take_in(&mut out, &mut outs, remote_fed);
-        counters.clear();
-        counters.extend(ins.iter().map(|i| i.counter()));
-        counters.extend(outs.iter().map(|o| o.counter()));
-        counters.truncate(common::samples::MAX_TOPIC_COUNTERS);
-        if stopping {
-            let summary = summary(session, &out);
-            let folder = bus.session_folder().join("bridge.json");
-            if let Err(e) = std::fs::write(&folder, summary.to_string()) {
-                eprintln!("handblocks bridge: cannot write {}: {e}", folder.display());
-            }
-            if let Some(v) = out.viewer.take() {
-                v.stop();
-            }
-            if let Some(l) = out.link.take() {
-                l.close();
-            }
-            return Ok(out.reporter.finish(&counters)?);
+        if let Some(v) = self.out.viewer.take() {
+            v.stop();
         }
-        out.reporter.maybe_report(&counters)?;
+        if let Some(l) = self.out.link.take() {
+            l.close();
+        }
+        Ok(())
     }
 }
 
 /// Publishes what the link queued, once the other clock is known (until then it waits in the
 /// queue: a sample's stamps cannot be placed on our timeline without it).
-fn take_in(out: &mut Out, outs: &mut [Box<dyn Output>], remote_fed: bool) {
+fn take_in(out: &mut Out, r: &mut LatencyRecorder, outs: &mut [Box<dyn Output>], remote_fed: bool) {
     // Nothing taken in: no wake-ups to clear (a session that only sends pays no read(2) per
     // sample here).
     let Some(link) = out.link.as_ref().filter(|_| !outs.is_empty()) else {
@@ -377,7 +463,6 @@ fn take_in(out: &mut Out, outs: &mut [Box<dyn Output>], remote_fed: bool) {
         let sent = recording::message_stamp(&bytes);
         match output.forward(&bytes, offset) {
             Ok(stamp) => {
-                let r = &mut out.reporter.recorder;
                 if let Some(theirs) = sent {
                     // The hop across the link: their publish, on our clock, to our receipt.
                     r.record(

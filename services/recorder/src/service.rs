@@ -7,17 +7,60 @@
 //! every wake-up, so a quiet topic's samples do not wait for the next), so a crash of any
 //! process, this one included, loses at most the open chunk.
 
+use std::fmt;
 use std::time::Duration;
 
-use common::bus::{wait_any, Bus, BusError, Inlet, Stamped, Wakeable, MAX_WAIT};
+use common::bus::{
+    wait_any, Bus, BusError, Inlet, Stamped, WaitStrategy, Waiter, Wakeable, MAX_WAIT,
+};
 use common::config::Session;
-use common::latency::Reporter;
+use common::latency::{LatencyRecorder, Reporter};
+use common::node::{self, Counters, Pass, Task};
 use common::topic::{SliceTopicSpec, TopicSpec, TopicVisitor};
-use common::{monotonic_ns, shutdown, topics, Stage, Topic, TopicCounter};
+use common::{monotonic_ns, Stage, Topic, TopicCounter};
 
-use recording::RecordingWriter;
+use recording::{RecordingError, RecordingWriter};
 
-const IDLE_WAIT: Duration = Duration::from_millis(50);
+/// Why the recorder process stopped with an error.
+#[derive(Debug)]
+pub enum RecorderError {
+    Bus(BusError),
+    /// The recording could not be created.
+    Create(RecordingError),
+    /// The recording could not be written.
+    Recording(RecordingError),
+}
+
+impl fmt::Display for RecorderError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RecorderError::Bus(e) => write!(f, "{e}"),
+            RecorderError::Create(e) => write!(f, "cannot record: {e}"),
+            RecorderError::Recording(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for RecorderError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            RecorderError::Bus(e) => Some(e),
+            RecorderError::Create(e) | RecorderError::Recording(e) => Some(e),
+        }
+    }
+}
+
+impl From<BusError> for RecorderError {
+    fn from(e: BusError) -> RecorderError {
+        RecorderError::Bus(e)
+    }
+}
+
+impl From<RecordingError> for RecorderError {
+    fn from(e: RecordingError) -> RecorderError {
+        RecorderError::Recording(e)
+    }
+}
 
 // One `wait_any` sleeps on every recorded topic.
 const _: () = assert!(Topic::RECORDED.len() <= MAX_WAIT);
@@ -30,8 +73,8 @@ trait Channel {
     fn drain(
         &self,
         log: &mut Option<RecordingWriter>,
-        reporter: &mut Reporter,
-    ) -> Result<(), Box<dyn std::error::Error>>;
+        recorder: &mut LatencyRecorder,
+    ) -> Result<(), RecorderError>;
     fn counter(&self) -> TopicCounter;
 }
 
@@ -43,10 +86,10 @@ impl<P: TopicSpec> Channel for Inlet<P> {
     fn drain(
         &self,
         log: &mut Option<RecordingWriter>,
-        reporter: &mut Reporter,
-    ) -> Result<(), Box<dyn std::error::Error>> {
+        recorder: &mut LatencyRecorder,
+    ) -> Result<(), RecorderError> {
         while let Some(s) = self.receive()? {
-            record_one(s.stamp(), log, reporter, |log| {
+            record_one(s.stamp(), log, recorder, |log| {
                 log.write(P::TOPIC, s.payload())
             })?;
         }
@@ -70,10 +113,10 @@ impl<P: SliceTopicSpec> Channel for SliceChannel<P> {
     fn drain(
         &self,
         log: &mut Option<RecordingWriter>,
-        reporter: &mut Reporter,
-    ) -> Result<(), Box<dyn std::error::Error>> {
+        recorder: &mut LatencyRecorder,
+    ) -> Result<(), RecorderError> {
         while let Some(s) = self.0.receive()? {
-            record_one(s.user_header().stamp(), log, reporter, |log| {
+            record_one(s.user_header().stamp(), log, recorder, |log| {
                 log.write_slice(P::TOPIC, s.user_header(), s.payload())
             })?;
         }
@@ -90,19 +133,17 @@ impl<P: SliceTopicSpec> Channel for SliceChannel<P> {
 fn record_one(
     stamp: &common::Stamp,
     log: &mut Option<RecordingWriter>,
-    reporter: &mut Reporter,
-    write: impl FnOnce(&mut RecordingWriter) -> Result<(), recording::RecordingError>,
-) -> Result<(), Box<dyn std::error::Error>> {
+    recorder: &mut LatencyRecorder,
+    write: impl FnOnce(&mut RecordingWriter) -> Result<(), RecordingError>,
+) -> Result<(), RecorderError> {
     let received = monotonic_ns();
-    reporter.recorder.hop(stamp, received);
+    recorder.hop(stamp, received);
     if let Some(log) = log {
         write(log)?;
     }
     let done = monotonic_ns();
-    reporter
-        .recorder
-        .record(common::latency::Metric::Process, done - received);
-    reporter.recorder.record(
+    recorder.record(common::latency::Metric::Process, done - received);
+    recorder.record(
         common::latency::Metric::Origin,
         done.saturating_sub(stamp.origin_ns),
     );
@@ -132,9 +173,55 @@ impl TopicVisitor for OpenChannels<'_> {
     }
 }
 
+/// The recorder stage: an inlet per recorded topic and the recording.
+struct Recorder {
+    channels: Vec<Box<dyn Channel>>,
+    log: Option<RecordingWriter>,
+}
+
+impl Task for Recorder {
+    type Error = RecorderError;
+
+    fn wait(&mut self, _: &mut Waiter, timeout: Duration) -> Result<(), RecorderError> {
+        // On the stack: no allocation per wake-up (the slots past the channels repeat the
+        // first and are not watched).
+        let Some(first) = self.channels.first() else {
+            std::thread::sleep(timeout);
+            return Ok(());
+        };
+        let wakeables: [&dyn Wakeable; MAX_WAIT] = std::array::from_fn(|i| {
+            self.channels
+                .get(i)
+                .map_or(first.wakeable(), |c| c.wakeable())
+        });
+        Ok(wait_any(&wakeables[..self.channels.len()], timeout)?)
+    }
+
+    fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), RecorderError> {
+        for channel in &self.channels {
+            channel.drain(&mut self.log, pass.recorder)?;
+        }
+        if let Some(log) = &mut self.log {
+            log.close_chunk_if_due(monotonic_ns())?;
+        }
+        Ok(())
+    }
+
+    fn counters(&self) -> Counters {
+        self.channels.iter().map(|c| c.counter()).collect()
+    }
+
+    fn stop(&mut self, _: &mut Reporter) -> Result<(), RecorderError> {
+        if let Some(log) = self.log.take() {
+            log.finish()?;
+        }
+        Ok(())
+    }
+}
+
 /// Runs until asked to stop, then drains every input.
-pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
-    let mut log = match &session.recorder.file {
+pub fn run(session: &Session, bus: &Bus) -> Result<(), RecorderError> {
+    let log = match &session.recorder.file {
         Some(path) => {
             // The recording names the session it came from (`handblocks inspect` shows it).
             let name = |p: &std::path::Path| {
@@ -151,7 +238,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
             let settings = &session.recorder;
             Some(
                 RecordingWriter::create_with(path, &about)
-                    .map_err(|e| format!("cannot record: {e}"))?
+                    .map_err(RecorderError::Create)?
                     .flush_every(
                         settings.flush_ms * 1_000_000,
                         (settings.chunk_kib * 1024) as usize,
@@ -165,31 +252,11 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         channels: Vec::with_capacity(Topic::RECORDED.len()),
     };
     Topic::visit_each(&mut open)?;
-    let channels = open.channels;
-    let mut reporter = Reporter::new(Stage::Recorder, bus.outlet::<topics::Latency>()?);
-    // Built once: the loop below allocates nothing per wake-up.
-    let wakeables: Vec<&dyn Wakeable> = channels.iter().map(|c| c.wakeable()).collect();
-    let mut counters: Vec<TopicCounter> = Vec::with_capacity(channels.len());
-
-    loop {
-        let stopping = shutdown::requested();
-        if !stopping {
-            wait_any(&wakeables, IDLE_WAIT)?;
-        }
-        for channel in &channels {
-            channel.drain(&mut log, &mut reporter)?;
-        }
-        if let Some(log) = &mut log {
-            log.close_chunk_if_due(monotonic_ns())?;
-        }
-        counters.clear();
-        counters.extend(channels.iter().map(|c| c.counter()));
-        if stopping {
-            if let Some(log) = log.take() {
-                log.finish()?;
-            }
-            return Ok(reporter.finish(&counters)?);
-        }
-        reporter.maybe_report(&counters)?;
-    }
+    let mut recorder = Recorder {
+        channels: open.channels,
+        log,
+    };
+    // The recorder sleeps on all its inlets at once (`wait_any`), not by the session's
+    // strategy: what it writes is not on the latency path.
+    node::run(Stage::Recorder, bus, WaitStrategy::Event, &mut recorder)
 }

@@ -13,6 +13,8 @@ pub enum RenderError {
     Window(String),
     Gpu(String),
     Io(String),
+    /// The session's bus (the renderer process).
+    Bus(common::bus::BusError),
 }
 
 impl std::fmt::Display for RenderError {
@@ -28,8 +30,22 @@ impl std::fmt::Display for RenderError {
             RenderError::Window(e) => write!(f, "{e}"),
             RenderError::Gpu(e) => write!(f, "GPU error: {e}"),
             RenderError::Io(e) => write!(f, "{e}"),
+            RenderError::Bus(e) => write!(f, "{e}"),
         }
     }
 }
 
-impl std::error::Error for RenderError {}
+impl std::error::Error for RenderError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            RenderError::Bus(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl From<common::bus::BusError> for RenderError {
+    fn from(e: common::bus::BusError) -> RenderError {
+        RenderError::Bus(e)
+    }
+}

@@ -14,11 +14,11 @@ use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use common::bus::Bus;
-use common::bus::Received;
+use common::bus::{Bus, Inlet, Outlet, Received, WaitStrategy, Waiter};
 use common::config::session::RenderMode;
 use common::config::Session;
 use common::latency::{Metric, Reporter};
+use common::node::{self, Counters, Pass, Task};
 use common::{
     monotonic_ns, shutdown, topics, FrameSample, HandSample, Stage, Stamp, WorldHeader, WorldView,
 };
@@ -29,7 +29,7 @@ use crate::output::write_frame;
 use crate::preview::PreviewWriter;
 use crate::renderer::Renderer;
 use crate::settings::{FramesRequest, OutputMode, RenderSettings};
-use crate::window::WindowStatus;
+use crate::window::{WindowHandle, WindowStatus};
 
 /// Hand samples kept to find the one a world sample answers (`hand_seq`): the stepper lags
 /// the hand by a step or two, so its fingers and the newest palm would not match.
@@ -38,7 +38,7 @@ const HAND_HISTORY: usize = 16;
 const WRITER_QUEUE: usize = 2;
 
 /// Runs until asked to stop, with the session's renderer settings and no PNG frames.
-pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
+pub fn run(session: &Session, bus: &Bus) -> Result<(), RenderError> {
     run_with(
         session,
         bus,
@@ -53,7 +53,7 @@ pub fn run_with(
     bus: &Bus,
     settings: RenderSettings,
     frames: Option<FramesRequest>,
-) -> Result<(), Box<dyn std::error::Error>> {
+) -> Result<(), RenderError> {
     run_with_preview(session, bus, settings, frames, None)
 }
 
@@ -65,8 +65,8 @@ pub fn run_with_preview(
     settings: RenderSettings,
     frames: Option<FramesRequest>,
     preview: Option<PathBuf>,
-) -> Result<(), Box<dyn std::error::Error>> {
-    let (mut renderer, mut window) = match session.renderer.mode {
+) -> Result<(), RenderError> {
+    let (mut renderer, window) = match session.renderer.mode {
         RenderMode::Off => (None, None),
         RenderMode::Headless => (
             Some(Renderer::new_headless(&settings, &session.scene)?),
@@ -99,122 +99,172 @@ pub fn run_with_preview(
     }
     let world_in = bus.inlet::<topics::World>()?;
     let hand_in = bus.inlet::<topics::Hand>()?;
-    let mut frame_out = bus.outlet::<topics::Frame>()?;
-    let mut reporter = Reporter::new(Stage::Renderer, bus.outlet::<topics::Latency>()?);
-    let mut writer = match (&frames, &renderer) {
+    let frame_out = bus.outlet::<topics::Frame>()?;
+    let writer = match (&frames, &renderer) {
         (Some(f), Some(_)) => Some(FrameWriter::start(f.clone(), settings.output)?),
         _ => None,
     };
-    let mut preview = match (preview, &renderer) {
+    let preview = match (preview, &renderer) {
         (Some(p), Some(_)) => Some(PreviewWriter::start(p, settings.output)?),
         _ => None,
     };
-
     let period_ns = (1e9 / session.budget.frame_hz) as u64;
-    let mut next_frame = monotonic_ns() + period_ns;
-    let mut newest: Option<Stamp> = None; // the newest world's stamp, while it is undrawn
-                                          // The newest world sample, held in place (read from the stepper's memory, not copied).
-    let mut world: Option<Received<topics::World>> = None;
-    let mut hands = Box::new([HandSample::default(); HAND_HISTORY]);
-    let mut hand_next = 0usize;
-    let mut superseded = 0u64;
-    let mut frame_no = 0u64;
-    loop {
-        let stopping = shutdown::requested();
+    let mut stage = RendererStage {
+        renderer,
+        window,
+        writer,
+        preview,
+        frames_every: frames.as_ref().map(|f| u64::from(f.every_nth.max(1))),
+        world_in,
+        hand_in,
+        frame_out,
+        period_ns,
+        next_frame: monotonic_ns() + period_ns,
+        newest: None,
+        world: None,
+        hands: Box::new([HandSample::default(); HAND_HISTORY]),
+        hand_next: 0,
+        superseded: 0,
+        frame_no: 0,
+    };
+    // It waits for its frame deadlines, not by the session's wait strategy.
+    node::run(Stage::Renderer, bus, WaitStrategy::Event, &mut stage)
+}
+
+/// The renderer stage: the GPU (none with `mode = "off"`), its ports, the newest world held
+/// in place and the recent hands.
+struct RendererStage {
+    renderer: Option<Renderer>,
+    window: Option<WindowHandle>,
+    writer: Option<FrameWriter>,
+    preview: Option<PreviewWriter>,
+    /// Every how many frames a PNG is written (`--frames-dir`).
+    frames_every: Option<u64>,
+    world_in: Inlet<topics::World>,
+    hand_in: Inlet<topics::Hand>,
+    frame_out: Outlet<topics::Frame>,
+    period_ns: u64,
+    next_frame: u64,
+    /// The newest world's stamp, while it is undrawn.
+    newest: Option<Stamp>,
+    /// The newest world sample, held in place (read from the stepper's memory, not copied).
+    world: Option<Received<topics::World>>,
+    hands: Box<[HandSample; HAND_HISTORY]>,
+    hand_next: usize,
+    superseded: u64,
+    frame_no: u64,
+}
+
+impl Task for RendererStage {
+    type Error = RenderError;
+
+    fn wait(&mut self, _: &mut Waiter, _: Duration) -> Result<(), RenderError> {
         let now = monotonic_ns();
-        if !stopping && now < next_frame {
+        if now < self.next_frame {
             // A window needs its events handled; wake at least every 10 ms for them.
-            let wait = next_frame - now;
-            let wait = if window.is_some() {
+            let wait = self.next_frame - now;
+            let wait = if self.window.is_some() {
                 wait.min(10_000_000)
             } else {
                 wait
             };
-            world_in.wait(Duration::from_nanos(wait))?;
+            self.world_in.wait(Duration::from_nanos(wait))?;
         }
-        while let Some(s) = world_in.receive()? {
+        Ok(())
+    }
+
+    fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), RenderError> {
+        while let Some(s) = self.world_in.receive()? {
             let received = monotonic_ns();
             let stamp = s.user_header().stamp;
-            reporter.recorder.hop(&stamp, received);
-            if newest.is_some() {
-                superseded += 1;
+            pass.recorder.hop(&stamp, received);
+            if self.newest.is_some() {
+                self.superseded += 1;
             }
-            newest = Some(stamp);
+            self.newest = Some(stamp);
             // The one it replaces goes back to the stepper.
-            world = Some(s);
+            self.world = Some(s);
         }
-        while let Some(s) = hand_in.receive()? {
-            reporter.recorder.hop(&s.stamp, monotonic_ns());
-            hands[hand_next % HAND_HISTORY] = *s.payload();
-            hand_next += 1;
+        while let Some(s) = self.hand_in.receive()? {
+            pass.recorder.hop(&s.stamp, monotonic_ns());
+            self.hands[self.hand_next % HAND_HISTORY] = *s.payload();
+            self.hand_next += 1;
         }
-        if let (Some(w), Some(r)) = (&mut window, &mut renderer) {
+        if let (Some(w), Some(r)) = (&mut self.window, &mut self.renderer) {
             if w.pump(r) == WindowStatus::Closed {
                 eprintln!("renderer: the window was closed; stopping the session");
                 shutdown::request();
             }
         }
         let now = monotonic_ns();
-        if now >= next_frame || stopping {
-            // Pace on absolute deadlines; after a long stall, start afresh instead of bursting.
-            next_frame = if now > next_frame + period_ns {
-                now + period_ns
-            } else {
-                next_frame + period_ns
+        if now < self.next_frame && !pass.stopping {
+            return Ok(());
+        }
+        // Pace on absolute deadlines; after a long stall, start afresh instead of bursting.
+        self.next_frame = if now > self.next_frame + self.period_ns {
+            now + self.period_ns
+        } else {
+            self.next_frame + self.period_ns
+        };
+        let (Some(stamp), Some(world)) = (self.newest.take(), &self.world) else {
+            return Ok(());
+        };
+        let started = monotonic_ns();
+        let mut done = started;
+        if let Some(r) = &mut self.renderer {
+            let view = WorldView {
+                header: world.user_header(),
+                blocks: world.payload(),
             };
-            if let (Some(stamp), Some(world)) = (newest.take(), &world) {
-                let started = monotonic_ns();
-                let mut done = started;
-                if let Some(r) = &mut renderer {
-                    let view = WorldView {
-                        header: world.user_header(),
-                        blocks: world.payload(),
-                    };
-                    let hand = matching_hand(&hands[..hand_next.min(HAND_HISTORY)], view.header);
-                    let times = r.render(view, hand)?;
-                    done = times.done_ns;
-                    if let (Some(w), Some(f)) = (&mut writer, &frames) {
-                        if frame_no.is_multiple_of(u64::from(f.every_nth.max(1))) {
-                            w.offer(r, frame_no)?;
-                        }
-                    }
-                    if let Some(p) = &mut preview {
-                        p.after_frame(r, done)?;
-                    }
-                    frame_no += 1;
+            let hand = matching_hand(&self.hands[..self.hand_next.min(HAND_HISTORY)], view.header);
+            let times = r.render(view, hand)?;
+            done = times.done_ns;
+            if let (Some(w), Some(every)) = (&mut self.writer, self.frames_every) {
+                if self.frame_no.is_multiple_of(every) {
+                    w.offer(r, self.frame_no)?;
                 }
-                let frame = FrameSample {
-                    stamp: Stamp::derived(0, &stamp),
-                    world_seq: stamp.seq,
-                    render_ns: done.saturating_sub(started),
-                    origin_to_photon_ns: done.saturating_sub(stamp.origin_ns),
-                    skipped_worlds: std::mem::take(&mut superseded),
-                };
-                reporter
-                    .recorder
-                    .record(Metric::Photon, frame.origin_to_photon_ns);
-                let sent = frame_out.publish(&frame)?;
-                // The renderer's own work is the frame, not the wait for its deadline.
-                reporter
-                    .recorder
-                    .record(Metric::Process, sent.publish_ns.saturating_sub(started));
-                reporter.recorder.record(
-                    Metric::Origin,
-                    sent.publish_ns.saturating_sub(sent.origin_ns),
-                );
             }
+            if let Some(p) = &mut self.preview {
+                p.after_frame(r, done)?;
+            }
+            self.frame_no += 1;
         }
-        let counters = [world_in.counter(), hand_in.counter(), frame_out.counter()];
-        if stopping {
-            if let Some(w) = writer.take() {
-                w.finish();
-            }
-            if let Some(p) = preview.take() {
-                p.finish();
-            }
-            return Ok(reporter.finish(&counters)?);
+        let frame = FrameSample {
+            stamp: Stamp::derived(0, &stamp),
+            world_seq: stamp.seq,
+            render_ns: done.saturating_sub(started),
+            origin_to_photon_ns: done.saturating_sub(stamp.origin_ns),
+            skipped_worlds: std::mem::take(&mut self.superseded),
+        };
+        pass.recorder
+            .record(Metric::Photon, frame.origin_to_photon_ns);
+        let sent = self.frame_out.publish(&frame)?;
+        // The renderer's own work is the frame, not the wait for its deadline.
+        pass.recorder
+            .record(Metric::Process, sent.publish_ns.saturating_sub(started));
+        pass.recorder.record(
+            Metric::Origin,
+            sent.publish_ns.saturating_sub(sent.origin_ns),
+        );
+        Ok(())
+    }
+
+    fn counters(&self) -> Counters {
+        Counters::of([
+            self.world_in.counter(),
+            self.hand_in.counter(),
+            self.frame_out.counter(),
+        ])
+    }
+
+    fn stop(&mut self, _: &mut Reporter) -> Result<(), RenderError> {
+        if let Some(w) = self.writer.take() {
+            w.finish();
         }
-        reporter.maybe_report(&counters)?;
+        if let Some(p) = self.preview.take() {
+            p.finish();
+        }
+        Ok(())
     }
 }
 

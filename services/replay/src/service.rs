@@ -8,12 +8,13 @@
 //! speed 0 samples go out as fast as the pipeline consumes them without loss: the replay keeps
 //! at most [`IN_FLIGHT`] hand-making samples ahead of the newest world state.
 
+use std::fmt;
 use std::time::Duration;
 
-use common::bus::Bus;
+use common::bus::{Bus, BusError, Inlet, Outlet, WaitStrategy, Waiter};
 use common::config::session::Source;
 use common::config::Session;
-use common::latency::Reporter;
+use common::node::{self, Counters, Pass, Task};
 use common::stamp::sleep_until_ns;
 use common::{monotonic_ns, shutdown, topics, Stage, Stamp, Topic};
 
@@ -23,11 +24,52 @@ use crate::trace::{HandTrace, SourceSample};
 /// buffer).
 pub const IN_FLIGHT: u64 = 32;
 
+/// Why the replay process stopped with an error.
+#[derive(Debug)]
+pub enum ReplayError {
+    Bus(BusError),
+    /// The session's source is not a replay.
+    NotAReplay {
+        session: std::path::PathBuf,
+    },
+    /// The trace could not be read (the message names the file).
+    Trace(String),
+}
+
+impl fmt::Display for ReplayError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ReplayError::Bus(e) => write!(f, "{e}"),
+            ReplayError::NotAReplay { session } => write!(
+                f,
+                "{}: the replay process needs [source] kind = \"replay\"",
+                session.display()
+            ),
+            ReplayError::Trace(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for ReplayError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            ReplayError::Bus(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl From<BusError> for ReplayError {
+    fn from(e: BusError) -> ReplayError {
+        ReplayError::Bus(e)
+    }
+}
+
 /// Plays the trace, sends its final report and returns: the launcher then ends the session
 /// (as `ros2 bag play` ends). With `loop = true` it plays the trace again and again, its
 /// source times going on (each round starts one mean sample period after the last ended), until
 /// asked to stop.
-pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
+pub fn run(session: &Session, bus: &Bus) -> Result<(), ReplayError> {
     let Source::Replay {
         file,
         speed,
@@ -35,13 +77,11 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         looped,
     } = &session.source
     else {
-        return Err(format!(
-            "{}: the replay process needs [source] kind = \"replay\"",
-            session.file.display()
-        )
-        .into());
+        return Err(ReplayError::NotAReplay {
+            session: session.file.clone(),
+        });
     };
-    let trace = HandTrace::load(file, *offset)?;
+    let trace = HandTrace::load(file, *offset).map_err(ReplayError::Trace)?;
     for w in &trace.warnings {
         eprintln!("handblocks replay: warning: {w}");
     }
@@ -53,20 +93,15 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         );
     }
 
-    let mut glove_out = bus.outlet::<topics::Glove>()?;
-    let mut tracker_out = bus.outlet::<topics::Tracker>()?;
-    let mut joints_out = bus.outlet::<topics::Joints>()?;
+    let glove_out = bus.outlet::<topics::Glove>()?;
+    let tracker_out = bus.outlet::<topics::Tracker>()?;
+    let joints_out = bus.outlet::<topics::Joints>()?;
     let world_in = bus.inlet::<topics::World>()?;
-    let mut reporter = Reporter::new(Stage::Replay, bus.outlet::<topics::Latency>()?);
-    let mut answered: Option<u64> = None; // the newest hand seq a world state answered
-    let mut hands_sent: u64 = 0;
     let t0 = trace.first_source_time_ns();
     let span = trace
         .samples
         .last()
         .map_or(0, |s| s.source_time_ns().saturating_sub(t0));
-    // One round after another: the next starts a mean sample period after this one's end.
-    let round_ns = span + span / (trace.samples.len().max(2) as u64 - 1);
     // Restarted ([supervise]), a replay at speed > 0 goes on on its first incarnation's
     // timeline: the samples due while it was down are skipped (never sent: its seq goes on
     // without them).
@@ -76,47 +111,129 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
     } else {
         0
     };
-    let mut skipped = [0u64; Topic::ALL.len()];
-    let mut skipping = resume_after > 0;
-    let rounds = if *looped && !trace.samples.is_empty() {
-        u64::MAX
-    } else {
-        1
+    let mut replay = Replay {
+        trace: &trace,
+        speed: *speed,
+        rounds: if *looped && !trace.samples.is_empty() {
+            u64::MAX
+        } else {
+            1
+        },
+        // One round after another: the next starts a mean sample period after this one's end.
+        round_ns: span + span / (trace.samples.len().max(2) as u64 - 1),
+        t0,
+        start,
+        resume_after,
+        skipped: [0; Topic::ALL.len()],
+        skipping: resume_after > 0,
+        next: (0, 0),
+        due: None,
+        answered: None,
+        hands_sent: 0,
+        glove_out,
+        tracker_out,
+        joints_out,
+        world_in,
     };
-    let samples = (0..rounds)
-        .take_while(|_| !shutdown::requested())
-        .flat_map(|round| {
-            trace
-                .samples
-                .iter()
-                .map(move |s| (round.saturating_mul(round_ns), s))
-        });
-    for (shift, sample) in samples {
-        if *speed > 0.0 {
-            let after = (sample.source_time_ns() + shift - t0) as f64 / speed;
-            if (after as u64) < resume_after {
-                // Due before the restart: sent by the dead replay, or lost while none ran
-                // (each topic's seq counts its samples in order, sent or not).
-                skipped[sample.topic() as usize] += 1;
-                continue;
-            }
-            if std::mem::take(&mut skipping) {
-                glove_out.skip_to(skipped[Topic::Glove as usize]);
-                tracker_out.skip_to(skipped[Topic::Tracker as usize]);
-                joints_out.skip_to(skipped[Topic::Joints as usize]);
-            }
-            sleep_until_ns(start + after as u64);
-        } else if sample.makes_a_hand() {
-            while answered.map_or(0, |a| a + 1) + IN_FLIGHT <= hands_sent && !shutdown::requested()
-            {
-                world_in.wait(Duration::from_millis(20))?;
-                while let Some(w) = world_in.receive()? {
-                    answered = Some(w.user_header().hand_seq);
+    // A source: it sleeps on its own deadlines, not by the session's wait strategy.
+    node::run(Stage::Replay, bus, WaitStrategy::Event, &mut replay)
+}
+
+/// The replay stage: the trace, where it is in it, and its ports.
+struct Replay<'t> {
+    trace: &'t HandTrace,
+    speed: f64,
+    rounds: u64,
+    round_ns: u64,
+    t0: u64,
+    /// The session's epoch for the replay, and (restarted) how far into it the dead one got.
+    start: u64,
+    resume_after: u64,
+    skipped: [u64; Topic::ALL.len()],
+    skipping: bool,
+    /// The next sample: its round and index.
+    next: (u64, usize),
+    /// The sample the last wait was for, with its round's shift of source time.
+    due: Option<(u64, &'t SourceSample)>,
+    /// The newest hand seq a world state answered, and the hand-making samples sent.
+    answered: Option<u64>,
+    hands_sent: u64,
+    glove_out: Outlet<topics::Glove>,
+    tracker_out: Outlet<topics::Tracker>,
+    joints_out: Outlet<topics::Joints>,
+    world_in: Inlet<topics::World>,
+}
+
+impl<'t> Replay<'t> {
+    /// The next sample of the rounds, with its round's shift; None when all are played.
+    fn take_next(&mut self) -> Option<(u64, &'t SourceSample)> {
+        let (round, i) = self.next;
+        if round >= self.rounds {
+            return None;
+        }
+        let sample = self.trace.samples.get(i)?;
+        self.next = if i + 1 < self.trace.samples.len() {
+            (round, i + 1)
+        } else {
+            (round + 1, 0)
+        };
+        Some((round.saturating_mul(self.round_ns), sample))
+    }
+
+    /// Keeps up with the world's answers (speed 0 paces on them).
+    fn read_answers(&mut self) -> Result<(), BusError> {
+        while let Some(w) = self.world_in.receive()? {
+            self.answered = Some(w.user_header().hand_seq);
+        }
+        Ok(())
+    }
+}
+
+impl Task for Replay<'_> {
+    type Error = ReplayError;
+
+    /// Until the next sample is due: its time scaled by the speed, or at speed 0 until the
+    /// world has answered all but [`IN_FLIGHT`] of the hands sent.
+    fn wait(&mut self, _: &mut Waiter, _: Duration) -> Result<(), ReplayError> {
+        while let Some((shift, sample)) = self.take_next() {
+            if self.speed > 0.0 {
+                let after = (sample.source_time_ns() + shift - self.t0) as f64 / self.speed;
+                if (after as u64) < self.resume_after {
+                    // Due before the restart: sent by the dead replay, or lost while none ran
+                    // (each topic's seq counts its samples in order, sent or not).
+                    self.skipped[sample.topic() as usize] += 1;
+                    continue;
+                }
+                if std::mem::take(&mut self.skipping) {
+                    self.glove_out.skip_to(self.skipped[Topic::Glove as usize]);
+                    self.tracker_out
+                        .skip_to(self.skipped[Topic::Tracker as usize]);
+                    self.joints_out
+                        .skip_to(self.skipped[Topic::Joints as usize]);
+                }
+                sleep_until_ns(self.start + after as u64);
+            } else if sample.makes_a_hand() {
+                while self.answered.map_or(0, |a| a + 1) + IN_FLIGHT <= self.hands_sent
+                    && !shutdown::requested()
+                {
+                    self.world_in.wait(Duration::from_millis(20))?;
+                    self.read_answers()?;
                 }
             }
+            self.due = Some((shift, sample));
+            return Ok(());
         }
-        if shutdown::requested() {
-            break;
+        Ok(())
+    }
+
+    fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), ReplayError> {
+        // The trace is played: the final report tells the launcher.
+        let Some((shift, sample)) = self.due.take() else {
+            pass.end();
+            return Ok(());
+        };
+        if pass.stopping || shutdown::requested() {
+            return Ok(());
         }
         let origin = monotonic_ns();
         let restamp = |s: &Stamp| Stamp {
@@ -127,36 +244,30 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error
         let sent = match *sample {
             SourceSample::Glove(mut g) => {
                 g.stamp = restamp(&g.stamp);
-                glove_out.publish(&g)?
+                self.glove_out.publish(&g)?
             }
             SourceSample::Tracker(mut t) => {
                 t.stamp = restamp(&t.stamp);
-                tracker_out.publish(&t)?
+                self.tracker_out.publish(&t)?
             }
             SourceSample::Joints(mut j) => {
                 j.stamp = restamp(&j.stamp);
-                joints_out.publish(&j)?
+                self.joints_out.publish(&j)?
             }
         };
         if sample.makes_a_hand() {
-            reporter.recorder.source_output(&sent);
-            hands_sent += 1;
+            pass.recorder.source_output(&sent);
+            self.hands_sent += 1;
         }
-        // Keep up with the world's answers (speed 0 paces on them).
-        while let Some(w) = world_in.receive()? {
-            answered = Some(w.user_header().hand_seq);
-        }
-        reporter.maybe_report(&[
-            glove_out.counter(),
-            tracker_out.counter(),
-            joints_out.counter(),
-        ])?;
+        self.read_answers()?;
+        Ok(())
     }
-    // The trace is played (or the session stops): the final report tells the launcher.
-    reporter.finish(&[
-        glove_out.counter(),
-        tracker_out.counter(),
-        joints_out.counter(),
-    ])?;
-    Ok(())
+
+    fn counters(&self) -> Counters {
+        Counters::of([
+            self.glove_out.counter(),
+            self.tracker_out.counter(),
+            self.joints_out.counter(),
+        ])
+    }
 }

@@ -21,24 +21,71 @@
 //! stages keep; only the hands that arrived while no stepper ran are missing, and the
 //! timeline steps across them as across any gap in a source.
 
+use std::fmt;
 use std::time::Duration;
 
 use crate::hand_log::HandLog;
 use crate::model::Model;
 use crate::timeline::Timeline;
-use common::bus::Bus;
-use common::bus::{WaitStrategy, Waiter};
+use crate::world::WorldError;
+use common::bus::{Bus, BusError, Inlet, Outlet, Waiter};
 use common::config::Session;
 use common::latency::Reporter;
-use common::{monotonic_ns, shutdown, topics, HandSample, Stage, Stamp};
+use common::node::{self, Counters, Pass, Task};
+use common::{monotonic_ns, topics, HandSample, Stage, Stamp};
 
-const IDLE_WAIT: Duration = Duration::from_millis(50);
 /// Events kept for the session's outcome (grasps, releases, landings: a few per second); past
 /// this many the later ones are counted, not kept, so keeping one never allocates.
 const OUTCOME_EVENTS: usize = 4096;
 
+/// Why the stepper process stopped with an error.
+#[derive(Debug)]
+pub enum StepperError {
+    Bus(BusError),
+    /// The session's scene is not a world ([`Model::new`]).
+    Scene(WorldError),
+    /// The scene has more blocks than the session's world samples hold.
+    WorldTooLarge {
+        blocks: usize,
+        capacity: usize,
+    },
+    /// A supervised stepper's hand log could not be opened or written.
+    HandLog(String),
+}
+
+impl fmt::Display for StepperError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StepperError::Bus(e) => write!(f, "{e}"),
+            StepperError::Scene(e) => write!(f, "{e}"),
+            StepperError::WorldTooLarge { blocks, capacity } => write!(
+                f,
+                "the scene has {blocks} blocks but this session's world samples hold {capacity} \
+                 (every process of a session sizes its bus from the same scene)"
+            ),
+            StepperError::HandLog(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for StepperError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            StepperError::Bus(e) => Some(e),
+            StepperError::Scene(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl From<BusError> for StepperError {
+    fn from(e: BusError) -> StepperError {
+        StepperError::Bus(e)
+    }
+}
+
 /// Runs until asked to stop, then drains what its input still holds.
-pub fn run(session: &Session, bus: &Bus) -> Result<(), Box<dyn std::error::Error>> {
+pub fn run(session: &Session, bus: &Bus) -> Result<(), StepperError> {
     run_with_outcome(session, bus, None)
 }
 
@@ -49,9 +96,9 @@ pub fn run_with_outcome(
     session: &Session,
     bus: &Bus,
     outcome_dir: Option<&std::path::Path>,
-) -> Result<(), Box<dyn std::error::Error>> {
+) -> Result<(), StepperError> {
     let mut stepping = Stepping {
-        world: Model::new(&session.scene)?,
+        world: Model::new(&session.scene).map_err(StepperError::Scene)?,
         timeline: Timeline::new(session.scene.world.step_hz),
         events: Vec::with_capacity(OUTCOME_EVENTS),
         events_not_kept: 0,
@@ -60,20 +107,17 @@ pub fn run_with_outcome(
         first_refused: None,
     };
     let hand_in = bus.inlet::<topics::Hand>()?;
-    let mut world_out = bus.slice_outlet::<topics::World>()?;
+    let world_out = bus.slice_outlet::<topics::World>()?;
     if stepping.world.block_count() > world_out.capacity() {
-        return Err(format!(
-            "the scene has {} blocks but this session's world samples hold {} (every process \
-             of a session sizes its bus from the same scene)",
-            stepping.world.block_count(),
-            world_out.capacity()
-        )
-        .into());
+        return Err(StepperError::WorldTooLarge {
+            blocks: stepping.world.block_count(),
+            capacity: world_out.capacity(),
+        });
     }
     // Supervised: every hand taken is kept; restarted: the dead stepper's hands first.
-    let mut log = if bus.is_supervised() {
+    let log = if bus.is_supervised() {
         let path = bus.session_folder().join("stepper.hands");
-        let (log, taken) = HandLog::open(&path)?;
+        let (log, taken) = HandLog::open(&path).map_err(StepperError::HandLog)?;
         if bus.restart() > 0 {
             let started = monotonic_ns();
             for hand in &taken {
@@ -93,32 +137,48 @@ pub fn run_with_outcome(
     } else {
         None
     };
-    let mut reporter = Reporter::new(Stage::Stepper, bus.outlet::<topics::Latency>()?);
-    let mut waiter = Waiter::for_stage(session.wait);
-    loop {
-        let stopping = shutdown::requested();
-        if !stopping {
-            waiter.wait(&[&hand_in], IDLE_WAIT)?;
-        }
-        let mut first = true;
-        while let Some(s) = hand_in.receive()? {
-            let received = monotonic_ns();
-            if std::mem::take(&mut first) {
-                // When it was sent, not when we woke: a late wake-up would shift the next
-                // predicted arrival late by as much.
-                waiter.arrived(s.stamp.publish_ns);
-            }
-            reporter.recorder.hop(&s.stamp, received);
+    let mut stage = StepperStage {
+        hand_in,
+        world_out,
+        log,
+        stepping,
+        session,
+        outcome_dir,
+    };
+    node::run(Stage::Stepper, bus, session.wait, &mut stage)
+}
+
+/// The stepper stage: its ports, its hand log and the world.
+struct StepperStage<'s> {
+    hand_in: Inlet<topics::Hand>,
+    world_out: Outlet<topics::World>,
+    log: Option<HandLog>,
+    stepping: Stepping,
+    session: &'s Session,
+    outcome_dir: Option<&'s std::path::Path>,
+}
+
+impl Task for StepperStage<'_> {
+    type Error = StepperError;
+
+    fn wait(&mut self, waiter: &mut Waiter, timeout: Duration) -> Result<(), StepperError> {
+        Ok(waiter.wait(&[&self.hand_in], timeout)?)
+    }
+
+    fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), StepperError> {
+        while let Some(s) = self.hand_in.receive()? {
+            let received = pass.arrived(&s.stamp);
             let hand: &HandSample = s.payload();
-            if let Some(log) = &mut log {
+            if let Some(log) = &mut self.log {
                 // Kept before it is taken: a world state this stepper may have published is
                 // always one its restart rebuilds.
-                log.append(hand)?;
+                log.append(hand)
+                    .map_err(|e| StepperError::HandLog(e.to_string()))?;
             }
-            stepping.take(hand, true);
-            let world = &stepping.world;
+            self.stepping.take(hand, true);
+            let world = &self.stepping.world;
             // Written straight into the sample's shared memory: no copy of the world.
-            let sent = world_out.publish_with(
+            let sent = self.world_out.publish_with(
                 world.block_count(),
                 |header| {
                     world.write_header(header);
@@ -127,34 +187,36 @@ pub fn run_with_outcome(
                 },
                 |i| world.block_state(i),
             )?;
-            reporter.recorder.output(received, &sent);
+            pass.recorder.output(received, &sent);
         }
-        let counters = [hand_in.counter(), world_out.counter()];
-        if stopping {
-            if waiter.strategy() == WaitStrategy::Adaptive {
-                eprintln!("{}", waiter.finish("stepper"));
-            }
-            if stepping.refused_hands > 0 {
-                eprintln!(
-                    "handblocks stepper: {} hand samples refused (a value not finite, or out \
-                     of range): the hand held its last good pose",
-                    stepping.refused_hands
-                );
-            }
-            if let Some(dir) = outcome_dir {
-                write_outcome(
-                    dir,
-                    &stepping.world,
-                    session,
-                    &stepping.events,
-                    stepping.events_not_kept,
-                    stepping.timeline.jumps(),
-                    (stepping.refused_hands, stepping.first_refused),
-                );
-            }
-            return Ok(reporter.finish(&counters)?);
+        Ok(())
+    }
+
+    fn counters(&self) -> Counters {
+        Counters::of([self.hand_in.counter(), self.world_out.counter()])
+    }
+
+    fn stop(&mut self, _: &mut Reporter) -> Result<(), StepperError> {
+        let stepping = &self.stepping;
+        if stepping.refused_hands > 0 {
+            eprintln!(
+                "handblocks stepper: {} hand samples refused (a value not finite, or out \
+                 of range): the hand held its last good pose",
+                stepping.refused_hands
+            );
         }
-        reporter.maybe_report(&counters)?;
+        if let Some(dir) = self.outcome_dir {
+            write_outcome(
+                dir,
+                &stepping.world,
+                self.session,
+                &stepping.events,
+                stepping.events_not_kept,
+                stepping.timeline.jumps(),
+                (stepping.refused_hands, stepping.first_refused),
+            );
+        }
+        Ok(())
     }
 }
 

@@ -1,0 +1,187 @@
+//! The stage loop, written once: what every process of a session does around its own work.
+//!
+//! A stage (a process of the graph, [`crate::topic::Stage`]) sleeps until there may be work,
+//! does it, reports its latency about once a second, and when it is asked to stop (SIGINT,
+//! SIGTERM, its launcher gone) does its work a last time, so that what its inputs still hold is
+//! taken, then says its final words and sends its final report, which the launcher waits for.
+//! That loop is [`run`]; a stage is only its per-sample work, a [`Task`], as a node of dora or a
+//! task of copper is. The loop allocates nothing: counters travel in a [`Counters`] on the
+//! stack.
+//!
+//! ```no_run
+//! use std::time::Duration;
+//! use common::bus::{Bus, BusError, Inlet, Outlet, Waiter};
+//! use common::node::{self, Counters, Pass, Task};
+//! use common::{monotonic_ns, topics, Stage};
+//!
+//! /// Forwards each hand sample it reads (a stage that does nothing but its hop).
+//! struct Relay {
+//!     hand_in: Inlet<topics::Hand>,
+//!     hand_out: Outlet<topics::Hand>,
+//! }
+//!
+//! impl Task for Relay {
+//!     type Error = BusError;
+//!     fn wait(&mut self, waiter: &mut Waiter, timeout: Duration) -> Result<(), BusError> {
+//!         waiter.wait(&[&self.hand_in], timeout)
+//!     }
+//!     fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
+//!         while let Some(s) = self.hand_in.receive()? {
+//!             let received = pass.arrived(&s.stamp);
+//!             let sent = self.hand_out.publish(s.payload())?;
+//!             pass.recorder.output(received, &sent);
+//!         }
+//!         Ok(())
+//!     }
+//!     fn counters(&self) -> Counters {
+//!         Counters::of([self.hand_in.counter(), self.hand_out.counter()])
+//!     }
+//! }
+//! # fn f(bus: &Bus) -> Result<(), BusError> {
+//! let mut relay = Relay { hand_in: bus.inlet()?, hand_out: bus.outlet()? };
+//! node::run(Stage::Kinematics, bus, Default::default(), &mut relay)
+//! # }
+//! ```
+
+use std::time::Duration;
+
+use crate::bus::{Bus, BusError, WaitStrategy, Waiter};
+use crate::latency::{LatencyRecorder, Reporter};
+use crate::samples::{TopicCounter, MAX_TOPIC_COUNTERS};
+use crate::stamp::{monotonic_ns, Stamp};
+use crate::topic::{topics, Stage};
+
+/// How long a stage with nothing to do sleeps before it looks for a stop request again.
+pub const IDLE_WAIT: Duration = Duration::from_millis(50);
+
+/// One stage's own work; [`run`] does the rest.
+pub trait Task {
+    /// What the stage's work can fail with; a bus error is one of them.
+    type Error: From<BusError>;
+
+    /// Sleeps until there may be work (a sample on the stage's inlets, a source's deadline, a
+    /// device's delivery), at most `timeout`. A stage that reads inlets:
+    /// `waiter.wait(&[&self.hand_in], timeout)`. Not called on the last pass.
+    fn wait(&mut self, waiter: &mut Waiter, timeout: Duration) -> Result<(), Self::Error>;
+
+    /// Does all the work there is now: takes every sample its inlets hold, publishes what they
+    /// give. [`Pass::arrived`] records each input's hop (and the first's arrival for the
+    /// adaptive waiter); the recorder takes the rest. On the last pass ([`Pass::stopping`]) a
+    /// source sends nothing new.
+    fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), Self::Error>;
+
+    /// The counters of the stage's ports, for its latency reports.
+    fn counters(&self) -> Counters;
+
+    /// Once, after the last pass, before the final report: the stage's final words, its
+    /// outcome files, what a device driver still delivers.
+    fn stop(&mut self, reporter: &mut Reporter) -> Result<(), Self::Error> {
+        let _ = reporter;
+        Ok(())
+    }
+}
+
+/// What one pass of the loop hands a stage's work.
+pub struct Pass<'r> {
+    /// The stage's latency histograms.
+    pub recorder: &'r mut LatencyRecorder,
+    /// True on the last pass, after the stage was asked to stop.
+    pub stopping: bool,
+    waiter: &'r mut Waiter,
+    first: bool,
+    ended: bool,
+}
+
+impl Pass<'_> {
+    /// The stage's work is done (a replay that played its trace): no more passes; its
+    /// [`Task::stop`] and final report follow, and [`run`] returns.
+    pub fn end(&mut self) {
+        self.ended = true;
+    }
+
+    /// An input sample was taken: records its hop (publish to now), and tells the adaptive
+    /// waiter when the first of this pass was sent (not when we woke: a late wake-up would
+    /// shift its next predicted arrival late by as much). Returns now, the receive time.
+    pub fn arrived(&mut self, input: &Stamp) -> u64 {
+        let received = monotonic_ns();
+        if std::mem::take(&mut self.first) {
+            self.waiter.arrived(input.publish_ns);
+        }
+        self.recorder.hop(input, received);
+        received
+    }
+}
+
+/// A stage's port counters, at most [`MAX_TOPIC_COUNTERS`], on the stack.
+#[derive(Debug, Clone, Copy)]
+pub struct Counters {
+    counters: [TopicCounter; MAX_TOPIC_COUNTERS],
+    len: usize,
+}
+
+impl FromIterator<TopicCounter> for Counters {
+    fn from_iter<I: IntoIterator<Item = TopicCounter>>(ports: I) -> Counters {
+        let mut counters = Counters::of([]);
+        ports.into_iter().for_each(|c| counters.push(c));
+        counters
+    }
+}
+
+impl Counters {
+    /// The counters of `N` ports (more than [`MAX_TOPIC_COUNTERS`] does not compile).
+    pub fn of<const N: usize>(ports: [TopicCounter; N]) -> Counters {
+        const { assert!(N <= MAX_TOPIC_COUNTERS) };
+        let mut counters = [TopicCounter::default(); MAX_TOPIC_COUNTERS];
+        counters[..N].copy_from_slice(&ports);
+        Counters { counters, len: N }
+    }
+
+    /// Adds one port's counter (past [`MAX_TOPIC_COUNTERS`], none: a report holds no more).
+    pub fn push(&mut self, counter: TopicCounter) {
+        if self.len < MAX_TOPIC_COUNTERS {
+            self.counters[self.len] = counter;
+            self.len += 1;
+        }
+    }
+
+    pub fn as_slice(&self) -> &[TopicCounter] {
+        &self.counters[..self.len]
+    }
+}
+
+/// Runs `task` as stage `stage` until the process is asked to stop: wait, work, report; then a
+/// last pass, [`Task::stop`] and the final report (or, once a pass says the work is done,
+/// [`Pass::end`], its stop and final report). `strategy` is how the stage waits
+/// (`[session] wait`); with the adaptive one the waiter says what it learned when it stops.
+pub fn run<T: Task>(
+    stage: Stage,
+    bus: &Bus,
+    strategy: WaitStrategy,
+    task: &mut T,
+) -> Result<(), T::Error> {
+    let mut reporter = Reporter::new(stage, bus.outlet::<topics::Latency>()?);
+    let mut waiter = Waiter::for_stage(strategy);
+    loop {
+        let stopping = crate::shutdown::requested();
+        if !stopping {
+            task.wait(&mut waiter, IDLE_WAIT)?;
+        }
+        let mut pass = Pass {
+            recorder: &mut reporter.recorder,
+            stopping,
+            waiter: &mut waiter,
+            first: true,
+            ended: false,
+        };
+        task.work(&mut pass)?;
+        if stopping || pass.ended {
+            if waiter.strategy() == WaitStrategy::Adaptive {
+                eprintln!("{}", waiter.finish(stage.name()));
+            }
+            task.stop(&mut reporter)?;
+            // After the stop: what it still sent (a device's last deliveries) counts.
+            return Ok(reporter.finish(task.counters().as_slice())?);
+        }
+        reporter.maybe_report(task.counters().as_slice())?;
+    }
+}
