@@ -1,0 +1,247 @@
+//! The table: the merged report as the launcher prints it at the end of a session, for a
+//! person at a terminal (percentiles per stage, each topic's flow, the devices' counters, the
+//! frame rate, the bridge, the restarts, and the budget's verdict), with the terms it uses.
+
+use common::latency::Metric;
+
+use super::Report;
+
+/// The latency table's terms, printed under it and in `launch --help`.
+pub const TERMS: &str = "\
+hop          a sample's publish (by the stage before) to its receive here: the bus and the wake-up
+process      receive to this stage's publish: its own work
+origin->out  the sample's origin (when its source sample entered the pipeline) to this stage's
+             publish: the age of what it sends (at the stepper: origin -> world)
+origin->px   the renderer only: origin to the frame's GPU work complete (origin -> photon)
+received     per topic, the fewest samples any reader of it received; dropped = never read
+             (sequence gaps, or published but not received by the end)";
+
+impl Report {
+    /// The percentile table and topic flow, for a terminal.
+    pub fn table(&self) -> String {
+        let mut out = String::new();
+        out.push_str(&format!(
+            "{:<12} {:<11} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9}   (microseconds)\n",
+            "stage", "latency", "count", "p50", "p90", "p99", "p99.9", "max"
+        ));
+        for s in &self.stages {
+            for m in Metric::ALL {
+                let x = s.summary(m);
+                if x.count == 0 {
+                    continue;
+                }
+                let name = match m {
+                    Metric::Hop => "hop",
+                    Metric::Process => "process",
+                    Metric::Origin => "origin->out",
+                    Metric::Photon => "origin->px",
+                };
+                out.push_str(&format!(
+                    "{:<12} {:<11} {:>8} {:>9.1} {:>9.1} {:>9.1} {:>9.1} {:>9.1}\n",
+                    s.stage.name(),
+                    name,
+                    x.count,
+                    x.p50,
+                    x.p90,
+                    x.p99,
+                    x.p999,
+                    x.max
+                ));
+            }
+        }
+        out.push_str(&format!(
+            "\n{:<12} {:>10} {:>10} {:>8} {:>8}\n",
+            "topic", "published", "received", "dropped", "gaps"
+        ));
+        let mut not_final: Vec<&str> = Vec::new();
+        for (t, f) in &self.topics {
+            let partial = f.readers.values().any(|r| !r.counts_final);
+            out.push_str(&format!(
+                "{:<12} {:>10} {:>10} {:>8} {:>8}{}\n",
+                t.name(),
+                f.published,
+                f.received(),
+                f.dropped(),
+                f.gaps(),
+                if partial { "  *" } else { "" }
+            ));
+            for (name, r) in &f.readers {
+                if !r.counts_final && !not_final.contains(name) {
+                    not_final.push(name);
+                }
+            }
+        }
+        if !not_final.is_empty() {
+            out.push_str(&format!(
+                "* counts of {} stop at its last report (it ended without its final report): \
+                 dropped there is its sequence gaps only\n",
+                not_final.join(", ")
+            ));
+        }
+        let devices: Vec<&common::DeviceCounters> =
+            self.stages.iter().flat_map(|s| &s.devices).collect();
+        if !devices.is_empty() {
+            out.push_str(&format!(
+                "\n{:<8} {:>9} {:>8} {:>8} {:>8} {:>7} {:>10} {:>7}\n",
+                "device",
+                "samples",
+                "garbage",
+                "rejected",
+                "other",
+                "losses",
+                "reconnects",
+                "errors"
+            ));
+            for d in devices {
+                out.push_str(&format!(
+                    "{:<8} {:>9} {:>8} {:>8} {:>8} {:>7} {:>10} {:>7}\n",
+                    d.name().unwrap_or("?"),
+                    d.samples,
+                    d.garbage_bytes,
+                    d.rejected_records,
+                    d.other_station_records,
+                    d.link_losses,
+                    d.reconnects,
+                    d.device_errors
+                ));
+            }
+            out.push_str(
+                "garbage: bytes skipped between records; rejected: malformed or out-of-range \
+                 records; other: records of other tracker stations; errors: the device's own \
+                 error replies\n",
+            );
+        }
+        out.push('\n');
+        out.push_str(TERMS);
+        out.push('\n');
+        if let Some(fps) = self.frame_rate() {
+            let over = self.world_seconds(self.meta.seconds);
+            out.push_str(&format!(
+                "\nframes: {fps:.1} per second over the {over:.1} s worlds came in (of {:.1} s)\n",
+                self.meta.seconds
+            ));
+        }
+        if let Some(s) = &self.meta.renderer_skipped {
+            out.push_str(&format!("\n{s}\n"));
+        }
+        if let Some(line) = self.bridge_line() {
+            out.push_str(&format!("\n{line}\n"));
+        }
+        if !self.restarts.is_empty() {
+            out.push_str(&format!(
+                "\n{:<12} {:>3} {:>8} {:>12}  {:<28} lost at the restart\n",
+                "restarted", "n", "at s", "downtime ms", "exit"
+            ));
+            for r in &self.restarts {
+                let lost = match (&r.missing_from_recording, &r.lost) {
+                    // A recorder's loss is what its recording misses.
+                    (Some(m), _) if !m.is_empty() => m
+                        .iter()
+                        .map(|(t, n)| format!("{} {n}", t.name()))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    (Some(_), _) => "-".into(),
+                    (None, Some(l)) if !l.is_empty() => l
+                        .iter()
+                        .map(|l| format!("{} {}", l.topic.name(), l.lost))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    (None, Some(_)) => "-".into(),
+                    (None, None) => "? (no report after the restart)".into(),
+                };
+                out.push_str(&format!(
+                    "{:<12} {:>3} {:>8.2} {:>12}  {:<28} {lost}\n",
+                    r.stage.name(),
+                    r.n,
+                    r.at_s,
+                    r.downtime_s()
+                        .map_or("?".into(), |d| format!("{:.1}", d * 1000.0)),
+                    r.exit,
+                ));
+                if let Some(seg) = &r.segment {
+                    out.push_str(&format!("{:<12} recording goes on in {seg}\n", ""));
+                }
+                if let Some(e) = &r.segment_error {
+                    out.push_str(&format!("{:<12} its loss is not counted: {e}\n", ""));
+                }
+            }
+            out.push_str(
+                "downtime: the exit noticed to the restarted process's first output; lost: \
+                 samples published while it was down, never read by it (not counted as \
+                 dropped); a recorder's: samples no segment of the recording holds, counted \
+                 from their seqs (its unwritten chunk, at most [recorder] flush_ms of them, \
+                 and those published while it was down)\n",
+            );
+        }
+        for f in &self.failures {
+            out.push_str(&format!("\nFAILED: {f}\n"));
+        }
+        for n in &self.not_judged {
+            out.push_str(&format!("\nnot judged: {n}\n"));
+        }
+        if self.violations.is_empty() {
+            out.push_str("\nbudget: ok\n");
+        } else {
+            out.push_str("\nbudget: VIOLATED\n");
+            for v in &self.violations {
+                out.push_str(&format!("  {v}\n"));
+            }
+        }
+        out
+    }
+
+    /// One line on the bridge: what crossed the link and the clock it was stamped by.
+    pub fn bridge_line(&self) -> Option<String> {
+        let b = self.meta.bridge.as_ref()?;
+        let mut parts = Vec::new();
+        if let Some(l) = b.get("link").filter(|l| !l.is_null()) {
+            let counts = |k: &str| {
+                l.get(k)
+                    .and_then(|m| m.as_object())
+                    .map(|m| {
+                        m.iter()
+                            .map(|(t, n)| format!("{t} {n}"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    })
+                    .filter(|s| !s.is_empty())
+            };
+            parts.push(format!(
+                "bridge: {} {} ({} peer(s) at the end)",
+                l["role"].as_str().unwrap_or("?"),
+                l["endpoint"].as_str().unwrap_or("?"),
+                l["peers_at_end"]
+            ));
+            if let Some(s) = counts("sent") {
+                parts.push(format!("sent {s}"));
+            }
+            if let Some(s) = counts("taken_in") {
+                parts.push(format!("taken in {s}"));
+            }
+            match l.get("clock").filter(|c| !c.is_null()) {
+                Some(c) => parts.push(format!(
+                    "the other clock is {:.1} us from ours, +/- {:.1} us ({} round trips)",
+                    c["offset_ns"].as_f64().unwrap_or(0.0) / 1e3,
+                    c["uncertainty_ns"].as_f64().unwrap_or(0.0) / 1e3,
+                    c["exchanges"]
+                )),
+                None if l["subscribe"].as_array().is_some_and(|a| !a.is_empty()) => {
+                    parts.push("the other clock was never reached".into())
+                }
+                None => {}
+            }
+            let dropped =
+                l["queue_full"].as_u64().unwrap_or(0) + l["malformed"].as_u64().unwrap_or(0);
+            if dropped > 0 {
+                parts.push(format!(
+                    "dropped {dropped} ({} queue full, {} malformed)",
+                    l["queue_full"], l["malformed"]
+                ));
+            }
+        }
+        if let Some(port) = b.get("foxglove").and_then(|f| f.get("port")) {
+            parts.push(format!("Foxglove view served on port {port}"));
+        }
+        (!parts.is_empty()).then(|| parts.join("; "))
+    }
+}

@@ -1,0 +1,224 @@
+//! The report's tests: merging a restarted stage's reports, judging the budget (frame rate,
+//! a silent source), the table's and the JSON's restarts, and the report's dates.
+
+use common::config::session::Budget;
+
+use super::*;
+
+fn stage(stage: Stage, metric: Metric, n: u64, silence_ms: u64) -> StageReport {
+    let mut histograms = [
+        common::latency::new_histogram(),
+        common::latency::new_histogram(),
+        common::latency::new_histogram(),
+        common::latency::new_histogram(),
+    ];
+    for _ in 0..n {
+        histograms[metric as usize].saturating_record(100_000);
+    }
+    StageReport {
+        stage,
+        histograms,
+        counters: Vec::new(),
+        heard_at: std::time::Instant::now(),
+        devices: Vec::new(),
+        cpu_s: None,
+        final_report: true,
+        silence_ns: silence_ms * 1_000_000,
+        first_output_ns: 0,
+        last_output_ns: 0,
+    }
+}
+
+fn judged(frames: u64, worlds: u64, silence_ms: u64, budget: &Budget) -> Report {
+    let facts = SessionFacts {
+        seconds: 10.0,
+        source: Stage::Acquisition,
+        renders: true,
+        real_time: true,
+        renderer_down_s: 0.0,
+    };
+    Report::build(
+        vec![
+            stage(Stage::Acquisition, Metric::Origin, worlds, silence_ms),
+            stage(Stage::Stepper, Metric::Origin, worlds, 0),
+            stage(Stage::Renderer, Metric::Photon, frames, 0),
+        ],
+        budget,
+        Vec::new(),
+        &facts,
+    )
+}
+
+#[test]
+fn a_renderer_well_below_frame_hz_fails_the_session() {
+    let b = Budget::default(); // frame_hz 90, margin 0.25: at least 67.5 per second
+    let r = judged(450, 1200, 10, &b);
+    assert!(!r.ok());
+    assert!(
+        r.violations[0].starts_with("frame_hz: 45.0 frames per second < 67.5"),
+        "{:?}",
+        r.violations
+    );
+    assert!(judged(700, 1200, 10, &b).ok());
+    // A world at 60 Hz cannot be drawn at 90: judged against the world's rate.
+    assert!(judged(550, 600, 10, &b).ok());
+    let r = judged(300, 600, 10, &b);
+    assert!(
+        r.violations[0].contains("the world's rate 60.0"),
+        "{:?}",
+        r.violations
+    );
+}
+
+/// Issue 28: a remote viewer started 2 s before its session and left 5 s after it had
+/// worlds for 5 s of its 12: its frame rate is judged over those 5 s, not diluted by the
+/// 7 s without a world to draw; a renderer that stops drawing while worlds still come
+/// still fails.
+#[test]
+fn frame_rate_is_judged_over_the_time_worlds_were_there() {
+    let b = Budget::default(); // frame_hz 90, margin 0.25
+    let facts = SessionFacts {
+        seconds: 12.0,
+        source: Stage::Bridge,
+        renders: true,
+        real_time: true,
+        renderer_down_s: 0.0,
+    };
+    let judge = |frames: u64| {
+        let mut bridge = stage(Stage::Bridge, Metric::Origin, 600, 0);
+        (bridge.first_output_ns, bridge.last_output_ns) = (2_000_000_000, 7_000_000_000);
+        // The bridge publishes the worlds it takes in.
+        bridge.counters.push(common::TopicCounter {
+            topic: Topic::World as u32,
+            role: 0,
+            count: 600,
+            gaps: 0,
+            last_seq: 599,
+        });
+        Report::build(
+            vec![bridge, stage(Stage::Renderer, Metric::Photon, frames, 0)],
+            &b,
+            Vec::new(),
+            &facts,
+        )
+    };
+    // 120 worlds a second for 5 s, drawn at 88 frames a second: kept (over 12 s it would
+    // read 36.7 frames a second).
+    let r = judge(440);
+    assert!(r.ok(), "{:?}", r.violations);
+    // Drawn for 2 s of the 5: 36 a second < 67.5.
+    let r = judge(180);
+    assert!(
+        r.violations[0].starts_with("frame_hz: 36.0 frames per second < 67.5"),
+        "{:?}",
+        r.violations
+    );
+}
+
+#[test]
+fn a_silent_source_fails_the_session() {
+    let b = Budget::default();
+    let r = judged(900, 1200, 1500, &b);
+    assert_eq!(
+        r.violations,
+        vec!["source_silence_ms: the source (acquisition) delivered no sample for 1500 ms > 1000"]
+    );
+    let r = judged(0, 0, 10_000, &b);
+    assert!(
+        r.violations[0].contains("delivered no sample in 10.0 s"),
+        "{:?}",
+        r.violations
+    );
+}
+
+fn counter(topic: Topic, role: u32, count: u64, gaps: u64, last_seq: u64) -> common::TopicCounter {
+    common::TopicCounter {
+        topic: topic as u32,
+        role,
+        count,
+        gaps,
+        last_seq,
+    }
+}
+
+/// Issue 16: a restarted reader's counts add to its dead incarnation's; the seqs between
+/// them are the restart's (split at what was published when the death was noticed), not
+/// gaps, and the budget's `max_dropped` does not count them.
+#[test]
+fn a_restarted_stages_reports_merge_and_its_losses_are_the_restarts() {
+    let mut dead = stage(Stage::Kinematics, Metric::Hop, 90, 0);
+    dead.final_report = false;
+    // It read seqs 0..=99 by its last report (2 gaps), and published 100 hands.
+    dead.counters = vec![
+        counter(Topic::Tracker, 1, 98, 2, 99),
+        counter(Topic::Hand, 0, 100, 0, 99),
+    ];
+    // Restarted: its first tracker was seq 130, its last 229, one gap; hands went on.
+    let mut next = stage(Stage::Kinematics, Metric::Hop, 10, 0);
+    next.counters = vec![
+        counter(Topic::Tracker, 1, 99, 1, 229),
+        counter(Topic::Hand, 0, 215, 0, 214),
+    ];
+    // 112 trackers were published when its death was noticed.
+    let (merged, lost) = dead.then(next, &[(Topic::Tracker, 112)]);
+    assert_eq!(
+        lost,
+        [RestartLoss {
+            topic: Topic::Tracker,
+            lost: 18,
+            unreported: 12
+        }]
+    );
+    assert_eq!(merged.counters[0], counter(Topic::Tracker, 1, 197, 3, 229));
+    assert_eq!(merged.counters[1], counter(Topic::Hand, 0, 215, 0, 214));
+    assert_eq!(merged.summary(Metric::Hop).count, 100);
+    assert!(merged.final_report);
+
+    let restart = Restart {
+        stage: Stage::Kinematics,
+        n: 1,
+        at_s: 1.0,
+        exit: "signal: 9 (SIGKILL)".into(),
+        noticed_ns: 1_000_000_000,
+        first_output_ns: Some(1_150_000_000),
+        lost: Some(lost),
+        published_at_death: Vec::new(),
+        segment: None,
+        missing_from_recording: None,
+        segment_error: None,
+    };
+    assert_eq!(restart.downtime_s(), Some(0.15));
+    let mut source = stage(Stage::Acquisition, Metric::Origin, 10, 0);
+    source.counters = vec![counter(Topic::Tracker, 0, 230, 0, 229)];
+    let budget = Budget {
+        max_dropped: Some(0),
+        ..Budget::default()
+    };
+    let r = Report::build_with_restarts(
+        vec![source, merged],
+        &budget,
+        Vec::new(),
+        vec![restart],
+        &SessionFacts::default(),
+    );
+    let flow = &r.topics[&Topic::Tracker].readers["kinematics"];
+    assert_eq!(
+        (flow.received, flow.lost_in_restarts, flow.dropped),
+        (197, 30, 3)
+    );
+    assert!(
+        r.table().contains("kinematics     1     1.00        150.0"),
+        "{}",
+        r.table()
+    );
+    assert_eq!(r.json()["restarts"]["kinematics"], 1);
+    assert_eq!(r.json()["restart_log"][0]["lost"]["tracker"], 18);
+}
+
+#[test]
+fn times_are_utc_dates() {
+    let at = |s| std::time::UNIX_EPOCH + std::time::Duration::from_secs(s);
+    assert_eq!(rfc3339(at(0)), "1970-01-01T00:00:00Z");
+    assert_eq!(rfc3339(at(951_782_400)), "2000-02-29T00:00:00Z");
+    assert_eq!(rfc3339(at(1_796_143_985)), "2026-12-01T16:53:05Z");
+}
