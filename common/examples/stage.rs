@@ -14,7 +14,7 @@
 use std::time::Duration;
 
 use common::bus::{wait_any, Bus, BusConfig, Wakeable};
-use common::{topics, GloveSample};
+use common::{topics, GloveSample, Stage};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // A session's resources: its own /dev/shm prefix and private folder, so that this
@@ -27,11 +27,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
         // A reader attaches before its source starts (the launcher's order), so that it
         // misses nothing.
-        let kinematics = Bus::open(&config, "kinematics")?;
+        // A stage's node may open only the ports the topic table grants it.
+        let kinematics = Bus::for_stage(&config, Stage::Kinematics)?;
         let glove_in = kinematics.inlet::<topics::Glove>()?;
 
         // The source: its outlet stamps each sample's seq and publish time.
-        let acquisition = Bus::open(&config, "acquisition")?;
+        let acquisition = Bus::for_stage(&config, Stage::Acquisition)?;
         let mut glove_out = acquisition.outlet::<topics::Glove>()?;
         for k in 0..5 {
             let mut sample = GloveSample::default();

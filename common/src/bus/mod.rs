@@ -36,7 +36,7 @@ use crate::output::open_restart_file;
 use crate::samples::{TopicCounter, MAX_SCENE_BLOCKS};
 pub use crate::stamp::Stamped;
 use crate::stamp::{monotonic_ns, Stamp};
-use crate::topic::{SliceTopicSpec, Topic, TopicLayout, TopicSpec, TopicVisitor};
+use crate::topic::{SliceTopicSpec, Stage, Topic, TopicLayout, TopicSpec, TopicVisitor};
 
 mod folder;
 mod ports;
@@ -184,6 +184,9 @@ pub struct Bus {
     node_name: String,
     /// Set by [`Bus::supervised`]: this process may be restarted by the launcher.
     supervised: Option<Supervised>,
+    /// Set by [`Bus::for_stage`]: this node is a stage of the graph, and may open only the
+    /// ports the topic table grants it.
+    stage: Option<Stage>,
 }
 
 /// What a stage the launcher may restart does differently ([`Bus::supervised`]).
@@ -225,7 +228,43 @@ impl Bus {
             root: config.root.clone(),
             node_name: node_name.to_string(),
             supervised: None,
+            stage: None,
         })
+    }
+
+    /// The node of stage `stage` (a process of the graph, named after it): it may open an
+    /// outlet only on a topic whose row names it a publisher, an inlet only on one whose row
+    /// names it a reader; any other port is an error ([`BusError::Port`]) that says so. Tools
+    /// and tests open a free-named node ([`Bus::open`]), which the table does not restrict.
+    pub fn for_stage(config: &BusConfig, stage: Stage) -> Result<Bus, BusError> {
+        let mut bus = Bus::open(config, stage.name())?;
+        bus.stage = Some(stage);
+        Ok(bus)
+    }
+
+    /// Refuses a port the topic table does not grant this stage: an outlet when `publish`,
+    /// else an inlet.
+    fn granted(&self, topic: Topic, publish: bool) -> Result<(), BusError> {
+        let Some(stage) = self.stage else {
+            return Ok(());
+        };
+        let (stages, what) = if publish {
+            (topic.publishers(), "publisher")
+        } else {
+            (topic.readers(), "reader")
+        };
+        if stages.contains(&stage) {
+            return Ok(());
+        }
+        Err(BusError::port(
+            topic,
+            format!(
+                "the topic table (common/src/topic.rs) does not name the {} stage a {what} of \
+                 `{}`: add it to the topic's row, or open the port from a stage the row names",
+                stage.name(),
+                topic.name()
+            ),
+        ))
     }
 
     /// Issue 16, supervision: this process is a stage the launcher restarts when it dies
@@ -483,6 +522,7 @@ impl Bus {
     /// # Ok(()) }
     /// ```
     pub fn outlet<P: TopicSpec>(&self) -> Result<Outlet<P>, BusError> {
+        self.granted(P::TOPIC, true)?;
         let service = self.pubsub::<P>()?;
         let publisher = service
             .publisher_builder()
@@ -497,6 +537,7 @@ impl Bus {
     /// ([`Outlet::publish_with`]). (Only a slice publisher is told the longest slice it sends,
     /// so its constructor is its own; the outlet is the same type.)
     pub fn slice_outlet<P: SliceTopicSpec>(&self) -> Result<Outlet<P>, BusError> {
+        self.granted(P::TOPIC, true)?;
         let service = self.pubsub::<P>()?;
         let publisher = service
             .publisher_builder()
@@ -538,6 +579,7 @@ impl Bus {
         P::Payload: PayloadKind,
     {
         let topic = P::TOPIC;
+        self.granted(topic, false)?;
         let subscriber = self
             .pubsub::<P>()?
             .subscriber_builder()

@@ -5,6 +5,7 @@
 //! must not silently fall back to a default.
 
 pub mod devices;
+pub mod graph;
 pub mod hand;
 mod reader;
 pub mod remote;
@@ -15,6 +16,7 @@ use std::fmt;
 use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
+pub use graph::Graph;
 pub use scene::Scene;
 pub use session::Session;
 

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use common::bus::{BusConfig, Services};
-use common::config::session::{RenderMode, Source};
+use common::config::session::RenderMode;
 use common::config::Session;
 use common::{Stage, Topic};
 
@@ -19,38 +19,6 @@ use crate::{LaunchError, LaunchOptions, RENDERER_SKIPPED_EXIT};
 
 /// How long the processes may take to attach to the bus.
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(20);
-
-/// The readers of a session, in the order they stop (after the source): pipeline order.
-fn readers(session: &Session) -> Vec<Stage> {
-    // A remote-fed session (a viewer) has no pipeline of its own: the bridge is its source.
-    let remote_fed = matches!(session.source, Source::Remote);
-    let mut v = if remote_fed {
-        Vec::new()
-    } else {
-        vec![Stage::Kinematics, Stage::Stepper]
-    };
-    // A bridge that takes topics in from the other machine publishes them here: it stops
-    // before their readers (the renderer, the recorder), or what it publishes after they
-    // drained is lost (a frame taken in after the recorder stopped counted as dropped). It
-    // still stops after the stepper, whose hand and world it drains to send them.
-    let bridge_publishes = session.bridge.is_on() && !session.bridge.outputs().is_empty();
-    if bridge_publishes && !remote_fed {
-        v.push(Stage::Bridge);
-    }
-    if session.renderer.mode != RenderMode::Off {
-        v.push(Stage::Renderer);
-    }
-    // Only when recording: a reader of every topic costs a wake-up per sample on cores the
-    // pipeline needs, and a session pays only for what it asks for.
-    if session.recorder.file.is_some() {
-        v.push(Stage::Recorder);
-    }
-    // The bridge reads what it sends out (and, for a Foxglove view, what it shows).
-    if session.bridge.is_on() && !remote_fed && !bridge_publishes {
-        v.push(Stage::Bridge);
-    }
-    v
-}
 
 /// Subscribers each topic must have before the source may start: as many as the topic table
 /// names readers of it among `stages`, the bridge counted only on `bridge_inputs` (the table
@@ -183,7 +151,7 @@ pub(crate) fn start_readers(
     services: &Services,
     placement: &mut Placement,
 ) -> Result<(Vec<ServiceProcess>, Option<String>), LaunchError> {
-    let mut stages = readers(session);
+    let mut stages = session.graph().readers;
     let mut procs: Vec<ServiceProcess> = Vec::new();
     for stage in stages.iter().rev() {
         procs.push(starter.start(*stage, placement, 0)?);
@@ -213,14 +181,8 @@ pub(crate) fn start_source(
     placement: &Placement,
     procs: &mut Vec<ServiceProcess>,
 ) -> Result<Stage, LaunchError> {
-    let (source, outputs): (Stage, Vec<Topic>) = match session.source {
-        Source::Replay { .. } => (Stage::Replay, Stage::Replay.recorded_outputs().collect()),
-        Source::Remote => (Stage::Bridge, session.bridge.outputs()),
-        _ => (
-            Stage::Acquisition,
-            Stage::Acquisition.recorded_outputs().collect(),
-        ),
-    };
+    let graph = session.graph();
+    let (source, outputs) = (graph.source, graph.source_outputs);
     procs.push(starter.start(source, placement, 0)?);
     procs.reverse();
     wait_for_source(services, source, &outputs, procs)?;
