@@ -66,7 +66,7 @@ fn a_stage_may_open_only_the_ports_the_topic_table_grants_it() {
         let tool = Bus::open(&config, "a-tool").unwrap();
         assert!(tool.outlet::<topics::Glove>().is_ok());
     }
-    config.remove_resources();
+    config.remove_resources().unwrap();
 }
 
 /// Each shipped session's graph: one source, readers in table (pipeline) order but for a
