@@ -4,6 +4,7 @@
 //! area; the harmonic stack's top overhangs 1/2 H_n block lengths). Each stack is also run in
 //! paper mode (R11), which keeps every one of them where it is.
 
+#[path = "../../services/stepper/tests/support/mod.rs"]
 mod support;
 
 use glam::DVec3;

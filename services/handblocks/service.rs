@@ -1,7 +1,6 @@
 //! `handblocks service NAME --session FILE --bus ID` (hidden): one process of a session, as
 //! the launcher starts it. The process itself is its crate's `service::run`.
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -22,57 +21,47 @@ pub struct ServiceArgs {
 }
 
 /// Why a service process stopped with an error.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum ServiceError {
     /// NAME is none of the stages.
+    #[error("unknown service {name:?}; one of: {}", stage_names())]
     Unknown { name: String },
     /// The stage's process failed: its session, its bus, or its own work.
-    Failed { stage: Stage, error: StageError },
+    #[error("{error}")]
+    Failed {
+        stage: Stage,
+        #[source]
+        error: StageError,
+    },
+}
+
+fn stage_names() -> String {
+    let names: Vec<&str> = Stage::ALL.iter().map(|s| s.name()).collect();
+    names.join(", ")
 }
 
 /// What failed in a stage's process: setting it up (its session, its bus), or the stage's own
 /// work, each stage with its crate's error type.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum StageError {
-    Session(common::config::ConfigError),
-    Bus(BusError),
-    Acquisition(acquisition::service::AcquisitionError),
-    Kinematics(BusError),
-    Stepper(stepper::service::StepperError),
-    Renderer(renderer::RenderError),
-    Recorder(recorder::service::RecorderError),
-    Replay(replay::service::ReplayError),
-    Bridge(bridge::service::BridgeError),
-}
-
-impl fmt::Display for StageError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            StageError::Session(e) => write!(f, "{e}"),
-            StageError::Bus(e) | StageError::Kinematics(e) => write!(f, "{e}"),
-            StageError::Acquisition(e) => write!(f, "{e}"),
-            StageError::Stepper(e) => write!(f, "{e}"),
-            StageError::Renderer(e) => write!(f, "{e}"),
-            StageError::Recorder(e) => write!(f, "{e}"),
-            StageError::Replay(e) => write!(f, "{e}"),
-            StageError::Bridge(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for StageError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            StageError::Session(e) => Some(e),
-            StageError::Bus(e) | StageError::Kinematics(e) => Some(e),
-            StageError::Acquisition(e) => Some(e),
-            StageError::Stepper(e) => Some(e),
-            StageError::Renderer(e) => Some(e),
-            StageError::Recorder(e) => Some(e),
-            StageError::Replay(e) => Some(e),
-            StageError::Bridge(e) => Some(e),
-        }
-    }
+    #[error("{0}")]
+    Session(#[source] common::config::ConfigError),
+    #[error("{0}")]
+    Bus(#[source] BusError),
+    #[error("{0}")]
+    Acquisition(#[source] acquisition::service::AcquisitionError),
+    #[error("{0}")]
+    Kinematics(#[source] BusError),
+    #[error("{0}")]
+    Stepper(#[source] stepper::service::StepperError),
+    #[error("{0}")]
+    Renderer(#[source] renderer::RenderError),
+    #[error("{0}")]
+    Recorder(#[source] recorder::service::RecorderError),
+    #[error("{0}")]
+    Replay(#[source] replay::service::ReplayError),
+    #[error("{0}")]
+    Bridge(#[source] bridge::service::BridgeError),
 }
 
 impl ServiceError {
@@ -81,27 +70,6 @@ impl ServiceError {
         match self {
             ServiceError::Unknown { .. } => "service",
             ServiceError::Failed { stage, .. } => stage.name(),
-        }
-    }
-}
-
-impl fmt::Display for ServiceError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ServiceError::Unknown { name } => {
-                let names: Vec<&str> = Stage::ALL.iter().map(|s| s.name()).collect();
-                write!(f, "unknown service {name:?}; one of: {}", names.join(", "))
-            }
-            ServiceError::Failed { error, .. } => write!(f, "{error}"),
-        }
-    }
-}
-
-impl std::error::Error for ServiceError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            ServiceError::Unknown { .. } => None,
-            ServiceError::Failed { error, .. } => Some(error),
         }
     }
 }

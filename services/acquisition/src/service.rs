@@ -1,7 +1,6 @@
 //! The acquisition process: samples the source at its rate and publishes `glove` and
 //! `tracker`, stamping each pair with one origin (the moment it entered the pipeline).
 
-use std::fmt;
 use std::time::Duration;
 
 use common::bus::{Bus, BusError, Outlet, WaitStrategy, Waiter};
@@ -18,45 +17,22 @@ use crate::devices::{
 use crate::scripted::{source_time_ns, ScriptedHand};
 
 /// Why the acquisition process stopped with an error.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum AcquisitionError {
-    Bus(BusError),
+    #[error("{0}")]
+    Bus(#[from] BusError),
     /// The session's source is not one the acquisition process runs (its message names it).
+    #[error("{0}")]
     NotThisSource(String),
     /// The scene's hand script cannot be played (the message names the scene).
+    #[error("{0}")]
     Script(String),
     /// A device's configuration is refused.
-    Device(DeviceError),
+    #[error("{0}")]
+    Device(#[source] DeviceError),
     /// The device reader threads could not be started.
-    Threads(std::io::Error),
-}
-
-impl fmt::Display for AcquisitionError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            AcquisitionError::Bus(e) => write!(f, "{e}"),
-            AcquisitionError::NotThisSource(e) | AcquisitionError::Script(e) => write!(f, "{e}"),
-            AcquisitionError::Device(e) => write!(f, "{e}"),
-            AcquisitionError::Threads(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for AcquisitionError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            AcquisitionError::Bus(e) => Some(e),
-            AcquisitionError::Device(e) => Some(e),
-            AcquisitionError::Threads(e) => Some(e),
-            _ => None,
-        }
-    }
-}
-
-impl From<BusError> for AcquisitionError {
-    fn from(e: BusError) -> AcquisitionError {
-        AcquisitionError::Bus(e)
-    }
+    #[error("{0}")]
+    Threads(#[source] std::io::Error),
 }
 
 /// Runs until asked to stop.

@@ -13,7 +13,6 @@
 //! session report under `bridge`.
 
 use std::collections::BTreeMap;
-use std::fmt;
 use std::os::unix::io::RawFd;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -33,39 +32,16 @@ use crate::link::{Link, LinkError};
 use crate::viewer::{Viewer, ViewerError};
 
 /// Why the bridge process stopped with an error.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum BridgeError {
-    Bus(BusError),
+    #[error("{0}")]
+    Bus(#[from] BusError),
     /// The zenoh link could not be opened.
-    Link(LinkError),
+    #[error("{0}")]
+    Link(#[source] LinkError),
     /// The Foxglove view could not be started.
-    Viewer(ViewerError),
-}
-
-impl fmt::Display for BridgeError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            BridgeError::Bus(e) => write!(f, "{e}"),
-            BridgeError::Link(e) => write!(f, "{e}"),
-            BridgeError::Viewer(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for BridgeError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            BridgeError::Bus(e) => Some(e),
-            BridgeError::Link(e) => Some(e),
-            BridgeError::Viewer(e) => Some(e),
-        }
-    }
-}
-
-impl From<BusError> for BridgeError {
-    fn from(e: BusError) -> BridgeError {
-        BridgeError::Bus(e)
-    }
+    #[error("{0}")]
+    Viewer(#[source] ViewerError),
 }
 /// While samples wait for the first clock estimate, the loop looks again this often.
 const CLOCK_WAIT: Duration = Duration::from_millis(5);

@@ -7,7 +7,6 @@
 //! every wake-up, so a quiet topic's samples do not wait for the next), so a crash of any
 //! process, this one included, loses at most the open chunk.
 
-use std::fmt;
 use std::time::Duration;
 
 use common::bus::{
@@ -22,44 +21,16 @@ use common::{monotonic_ns, Stage, Topic, TopicCounter};
 use recording::{RecordingError, RecordingWriter};
 
 /// Why the recorder process stopped with an error.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum RecorderError {
-    Bus(BusError),
+    #[error("{0}")]
+    Bus(#[from] BusError),
     /// The recording could not be created.
-    Create(RecordingError),
+    #[error("cannot record: {0}")]
+    Create(#[source] RecordingError),
     /// The recording could not be written.
-    Recording(RecordingError),
-}
-
-impl fmt::Display for RecorderError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            RecorderError::Bus(e) => write!(f, "{e}"),
-            RecorderError::Create(e) => write!(f, "cannot record: {e}"),
-            RecorderError::Recording(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for RecorderError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            RecorderError::Bus(e) => Some(e),
-            RecorderError::Create(e) | RecorderError::Recording(e) => Some(e),
-        }
-    }
-}
-
-impl From<BusError> for RecorderError {
-    fn from(e: BusError) -> RecorderError {
-        RecorderError::Bus(e)
-    }
-}
-
-impl From<RecordingError> for RecorderError {
-    fn from(e: RecordingError) -> RecorderError {
-        RecorderError::Recording(e)
-    }
+    #[error("{0}")]
+    Recording(#[from] RecordingError),
 }
 
 // One `wait_any` sleeps on every recorded topic.

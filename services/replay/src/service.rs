@@ -8,7 +8,6 @@
 //! speed 0 samples go out as fast as the pipeline consumes them without loss: the replay keeps
 //! at most [`IN_FLIGHT`] hand-making samples ahead of the newest world state.
 
-use std::fmt;
 use std::time::Duration;
 
 use common::bus::{Bus, BusError, Inlet, Outlet, WaitStrategy, Waiter};
@@ -25,44 +24,16 @@ use crate::trace::{HandTrace, SourceSample};
 pub const IN_FLIGHT: u64 = 32;
 
 /// Why the replay process stopped with an error.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
-    Bus(BusError),
+    #[error("{0}")]
+    Bus(#[from] BusError),
     /// The session's source is not a replay.
-    NotAReplay {
-        session: std::path::PathBuf,
-    },
+    #[error("{}: the replay process needs [source] kind = \"replay\"", session.display())]
+    NotAReplay { session: std::path::PathBuf },
     /// The trace could not be read (the message names the file).
+    #[error("{0}")]
     Trace(String),
-}
-
-impl fmt::Display for ReplayError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ReplayError::Bus(e) => write!(f, "{e}"),
-            ReplayError::NotAReplay { session } => write!(
-                f,
-                "{}: the replay process needs [source] kind = \"replay\"",
-                session.display()
-            ),
-            ReplayError::Trace(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for ReplayError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            ReplayError::Bus(e) => Some(e),
-            _ => None,
-        }
-    }
-}
-
-impl From<BusError> for ReplayError {
-    fn from(e: BusError) -> ReplayError {
-        ReplayError::Bus(e)
-    }
 }
 
 /// Plays the trace, sends its final report and returns: the launcher then ends the session

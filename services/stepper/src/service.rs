@@ -21,7 +21,6 @@
 //! stages keep; only the hands that arrived while no stepper ran are missing, and the
 //! timeline steps across them as across any gap in a source.
 
-use std::fmt;
 use std::time::Duration;
 
 use crate::hand_log::HandLog;
@@ -39,49 +38,22 @@ use common::{monotonic_ns, topics, HandSample, Stage, Stamp};
 const OUTCOME_EVENTS: usize = 4096;
 
 /// Why the stepper process stopped with an error.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum StepperError {
-    Bus(BusError),
+    #[error("{0}")]
+    Bus(#[from] BusError),
     /// The session's scene is not a world ([`Model::new`]).
-    Scene(WorldError),
+    #[error("{0}")]
+    Scene(#[source] WorldError),
     /// The scene has more blocks than the session's world samples hold.
-    WorldTooLarge {
-        blocks: usize,
-        capacity: usize,
-    },
+    #[error(
+        "the scene has {blocks} blocks but this session's world samples hold {capacity} \
+         (every process of a session sizes its bus from the same scene)"
+    )]
+    WorldTooLarge { blocks: usize, capacity: usize },
     /// A supervised stepper's hand log could not be opened or written.
+    #[error("{0}")]
     HandLog(String),
-}
-
-impl fmt::Display for StepperError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            StepperError::Bus(e) => write!(f, "{e}"),
-            StepperError::Scene(e) => write!(f, "{e}"),
-            StepperError::WorldTooLarge { blocks, capacity } => write!(
-                f,
-                "the scene has {blocks} blocks but this session's world samples hold {capacity} \
-                 (every process of a session sizes its bus from the same scene)"
-            ),
-            StepperError::HandLog(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for StepperError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            StepperError::Bus(e) => Some(e),
-            StepperError::Scene(e) => Some(e),
-            _ => None,
-        }
-    }
-}
-
-impl From<BusError> for StepperError {
-    fn from(e: BusError) -> StepperError {
-        StepperError::Bus(e)
-    }
 }
 
 /// Runs until asked to stop, then drains what its input still holds.

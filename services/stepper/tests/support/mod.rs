@@ -1,4 +1,5 @@
-//! Helpers shared by the integration tests.
+//! Helpers shared by the integration tests (the stepper's, and the bench's `tests/r14.rs`,
+//! which includes this file).
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
@@ -21,9 +22,13 @@ pub fn scene(text: &str) -> Scene {
 
 /// The repository's scene file `config/scenes/NAME.toml`.
 pub fn scene_file(name: &str) -> Scene {
-    let path: PathBuf = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../config/scenes")
-        .join(format!("{name}.toml"));
+    // The workspace root above this crate (these helpers serve the stepper's tests and the
+    // bench's, which include this file).
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .find(|a| a.join("config/scenes").is_dir())
+        .expect("config/scenes above the crate");
+    let path: PathBuf = root.join("config/scenes").join(format!("{name}.toml"));
     Scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
 }
 
