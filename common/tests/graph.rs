@@ -3,9 +3,9 @@
 
 use std::path::Path;
 
-use common::bus::{Bus, BusConfig, BusError};
+use common::bus::{Bus, BusConfig, BusError, PayloadKind};
 use common::config::Session;
-use common::topic::{Role, SliceTopicSpec, TopicSpec, TopicVisitor};
+use common::topic::{Role, SliceTopicSpec, TopicLayout, TopicSpec, TopicVisitor};
 use common::{topics, Stage, Topic};
 
 /// A stage's node refuses a port its topic's row does not name it for, and says so; a
@@ -35,6 +35,20 @@ fn a_stage_may_open_only_the_ports_the_topic_table_grants_it() {
         );
         // Every port each topic's row names is granted to its stage.
         struct OpenAll<'c>(&'c BusConfig, usize);
+        impl OpenAll<'_> {
+            /// An inlet for each reader of `P`'s row; the outlets are the caller's (a fixed-size
+            /// and a slice topic's outlets have constructors of their own).
+            fn readers<P: TopicLayout>(&mut self) -> Result<(), BusError>
+            where
+                P::Payload: PayloadKind,
+            {
+                for stage in P::TOPIC.readers() {
+                    drop(Bus::for_stage(self.0, *stage)?.inlet::<P>()?);
+                    self.1 += 1;
+                }
+                Ok(())
+            }
+        }
         impl TopicVisitor for OpenAll<'_> {
             type Error = BusError;
             fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
@@ -42,22 +56,14 @@ fn a_stage_may_open_only_the_ports_the_topic_table_grants_it() {
                     drop(Bus::for_stage(self.0, *stage)?.outlet::<P>()?);
                     self.1 += 1;
                 }
-                for stage in P::TOPIC.readers() {
-                    drop(Bus::for_stage(self.0, *stage)?.inlet::<P>()?);
-                    self.1 += 1;
-                }
-                Ok(())
+                self.readers::<P>()
             }
             fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
                 for stage in P::TOPIC.publishers() {
                     drop(Bus::for_stage(self.0, *stage)?.slice_outlet::<P>()?);
                     self.1 += 1;
                 }
-                for stage in P::TOPIC.readers() {
-                    drop(Bus::for_stage(self.0, *stage)?.inlet::<P>()?);
-                    self.1 += 1;
-                }
-                Ok(())
+                self.readers::<P>()
             }
         }
         let mut all = OpenAll(&config, 0);

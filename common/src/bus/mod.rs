@@ -47,7 +47,9 @@ use folder::*;
 use ports::*;
 pub use ports::{Inlet, Outlet, PayloadKind, PubSubBuilder, PubSubService};
 use wait::*;
-pub use wait::{wait_any, wait_any_or, WaitOutcome, WaitRecord, Waiter, Wakeable, MAX_WAIT};
+pub use wait::{
+    wait_any, wait_any_or, wait_each, WaitOutcome, WaitRecord, Waiter, Wakeable, MAX_WAIT,
+};
 
 /// A sample read from an [`Inlet`] of topic `P`: of a fixed-size topic, `payload()` is the
 /// sample; of a slice topic, `user_header()` is its header and `payload()` its elements.

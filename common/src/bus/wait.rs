@@ -392,18 +392,30 @@ pub fn wait_any_or(
     other: Option<std::os::fd::RawFd>,
     timeout: Duration,
 ) -> Result<(), BusError> {
+    wait_each(inlets.iter().copied(), other, timeout)
+}
+
+/// [`wait_any_or`] over inlets a caller holds in its own structures (trait objects, say):
+/// `inlets` is walked twice, to poll and to consume the wake-ups, so no list is built; the
+/// first [`MAX_WAIT`] are watched.
+pub fn wait_each<'a>(
+    inlets: impl Iterator<Item = &'a dyn Wakeable> + Clone,
+    other: Option<std::os::fd::RawFd>,
+    timeout: Duration,
+) -> Result<(), BusError> {
     use iceoryx2::prelude::FileDescriptorBased;
-    let n = inlets.len().min(MAX_WAIT);
     let mut fds = [libc::pollfd {
         fd: -1,
         events: 0,
         revents: 0,
     }; MAX_WAIT + 1];
-    for (slot, inlet) in fds.iter_mut().zip(inlets) {
+    let mut n = 0;
+    for (slot, inlet) in fds[..MAX_WAIT].iter_mut().zip(inlets.clone()) {
         // SAFETY: the descriptor stays owned by the listener, which outlives this call; we only
         // poll it.
         slot.fd = unsafe { inlet.listener().file_descriptor().native_handle() };
         slot.events = libc::POLLIN;
+        n += 1;
     }
     let mut watched = n;
     if let Some(fd) = other {
@@ -412,7 +424,7 @@ pub fn wait_any_or(
         watched += 1;
     }
     poll_readable(&mut fds[..watched], timeout)?;
-    for inlet in &inlets[..n] {
+    for inlet in inlets.take(n) {
         let _ = inlet.listener().try_wait(|_| {});
     }
     Ok(())

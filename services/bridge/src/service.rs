@@ -18,7 +18,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use common::bus::{
-    wait_any_or, Bus, BusError, Inlet, Outlet, Stamped, WaitStrategy, Waiter, Wakeable, MAX_WAIT,
+    wait_each, Bus, BusError, Inlet, Outlet, Stamped, WaitStrategy, Waiter, Wakeable,
 };
 use common::config::session::{LinkRole, Source};
 use common::config::Session;
@@ -363,21 +363,11 @@ impl Task for BridgeStage<'_> {
         } else {
             node::IDLE_WAIT
         };
-        let Some(first) = self.ins.first() else {
-            if self.wake_fd.is_none() || waiting_for_clock {
-                std::thread::sleep(timeout);
-                return Ok(());
-            }
-            return wait_any_or(&[], self.wake_fd, timeout);
-        };
-        // On the stack: no allocation per wake-up (slots past the inlets are not watched).
-        let wakeables: [&dyn Wakeable; MAX_WAIT] =
-            std::array::from_fn(|i| self.ins.get(i).map_or(first.wakeable(), |c| c.wakeable()));
-        wait_any_or(
-            &wakeables[..self.ins.len().min(MAX_WAIT)],
-            self.wake_fd,
-            timeout,
-        )
+        if self.ins.is_empty() && (self.wake_fd.is_none() || waiting_for_clock) {
+            std::thread::sleep(timeout);
+            return Ok(());
+        }
+        wait_each(self.ins.iter().map(|i| i.wakeable()), self.wake_fd, timeout)
     }
 
     fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {

@@ -10,7 +10,7 @@
 use std::time::Duration;
 
 use common::bus::{
-    wait_any, Bus, BusError, Inlet, Stamped, WaitStrategy, Waiter, Wakeable, MAX_WAIT,
+    wait_each, Bus, BusError, Inlet, Stamped, WaitStrategy, Waiter, Wakeable, MAX_WAIT,
 };
 use common::config::Session;
 use common::latency::{LatencyRecorder, Reporter};
@@ -154,18 +154,8 @@ impl Task for Recorder {
     type Error = RecorderError;
 
     fn wait(&mut self, _: &mut Waiter, timeout: Duration) -> Result<(), RecorderError> {
-        // On the stack: no allocation per wake-up (the slots past the channels repeat the
-        // first and are not watched).
-        let Some(first) = self.channels.first() else {
-            std::thread::sleep(timeout);
-            return Ok(());
-        };
-        let wakeables: [&dyn Wakeable; MAX_WAIT] = std::array::from_fn(|i| {
-            self.channels
-                .get(i)
-                .map_or(first.wakeable(), |c| c.wakeable())
-        });
-        Ok(wait_any(&wakeables[..self.channels.len()], timeout)?)
+        let wakeables = self.channels.iter().map(|c| c.wakeable());
+        Ok(wait_each(wakeables, None, timeout)?)
     }
 
     fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), RecorderError> {
