@@ -17,6 +17,9 @@ hb_test_packages() {
     # Python's venv, for the standard MCAP reader tests/run installs into target/.
     need "Python's venv (the standard MCAP reader)" \
         'python3 -c "import ensurepip, venv"' python3 python3-venv
+    # Node.js and npm, for the stock Foxglove client tests/run installs into target/.
+    need "Node.js and npm (the stock Foxglove client)" \
+        'command -v node && command -v npm' nodejs npm
     # A TrueType font for the benchmark figures' labels (plotters draws text through ab_glyph
     # with a system font; without one the figures have no labels).
     need "a TrueType font (the benchmark figures' labels)" \

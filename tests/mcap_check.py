@@ -1,16 +1,19 @@
 """Reads a handblocks recording with the MCAP project's reference Python reader (`mcap`) and
 decodes every message with its ROS 2 CDR decoder (`mcap-ros2-support`, as Foxglove decodes
-them), knowing nothing of handblocks but the file. Prints JSON: per topic the schema, encodings,
-message count and every message's seq; and the last world sample's step and block poses.
+them), knowing nothing of handblocks but the file; the `/scene` channel (foxglove.SceneUpdate,
+what Foxglove's 3D panel draws) with its protobuf decoder (`mcap-protobuf-support`). Prints
+JSON: per topic the schema, encodings, message count and every message's seq; the last world
+sample's step and block poses; and the last scene's world seq, entities, labels and poses.
 Used by tests/recording.rs to show that recordings open in the standard tools."""
 import json
 import sys
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 
 with open(sys.argv[1], "rb") as f:
-    reader = make_reader(f, decoder_factories=[DecoderFactory()])
+    reader = make_reader(f, decoder_factories=[DecoderFactory(), ProtobufDecoderFactory()])
     header = reader.get_header()
     summary = reader.get_summary()
     topics = {}
@@ -20,14 +23,19 @@ with open(sys.argv[1], "rb") as f:
             "schema": schema.name,
             "schema_encoding": schema.encoding,
             "message_encoding": channel.message_encoding,
-            "layout": schema.data.decode(),
+            "layout": schema.data.decode() if schema.encoding == "ros2msg" else None,
             "statistics_count": summary.statistics.channel_message_counts.get(channel_id, 0),
             "seqs": [],
         }
     last_world = None
+    last_scene = None
     for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
+        if channel.topic == "/scene":
+            topics[channel.topic]["seqs"].append(message.sequence)
+            last_scene = (message.sequence, decoded)
+            continue
         topics[channel.topic]["seqs"].append(decoded.stamp.seq)
-        if channel.topic == "world":
+        if channel.topic == "/world":
             last_world = decoded
     world = {
         "seq": last_world.stamp.seq,
@@ -38,5 +46,22 @@ with open(sys.argv[1], "rb") as f:
             for b in last_world.blocks[: last_world.block_count]
         ],
     }
+    scene = None
+    if last_scene is not None:
+        seq, update = last_scene
+        scene = {
+            "world_seq": seq,
+            "entities": [
+                {
+                    "id": e.id,
+                    "frame_id": e.frame_id,
+                    "texts": [t.text for t in e.texts],
+                    "cubes": [[c.pose.position.x, c.pose.position.y, c.pose.position.z]
+                              for c in e.cubes],
+                    "lines": len(e.lines),
+                }
+                for e in update.entities
+            ],
+        }
     print(json.dumps({"profile": header.profile, "chunks": len(summary.chunk_indexes),
-                      "topics": topics, "last_world": world}))
+                      "topics": topics, "last_world": world, "last_scene": scene}))

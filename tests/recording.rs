@@ -422,7 +422,8 @@ fn recordings_open_in_the_standard_mcap_reader() {
     assert!(v["chunks"].as_u64().unwrap() >= 2, "{}", v["chunks"]);
     let ours = Recording::open(&file).unwrap();
     for t in recording::RECORDED_TOPICS {
-        let theirs = &v["topics"][t.name()];
+        // The channel names are the live view's (`/world`).
+        let theirs = &v["topics"][t.channel()];
         let (schema, _) = recording::sample_type(t);
         assert_eq!(theirs["schema"], schema);
         assert_eq!(theirs["schema_encoding"], recording::SCHEMA_ENCODING);
@@ -444,7 +445,9 @@ fn recordings_open_in_the_standard_mcap_reader() {
             t.name()
         );
     }
-    assert!(v["topics"]["world"]["seqs"].as_array().unwrap().len() >= 200);
+    assert!(v["topics"]["/world"]["seqs"].as_array().unwrap().len() >= 200);
+    // The mode is an enum: ROS 2 constants the tools show by name.
+    assert!(recording::layout(Topic::World).contains("uint32 MODE_GRASPED=4"));
     // Decoded by the ROS 2 CDR decoder from the schema alone: the same last world.
     let last: WorldSample = ours.worlds().last().unwrap();
     let theirs = &v["last_world"];
@@ -466,5 +469,43 @@ fn recordings_open_in_the_standard_mcap_reader() {
         assert_eq!(nums("position"), b.pose.position.to_vec());
         assert_eq!(nums("rotation"), b.pose.rotation.to_vec());
         assert_eq!(theirs["blocks"][i]["mode"].as_u64(), Some(b.mode as u64));
+    }
+    // The scene channel, decoded by the protobuf decoder from its schema alone: the floor,
+    // each block (labelled with its name and mode) and the hand, z-up, at a recorded world.
+    let scene = &v["topics"][recording::SCENE_CHANNEL];
+    assert_eq!(scene["schema"], "foxglove.SceneUpdate");
+    assert_eq!(scene["message_encoding"], "protobuf");
+    let worlds = v["topics"]["/world"]["seqs"].as_array().unwrap().len();
+    let scenes = scene["seqs"].as_array().unwrap().len();
+    // 30 a second of 120 worlds a second (default [recorder] scene_hz).
+    assert!(
+        scenes * 5 >= worlds && scenes * 3 <= worlds,
+        "{scenes} scenes, {worlds} worlds"
+    );
+    assert_eq!(ours.scene_messages, scenes as u64);
+    assert_eq!(ours.foreign_messages, 0);
+    let last_scene = &v["last_scene"];
+    let at = last_scene["world_seq"].as_u64().unwrap();
+    let world: WorldSample = ours
+        .worlds()
+        .find(|w| w.stamp.seq == at)
+        .expect("the scene's world is recorded");
+    let entities = last_scene["entities"].as_array().unwrap();
+    let ids: Vec<&str> = entities.iter().map(|e| e["id"].as_str().unwrap()).collect();
+    assert_eq!(ids.first(), Some(&"floor"));
+    assert_eq!(ids.last(), Some(&"hand"));
+    assert_eq!(entities.last().unwrap()["lines"], 5);
+    for (i, b) in world.blocks().iter().enumerate() {
+        let e = &entities[1 + i];
+        assert!(e["frame_id"] == "world");
+        let mode = common::BlockMode::from_u32(b.mode).unwrap().name();
+        assert_eq!(e["texts"][0], format!("{}: {mode}", ids[1 + i]), "{e}");
+        let drawn: Vec<f64> = e["cubes"][0]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        assert_eq!(drawn, scene_view::z_up(b.pose.position).to_vec(), "z-up");
     }
 }

@@ -601,6 +601,117 @@ fn a_foxglove_client_subscribes_and_decodes_a_world() {
     );
 }
 
+/// The stock Foxglove client: npm `@foxglove/ws-protocol` 0.8 (what Lichtblick and Foxglove
+/// Studio builds before the SDK speak), offering `foxglove.websocket.v1`, connects to the live
+/// view, and decodes a world with the Foxglove app's ROS 2 CDR decoder and a scene update with
+/// protobufjs from the advertised schemas (tests/foxglove_check.js). Only topics that carry
+/// samples are offered: a scripted session has no `/joints`.
+#[test]
+fn the_stock_foxglove_client_connects_and_decodes_a_world_and_a_scene() {
+    // tests/run installs the npm packages into target/foxglove-node and names them here.
+    let Some(node_path) = std::env::var_os("HB_FOXGLOVE_NODE_PATH") else {
+        eprintln!(
+            "skipped: HB_FOXGLOVE_NODE_PATH is not set (tests/run sets it to the npm packages \
+             @foxglove/ws-protocol, ws, @foxglove/rosmsg2-serialization and protobufjs)"
+        );
+        return;
+    };
+    let dir = Scratch::new("foxglove-npm");
+    let port = free_port();
+    let id = format!("rmN{}", std::process::id());
+    let rep = dir.path("report.json");
+    let session = repo().join("config/sessions/live.toml");
+    let child = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--no-preview", "--duration", "6"])
+        .args(["--bus-id", &id, "--set", "renderer.mode=off"])
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .args(["--set", &format!("viewer.foxglove=127.0.0.1:{port}")])
+        .arg("--report")
+        .arg(&rep)
+        .arg(&session)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run handblocks");
+    // The script says {"error": ...} until the server listens; it is tried again until then.
+    let deadline = Instant::now() + Duration::from_secs(4);
+    let v: Value = loop {
+        let out = Command::new("node")
+            .arg(repo().join("tests/foxglove_check.js"))
+            .arg(format!("ws://127.0.0.1:{port}"))
+            .env("NODE_PATH", &node_path)
+            .output()
+            .expect("run node");
+        let v: Value = serde_json::from_slice(&out.stdout)
+            .unwrap_or_else(|_| panic!("not JSON: {}", both(&out)));
+        if v["error"].is_null() || Instant::now() > deadline {
+            break v;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", both(&out));
+    assert_nothing_left(&id);
+    assert!(v["error"].is_null(), "{v}");
+    assert_eq!(v["subprotocol"], "foxglove.websocket.v1");
+    let channels = v["channels"].as_array().unwrap();
+    let channel = |topic: &str| channels.iter().find(|c| c["topic"] == topic).cloned();
+    let world_channel = channel("/world").expect("/world advertised");
+    assert_eq!(world_channel["encoding"], "cdr");
+    assert_eq!(world_channel["schemaName"], "handblocks/msg/WorldSample");
+    assert_eq!(
+        channel("/scene").unwrap()["schemaName"],
+        "foxglove.SceneUpdate"
+    );
+    assert!(
+        channel("/joints").is_none(),
+        "/joints carries nothing here: {channels:?}"
+    );
+
+    let scene = common::config::Session::load(&session).unwrap().scene;
+    let world = &v["world"];
+    assert_eq!(
+        world["block_count"].as_u64(),
+        Some(scene.blocks.len() as u64)
+    );
+    let blocks = world["blocks"].as_array().unwrap();
+    assert_eq!(blocks.len(), scene.blocks.len());
+    for b in blocks {
+        assert!(b["pose"]["position"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|x| x.as_f64().is_some_and(f64::is_finite)));
+        assert!(b["mode"].as_u64().is_some_and(|m| m < 7));
+    }
+    let entities = v["scene"]["entities"].as_array().unwrap();
+    assert_eq!(
+        entities.len(),
+        scene.blocks.len() + 2,
+        "floor, blocks, hand"
+    );
+    assert_eq!(entities[0]["id"], "floor");
+    for (i, b) in scene.blocks.iter().enumerate() {
+        let e = &entities[1 + i];
+        assert_eq!(e["id"], b.name.as_str());
+        assert_eq!(e["frameId"], "world");
+        let label = e["texts"][0]["text"].as_str().unwrap();
+        assert!(label.starts_with(&format!("{}: ", b.name)), "{label}");
+        let c = &e["cubes"][0]["color"];
+        let [r, g, bl] = scene_view::block_colour(b, i);
+        assert_eq!(
+            [&c["r"], &c["g"], &c["b"]],
+            [r, g, bl].map(|x| Value::from(x)).each_ref()
+        );
+        // z-up: the block rests on or above Foxglove's ground plane.
+        assert!(e["cubes"][0]["pose"]["position"]["z"].as_f64().unwrap() > 0.0);
+    }
+    let hand = entities.last().unwrap();
+    assert_eq!(hand["id"], "hand");
+    assert_eq!(hand["lines"].as_array().unwrap().len(), 5);
+}
+
 /// Bad link settings are refused before anything starts, naming the file, key and form.
 #[test]
 fn bad_link_settings_name_the_key_and_the_form() {

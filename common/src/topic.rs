@@ -153,6 +153,22 @@ macro_rules! topic_table {
                 }
             }
 
+            /// The topic's name outside the bus, ROS style (`/world`): the channel of a
+            /// recording and of the live Foxglove view, the same string in both so that a
+            /// layout made on one works on the other.
+            pub const fn channel(self) -> &'static str {
+                match self {
+                    $(Topic::$topic => concat!("/", $name),)*
+                }
+            }
+
+            /// The topic a channel name (`/world`, or a bare `world` as recordings before the
+            /// names were shared had it) names.
+            pub fn from_channel(channel: &str) -> Option<Topic> {
+                let name = channel.strip_prefix('/').unwrap_or(channel);
+                Topic::ALL.into_iter().find(|t| t.name() == name)
+            }
+
             /// Samples a subscriber may hold unread before the oldest is overwritten.
             pub const fn subscriber_buffer(self) -> usize {
                 match self {

@@ -53,5 +53,10 @@ pub use writer::{RecordingWriter, CHUNK_BYTES, CHUNK_SPAN_NS, PROFILE};
 
 use common::topic::Topic;
 
+/// The channel of the scene view beside the topics (`foxglove.SceneUpdate`, protobuf, written by
+/// the session recorder from the world and hand it records), so that a recording opens in
+/// Foxglove's 3D panel as the live view does; the live view sends it under the same name.
+pub const SCENE_CHANNEL: &str = "/scene";
+
 /// The topics a recording holds (the latency reports go into the session report instead).
 pub const RECORDED_TOPICS: [Topic; Topic::RECORDED.len()] = Topic::RECORDED;

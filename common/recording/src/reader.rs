@@ -54,6 +54,9 @@ pub struct Recording {
     pub messages: Vec<RecordedMessage>,
     /// Messages on channels that are not ours (a file written or edited by other tools).
     pub foreign_messages: u64,
+    /// Messages of the scene view ([`crate::SCENE_CHANNEL`], the 3D panel's drawing of the
+    /// samples): ours, but derived from the topics, so no sample is read from them.
+    pub scene_messages: u64,
     /// Where reading stopped early, if it did: everything before it is in `messages`.
     pub damage: Option<RecordingError>,
     /// True when the file ended with its summary and footer (it was closed properly).
@@ -111,6 +114,7 @@ impl Recording {
             path: path.to_path_buf(),
             messages: Vec::new(),
             foreign_messages: 0,
+            scene_messages: 0,
             damage: None,
             complete: false,
             metadata: Default::default(),
@@ -119,6 +123,7 @@ impl Recording {
         };
         let mut reader = Reader {
             channels: Vec::new(),
+            scene_channels: Vec::new(),
             schemas: Vec::new(),
             kept: topics,
             last_seq: [None; Topic::ALL.len()],

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::mem::{offset_of, size_of};
 
 use common::samples::{
-    BlockState, FrameSample, GloveSample, HandSample, JointsSample, Pose, TrackerSample,
+    BlockMode, BlockState, FrameSample, GloveSample, HandSample, JointsSample, Pose, TrackerSample,
     WorldHeader,
 };
 use common::stamp::Stamp;
@@ -149,6 +149,19 @@ pub fn layout(topic: Topic) -> String {
                 "{} {}  # @{}, {} bytes",
                 f.ty, f.name, f.offset, f.size
             );
+            // The mode as an enum: ROS 2 constants of the field's type, which Foxglove and
+            // the ROS 2 tools show by name beside the value.
+            if name == "handblocks/BlockState" && f.name == "mode" {
+                for mode in BlockMode::ALL {
+                    let _ = writeln!(
+                        out,
+                        "uint32 MODE_{}={}  # mode: {}",
+                        mode.name().to_ascii_uppercase(),
+                        mode as u32,
+                        mode.name()
+                    );
+                }
+            }
             let base = f.ty.split('[').next().unwrap_or(f.ty);
             let nested = match base {
                 "handblocks/Stamp" => Some(size_of::<Stamp>()),

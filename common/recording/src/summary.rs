@@ -50,6 +50,8 @@ pub struct RecordingSummary {
     pub damage: Option<String>,
     /// Messages on channels that are not ours.
     pub foreign_messages: u64,
+    /// Messages of the scene view (`/scene`, for Foxglove's 3D panel).
+    pub scene_messages: u64,
 }
 
 impl Recording {
@@ -104,6 +106,7 @@ impl Recording {
             complete: self.complete,
             damage: self.damage.as_ref().map(|d| d.to_string()),
             foreign_messages: self.foreign_messages,
+            scene_messages: self.scene_messages,
         }
     }
 }

@@ -121,7 +121,12 @@ impl RecordingWriter {
                 .add_schema(type_name, SCHEMA_ENCODING, layout(topic).as_bytes())
                 .map_err(wr)?;
             channel_ids[topic as usize] = mcap
-                .add_channel(schema, topic.name(), MESSAGE_ENCODING, &Default::default())
+                .add_channel(
+                    schema,
+                    topic.channel(),
+                    MESSAGE_ENCODING,
+                    &Default::default(),
+                )
                 .map_err(wr)?;
         }
         Ok(RecordingWriter {
@@ -166,7 +171,12 @@ impl RecordingWriter {
         }
     }
 
-    /// Messages written so far.
+    /// The message (CDR header and sample) the last `write` or `write_slice` wrote.
+    pub fn last_message(&self) -> &[u8] {
+        &self.message
+    }
+
+    /// Samples written so far (the messages of [`Self::write_encoded`] not counted).
     pub fn messages(&self) -> u64 {
         self.messages
     }
@@ -212,8 +222,52 @@ impl RecordingWriter {
         self.write_message(&stamp, channel_id)
     }
 
+    /// Declares a channel beside the topics' own, for messages encoded elsewhere (the scene
+    /// view's [`crate::SCENE_CHANNEL`]); [`Self::write_encoded`] writes on it.
+    pub fn add_channel(
+        &mut self,
+        channel: &str,
+        schema: (&str, &str, &[u8]),
+        message_encoding: &str,
+    ) -> Result<u16, RecordingError> {
+        let (name, encoding, data) = schema;
+        let schema = self
+            .mcap
+            .add_schema(name, encoding, data)
+            .map_err(|e| self.write_error(e))?;
+        self.mcap
+            .add_channel(schema, channel, message_encoding, &Default::default())
+            .map_err(|e| self.write_error(e))
+    }
+
+    /// Writes `message` (already encoded) on a channel of [`Self::add_channel`], stamped as the
+    /// sample it was made from: its log and publish times are that sample's.
+    pub fn write_encoded(
+        &mut self,
+        channel_id: u16,
+        stamp: &Stamp,
+        message: &[u8],
+    ) -> Result<(), RecordingError> {
+        self.write_data(stamp, channel_id, message)
+    }
+
     /// Writes `self.message` on `channel_id`; closes the chunk when it is full or old enough.
     fn write_message(&mut self, stamp: &Stamp, channel_id: u16) -> Result<(), RecordingError> {
+        let message = std::mem::take(&mut self.message);
+        let written = self.write_data(stamp, channel_id, &message);
+        self.message = message;
+        if written.is_ok() {
+            self.messages += 1;
+        }
+        written
+    }
+
+    fn write_data(
+        &mut self,
+        stamp: &Stamp,
+        channel_id: u16,
+        data: &[u8],
+    ) -> Result<(), RecordingError> {
         let header = mcap::records::MessageHeader {
             channel_id,
             sequence: stamp.seq as u32,
@@ -221,10 +275,9 @@ impl RecordingWriter {
             publish_time: stamp.origin_ns + self.unix_offset_ns,
         };
         self.mcap
-            .write_to_known_channel(&header, &self.message)
+            .write_to_known_channel(&header, data)
             .map_err(|e| self.write_error(e))?;
-        self.messages += 1;
-        self.chunk_bytes += self.message.len() - CDR_LE_HEADER.len();
+        self.chunk_bytes += data.len();
         let first = *self.chunk_first_publish_ns.get_or_insert(stamp.publish_ns);
         if self.chunk_bytes >= self.chunk_limit_bytes
             || stamp.publish_ns.saturating_sub(first) >= self.chunk_span_ns

@@ -220,11 +220,15 @@ pub struct RecorderSettings {
     pub flush_ms: u64,
     /// `chunk_kib`: ... or once it holds this many KiB uncompressed.
     pub chunk_kib: u64,
+    /// `scene_hz`: how often the `/scene` channel (the 3D panel's drawing of the world and
+    /// the hand, so the file opens in Foxglove's 3D panel) is written, at most; 0: never.
+    pub scene_hz: u64,
 }
 
 impl RecorderSettings {
     pub const DEFAULT_FLUSH_MS: u64 = 500;
     pub const DEFAULT_CHUNK_KIB: u64 = 1024;
+    pub const DEFAULT_SCENE_HZ: u64 = 30;
 
     /// No file, the default chunking.
     pub fn off() -> RecorderSettings {
@@ -232,6 +236,7 @@ impl RecorderSettings {
             file: None,
             flush_ms: Self::DEFAULT_FLUSH_MS,
             chunk_kib: Self::DEFAULT_CHUNK_KIB,
+            scene_hz: Self::DEFAULT_SCENE_HZ,
         }
     }
 }
@@ -654,6 +659,7 @@ fn recorder(r: Option<Reader>, dir: &Path) -> Result<RecorderSettings, ConfigErr
             RecorderSettings::DEFAULT_CHUNK_KIB,
             16..=65_536,
         )?,
+        scene_hz: r.u64_in("scene_hz", RecorderSettings::DEFAULT_SCENE_HZ, 0..=1000)?,
     };
     r.finish()?;
     Ok(s)

@@ -12,6 +12,7 @@
 //! remote-fed session, as the source). Backpressure never reaches the pipeline: see [`link`].
 
 pub mod clock;
+pub mod gate;
 pub mod link;
 pub mod service;
 pub mod viewer;

@@ -282,12 +282,13 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), BridgeError> {
             let v =
                 Viewer::start(host, *port, &session.scene, &served).map_err(BridgeError::Viewer)?;
             eprintln!(
-                "handblocks bridge: Foxglove view on ws://{host}:{} (in Foxglove: Open \
-                 connection -> Foxglove WebSocket; topics {} and /scene)",
+                "handblocks bridge: Foxglove view on ws://{host}:{} (in Foxglove or \
+                 Lichtblick: Open connection -> Foxglove WebSocket; the 3D panel on /scene, \
+                 z-up; topics {} as they carry samples)",
                 v.port,
                 served
                     .iter()
-                    .map(|t| format!("/{}", t.name()))
+                    .map(|t| t.channel())
                     .collect::<Vec<_>>()
                     .join(", ")
             );

@@ -6,6 +6,10 @@
 //! `[recorder] chunk_kib` or once `flush_ms` old, 1024 KiB and 500 ms by default; checked on
 //! every wake-up, so a quiet topic's samples do not wait for the next), so a crash of any
 //! process, this one included, loses at most the open chunk.
+//!
+//! Beside the topics it writes `/scene` (`scene_view`: the blocks, the floor and the hand in
+//! Foxglove's z-up frame, at most `[recorder] scene_hz` times a second, stamped as the world it
+//! shows), so a recording opens in Foxglove's 3D panel as the live view does.
 
 use std::time::Duration;
 
@@ -18,7 +22,9 @@ use common::node::{self, Counters, Pass, Task};
 use common::topic::{SliceTopicSpec, TopicSpec, TopicVisitor};
 use common::{monotonic_ns, Stage, Topic, TopicCounter};
 
+use common::samples::{BlockState, HandSample, WorldHeader};
 use recording::{RecordingError, RecordingWriter};
+use scene_view::SceneView;
 
 /// Why the recorder process stopped with an error.
 #[derive(Debug, thiserror::Error)]
@@ -31,6 +37,64 @@ pub enum RecorderError {
     /// The recording could not be written.
     #[error("{0}")]
     Recording(#[from] RecordingError),
+    /// The scene cannot be drawn (a block's shape).
+    #[error("cannot draw the scene for the recording's /scene channel: {0}")]
+    Scene(#[source] scene_view::SceneViewError),
+}
+
+/// The recording, and the scene view written beside the topics.
+struct Log {
+    writer: RecordingWriter,
+    scene: Option<SceneTrack>,
+}
+
+/// The `/scene` channel: the view, rewritten in place, and its encoded bytes.
+struct SceneTrack {
+    channel_id: u16,
+    view: SceneView,
+    encoded: Vec<u8>,
+    period_ns: u64,
+    last_ns: Option<u64>,
+}
+
+impl Log {
+    /// After `topic`'s sample was written: a hand updates the scene; a world updates it and,
+    /// once a period, writes it. Both are read back from the message just written.
+    fn feed_scene(&mut self, topic: Topic, stamp: &common::Stamp) -> Result<(), RecorderError> {
+        let Some(track) = &mut self.scene else {
+            return Ok(());
+        };
+        let message = self.writer.last_message();
+        match topic {
+            Topic::Hand => {
+                if let Ok(hand) = recording::decode_sample::<HandSample>(topic, message) {
+                    track.view.set_hand(&hand);
+                }
+            }
+            Topic::World => {
+                if track
+                    .last_ns
+                    .is_some_and(|t| stamp.publish_ns.saturating_sub(t) < track.period_ns)
+                {
+                    return Ok(());
+                }
+                if let Ok((_, body)) = recording::decode_slice::<WorldHeader>(topic, message) {
+                    track.last_ns = Some(stamp.publish_ns);
+                    let size = std::mem::size_of::<BlockState>();
+                    // SAFETY: `body` holds `len / size` whole block states (decode_slice
+                    // checked its length); plain old data, read unaligned.
+                    track.view.set_world(body.len() / size, |i| unsafe {
+                        std::ptr::read_unaligned(body[i * size..].as_ptr() as *const BlockState)
+                    });
+                    track.view.encode_into(&mut track.encoded);
+                    self.writer
+                        .write_encoded(track.channel_id, stamp, &track.encoded)?;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
 }
 
 // One `wait_any` sleeps on every recorded topic.
@@ -43,7 +107,7 @@ trait Channel {
     /// Writes every sample waiting into `log` and records its latency.
     fn drain(
         &self,
-        log: &mut Option<RecordingWriter>,
+        log: &mut Option<Log>,
         recorder: &mut LatencyRecorder,
     ) -> Result<(), RecorderError>;
     fn counter(&self) -> TopicCounter;
@@ -56,11 +120,11 @@ impl<P: TopicSpec> Channel for Inlet<P> {
 
     fn drain(
         &self,
-        log: &mut Option<RecordingWriter>,
+        log: &mut Option<Log>,
         recorder: &mut LatencyRecorder,
     ) -> Result<(), RecorderError> {
         while let Some(s) = self.receive()? {
-            record_one(s.stamp(), log, recorder, |log| {
+            record_one(P::TOPIC, s.stamp(), log, recorder, |log| {
                 log.write(P::TOPIC, s.payload())
             })?;
         }
@@ -83,11 +147,11 @@ impl<P: SliceTopicSpec> Channel for SliceChannel<P> {
 
     fn drain(
         &self,
-        log: &mut Option<RecordingWriter>,
+        log: &mut Option<Log>,
         recorder: &mut LatencyRecorder,
     ) -> Result<(), RecorderError> {
         while let Some(s) = self.0.receive()? {
-            record_one(s.user_header().stamp(), log, recorder, |log| {
+            record_one(P::TOPIC, s.user_header().stamp(), log, recorder, |log| {
                 log.write_slice(P::TOPIC, s.user_header(), s.payload())
             })?;
         }
@@ -102,15 +166,17 @@ impl<P: SliceTopicSpec> Channel for SliceChannel<P> {
 /// One received sample: its hop, `write` into the recording (when there is one), and the
 /// recorder's own time and the sample's age.
 fn record_one(
+    topic: Topic,
     stamp: &common::Stamp,
-    log: &mut Option<RecordingWriter>,
+    log: &mut Option<Log>,
     recorder: &mut LatencyRecorder,
     write: impl FnOnce(&mut RecordingWriter) -> Result<(), RecordingError>,
 ) -> Result<(), RecorderError> {
     let received = monotonic_ns();
     recorder.hop(stamp, received);
     if let Some(log) = log {
-        write(log)?;
+        write(&mut log.writer)?;
+        log.feed_scene(topic, stamp)?;
     }
     let done = monotonic_ns();
     recorder.record(common::latency::Metric::Process, done - received);
@@ -147,7 +213,7 @@ impl TopicVisitor for OpenChannels<'_> {
 /// The recorder stage: an inlet per recorded topic and the recording.
 struct Recorder {
     channels: Vec<Box<dyn Channel>>,
-    log: Option<RecordingWriter>,
+    log: Option<Log>,
 }
 
 impl Task for Recorder {
@@ -163,7 +229,7 @@ impl Task for Recorder {
             channel.drain(&mut self.log, pass.recorder)?;
         }
         if let Some(log) = &mut self.log {
-            log.close_chunk_if_due(monotonic_ns())?;
+            log.writer.close_chunk_if_due(monotonic_ns())?;
         }
         Ok(())
     }
@@ -174,7 +240,7 @@ impl Task for Recorder {
 
     fn stop(&mut self, _: &mut Reporter) -> Result<(), RecorderError> {
         if let Some(log) = self.log.take() {
-            log.finish()?;
+            log.writer.finish()?;
         }
         Ok(())
     }
@@ -197,14 +263,32 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), RecorderError> {
                 ("source", session.source.kind().to_string()),
             ];
             let settings = &session.recorder;
-            Some(
-                RecordingWriter::create_with(path, &about)
-                    .map_err(RecorderError::Create)?
-                    .flush_every(
-                        settings.flush_ms * 1_000_000,
-                        (settings.chunk_kib * 1024) as usize,
-                    ),
-            )
+            let mut writer = RecordingWriter::create_with(path, &about)
+                .map_err(RecorderError::Create)?
+                .flush_every(
+                    settings.flush_ms * 1_000_000,
+                    (settings.chunk_kib * 1024) as usize,
+                );
+            let scene = if settings.scene_hz > 0 {
+                let (name, encoding, data) = SceneView::schema();
+                let channel_id = writer
+                    .add_channel(
+                        recording::SCENE_CHANNEL,
+                        (&name, &encoding, &data),
+                        &SceneView::message_encoding(),
+                    )
+                    .map_err(RecorderError::Create)?;
+                Some(SceneTrack {
+                    channel_id,
+                    view: SceneView::new(&session.scene).map_err(RecorderError::Scene)?,
+                    encoded: Vec::new(),
+                    period_ns: 1_000_000_000 / settings.scene_hz,
+                    last_ns: None,
+                })
+            } else {
+                None
+            };
+            Some(Log { writer, scene })
         }
         None => None,
     };

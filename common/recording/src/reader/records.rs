@@ -9,7 +9,7 @@ use common::topic::Topic;
 
 use super::{RecordedMessage, Recording, MAX_CHUNK_BYTES};
 use crate::codec::{sample_type, slice_message_bytes, CDR_LE_HEADER, MESSAGE_ENCODING};
-use crate::RECORDED_TOPICS;
+use crate::{RECORDED_TOPICS, SCENE_CHANNEL};
 
 const OP_SCHEMA: u8 = 0x03;
 const OP_CHANNEL: u8 = 0x04;
@@ -171,6 +171,8 @@ pub(super) enum Flow {
 pub(super) struct Reader<'t> {
     /// (channel id, our topic if it is one of ours with the right schema)
     pub(super) channels: Vec<(u16, Option<Topic>)>,
+    /// The channels of the scene view ([`SCENE_CHANNEL`]): ours, but not a topic.
+    pub(super) scene_channels: Vec<u16>,
     /// (schema id, schema name)
     pub(super) schemas: Vec<(u16, String)>,
     /// The topics whose messages are kept.
@@ -271,9 +273,15 @@ impl Reader<'_> {
                     .iter()
                     .find(|(id, _)| *id == c.schema_id)
                     .map(|(_, name)| name.as_str());
-                let topic = RECORDED_TOPICS
-                    .into_iter()
-                    .find(|t| t.name() == c.topic && c.message_encoding == MESSAGE_ENCODING);
+                // `/world` names the topic (a bare `world` in recordings made before the live
+                // view and the recordings shared their names).
+                let topic = Topic::from_channel(&c.topic).filter(|t| {
+                    RECORDED_TOPICS.contains(t) && c.message_encoding == MESSAGE_ENCODING
+                });
+                self.scene_channels.retain(|id| *id != c.id);
+                if c.topic == SCENE_CHANNEL {
+                    self.scene_channels.push(c.id);
+                }
                 if let (Some(t), Some(schema)) = (topic, schema) {
                     let (expected, _) = sample_type(t);
                     if schema != expected {
@@ -298,6 +306,10 @@ impl Reader<'_> {
                     ));
                 };
                 let Some(topic) = topic else {
+                    if self.scene_channels.contains(&header.channel_id) {
+                        rec.scene_messages += 1;
+                        return Ok(());
+                    }
                     rec.foreign_messages += 1;
                     return Ok(());
                 };
