@@ -14,6 +14,9 @@ pub const VERSION: &str = concat!(
     ")"
 );
 
+/// The session `handblocks` and `handblocks launch` run (found from any folder: `locate`).
+pub const DEFAULT_SESSION: &str = "config/sessions/live.toml";
+
 /// `launch --help`'s closing text: the report's terms and where the documents are.
 const LAUNCH_AFTER_HELP: &str = concat!(
     "The latency table (microseconds), per stage:\n",
@@ -110,6 +113,57 @@ pub enum Command {
         #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
         hand_offset: Option<[f64; 3]>,
         /// Print {"frames", "blocks": [{"name", "position", "rotation", "mode"}], "events"}.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Replay a recording or a CARL trace in place of the devices (as `ros2 bag play`).
+    ///
+    /// FILE is one of our MCAP recordings (its glove + tracker or joints topics) or a CARL
+    /// file (OpenXR joints). The scene is the one the recording was made on, or, for a CARL
+    /// trace, the one the configuration's session for that trace uses (--scene to choose).
+    /// The pipeline makes the hand and the world anew from the trace; the session ends when
+    /// the trace does (--loop: never). Everything else is `launch`'s: the report, the
+    /// preview (out/replay-NAME-preview.png), --record, --set.
+    ///
+    /// Example: handblocks replay ../shared/data/carl/example_push_0.carl --speed 0.5
+    Replay(ReplayArgs),
+    /// Print a topic's samples on a running session, field by field (as `ros2 topic echo`).
+    ///
+    /// TOPIC is glove, tracker, joints, hand, world or frame (or /world, ...). The session is
+    /// the only one running, or --session ID (`handblocks sessions` lists them). Ends with the
+    /// session, after --count samples, or on Ctrl-C.
+    Echo {
+        /// The topic.
+        topic: String,
+        /// The session's bus id (default: the only one running).
+        #[arg(long, value_name = "ID")]
+        session: Option<String>,
+        /// Stop after this many samples.
+        #[arg(long, short = 'n', value_name = "N")]
+        count: Option<u64>,
+    },
+    /// Print a topic's rate on a running session once a second (as `ros2 topic hz`).
+    ///
+    /// The rate is over the last --window samples' publish times (the publisher's clock, so
+    /// this terminal's own delays do not show). Ends with the session, after --seconds, or on
+    /// Ctrl-C.
+    Hz {
+        /// The topic.
+        topic: String,
+        /// The session's bus id (default: the only one running).
+        #[arg(long, value_name = "ID")]
+        session: Option<String>,
+        /// Samples the rate is taken over.
+        #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(2..=100_000))]
+        window: u64,
+        /// Stop after this many seconds.
+        #[arg(long, value_name = "SECONDS")]
+        seconds: Option<f64>,
+    },
+    /// The sessions running on this machine: bus id, age, session file, processes.
+    Sessions {
+        /// Print [{"id", "session", "started_unix_s", "launcher_pid", "lossless",
+        /// "processes": [{"name", "pid"}]}].
         #[arg(long)]
         json: bool,
     },
@@ -253,6 +307,58 @@ pub struct LaunchArgs {
     /// list it with `handblocks inspect FILE`, replay it with `[source] kind = "replay"`.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
+}
+
+/// What `handblocks replay` was given.
+#[derive(clap::Args)]
+pub struct ReplayArgs {
+    /// The trace: a recording (.mcap) or a CARL file (.carl).
+    pub file: PathBuf,
+    /// 1 = recorded timing, 0.5 = half speed, 0 = as fast as the pipeline takes it (losing
+    /// nothing).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_speed)]
+    pub speed: f64,
+    /// Play it again and again until stopped.
+    #[arg(long = "loop")]
+    pub looped: bool,
+    /// Play only these source topics (glove, tracker, joints; comma-separated or repeated).
+    #[arg(long, value_name = "TOPIC")]
+    pub topics: Vec<String>,
+    /// The scene (a file, or a name of `handblocks list`); default: see above.
+    #[arg(long, value_name = "SCENE")]
+    pub scene: Option<PathBuf>,
+    /// Move the traced hand by X,Y,Z metres (default: the CARL sessions' own offset for a
+    /// CARL trace, none for a recording).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub offset: Option<[f64; 3]>,
+    /// Stop after this many seconds (default: when the trace ends).
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub duration: Option<Duration>,
+    /// Record the replayed session to this MCAP file.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+    /// Override a key of the replay's session, as `launch --set` (e.g. renderer.mode=off).
+    #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
+    pub overrides: Vec<common::config::session::Override>,
+    /// No animated preview.
+    #[arg(long)]
+    pub no_preview: bool,
+    /// Replace what is at --record's and --report's paths.
+    #[arg(long)]
+    pub force: bool,
+    /// Also write the report as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+    /// No progress lines while running.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn parse_speed(s: &str) -> Result<f64, String> {
+    s.parse::<f64>()
+        .ok()
+        .filter(|v| (0.0..=1000.0).contains(v))
+        .ok_or_else(|| format!("{s:?}: allowed 0 (as fast as the pipeline takes it) to 1000"))
 }
 
 /// The parts of `bench latency`.

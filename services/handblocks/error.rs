@@ -10,6 +10,7 @@ use crate::bench::BenchError;
 use crate::emulate::EmulateError;
 use crate::launch::LaunchCommandError;
 use crate::list::ListError;
+use crate::monitor::MonitorError;
 use crate::service::ServiceError;
 use crate::simulate::SimulateError;
 
@@ -26,6 +27,10 @@ pub enum CliError {
     /// `service NAME`: one process of a session failed.
     Service(ServiceError),
     Bench(BenchError),
+    /// `replay`: the trace or its scene cannot be used (a refusal before the launch).
+    Replay(String),
+    /// `echo`, `hz`: no session to look at, or its bus cannot be read.
+    Monitor(&'static str, MonitorError),
 }
 
 impl CliError {
@@ -43,6 +48,8 @@ impl fmt::Display for CliError {
             CliError::List(e) => write!(f, "handblocks list: {e}"),
             CliError::Emulate(e) => write!(f, "handblocks emulate: {e}"),
             CliError::Service(e) => write!(f, "handblocks {}: {e}", e.service()),
+            CliError::Replay(e) => write!(f, "handblocks replay: {e}"),
+            CliError::Monitor(command, e) => write!(f, "handblocks {command}: {e}"),
             CliError::Bench(e) => match e.command() {
                 Some(command) => write!(f, "handblocks {command}: {e}"),
                 None => write!(f, "handblocks: {e}"),

@@ -43,7 +43,8 @@ impl std::error::Error for LaunchCommandError {}
 pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
     let exe = std::env::current_exe().map_err(LaunchCommandError::OwnExecutable)?;
     let mut opts = launcher::LaunchOptions {
-        session: args.session,
+        // A name (`live`) or a config path is found from any folder.
+        session: crate::locate::resolve(&args.session, crate::locate::Kind::Session),
         duration: args.duration,
         report: args.report.clone(),
         bus_id: args.bus_id,
@@ -62,18 +63,36 @@ pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
         opts.preview = Some(launcher::default_preview_path(&opts.session));
     }
     if !args.quiet {
-        let until = args.duration.map_or("until Ctrl-C".to_string(), |d| {
-            format!("for {:.1} s", d.as_secs_f64())
-        });
+        // A replay that does not loop ends by itself.
+        let ends_itself = matches!(
+            s.source,
+            common::config::session::Source::Replay { looped: false, .. }
+        );
+        let until = match args.duration {
+            Some(d) if ends_itself => {
+                format!("for {:.1} s or until the trace ends", d.as_secs_f64())
+            }
+            Some(d) => format!("for {:.1} s", d.as_secs_f64()),
+            None if ends_itself => "until the trace ends (Ctrl-C stops it sooner)".to_string(),
+            None => "until Ctrl-C".to_string(),
+        };
         eprintln!("handblocks: launching {} {until}", opts.session.display());
     }
     let outcome = launcher::launch(&opts).map_err(LaunchCommandError::Run)?;
     if let Some(world) = &outcome.world {
         println!("what the world came to (as simulate prints it): {world}");
+        println!(
+            "(a session steps its world for as long as it runs, {} steps a second; `handblocks \
+             simulate` steps the scene's hand plus 3 s, so their counts differ)",
+            s.scene.world.step_hz
+        );
     }
     print!("{}", outcome.report.table());
     if let Some(path) = &outcome.preview {
         println!("{}", preview_line(path));
+    }
+    if let Some(path) = &s.recorder.file {
+        println!("{}", recording_line(path));
     }
     if let Some(path) = &args.report {
         launcher::write_report(&outcome.report, path).map_err(LaunchCommandError::Report)?;
@@ -100,4 +119,34 @@ fn preview_line(path: &Path) -> String {
         ),
         None => format!("preview: {} ({size} bytes)", path.display()),
     }
+}
+
+/// `recorded: out/live.mcap (2.1 MB; list it: handblocks inspect ...; replay it: handblocks
+/// replay ...; or open it in Foxglove)`, with the segments a restarted recorder wrote.
+fn recording_line(path: &Path) -> String {
+    let segments: Vec<std::path::PathBuf> = (0u32..)
+        .map(|n| common::config::session::recording_segment(path, n))
+        .take_while(|p| p.exists())
+        .collect();
+    let bytes: u64 = segments
+        .iter()
+        .filter_map(|p| std::fs::metadata(p).ok())
+        .map(|m| m.len())
+        .sum();
+    if segments.is_empty() {
+        return format!(
+            "recorded: nothing at {} (the recorder wrote no file)",
+            path.display()
+        );
+    }
+    let more = match segments.len() {
+        1 => String::new(),
+        n => format!(" in {n} segments (a restarted recorder went on in the next)"),
+    };
+    format!(
+        "recorded: {} ({:.1} MB{more}; list it: handblocks inspect {0}; replay it: handblocks \
+         replay {0}; or open it in Foxglove)",
+        path.display(),
+        bytes as f64 / 1e6
+    )
 }

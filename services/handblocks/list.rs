@@ -1,6 +1,7 @@
-//! `handblocks list [DIR]`: the scenes and sessions under a folder, each with its first
-//! comment line, told apart by their keys (a session names a `scene`; a scene has blocks or a
-//! hand).
+//! `handblocks list [DIR]`: the scenes and sessions under a folder (by default the
+//! configuration folder, wherever it was found: `locate`), each with the first sentence of its
+//! opening comment, told apart by their keys (a session names a `scene`; a scene has blocks or
+//! a hand).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -26,7 +27,13 @@ impl fmt::Display for ListError {
 impl std::error::Error for ListError {}
 
 /// `handblocks list`: scenes and sessions with their first comment line.
-pub fn run(dir: &Path) -> Result<ExitCode, ListError> {
+pub fn run(given: &Path) -> Result<ExitCode, ListError> {
+    let dir_buf = crate::locate::resolve_dir(given);
+    let dir = dir_buf.as_path();
+    if dir != given {
+        let how = crate::locate::config_root().map_or("", |r| r.how);
+        println!("configuration: {} ({how})", dir.display());
+    }
     let mut files = Vec::new();
     let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {
@@ -57,31 +64,91 @@ pub fn run(dir: &Path) -> Result<ExitCode, ListError> {
         let Ok(table) = text.parse::<toml::Table>() else {
             continue;
         };
-        let first = text
-            .lines()
-            .map(str::trim)
-            .find(|l| l.starts_with('#'))
-            .map(|l| l.trim_start_matches('#').trim().to_string())
-            .unwrap_or_default();
+        let first = first_sentence(&text);
         if table.contains_key("scene") {
             sessions.push((f, first));
         } else if table.contains_key("block") || table.contains_key("hand") {
             scenes.push((f, first));
         }
     }
-    let w = scenes
-        .iter()
-        .chain(&sessions)
-        .map(|(f, _)| f.display().to_string().len())
-        .max()
-        .unwrap_or(0);
-    println!("sessions (handblocks launch SESSION, or ./run SESSION):");
+    println!("sessions (handblocks launch NAME-OR-FILE, or ./run SESSION):");
     for (f, first) in &sessions {
-        println!("  {:w$}  {first}", f.display().to_string());
+        print_entry(f, first);
     }
-    println!("scenes (handblocks simulate SCENE; handblocks launch SCENE runs it with the scripted hand):");
+    println!("scenes (handblocks simulate NAME-OR-FILE; handblocks launch SCENE runs it with the scripted hand):");
     for (f, first) in &scenes {
-        println!("  {:w$}  {first}", f.display().to_string());
+        print_entry(f, first);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `  name  path` and, below it, the description wrapped at 100 columns.
+fn print_entry(file: &Path, about: &str) {
+    let name = file
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    println!("  {name:24} {}", file.display());
+    let mut line = String::from("     ");
+    for word in about.split_whitespace() {
+        if line.len() + 1 + word.len() > 100 && line.trim().len() > 0 {
+            println!("{line}");
+            line = String::from("     ");
+        }
+        line.push(' ');
+        line.push_str(word);
+    }
+    if !line.trim().is_empty() {
+        println!("{line}");
+    }
+}
+
+/// The first sentence of a file's opening comment (its leading `#` lines up to a blank one),
+/// whole: a description is never cut mid-sentence.
+fn first_sentence(text: &str) -> String {
+    let mut joined = String::new();
+    for line in text.lines().map(str::trim) {
+        let Some(comment) = line.strip_prefix('#') else {
+            if joined.is_empty() && line.is_empty() {
+                continue;
+            }
+            break;
+        };
+        let comment = comment.trim();
+        if comment.is_empty() {
+            if joined.is_empty() {
+                continue;
+            }
+            break;
+        }
+        if !joined.is_empty() {
+            joined.push(' ');
+        }
+        joined.push_str(comment);
+    }
+    // The first ". " that ends a sentence (not the one of "e.g. " or "i.e. ").
+    let end = joined
+        .match_indices(". ")
+        .map(|(i, _)| i)
+        .find(|&i| !(joined[..i].ends_with("e.g") || joined[..i].ends_with("i.e")));
+    match end {
+        Some(end) => joined[..=end].to_string(),
+        None => joined,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::first_sentence;
+
+    #[test]
+    fn a_description_is_its_first_whole_sentence() {
+        let text = "# Replays a real hand (Meta Quest, from the CARL project) into the\n\
+                    # pipeline in place of the glove. The hand thrusts.\n# more\nscene = \"x\"\n";
+        assert_eq!(
+            first_sentence(text),
+            "Replays a real hand (Meta Quest, from the CARL project) into the pipeline in \
+             place of the glove."
+        );
+        assert_eq!(first_sentence("\n# One line\n\n# Two\n"), "One line");
+    }
 }

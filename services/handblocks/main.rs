@@ -16,6 +16,9 @@ mod error;
 mod inspect;
 mod launch;
 mod list;
+mod locate;
+mod monitor;
+mod replay;
 mod service;
 mod simulate;
 
@@ -59,6 +62,9 @@ fn run() -> Result<ExitCode, CliError> {
                 | Command::Completions { .. }
                 | Command::Simulate { .. }
                 | Command::Inspect { .. }
+                | Command::Echo { .. }
+                | Command::Hz { .. }
+                | Command::Sessions { .. }
         )
     ) {
         end_quietly_on_closed_pipe();
@@ -66,7 +72,7 @@ fn run() -> Result<ExitCode, CliError> {
     let code = match cli.command {
         // `cargo run --release`: the live session, until Ctrl-C.
         None => launch::run(cli::LaunchArgs {
-            session: PathBuf::from("config/sessions/live.toml"),
+            session: PathBuf::from(cli::DEFAULT_SESSION),
             ..cli::LaunchArgs::default()
         })?,
         Some(Command::Launch(args)) => launch::run(args)?,
@@ -111,6 +117,21 @@ fn run() -> Result<ExitCode, CliError> {
                 restart,
             },
         )?,
+        Some(Command::Replay(args)) => replay::run(args)?,
+        Some(Command::Echo {
+            topic,
+            session,
+            count,
+        }) => monitor::echo(&topic, session.as_deref(), count)
+            .map_err(|e| error::CliError::Monitor("echo", e))?,
+        Some(Command::Hz {
+            topic,
+            session,
+            window,
+            seconds,
+        }) => monitor::hz(&topic, session.as_deref(), window as usize, seconds)
+            .map_err(|e| error::CliError::Monitor("hz", e))?,
+        Some(Command::Sessions { json }) => monitor::sessions(json),
         Some(Command::Bench { which }) => bench::run(which)?,
         Some(Command::BenchPeer { bus, rate, count }) => bench::peer(&bus, rate, count)?,
         Some(Command::BenchTransportPeer {

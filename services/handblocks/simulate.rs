@@ -51,11 +51,27 @@ impl fmt::Display for SimulateError {
 impl std::error::Error for SimulateError {}
 
 pub fn run(args: SimulateArgs) -> Result<ExitCode, SimulateError> {
-    let mut scene = Scene::load(&args.scene).map_err(SimulateError::Scene)?;
+    let file = crate::locate::resolve(&args.scene, crate::locate::Kind::Scene);
+    let mut scene = Scene::load(&file).map_err(SimulateError::Scene)?;
     match args.model.as_deref() {
         Some("precise") => scene.world.model = ModelKind::Precise,
         Some(_) => scene.world.model = ModelKind::Paper,
         None => {}
+    }
+    // Why this many steps (a live session of the same scene steps as long as it runs).
+    if args.frames.is_none() {
+        let why = match &args.trace {
+            Some(_) => "the trace's hands, then 2 s to settle".to_string(),
+            None => format!(
+                "{} steps: the hand's last key plus 3 s to settle",
+                stepper::default_frames(&scene)
+            ),
+        };
+        eprintln!(
+            "handblocks simulate: {why}, at {} steps a second (--frames N to choose; a live \
+             session steps for as long as it runs)",
+            scene.world.step_hz
+        );
     }
     let report = match &args.trace {
         Some(trace) => simulate_trace(&scene, trace, args.hand_offset, args.frames)?,

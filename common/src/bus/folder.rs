@@ -426,3 +426,112 @@ fn leftover_files(dir: &StdPath, prefix: &str) -> Vec<PathBuf> {
         .map(|e| e.path())
         .collect()
 }
+
+/// The card a launcher leaves in its session's folder, for the tools that look at a running
+/// session (`handblocks sessions`, `echo`, `hz`): how to open its bus, and what it runs.
+const CARD_FILE: &str = "session.toml";
+
+/// A session running on this machine, as its launcher's card describes it.
+#[derive(Debug, Clone)]
+pub struct RunningSession {
+    /// Its bus, opened as its processes open it (world size, lossless).
+    pub bus: BusConfig,
+    /// The session file it runs.
+    pub session_file: String,
+    /// When it started (Unix seconds) and the launcher's pid.
+    pub started_unix_s: u64,
+    pub launcher_pid: u32,
+}
+
+impl RunningSession {
+    /// The processes attached to its bus now: (iceoryx2 node name, pid), the launcher's own
+    /// node included.
+    pub fn processes(&self) -> Vec<(String, u32)> {
+        let mut out = Vec::new();
+        let Ok(config) = self.bus.iceoryx() else {
+            return out;
+        };
+        let _ = Node::<ipc::Service>::list(&config, |state| {
+            use iceoryx2::node::NodeView as _;
+            if let NodeState::Alive(view) = state {
+                let name = view
+                    .details()
+                    .as_ref()
+                    .map_or_else(|| "?".to_string(), |d| d.name().as_str().to_string());
+                let pid = view
+                    .id()
+                    .pid::<ipc::Service>()
+                    .map_or(0, |p| p.value() as u32);
+                out.push((name, pid));
+            }
+            CallbackProgression::Continue
+        });
+        out.sort();
+        out
+    }
+}
+
+impl BusConfig {
+    /// Leaves the card of this session in its folder (after [`BusConfig::claim_as_launcher`]).
+    pub fn write_card(&self, session_file: &StdPath) -> Result<(), BusError> {
+        let started = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        let mut card = toml::Table::new();
+        card.insert("id".into(), self.id.clone().into());
+        card.insert("session".into(), session_file.display().to_string().into());
+        card.insert("world_blocks".into(), (self.world_blocks as i64).into());
+        card.insert("lossless".into(), self.lossless.into());
+        card.insert("started_unix_s".into(), (started as i64).into());
+        card.insert("launcher_pid".into(), (std::process::id() as i64).into());
+        let file = self.root.join(CARD_FILE);
+        std::fs::write(&file, card.to_string())
+            .map_err(|e| BusError::config(format!("cannot write {}: {e}", file.display())))
+    }
+
+    /// The sessions of this user running on this machine (their launcher alive and their card
+    /// readable), oldest first.
+    pub fn running() -> Vec<RunningSession> {
+        let bases = [
+            base_dir(&std::env::temp_dir()),
+            base_dir(StdPath::new("/tmp")),
+        ];
+        let mut found: Vec<RunningSession> = bases
+            .iter()
+            .take(if bases[0] == bases[1] { 1 } else { 2 })
+            .filter_map(|b| std::fs::read_dir(b).ok())
+            .flat_map(|e| e.flatten())
+            .filter_map(|entry| {
+                let text = std::fs::read_to_string(entry.path().join(CARD_FILE)).ok()?;
+                let card: toml::Table = text.parse().ok()?;
+                let id = card.get("id")?.as_str()?;
+                let blocks = card.get("world_blocks")?.as_integer()?;
+                let bus = BusConfig::for_session(id)
+                    .ok()?
+                    .with_world_blocks(usize::try_from(blocks).ok()?)
+                    .ok()?
+                    .with_lossless(card.get("lossless")?.as_bool()?);
+                (bus.root == entry.path() && bus.launcher_gone() == Some(false)).then(|| {
+                    RunningSession {
+                        session_file: card
+                            .get("session")
+                            .and_then(|s| s.as_str())
+                            .unwrap_or("?")
+                            .to_string(),
+                        started_unix_s: card
+                            .get("started_unix_s")
+                            .and_then(|s| s.as_integer())
+                            .map_or(0, |s| s as u64),
+                        launcher_pid: card
+                            .get("launcher_pid")
+                            .and_then(|s| s.as_integer())
+                            .map_or(0, |s| s as u32),
+                        bus,
+                    }
+                })
+            })
+            .collect();
+        found.sort_by_key(|s| s.started_unix_s);
+        found
+    }
+}

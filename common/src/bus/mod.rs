@@ -42,8 +42,8 @@ mod folder;
 mod ports;
 mod wait;
 
-pub use folder::BusConfig;
 use folder::*;
+pub use folder::{BusConfig, RunningSession};
 use ports::*;
 pub use ports::{Inlet, Outlet, PayloadKind, PubSubBuilder, PubSubService};
 use wait::*;

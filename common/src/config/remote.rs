@@ -163,7 +163,11 @@ fn key(r: &Reader) -> Result<String, ConfigError> {
 }
 
 /// A list of topic names, each a recorded topic, none twice.
-fn topics(r: &Reader, name: &'static str, default: &[Topic]) -> Result<Vec<Topic>, ConfigError> {
+pub(super) fn topics(
+    r: &Reader,
+    name: &'static str,
+    default: &[Topic],
+) -> Result<Vec<Topic>, ConfigError> {
     let allowed: Vec<&str> = Topic::RECORDED.iter().map(|t| t.name()).collect();
     let Some(v) = r.raw(name) else {
         return Ok(default.to_vec());

@@ -109,6 +109,9 @@ pub enum Source {
         speed: f64,
         offset: [f64; 3],
         looped: bool,
+        /// `topics`: the trace's source topics to play (glove, tracker, joints); empty: all
+        /// it holds (as `ros2 bag play --topics`).
+        topics: Vec<crate::topic::Topic>,
     },
     /// Another machine's session, over zenoh: the bridge publishes what it takes in
     /// (`session.bridge.link`), and this session renders and records it (a viewer).
@@ -332,6 +335,18 @@ impl Override {
     }
 
     fn apply(&self, file: &Path, table: &mut toml::Table) -> Result<(), ConfigError> {
+        // Another kind of source takes other keys: `--set source.kind=replay` starts the
+        // [source] table afresh, so the file's `rate_hz` of a scripted source is not refused
+        // as a key a replay does not take.
+        if self.key == "source.kind" {
+            let same = table
+                .get("source")
+                .and_then(|s| s.get("kind"))
+                .is_some_and(|k| *k == self.value);
+            if !same {
+                table.insert("source".into(), toml::Value::Table(toml::Table::new()));
+            }
+        }
         let parts: Vec<&str> = self.key.split('.').collect();
         let Some((last, path)) = parts.split_last() else {
             return Ok(());
@@ -391,7 +406,11 @@ impl Session {
                 .unwrap_or_default();
             table.insert("scene".into(), toml::Value::String(name));
         }
-        for o in overrides {
+        // `source.kind` first: it starts [source] afresh (`Override::apply`), whatever the
+        // order the other source keys were given in.
+        let (kinds, rest): (Vec<&Override>, Vec<&Override>) =
+            overrides.iter().partition(|o| o.key == "source.kind");
+        for o in kinds.into_iter().chain(rest) {
             o.apply(file, &mut table)?;
         }
         Session::from_table(file, &table).map_err(|mut e| {
@@ -594,6 +613,25 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
                 speed: r.f64_in("speed", Some(1.0), 0.0..=1000.0)?.unwrap_or(1.0),
                 offset: r.array::<3>("offset", -1.0e5..=1.0e5)?.unwrap_or([0.0; 3]),
                 looped: r.bool("loop", false)?,
+                topics: {
+                    let sources = [
+                        crate::topic::Topic::Glove,
+                        crate::topic::Topic::Tracker,
+                        crate::topic::Topic::Joints,
+                    ];
+                    let topics = super::remote::topics(&r, "topics", &[])?;
+                    if let Some(t) = topics.iter().find(|t| !sources.contains(t)) {
+                        return Err(r.err(
+                            "topics",
+                            format!(
+                                "{:?} is not a source topic; a replay plays \"glove\", \
+                                 \"tracker\" or \"joints\" (the rest the pipeline makes)",
+                                t.name()
+                            ),
+                        ));
+                    }
+                    topics
+                },
             }
         }
         _ => Source::Scripted {

@@ -46,13 +46,18 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), ReplayError> {
         speed,
         offset,
         looped,
+        topics,
     } = &session.source
     else {
         return Err(ReplayError::NotAReplay {
             session: session.file.clone(),
         });
     };
-    let trace = HandTrace::load(file, *offset).map_err(ReplayError::Trace)?;
+    let mut trace = HandTrace::load(file, *offset).map_err(ReplayError::Trace)?;
+    if !topics.is_empty() {
+        // `[source] topics`: only these are played (their seqs count only them).
+        trace.samples.retain(|s| topics.contains(&s.topic()));
+    }
     for w in &trace.warnings {
         eprintln!("handblocks replay: warning: {w}");
     }

@@ -54,13 +54,22 @@ impl Report {
             "topic", "published", "received", "dropped", "gaps"
         ));
         let mut not_final: Vec<&str> = Vec::new();
+        let mut unread: Vec<&str> = Vec::new();
         for (t, f) in &self.topics {
             let partial = f.readers.values().any(|r| !r.counts_final);
+            // A topic no process of this session reads (the world with the renderer and the
+            // recorder off): nothing was received, and nothing was lost either.
+            let received = if f.readers.is_empty() {
+                unread.push(t.name());
+                "no reader".to_string()
+            } else {
+                f.received().to_string()
+            };
             out.push_str(&format!(
                 "{:<12} {:>10} {:>10} {:>8} {:>8}{}\n",
                 t.name(),
                 f.published,
-                f.received(),
+                received,
                 f.dropped(),
                 f.gaps(),
                 if partial { "  *" } else { "" }
@@ -70,6 +79,13 @@ impl Report {
                     not_final.push(name);
                 }
             }
+        }
+        if !unread.is_empty() {
+            out.push_str(&format!(
+                "no reader: no process of this session reads {} (renderer and recorder off), \
+                 so none was received and none lost\n",
+                unread.join(", ")
+            ));
         }
         if !not_final.is_empty() {
             out.push_str(&format!(

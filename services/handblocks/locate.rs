@@ -1,0 +1,160 @@
+//! Finding the sessions and scenes wherever `handblocks` is run from.
+//!
+//! A path the user gives that exists is used as given. Otherwise a path under `config/`
+//! (`config/sessions/live.toml`, the default session) or a bare name (`live`, `grasp-throw`)
+//! is looked up in the first configuration folder of:
+//! 1. `$HANDBLOCKS_CONFIG`;
+//! 2. `./config` (run from the repository's root, as the README does);
+//! 3. the repository the binary was built from, while its `config/` is still there (a
+//!    `target/release/handblocks` run from another folder, with `../shared` still beside the
+//!    checkout for the CARL traces);
+//! 4. `share/handblocks/config` beside the binary's folder (an installed package);
+//! 5. the copy built into the binary (`build.rs`), written out once into
+//!    `$XDG_CACHE_HOME/handblocks/config-COMMIT` (or `~/.cache/...`): `cargo install --path .`
+//!    gives a binary that runs its default session from any folder, the repository gone.
+
+use std::path::{Path, PathBuf};
+
+mod embedded {
+    include!(concat!(env!("OUT_DIR"), "/embedded_config.rs"));
+}
+
+/// A configuration folder and how it was found.
+#[derive(Debug, Clone)]
+pub struct ConfigRoot {
+    pub dir: PathBuf,
+    pub how: &'static str,
+}
+
+/// The configuration folder (see the module's doc); None only when no folder exists and the
+/// built-in copy cannot be written out (no cache folder can be made).
+pub fn config_root() -> Option<ConfigRoot> {
+    let found = |dir: PathBuf, how| {
+        dir.join("sessions")
+            .is_dir()
+            .then_some(ConfigRoot { dir, how })
+    };
+    if let Some(dir) = std::env::var_os("HANDBLOCKS_CONFIG") {
+        if let Some(r) = found(PathBuf::from(dir), "named by $HANDBLOCKS_CONFIG") {
+            return Some(r);
+        }
+    }
+    if let Some(r) = found(PathBuf::from("config"), "in this folder") {
+        return Some(r);
+    }
+    let built_in = Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
+    if let Some(r) = found(built_in, "in the repository this binary was built from") {
+        return Some(r);
+    }
+    if let Some(dir) = std::env::current_exe()
+        .ok()
+        .and_then(|exe| Some(exe.parent()?.parent()?.join("share/handblocks/config")))
+    {
+        if let Some(r) = found(dir, "installed beside the binary") {
+            return Some(r);
+        }
+    }
+    written_out().map(|dir| ConfigRoot {
+        dir,
+        how: "the copy built into the binary",
+    })
+}
+
+/// The built-in copy, written out once per commit into the user's cache folder.
+fn written_out() -> Option<PathBuf> {
+    let cache = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+    let dir = cache
+        .join("handblocks")
+        .join(format!("config-{}", env!("HANDBLOCKS_COMMIT")));
+    if dir.join("sessions").is_dir() {
+        return Some(dir);
+    }
+    // Written beside and renamed into place: a half-written copy is never used.
+    let part = cache.join("handblocks").join(format!(
+        ".config-{}.{}",
+        env!("HANDBLOCKS_COMMIT"),
+        std::process::id()
+    ));
+    let write = || -> std::io::Result<()> {
+        for (rel, bytes) in embedded::FILES {
+            let path = part.join(rel);
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent)?;
+            }
+            std::fs::write(path, bytes)?;
+        }
+        Ok(())
+    };
+    let written = write().and_then(|()| std::fs::rename(&part, &dir));
+    let _ = std::fs::remove_dir_all(&part);
+    (written.is_ok() || dir.join("sessions").is_dir()).then_some(dir)
+}
+
+/// What kind of file a name means when it is not a path that exists.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// A session (or a scene, which `launch` also runs): `sessions/NAME.toml`, then
+    /// `scenes/NAME.toml`.
+    Session,
+    /// A scene: `scenes/NAME.toml`.
+    Scene,
+}
+
+/// `given` as the user meant it: itself when it exists; else found in the configuration
+/// folder; else itself (its error then names it as given).
+pub fn resolve(given: &Path, kind: Kind) -> PathBuf {
+    if given.exists() || given.is_absolute() {
+        return given.to_path_buf();
+    }
+    let Some(root) = config_root() else {
+        return given.to_path_buf();
+    };
+    let mut candidates = Vec::new();
+    if let Ok(rest) = given.strip_prefix("config") {
+        candidates.push(root.dir.join(rest));
+    }
+    if given.components().count() == 1 {
+        let name = given.to_string_lossy();
+        let file = if name.ends_with(".toml") {
+            name.into_owned()
+        } else {
+            format!("{name}.toml")
+        };
+        if kind == Kind::Session {
+            candidates.push(root.dir.join("sessions").join(&file));
+        }
+        candidates.push(root.dir.join("scenes").join(&file));
+    }
+    candidates
+        .into_iter()
+        .find(|c| c.is_file())
+        .unwrap_or_else(|| given.to_path_buf())
+}
+
+/// A folder of configuration (`list`'s): itself when it exists, else `config` or a folder
+/// under it found in the configuration folder.
+pub fn resolve_dir(given: &Path) -> PathBuf {
+    if given.is_dir() || given.is_absolute() {
+        return given.to_path_buf();
+    }
+    match (config_root(), given.strip_prefix("config")) {
+        (Some(root), Ok(rest)) => root.dir.join(rest),
+        _ => given.to_path_buf(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_built_in_copy_holds_the_default_session_and_its_scene() {
+        let names: Vec<&str> = embedded::FILES.iter().map(|(n, _)| *n).collect();
+        assert!(names.contains(&"sessions/live.toml"), "{names:?}");
+        assert!(names.contains(&"scenes/grasp-throw.toml"));
+        assert!(names.contains(&"hand.toml"));
+    }
+}

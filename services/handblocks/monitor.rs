@@ -1,0 +1,462 @@
+//! Looking at a running session from outside, as `ros2 topic` does: `handblocks sessions` (what
+//! runs on this machine), `handblocks echo TOPIC` (its samples, field by field) and
+//! `handblocks hz TOPIC` (its rate).
+//!
+//! A session's launcher leaves a card in the session's folder (`BusConfig::write_card`): its
+//! bus id, its world size and whether it is lossless. `echo` and `hz` open that bus as one
+//! more reader of one topic. A live session's publishers overwrite a reader's oldest unread
+//! sample rather than wait for it, so a slow terminal costs the pipeline nothing; a lossless
+//! session (a speed-0 replay) would wait for every reader, so it is refused.
+//!
+//! Samples are printed from the very bytes a recording holds, by the schema every recording
+//! carries (`recording::fields`: each field's name, type, offset and size), so every topic
+//! prints without code of its own.
+
+use std::fmt;
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use common::bus::{Bus, BusConfig, BusError, Inlet, RunningSession, Wakeable};
+use common::topic::{SliceTopicSpec, TopicSpec, TopicVisitor};
+use common::{BlockMode, Stamp, Topic};
+
+/// Why a look at a running session failed.
+#[derive(Debug)]
+pub enum MonitorError {
+    /// No session runs, or none with the id asked for, or several and none chosen.
+    NoSession(String),
+    /// The topic named is not one.
+    NoTopic(String),
+    /// A speed-0 replay would wait for this reader.
+    Lossless(String),
+    /// The bus could not be opened or read.
+    Bus(BusError),
+}
+
+impl fmt::Display for MonitorError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            MonitorError::NoSession(why) => f.write_str(why),
+            MonitorError::NoTopic(name) => write!(
+                f,
+                "{name:?} is not a topic; one of: {}",
+                Topic::RECORDED
+                    .iter()
+                    .map(|t| t.name())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            MonitorError::Lossless(id) => write!(
+                f,
+                "session {id} is a lossless replay (speed 0): its publishers wait for every \
+                 reader, so a look from here would slow it; replay at a speed above 0 to watch it"
+            ),
+            MonitorError::Bus(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for MonitorError {}
+
+impl From<BusError> for MonitorError {
+    fn from(e: BusError) -> Self {
+        MonitorError::Bus(e)
+    }
+}
+
+fn age(started_unix_s: u64) -> String {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let s = now.saturating_sub(started_unix_s);
+    match s {
+        0..60 => format!("{s} s"),
+        60..3600 => format!("{} min {} s", s / 60, s % 60),
+        _ => format!("{} h {} min", s / 3600, s % 3600 / 60),
+    }
+}
+
+/// `handblocks sessions`: one block per running session.
+pub fn sessions(json: bool) -> ExitCode {
+    let running = BusConfig::running();
+    if json {
+        let list: Vec<serde_json::Value> = running
+            .iter()
+            .map(|s| {
+                serde_json::json!({
+                    "id": s.bus.id,
+                    "session": s.session_file,
+                    "started_unix_s": s.started_unix_s,
+                    "launcher_pid": s.launcher_pid,
+                    "lossless": s.bus.lossless,
+                    "processes": s.processes().iter().map(|(name, pid)| {
+                        serde_json::json!({"name": name, "pid": pid})
+                    }).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        println!("{}", serde_json::Value::Array(list));
+        return ExitCode::SUCCESS;
+    }
+    if running.is_empty() {
+        println!(
+            "no session runs on this machine (for this user); start one with `handblocks launch`"
+        );
+        return ExitCode::SUCCESS;
+    }
+    for s in &running {
+        println!(
+            "{}  running {}  {}  (launcher pid {})",
+            s.bus.id,
+            age(s.started_unix_s),
+            s.session_file,
+            s.launcher_pid
+        );
+        let processes = s.processes();
+        let names: Vec<String> = processes
+            .iter()
+            .map(|(name, pid)| format!("{name} ({pid})"))
+            .collect();
+        println!("    processes: {}", names.join(", "));
+    }
+    println!("look at one: handblocks echo TOPIC | handblocks hz TOPIC  [--session ID]");
+    ExitCode::SUCCESS
+}
+
+/// The session `--session ID` names, or the only one running.
+fn pick(id: Option<&str>) -> Result<RunningSession, MonitorError> {
+    let mut running = BusConfig::running();
+    match id {
+        Some(id) => running.into_iter().find(|s| s.bus.id == id).ok_or_else(|| {
+            MonitorError::NoSession(format!(
+                "no session {id:?} runs here (`handblocks sessions` lists those that do)"
+            ))
+        }),
+        None => match running.len() {
+            0 => Err(MonitorError::NoSession(
+                "no session runs on this machine; start one with `handblocks launch`".into(),
+            )),
+            1 => Ok(running.remove(0)),
+            n => Err(MonitorError::NoSession(format!(
+                "{n} sessions run ({}); choose one with --session ID",
+                running
+                    .iter()
+                    .map(|s| s.bus.id.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))),
+        },
+    }
+}
+
+/// One topic's inlet, whatever its sample type: the next sample as a recording's bytes.
+trait Tap {
+    fn wakeable(&self) -> &dyn Wakeable;
+    /// The next sample's message (CDR header and bytes) into `out`, and its stamp.
+    fn next(&self, out: &mut Vec<u8>) -> Result<Option<Stamp>, BusError>;
+}
+
+impl<P: TopicSpec> Tap for Inlet<P> {
+    fn wakeable(&self) -> &dyn Wakeable {
+        self
+    }
+    fn next(&self, out: &mut Vec<u8>) -> Result<Option<Stamp>, BusError> {
+        use common::bus::Stamped as _;
+        Ok(self.receive()?.map(|s| {
+            recording::encode_sample(s.payload(), out);
+            *s.payload().stamp()
+        }))
+    }
+}
+
+struct SliceTap<P: SliceTopicSpec>(Inlet<P>);
+
+impl<P: SliceTopicSpec> Tap for SliceTap<P> {
+    fn wakeable(&self) -> &dyn Wakeable {
+        &self.0
+    }
+    fn next(&self, out: &mut Vec<u8>) -> Result<Option<Stamp>, BusError> {
+        use common::bus::Stamped as _;
+        Ok(self.0.receive()?.map(|s| {
+            recording::encode_slice(P::TOPIC, s.user_header(), s.payload(), out);
+            *s.user_header().stamp()
+        }))
+    }
+}
+
+/// Opens the inlet of one topic.
+struct OpenTap<'b> {
+    bus: &'b Bus,
+    topic: Topic,
+    tap: Option<Box<dyn Tap>>,
+}
+
+impl TopicVisitor for OpenTap<'_> {
+    type Error = BusError;
+    fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
+        if P::TOPIC == self.topic {
+            self.tap = Some(Box::new(self.bus.inlet::<P>()?));
+        }
+        Ok(())
+    }
+    fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
+        if P::TOPIC == self.topic {
+            self.tap = Some(Box::new(SliceTap(self.bus.inlet::<P>()?)));
+        }
+        Ok(())
+    }
+}
+
+/// The running session, and an inlet of `topic` on its bus.
+fn tap(
+    topic: &str,
+    session: Option<&str>,
+) -> Result<(RunningSession, Bus, Box<dyn Tap>), MonitorError> {
+    let topic = Topic::from_channel(topic)
+        .filter(|t| t.is_recorded())
+        .ok_or_else(|| MonitorError::NoTopic(topic.to_string()))?;
+    let running = pick(session)?;
+    if running.bus.lossless {
+        return Err(MonitorError::Lossless(running.bus.id.clone()));
+    }
+    let bus = Bus::open(&running.bus, "monitor")?;
+    let mut open = OpenTap {
+        bus: &bus,
+        topic,
+        tap: None,
+    };
+    Topic::visit_each(&mut open)?;
+    let tap = open
+        .tap
+        .ok_or_else(|| MonitorError::NoTopic(topic.name().to_string()))?;
+    Ok((running, bus, tap))
+}
+
+/// Waits for the next sample of `tap` until the session ends (its launcher gone) or
+/// `until` passes.
+fn next_sample(
+    tap: &dyn Tap,
+    running: &RunningSession,
+    message: &mut Vec<u8>,
+) -> Result<Option<Stamp>, MonitorError> {
+    loop {
+        if let Some(stamp) = tap.next(message)? {
+            return Ok(Some(stamp));
+        }
+        if common::shutdown::requested() || !running_still(running) {
+            return Ok(None);
+        }
+        common::bus::wait_each(
+            std::iter::once(tap.wakeable()),
+            None,
+            Duration::from_millis(200),
+        )?;
+    }
+}
+
+fn running_still(running: &RunningSession) -> bool {
+    BusConfig::running()
+        .iter()
+        .any(|s| s.bus.id == running.bus.id)
+}
+
+/// `handblocks echo TOPIC`: each sample, field by field, `---` between them.
+pub fn echo(
+    topic: &str,
+    session: Option<&str>,
+    count: Option<u64>,
+) -> Result<ExitCode, MonitorError> {
+    common::shutdown::install_signal_handlers();
+    let (running, _bus, tap) = tap(topic, session)?;
+    let topic = Topic::from_channel(topic).unwrap_or(Topic::World);
+    eprintln!(
+        "handblocks echo: {} of session {} (Ctrl-C stops)",
+        topic.channel(),
+        running.bus.id
+    );
+    let mut message = Vec::new();
+    let mut text = String::new();
+    let mut printed = 0;
+    while count.is_none_or(|n| printed < n) {
+        let Some(_) = next_sample(tap.as_ref(), &running, &mut message)? else {
+            break;
+        };
+        text.clear();
+        describe(topic, &message, &mut text);
+        println!("{text}---");
+        printed += 1;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `handblocks hz TOPIC`: once a second, the rate over the last `window` samples, as
+/// `ros2 topic hz` prints it, from the samples' publish times.
+pub fn hz(
+    topic: &str,
+    session: Option<&str>,
+    window: usize,
+    seconds: Option<f64>,
+) -> Result<ExitCode, MonitorError> {
+    common::shutdown::install_signal_handlers();
+    let (running, _bus, tap) = tap(topic, session)?;
+    let name = Topic::from_channel(topic).map_or("?", |t| t.channel());
+    eprintln!(
+        "handblocks hz: {name} of session {} (Ctrl-C stops)",
+        running.bus.id
+    );
+    let window = window.max(2);
+    let mut times: std::collections::VecDeque<u64> =
+        std::collections::VecDeque::with_capacity(window);
+    let mut message = Vec::new();
+    let started = Instant::now();
+    let mut last_print = Instant::now();
+    let mut total = 0u64;
+    loop {
+        if seconds.is_some_and(|s| started.elapsed().as_secs_f64() >= s) {
+            break;
+        }
+        let Some(stamp) = next_sample(tap.as_ref(), &running, &mut message)? else {
+            break;
+        };
+        total += 1;
+        if times.len() == window {
+            times.pop_front();
+        }
+        times.push_back(stamp.publish_ns);
+        if last_print.elapsed() >= Duration::from_secs(1) && times.len() >= 2 {
+            last_print = Instant::now();
+            let gaps: Vec<f64> = times
+                .iter()
+                .zip(times.iter().skip(1))
+                .map(|(a, b)| b.saturating_sub(*a) as f64 / 1e9)
+                .collect();
+            let mean = gaps.iter().sum::<f64>() / gaps.len() as f64;
+            let var = gaps.iter().map(|g| (g - mean).powi(2)).sum::<f64>() / gaps.len() as f64;
+            let min = gaps.iter().copied().fold(f64::INFINITY, f64::min);
+            let max = gaps.iter().copied().fold(0.0, f64::max);
+            println!(
+                "average rate: {:.3}\n\tmin: {:.4}s max: {:.4}s std dev: {:.5}s window: {}",
+                if mean > 0.0 { 1.0 / mean } else { 0.0 },
+                min,
+                max,
+                var.sqrt(),
+                times.len()
+            );
+        }
+    }
+    eprintln!("handblocks hz: {total} samples");
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A sample's fields, one per line (`name: value`), nested types indented, from its message
+/// (the CDR header, then the bytes) by its schema's field list.
+pub fn describe(topic: Topic, message: &[u8], out: &mut String) {
+    let body = message.get(recording::CDR_LE_HEADER.len()..).unwrap_or(&[]);
+    let (name, size) = recording::sample_type(topic);
+    describe_struct(name, body, 0, out);
+    if topic.element_size().is_some() {
+        let count = body
+            .get(size..size + 4)
+            .map_or(0, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+        let at = recording::slice_elements_offset(topic);
+        let element = topic.element_size().unwrap_or(0);
+        out.push_str("blocks:\n");
+        for i in 0..count {
+            let Some(bytes) = body.get(at + i * element..at + (i + 1) * element) else {
+                break;
+            };
+            out.push_str(&format!("- # [{i}]\n"));
+            describe_struct("handblocks/BlockState", bytes, 1, out);
+        }
+    }
+}
+
+fn describe_struct(name: &str, bytes: &[u8], depth: usize, out: &mut String) {
+    let Some(fields) = recording::fields(name) else {
+        return;
+    };
+    let pad = "  ".repeat(depth);
+    for f in fields.iter().filter(|f| f.name != "reserved") {
+        let (base, count) = match f.ty.split_once('[') {
+            Some((b, n)) => (b, n.trim_end_matches(']').parse::<usize>().unwrap_or(1)),
+            None => (f.ty, 1),
+        };
+        let Some(field) = bytes.get(f.offset..f.offset + f.size) else {
+            continue;
+        };
+        if recording::fields(base).is_some() {
+            let each = f.size / count.max(1);
+            for i in 0..count {
+                if count > 1 {
+                    out.push_str(&format!("{pad}{}[{i}]:\n", f.name));
+                } else {
+                    out.push_str(&format!("{pad}{}:\n", f.name));
+                }
+                describe_struct(base, &field[i * each..(i + 1) * each], depth + 1, out);
+            }
+            continue;
+        }
+        let each = f.size / count.max(1);
+        let values: Vec<String> = field
+            .chunks_exact(each.max(1))
+            .map(|c| scalar(base, c))
+            .collect();
+        let value = if count > 1 {
+            format!("[{}]", values.join(", "))
+        } else {
+            values.into_iter().next().unwrap_or_default()
+        };
+        if f.name == "mode" {
+            let mode = u32::from_le_bytes(field[..4].try_into().unwrap_or([0; 4]));
+            let name = BlockMode::from_u32(mode).map_or("?", |m| m.name());
+            out.push_str(&format!("{pad}mode: {value} ({name})\n"));
+        } else {
+            out.push_str(&format!("{pad}{}: {value}\n", f.name));
+        }
+    }
+}
+
+fn scalar(ty: &str, b: &[u8]) -> String {
+    let arr = |n: usize| -> [u8; 8] {
+        let mut a = [0u8; 8];
+        a[..n.min(b.len())].copy_from_slice(&b[..n.min(b.len())]);
+        a
+    };
+    match ty {
+        "float64" => format!("{}", f64::from_le_bytes(arr(8))),
+        "uint64" => format!("{}", u64::from_le_bytes(arr(8))),
+        "int64" => format!("{}", i64::from_le_bytes(arr(8))),
+        "uint32" => format!(
+            "{}",
+            u32::from_le_bytes(arr(4)[..4].try_into().unwrap_or([0; 4]))
+        ),
+        "int32" => format!(
+            "{}",
+            i32::from_le_bytes(arr(4)[..4].try_into().unwrap_or([0; 4]))
+        ),
+        _ => format!("{b:02x?}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_world_prints_its_fields_and_each_block_with_its_mode() {
+        let mut header = common::WorldHeader::default();
+        header.stamp.seq = 7;
+        header.block_count = 2;
+        let mut block = common::BlockState::default();
+        block.pose.position = [0.5, 0.25, -1.0];
+        block.mode = BlockMode::Grasped as u32;
+        let mut message = Vec::new();
+        recording::encode_slice(Topic::World, &header, &[block, block], &mut message);
+        let mut text = String::new();
+        describe(Topic::World, &message, &mut text);
+        assert!(text.contains("stamp:\n  seq: 7\n"), "{text}");
+        assert!(text.contains("block_count: 2\n"), "{text}");
+        assert_eq!(text.matches("mode: 4 (grasped)").count(), 2, "{text}");
+        assert!(text.contains("position: [0.5, 0.25, -1]"), "{text}");
+    }
+}
