@@ -95,6 +95,43 @@ fn run_session(tag: &str, tracker_args: &[&str]) -> (std::process::Output, Value
     (out, v, stderr)
 }
 
+/// The session file a user starts with (config/devices/emulated-session.toml): its emulated
+/// hand reaches the block and pushes it.
+#[test]
+fn the_emulated_session_file_s_hand_pushes_its_block() {
+    let dir = Scratch::new("dev-file");
+    let (glove_link, tracker_link) = (dir.path("glove"), dir.path("tracker"));
+    let _glove = Emulator::start(&["glove", "--sensors", "22"], &glove_link);
+    let _tracker = Emulator::start(&["tracker"], &tracker_link);
+    let id = format!("devfile{}", std::process::id());
+    let report = dir.path("report.json");
+    let out = Command::new(EXE)
+        .args(["launch", "--quiet", "--no-preview", "--duration", "5"])
+        .args(["--bus-id", &id, "--set", "renderer.mode=off"])
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .arg("--set")
+        .arg(format!("source.glove.port={}", glove_link.display()))
+        .arg("--set")
+        .arg(format!("source.tracker.port={}", tracker_link.display()))
+        .arg("--report")
+        .arg(&report)
+        .arg(repo().join("config/devices/emulated-session.toml"))
+        .output()
+        .unwrap();
+    assert_nothing_left(&id);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let events = v["world"]["events"].as_array().unwrap();
+    assert!(
+        events.iter().any(|e| e["kind"] == "push"),
+        "the hand never reached the block: {events:?}"
+    );
+}
+
 #[test]
 fn a_session_runs_on_the_emulated_glove_and_tracker_through_real_ttys() {
     let (out, v, stderr) = run_session("ok", &[]);
@@ -119,6 +156,10 @@ fn a_session_runs_on_the_emulated_glove_and_tracker_through_real_ttys() {
     assert_eq!(topic("world", "published"), topic("hand", "published"));
     for t in ["glove", "tracker", "hand", "world"] {
         assert_eq!(topic(t, "dropped"), 0, "{t}");
+    }
+    // A clean start is a first connection, not a reconnect.
+    for d in ["glove", "tracker"] {
+        assert_eq!(v["devices"][d]["reconnects"], 0, "{d}: {}", v["devices"]);
     }
 }
 

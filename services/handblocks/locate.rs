@@ -96,8 +96,8 @@ fn written_out() -> Option<PathBuf> {
 /// What kind of file a name means when it is not a path that exists.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
-    /// A session (or a scene, which `launch` also runs): `sessions/NAME.toml`, then
-    /// `scenes/NAME.toml`.
+    /// A session (or a scene, which `launch` also runs): `sessions/NAME.toml`,
+    /// `devices/NAME.toml`, then `scenes/NAME.toml`.
     Session,
     /// A scene: `scenes/NAME.toml`.
     Scene,
@@ -125,6 +125,7 @@ pub fn resolve(given: &Path, kind: Kind) -> PathBuf {
         };
         if kind == Kind::Session {
             candidates.push(root.dir.join("sessions").join(&file));
+            candidates.push(root.dir.join("devices").join(&file));
         }
         candidates.push(root.dir.join("scenes").join(&file));
     }

@@ -130,6 +130,8 @@ pub(super) struct LinkUpkeep {
     pub poll_sent: Option<Instant>,
     /// The driver's own counters; the parser keeps the byte-level ones.
     pub stats: LinkStats,
+    /// Whether the link was ever up: the first connection of a session is not a reconnect.
+    pub ever_up: bool,
 }
 
 impl LinkUpkeep {
@@ -139,6 +141,7 @@ impl LinkUpkeep {
         let now = Instant::now();
         LinkUpkeep {
             state: LinkState::Down { retry_at: now },
+            ever_up: false,
             backoff,
             last_record: now,
             garbage_at_last_record: 0,
@@ -158,6 +161,7 @@ impl LinkUpkeep {
     pub fn up(&mut self, link: Link, garbage_now: u64) {
         let now = Instant::now();
         self.state = LinkState::Up(link);
+        self.ever_up = true;
         self.backoff.reset();
         self.last_record = now;
         self.garbage_at_last_record = garbage_now;
@@ -280,8 +284,10 @@ pub(super) fn read<P: Protocol>(
         match driver.connect() {
             Ok(link) => {
                 let (upkeep, buffer) = driver.parts();
+                if upkeep.ever_up {
+                    upkeep.stats.reconnects += 1;
+                }
                 upkeep.up(link, buffer.garbage_bytes());
-                upkeep.stats.reconnects += 1;
             }
             Err(cause) => {
                 let upkeep = driver.parts().0;
