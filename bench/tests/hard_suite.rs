@@ -1,5 +1,5 @@
-//! The hard-case suite (issue 13): the cases physics engines are judged by (notes/physics.md,
-//! notes/accuracy.md), each a scene file under `config/scenes/hard/` whose header comment states
+//! The hard-case suite (issue 13): the cases physics engines are judged by (docs/scenes.md,
+//! "The hard cases"), each a scene file under `config/scenes/hard/` whose header comment states
 //! its criterion. The table, the harness and the criteria are `handblocks_bench::hard_cases`
 //! (shared with `handblocks bench stability`, which reports every figure); here one `#[test]` per
 //! case and model:

@@ -1,7 +1,7 @@
 //! R14 supported stacking [extension]: stacks hold exactly when statics says they do
-//! (docs/model.md R14 "Consequences to test"; notes/accuracy.md "Exact answers": a stack stands iff at
-//! every interface the centre of gravity of everything above lies in that interface's contact
-//! area; the harmonic stack's top overhangs 1/2 H_n block lengths). Each stack is also run in
+//! (docs/model.md R14 "Consequences to test"; docs/accuracy-cost.md "What it is judged against":
+//! a stack stands iff at every interface the centre of gravity of everything above lies in that
+//! interface's contact area; the harmonic stack's top overhangs 1/2 H_n block lengths). Each stack is also run in
 //! paper mode (R11), which keeps every one of them where it is.
 
 #[path = "../../services/stepper/tests/support/mod.rs"]
@@ -127,7 +127,7 @@ fn r14_a_combined_load_beyond_a_lower_interface_topples_from_there_up() {
     never_moves(&scene(&text("paper")), 600).unwrap();
 }
 
-/// notes/accuracy.md: harmonic stacks of n = 2, 3, 4 cubes on a base overhang 1/2 H_n block
+/// docs/accuracy-cost.md: harmonic stacks of n = 2, 3, 4 cubes on a base overhang 1/2 H_n block
 /// lengths (0.75, 0.917, 1.042): at 99% of it they stand exactly still, at 101% they fall (the
 /// lowest interface over the base edge is exceeded: everything above the base topples as one)
 /// and the base never moves. Paper mode keeps both.
