@@ -42,6 +42,49 @@ fn list_and_the_default_session_are_found_from_any_folder() {
     );
 }
 
+/// The copy of config/ built into the binary (what `cargo install` leaves when the repository
+/// is gone): written out once into the cache folder, and the default session runs from it.
+#[test]
+fn the_built_in_configuration_runs_the_default_session() {
+    let dir = Scratch::new("tools-builtin");
+    let id = format!("tb{}", std::process::id());
+    let out = Command::new(EXE)
+        .current_dir(&dir.0)
+        .env("HANDBLOCKS_CONFIG", "builtin")
+        .env("XDG_CACHE_HOME", dir.path("cache"))
+        .args([
+            "launch",
+            "--quiet",
+            "--no-preview",
+            "--duration",
+            "2",
+            "--bus-id",
+            &id,
+        ])
+        .args(["--set", "renderer.mode=off"])
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .output()
+        .unwrap();
+    assert_nothing_left(&id);
+    assert!(out.status.success(), "{}", both(&out));
+    let written = std::fs::read_dir(dir.path("cache/handblocks"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| {
+            p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("config-"))
+        })
+        .expect("the built-in copy written out");
+    assert!(written.join("sessions/live.toml").is_file());
+    assert!(written.join("scenes/grasp-throw.toml").is_file());
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("what the world came to"),
+        "{}",
+        both(&out)
+    );
+}
+
 #[test]
 fn replay_sessions_hz_and_echo_work_from_another_folder() {
     let trace = repo().join("../shared/data/carl/example_push_0.carl");

@@ -3,7 +3,7 @@
 //! A path the user gives that exists is used as given. Otherwise a path under `config/`
 //! (`config/sessions/live.toml`, the default session) or a bare name (`live`, `grasp-throw`)
 //! is looked up in the first configuration folder of:
-//! 1. `$HANDBLOCKS_CONFIG`;
+//! 1. `$HANDBLOCKS_CONFIG` (`builtin`: the copy built into the binary, step 5);
 //! 2. `./config` (run from the repository's root, as the README does);
 //! 3. the repository the binary was built from, while its `config/` is still there (a
 //!    `target/release/handblocks` run from another folder, with `../shared` still beside the
@@ -35,6 +35,13 @@ pub fn config_root() -> Option<ConfigRoot> {
             .then_some(ConfigRoot { dir, how })
     };
     if let Some(dir) = std::env::var_os("HANDBLOCKS_CONFIG") {
+        // `builtin`: the copy built into the binary, whatever folders exist.
+        if dir == "builtin" {
+            return written_out().map(|dir| ConfigRoot {
+                dir,
+                how: "the copy built into the binary",
+            });
+        }
         if let Some(r) = found(PathBuf::from(dir), "named by $HANDBLOCKS_CONFIG") {
             return Some(r);
         }
