@@ -702,7 +702,7 @@ fn the_stock_foxglove_client_connects_and_decodes_a_world_and_a_scene() {
         let [r, g, bl] = scene_view::block_colour(b, i);
         assert_eq!(
             [&c["r"], &c["g"], &c["b"]],
-            [r, g, bl].map(|x| Value::from(x)).each_ref()
+            [r, g, bl].map(Value::from).each_ref()
         );
         // z-up: the block rests on or above Foxglove's ground plane.
         assert!(e["cubes"][0]["pose"]["position"]["z"].as_f64().unwrap() > 0.0);

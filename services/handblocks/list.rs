@@ -90,7 +90,7 @@ fn print_entry(file: &Path, about: &str) {
     println!("  {name:24} {}", file.display());
     let mut line = String::from("     ");
     for word in about.split_whitespace() {
-        if line.len() + 1 + word.len() > 100 && line.trim().len() > 0 {
+        if line.len() + 1 + word.len() > 100 && !line.trim().is_empty() {
             println!("{line}");
             line = String::from("     ");
         }

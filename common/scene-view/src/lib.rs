@@ -187,7 +187,7 @@ impl SceneView {
                 ShapeSpec::Box { size } => {
                     // A cube's size is along its own axes, which the rotation carries.
                     e.cubes.push(CubePrimitive {
-                        pose: Some(start.clone()),
+                        pose: Some(start),
                         size: Some(Vector3 {
                             x: size[0],
                             y: size[1],
@@ -215,7 +215,7 @@ impl SceneView {
                         })
                         .collect();
                     e.triangles.push(TriangleListPrimitive {
-                        pose: Some(start.clone()),
+                        pose: Some(start),
                         points,
                         color: rgba(colour, 1.0),
                         ..Default::default()

@@ -269,7 +269,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), RecorderError> {
                     settings.flush_ms * 1_000_000,
                     (settings.chunk_kib * 1024) as usize,
                 );
-            let scene = if settings.scene_hz > 0 {
+            let scene = if let Some(period_ns) = 1_000_000_000u64.checked_div(settings.scene_hz) {
                 let (name, encoding, data) = SceneView::schema();
                 let channel_id = writer
                     .add_channel(
@@ -282,7 +282,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), RecorderError> {
                     channel_id,
                     view: SceneView::new(&session.scene).map_err(RecorderError::Scene)?,
                     encoded: Vec::new(),
-                    period_ns: 1_000_000_000 / settings.scene_hz,
+                    period_ns,
                     last_ns: None,
                 })
             } else {
