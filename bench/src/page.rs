@@ -93,16 +93,16 @@ fn commit(out_dir: &Path) -> String {
     let Some(head) = git(&["rev-parse", "--short", "HEAD"]).filter(|h| !h.is_empty()) else {
         return "unknown (not run in a git checkout)".into();
     };
+    let status = |pathspec: &[&str]| {
+        let mut args = vec!["status", "--porcelain", "--untracked-files=no", "--"];
+        args.extend_from_slice(pathspec);
+        git(&args)
+    };
+    // An output folder outside the checkout is no pathspec git takes: then the whole tree.
     let exclude = format!(":(exclude){}", out_dir.display());
-    let dirty = git(&[
-        "status",
-        "--porcelain",
-        "--untracked-files=no",
-        "--",
-        ".",
-        &exclude,
-    ])
-    .is_some_and(|s| !s.is_empty());
+    let dirty = status(&[".", &exclude])
+        .or_else(|| status(&["."]))
+        .is_some_and(|s| !s.is_empty());
     if dirty {
         format!("{head} with uncommitted changes")
     } else {

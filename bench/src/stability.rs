@@ -222,8 +222,8 @@ fn markdown(rows: &[Row], provenance: &Provenance, seconds: f64) -> String {
         "per case: criterion met, drift of the blocks that stayed, deepest penetration; one colour per model",
         "stability.png",
     );
-    s += "drift: largest horizontal move of a block that stayed (started at rest, ends within 5 cm and half its radius, turned under 10 deg); sink: its largest drop; penetration: deepest block-block or block-floor overlap over the run; decision: every block that started at rest ends within 1 cm and 5 deg (stands) or not; rest: when the last block last moved more than 1e-6 m or rad in a step; non-finite: non-finite poses plus quarantined bodies; hash: FNV-1a of the final poses' bits.\n\n";
     s += "## Figures per case and model\n\n";
+    s += "drift: largest horizontal move of a block that stayed (started at rest, ends within 5 cm and half its radius, turned under 10 deg); sink: its largest drop; penetration: deepest block-block or block-floor overlap over the run; decision: every block that started at rest ends within 1 cm and 5 deg (stands) or not; rest: when the last block last moved more than 1e-6 m or rad in a step; non-finite: non-finite poses plus quarantined bodies; hash: FNV-1a of the final poses' bits.\n\n";
     s += &summary_table(rows);
     s += "\n\n## Results\n\n| case | model | passed | result |\n|---|---|---|---|\n";
     for r in rows {
