@@ -39,7 +39,7 @@ use stepper::geometry::Polyhedron;
 use stepper::{BareFingersHand, HandSource, Model};
 
 use crate::page::{self, Provenance};
-use crate::plot::{pareto_front, Axis, Figure, Panel, Series};
+use crate::plot::{pareto_front, Axis, Figure, Join, Panel, Series};
 
 /// Options of `handblocks bench accuracy`.
 pub struct AccuracyBench {
@@ -1638,20 +1638,22 @@ fn markdown(
 ) -> String {
     let quick = provenance.quick;
     let what = format!(
-        "What accuracy costs in time: the paper model and the precise model (rapier3d, the \
-         peer) on the same scenes, each at its own settings (step rate; for the precise model \
-         also substeps, solver iterations and sleeping){}, each scene against its exact answer \
-         (or, for the hand scenes, against the precise model at its finest setting). Each scene \
-         times its settings interleaved: a warm-up round, then {ROUNDS} rounds each running \
-         every setting once in turn; a time is the median over the rounds, on this machine, in \
-         this run. Settings differ in step rate, so costs are compared per simulated second \
-         (us per step x step rate).\n\n\
-         How to read it: lower is better on both axes; the summary gives per class each \
-         model's best error and the cheapest setting reaching it, and the paper model's cost \
-         as a ratio to the precise model's (taken within each round, median [min, max] over \
-         the rounds): 0.10x means a tenth of the precise model's time. In the figure each \
-         point is a setting, the ringed ones the Pareto front (no other setting is both \
-         cheaper and more accurate), and a hollow point an error of exactly 0.",
+        "What accuracy costs in time{}: the paper model and the precise model (rapier3d, \
+         the peer) on the same scenes, each at its own settings (the step rate; for the precise \
+         model also substeps, solver iterations and sleeping), each scene judged against its \
+         exact answer (or, for the hand scenes, against the precise model at its finest \
+         setting). Each scene times its settings interleaved: a warm-up round, then {ROUNDS} \
+         rounds each running every setting once in turn; a time is the median over the rounds, \
+         on this machine, in this run. Settings differ in step rate, so costs are compared per \
+         simulated second (us per step x step rate).\n\n\
+         How to read it: lower is better on both axes. The summary gives per class each \
+         model's best error and the cheapest setting reaching it; its last column divides the \
+         precise model's time per simulated second at that setting by the paper model's at \
+         its own, within each round (median [min, max] over the rounds): 18x means the precise \
+         model pays 18 times what the paper model pays for its best. In the figure each point \
+         is a setting, the ringed ones the Pareto front (no other setting is both cheaper and \
+         more accurate), and a hollow point an error of 0 (at most the first \
+         tick where that tick reads ≤).",
         if quick {
             " (quick run: a reduced sweep of settings and scenes)"
         } else {
@@ -1788,7 +1790,7 @@ fn figure(summary: &[Point], pareto: &[Point]) -> Figure {
             y: Axis::log(&y).with_floor(floor),
             series,
             marked,
-            join: true,
+            join: Join::Settings,
         });
     }
     Figure {

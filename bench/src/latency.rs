@@ -18,7 +18,7 @@ use hdrhistogram::Histogram;
 use serde_json::{json, Value};
 
 use crate::page::{self, Provenance};
-use crate::plot::{Axis, Figure, Panel, Series};
+use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// Options of `handblocks bench latency`.
 pub struct LatencyBench {
@@ -402,7 +402,7 @@ fn figure(report: &launcher::report::Report, bare_hop: &Histogram<u64>) -> Figur
         y: Axis::log("latency (us)"),
         series,
         marked: Vec::new(),
-        join: true,
+        join: Join::Curve,
     };
     Figure {
         panels: vec![

@@ -19,7 +19,7 @@ use serde_json::{json, Map, Value};
 use crate::hgrm::percentile_distribution;
 use crate::latency::summary_json;
 use crate::page::{self, Provenance};
-use crate::plot::{Axis, Figure, Panel, Series};
+use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// The source rate under load.
 pub const LOAD_RATE_HZ: u32 = 1000;
@@ -253,7 +253,7 @@ fn figure(report: &launcher::report::Report) -> Figure {
             .map(|s| Series::nines(s.stage.name(), &s.histograms[metric as usize]))
             .collect(),
         marked: Vec::new(),
-        join: true,
+        join: Join::Curve,
     };
     Figure {
         panels: vec![

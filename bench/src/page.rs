@@ -133,7 +133,7 @@ pub fn head(title: &str, what: &str, p: &Provenance) -> String {
         s,
         "- run: {}",
         if p.quick {
-            "**quick** (`--quick`: a reduced run, see below; the full run drops the flag)"
+            "**quick** (`--quick`: a reduced run, as said above; the full run drops the flag)"
         } else {
             "full"
         }

@@ -89,6 +89,8 @@ pub struct Axis {
     pub floor: Option<f64>,
     /// False: no tick labels (a panel beside one with the same categories, which names them).
     pub tick_labels: bool,
+    /// When not empty, the ticks are these values (the sizes measured, say), not chosen here.
+    pub ticks_at: Vec<f64>,
 }
 
 impl Axis {
@@ -98,6 +100,7 @@ impl Axis {
             scale,
             floor: None,
             tick_labels: true,
+            ticks_at: Vec::new(),
         }
     }
 
@@ -124,6 +127,12 @@ impl Axis {
         self
     }
 
+    /// Ticks at these values (see [`Axis::ticks_at`]).
+    pub fn with_ticks_at(mut self, values: Vec<f64>) -> Axis {
+        self.ticks_at = values;
+        self
+    }
+
     /// No tick labels (see [`Axis::tick_labels`]).
     pub fn without_tick_labels(mut self) -> Axis {
         self.tick_labels = false;
@@ -140,10 +149,21 @@ pub struct Panel {
     pub series: Vec<Series>,
     /// Drawn as rings over the series' points, joined by a thin black line.
     pub marked: Vec<(f64, f64)>,
-    /// Join each series' points in order of x, thin and light: for points that are one
-    /// contender's settings from cheap to dear, or one histogram's percentiles. False for
-    /// points that are unrelated cases, where a line would claim a trend that is not there.
-    pub join: bool,
+    /// Whether and how each series' points are joined, in order of x.
+    pub join: Join,
+}
+
+/// How a series' points are joined.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Join {
+    /// Not at all: the points are unrelated cases, and a line from one to the next would
+    /// claim a trend that is not there.
+    No,
+    /// A thin light line under large points: the points are one contender's settings, from
+    /// cheap to dear; the line reads as "this contender" and the points stay what one reads.
+    Settings,
+    /// A solid line over small points: the series is a curve (a histogram by percentile).
+    Curve,
 }
 
 /// Panels on a grid, and one legend column to the right of them all.
@@ -190,8 +210,6 @@ const TITLE_FONT: u32 = 17;
 const LEGEND_FONT: u32 = 14;
 /// Space around a panel's chart, px.
 const MARGIN: u32 = 14;
-/// More points than this in a joined series make it a curve (see [`draw_panel`]).
-const DENSE: usize = 20;
 /// A legend entry's height, px.
 const LEGEND_ROW: i32 = 24;
 
@@ -239,13 +257,13 @@ fn text_size(text: &str, size: u32) -> (u32, u32) {
 }
 
 /// A tick's number, short: up to three significant digits, trailing zeros dropped, and
-/// powers of ten as `1e-7` outside 0.001 .. 100000.
+/// powers of ten as `1e-7` outside 0.001 .. 1000000.
 pub fn number_label(v: f64) -> String {
     if v == 0.0 || !v.is_finite() {
         return if v == 0.0 { "0".into() } else { format!("{v}") };
     }
     let a = v.abs();
-    if !(1e-3..1e5).contains(&a) {
+    if !(1e-3..1e6).contains(&a) {
         let e = a.log10().floor();
         let m = v / 10f64.powf(e);
         let m = (m * 10.0).round() / 10.0;
@@ -345,30 +363,37 @@ impl Axis {
         Some((t, floored))
     }
 
-    /// The page range for these page values (and the floor's, when drawn).
-    fn range(&self, values: &[f64]) -> (f64, f64) {
+    /// The page range for these page values; `floor` is the floor's page value when some
+    /// value was drawn on it: then the axis starts there (nothing is below a floor), and
+    /// reaches at least a decade (log) above it even when every value is on it.
+    fn range(&self, values: &[f64], floor: Option<f64>) -> (f64, f64) {
         if let Scale::Categories(names) = &self.scale {
             return (-0.5, names.len().max(1) as f64 - 0.5);
         }
         let (mut lo, mut hi) = values
             .iter()
+            .chain(&floor)
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
                 (a.min(*v), b.max(*v))
             });
         if !lo.is_finite() {
             return (0.0, 1.0);
         }
+        let least = if self.is_log() {
+            1.0
+        } else {
+            (lo.abs() * 0.2).max(1.0)
+        };
         if hi - lo < 1e-12 {
-            let half = if self.is_log() {
-                0.5
-            } else {
-                (lo.abs() * 0.1).max(1.0)
-            };
-            lo -= half;
-            hi += half;
+            match floor {
+                Some(_) => hi = lo + least,
+                None => {
+                    lo -= least / 2.0;
+                    hi += least / 2.0;
+                }
+            }
         }
         let pad = 0.06 * (hi - lo);
-        // A floor sits just inside the axis' start: its hollow points stay whole.
         (lo - pad, hi + pad)
     }
 
@@ -381,7 +406,14 @@ impl Axis {
             labels: Vec::new(),
         };
         let inside = |v: f64| v >= lo - 1e-12 && v <= hi + 1e-12;
+        let at: Vec<(f64, String)> = self
+            .ticks_at
+            .iter()
+            .filter_map(|v| Some((self.page(*v)?.0, number_label(*v))))
+            .filter(|(t, _)| inside(*t))
+            .collect();
         match &self.scale {
+            _ if !at.is_empty() => t.labels = at,
             Scale::Categories(names) => {
                 for (i, n) in names.iter().enumerate() {
                     t.labels.push((i as f64, n.clone()));
@@ -443,13 +475,14 @@ impl Axis {
         if let (true, Some(f)) = (floored, self.floor) {
             if let Some((fp, _)) = self.page(f) {
                 // The floor's tick replaces any too close to it to read apart.
-                let gap = 0.07 * (hi - lo);
-                t.labels.retain(|(v, _)| (v - fp).abs() > gap);
-                t.light.retain(|v| (v - fp).abs() > gap);
+                // Nothing is below the floor.
+                let gap = 0.15 * (hi - lo);
+                t.labels.retain(|(v, _)| *v > fp + gap);
+                t.light.retain(|v| *v > fp + gap);
                 let label = if all_zero {
                     "0".to_string()
                 } else {
-                    format!("<= {}", number_label(f))
+                    format!("≤{}", number_label(f))
                 };
                 t.labels.insert(0, (fp, label));
             }
@@ -549,11 +582,13 @@ impl Panel {
             .filter_map(|p| place(p).map(|(x, y, _, _)| (x, y)))
             .collect();
         let axis = |axis: &Axis, floored: bool, get: &dyn Fn(&(f64, f64, bool)) -> f64| {
-            let mut values: Vec<f64> = series.iter().flat_map(|(_, p)| p.iter().map(get)).collect();
-            if let (true, Some((f, _))) = (floored, axis.floor.and_then(|f| axis.page(f))) {
-                values.push(f);
-            }
-            let (lo, hi) = axis.range(&values);
+            let values: Vec<f64> = series.iter().flat_map(|(_, p)| p.iter().map(get)).collect();
+            let floor = axis
+                .floor
+                .and_then(|f| axis.page(f))
+                .map(|(f, _)| f)
+                .filter(|_| floored);
+            let (lo, hi) = axis.range(&values, floor);
             let ticks = axis.ticks(lo, hi, floored, all_zero);
             (lo, hi, ticks)
         };
@@ -662,11 +697,8 @@ fn draw_panel<DB: DrawingBackend>(
     }
     for (label, pts) in &layout.series {
         let colour = colours.of(label);
-        // A dense series (a histogram's percentiles) is a curve: the line carries it and the
-        // points are small. A sparse one (a contender's settings) is its points: the line is
-        // thin and light, reading as "this contender, in order".
-        let dense = panel.join && pts.len() > DENSE;
-        if panel.join {
+        let dense = panel.join == Join::Curve;
+        if panel.join != Join::No {
             let mut line: Vec<(f64, f64)> = pts.iter().map(|p| (p.0, p.1)).collect();
             line.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
             let style = if dense {
@@ -729,7 +761,7 @@ impl Entry {
             Entry::Series { label, .. } => label.clone(),
             Entry::Front => "Pareto front".into(),
             Entry::Hollow { all_zero: true } => "hollow: 0 (on the \"0\" tick)".into(),
-            Entry::Hollow { all_zero: false } => "hollow: at or below the first tick".into(),
+            Entry::Hollow { all_zero: false } => "hollow: at or below the first (≤) tick".into(),
         }
     }
 }
@@ -796,7 +828,7 @@ impl Figure {
                     let joined = self
                         .panels
                         .iter()
-                        .any(|q| q.join && q.series.iter().any(|t| t.label == s.label));
+                        .any(|q| q.join != Join::No && q.series.iter().any(|t| t.label == s.label));
                     entries.push(Entry::Series {
                         label: s.label.clone(),
                         joined,
@@ -944,7 +976,8 @@ mod tests {
             (0.001, "0.001"),
             (0.25, "0.25"),
             (1e-7, "1e-7"),
-            (2e5, "2e5"),
+            (2e5, "200000"),
+            (2e6, "2e6"),
             (0.30000000000000004, "0.3"),
         ] {
             assert_eq!(number_label(v), s, "{v}");
@@ -998,7 +1031,7 @@ mod tests {
                     y: Axis::log("latency (us)"),
                     series: vec![Series::nines("a stage with a long name", &h)],
                     marked: Vec::new(),
-                    join: true,
+                    join: Join::Curve,
                 },
                 Panel {
                     title: "a narrow log axis, zeros on the floor, a front".into(),
@@ -1009,7 +1042,7 @@ mod tests {
                         points: vec![(100.0, 0.0), (130.0, 0.02), (180.0, 0.05)],
                     }],
                     marked: vec![(100.0, 1e-3)],
-                    join: true,
+                    join: Join::Settings,
                 },
                 Panel {
                     title: "cases by name".into(),
@@ -1020,7 +1053,7 @@ mod tests {
                         points: vec![(0.0, 0.0), (1e-6, 1.0), (3e-3, 2.0)],
                     }],
                     marked: Vec::new(),
-                    join: false,
+                    join: Join::No,
                 },
             ],
             columns: 3,

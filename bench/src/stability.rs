@@ -16,7 +16,7 @@ use crate::hard_cases::{self, Case, Figures, Variant, CASES};
 use serde_json::{json, Value};
 
 use crate::page::{self, Provenance};
-use crate::plot::{Axis, Figure, Panel, Series};
+use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// `handblocks bench stability`'s options.
 pub struct StabilityBench {
@@ -205,7 +205,8 @@ fn markdown(rows: &[Row], provenance: &Provenance, seconds: f64) -> String {
          is marked so, with its measured figure); the figure puts every case on a row, in the \
          table's order, each model a colour: whether it met its criterion, how far the blocks \
          that should have stayed drifted, and the deepest overlap of blocks with each other or \
-         the floor (a hollow point: exactly 0). Smaller is better in both.",
+         the floor (a hollow point: 0, or at most the first tick where that tick reads \
+         ≤). Smaller is better in both.",
         rows.len(),
         if provenance.quick {
             " (quick run: the slowest precise runs and two far-from-origin copies left out)"
@@ -275,7 +276,11 @@ pub fn summary_table(rows: &[Row]) -> String {
 /// penetration (zeros hollow on the "0" tick). Points only: the cases are unrelated, and a
 /// line from one to the next would draw a trend that is not there.
 fn figure(rows: &[Row]) -> Figure {
+    // Top to bottom within a row, as the table lists them.
     const MODELS: [&str; 3] = ["paper", "paper-R14", "precise"];
+    // The order of first appearance, which sets the colours: paper blue, precise red,
+    // paper-R14 green, as in accuracy.png.
+    const COLOURED: [&str; 3] = ["paper", "precise", "paper-R14"];
     let mut cases: Vec<String> = Vec::new();
     for r in rows {
         if !cases.contains(&r.case) {
@@ -286,7 +291,7 @@ fn figure(rows: &[Row]) -> Figure {
     let place = |r: &Row| {
         let case = cases.iter().position(|c| *c == r.case).unwrap_or(0) as f64;
         let model = MODELS.iter().position(|m| *m == r.model).unwrap_or(1) as f64;
-        case + (model - 1.0) * 0.22
+        case + (model - 1.0) * 0.3
     };
     type Get = fn(&Row) -> f64;
     let panel = |title: &str, x: Axis, get: Get, names: bool| {
@@ -295,7 +300,7 @@ fn figure(rows: &[Row]) -> Figure {
             title: title.into(),
             x,
             y: if names { y } else { y.without_tick_labels() },
-            series: MODELS
+            series: COLOURED
                 .iter()
                 .map(|m| Series {
                     label: m.to_string(),
@@ -308,7 +313,7 @@ fn figure(rows: &[Row]) -> Figure {
                 .filter(|s| !s.points.is_empty())
                 .collect(),
             marked: Vec::new(),
-            join: false,
+            join: Join::No,
         }
     };
     let passed = Axis::categories("criterion met", vec!["no".into(), "yes".into()]);
@@ -330,7 +335,7 @@ fn figure(rows: &[Row]) -> Figure {
         ],
         columns: 3,
         panel_width: 400,
-        panel_height: 22 * cases.len().max(4) as u32 + 110,
+        panel_height: 26 * cases.len().max(4) as u32 + 110,
         column_weights: vec![5, 4, 4],
     }
 }

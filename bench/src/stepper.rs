@@ -62,7 +62,7 @@ use serde_json::{json, Value};
 use stepper::{BareFingersHand, Model};
 
 use crate::page::{self, Provenance};
-use crate::plot::{Axis, Figure, Panel, Series};
+use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// `handblocks bench stepper`'s options.
 pub struct StepperBench {
@@ -1232,8 +1232,9 @@ fn markdown(r: &Report, provenance: &Provenance) -> String {
     let what = format!(
         "What a step costs as the world grows, under both models in one run ({:.0} s{}): the \
          paper model and the precise one (rapier3d, the peer), the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed rounds; a ratio to the paper model is taken round by round (each round's p50 over the paper model's p50 of the same round, timed seconds apart), median [min, max] over the rounds; active: blocks not resting, mean per step; wrapper: a precise step less rapier's own `PhysicsPipeline::step` call (timed inside the world), p50 and its share of all the timed steps' time.\n\n\
-         How to read it: lower is better; a ratio below 1 means the paper model's step is \
-         cheaper than the precise model's in the same round (0.10: a tenth). The figure draws \
+         How to read it: lower is better; a ratio divides the precise model's time per step by \
+         the paper model's in the same round: 16x means the precise step costs 16 times the \
+         paper one. The figure draws \
          time per step (p50) against the number of blocks, both log, one line per model and \
          situation: a slope of 1 is linear in N.",
         r.seconds,
@@ -1267,6 +1268,9 @@ fn markdown(r: &Report, provenance: &Provenance) -> String {
 
 /// Time per step (p50) against N, log-log: one line per (model, situation).
 fn figure(rows: &[ScalingRow]) -> Figure {
+    let mut sizes: Vec<f64> = rows.iter().map(|r| r.blocks as f64).collect();
+    sizes.sort_by(f64::total_cmp);
+    sizes.dedup();
     let mut series = Vec::new();
     for m in NAMES {
         for sit in Situation::ALL {
@@ -1286,11 +1290,11 @@ fn figure(rows: &[ScalingRow]) -> Figure {
     Figure {
         panels: vec![Panel {
             title: "time per step (p50) against blocks".into(),
-            x: Axis::log("blocks"),
+            x: Axis::log("blocks").with_ticks_at(sizes),
             y: Axis::log("us per step"),
             series,
             marked: Vec::new(),
-            join: true,
+            join: Join::Settings,
         }],
         columns: 1,
         panel_width: 760,

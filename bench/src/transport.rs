@@ -45,7 +45,7 @@ use serde_json::{json, Value};
 
 use crate::hgrm::percentile_distribution;
 use crate::page::{self, Provenance};
-use crate::plot::{Axis, Figure, Panel, Series};
+use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// The payloads measured, bytes.
 pub const PAYLOADS: [usize; 5] = [64, 1024, 64 << 10, 1 << 20, 4 << 20];
@@ -788,7 +788,7 @@ fn figure(rows: &[Row]) -> Figure {
                 .map(|r| Series::nines(r.transport.name(), &r.histogram))
                 .collect(),
             marked: Vec::new(),
-            join: true,
+            join: Join::Curve,
         })
         .collect();
     Figure {
