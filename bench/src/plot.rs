@@ -533,9 +533,12 @@ impl Colours {
     }
 }
 
+/// A point on the page: x, y (page space), and whether it is drawn hollow on a floor.
+type Placed = (f64, f64, bool);
+
 /// A panel laid out: its points in page space (x, y, hollow), its ranges and ticks.
 struct Layout {
-    series: Vec<(String, Vec<(f64, f64, bool)>)>,
+    series: Vec<(String, Vec<Placed>)>,
     marked: Vec<(f64, f64)>,
     x: (f64, f64, Ticks),
     y: (f64, f64, Ticks),
@@ -556,7 +559,7 @@ impl Panel {
             Some((x, flip_y(y), fx || fy, zero))
         };
         let (mut any_floored, mut all_zero) = ([false; 2], true);
-        let series: Vec<(String, Vec<(f64, f64, bool)>)> = self
+        let series: Vec<(String, Vec<Placed>)> = self
             .series
             .iter()
             .map(|s| {
@@ -581,7 +584,7 @@ impl Panel {
             .iter()
             .filter_map(|p| place(p).map(|(x, y, _, _)| (x, y)))
             .collect();
-        let axis = |axis: &Axis, floored: bool, get: &dyn Fn(&(f64, f64, bool)) -> f64| {
+        let axis = |axis: &Axis, floored: bool, get: &dyn Fn(&Placed) -> f64| {
             let values: Vec<f64> = series.iter().flat_map(|(_, p)| p.iter().map(get)).collect();
             let floor = axis
                 .floor
