@@ -38,7 +38,8 @@ use common::config::Scene;
 use stepper::geometry::Polyhedron;
 use stepper::{BareFingersHand, HandSource, Model};
 
-use crate::plot::{pareto_front, Figure, Legend, Panel, Series};
+use crate::page::{self, Provenance};
+use crate::plot::{pareto_front, Axis, Figure, Join, Panel, Series};
 
 /// Options of `handblocks bench accuracy`.
 pub struct AccuracyBench {
@@ -1194,8 +1195,15 @@ pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
         &verdicts,
         &checks,
     )?;
+    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
     let md = markdown(
-        &rows, &summary, &pareto, &verdicts, &notes, b.quick, reference,
+        &rows,
+        &summary,
+        &pareto,
+        &verdicts,
+        &notes,
+        reference,
+        &provenance,
     );
     std::fs::write(b.out_dir.join("accuracy.md"), &md)
         .map_err(|e| format!("{}: {e}", b.out_dir.join("accuracy.md").display()))?;
@@ -1625,20 +1633,42 @@ fn markdown(
     pareto: &[Point],
     verdicts: &[Verdict],
     notes: &[String],
-    quick: bool,
     reference: Setting,
+    provenance: &Provenance,
 ) -> String {
-    let mut o = String::new();
-    o.push_str("# What accuracy costs in time\n\n");
-    let _ = writeln!(
-        o,
-        "`handblocks bench accuracy{}`: the paper model and the precise model (rapier3d) on the same scenes, \
-         each at its own settings. Each scene times its settings interleaved: a warm-up round, then {ROUNDS} rounds \
-         each running every setting once in turn; a time is the median over the rounds, on this machine, in this run. \
-         Settings differ in step rate, so costs are compared per simulated second (us per step x step rate); \
-         a ratio is taken within each round and given as median [min, max] over the rounds.\n",
-        if quick { " --quick" } else { "" }
+    let quick = provenance.quick;
+    let what = format!(
+        "What accuracy costs in time{}: the paper model and the precise model (rapier3d, \
+         the peer) on the same scenes, each at its own settings (the step rate; for the precise \
+         model also substeps, solver iterations and sleeping), each scene judged against its \
+         exact answer (or, for the hand scenes, against the precise model at its finest \
+         setting). Each scene times its settings interleaved: a warm-up round, then {ROUNDS} \
+         rounds each running every setting once in turn; a time is the median over the rounds, \
+         on this machine, in this run. Settings differ in step rate, so costs are compared per \
+         simulated second (us per step x step rate).\n\n\
+         How to read it: lower is better on both axes. The summary gives per class each \
+         model's best error and the cheapest setting reaching it; its last column divides the \
+         precise model's time per simulated second at that setting by the paper model's at \
+         its own, within each round (median [min, max] over the rounds): 18x means the precise \
+         model pays 18 times what the paper model pays for its best. In the figure each point \
+         is a setting, the ringed ones the Pareto front (no other setting is both cheaper and \
+         more accurate), and a hollow point an error of 0 (at most the first \
+         tick where that tick reads ≤).",
+        if quick {
+            " (quick run: a reduced sweep of settings and scenes)"
+        } else {
+            ""
+        }
     );
+    let mut o = page::head(
+        "Benchmark: what accuracy costs in time, paper model against precise",
+        &what,
+        provenance,
+    );
+    o.push_str(&page::figure(
+        "per class, error against time per simulated second, one colour per model, the Pareto front ringed",
+        "accuracy.png",
+    ));
     o.push_str(
         "## Summary (per class: each model's best error, the cheapest setting per simulated second reaching it)\n\n",
     );
@@ -1685,26 +1715,20 @@ fn markdown(
             if on { "yes" } else { "" }
         );
     }
-    o.push_str("\n## Every scene (accuracy.json has these rows)\n\n");
-    o.push_str("| class | scene | model | setting | error | unit | us/step | us/sim s |\n|---|---|---|---|---|---|---|---|\n");
-    for r in rows {
-        let _ = writeln!(
-            o,
-            "| {} | {} | {} | {} | {} | {} | {} | {} |",
-            r.class,
-            r.scene,
-            r.model,
-            r.setting,
-            fmt_err(r.error),
-            r.unit,
-            fmt_us(r.us_per_step),
-            fmt_us(r.us_per_sim_s)
-        );
-    }
+    // Every scene under every setting is thousands of rows (half a megabyte of table in a
+    // full run): the page would drown its summary, so they stay in the JSON.
+    let _ = writeln!(
+        o,
+        "\n## Every scene\n\nThe {} rows of every scene under every setting (class, scene, \
+         model, setting, error, unit, us per step, us per simulated second, and each round's \
+         time) are in `accuracy.json`, written beside this page by the same command.",
+        rows.len()
+    );
     o
 }
 
-/// Errors of 0 cannot sit on a log axis: they are drawn at this floor (stated in the title).
+/// Errors of 0 cannot sit on a log axis: they are drawn hollow at this floor, whose tick reads
+/// "0" (see [`Axis::floor`]); it lies below every error the benchmark reports as non-zero.
 fn floor_of(unit: &str) -> f64 {
     match unit {
         "% wrong" => 1.0,
@@ -1712,18 +1736,18 @@ fn floor_of(unit: &str) -> f64 {
     }
 }
 
+/// Per class, error against time per simulated second, both log, one colour per model, a
+/// point per setting, the Pareto front ringed and joined; a zero error hollow on the "0" tick.
 fn figure(summary: &[Point], pareto: &[Point]) -> Figure {
     let mut panels = Vec::new();
     for info in &CLASSES {
         let floor = floor_of(info.unit);
         let mut series = Vec::new();
-        // This order gives each model the same colour in every panel (the palette goes by
-        // position): paper blue, precise red, paper-R14 (stack panels only) green.
         for model in ["paper", "precise", "paper-R14"] {
             let mut pts: Vec<(f64, f64)> = summary
                 .iter()
                 .filter(|p| p.class == info.class && p.model == model && p.error.is_finite())
-                .map(|p| (p.us_per_sim_s, p.error.max(floor)))
+                .map(|p| (p.us_per_sim_s, p.error))
                 .collect();
             if pts.is_empty() {
                 continue;
@@ -1740,29 +1764,37 @@ fn figure(summary: &[Point], pareto: &[Point]) -> Figure {
         let marked = pareto
             .iter()
             .filter(|p| p.class == info.class)
-            .map(|p| (p.us_per_sim_s, p.error.max(floor)))
+            .map(|p| (p.us_per_sim_s, p.error))
             .collect();
-        let title = if info.exact {
-            format!("{} (0 drawn at {})", info.class, floor)
+        let (title, y) = if info.exact {
+            (
+                format!("{}: error against the exact answer", info.class),
+                format!("error ({})", info.unit),
+            )
         } else {
-            format!("{}: agreement with precise (0 at {})", info.class, floor)
+            (
+                format!("{}: distance from the precise reference", info.class),
+                format!("distance ({})", info.unit),
+            )
         };
         panels.push(Panel {
             title,
-            x_label: "us per simulated second (log)".into(),
-            y_label: format!("error, {} (log)", info.unit),
-            log_x: true,
-            log_y: true,
+            x: Axis::log("us per simulated second"),
+            y: Axis::log(&y).with_floor(floor),
             series,
             marked,
-            legend: Legend::UpperRight,
+            // Points only: the precise model's settings (rate x substeps x iterations x sleep)
+            // are no one sequence, and a line through them in order of cost zigzags over the
+            // panel; the front's line is the trade-off to read.
+            join: Join::No,
         });
     }
     Figure {
         panels,
         columns: 3,
-        panel_width: 420,
-        panel_height: 300,
+        panel_width: 440,
+        panel_height: 320,
+        column_weights: Vec::new(),
     }
 }
 
@@ -1905,11 +1937,17 @@ mod tests {
             &[],
             &v,
             &[],
-            true,
             Setting::Paper { hz: 60.0 },
+            &Provenance {
+                command: "handblocks bench accuracy --quick".into(),
+                date_utc: "2024-01-01 00:00 UTC".into(),
+                commit: "abc1234".into(),
+                machine: "a CPU, 2 CPUs available to the run".into(),
+                quick: true,
+            },
         );
         assert!(md.contains("| push | paper | 60 Hz | - | mm |"), "{md}");
-        assert!(md.contains("| push | s | paper | 60 Hz | - | mm |"), "{md}");
+        assert!(md.contains("The 1 rows of every scene"), "{md}");
         // Converged, the same class is labelled agreement, not accuracy.
         let v = verdicts(&summarise(&[row(2.0)]), &[]);
         let push = v.iter().find(|v| v.class == "push").map(|v| v.against);

@@ -17,7 +17,8 @@ use common::{monotonic_ns, topics, HandSample, Stage, Stamp};
 use hdrhistogram::Histogram;
 use serde_json::{json, Value};
 
-use crate::plot::{Figure, Legend, Panel, Series};
+use crate::page::{self, Provenance};
+use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// Options of `handblocks bench latency`.
 pub struct LatencyBench {
@@ -25,6 +26,8 @@ pub struct LatencyBench {
     pub session: PathBuf,
     pub seconds: f64,
     pub out_dir: PathBuf,
+    /// A shortened run (`bench latency all --quick`); the page says so.
+    pub quick: bool,
 }
 
 /// The publishing half of the peer, run as its own process by the benchmark.
@@ -269,14 +272,108 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
     rows.push(row("stepper", "origin->world", world));
     rows.push(row("bare hop", "hop", peer));
     let merged = merge_into_latency_json(&b.out_dir, "pipeline", Value::Array(rows))?;
+    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
+    std::fs::write(b.out_dir.join("pipeline.md"), markdown(&value, &provenance))?;
     let drawn = figure(report, &peer_histogram).write_png(&b.out_dir.join("pipeline.png"))?;
     eprintln!(
-        "bench latency: wrote {}, {}{}",
+        "bench latency: wrote {}, pipeline.md, {}{}",
         file.display(),
         merged.display(),
         if drawn { " and pipeline.png" } else { "" }
     );
     Ok(value)
+}
+
+/// `pipeline.md`: what was measured, how to read it, the run, the figure and the tables, from
+/// the JSON this run wrote (so the page and `pipeline.json` cannot disagree).
+fn markdown(v: &Value, provenance: &Provenance) -> String {
+    let us = |x: &Value| x.as_f64().map_or("-".to_string(), |x| format!("{x:.1}"));
+    let what = format!(
+        "What the pipeline adds to the transport. The peer is the floor any stage could reach \
+         on this machine at this moment: a second process publishes hand-sized samples at \
+         120 Hz over iceoryx2 and notifies, and this process sleeps on the listener, wakes, \
+         receives and records the hop, with no processing at all ({s:.0} s). Then the real \
+         session runs ({s:.0} s: its processes, the scripted hand at 120 Hz), and each stage's \
+         hop (the stage before's publish to its receive) is reported as a ratio to the \
+         peer's; then the session again with each other `[pipeline] wait` strategy.\n\n\
+         How to read it: a ratio of 1.00 means the stage wakes as fast as a bare hop; 2.00, \
+         twice as slow at p99. Origin -> world is the age of the world a stage sends (from \
+         when the hand sample entered the pipeline: three hops and two stages' work), with \
+         its target p99 <= 200 us. The figure draws the same histograms by percentile (p50 \
+         to the tail, HdrHistogram's log axis).",
+        s = v["seconds"].as_f64().unwrap_or(0.0),
+    );
+    let mut md = page::head(
+        "Benchmark: the pipeline's latency against a bare hop",
+        &what,
+        provenance,
+    );
+    md.push_str(&format!(
+        "**origin -> world p50 {} us, p99 {} us** (target p99 <= 200 us; {}x the bare hop's p99); \
+         **{} samples dropped**.\n\n",
+        us(&v["origin_to_world_us"]["p50"]),
+        us(&v["origin_to_world_us"]["p99"]),
+        v["origin_to_world_p99_over_peer_hop_p99"]
+            .as_f64()
+            .map_or("-".to_string(), |r| format!("{r:.2}")),
+        v["dropped"],
+    ));
+    md.push_str(&page::figure(
+        "hop into each stage beside the bare hop, and origin to world and to photon, by percentile",
+        "pipeline.png",
+    ));
+    md.push_str(
+        "## Hop into each stage\n\n| hop into | p50 (us) | p90 | p99 | p99.9 | max | count | p99 / bare hop p99 |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    let peer = &v["peer_hop_us"];
+    let row = |name: &str, h: &Value, ratio: String| {
+        format!(
+            "| {name} | {} | {} | {} | {} | {} | {} | {ratio} |\n",
+            us(&h["p50"]),
+            us(&h["p90"]),
+            us(&h["p99"]),
+            us(&h["p999"]),
+            us(&h["max"]),
+            h["count"]
+        )
+    };
+    md.push_str(&row("bare hop (peer)", peer, "1.00".into()));
+    for (stage, x) in v["stages"].as_object().into_iter().flatten() {
+        md.push_str(&row(
+            stage,
+            &x["hop_us"],
+            x["hop_p99_over_peer_p99"]
+                .as_f64()
+                .map_or("-".into(), |r| format!("{r:.2}")),
+        ));
+    }
+    md.push_str(
+        "\n## Each `[pipeline] wait` strategy, a session each\n\n| wait | origin -> world p50 (us) | p99 | dropped | CPU seconds per stage |\n|---|---|---|---|---|\n",
+    );
+    for w in v["wait_strategies"].as_array().into_iter().flatten() {
+        md.push_str(&format!(
+            "| {} | {} | {} | {} | {} |\n",
+            w["wait"].as_str().unwrap_or(""),
+            us(&w["origin_to_world_us"]["p50"]),
+            us(&w["origin_to_world_us"]["p99"]),
+            w["dropped"],
+            w["cpu_s"]
+                .as_object()
+                .map(|m| m
+                    .iter()
+                    .map(|(k, v)| format!("{k} {v}"))
+                    .collect::<Vec<_>>()
+                    .join(", "))
+                .unwrap_or_default()
+        ));
+    }
+    if let Some(t) = v["wait_strategies"]
+        .as_array()
+        .and_then(|a| a.iter().find_map(|w| w.get("trace")))
+    {
+        md.push_str(&format!("\n```{}```\n", wait_trace_lines(t)));
+    }
+    md
 }
 
 /// Latency by percentile on HdrHistogram's "nines" axis: each stage's hop beside the bare hop
@@ -301,13 +398,11 @@ fn figure(report: &launcher::report::Report, bare_hop: &Histogram<u64>) -> Figur
     }
     let panel = |title: &str, series: Vec<Series>| Panel {
         title: title.to_string(),
-        x_label: "1 / (1 - percentile)".into(),
-        y_label: "latency (us)".into(),
-        log_x: true,
-        log_y: true,
+        x: Axis::nines(),
+        y: Axis::log("latency (us)"),
         series,
         marked: Vec::new(),
-        legend: Legend::UpperRight,
+        join: Join::Curve,
     };
     Figure {
         panels: vec![
@@ -315,8 +410,9 @@ fn figure(report: &launcher::report::Report, bare_hop: &Histogram<u64>) -> Figur
             panel("origin -> world and -> photon", ages),
         ],
         columns: 2,
-        panel_width: 560,
-        panel_height: 400,
+        panel_width: 500,
+        panel_height: 380,
+        column_weights: Vec::new(),
     }
 }
 

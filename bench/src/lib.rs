@@ -10,12 +10,14 @@
 //! * [`stability`]: every hard case under both models, with its figures.
 //! * [`stepper`]: a step's cost against the world's size, and each effect's cost on and off.
 //! * [`plot`]: the figures (plotters into a PNG), shared by the reports.
+//! * [`page`]: the head of each report's markdown page (what, how to read it, where from).
 
 pub mod accuracy;
 pub mod hard_cases;
 pub mod hgrm;
 pub mod latency;
 pub mod load;
+pub mod page;
 pub mod plot;
 pub mod stability;
 pub mod stepper;

@@ -18,7 +18,8 @@ use serde_json::{json, Map, Value};
 
 use crate::hgrm::percentile_distribution;
 use crate::latency::summary_json;
-use crate::plot::{Figure, Legend, Panel, Series};
+use crate::page::{self, Provenance};
+use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// The source rate under load.
 pub const LOAD_RATE_HZ: u32 = 1000;
@@ -137,7 +138,11 @@ pub fn run(b: &LoadBench) -> Result<Value, Box<dyn std::error::Error>> {
         serde_json::to_string_pretty(&value)? + "\n",
     )?;
     crate::latency::merge_into_latency_json(&b.out_dir, "load", value.clone())?;
-    std::fs::write(b.out_dir.join("load.md"), markdown(&value, report))?;
+    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
+    std::fs::write(
+        b.out_dir.join("load.md"),
+        markdown(&value, report, &provenance),
+    )?;
     let drawn = figure(report).write_png(&b.out_dir.join("load.png"))?;
     eprintln!(
         "bench latency load: {dropped} dropped, {gaps} gaps, {unrecorded} not recorded; wrote {}, \
@@ -158,16 +163,46 @@ fn metric_name(m: Metric) -> &'static str {
     }
 }
 
-fn markdown(v: &Value, report: &launcher::report::Report) -> String {
-    let mut md = format!(
-        "# handblocks bench latency load\n\nThe scripted hand at {LOAD_RATE_HZ} Hz for {:.1} s, \
-         every topic recorded: **{} dropped, {} gaps, {} published but not recorded**; budget {}.\n\n\
-         | stage | metric | count | p50 (us) | p90 | p99 | p99.9 | max |\n|---|---|---|---|---|---|---|---|\n",
-        v["seconds"].as_f64().unwrap_or(0.0),
+fn markdown(v: &Value, report: &launcher::report::Report, provenance: &Provenance) -> String {
+    let seconds = v["seconds"].as_f64().unwrap_or(0.0);
+    let what = format!(
+        "The whole pipeline under load: the session's processes with the scripted hand at \
+         {LOAD_RATE_HZ} Hz (eight times the step rate, so every hand sample still makes a world \
+         sample) for {seconds:.1} s{}, the recorder writing every topic. The verdict is the \
+         flow, not a timing: every sample published must be received by every reader \
+         (0 dropped, 0 gaps) and be in the recording. The latency of each stage under that \
+         load is the figure; there is no peer here (the bare hop beside the pipeline is \
+         [pipeline.md](pipeline.md)).\n\n\
+         How to read it: *hop* is a sample's publish by the stage before to its receive here \
+         (the bus and the wake-up), *process* this stage's own work, *origin* the age of what \
+         the stage sends (from when its source sample entered the pipeline), *photon* the \
+         renderer's origin to the frame's GPU work complete. The figure draws hop and origin \
+         by percentile, p50 to the tail, on HdrHistogram's log axis; every histogram is also \
+         an `.hgrm` file under `hgrm/`.",
+        if v["quick"].as_bool() == Some(true) {
+            " (quick run: 5 s instead of 60)"
+        } else {
+            ""
+        }
+    );
+    let mut md = page::head(
+        "Benchmark: the pipeline at 1 kHz, every topic recorded",
+        &what,
+        provenance,
+    );
+    md.push_str(&format!(
+        "**{} dropped, {} gaps, {} published but not recorded**; the session's budget {}.\n\n",
         v["dropped"],
         v["gaps"],
         v["published_not_recorded"],
-        if report.ok() { "held" } else { "VIOLATED" }
+        if report.ok() { "held" } else { "was VIOLATED" }
+    ));
+    md.push_str(&page::figure(
+        "hop into each stage and origin to each stage's output by percentile, one line per stage",
+        "load.png",
+    ));
+    md.push_str(
+        "## Latency per stage\n\n| stage | metric | count | p50 (us) | p90 | p99 | p99.9 | max |\n|---|---|---|---|---|---|---|---|\n",
     );
     for s in &report.stages {
         for metric in Metric::ALL {
@@ -188,7 +223,7 @@ fn markdown(v: &Value, report: &launcher::report::Report) -> String {
             ));
         }
     }
-    md.push_str("\n| topic | published | received | dropped | gaps | recorded |\n|---|---|---|---|---|---|\n");
+    md.push_str("\n## Flow per topic\n\n| topic | published | received | dropped | gaps | recorded |\n|---|---|---|---|---|---|\n");
     if let Some(topics) = v["topics"].as_object() {
         for (t, f) in topics {
             md.push_str(&format!(
@@ -209,10 +244,8 @@ fn markdown(v: &Value, report: &launcher::report::Report) -> String {
 fn figure(report: &launcher::report::Report) -> Figure {
     let panel = |metric: Metric, title: &str| Panel {
         title: title.to_string(),
-        x_label: "1 / (1 - percentile)".into(),
-        y_label: "latency (us)".into(),
-        log_x: true,
-        log_y: true,
+        x: Axis::nines(),
+        y: Axis::log("latency (us)"),
         series: report
             .stages
             .iter()
@@ -220,7 +253,7 @@ fn figure(report: &launcher::report::Report) -> Figure {
             .map(|s| Series::nines(s.stage.name(), &s.histograms[metric as usize]))
             .collect(),
         marked: Vec::new(),
-        legend: Legend::UpperRight,
+        join: Join::Curve,
     };
     Figure {
         panels: vec![
@@ -228,8 +261,9 @@ fn figure(report: &launcher::report::Report) -> Figure {
             panel(Metric::Origin, "origin -> each stage's output, 1 kHz"),
         ],
         columns: 2,
-        panel_width: 560,
-        panel_height: 400,
+        panel_width: 500,
+        panel_height: 380,
+        column_weights: Vec::new(),
     }
 }
 

@@ -15,7 +15,8 @@ use std::time::Instant;
 use crate::hard_cases::{self, Case, Figures, Variant, CASES};
 use serde_json::{json, Value};
 
-use crate::plot::{Figure, Legend, Panel, Series};
+use crate::page::{self, Provenance};
+use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// `handblocks bench stability`'s options.
 pub struct StabilityBench {
@@ -122,7 +123,8 @@ pub fn run(b: &StabilityBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
         rows.push(r);
     }
     write_json(&b.out_dir.join("stability.json"), &rows)?;
-    let md = markdown(&rows, b.quick, started.elapsed().as_secs_f64());
+    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
+    let md = markdown(&rows, &provenance, started.elapsed().as_secs_f64());
     let md_path = b.out_dir.join("stability.md");
     std::fs::write(&md_path, &md).map_err(|e| format!("{}: {e}", md_path.display()))?;
     let png = b.out_dir.join("stability.png");
@@ -191,13 +193,37 @@ fn rest_text(t: Option<f64>) -> String {
     t.map_or("moving".into(), |t| format!("{t:.2}"))
 }
 
-fn markdown(rows: &[Row], quick: bool, seconds: f64) -> String {
-    let mut s = String::from("# handblocks bench stability\n\n");
-    s += &format!(
-        "Every hard case (`config/scenes/hard/`, table `handblocks_bench::hard_cases`) under the paper model (R1-R14, `paper-R14`: the scene as written), under R11 only where the case is a stack (`paper`), and under the precise model (rapier3d, default `[precise]`). {} runs in {seconds:.0} s{}.\n\n",
+fn markdown(rows: &[Row], provenance: &Provenance, seconds: f64) -> String {
+    let what = format!(
+        "Every hard case (the scenes under `config/scenes/hard/`, the table \
+         `handblocks_bench::hard_cases`, the cases physics engines are judged by) under the \
+         paper model as written (`paper-R14`: R1-R14), under R11 only where the case is a stack \
+         (`paper`: the paper's own floating stacks) and under the precise model (rapier3d at its \
+         default `[precise]` settings, the peer), each judged by its case's criterion. {} runs \
+         in {seconds:.0} s{}.\n\n\
+         How to read it: *passed* is the case's criterion (a known failure of the precise model \
+         is marked so, with its measured figure); the figure puts every case on a row, in the \
+         table's order, each model a colour: whether it met its criterion, how far the blocks \
+         that should have stayed drifted, and the deepest overlap of blocks with each other or \
+         the floor (a hollow point: 0, or at most the first tick where that tick reads \
+         ≤). Smaller is better in both.",
         rows.len(),
-        if quick { " (--quick: the slowest precise runs and two far-from-origin copies left out)" } else { "" }
+        if provenance.quick {
+            " (quick run: the slowest precise runs and two far-from-origin copies left out)"
+        } else {
+            ""
+        }
     );
+    let mut s = page::head(
+        "Benchmark: both models on the hard cases",
+        &what,
+        provenance,
+    );
+    s += &page::figure(
+        "per case: criterion met, drift of the blocks that stayed, deepest penetration; one colour per model",
+        "stability.png",
+    );
+    s += "## Figures per case and model\n\n";
     s += "drift: largest horizontal move of a block that stayed (started at rest, ends within 5 cm and half its radius, turned under 10 deg); sink: its largest drop; penetration: deepest block-block or block-floor overlap over the run; decision: every block that started at rest ends within 1 cm and 5 deg (stands) or not; rest: when the last block last moved more than 1e-6 m or rad in a step; non-finite: non-finite poses plus quarantined bodies; hash: FNV-1a of the final poses' bits.\n\n";
     s += &summary_table(rows);
     s += "\n\n## Results\n\n| case | model | passed | result |\n|---|---|---|---|\n";
@@ -245,66 +271,71 @@ pub fn summary_table(rows: &[Row]) -> String {
     s.trim_end().to_string()
 }
 
-/// Per case (x: the case's index in the table, the row order of stability.md), one line per
-/// model: pass (1) or fail (0), the drift of blocks that stayed and the deepest penetration
-/// (zeros drawn at 1e-9 m on the log axes).
+/// One row per case, in the table's order, named: per model (a colour, side by side within
+/// the row) whether it met its criterion, the drift of the blocks that stayed and the deepest
+/// penetration (zeros hollow on the "0" tick). Points only: the cases are unrelated, and a
+/// line from one to the next would draw a trend that is not there.
 fn figure(rows: &[Row]) -> Figure {
-    let floor = 1e-9;
-    let mut cases: Vec<&str> = Vec::new();
+    // Top to bottom within a row, as the table lists them.
+    const MODELS: [&str; 3] = ["paper", "paper-R14", "precise"];
+    // The order of first appearance, which sets the colours: paper blue, precise red,
+    // paper-R14 green, as in accuracy.png.
+    const COLOURED: [&str; 3] = ["paper", "precise", "paper-R14"];
+    let mut cases: Vec<String> = Vec::new();
     for r in rows {
-        if !cases.contains(&r.case.as_str()) {
-            cases.push(&r.case);
+        if !cases.contains(&r.case) {
+            cases.push(r.case.clone());
         }
     }
-    let index = |r: &Row| cases.iter().position(|c| *c == r.case).unwrap() as f64 + 1.0;
+    // A model's place within its case's row: side by side, never on top of each other.
+    let place = |r: &Row| {
+        let case = cases.iter().position(|c| *c == r.case).unwrap_or(0) as f64;
+        let model = MODELS.iter().position(|m| *m == r.model).unwrap_or(1) as f64;
+        case + (model - 1.0) * 0.3
+    };
     type Get = fn(&Row) -> f64;
-    let panels = [
-        (
-            "criterion met (1) or not (0)",
-            "passed",
-            false,
-            (|r: &Row| if r.passed { 1.0 } else { 0.0 }) as Get,
-        ),
-        (
-            "drift of blocks that stayed (0 drawn at 1e-9 m)",
-            "m (log)",
-            true,
-            |r: &Row| r.figures.drift_m.max(1e-9),
-        ),
-        (
-            "deepest penetration (0 drawn at 1e-9 m)",
-            "m (log)",
-            true,
-            |r: &Row| r.figures.penetration_m.max(1e-9),
-        ),
-    ]
-    .into_iter()
-    .map(|(title, y_label, log_y, get)| Panel {
-        title: title.into(),
-        x_label: "case (row order of stability.md)".into(),
-        y_label: y_label.into(),
-        log_x: false,
-        log_y,
-        series: ["paper", "paper-R14", "precise"]
-            .iter()
-            .map(|m| Series {
-                label: m.to_string(),
-                points: rows
-                    .iter()
-                    .filter(|r| r.model == *m)
-                    .map(|r| (index(r), get(r).max(if log_y { floor } else { 0.0 })))
-                    .collect(),
-            })
-            .filter(|s| !s.points.is_empty())
-            .collect(),
-        marked: Vec::new(),
-        legend: Legend::UpperRight,
-    })
-    .collect();
+    let panel = |title: &str, x: Axis, get: Get, names: bool| {
+        let y = Axis::categories("", cases.clone());
+        Panel {
+            title: title.into(),
+            x,
+            y: if names { y } else { y.without_tick_labels() },
+            series: COLOURED
+                .iter()
+                .map(|m| Series {
+                    label: m.to_string(),
+                    points: rows
+                        .iter()
+                        .filter(|r| r.model == *m)
+                        .map(|r| (get(r), place(r)))
+                        .collect(),
+                })
+                .filter(|s| !s.points.is_empty())
+                .collect(),
+            marked: Vec::new(),
+            join: Join::No,
+        }
+    };
+    let passed = Axis::categories("criterion met", vec!["no".into(), "yes".into()]);
     Figure {
-        panels,
-        columns: 1,
-        panel_width: 900,
-        panel_height: 280,
+        panels: vec![
+            panel("passed", passed, |r| if r.passed { 1.0 } else { 0.0 }, true),
+            panel(
+                "drift of the blocks that stayed",
+                Axis::log("drift (m)").with_floor(1e-9),
+                |r| r.figures.drift_m,
+                false,
+            ),
+            panel(
+                "deepest penetration",
+                Axis::log("penetration (m)").with_floor(1e-9),
+                |r| r.figures.penetration_m,
+                false,
+            ),
+        ],
+        columns: 3,
+        panel_width: 400,
+        panel_height: 26 * cases.len().max(4) as u32 + 110,
+        column_weights: vec![5, 4, 4],
     }
 }

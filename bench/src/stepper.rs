@@ -61,7 +61,8 @@ use common::{BlockMode, HandSample, MAX_SCENE_BLOCKS};
 use serde_json::{json, Value};
 use stepper::{BareFingersHand, Model};
 
-use crate::plot::{Figure, Legend, Panel, Series};
+use crate::page::{self, Provenance};
+use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// `handblocks bench stepper`'s options.
 pub struct StepperBench {
@@ -983,7 +984,8 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
     )
     .map_err(|e| format!("{}: {e}", json_path.display()))?;
     let md_path = b.out_dir.join("stepper.md");
-    std::fs::write(&md_path, markdown(&report, b.quick))
+    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
+    std::fs::write(&md_path, markdown(&report, &provenance))
         .map_err(|e| format!("{}: {e}", md_path.display()))?;
     let png = b.out_dir.join("stepper.png");
     if !figure(&report.scaling).write_png(&png)? {
@@ -1225,13 +1227,33 @@ pub fn ablation_table(r: &Report) -> String {
     s.trim_end().to_string()
 }
 
-fn markdown(r: &Report, quick: bool) -> String {
-    let mut s = String::from("# handblocks bench stepper\n\n");
-    s += &format!(
-        "Both models in one run ({:.0} s{}); the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed rounds; a ratio to the paper model is taken round by round (each round's p50 over the paper model's p50 of the same round, timed seconds apart), median [min, max] over the rounds; active: blocks not resting, mean per step; wrapper: a precise step less rapier's own `PhysicsPipeline::step` call (timed inside the world), p50 and its share of all the timed steps' time.\n\n",
+fn markdown(r: &Report, provenance: &Provenance) -> String {
+    let quick = provenance.quick;
+    let what = format!(
+        "What a step costs as the world grows, under both models in one run ({:.0} s{}): the \
+         paper model and the precise one (rapier3d, the peer), the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed rounds; a ratio to the paper model is taken round by round (each round's p50 over the paper model's p50 of the same round, timed seconds apart), median [min, max] over the rounds; active: blocks not resting, mean per step; wrapper: a precise step less rapier's own `PhysicsPipeline::step` call (timed inside the world), p50 and its share of all the timed steps' time.\n\n\
+         How to read it: lower is better; a ratio divides the precise model's time per step by \
+         the paper model's in the same round: 16x means the precise step costs 16 times the \
+         paper one. The figure draws \
+         time per step (p50) against the number of blocks, both log, one line per model and \
+         situation: a slope of 1 is linear in N.",
         r.seconds,
-        if quick { ", --quick: 16 and 64 blocks, 2 timed rounds" } else { ", 5 timed rounds after a warm-up; a round goes round the sizes and, within a size, round the contenders (paper, precise, precise-cheap)" }
+        if quick {
+            "; quick run: 16 and 64 blocks, 2 timed rounds"
+        } else {
+            ", 5 timed rounds after a warm-up; a round goes round the sizes and, within a size, round the contenders (paper, precise, precise-cheap)"
+        }
     );
+    let mut s = page::head(
+        "Benchmark: a step's cost against the world's size, and each effect's",
+        &what,
+        provenance,
+    );
+    s += &page::figure(
+        "time per step (p50) against blocks, log-log, one line per model and situation",
+        "stepper.png",
+    );
+    s += "## Scaling\n\n";
     s += &scaling_table(r);
     s += &format!(
         "\n\n## Ablation\n\nEach effect on and off on the same scene, {runs} interleaved runs a side after a warm-up (on, off, on, off, ...), mean us per step of the whole run; on - off: the difference of each pair of runs (back to back, so a slow spell of the machine falls on both), median [min, max]; within noise: the pairs' differences are not all of one sign, beyond what one reading of the clock costs here ({clock:.3} us: a difference below it is below what the timing resolves; by chance, all {runs} of one sign happens {chance:.1} % of the time); noise: half the pairs' max - min, at least that reading. `work`: a scene of `config/scenes/` the effect acts in (on - off is the effect's work, and the two sides do different things); `idle`: the idle field (64 resting cubes, a two-point hand 5 m away), timed after 1 s of settling untimed, where the effect has nothing to do and turning it off changes no pose, so on - off is what its pass costs by being in the step at all (the floor's rest -> none has no idle case: without a floor nothing rests, so the idle field's cubes stay in the step's active set). An effect that is off is not in the step's pass list (`Passes`): off runs none of its code.\n\n",
@@ -1246,6 +1268,9 @@ fn markdown(r: &Report, quick: bool) -> String {
 
 /// Time per step (p50) against N, log-log: one line per (model, situation).
 fn figure(rows: &[ScalingRow]) -> Figure {
+    let mut sizes: Vec<f64> = rows.iter().map(|r| r.blocks as f64).collect();
+    sizes.sort_by(f64::total_cmp);
+    sizes.dedup();
     let mut series = Vec::new();
     for m in NAMES {
         for sit in Situation::ALL {
@@ -1265,17 +1290,16 @@ fn figure(rows: &[ScalingRow]) -> Figure {
     Figure {
         panels: vec![Panel {
             title: "time per step (p50) against blocks".into(),
-            x_label: "blocks (log)".into(),
-            y_label: "us per step (log)".into(),
-            log_x: true,
-            log_y: true,
+            x: Axis::log("blocks").with_ticks_at(sizes),
+            y: Axis::log("us per step"),
             series,
             marked: Vec::new(),
-            legend: Legend::AboveData,
+            join: Join::Settings,
         }],
         columns: 1,
-        panel_width: 900,
-        panel_height: 560,
+        panel_width: 760,
+        panel_height: 520,
+        column_weights: Vec::new(),
     }
 }
 

@@ -44,7 +44,8 @@ use iceoryx2::prelude::*;
 use serde_json::{json, Value};
 
 use crate::hgrm::percentile_distribution;
-use crate::plot::{Figure, Legend, Panel, Series};
+use crate::page::{self, Provenance};
+use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// The payloads measured, bytes.
 pub const PAYLOADS: [usize; 5] = [64, 1024, 64 << 10, 1 << 20, 4 << 20];
@@ -651,7 +652,11 @@ fn write_outputs(rows: &[Row], b: &TransportBench) -> Result<Value, Box<dyn std:
         serde_json::to_string_pretty(&value)? + "\n",
     )?;
     crate::latency::merge_into_latency_json(&b.out_dir, "transport", value["transport"].clone())?;
-    std::fs::write(b.out_dir.join("transport.md"), markdown(rows, b.quick))?;
+    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
+    std::fs::write(
+        b.out_dir.join("transport.md"),
+        markdown(rows, b.quick, &provenance),
+    )?;
     let png = b.out_dir.join("transport.png");
     let drawn = figure(rows).write_png(&png)?;
     eprintln!(
@@ -690,12 +695,59 @@ fn round2(v: f64) -> f64 {
     }
 }
 
-fn markdown(rows: &[Row], quick: bool) -> String {
-    let mut md = String::from("# handblocks bench latency transport\n\n");
-    md.push_str(&format!(
-        "One hop between two processes, publish -> receive (the writer's clock when the payload is written to the reader's clock when it is the reader's to read), {}. `iceoryx2`: zero-copy, the reader woken by an event and sleeping in `ppoll`; `iceoryx2-poll`: the reader spinning on `receive`; `uds`: a Unix stream socket; `tcp`: loopback, `TCP_NODELAY`; `zenoh`: the bridge's hop across machines, here over loopback (TCP, express, dropping when the link is full). Flat out: back to back; a socket blocks the writer (queueing counts), iceoryx2 overwrites the oldest unread sample 8 behind (the pipeline's setting), so it may deliver fewer than it was sent.\n\n",
-        if quick { "quick run (1 s paced, 500 samples flat out)" } else { "5 s paced, up to 5000 samples (1 GiB) flat out" }
+fn markdown(rows: &[Row], quick: bool, provenance: &Provenance) -> String {
+    let what = format!(
+        "One hop between two processes, publish -> receive: from the writer's clock when the \
+         payload is complete to the reader's clock when it is the reader's to read \
+         (`CLOCK_MONOTONIC`, one clock for both), over the transports a user would weigh \
+         against each other, at payloads of 64 B to 4 MiB, paced at 120 Hz and flat out \
+         ({}). `iceoryx2`: zero-copy shared memory, the reader woken by an event and sleeping \
+         in `ppoll` (what the pipeline does); `iceoryx2-poll`: the same, the reader spinning \
+         on `receive`; `uds`: a Unix stream socket; `tcp`: loopback, `TCP_NODELAY`; `zenoh`: \
+         the bridge's hop across machines, here over loopback (TCP, express, dropping when \
+         the link is full). Flat out, the writer sends back to back: a socket blocks the \
+         writer (the queueing counts), iceoryx2 overwrites the oldest unread sample 8 behind \
+         (the pipeline's setting), so it may deliver fewer than were sent.\n\n\
+         How to read it: lower is better; the two ratio tables divide a transport's \
+         percentile by iceoryx2's (woken) at the same payload and rate, measured in this run \
+         on this machine, so 3.00x means three times as long as the shared-memory hop. The \
+         figure draws each payload's latency by percentile (p50 to the tail, HdrHistogram's \
+         log axis) at 120 Hz; every histogram is also an `.hgrm` file under `hgrm/`.",
+        if quick {
+            "quick run: 1 s paced, up to 500 samples flat out"
+        } else {
+            "5 s paced, up to 5000 samples (1 GiB) flat out"
+        }
+    );
+    let mut md = page::head(
+        "Benchmark: one hop between two processes, by transport",
+        &what,
+        provenance,
+    );
+    md.push_str(&page::figure(
+        "latency by percentile per payload at 120 Hz, one line per transport",
+        "transport.png",
     ));
+    for (t, title) in [
+        (Transport::Uds, "The Unix socket's latency as a multiple of iceoryx2's (same run)"),
+        (
+            Transport::Zenoh,
+            "The bridged hop (zenoh, loopback) as a multiple of the local one (iceoryx2, woken; same run)",
+        ),
+    ] {
+        md.push_str(&format!(
+            "## {title}\n\n| payload | rate | p50 | p99 |\n|---|---|---|---|\n"
+        ));
+        for (bytes, rate, p50, p99) in over_iceoryx2(rows, t) {
+            md.push_str(&format!(
+                "| {} | {} | {p50:.2}x | {p99:.2}x |\n",
+                size_name(bytes),
+                if rate > 0.0 { "120 Hz" } else { "flat out" },
+            ));
+        }
+        md.push('\n');
+    }
+    md.push_str("## Every hop\n\n");
     md.push_str("| transport | payload | rate | p50 (us) | p90 | p99 | p99.9 | max | delivered / sent | throughput (/s) |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let s = Summary::of(&r.histogram);
@@ -718,53 +770,33 @@ fn markdown(rows: &[Row], quick: bool) -> String {
             r.throughput_hz
         ));
     }
-    for (t, title) in [
-        (Transport::Uds, "The Unix socket's latency as a multiple of iceoryx2's (same run)"),
-        (
-            Transport::Zenoh,
-            "The bridged hop (zenoh, loopback) as a multiple of the local one (iceoryx2, woken; same run)",
-        ),
-    ] {
-        md.push_str(&format!(
-            "\n## {title}\n\n| payload | rate | p50 | p99 |\n|---|---|---|---|\n"
-        ));
-        for (bytes, rate, p50, p99) in over_iceoryx2(rows, t) {
-            md.push_str(&format!(
-                "| {} | {} | {p50:.2}x | {p99:.2}x |\n",
-                size_name(bytes),
-                if rate > 0.0 { "120 Hz" } else { "flat out" },
-            ));
-        }
-    }
     md
 }
 
-/// Latency by percentile, HdrHistogram style: x = 1 / (1 - percentile) on a log axis (1, 10,
-/// 100, 1000: the median, p90, p99, p99.9), one panel per payload at 120 Hz, a line per
-/// transport.
+/// Latency by percentile on HdrHistogram's axis (1 / (1 - percentile), labelled in nines),
+/// one panel per payload at 120 Hz, a line per transport.
 fn figure(rows: &[Row]) -> Figure {
     let panels = PAYLOADS
         .iter()
         .map(|&bytes| Panel {
             title: format!("{} at 120 Hz", size_name(bytes)),
-            x_label: "1 / (1 - percentile)".into(),
-            y_label: "latency (us)".into(),
-            log_x: true,
-            log_y: true,
+            x: Axis::nines(),
+            y: Axis::log("latency (us)"),
             series: Transport::ALL
                 .iter()
                 .filter_map(|&t| find(rows, t, bytes, PACED_HZ))
                 .map(|r| Series::nines(r.transport.name(), &r.histogram))
                 .collect(),
             marked: Vec::new(),
-            legend: Legend::UpperRight,
+            join: Join::Curve,
         })
         .collect();
     Figure {
         panels,
         columns: 3,
-        panel_width: 520,
-        panel_height: 380,
+        panel_width: 440,
+        panel_height: 340,
+        column_weights: Vec::new(),
     }
 }
 

@@ -72,6 +72,7 @@ fn latency(
             session: session.clone(),
             seconds,
             out_dir: out.clone(),
+            quick: all && quick,
         })?;
     }
     if all || part == LatencyPart::Load {
