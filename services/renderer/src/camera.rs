@@ -395,7 +395,7 @@ fn fit(pts: &[Interest], forward: DVec3, tan_h: f64, tan_v: f64) -> (f64, DVec3)
 }
 
 /// The radius of the sphere around G that holds the block.
-fn block_radius(shape: &common::config::scene::ShapeSpec) -> f64 {
+pub fn block_radius(shape: &common::config::scene::ShapeSpec) -> f64 {
     use common::config::scene::ShapeSpec;
     match shape {
         ShapeSpec::Box { size } | ShapeSpec::Wedge { size } | ShapeSpec::Tetra { size } => {

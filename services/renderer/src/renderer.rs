@@ -101,7 +101,7 @@ pub struct Renderer {
     eye_views: [EyeView; 2],
     anaglyph: Option<AnaglyphTarget>,
     pub(crate) presenter: Option<Presenter>,
-    readback: Option<wgpu::Buffer>,
+    readback: Vec<wgpu::Buffer>,
 }
 
 /// The scene's light: high and to the right, so shadows fall close to what casts them.
@@ -307,7 +307,8 @@ impl Renderer {
             }
         });
         let info = adapter.get_info();
-        let list = DrawList::new(&meshes.blocks);
+        let mut list = DrawList::new(&meshes.blocks);
+        list.set_block_colors(&crate::draw_list::block_colors(scene));
         Ok(Renderer {
             settings: settings.clone(),
             adapter_name: format!("{} ({:?}, {:?})", info.name, info.device_type, info.backend),
@@ -335,7 +336,7 @@ impl Renderer {
             eye_views,
             anaglyph,
             presenter: None,
-            readback: None,
+            readback: Vec::new(),
         })
     }
 
@@ -614,23 +615,41 @@ impl Renderer {
     /// buffers: `out` keeps its allocation across calls.
     pub fn read_back_into(&mut self, out: &mut Image) -> Result<(), RenderError> {
         let (texture, width) = match &self.anaglyph {
-            Some(a) => (&a.texture, self.settings.width),
-            None => (&self.eyes, 2 * self.settings.width),
+            Some(a) => (a.texture.clone(), self.settings.width),
+            None => (self.eyes.clone(), 2 * self.settings.width),
         };
+        self.read_back_region(&texture, width, out)
+    }
+
+    /// The left eye's image alone (tightly packed RGBA), whatever the output mode: the
+    /// preview shows one eye, in the blocks' own colours (an anaglyph's would be tinted).
+    pub fn read_back_left_eye_into(&mut self, out: &mut Image) -> Result<(), RenderError> {
+        let texture = self.eyes.clone();
+        self.read_back_region(&texture, self.settings.width, out)
+    }
+
+    /// The `width` leftmost columns of `texture`, all its rows, into `out`.
+    fn read_back_region(
+        &mut self,
+        texture: &wgpu::Texture,
+        width: u32,
+        out: &mut Image,
+    ) -> Result<(), RenderError> {
         let height = self.settings.height;
         let padded = (width * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
             * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let size = padded as u64 * height as u64;
-        let buffer = match &self.readback {
-            Some(b) if b.size() == size => b.clone(),
-            _ => {
+        // One buffer per size read (the whole frame, the left eye): kept across frames.
+        let buffer = match self.readback.iter().find(|b| b.size() == size) {
+            Some(b) => b.clone(),
+            None => {
                 let b = self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("readback"),
                     size,
                     usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                     mapped_at_creation: false,
                 });
-                self.readback = Some(b.clone());
+                self.readback.push(b.clone());
                 b
             }
         };
