@@ -87,13 +87,21 @@ pub fn color_for_name(name: &str) -> Option<[f32; 3]> {
 }
 
 /// Each block's own colour (sRGB, 0 to 1), in scene order: the scene's `color` when its table
-/// has one, else the colour its name says, else the palette's by index.
+/// has one, else the colour its name says, else the palette's, one colour per table: the
+/// copies of a lattice (`cube_3_0_7`, see the scene loader) share their table's, so that a
+/// field reads as one thing and a block the hand moves stands out by its outline.
 pub fn block_colors(scene: &common::config::Scene) -> Vec<[f32; 3]> {
+    let mut tables: Vec<&str> = Vec::new();
     scene
         .blocks
         .iter()
         .enumerate()
         .map(|(i, b)| {
+            let table = lattice_table(&b.name);
+            let k = tables.iter().position(|t| *t == table).unwrap_or_else(|| {
+                tables.push(table);
+                tables.len() - 1
+            });
             scene
                 .world
                 .block_colors
@@ -101,9 +109,23 @@ pub fn block_colors(scene: &common::config::Scene) -> Vec<[f32; 3]> {
                 .copied()
                 .flatten()
                 .or_else(|| color_for_name(&b.name))
-                .unwrap_or(PALETTE[i % PALETTE.len()])
+                .unwrap_or(PALETTE[k % PALETTE.len()])
         })
         .collect()
+}
+
+/// A lattice copy's table name (`cube` of `cube_3_0_7`); any other name is its own.
+fn lattice_table(name: &str) -> &str {
+    let mut rest = name;
+    for _ in 0..3 {
+        match rest.rsplit_once('_') {
+            Some((head, n)) if !n.is_empty() && n.bytes().all(|c| c.is_ascii_digit()) => {
+                rest = head
+            }
+            _ => return name,
+        }
+    }
+    rest
 }
 
 /// An sRGB component (0 to 1) as linear light, as the shader's colours are.
@@ -545,6 +567,19 @@ mod tests {
         assert_eq!(c[1], PALETTE[1], "by index");
         assert_eq!(c[2], PALETTE[2], "by index");
         assert_eq!(c[3], [0.1, 0.2, 0.3], "the table's own wins over the name");
+        // A lattice's copies share their table's colour.
+        scene.blocks = vec![
+            block("cube_0_0_0"),
+            block("cube_1_0_0"),
+            block("x_1"),
+            block("y"),
+        ];
+        scene.world.block_colors.clear();
+        let c = block_colors(&scene);
+        assert_eq!(
+            [c[0], c[1], c[2], c[3]],
+            [PALETTE[0], PALETTE[0], PALETTE[1], PALETTE[2]]
+        );
         // The colour stays the block's in every mode: only the outline (alpha) changes.
         let mut w = world_with(1);
         let mut d = DrawList::new(&[0..36]);
