@@ -582,7 +582,8 @@ mod tests {
         );
         // The colour stays the block's in every mode: only the outline (alpha) changes.
         let mut w = world_with(1);
-        let mut d = DrawList::new(&[0..36]);
+        let one_mesh: Range<u32> = 0..36;
+        let mut d = DrawList::new(std::slice::from_ref(&one_mesh));
         d.set_block_colors(&c[..1]);
         for mode in BlockMode::ALL {
             w.blocks[0].mode = mode as u32;
