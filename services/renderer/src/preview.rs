@@ -5,33 +5,33 @@
 //! What it shows, so that it reads at a glance:
 //! - one eye (the left), not both side by side: twice the size for the same width, and in the
 //!   blocks' own colours whatever the output mode (an anaglyph's would be tinted);
-//! - framed on the action: the render loop projects, in each preview frame, the blocks (their
-//!   bounding spheres and the floor spot under each) and the hand into the eye's image; when
-//!   the session ends, the preview is cut from every frame at one rectangle, the union of all
-//!   of them with a margin, at 16:9, zoomed at most [`MAX_ZOOM`] times. The session's camera
-//!   (and the live window) stay as configured: the preview is a crop of what it rendered, so
-//!   it is deterministic, costs nothing on the GPU, and never loses a block that the session
-//!   showed (a lifted block, a throw's landing);
+//! - framed on the action, with its own camera: the render loop keeps the world every
+//!   1 / PREVIEW_HZ seconds (a copy into a recycled slot; nothing is read back during the
+//!   session); when the session ends, a mono camera is fitted to all that those worlds hold
+//!   (`camera::frame_spheres`: blocks, the floor under them, the hand), each is drawn again
+//!   with it (`Renderer::render_preview`), and every frame is cut at one rectangle, the union
+//!   of what each frame's blocks and hand cover, with a margin, at 4:3 to 16:9, zoomed at most
+//!   [`MAX_ZOOM`] times. Deterministic, free while the session runs, and it holds what the
+//!   session did (a lifted block, a throw's landing, a replayed hand no camera chosen
+//!   beforehand could know). The session's camera and the live window stay as configured;
 //! - an overlay ([`crate::overlay`]): time, each block's name (in its colour) and mode (in its
 //!   outline's colour), the latest event;
 //! - the APNG's default image (what a viewer that does not animate shows) is a poster: a frame
 //!   from the middle of the grasp, or else of the most motion; it is not part of the animation.
 //!
-//! The render loop only reads the eye back every 1 / PREVIEW_HZ seconds and hands it over in a
-//! recycled buffer with the frame's facts; keeping, cropping, writing text and encoding happen
-//! on the preview's own thread, and when that thread is busy the frame is skipped rather than
-//! the loop waiting. At most [`MAX_FRAMES`] frames are kept: when the store is full, every
-//! other frame is dropped and the rate halves, so a long session becomes a time-lapse of it.
+//! At most [`MAX_FRAMES`] worlds are kept: when the store is full, every other one goes and
+//! the rate halves, so a long session becomes a time-lapse of it. Cropping, writing text and
+//! encoding happen on the preview's own thread.
 
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::thread::JoinHandle;
 
 use common::config::Scene;
-use common::{BlockMode, HandSample, WorldView};
+use common::{BlockMode, BlockState, HandSample, WorldHeader, WorldView};
 use glam::DVec3;
 
-use crate::camera::{block_radius, EyeView};
+use crate::camera::{block_radius, frame_spheres, CameraSettings, EyeView};
 use crate::draw_list::{block_colors, mode_color_srgb};
 use crate::error::RenderError;
 use crate::image::{Image, GAP_RGB};
@@ -348,14 +348,118 @@ pub fn action_rect(
 }
 
 /// A preview frame on its way to the thread: the eye's pixels and the frame's facts, both
-/// recycled.
+/// recycled, and how many preview periods it stands for.
 #[derive(Default)]
 struct PreviewFrame {
     image: Image,
     facts: FrameFacts,
+    periods: u32,
 }
 
-/// The preview being made: the render loop offers frames, its thread keeps and encodes them.
+/// A world as the preview keeps it until the session ends: the header, the blocks, the hand
+/// it answers, and the facts of the moment.
+struct KeptState {
+    header: WorldHeader,
+    blocks: Vec<BlockState>,
+    hand: HandSample,
+    facts: FrameFacts,
+}
+
+/// The worlds kept for the preview, at most [`MAX_FRAMES`]: when full, every other one goes
+/// and the rate halves (a time-lapse of the whole session). Dropped states are reused, so the
+/// render loop allocates only while the store first fills.
+#[derive(Default)]
+struct StateStore {
+    kept: Vec<KeptState>,
+    spare: Vec<KeptState>,
+    keep_every: u32,
+    offered: u64,
+}
+
+impl StateStore {
+    /// Whether the next offered state is kept (and counts it).
+    fn wants_next(&mut self) -> bool {
+        if self.keep_every == 0 {
+            self.keep_every = 1;
+        }
+        let n = self.offered;
+        self.offered += 1;
+        if !n.is_multiple_of(u64::from(self.keep_every)) {
+            return false;
+        }
+        if self.kept.len() == MAX_FRAMES {
+            // Keep the 1st, 3rd, ...; the 2nd, 4th, ... become spares (from the back, so that
+            // the indices still to visit do not move; 60 states: nothing to speed up).
+            for i in (0..self.kept.len()).rev().filter(|i| i % 2 == 1) {
+                let s = self.kept.remove(i);
+                self.spare.push(s);
+            }
+            self.keep_every *= 2;
+            return n.is_multiple_of(u64::from(self.keep_every));
+        }
+        true
+    }
+
+    /// A state to fill: a spare one, or a new one.
+    fn slot(&mut self) -> KeptState {
+        self.spare.pop().unwrap_or_else(KeptState::placeholder)
+    }
+}
+
+impl KeptState {
+    fn placeholder() -> KeptState {
+        KeptState {
+            header: WorldHeader::default(),
+            blocks: Vec::new(),
+            hand: HandSample::default(),
+            facts: FrameFacts::default(),
+        }
+    }
+
+    fn view(&self) -> WorldView<'_> {
+        WorldView {
+            header: &self.header,
+            blocks: &self.blocks,
+        }
+    }
+}
+
+/// The spheres that matter in a kept world: each block's bounding sphere and a point on the
+/// floor under it, the finger points and the palm.
+fn spheres_of(state: &KeptState, radii: &[f64], out: &mut Vec<(DVec3, f64)>) {
+    let world = state.view();
+    for (i, b) in world.blocks().iter().enumerate() {
+        let c = DVec3::from_array(b.pose.position);
+        out.push((c, radii.get(i).copied().unwrap_or(0.05)));
+        out.push((DVec3::new(c.x, 0.0, c.z), 0.0));
+    }
+    let hand = &state.hand;
+    let (count, counts, points) = if world.finger_count > 0 {
+        (
+            world.finger_count,
+            &world.finger_point_count,
+            &world.finger_points,
+        )
+    } else {
+        (
+            hand.finger_count,
+            &hand.finger_point_count,
+            &hand.finger_points,
+        )
+    };
+    for f in 0..(count as usize).min(points.len()) {
+        for p in points[f].iter().take(counts[f] as usize) {
+            out.push((DVec3::from_array(*p), 0.01));
+        }
+    }
+    for p in hand.palm() {
+        out.push((DVec3::from_array(*p), 0.0));
+    }
+}
+
+/// The preview being made: the render loop keeps a world every 1 / PREVIEW_HZ seconds; when
+/// the session ends, a camera is fitted to all that they hold, each is drawn with it, and the
+/// preview's thread crops, writes text and encodes.
 pub struct PreviewWriter {
     to_writer: Option<SyncSender<PreviewFrame>>,
     free: Receiver<PreviewFrame>,
@@ -366,6 +470,7 @@ pub struct PreviewWriter {
     radii: Vec<f64>,
     step_hz: f64,
     events: EventTracker,
+    states: StateStore,
 }
 
 impl PreviewWriter {
@@ -382,13 +487,7 @@ impl PreviewWriter {
         let (to_writer, from_loop) = sync_channel::<PreviewFrame>(1);
         let (to_free, free) = sync_channel::<PreviewFrame>(2);
         for _ in 0..2 {
-            let _ = to_free.try_send(PreviewFrame {
-                image: Image::default(),
-                facts: FrameFacts {
-                    modes: Vec::with_capacity(blocks),
-                    ..FrameFacts::default()
-                },
-            });
+            let _ = to_free.try_send(PreviewFrame::default());
         }
         let target = path.clone();
         let thread = std::thread::Builder::new()
@@ -397,6 +496,7 @@ impl PreviewWriter {
                 let mut store = FrameStore::default();
                 while let Ok(f) = from_loop.recv() {
                     store.offer(&f.image, &f.facts);
+                    store.periods = f.periods;
                     let _ = to_free.try_send(f);
                 }
                 store.write(&target, &gif_path(&target), &look)
@@ -412,50 +512,51 @@ impl PreviewWriter {
             radii,
             step_hz,
             events: EventTracker::new(blocks),
+            states: StateStore::default(),
         })
     }
 
     /// Called after each frame drawn at `now_ns` (of `world` and `hand`): follows the events,
-    /// and reads the left eye back and hands it over when a preview frame is due and the
-    /// thread has a free buffer.
-    pub fn after_frame(
-        &mut self,
-        r: &mut Renderer,
-        now_ns: u64,
-        world: WorldView<'_>,
-        hand: &HandSample,
-    ) -> Result<(), RenderError> {
+    /// and keeps the world when a preview frame is due (a copy into a recycled state: nothing
+    /// is read back from the GPU during the session).
+    pub fn after_frame(&mut self, now_ns: u64, world: WorldView<'_>, hand: &HandSample) {
         let time_s = world.step as f64 / self.step_hz;
         self.events.observe(world, time_s);
         if now_ns < self.next_ns {
-            return Ok(());
+            return;
         }
         self.next_ns = now_ns + self.period_ns;
-        let mut f = match self.free.try_recv() {
-            Ok(f) => f,
-            Err(TryRecvError::Empty) | Err(TryRecvError::Disconnected) => return Ok(()),
-        };
-        r.read_back_left_eye_into(&mut f.image)?;
-        let (w, h) = (f.image.width, f.image.height);
-        f.facts.time_s = time_s;
-        f.facts.modes.clear();
-        f.facts.modes.extend(
+        if !self.states.wants_next() {
+            return;
+        }
+        let mut s = self.states.slot();
+        s.header = *world.header;
+        s.blocks.clear();
+        s.blocks.extend_from_slice(world.blocks());
+        s.hand = *hand;
+        s.facts.time_s = time_s;
+        s.facts.modes.clear();
+        s.facts.modes.extend(
             world
                 .blocks()
                 .iter()
                 .enumerate()
                 .map(|(i, b)| drawn_mode(world, i, b.mode())),
         );
-        f.facts.event = self.events.latest;
-        f.facts.action = action_rect(&r.eye_views()[0], w, h, world, hand, &self.radii);
-        if let Some(tx) = &self.to_writer {
-            let _ = tx.try_send(f);
-        }
-        Ok(())
+        s.facts.event = self.events.latest;
+        s.facts.action = None;
+        self.states.kept.push(s);
     }
 
-    /// Writes the preview files and stops the thread.
-    pub fn finish(mut self) {
+    /// Draws the kept worlds with a camera that frames all of them (the session camera's
+    /// direction, mono), hands them to the thread, which writes the preview files, and stops
+    /// it. Without a renderer, or when drawing fails, no preview is written.
+    pub fn finish(mut self, r: Option<&mut Renderer>) {
+        if let Some(r) = r {
+            if let Err(e) = self.draw_kept(r) {
+                eprintln!("renderer: preview {}: {e}", self.path.display());
+            }
+        }
         self.to_writer = None;
         if let Some(t) = self.thread.take() {
             match t.join() {
@@ -464,6 +565,39 @@ impl PreviewWriter {
                 Err(_) => eprintln!("renderer: the preview writer failed"),
             }
         }
+    }
+
+    fn draw_kept(&mut self, r: &mut Renderer) -> Result<(), RenderError> {
+        let mut spheres = Vec::new();
+        for s in &self.states.kept {
+            spheres_of(s, &self.radii, &mut spheres);
+        }
+        let (w, h) = (r.settings().width, r.settings().height);
+        let session = r.settings().camera;
+        // Fitted at the preview's widest aspect (16:9) within the eye's image: the crop cuts
+        // the band it fills.
+        let band = (f64::from(w) / MAX_ASPECT).min(f64::from(h)) as u32;
+        let camera = frame_spheres(&spheres, &session, w, band).unwrap_or(CameraSettings {
+            ipd_m: 0.0,
+            ..session
+        });
+        let periods = self.states.keep_every.max(1);
+        for s in &self.states.kept {
+            let Ok(mut f) = self.free.recv() else {
+                break; // the thread is gone: its error is reported by finish
+            };
+            let eye = r.render_preview(s.view(), &s.hand, &camera)?;
+            r.read_back_left_eye_into(&mut f.image)?;
+            f.facts.clone_from(&s.facts);
+            f.facts.action = action_rect(&eye, w, h, s.view(), &s.hand, &self.radii);
+            f.periods = periods;
+            if let Some(tx) = &self.to_writer {
+                if tx.send(f).is_err() {
+                    break;
+                }
+            }
+        }
+        Ok(())
     }
 }
 
@@ -486,6 +620,8 @@ struct FrameStore {
     offered: u64,
     /// The union of every offered frame's action, in stored pixels.
     action: Option<Rect>,
+    /// Preview periods each offered frame stands for (the render loop's time-lapse).
+    periods: u32,
 }
 
 impl FrameStore {
@@ -668,8 +804,9 @@ impl FrameStore {
             )));
         }
         let (w, h, frames, poster) = self.compose(look);
-        // Each kept frame stands for keep_every preview periods.
-        let delay_ms = ((1000.0 / PREVIEW_HZ) as u32 * self.keep_every.max(1)).min(60_000);
+        // Each kept frame stands for keep_every offered ones, each for `periods` periods.
+        let periods = self.keep_every.max(1) * self.periods.max(1);
+        let delay_ms = ((1000.0 / PREVIEW_HZ) as u32 * periods).min(60_000);
         write_apng(apng, w, h, &frames, poster, delay_ms)?;
         write_gif(gif_file, w, h, &frames, delay_ms, look)
     }
@@ -1028,6 +1165,31 @@ mod tests {
             assert!(changed(0, 0) > 900, "frame {k}: {}", changed(0, 0));
             assert_eq!(changed(w - 60, h - 30), 0, "frame {k}");
         }
+    }
+
+    #[test]
+    fn the_render_loop_keeps_at_most_max_frames_worlds_reusing_dropped_ones() {
+        let mut store = StateStore::default();
+        let mut fresh = 0;
+        for i in 0..1000 {
+            if store.wants_next() {
+                if store.spare.is_empty() {
+                    fresh += 1;
+                }
+                let mut s = store.slot();
+                s.facts.time_s = i as f64;
+                store.kept.push(s);
+            }
+            assert!(store.kept.len() <= MAX_FRAMES);
+        }
+        assert!(store.kept.len() > MAX_FRAMES / 2, "{}", store.kept.len());
+        assert!(fresh <= MAX_FRAMES + 1, "{fresh} states made");
+        // In time order, evenly spaced from the start.
+        let t: Vec<f64> = store.kept.iter().map(|s| s.facts.time_s).collect();
+        assert_eq!(t[0], 0.0);
+        let step = t[1] - t[0];
+        assert!(t.windows(2).all(|w| w[1] - w[0] == step), "{t:?}");
+        assert_eq!(step, f64::from(store.keep_every));
     }
 
     #[test]

@@ -99,6 +99,8 @@ pub struct Renderer {
     meshes: Meshes,
     list: DrawList,
     eye_views: [EyeView; 2],
+    /// The eyes' uniforms: left, right, the preview's camera.
+    eye_buf: wgpu::Buffer,
     anaglyph: Option<AnaglyphTarget>,
     pub(crate) presenter: Option<Presenter>,
     readback: Vec<wgpu::Buffer>,
@@ -224,7 +226,8 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let eye_views = stereo(&settings.camera, w, h);
-        let mut eye_bytes = vec![0u8; 2 * EYE_UNIFORM_STRIDE as usize];
+        // Both eyes, and a third slot for the preview's own camera (`render_preview`).
+        let mut eye_bytes = vec![0u8; 3 * EYE_UNIFORM_STRIDE as usize];
         for (i, e) in eye_views.iter().enumerate() {
             let u = EyeUniform {
                 view_proj: e.view_projection().to_cols_array_2d(),
@@ -237,7 +240,7 @@ impl Renderer {
         let eye_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("eyes"),
             contents: &eye_bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("scene"),
@@ -334,6 +337,7 @@ impl Renderer {
             meshes,
             list,
             eye_views,
+            eye_buf,
             anaglyph,
             presenter: None,
             readback: Vec::new(),
@@ -571,9 +575,15 @@ impl Renderer {
 
     /// One eye's viewport, uniforms and buffers.
     fn begin_eye(&self, pass: &mut wgpu::RenderPass<'_>, eye: u32) {
+        self.begin_view(pass, eye, eye);
+    }
+
+    /// Draws into eye `viewport`'s half with the camera of uniform slot `slot` (0, 1: the
+    /// eyes; 2: the preview's camera).
+    fn begin_view(&self, pass: &mut wgpu::RenderPass<'_>, viewport: u32, slot: u32) {
         let (w, h) = (self.settings.width as f32, self.settings.height as f32);
-        pass.set_viewport(eye as f32 * w, 0.0, w, h, 0.0, 1.0);
-        pass.set_bind_group(0, &self.bind_group, &[eye * EYE_UNIFORM_STRIDE as u32]);
+        pass.set_viewport(viewport as f32 * w, 0.0, w, h, 0.0, 1.0);
+        pass.set_bind_group(0, &self.bind_group, &[slot * EYE_UNIFORM_STRIDE as u32]);
         pass.set_vertex_buffer(1, self.instance_buf.slice(..));
         pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
         pass.set_index_buffer(self.index_buf.slice(..), wgpu::IndexFormat::Uint32);
@@ -608,6 +618,60 @@ impl Renderer {
             let pi = list.palm_instance;
             pass.draw(0..palm_n, pi..pi + 1);
         }
+    }
+
+    /// Draws `world` and `hand` into the left eye's half, seen by `camera`'s left eye, every
+    /// block live (the static layer, drawn for the session's camera, is left alone), and waits
+    /// for the GPU; read it with [`Self::read_back_left_eye_into`]. The next [`Self::render`]
+    /// draws the session's view again. For the preview, which frames the whole session's
+    /// action once the session is over (`preview.rs`).
+    pub fn render_preview(
+        &mut self,
+        world: WorldView<'_>,
+        hand: &HandSample,
+        camera: &crate::camera::CameraSettings,
+    ) -> Result<EyeView, RenderError> {
+        let (w, h) = (self.settings.width, self.settings.height);
+        let [eye, _] = stereo(camera, w, h);
+        let u = EyeUniform {
+            view_proj: eye.view_projection().to_cols_array_2d(),
+            eye_pos: eye.position.as_vec3().extend(1.0).to_array(),
+        };
+        self.queue.write_buffer(
+            &self.eye_buf,
+            2 * EYE_UNIFORM_STRIDE,
+            bytemuck::bytes_of(&u),
+        );
+        self.list.build_layered(world, hand, &[], false);
+        let list = &self.list;
+        self.queue
+            .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&list.instances));
+        if !list.palm_vertices.is_empty() {
+            self.queue
+                .write_buffer(&self.palm_buf, 0, bytemuck::cast_slice(&list.palm_vertices));
+        }
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("preview"),
+            });
+        {
+            let mut pass = self.scene_pass(&mut encoder, PassTarget::Frame { from_nothing: true });
+            self.begin_view(&mut pass, 0, 2);
+            self.draw_floor(&mut pass);
+            pass.set_pipeline(&self.scene.solid);
+            self.draw_live(&mut pass);
+            if self.settings.shadows {
+                pass.set_pipeline(&self.scene.shadow);
+                self.draw_live(&mut pass);
+            }
+            pass.set_pipeline(&self.scene.grid);
+            pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
+            let fi = list.floor_instance;
+            pass.draw_indexed(self.meshes.grid.clone(), 0, fi..fi + 1);
+        }
+        self.queue.submit([encoder.finish()]);
+        Ok(eye)
     }
 
     /// The last frame as the output mode shows it: side by side and separate give both eyes

@@ -225,7 +225,7 @@ impl Task for RendererStage {
                 }
             }
             if let Some(p) = &mut self.preview {
-                p.after_frame(r, done, view, hand)?;
+                p.after_frame(done, view, hand);
             }
             self.frame_no += 1;
         }
@@ -262,7 +262,7 @@ impl Task for RendererStage {
             w.finish();
         }
         if let Some(p) = self.preview.take() {
-            p.finish();
+            p.finish(self.renderer.as_mut());
         }
         Ok(())
     }
