@@ -90,6 +90,10 @@ pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
     print!("{}", outcome.report.table());
     if let Some(path) = &outcome.preview {
         println!("{}", preview_line(path));
+        let gif = renderer::preview::gif_path(path);
+        if gif.is_file() {
+            println!("{}", gif_line(&gif));
+        }
     }
     if let Some(path) = &s.recorder.file {
         println!("{}", recording_line(path));
@@ -104,7 +108,7 @@ pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
     })
 }
 
-/// `preview: out/live-preview.png (animated PNG, 36 frames, 640 x 240, 412 KB; open it in a
+/// `preview: out/live-preview.png (animated PNG, 36 frames, 640 x 360, 412 KB; open it in a
 /// web browser)`.
 fn preview_line(path: &Path) -> String {
     let size = std::fs::metadata(path).map_or(0, |m| m.len());
@@ -149,4 +153,21 @@ fn recording_line(path: &Path) -> String {
         path.display(),
         bytes as f64 / 1e6
     )
+}
+
+/// `preview: out/live-preview.gif (GIF, 36 frames, 640 x 360, 300 KB; any image viewer)`: the
+/// same animation for viewers and chats that do not play animated PNGs.
+fn gif_line(path: &Path) -> String {
+    let size = std::fs::metadata(path).map_or(0, |m| m.len());
+    match renderer::preview::describe_gif(path) {
+        Some(d) => format!(
+            "preview: {} (GIF, {} frames, {} x {}, {:.0} KB; any image viewer)",
+            path.display(),
+            d.frames,
+            d.width,
+            d.height,
+            size as f64 / 1024.0
+        ),
+        None => format!("preview: {} ({size} bytes)", path.display()),
+    }
 }

@@ -49,6 +49,12 @@ pub struct WorldSettings {
     /// in `Scene`) because they only mean something together with it, and so that scenes built
     /// in code with `WorldSettings::default()` get them too.
     pub precise: PreciseSettings,
+    /// Each `[[block]]`'s own `color = [r, g, b]` (0 to 1, sRGB), in scene order (lattice
+    /// copies share their table's); None where the table has none (the renderer then takes it
+    /// from the name, `renderer::draw_list::block_colors`). Only the renderer reads it. It
+    /// lives here rather than in `BlockSpec` or `Scene` because scenes are also built in code
+    /// (benchmarks, tests) by struct literal; `..WorldSettings::default()` gives them none.
+    pub block_colors: Vec<Option<[f32; 3]>>,
 }
 
 impl Default for WorldSettings {
@@ -64,6 +70,7 @@ impl Default for WorldSettings {
             release_angle: 120f64.to_radians(),
             throw_window: 1,
             precise: PreciseSettings::default(),
+            block_colors: Vec::new(),
         }
     }
 }
@@ -242,14 +249,16 @@ impl Scene {
     pub fn load(file: &Path) -> Result<Scene, ConfigError> {
         let table = parse_file(file)?;
         let root = Reader::new(file, "", &table);
+        let (blocks, block_colors) = blocks(&root)?;
         let scene = Scene {
             file: file.to_path_buf(),
             world: WorldSettings {
                 precise: precise(root.table("precise")?)?,
+                block_colors,
                 ..world(root.table("world")?)?
             },
             effects: effects(root.table("effects")?)?,
-            blocks: blocks(&root)?,
+            blocks,
             hand: match root.table("hand")? {
                 Some(h) => Some(hand(h)?),
                 None => None,
@@ -299,6 +308,7 @@ fn world(r: Option<Reader>) -> Result<WorldSettings, ConfigError> {
         release_angle: release_deg.to_radians(),
         throw_window: r.u64_in("throw_window", 1, 1..=1000)? as u32,
         precise: d.precise,
+        block_colors: Vec::new(),
     };
     r.finish()?;
     Ok(w)
@@ -385,10 +395,13 @@ pub const MAX_BLOCK_NAME_CHARS: usize = 128;
 
 /// The `[[block]]` tables. A table with `count = [nx, ny, nz]` stands for a lattice of that
 /// many copies, `spacing = [dx, dy, dz]` metres apart, the first at `position`, named
-/// `name_x_y_z` (a 32 x 1 x 32 field of cubes is one table).
-fn blocks(root: &Reader) -> Result<Vec<BlockSpec>, ConfigError> {
+/// `name_x_y_z` (a 32 x 1 x 32 field of cubes is one table). Returns the blocks and each one's
+/// `color` (see [`WorldSettings::block_colors`]).
+#[allow(clippy::type_complexity)]
+fn blocks(root: &Reader) -> Result<(Vec<BlockSpec>, Vec<Option<[f32; 3]>>), ConfigError> {
     let tables = root.tables("block")?;
     let mut out: Vec<BlockSpec> = Vec::new();
+    let mut colors: Vec<Option<[f32; 3]>> = Vec::new();
     let mut names = std::collections::HashSet::new();
     for (i, r) in tables.into_iter().enumerate() {
         let name = r.string("name")?.unwrap_or_else(|| format!("block{i}"));
@@ -437,6 +450,10 @@ fn blocks(root: &Reader) -> Result<Vec<BlockSpec>, ConfigError> {
         let velocity = r
             .array::<3>("velocity", -1.0e4..=1.0e4)?
             .unwrap_or([0.0; 3]);
+        // sRGB components, as a colour picker gives them (0.8, not 204).
+        let color = r
+            .array::<3>("color", 0.0..=1.0)?
+            .map(|c| c.map(|v| v as f32));
         let count = r.array::<3>("count", 1.0..=MAX_SCENE_BLOCKS as f64)?;
         if let Some(c) = count {
             if c.iter().any(|v| v.fract() != 0.0) {
@@ -494,11 +511,12 @@ fn blocks(root: &Reader) -> Result<Vec<BlockSpec>, ConfigError> {
                         rotation,
                         velocity,
                     });
+                    colors.push(color);
                 }
             }
         }
     }
-    Ok(out)
+    Ok((out, colors))
 }
 
 fn hull_vertices(r: &Reader) -> Result<Vec<[f64; 3]>, ConfigError> {
@@ -757,6 +775,25 @@ mod tests {
         assert_eq!(s.blocks[1].name, "block1");
         assert_eq!(s.blocks[0].shape, ShapeSpec::Box { size: [0.1; 3] });
         assert_eq!(s.hand.unwrap().keys[0].pose, HandPoseSpec::Grip(0.5));
+    }
+
+    #[test]
+    fn a_block_colour_is_read_per_table_and_its_range_is_named() {
+        let s = load(
+            "[[block]]\nname = \"a\"\nposition = [0, 0.05, 0]\ncolor = [0.2, 0.4, 1]\n\
+             [[block]]\nname = \"b\"\nposition = [1, 0.05, 0]\ncount = [2, 1, 1]\nspacing = [0.2, 0, 0]\n",
+        )
+        .unwrap();
+        assert_eq!(
+            s.world.block_colors,
+            vec![Some([0.2, 0.4, 1.0]), None, None]
+        );
+        let e = load("[[block]]\nposition = [0, 0.05, 0]\ncolor = [255, 0, 0]\n").unwrap_err();
+        assert_eq!(e.key, "block[0].color");
+        assert!(e.problem.contains("allowed: 0 to 1"), "{e}");
+        // The message names the file, the key and the range.
+        let text = e.to_string();
+        assert!(text.contains(&*e.file.to_string_lossy()) && text.contains("block[0].color"));
     }
 
     #[test]

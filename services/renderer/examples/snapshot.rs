@@ -78,7 +78,8 @@ fn block(name: &str, shape: ShapeSpec) -> BlockSpec {
     }
 }
 
-/// Six blocks, one per common mode, and an open hand's fingers around the grasped one.
+/// Six blocks, each in its own colour (named for it) and one per common mode (shown by its
+/// outline), and an open hand's fingers around the grasped one.
 fn demo() -> (Scene, WorldSample, HandSample) {
     let s = 0.06;
     let scene = Scene {
@@ -86,28 +87,28 @@ fn demo() -> (Scene, WorldSample, HandSample) {
         world: WorldSettings::default(),
         effects: Effects::default(),
         blocks: vec![
-            block("resting", ShapeSpec::Box { size: [s, s, s] }),
+            block("red", ShapeSpec::Box { size: [s, s, s] }),
             block(
-                "tipping",
+                "blue",
                 ShapeSpec::Wedge {
                     size: [0.1, 0.06, 0.06],
                 },
             ),
             block(
-                "pushed",
+                "purple",
                 ShapeSpec::Box {
                     size: [0.08, 0.04, 0.06],
                 },
             ),
-            block("grasped", ShapeSpec::Box { size: [s, s, s] }),
+            block("orange", ShapeSpec::Box { size: [s, s, s] }),
             block(
-                "carried",
+                "cyan",
                 ShapeSpec::Tetra {
                     size: [0.08, 0.08, 0.08],
                 },
             ),
             block(
-                "free",
+                "pink",
                 ShapeSpec::Box {
                     size: [0.05, 0.05, 0.05],
                 },

@@ -354,6 +354,53 @@ pub fn frame_scene(
     (eye.to_array(), target.to_array())
 }
 
+/// A mono camera (no IPD) that frames these spheres (centre, radius) in a `width` x `height`
+/// view with the margin: what the preview uses to frame the action a whole session showed.
+/// It looks the way `c` looks unless one of a few other directions from the user's side
+/// (10-60 degrees down, up to 60 degrees to either side) frames them clearly larger (a flat,
+/// wide field is better seen from higher up). None when there is no finite sphere.
+pub fn frame_spheres(
+    spheres: &[(DVec3, f64)],
+    c: &CameraSettings,
+    width: u32,
+    height: u32,
+) -> Option<CameraSettings> {
+    let pts: Vec<Interest> = spheres
+        .iter()
+        .filter(|(p, r)| p.is_finite() && r.is_finite())
+        .map(|(p, r)| Interest {
+            centre: *p,
+            radius: r.max(0.0),
+        })
+        .collect();
+    if pts.is_empty() {
+        return None;
+    }
+    let tan_h = c.screen_width_m * 0.5 / c.screen_distance_m;
+    let tan_v = tan_h * height as f64 / width.max(1) as f64;
+    let own = Viewer::new(c).forward;
+    let (d_own, t_own) = fit(&pts, own, tan_h, tan_v);
+    let mut best = (d_own, t_own, own);
+    for elevation in [10.0f64, 18.0, 25.0, 32.0, 40.0, 50.0, 60.0] {
+        for azimuth in [0.0f64, 20.0, -20.0, 40.0, -40.0, 60.0, -60.0] {
+            let (el, az) = (elevation.to_radians(), azimuth.to_radians());
+            let forward = DVec3::new(-az.sin() * el.cos(), -el.sin(), -az.cos() * el.cos());
+            let (d, target) = fit(&pts, forward, tan_h, tan_v);
+            // The session's own direction unless another is clearly closer.
+            if d < 0.85 * d_own && d < best.0 {
+                best = (d, target, forward);
+            }
+        }
+    }
+    let (d, target, forward) = best;
+    Some(CameraSettings {
+        eye: (target - forward * d).to_array(),
+        target: target.to_array(),
+        ipd_m: 0.0,
+        ..*c
+    })
+}
+
 /// For a direction of view: the nearest eye distance at which every sphere is inside both
 /// fields with the margin, and the target it looks at.
 fn fit(pts: &[Interest], forward: DVec3, tan_h: f64, tan_v: f64) -> (f64, DVec3) {
@@ -395,7 +442,7 @@ fn fit(pts: &[Interest], forward: DVec3, tan_h: f64, tan_v: f64) -> (f64, DVec3)
 }
 
 /// The radius of the sphere around G that holds the block.
-fn block_radius(shape: &common::config::scene::ShapeSpec) -> f64 {
+pub fn block_radius(shape: &common::config::scene::ShapeSpec) -> f64 {
     use common::config::scene::ShapeSpec;
     match shape {
         ShapeSpec::Box { size } | ShapeSpec::Wedge { size } | ShapeSpec::Tetra { size } => {
@@ -437,4 +484,48 @@ fn flight(p: DVec3, v: DVec3, g: f64, radius: f64) -> Vec<Interest> {
         radius,
     });
     out
+}
+
+#[cfg(test)]
+mod frame_spheres_tests {
+    use super::*;
+
+    /// The preview's camera keeps every given sphere inside its image, whatever the direction
+    /// it picks: a tall lift, a far landing, a wide field.
+    #[test]
+    fn the_fitted_camera_keeps_every_point_inside_the_frame() {
+        let (w, h) = (640, 360);
+        let sets: [Vec<(DVec3, f64)>; 3] = [
+            vec![
+                (DVec3::new(0.0, 0.03, 0.0), 0.05),
+                (DVec3::new(0.0, 0.6, 0.0), 0.05),
+            ],
+            vec![
+                (DVec3::new(0.0, 0.03, 0.05), 0.05),
+                (DVec3::new(0.1, 0.3, -0.3), 0.01),
+                (DVec3::new(0.0, 0.0, -0.9), 0.05),
+            ],
+            (0..64)
+                .map(|i| {
+                    (
+                        DVec3::new((i % 8) as f64 * 0.3 - 1.0, 0.02, (i / 8) as f64 * 0.3 - 1.0),
+                        0.03,
+                    )
+                })
+                .collect(),
+        ];
+        for (k, pts) in sets.iter().enumerate() {
+            let c = frame_spheres(pts, &CameraSettings::default(), w, h).unwrap();
+            assert_eq!(c.ipd_m, 0.0);
+            let [eye, _] = stereo(&c, w, h);
+            for (p, _) in pts {
+                let (x, y) = eye.project_px(*p, w, h).unwrap();
+                assert!(
+                    (0.0..w as f64).contains(&x) && (0.0..h as f64).contains(&y),
+                    "set {k}: {p} at {x:.1}, {y:.1}"
+                );
+            }
+        }
+        assert_eq!(frame_spheres(&[], &CameraSettings::default(), w, h), None);
+    }
 }

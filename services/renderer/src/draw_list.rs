@@ -18,8 +18,11 @@ use shapes::hull_triangles_into;
 use crate::mesh::Vertex;
 use crate::pipeline::Instance;
 
-/// Colour of a block in each mode (linear rgb), chosen to be told apart at a glance and by
-/// the tests: hue carries the mode, shading only brightness.
+/// The outline colour of a block in each mode (linear rgb), chosen to be told apart at a
+/// glance and by the tests. A block's faces keep its own colour ([`block_colors`]) so that
+/// "red" stays red whatever it does; its mode shows in its outline (`shaders.wgsl`, `fs_solid`:
+/// a resting block keeps the thin dark outline, any other mode gets a thicker one in this
+/// colour), and the preview's overlay names it in the same colour (its legend).
 pub fn mode_color(mode: BlockMode) -> [f32; 3] {
     match mode {
         BlockMode::Free => [0.20, 0.40, 0.95],
@@ -30,6 +33,124 @@ pub fn mode_color(mode: BlockMode) -> [f32; 3] {
         BlockMode::Carried => [0.55, 0.15, 0.85],
         BlockMode::Supported => [0.05, 0.65, 0.70],
     }
+}
+
+/// The same colours as sRGB bytes (for text drawn over an image: the preview's overlay).
+pub fn mode_color_srgb(mode: BlockMode) -> [u8; 3] {
+    mode_color(mode).map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)
+}
+
+/// Colours a block named after one takes (sRGB, 0 to 1): its name's first word, in lower case
+/// (`red`, `red_0_0_0`, `Red-cube`).
+const NAMED_COLORS: [(&str, [f32; 3]); 15] = [
+    ("red", [0.85, 0.15, 0.12]),
+    ("green", [0.20, 0.70, 0.25]),
+    ("blue", [0.20, 0.40, 0.90]),
+    ("yellow", [0.95, 0.82, 0.15]),
+    ("orange", [0.98, 0.55, 0.10]),
+    ("purple", [0.55, 0.25, 0.75]),
+    ("violet", [0.55, 0.25, 0.75]),
+    ("cyan", [0.15, 0.75, 0.85]),
+    ("magenta", [0.85, 0.20, 0.70]),
+    ("pink", [0.95, 0.55, 0.70]),
+    ("brown", [0.55, 0.35, 0.20]),
+    ("white", [0.92, 0.92, 0.92]),
+    ("black", [0.12, 0.12, 0.12]),
+    ("grey", [0.50, 0.50, 0.50]),
+    ("gray", [0.50, 0.50, 0.50]),
+];
+
+/// Colours for blocks whose name is no colour word and whose table gives none, by scene
+/// index (sRGB): distinct hues, none close to the floor's grey or the hand's skin.
+pub const PALETTE: [[f32; 3]; 8] = [
+    [0.85, 0.15, 0.12],
+    [0.20, 0.40, 0.90],
+    [0.20, 0.70, 0.25],
+    [0.95, 0.82, 0.15],
+    [0.55, 0.25, 0.75],
+    [0.15, 0.75, 0.85],
+    [0.98, 0.55, 0.10],
+    [0.85, 0.20, 0.70],
+];
+
+/// The colour a name stands for: its first word (up to `_`, `-`, a space or a digit), when
+/// that is a colour word.
+pub fn color_for_name(name: &str) -> Option<[f32; 3]> {
+    let word = name
+        .split(|c: char| c == '_' || c == '-' || c == ' ' || c.is_ascii_digit())
+        .next()?
+        .to_ascii_lowercase();
+    NAMED_COLORS
+        .iter()
+        .find(|(n, _)| *n == word)
+        .map(|(_, rgb)| *rgb)
+}
+
+/// Each block's own colour (sRGB, 0 to 1), in scene order: the scene's `color` when its table
+/// has one, else the colour its name says, else the palette's, one colour per table: the
+/// copies of a lattice (`cube_3_0_7`, see the scene loader) share their table's, so that a
+/// field reads as one thing and a block the hand moves stands out by its outline.
+pub fn block_colors(scene: &common::config::Scene) -> Vec<[f32; 3]> {
+    let mut tables: Vec<&str> = Vec::new();
+    scene
+        .blocks
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let table = lattice_table(&b.name);
+            let k = tables.iter().position(|t| *t == table).unwrap_or_else(|| {
+                tables.push(table);
+                tables.len() - 1
+            });
+            scene
+                .world
+                .block_colors
+                .get(i)
+                .copied()
+                .flatten()
+                .or_else(|| color_for_name(&b.name))
+                .unwrap_or(PALETTE[k % PALETTE.len()])
+        })
+        .collect()
+}
+
+/// A lattice copy's table name (`cube` of `cube_3_0_7`); any other name is its own.
+fn lattice_table(name: &str) -> &str {
+    let mut rest = name;
+    for _ in 0..3 {
+        match rest.rsplit_once('_') {
+            Some((head, n)) if !n.is_empty() && n.bytes().all(|c| c.is_ascii_digit()) => {
+                rest = head
+            }
+            _ => return name,
+        }
+    }
+    rest
+}
+
+/// An sRGB component (0 to 1) as linear light, as the shader's colours are.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Linear light (0 to 1) as an sRGB component.
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    if c <= 0.0031308 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// A block instance's alpha: 1 + its mode's index, which the shader reads for the outline's
+/// colour (0 is "no outline": the floor, fingers and palm).
+pub fn mode_alpha(mode: BlockMode) -> f32 {
+    1.0 + mode as u32 as f32
 }
 
 /// Fingers and palm.
@@ -77,6 +198,8 @@ pub struct DrawList {
     /// Which instance each block got this frame (u32::MAX: not drawn), in scene order.
     pub block_instance: Vec<u32>,
     groups: Vec<MeshGroup>,
+    /// Each block's own colour, linear, in scene order (grey past the end: none was set).
+    block_rgb: Vec<[f32; 3]>,
     pub floor_instance: u32,
     pub segments: Range<u32>,
     pub joints: Range<u32>,
@@ -107,6 +230,7 @@ impl DrawList {
             static_blocks: Vec::with_capacity(groups.len()),
             block_instance: vec![u32::MAX; block_meshes.len()],
             groups,
+            block_rgb: Vec::new(),
             floor_instance: FLOOR_INSTANCE,
             segments: 0..0,
             joints: 0..0,
@@ -119,10 +243,21 @@ impl DrawList {
     }
 }
 
-fn instance(model: Mat4, rgb: [f32; 3], edges: bool) -> Instance {
+impl DrawList {
+    /// Gives the blocks their own colours (sRGB, 0 to 1, in scene order: [`block_colors`]).
+    pub fn set_block_colors(&mut self, srgb: &[[f32; 3]]) {
+        self.block_rgb = srgb.iter().map(|c| c.map(srgb_to_linear)).collect();
+    }
+}
+
+/// A block's face colour when none was set: a mid grey.
+const UNSET_BLOCK_RGB: [f32; 3] = [0.35, 0.35, 0.35];
+
+/// `outline`: 0 for none, else a block's [`mode_alpha`].
+fn instance(model: Mat4, rgb: [f32; 3], outline: f32) -> Instance {
     Instance {
         model: model.to_cols_array_2d(),
-        color: [rgb[0], rgb[1], rgb[2], if edges { 1.0 } else { 0.0 }],
+        color: [rgb[0], rgb[1], rgb[2], outline],
     }
 }
 
@@ -152,9 +287,8 @@ impl DrawList {
         self.blocks.clear();
         self.static_blocks.clear();
         self.block_instance.fill(u32::MAX);
-        self.instances
-            .push(instance(Mat4::IDENTITY, [0.0; 3], false));
-        self.instances.push(instance(Mat4::IDENTITY, SKIN, false));
+        self.instances.push(instance(Mat4::IDENTITY, [0.0; 3], 0.0));
+        self.instances.push(instance(Mat4::IDENTITY, SKIN, 0.0));
 
         let states = world.blocks();
         for g in &self.groups {
@@ -190,7 +324,12 @@ impl DrawList {
                         b.mode()
                     };
                     self.block_instance[i as usize] = self.instances.len() as u32;
-                    self.instances.push(instance(model, mode_color(mode), true));
+                    let rgb = self
+                        .block_rgb
+                        .get(i as usize)
+                        .copied()
+                        .unwrap_or(UNSET_BLOCK_RGB);
+                    self.instances.push(instance(model, rgb, mode_alpha(mode)));
                 }
                 let end = self.instances.len() as u32;
                 if end > start {
@@ -240,12 +379,12 @@ impl DrawList {
                     glam::Quat::IDENTITY,
                     a.as_vec3(),
                 );
-                self.instances.push(instance(joint, SKIN, false));
+                self.instances.push(instance(joint, SKIN, 0.0));
                 let Some(b) = pts.get(k + 1).and_then(finite3) else {
                     continue;
                 };
                 if let Some(m) = segment_matrix(a, b, r) {
-                    self.segment_scratch.push(instance(m, SKIN, false));
+                    self.segment_scratch.push(instance(m, SKIN, 0.0));
                 }
             }
         }
@@ -362,7 +501,7 @@ mod tests {
         let mut d = DrawList::new(&[0..3, 3..6]);
         d.build(w.view(), &h);
         let grasped = &d.instances[d.block_instance[1] as usize];
-        assert_eq!(grasped.color[..3], mode_color(BlockMode::Grasped));
+        assert_eq!(grasped.color[3], mode_alpha(BlockMode::Grasped));
         assert_eq!(d.joints.len(), 2);
         assert_eq!(d.segments.len(), 1);
         let m = Mat4::from_cols_array_2d(&d.instances[d.segments.start as usize].model);
@@ -383,6 +522,8 @@ mod tests {
             .map(|i| if i % 3 == 0 { 36..72 } else { 0..36 })
             .collect();
         let mut d = DrawList::new(&meshes);
+        let colors: Vec<[f32; 3]> = (0..n).map(|i| PALETTE[i % PALETTE.len()]).collect();
+        d.set_block_colors(&colors);
         d.build(w.view(), &HandSample::default());
         assert_eq!(d.blocks.len(), 2, "two meshes, two draws");
         assert_eq!(d.blocks[0].indices, 36..72);
@@ -393,8 +534,91 @@ mod tests {
             let m = Mat4::from_cols_array_2d(&inst.model);
             let p = m.transform_point3(Vec3::ZERO);
             assert!((p.x as f64 - b.pose.position[0]).abs() < 1e-3, "block {i}");
-            assert_eq!(inst.color[..3], mode_color(b.mode()), "block {i}");
+            assert_eq!(inst.color[..3], colors[i].map(srgb_to_linear), "block {i}");
+            assert_eq!(inst.color[3], mode_alpha(b.mode()), "block {i}");
         }
+    }
+
+    #[test]
+    fn a_block_takes_its_tables_colour_else_its_names_else_the_palettes() {
+        assert_eq!(color_for_name("red"), Some(NAMED_COLORS[0].1));
+        assert_eq!(color_for_name("Red-cube"), Some(NAMED_COLORS[0].1));
+        assert_eq!(color_for_name("blue_3_0_1"), Some(NAMED_COLORS[2].1));
+        assert_eq!(color_for_name("green2"), Some(NAMED_COLORS[1].1));
+        assert_eq!(color_for_name("redder"), None);
+        assert_eq!(color_for_name("cube"), None);
+        let block = |name: &str| common::config::scene::BlockSpec {
+            name: name.into(),
+            shape: common::config::scene::ShapeSpec::Box { size: [0.1; 3] },
+            position: [0.0; 3],
+            rotation: [0.0, 0.0, 0.0, 1.0],
+            velocity: [0.0; 3],
+        };
+        let mut scene = common::config::Scene {
+            file: "t.toml".into(),
+            world: Default::default(),
+            effects: Default::default(),
+            blocks: vec![block("red"), block("a"), block("b"), block("green")],
+            hand: None,
+        };
+        scene.world.block_colors = vec![None, None, None, Some([0.1, 0.2, 0.3])];
+        let c = block_colors(&scene);
+        assert_eq!(c[0], NAMED_COLORS[0].1, "by name");
+        assert_eq!(c[1], PALETTE[1], "by index");
+        assert_eq!(c[2], PALETTE[2], "by index");
+        assert_eq!(c[3], [0.1, 0.2, 0.3], "the table's own wins over the name");
+        // A lattice's copies share their table's colour.
+        scene.blocks = vec![
+            block("cube_0_0_0"),
+            block("cube_1_0_0"),
+            block("x_1"),
+            block("y"),
+        ];
+        scene.world.block_colors.clear();
+        let c = block_colors(&scene);
+        assert_eq!(
+            [c[0], c[1], c[2], c[3]],
+            [PALETTE[0], PALETTE[0], PALETTE[1], PALETTE[2]]
+        );
+        // The colour stays the block's in every mode: only the outline (alpha) changes.
+        let mut w = world_with(1);
+        let one_mesh: Range<u32> = 0..36;
+        let mut d = DrawList::new(std::slice::from_ref(&one_mesh));
+        d.set_block_colors(&c[..1]);
+        for mode in BlockMode::ALL {
+            w.blocks[0].mode = mode as u32;
+            d.build(w.view(), &HandSample::default());
+            let inst = &d.instances[d.block_instance[0] as usize];
+            assert_eq!(inst.color[..3], c[0].map(srgb_to_linear), "{mode:?}");
+            assert_eq!(inst.color[3], mode_alpha(mode));
+        }
+    }
+
+    /// The shader's outline colours are `mode_color`'s, in `BlockMode`'s order.
+    #[test]
+    fn the_shaders_mode_colours_are_mode_color() {
+        let src = include_str!("shaders.wgsl");
+        let table = src
+            .split("const MODE_RGB")
+            .nth(1)
+            .and_then(|t| t.split(");").next())
+            .expect("MODE_RGB in the shader");
+        let rows: Vec<[f32; 3]> = table
+            .split("vec3<f32>(")
+            .skip(1) // what comes before the first row
+            .map(|r| {
+                let v: Vec<f32> = r
+                    .split(')')
+                    .next()
+                    .unwrap()
+                    .split(',')
+                    .map(|x| x.trim().parse().unwrap())
+                    .collect();
+                [v[0], v[1], v[2]]
+            })
+            .collect();
+        let want: Vec<[f32; 3]> = BlockMode::ALL.iter().map(|m| mode_color(*m)).collect();
+        assert_eq!(rows, want);
     }
 
     #[test]

@@ -11,8 +11,8 @@
 //! asked to do), [`mesh`] (static geometry; block meshes over the shapes crate's solids,
 //! centred on G), [`pipeline`] (shaders and GPU pipelines), [`draw_list`] (a frame's
 //! instances), [`image`] (a frame's pixels), [`renderer`] (device and frame), [`png`],
-//! [`output`] (side-by-side, anaglyph, separate), [`preview`] (the animated PNG), [`window`]
-//! (winit), [`service`].
+//! [`output`] (side-by-side, anaglyph, separate), [`preview`] (the animated PNG and GIF, framed
+//! on the action), [`overlay`] (the preview's text), [`window`] (winit), [`service`].
 
 pub mod camera;
 pub mod draw_list;
@@ -20,6 +20,7 @@ pub mod error;
 pub mod image;
 pub mod mesh;
 pub mod output;
+pub mod overlay;
 pub mod pipeline;
 pub mod png;
 pub mod preview;

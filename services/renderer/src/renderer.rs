@@ -99,9 +99,11 @@ pub struct Renderer {
     meshes: Meshes,
     list: DrawList,
     eye_views: [EyeView; 2],
+    /// The eyes' uniforms: left, right, the preview's camera.
+    eye_buf: wgpu::Buffer,
     anaglyph: Option<AnaglyphTarget>,
     pub(crate) presenter: Option<Presenter>,
-    readback: Option<wgpu::Buffer>,
+    readback: Vec<wgpu::Buffer>,
 }
 
 /// The scene's light: high and to the right, so shadows fall close to what casts them.
@@ -224,7 +226,8 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let eye_views = stereo(&settings.camera, w, h);
-        let mut eye_bytes = vec![0u8; 2 * EYE_UNIFORM_STRIDE as usize];
+        // Both eyes, and a third slot for the preview's own camera (`render_preview`).
+        let mut eye_bytes = vec![0u8; 3 * EYE_UNIFORM_STRIDE as usize];
         for (i, e) in eye_views.iter().enumerate() {
             let u = EyeUniform {
                 view_proj: e.view_projection().to_cols_array_2d(),
@@ -237,7 +240,7 @@ impl Renderer {
         let eye_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("eyes"),
             contents: &eye_bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("scene"),
@@ -307,7 +310,8 @@ impl Renderer {
             }
         });
         let info = adapter.get_info();
-        let list = DrawList::new(&meshes.blocks);
+        let mut list = DrawList::new(&meshes.blocks);
+        list.set_block_colors(&crate::draw_list::block_colors(scene));
         Ok(Renderer {
             settings: settings.clone(),
             adapter_name: format!("{} ({:?}, {:?})", info.name, info.device_type, info.backend),
@@ -333,9 +337,10 @@ impl Renderer {
             meshes,
             list,
             eye_views,
+            eye_buf,
             anaglyph,
             presenter: None,
-            readback: None,
+            readback: Vec::new(),
         })
     }
 
@@ -570,9 +575,15 @@ impl Renderer {
 
     /// One eye's viewport, uniforms and buffers.
     fn begin_eye(&self, pass: &mut wgpu::RenderPass<'_>, eye: u32) {
+        self.begin_view(pass, eye, eye);
+    }
+
+    /// Draws into eye `viewport`'s half with the camera of uniform slot `slot` (0, 1: the
+    /// eyes; 2: the preview's camera).
+    fn begin_view(&self, pass: &mut wgpu::RenderPass<'_>, viewport: u32, slot: u32) {
         let (w, h) = (self.settings.width as f32, self.settings.height as f32);
-        pass.set_viewport(eye as f32 * w, 0.0, w, h, 0.0, 1.0);
-        pass.set_bind_group(0, &self.bind_group, &[eye * EYE_UNIFORM_STRIDE as u32]);
+        pass.set_viewport(viewport as f32 * w, 0.0, w, h, 0.0, 1.0);
+        pass.set_bind_group(0, &self.bind_group, &[slot * EYE_UNIFORM_STRIDE as u32]);
         pass.set_vertex_buffer(1, self.instance_buf.slice(..));
         pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
         pass.set_index_buffer(self.index_buf.slice(..), wgpu::IndexFormat::Uint32);
@@ -609,28 +620,100 @@ impl Renderer {
         }
     }
 
+    /// Draws `world` and `hand` into the left eye's half, seen by `camera`'s left eye, every
+    /// block live (the static layer, drawn for the session's camera, is left alone), and waits
+    /// for the GPU; read it with [`Self::read_back_left_eye_into`]. The next [`Self::render`]
+    /// draws the session's view again. For the preview, which frames the whole session's
+    /// action once the session is over (`preview.rs`).
+    pub fn render_preview(
+        &mut self,
+        world: WorldView<'_>,
+        hand: &HandSample,
+        camera: &crate::camera::CameraSettings,
+    ) -> Result<EyeView, RenderError> {
+        let (w, h) = (self.settings.width, self.settings.height);
+        let [eye, _] = stereo(camera, w, h);
+        let u = EyeUniform {
+            view_proj: eye.view_projection().to_cols_array_2d(),
+            eye_pos: eye.position.as_vec3().extend(1.0).to_array(),
+        };
+        self.queue.write_buffer(
+            &self.eye_buf,
+            2 * EYE_UNIFORM_STRIDE,
+            bytemuck::bytes_of(&u),
+        );
+        self.list.build_layered(world, hand, &[], false);
+        let list = &self.list;
+        self.queue
+            .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&list.instances));
+        if !list.palm_vertices.is_empty() {
+            self.queue
+                .write_buffer(&self.palm_buf, 0, bytemuck::cast_slice(&list.palm_vertices));
+        }
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("preview"),
+            });
+        {
+            let mut pass = self.scene_pass(&mut encoder, PassTarget::Frame { from_nothing: true });
+            self.begin_view(&mut pass, 0, 2);
+            self.draw_floor(&mut pass);
+            pass.set_pipeline(&self.scene.solid);
+            self.draw_live(&mut pass);
+            if self.settings.shadows {
+                pass.set_pipeline(&self.scene.shadow);
+                self.draw_live(&mut pass);
+            }
+            pass.set_pipeline(&self.scene.grid);
+            pass.set_vertex_buffer(0, self.vertex_buf.slice(..));
+            let fi = list.floor_instance;
+            pass.draw_indexed(self.meshes.grid.clone(), 0, fi..fi + 1);
+        }
+        self.queue.submit([encoder.finish()]);
+        Ok(eye)
+    }
+
     /// The last frame as the output mode shows it: side by side and separate give both eyes
     /// in one 2W x H image (`Image::eye` splits it), anaglyph a W x H image. Reuses its
     /// buffers: `out` keeps its allocation across calls.
     pub fn read_back_into(&mut self, out: &mut Image) -> Result<(), RenderError> {
         let (texture, width) = match &self.anaglyph {
-            Some(a) => (&a.texture, self.settings.width),
-            None => (&self.eyes, 2 * self.settings.width),
+            Some(a) => (a.texture.clone(), self.settings.width),
+            None => (self.eyes.clone(), 2 * self.settings.width),
         };
+        self.read_back_region(&texture, width, out)
+    }
+
+    /// The left eye's image alone (tightly packed RGBA), whatever the output mode: the
+    /// preview shows one eye, in the blocks' own colours (an anaglyph's would be tinted).
+    pub fn read_back_left_eye_into(&mut self, out: &mut Image) -> Result<(), RenderError> {
+        let texture = self.eyes.clone();
+        self.read_back_region(&texture, self.settings.width, out)
+    }
+
+    /// The `width` leftmost columns of `texture`, all its rows, into `out`.
+    fn read_back_region(
+        &mut self,
+        texture: &wgpu::Texture,
+        width: u32,
+        out: &mut Image,
+    ) -> Result<(), RenderError> {
         let height = self.settings.height;
         let padded = (width * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
             * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let size = padded as u64 * height as u64;
-        let buffer = match &self.readback {
-            Some(b) if b.size() == size => b.clone(),
-            _ => {
+        // One buffer per size read (the whole frame, the left eye): kept across frames.
+        let buffer = match self.readback.iter().find(|b| b.size() == size) {
+            Some(b) => b.clone(),
+            None => {
                 let b = self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("readback"),
                     size,
                     usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                     mapped_at_creation: false,
                 });
-                self.readback = Some(b.clone());
+                self.readback.push(b.clone());
                 b
             }
         };

@@ -105,7 +105,7 @@ pub fn run_with_preview(
         _ => None,
     };
     let preview = match (preview, &renderer) {
-        (Some(p), Some(_)) => Some(PreviewWriter::start(p, settings.output)?),
+        (Some(p), Some(_)) => Some(PreviewWriter::start(p, &session.scene)?),
         _ => None,
     };
     let period_ns = (1e9 / session.budget.frame_hz) as u64;
@@ -225,7 +225,7 @@ impl Task for RendererStage {
                 }
             }
             if let Some(p) = &mut self.preview {
-                p.after_frame(r, done)?;
+                p.after_frame(done, view, hand);
             }
             self.frame_no += 1;
         }
@@ -262,7 +262,7 @@ impl Task for RendererStage {
             w.finish();
         }
         if let Some(p) = self.preview.take() {
-            p.finish();
+            p.finish(self.renderer.as_mut());
         }
         Ok(())
     }

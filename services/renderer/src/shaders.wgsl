@@ -92,6 +92,18 @@ fn fs_grid(i: VOut) -> @location(0) vec4<f32> {
     return vec4<f32>(mix(FLOOR * floor_light(), vec3<f32>(0.10, 0.10, 0.11), k), 1.0);
 }
 
+// The outline colour of each block mode, linear: draw_list.rs's mode_color, in BlockMode's
+// order (free, resting, tipping, pushed, grasped, carried, supported); a test compares them.
+const MODE_RGB = array<vec3<f32>, 7>(
+    vec3<f32>(0.20, 0.40, 0.95),
+    vec3<f32>(0.80, 0.12, 0.08),
+    vec3<f32>(0.95, 0.45, 0.02),
+    vec3<f32>(0.90, 0.80, 0.05),
+    vec3<f32>(0.08, 0.75, 0.12),
+    vec3<f32>(0.55, 0.15, 0.85),
+    vec3<f32>(0.05, 0.65, 0.70),
+);
+
 @fragment
 fn fs_solid(i: VOut) -> @location(0) vec4<f32> {
     // Flat shading: the face normal from screen derivatives, turned towards the viewer.
@@ -104,11 +116,24 @@ fn fs_solid(i: VOut) -> @location(0) vec4<f32> {
     // Contact shading: darker within 3 cm of the floor, so resting and hovering differ.
     let contact = mix(0.6, 1.0, smoothstep(0.0, 0.03, i.world.y));
     var c = i.color.rgb * (0.3 + 0.7 * diffuse) * contact;
-    // Polygon edges: about 1.5 px wide wherever an edge weight reaches 0.
+    // Polygon edges. alpha 0: none (floor, hand); else 1 + the block's mode (BlockMode's
+    // index), which its outline shows (draw_list.rs, mode_color): resting (2) keeps a thin
+    // dark outline in its own colour, every other mode a wider one in the mode's colour, so a
+    // block keeps its own colour on its faces whatever it does.
     let d = i.edge / max(fw, vec4<f32>(1e-6));
     let e = min(min(d.x, d.y), min(d.z, d.w));
-    let k = (1.0 - smoothstep(0.5, 1.5, e)) * i.color.a;
-    c = mix(c, i.color.rgb * 0.1, k);
+    let mode = u32(i.color.a + 0.5);
+    if (mode >= 1u) {
+        var edge_rgb = i.color.rgb * 0.1;
+        var width = 1.0;
+        if (mode != 2u) {
+            var modes = MODE_RGB; // a variable: indexed at run time
+            edge_rgb = modes[min(mode - 1u, 6u)];
+            width = 2.5;
+        }
+        let k = 1.0 - smoothstep(width - 0.5, width + 0.5, e);
+        c = mix(c, edge_rgb, k);
+    }
     return vec4<f32>(c, 1.0);
 }
 

@@ -1,7 +1,7 @@
 //! Renders known scenes on whatever adapter wgpu finds (Mesa's llvmpipe in CI) and asserts
 //! facts measured in the pixels: where a block appears in each eye, its disparity against the
-//! off-axis stereo formula, its colour by mode, the hand drawn where the world puts it, and the
-//! anaglyph's channels.
+//! off-axis stereo formula, its own colour in every mode and its outline by mode, the hand
+//! drawn where the world puts it, and the anaglyph's channels.
 
 use std::path::PathBuf;
 
@@ -45,7 +45,8 @@ fn scene(n: usize) -> Scene {
         effects: Effects::default(),
         blocks: (0..n)
             .map(|i| BlockSpec {
-                name: format!("b{i}"),
+                // Named for their colour (draw_list::color_for_name): the tests find them by it.
+                name: format!("red{i}"),
                 shape: ShapeSpec::Box {
                     size: [SIZE, SIZE, SIZE],
                 },
@@ -86,7 +87,7 @@ fn draw(r: &mut Renderer, w: &WorldSample, h: &HandSample) -> Image {
     r.read_back().unwrap()
 }
 
-/// Red-dominant pixels: a resting block (floor, sky, shadows and skin are not).
+/// Red-dominant pixels: a block named red (floor, sky, shadows and skin are not).
 fn is_red(p: [u8; 4]) -> bool {
     p[0] as i32 > p[1] as i32 + 40 && p[0] as i32 > p[2] as i32 + 40
 }
@@ -160,8 +161,10 @@ fn a_block_appears_in_both_eyes_with_the_disparity_its_depth_gives() {
     }
 }
 
+/// A block keeps its own colour (red, by its name) in every mode, grasped included; its
+/// outline shows the mode, differently for each.
 #[test]
-fn a_grasped_block_has_the_grasp_colour_and_each_mode_its_own() {
+fn a_block_keeps_its_colour_in_every_mode_and_its_outline_tells_the_mode() {
     let s = settings(OutputMode::SideBySide, true);
     let mut r = renderer(&s, 1);
     let g = DVec3::new(0.0, 0.1, 0.3);
@@ -181,28 +184,53 @@ fn a_grasped_block_has_the_grasp_colour_and_each_mode_its_own() {
     };
     let hand = HandSample::default();
     let mut w = world(&[g.to_array()], BlockMode::Resting);
-    let resting = patch(&draw(&mut r, &w, &hand));
+    let resting_img = draw(&mut r, &w, &hand);
+    let resting = patch(&resting_img);
     w.grasped_block = 0;
-    let grasped = patch(&draw(&mut r, &w, &hand));
+    let grasped_img = draw(&mut r, &w, &hand);
+    let grasped = patch(&grasped_img);
     w.grasped_block = -1;
     w.blocks[0].mode = BlockMode::Grasped as u32;
-    let grasped_by_mode = patch(&draw(&mut r, &w, &hand));
+    let grasped_by_mode_img = draw(&mut r, &w, &hand);
     println!("front face rgb: resting {resting:?}, grasped {grasped:?}");
-    assert!(grasped[1] > grasped[0] + 60.0 && grasped[1] > grasped[2] + 60.0);
-    assert!(resting[0] > resting[1] + 60.0);
+    assert!(resting[0] > resting[1] + 60.0 && resting[0] > resting[2] + 60.0);
     for c in 0..3 {
-        assert!((grasped[c] - grasped_by_mode[c]).abs() < 1.0);
+        assert!(
+            (grasped[c] - resting[c]).abs() < 2.0,
+            "the face keeps its colour"
+        );
     }
-    // Every mode's colour differs from every other's where the block is.
-    let mut seen: Vec<(BlockMode, [f64; 3])> = Vec::new();
+    assert!(grasped_img == grasped_by_mode_img);
+    // Around the block: the pixels where two modes' images differ (the outline).
+    let differing = |a: &Image, b: &Image| {
+        let mut n = 0;
+        for y in (py as u32).saturating_sub(40)..(py as u32 + 40).min(H) {
+            for x in (px as u32).saturating_sub(40)..(px as u32 + 40).min(W) {
+                let (p, q) = (a.pixel(x, y), b.pixel(x, y));
+                let d: i32 = (0..3).map(|c| (p[c] as i32 - q[c] as i32).abs()).sum();
+                if d > 60 {
+                    n += 1;
+                }
+            }
+        }
+        n
+    };
+    let mut seen: Vec<(BlockMode, Image)> = Vec::new();
     for mode in BlockMode::ALL {
         w.blocks[0].mode = mode as u32;
-        let c = patch(&draw(&mut r, &w, &hand));
-        for (m, o) in &seen {
-            let dist: f64 = (0..3).map(|i| (c[i] - o[i]).abs()).sum();
-            assert!(dist > 60.0, "{mode:?} and {m:?} look alike: {c:?} {o:?}");
+        let img = draw(&mut r, &w, &hand);
+        let c = patch(&img);
+        for k in 0..3 {
+            assert!(
+                (c[k] - resting[k]).abs() < 2.0,
+                "{mode:?}: the face keeps its colour"
+            );
         }
-        seen.push((mode, c));
+        for (m, o) in &seen {
+            let n = differing(&img, o);
+            assert!(n > 20, "{mode:?} and {m:?} look alike: {n} px differ");
+        }
+        seen.push((mode, img));
     }
 }
 
@@ -403,7 +431,7 @@ fn bad_poses_skip_that_block_and_bad_settings_are_errors() {
         vertices: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0]],
     };
     let e = Renderer::new_headless(&s, &flat).err().unwrap().to_string();
-    assert!(e.contains("\"b0\"") && e.contains("no volume"), "{e}");
+    assert!(e.contains("\"red0\"") && e.contains("no volume"), "{e}");
 }
 
 #[test]
