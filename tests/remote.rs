@@ -692,6 +692,7 @@ fn the_stock_foxglove_client_connects_and_decodes_a_world_and_a_scene() {
         "floor, blocks, hand"
     );
     assert_eq!(entities[0]["id"], "floor");
+    let colours = scene_view::block_colours(&scene);
     for (i, b) in scene.blocks.iter().enumerate() {
         let e = &entities[1 + i];
         assert_eq!(e["id"], b.name.as_str());
@@ -699,7 +700,7 @@ fn the_stock_foxglove_client_connects_and_decodes_a_world_and_a_scene() {
         let label = e["texts"][0]["text"].as_str().unwrap();
         assert!(label.starts_with(&format!("{}: ", b.name)), "{label}");
         let c = &e["cubes"][0]["color"];
-        let [r, g, bl] = scene_view::block_colour(b, i);
+        let [r, g, bl] = colours[i];
         assert_eq!(
             [&c["r"], &c["g"], &c["b"]],
             [r, g, bl].map(Value::from).each_ref()

@@ -20,7 +20,7 @@
 use std::f64::consts::FRAC_1_SQRT_2;
 use std::fmt::Write as _;
 
-use common::config::scene::{BlockSpec, ShapeSpec};
+use common::config::scene::ShapeSpec;
 use common::config::Scene;
 use common::samples::{BlockMode, BlockState, HandSample};
 use foxglove::schemas::{
@@ -47,39 +47,13 @@ pub fn z_up_rotation(q: [f64; 4]) -> [f64; 4] {
     (to_z_up * DQuat::from_array(q)).to_array()
 }
 
-/// A block's colour, RGB 0-1: the scene's `color` when it gives one, else the colour its name
-/// says ("red", "green", ...), else one of a fixed palette by its index. A block keeps its
-/// colour whatever its mode; the mode is its label's.
-pub fn block_colour(block: &BlockSpec, index: usize) -> [f64; 3] {
-    const NAMED: [(&str, [f64; 3]); 10] = [
-        ("red", [0.85, 0.16, 0.12]),
-        ("green", [0.15, 0.70, 0.25]),
-        ("blue", [0.18, 0.38, 0.90]),
-        ("yellow", [0.95, 0.80, 0.10]),
-        ("orange", [0.95, 0.50, 0.10]),
-        ("purple", [0.58, 0.25, 0.80]),
-        ("cyan", [0.10, 0.70, 0.80]),
-        ("white", [0.92, 0.92, 0.92]),
-        ("grey", [0.55, 0.55, 0.58]),
-        ("black", [0.15, 0.15, 0.17]),
-    ];
-    const PALETTE: [[f64; 3]; 6] = [
-        [0.30, 0.55, 0.85],
-        [0.90, 0.55, 0.20],
-        [0.35, 0.70, 0.40],
-        [0.80, 0.35, 0.55],
-        [0.60, 0.50, 0.85],
-        [0.75, 0.70, 0.30],
-    ];
-    let name = block.name.to_ascii_lowercase();
-    NAMED
-        .iter()
-        .find(|(word, _)| {
-            name.split(|c: char| !c.is_ascii_alphabetic())
-                .any(|w| w == *word)
-        })
-        .map(|(_, c)| *c)
-        .unwrap_or(PALETTE[index % PALETTE.len()])
+/// Each block's colour, RGB 0-1 (sRGB): the scene's rule (`common::config::colors`), the one
+/// the renderer draws with. A block keeps its colour whatever its mode; the mode is its label's.
+pub fn block_colours(scene: &Scene) -> Vec<[f64; 3]> {
+    common::config::colors::block_colors(scene)
+        .into_iter()
+        .map(|c| c.map(f64::from))
+        .collect()
 }
 
 /// Why a scene cannot be drawn.
@@ -179,8 +153,8 @@ impl SceneView {
             color: rgba([0.42, 0.44, 0.47], 1.0),
         });
         entities.push(floor);
-        for (i, b) in scene.blocks.iter().enumerate() {
-            let colour = block_colour(b, i);
+        let colours = block_colours(scene);
+        for (b, &colour) in scene.blocks.iter().zip(&colours) {
             let mut e = entity(&b.name);
             let start = pose(b.position, b.rotation);
             let radius = match &b.shape {
@@ -379,21 +353,5 @@ mod tests {
         let x = q * DVec3::X;
         let expect = DVec3::from_array(z_up((turn * DVec3::X).to_array()));
         assert!((x - expect).length() < 1e-12, "{x} {expect}");
-    }
-
-    #[test]
-    fn colours_follow_names_then_a_palette() {
-        let block = |name: &str| BlockSpec {
-            name: name.into(),
-            shape: ShapeSpec::Box { size: [0.1; 3] },
-            position: [0.0; 3],
-            rotation: [0.0, 0.0, 0.0, 1.0],
-            velocity: [0.0; 3],
-        };
-        assert_eq!(block_colour(&block("red"), 3), [0.85, 0.16, 0.12]);
-        assert_eq!(block_colour(&block("Big-Blue"), 0), [0.18, 0.38, 0.90]);
-        // "bred" names no colour.
-        assert_ne!(block_colour(&block("bred"), 0), [0.85, 0.16, 0.12]);
-        assert_ne!(block_colour(&block("a"), 0), block_colour(&block("b"), 1));
     }
 }

@@ -568,7 +568,7 @@ mod tests {
         let tc = tracker_config(&file, "source.tracker", t, 7).unwrap();
         assert_eq!(tc.format, Format::Binary);
         assert_eq!(tc.units, Units::Centimetres);
-        assert_eq!(tc.to_world.position, [0.0, 0.45, 0.4]);
+        assert_eq!(tc.to_world.position, [0.0, 0.30, 0.4]);
     }
 
     #[test]

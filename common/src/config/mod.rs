@@ -4,6 +4,7 @@
 //! allowed, so a user can fix the file without reading code. Unknown keys are errors: a typo
 //! must not silently fall back to a default.
 
+pub mod colors;
 pub mod devices;
 pub mod graph;
 pub mod hand;

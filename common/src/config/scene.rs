@@ -51,7 +51,7 @@ pub struct WorldSettings {
     pub precise: PreciseSettings,
     /// Each `[[block]]`'s own `color = [r, g, b]` (0 to 1, sRGB), in scene order (lattice
     /// copies share their table's); None where the table has none (the renderer then takes it
-    /// from the name, `renderer::draw_list::block_colors`). Only the renderer reads it. It
+    /// from the name, `config::colors::block_colors`). Only the views read it. It
     /// lives here rather than in `BlockSpec` or `Scene` because scenes are also built in code
     /// (benchmarks, tests) by struct literal; `..WorldSettings::default()` gives them none.
     pub block_colors: Vec<Option<[f32; 3]>>,
