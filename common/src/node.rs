@@ -79,6 +79,11 @@ pub trait Task {
         let _ = reporter;
         Ok(())
     }
+
+    /// Once, after the final report: work that changes no count and that the launcher need
+    /// not wait on before it judges the session (the renderer's preview, drawn again and
+    /// encoded at the end). The launcher waits for the process to exit, not for this.
+    fn after_final_report(&mut self) {}
 }
 
 /// What one pass of the loop hands a stage's work.
@@ -180,7 +185,9 @@ pub fn run<T: Task>(
             }
             task.stop(&mut reporter)?;
             // After the stop: what it still sent (a device's last deliveries) counts.
-            return Ok(reporter.finish(task.counters().as_slice())?);
+            let reported = reporter.finish(task.counters().as_slice());
+            task.after_final_report();
+            return Ok(reported?);
         }
         reporter.maybe_report(task.counters().as_slice())?;
     }

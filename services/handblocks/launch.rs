@@ -111,10 +111,25 @@ pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
 /// `preview: out/live-preview.png (animated PNG, 36 frames, 640 x 360, 412 KB; open it in a
 /// web browser)`.
 fn preview_line(path: &Path) -> String {
+    animation_line(
+        path,
+        renderer::preview::describe(path),
+        "animated PNG",
+        "open it in a web browser",
+    )
+}
+
+/// One line of a written animation: its frames, size and what opens it.
+fn animation_line(
+    path: &Path,
+    info: Option<renderer::preview::PreviewInfo>,
+    kind: &str,
+    open_with: &str,
+) -> String {
     let size = std::fs::metadata(path).map_or(0, |m| m.len());
-    match renderer::preview::describe(path) {
+    match info {
         Some(d) => format!(
-            "preview: {} (animated PNG, {} frames, {} x {}, {:.0} KB; open it in a web browser)",
+            "preview: {} ({kind}, {} frames, {} x {}, {:.0} KB; {open_with})",
             path.display(),
             d.frames,
             d.width,
@@ -158,16 +173,10 @@ fn recording_line(path: &Path) -> String {
 /// `preview: out/live-preview.gif (GIF, 36 frames, 640 x 360, 300 KB; any image viewer)`: the
 /// same animation for viewers and chats that do not play animated PNGs.
 fn gif_line(path: &Path) -> String {
-    let size = std::fs::metadata(path).map_or(0, |m| m.len());
-    match renderer::preview::describe_gif(path) {
-        Some(d) => format!(
-            "preview: {} (GIF, {} frames, {} x {}, {:.0} KB; any image viewer)",
-            path.display(),
-            d.frames,
-            d.width,
-            d.height,
-            size as f64 / 1024.0
-        ),
-        None => format!("preview: {} ({size} bytes)", path.display()),
-    }
+    animation_line(
+        path,
+        renderer::preview::describe_gif(path),
+        "GIF",
+        "any image viewer",
+    )
 }

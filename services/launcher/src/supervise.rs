@@ -25,6 +25,9 @@ use crate::LaunchOptions;
 
 /// How long a stopping process may take to send its final report.
 const FINAL_REPORT_TIMEOUT: Duration = Duration::from_secs(5);
+/// How long the renderer may take to exit after its final report: it draws its preview again
+/// with the preview's own camera and encodes it then (seconds on a loaded machine).
+const RENDERER_EXIT_WAIT: Duration = Duration::from_secs(60);
 /// A stage that has reported and then says nothing for this long is stopped (SIGSTOP) or hung:
 /// every stage reports about once a second, idle or not.
 const STALLED_AFTER: Duration = Duration::from_secs(3);
@@ -405,7 +408,13 @@ impl<'a> Supervision<'a> {
             if let Some(r) = self.reports.get_mut(&p.stage) {
                 r.cpu_s = cpu;
             }
-            let status = p.release_and_reap(Duration::from_secs(5));
+            // The renderer draws and encodes its preview after its final report.
+            let exit_wait = if p.stage == Stage::Renderer {
+                RENDERER_EXIT_WAIT
+            } else {
+                Duration::from_secs(5)
+            };
+            let status = p.release_and_reap(exit_wait);
             if !has_final(&self.reports, p.stage) {
                 self.failures.push(format!(
                     "the {} process sent no final report ({})",

@@ -261,10 +261,16 @@ impl Task for RendererStage {
         if let Some(w) = self.writer.take() {
             w.finish();
         }
+        Ok(())
+    }
+
+    /// The preview is drawn again with its own camera and encoded only now: on a loaded
+    /// machine that takes seconds, which must not delay the final report past the launcher's
+    /// wait for it (the launcher waits for the process to exit, `PREVIEW_EXIT_WAIT`).
+    fn after_final_report(&mut self) {
         if let Some(p) = self.preview.take() {
             p.finish(self.renderer.as_mut());
         }
-        Ok(())
     }
 }
 
