@@ -540,9 +540,13 @@ fn list_names_scenes_and_sessions_and_completions_cover_the_commands() {
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success());
+    // Each entry: its name and path, then its description (a whole sentence) below.
+    let lines: Vec<&str> = text.lines().collect();
     assert!(
-        text.lines()
-            .any(|l| l.contains("config/sessions/live.toml") && l.contains("The default session")),
+        lines
+            .windows(2)
+            .any(|w| w[0].contains("config/sessions/live.toml")
+                && w[1].contains("The default session")),
         "{text}"
     );
     assert!(text.contains("config/scenes/tip.toml"), "{text}");
