@@ -85,8 +85,8 @@ pub enum Command {
     Inspect {
         /// The recording (.mcap).
         recording: PathBuf,
-        /// Print {"file", "complete", "damage", "foreign_messages", "topics": [{"topic",
-        /// "messages", "gaps", "seconds", "rate_hz", "schema", "bytes"}]}.
+        /// Print {"file", "complete", "damage", "foreign_messages", "scene_messages",
+        /// "topics": [{"topic", "messages", "gaps", "seconds", "rate_hz", "schema", "bytes"}]}.
         #[arg(long)]
         json: bool,
     },

@@ -82,6 +82,7 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                 "complete": summary.complete,
                 "damage": summary.damage,
                 "foreign_messages": summary.foreign_messages,
+                "scene_messages": summary.scene_messages,
                 "topics": topics,
             })
         );
@@ -121,6 +122,14 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                 t.seconds,
                 t.rate_hz,
                 t.schema,
+            );
+        }
+        if summary.scene_messages > 0 {
+            println!(
+                "{:<8} {:>9}  the scene view for Foxglove's 3D panel (foxglove.SceneUpdate, \
+                 drawn from the world and hand above)",
+                recording::SCENE_CHANNEL,
+                summary.scene_messages
             );
         }
         if summary.foreign_messages > 0 {

@@ -54,7 +54,8 @@ struct SceneTrack {
     view: SceneView,
     encoded: Vec<u8>,
     period_ns: u64,
-    last_ns: Option<u64>,
+    /// When the next scene is due (publish time of the world that brings it).
+    next_ns: Option<u64>,
 }
 
 impl Log {
@@ -72,14 +73,21 @@ impl Log {
                 }
             }
             Topic::World => {
-                if track
-                    .last_ns
-                    .is_some_and(|t| stamp.publish_ns.saturating_sub(t) < track.period_ns)
-                {
+                // Due on a grid of the period, not a period after the last one written: the
+                // rate is scene_hz on average whatever the worlds' jitter (every 4th of 120 Hz
+                // worlds at 30, not every 5th when one came a little early).
+                let now = stamp.publish_ns;
+                if track.next_ns.is_some_and(|due| now < due) {
                     return Ok(());
                 }
                 if let Ok((_, body)) = recording::decode_slice::<WorldHeader>(topic, message) {
-                    track.last_ns = Some(stamp.publish_ns);
+                    let due = track.next_ns.unwrap_or(now) + track.period_ns;
+                    // After a stall, on from now rather than a burst to catch up.
+                    track.next_ns = Some(if due <= now {
+                        now + track.period_ns
+                    } else {
+                        due
+                    });
                     let size = std::mem::size_of::<BlockState>();
                     // SAFETY: `body` holds `len / size` whole block states (decode_slice
                     // checked its length); plain old data, read unaligned.
@@ -283,7 +291,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), RecorderError> {
                     view: SceneView::new(&session.scene).map_err(RecorderError::Scene)?,
                     encoded: Vec::new(),
                     period_ns,
-                    last_ns: None,
+                    next_ns: None,
                 })
             } else {
                 None
