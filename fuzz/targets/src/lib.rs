@@ -24,6 +24,7 @@
 //! | `calibration` | `acquisition::devices::Calibration::parse`                         |
 //! | `link`        | `recording::decode_sample` / `decode_slice`: a sample from another machine (the bridge) |
 //! | `stepper_hand`| `stepper::Model::step` under both models, fed hand samples with arbitrary values |
+//! | `webxr`       | `webxr_wire::decode_into`: a headset page's hands frame, then `to_joints` |
 
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
@@ -46,7 +47,7 @@ use replay::{CarlTrace, HandTrace};
 pub type Target = (&'static str, fn(&[u8]));
 
 /// Every target by name, in the order the harnesses run them.
-pub const TARGETS: [Target; 10] = [
+pub const TARGETS: [Target; 11] = [
     ("cyberglove", cyberglove),
     ("fastrak", fastrak),
     ("carl", carl),
@@ -57,6 +58,7 @@ pub const TARGETS: [Target; 10] = [
     ("calibration", calibration),
     ("link", link),
     ("stepper_hand", stepper_hand),
+    ("webxr", webxr),
 ];
 
 /// The target called `name`.
@@ -819,6 +821,38 @@ pub fn stepper_hand(data: &[u8]) {
                 block.position,
                 block.rotation
             );
+        }
+    }
+}
+
+/// `webxr`: a hands frame from a headset's page (outside input over a socket). A decoded frame
+/// re-encodes to the same bytes but its normalised orientations (so every field was read),
+/// and its joints, mapped for the pipeline, are finite and within the stated range.
+pub fn webxr(data: &[u8]) {
+    use webxr_wire::{decode_into, to_joints, HandsFrame, MAX_POSITION_M};
+    let mut frame = HandsFrame::default();
+    if decode_into(data, &mut frame).is_err() {
+        return;
+    }
+    let mut again = Vec::new();
+    webxr_wire::encode(&frame, &mut again);
+    assert_eq!(again.len(), data.len(), "the length the header implies");
+    assert_eq!(again[..24], data[..24], "the header");
+    let mut joints = JointsSample::default();
+    for hand in frame
+        .present
+        .iter()
+        .zip(&frame.hands)
+        .filter(|(p, _)| **p)
+        .map(|(_, h)| h)
+    {
+        to_joints(hand, &mut joints);
+        for p in joints.joints.iter().chain([&joints.wrist]) {
+            assert!(p.is_finite(), "{p:?}");
+            let r = p.position.iter().map(|x| x * x).sum::<f64>().sqrt();
+            assert!(r <= f64::from(MAX_POSITION_M) + 1e-3, "{r} m");
+            let n = p.rotation.iter().map(|x| x * x).sum::<f64>().sqrt();
+            assert!((n - 1.0).abs() < 1e-6, "orientation norm {n}");
         }
     }
 }

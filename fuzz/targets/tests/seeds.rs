@@ -273,11 +273,39 @@ fn write_link_seeds() {
     );
 }
 
+#[test]
+#[ignore = "writes fuzz/corpus/webxr: run it by hand to regenerate those seeds"]
+fn write_webxr_seeds() {
+    use webxr_wire::{encode, HandsFrame, WEBXR_JOINTS};
+    let mut frame = HandsFrame {
+        seq: 41,
+        frame_time_ms: 16_683.3,
+        present: [false, true],
+        ..Default::default()
+    };
+    for j in 0..WEBXR_JOINTS {
+        for h in 0..2 {
+            let side = if h == 0 { -0.2 } else { 0.2 };
+            frame.hands[h].poses[j].position =
+                [side + 0.004 * j as f64, 1.1, -0.35 - 0.01 * j as f64];
+            frame.hands[h].radii[j] = 0.008;
+        }
+    }
+    let mut bytes = Vec::new();
+    encode(&frame, &mut bytes);
+    put("webxr", "seed-right-hand", &bytes);
+    frame.present = [true, true];
+    frame.seq = 42;
+    encode(&frame, &mut bytes);
+    put("webxr", "seed-both-hands", &bytes);
+}
+
 /// Writes the generated seeds and copies the text ones from config/.
 #[test]
 #[ignore = "writes fuzz/corpus: run it by hand to regenerate the seeds"]
 fn write_seeds() {
     write_link_seeds();
+    write_webxr_seeds();
     write_stepper_hand_seeds();
     // cyberglove: byte 0 = size (0 -> 18, 1 -> 22), byte 1 = chunk size (0 = all at once).
     let mut s = vec![1, 0];
@@ -473,6 +501,11 @@ fn check_valid(target: &str, name: &str, bytes: &[u8], dir: &Path) {
                 t => panic!("{what}: no seed of {t:?} expected"),
             };
             assert!(ok, "{what} does not decode");
+        }
+        "webxr" => {
+            let mut frame = webxr_wire::HandsFrame::default();
+            webxr_wire::decode_into(bytes, &mut frame).unwrap_or_else(|e| panic!("{what}: {e}"));
+            fuzz_targets::webxr(bytes);
         }
         "mcap" => {
             let r = Recording::parse(Path::new(name), bytes).unwrap_or_else(|e| panic!("{e}"));

@@ -189,7 +189,7 @@ fn budget(target: &str) -> (u64, u64) {
     // the file targets (a file written and read, TOML parsed) about 3.5k, and a third of that
     // while another build shares the CPUs: 10 to 30 s on two cores.
     let (m, g) = match target {
-        "cyberglove" | "fastrak" | "link" => (100_000, 100_000),
+        "cyberglove" | "fastrak" | "link" | "webxr" => (100_000, 100_000),
         "calibration" => (50_000, 50_000),
         "carl" => (30_000, 30_000),
         "mcap" => (15_000, 15_000),
@@ -377,6 +377,11 @@ fn calibration() {
 #[test]
 fn link() {
     run("link");
+}
+
+#[test]
+fn webxr() {
+    run("webxr");
 }
 
 #[test]
