@@ -323,23 +323,8 @@ pub fn action_rect(
         }
         add(DVec3::new(c.x, 0.0, c.z));
     }
-    let (count, counts, points) = if world.finger_count > 0 {
-        (
-            world.finger_count,
-            &world.finger_point_count,
-            &world.finger_points,
-        )
-    } else {
-        (
-            hand.finger_count,
-            &hand.finger_point_count,
-            &hand.finger_points,
-        )
-    };
-    for f in 0..(count as usize).min(points.len()) {
-        for p in points[f].iter().take(counts[f] as usize) {
-            add(DVec3::from_array(*p));
-        }
+    for p in drawn_finger_points(&world, hand) {
+        add(p);
     }
     for p in hand.palm() {
         add(DVec3::from_array(*p));
@@ -424,16 +409,12 @@ impl KeptState {
     }
 }
 
-/// The spheres that matter in a kept world: each block's bounding sphere and a point on the
-/// floor under it, the finger points and the palm.
-fn spheres_of(state: &KeptState, radii: &[f64], out: &mut Vec<(DVec3, f64)>) {
-    let world = state.view();
-    for (i, b) in world.blocks().iter().enumerate() {
-        let c = DVec3::from_array(b.pose.position);
-        out.push((c, radii.get(i).copied().unwrap_or(0.05)));
-        out.push((DVec3::new(c.x, 0.0, c.z), 0.0));
-    }
-    let hand = &state.hand;
+/// The finger points a frame draws: the world's (the fingers as the stepper placed them, out
+/// of the blocks) when it carries them, else the hand's.
+fn drawn_finger_points<'a>(
+    world: &'a common::WorldHeader,
+    hand: &'a HandSample,
+) -> impl Iterator<Item = DVec3> + 'a {
     let (count, counts, points) = if world.finger_count > 0 {
         (
             world.finger_count,
@@ -447,10 +428,26 @@ fn spheres_of(state: &KeptState, radii: &[f64], out: &mut Vec<(DVec3, f64)>) {
             &hand.finger_points,
         )
     };
-    for f in 0..(count as usize).min(points.len()) {
-        for p in points[f].iter().take(counts[f] as usize) {
-            out.push((DVec3::from_array(*p), 0.01));
-        }
+    points
+        .iter()
+        .zip(counts)
+        .take(count as usize)
+        .flat_map(|(finger, n)| finger.iter().take(*n as usize))
+        .map(|p| DVec3::from_array(*p))
+}
+
+/// The spheres that matter in a kept world: each block's bounding sphere and a point on the
+/// floor under it, the finger points and the palm.
+fn spheres_of(state: &KeptState, radii: &[f64], out: &mut Vec<(DVec3, f64)>) {
+    let world = state.view();
+    for (i, b) in world.blocks().iter().enumerate() {
+        let c = DVec3::from_array(b.pose.position);
+        out.push((c, radii.get(i).copied().unwrap_or(0.05)));
+        out.push((DVec3::new(c.x, 0.0, c.z), 0.0));
+    }
+    let hand = &state.hand;
+    for p in drawn_finger_points(&world, hand) {
+        out.push((p, 0.01));
     }
     for p in hand.palm() {
         out.push((DVec3::from_array(*p), 0.0));

@@ -408,13 +408,8 @@ impl Renderer {
         };
         self.list
             .build_layered(world, hand, members, layer == LayerFrame::Redraw);
+        self.upload_draw_list();
         let list = &self.list;
-        self.queue
-            .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&list.instances));
-        if !list.palm_vertices.is_empty() {
-            self.queue
-                .write_buffer(&self.palm_buf, 0, bytemuck::cast_slice(&list.palm_vertices));
-        }
         let mut encoder = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -506,6 +501,17 @@ impl Renderer {
             submitted_ns,
             done_ns: monotonic_ns(),
         })
+    }
+
+    /// The draw list's instances and palm into their GPU buffers, for the next pass.
+    fn upload_draw_list(&self) {
+        let list = &self.list;
+        self.queue
+            .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&list.instances));
+        if !list.palm_vertices.is_empty() {
+            self.queue
+                .write_buffer(&self.palm_buf, 0, bytemuck::cast_slice(&list.palm_vertices));
+        }
     }
 
     /// A pass of the scene into `target`.
@@ -643,13 +649,8 @@ impl Renderer {
             bytemuck::bytes_of(&u),
         );
         self.list.build_layered(world, hand, &[], false);
+        self.upload_draw_list();
         let list = &self.list;
-        self.queue
-            .write_buffer(&self.instance_buf, 0, bytemuck::cast_slice(&list.instances));
-        if !list.palm_vertices.is_empty() {
-            self.queue
-                .write_buffer(&self.palm_buf, 0, bytemuck::cast_slice(&list.palm_vertices));
-        }
         let mut encoder = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
