@@ -98,7 +98,7 @@ fn replay_sessions_hz_and_echo_work_from_another_folder() {
         .current_dir(&dir.0)
         .arg("replay")
         .arg(&trace)
-        .args(["--loop", "--duration", "6", "--quiet", "--no-preview"])
+        .args(["--loop", "--duration", "10", "--quiet", "--no-preview"])
         .args(["--set", "renderer.mode=off"])
         .args(["--set", "budget.origin_to_world_p99_us=1000000"])
         .arg("--report")
@@ -107,8 +107,9 @@ fn replay_sessions_hz_and_echo_work_from_another_folder() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("run handblocks replay");
-    // `sessions --json` names it once it runs: found by its launcher's pid.
-    let deadline = Instant::now() + Duration::from_secs(5);
+    // `sessions --json` names it once it runs: found by its launcher's pid (a loaded machine
+    // may take seconds to start the processes; this waits only as long as that takes).
+    let deadline = Instant::now() + Duration::from_secs(30);
     let id = loop {
         let out = run_in(&dir.0, &["sessions", "--json"]);
         assert!(out.status.success(), "{}", both(&out));
