@@ -477,9 +477,10 @@ fn recordings_open_in_the_standard_mcap_reader() {
     assert_eq!(scene["message_encoding"], "protobuf");
     let worlds = v["topics"]["/world"]["seqs"].as_array().unwrap().len();
     let scenes = scene["seqs"].as_array().unwrap().len();
-    // 30 a second of 120 worlds a second (default [recorder] scene_hz).
+    // 30 a second of 120 worlds a second (default [recorder] scene_hz): a quarter, fewer when
+    // a loaded machine bunched the worlds, never more.
     assert!(
-        scenes * 5 >= worlds && scenes * 3 <= worlds,
+        scenes * 8 >= worlds && scenes * 3 <= worlds,
         "{scenes} scenes, {worlds} worlds"
     );
     assert_eq!(ours.scene_messages, scenes as u64);
