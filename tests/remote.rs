@@ -484,6 +484,24 @@ fn killing_the_viewer_does_not_disturb_the_session() {
     );
 }
 
+/// `session` for `seconds`, renderer off, serving its live Foxglove view on `port`.
+fn launch_with_view(session: &Path, id: &str, port: u16, report: &Path, seconds: &str) -> Child {
+    Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--no-preview", "--duration", seconds])
+        .args(["--bus-id", id, "--set", "renderer.mode=off"])
+        // What is tested is the view, not this (shared, loaded) machine's latency.
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .args(["--set", &format!("viewer.foxglove=127.0.0.1:{port}")])
+        .arg("--report")
+        .arg(report)
+        .arg(session)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run handblocks")
+}
+
 /// `[viewer] foxglove`: a Foxglove WebSocket client (the protocol, spoken here by tungstenite)
 /// connects, sees the session's channels advertised with the recording's schemas and the
 /// scene, subscribes to `/world` and decodes a world state of the scene's blocks.
@@ -497,28 +515,7 @@ fn a_foxglove_client_subscribes_and_decodes_a_world() {
     let id = format!("rmF{}", std::process::id());
     let rep = dir.path("report.json");
     let session = repo().join("config/sessions/live.toml");
-    let child = Command::new(EXE)
-        .current_dir(repo())
-        .args([
-            "launch",
-            "--quiet",
-            "--no-preview",
-            "--duration",
-            "5",
-            "--bus-id",
-            &id,
-        ])
-        .args(["--set", "renderer.mode=off"])
-        // What is tested is the view, not this (shared, loaded) machine's latency.
-        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
-        .args(["--set", &format!("viewer.foxglove=127.0.0.1:{port}")])
-        .arg("--report")
-        .arg(&rep)
-        .arg(&session)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run handblocks");
+    let child = launch_with_view(&session, &id, port, &rep, "8");
 
     let deadline = Instant::now() + Duration::from_secs(4);
     let mut socket = loop {
@@ -621,19 +618,7 @@ fn the_stock_foxglove_client_connects_and_decodes_a_world_and_a_scene() {
     let id = format!("rmN{}", std::process::id());
     let rep = dir.path("report.json");
     let session = repo().join("config/sessions/live.toml");
-    let child = Command::new(EXE)
-        .current_dir(repo())
-        .args(["launch", "--quiet", "--no-preview", "--duration", "8"])
-        .args(["--bus-id", &id, "--set", "renderer.mode=off"])
-        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
-        .args(["--set", &format!("viewer.foxglove=127.0.0.1:{port}")])
-        .arg("--report")
-        .arg(&rep)
-        .arg(&session)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run handblocks");
+    let child = launch_with_view(&session, &id, port, &rep, "8");
     // The script says {"error": ...} until the server listens; it is tried again until then
     // (on a loaded machine the bridge may take seconds to start).
     let deadline = Instant::now() + Duration::from_secs(15);

@@ -80,6 +80,9 @@ pub struct SceneView {
     /// The palm's points (y-up) and their hull's triangles, kept for their capacity.
     palm_points: Vec<DVec3>,
     palm_triangles: Vec<[DVec3; 3]>,
+    /// The newest hand, drawn (its hull built) only with the next world: hands come at the
+    /// source's rate, scenes go out at a fraction of it, or not at all.
+    hand: Option<HandSample>,
 }
 
 /// Entity 0 is the floor, 1..=n the blocks, n + 1 the hand; the hand has a line per finger.
@@ -245,6 +248,7 @@ impl SceneView {
             labels,
             palm_points: Vec::new(),
             palm_triangles: Vec::new(),
+            hand: None,
         })
     }
 
@@ -279,15 +283,24 @@ impl SceneView {
         }
     }
 
-    /// A world's blocks: `block(i)` is block `i`'s state, for `i` below `count`.
+    /// A world's blocks: `block(i)` is block `i`'s state, for `i` below `count`; and the
+    /// newest hand since the last world.
     pub fn set_world(&mut self, count: usize, block: impl Fn(usize) -> BlockState) {
         for i in 0..count.min(self.labels.len()) {
             self.set_block(i, &block(i));
         }
+        if let Some(hand) = self.hand.take() {
+            self.draw_hand(&hand);
+        }
+    }
+
+    /// The newest hand: kept, and drawn with the next world ([`SceneView::set_world`]).
+    pub fn set_hand(&mut self, hand: &HandSample) {
+        self.hand = Some(*hand);
     }
 
     /// The hand: a line strip per finger (as thick as the finger), the palm's hull.
-    pub fn set_hand(&mut self, hand: &HandSample) {
+    fn draw_hand(&mut self, hand: &HandSample) {
         let Some(e) = self.update.entities.last_mut() else {
             return;
         };

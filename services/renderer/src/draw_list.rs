@@ -44,6 +44,31 @@ pub fn mode_color_srgb(mode: BlockMode) -> [u8; 3] {
 // same colours.
 pub use common::config::colors::{block_colors, color_for_name, NAMED_COLORS, PALETTE};
 
+/// Finger points per finger.
+type FingerPoints = [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS];
+
+/// The fingers a frame draws: the world's (relocated onto a grasped block's surface,
+/// docs/model.md R5) when it carries them, else the hand's own check points: (fingers, points
+/// per finger, the points).
+pub(crate) fn drawn_fingers<'a>(
+    world: &'a common::WorldHeader,
+    hand: &'a HandSample,
+) -> (u32, &'a [u32; MAX_FINGERS], &'a FingerPoints) {
+    if world.finger_count > 0 {
+        (
+            world.finger_count,
+            &world.finger_point_count,
+            &world.finger_points,
+        )
+    } else {
+        (
+            hand.finger_count,
+            &hand.finger_point_count,
+            &hand.finger_points,
+        )
+    }
+}
+
 /// An sRGB component (0 to 1) as linear light, as the shader's colours are.
 pub fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {
@@ -262,21 +287,7 @@ impl DrawList {
             }
         }
 
-        // Fingers as drawn: the world's (relocated onto a grasped block's surface, docs/model.md
-        // R5) when it has them, else the hand's own check points.
-        let (count, counts, points) = if world.finger_count > 0 {
-            (
-                world.finger_count,
-                &world.finger_point_count,
-                &world.finger_points,
-            )
-        } else {
-            (
-                hand.finger_count,
-                &hand.finger_point_count,
-                &hand.finger_points,
-            )
-        };
+        let (count, counts, points) = drawn_fingers(world.header, hand);
         self.segment_scratch.clear();
         let joints_start = self.instances.len() as u32;
         for f in 0..(count as usize).min(MAX_FINGERS) {

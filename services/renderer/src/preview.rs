@@ -415,19 +415,7 @@ fn drawn_finger_points<'a>(
     world: &'a common::WorldHeader,
     hand: &'a HandSample,
 ) -> impl Iterator<Item = DVec3> + 'a {
-    let (count, counts, points) = if world.finger_count > 0 {
-        (
-            world.finger_count,
-            &world.finger_point_count,
-            &world.finger_points,
-        )
-    } else {
-        (
-            hand.finger_count,
-            &hand.finger_point_count,
-            &hand.finger_points,
-        )
-    };
+    let (count, counts, points) = crate::draw_list::drawn_fingers(world, hand);
     points
         .iter()
         .zip(counts)
