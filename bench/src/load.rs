@@ -160,6 +160,7 @@ fn metric_name(m: Metric) -> &'static str {
         Metric::Process => "process",
         Metric::Origin => "origin",
         Metric::Photon => "photon",
+        Metric::Page => "page_js",
     }
 }
 

@@ -33,12 +33,21 @@ pub enum Metric {
     Hop = 0,
     Process = 1,
     Origin = 2,
+    /// The renderer's origin to GPU work complete; the webxr source's frame sent to the world
+    /// that answers it drawn on the headset (the page's round trip).
     Photon = 3,
+    /// The webxr source only: the page's JavaScript time per XR frame.
+    Page = 4,
 }
 
 impl Metric {
-    pub const ALL: [Metric; METRICS] =
-        [Metric::Hop, Metric::Process, Metric::Origin, Metric::Photon];
+    pub const ALL: [Metric; METRICS] = [
+        Metric::Hop,
+        Metric::Process,
+        Metric::Origin,
+        Metric::Photon,
+        Metric::Page,
+    ];
 
     /// The key in the session report.
     pub fn key(self) -> &'static str {
@@ -47,6 +56,7 @@ impl Metric {
             Metric::Process => "process_us",
             Metric::Origin => "origin_us",
             Metric::Photon => "photon_us",
+            Metric::Page => "page_js_us",
         }
     }
 }
@@ -76,6 +86,7 @@ impl LatencyRecorder {
         LatencyRecorder {
             stage,
             histograms: [
+                new_histogram(),
                 new_histogram(),
                 new_histogram(),
                 new_histogram(),

@@ -101,6 +101,14 @@ pub struct JointsSample {
     pub joints: [Pose; OPENXR_JOINTS],
 }
 
+/// How long a hand tracker's hand that lost tracking keeps its grasp, in its source time: a
+/// lost hand holds its last pose (and so whatever it holds) through a gap up to this long,
+/// then lets go (it has no fingers or palm until it is tracked again). Tracking drops of tens
+/// of milliseconds are common on headsets, and SDKs that drop a held object on a shorter loss
+/// are a known complaint (MRTK #10391); 100 ms is still short enough that a hand that really
+/// left does not seem to hold a block in mid-air.
+pub const TRACKING_HOLD_NS: u64 = 100_000_000;
+
 impl Default for JointsSample {
     fn default() -> Self {
         JointsSample {
@@ -346,7 +354,7 @@ pub struct FrameSample {
 /// Bytes one encoded latency histogram may take on the wire.
 pub const HISTOGRAM_BYTES: usize = 16 * 1024;
 /// Histograms per latency sample: hop, process, origin, photon.
-pub const METRICS: usize = 4;
+pub const METRICS: usize = 5;
 /// Topic counters per latency sample.
 pub const MAX_TOPIC_COUNTERS: usize = 8;
 
@@ -392,7 +400,10 @@ pub struct TopicCounter {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
 #[type_name("handblocks::DeviceCounters")]
 pub struct DeviceCounters {
-    /// 0: none, 1: the glove, 2: the tracker.
+    /// 0: none, 1: the glove, 2: the tracker, 3: a headset's page (webxr: samples = hands
+    /// frames published, rejected_records = messages refused, other_station_records = frames
+    /// of a page that was not driving the hand, link_losses = sockets lost, reconnects = pages
+    /// that drove the hand after the first, device_errors = tracking gaps longer than the hold).
     pub device: u32,
     pub _reserved: u32,
     /// Valid records turned into samples.
@@ -417,6 +428,7 @@ impl DeviceCounters {
         match self.device {
             1 => Some("glove"),
             2 => Some("tracker"),
+            3 => Some("headset"),
             _ => None,
         }
     }

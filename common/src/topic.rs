@@ -292,12 +292,13 @@ topic_table! {
             publishers: [Acquisition, Replay, Bridge],
             readers: [Kinematics, Recorder, Bridge],
         },
-        /// Whole-hand joint poses (an OpenXR hand), replayed from a recording or a CARL file.
+        /// Whole-hand joint poses (an OpenXR hand): replayed from a recording or a CARL file,
+        /// or a headset's hand tracking (WebXR).
         Joints: JointsSample {
             name: "joints",
             buffer: 1024,
-            max_publishers: 2,
-            publishers: [Replay, Bridge],
+            max_publishers: 3,
+            publishers: [Replay, Bridge, Webxr],
             readers: [Kinematics, Recorder, Bridge],
         },
         /// The hand model: finger check points and the palm, as the stepper reads them.
@@ -315,7 +316,7 @@ topic_table! {
             buffer: 1024,
             max_publishers: 2,
             publishers: [Stepper, Bridge],
-            readers: [Renderer, Replay, Recorder, Bridge],
+            readers: [Renderer, Replay, Recorder, Bridge, Webxr],
         },
         /// One drawn frame's timing.
         Frame: FrameSample {
@@ -331,7 +332,7 @@ topic_table! {
             name: "latency",
             buffer: 32,
             max_publishers: 8,
-            publishers: [Acquisition, Replay, Kinematics, Stepper, Renderer, Recorder, Bridge],
+            publishers: [Acquisition, Replay, Kinematics, Stepper, Renderer, Recorder, Bridge, Webxr],
             readers: [],
         },
     }
@@ -462,6 +463,9 @@ stage_table! {
         /// table, but it opens ports only on the topics its session names
         /// ([`crate::config::session::Bridge`]).
         Bridge = 6 { name: "bridge", role: Bridge },
+        /// A headset's browser (WebXR hand input): serves the page, publishes the hand it
+        /// sends as joints, and sends it the world to draw.
+        Webxr = 7 { name: "webxr", role: Source },
     }
 }
 

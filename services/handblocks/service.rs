@@ -62,6 +62,8 @@ pub enum StageError {
     Replay(#[source] replay::service::ReplayError),
     #[error("{0}")]
     Bridge(#[source] bridge::service::BridgeError),
+    #[error("{0}")]
+    Webxr(#[source] webxr::WebxrError),
 }
 
 impl ServiceError {
@@ -154,5 +156,6 @@ fn run_stage(
         Stage::Recorder => recorder::service::run(&session, &bus).map_err(StageError::Recorder),
         Stage::Replay => replay::service::run(&session, &bus).map_err(StageError::Replay),
         Stage::Bridge => bridge::service::run(&session, &bus).map_err(StageError::Bridge),
+        Stage::Webxr => webxr::run(&session, &bus).map_err(StageError::Webxr),
     }
 }

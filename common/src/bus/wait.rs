@@ -449,6 +449,54 @@ pub(super) fn wait_on(
     Ok(())
 }
 
+/// A wake-up another thread can give a stage sleeping in [`wait_each`] (its `other`
+/// descriptor): an eventfd, readable once [`Wake::wake`] was called. For work that arrives off
+/// the bus (a network library's callback, an async server's task), handed over through a queue.
+#[derive(Debug)]
+pub struct Wake {
+    fd: std::os::fd::OwnedFd,
+}
+
+impl Wake {
+    pub fn new() -> std::io::Result<Wake> {
+        use std::os::fd::FromRawFd;
+        // SAFETY: plain syscall; the descriptor is owned by the returned OwnedFd.
+        let fd = unsafe { libc::eventfd(0, libc::EFD_NONBLOCK | libc::EFD_CLOEXEC) };
+        if fd < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        // SAFETY: `fd` is a fresh descriptor nobody else owns.
+        Ok(Wake {
+            fd: unsafe { std::os::fd::OwnedFd::from_raw_fd(fd) },
+        })
+    }
+
+    /// The descriptor to sleep on (readable after a wake-up).
+    pub fn fd(&self) -> std::os::fd::RawFd {
+        use std::os::fd::AsRawFd;
+        self.fd.as_raw_fd()
+    }
+
+    /// Wakes the sleeper (from any thread; never blocks).
+    pub fn wake(&self) {
+        let one: u64 = 1;
+        // SAFETY: writes 8 bytes from a live u64 to an eventfd; a full counter (EAGAIN) is
+        // fine: the sleeper is awake already.
+        unsafe {
+            libc::write(self.fd(), &one as *const u64 as *const libc::c_void, 8);
+        }
+    }
+
+    /// Consumes the wake-ups given so far (the work itself is taken from its queue).
+    pub fn clear(&self) {
+        let mut n: u64 = 0;
+        // SAFETY: reads 8 bytes into a live u64 from a non-blocking eventfd.
+        unsafe {
+            libc::read(self.fd(), &mut n as *mut u64 as *mut libc::c_void, 8);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -116,6 +116,31 @@ pub enum Source {
     /// Another machine's session, over zenoh: the bridge publishes what it takes in
     /// (`session.bridge.link`), and this session renders and records it (a viewer).
     Remote,
+    /// A headset's browser (WebXR hand input): the webxr process serves the page and its
+    /// socket and publishes the hand it sends ([`WebxrSource`]).
+    Webxr(WebxrSource),
+}
+
+/// `[source] kind = "webxr"`: where the page is served and which hand drives the model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WebxrSource {
+    /// `listen`: the address the page and its socket are served on (`0.0.0.0:8443`: every
+    /// interface, so a headset on the network reaches it).
+    pub listen: std::net::SocketAddr,
+    /// `tls`: HTTPS and WSS with a certificate kept in `certificate_dir` (WebXR needs a secure
+    /// context); false: plain HTTP, for `http://localhost` through `adb reverse` and for tests.
+    pub tls: bool,
+    /// `certificate_dir`: where the certificate made on first use is kept for the next
+    /// (default `$XDG_DATA_HOME/handblocks/webxr`, or `~/.local/share/handblocks/webxr`).
+    pub certificate_dir: Option<PathBuf>,
+    /// `hand`: the hand that drives the model, `"right"` (default) or `"left"`.
+    pub left_hand: bool,
+    /// `offset`: moves the tracked hand, metres (a standing user's hands are ~1 m above the
+    /// floor; the blocks of most scenes are on it).
+    pub offset: [f64; 3],
+    /// `token`: the page's token (at least 16 characters of `A-Za-z0-9-_`); default: a new
+    /// random one each session, so nobody else on the network drives the hand.
+    pub token: Option<String>,
 }
 
 impl Source {
@@ -125,6 +150,7 @@ impl Source {
             Source::Devices { .. } => "devices",
             Source::Replay { .. } => "replay",
             Source::Remote => "remote",
+            Source::Webxr(_) => "webxr",
         }
     }
 }
@@ -567,7 +593,11 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
         return Ok((Source::Scripted { rate_hz: 120.0 }, None));
     };
     let mut link = None;
-    let s = match r.choice("kind", &["scripted", "devices", "replay", "remote"])? {
+    let s = match r.choice(
+        "kind",
+        &["scripted", "devices", "replay", "remote", "webxr"],
+    )? {
+        "webxr" => Source::Webxr(webxr_source(&r, dir)?),
         "remote" => {
             link = Some(super::remote::remote_source(&r)?);
             Source::Remote
@@ -642,6 +672,38 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
     };
     r.finish()?;
     Ok((s, link))
+}
+
+/// `[source] kind = "webxr"`'s keys.
+fn webxr_source(r: &Reader, dir: &Path) -> Result<WebxrSource, ConfigError> {
+    let listen = match r.string("listen")? {
+        None => std::net::SocketAddr::from(([0, 0, 0, 0], 8443)),
+        Some(a) => a.parse().map_err(|e| {
+            r.err(
+                "listen",
+                format!("{a:?} is not an address and port ({e}); e.g. \"0.0.0.0:8443\""),
+            )
+        })?,
+    };
+    let token = r.string("token")?;
+    if let Some(t) = &token {
+        let ok = |c: char| c.is_ascii_alphanumeric() || c == '-' || c == '_';
+        if t.len() < 16 || t.len() > 128 || !t.chars().all(ok) {
+            return Err(r.err(
+                "token",
+                "16 to 128 characters of A-Z, a-z, 0-9, - and _; leave it out for a new random \
+                 token each session",
+            ));
+        }
+    }
+    Ok(WebxrSource {
+        listen,
+        tls: r.bool("tls", true)?,
+        certificate_dir: r.string("certificate_dir")?.map(|d| dir.join(d)),
+        left_hand: r.choice("hand", &["right", "left"])? == "left",
+        offset: r.array::<3>("offset", -1.0e5..=1.0e5)?.unwrap_or([0.0; 3]),
+        token,
+    })
 }
 
 fn renderer(r: Option<Reader>) -> Result<RendererSettings, ConfigError> {

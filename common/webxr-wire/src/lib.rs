@@ -11,7 +11,7 @@
 //! offset  size  field
 //!      0     4  magic "HBX1" (the format's version is its last byte)
 //!      4     1  kind: 1 = hands
-//!      5     1  hands present: bit 0 left, bit 1 right
+//!      5     1  hands present: bit 0 left, bit 1 right (0: no hand tracked this frame)
 //!      6     2  reserved, 0
 //!      8     4  seq (u32): the page's frame counter, +1 per frame sent
 //!     12     4  reserved, 0
@@ -23,10 +23,17 @@
 //! ```
 //!
 //! **What is refused**, each with a named [`WireError`] (the socket is outside input): a wrong
-//! length, magic, kind or reserved field; no hand; a non-finite number; a position farther than
-//! [`MAX_POSITION_M`] from the origin; an orientation that is no rotation (norm outside 0.5 to
-//! 2; within it, it is normalised); a radius outside 0 to [`MAX_RADIUS_M`]. Order, replays and
-//! floods are the session's to judge (by `seq` and time), not the decoder's.
+//! length, magic, kind or reserved field; a hand mask beyond the two hands; a non-finite number;
+//! a position farther than [`MAX_POSITION_M`] from the origin; an orientation that is no
+//! rotation (norm outside 0.5 to 2; within it, it is passed on as sent, each f32 exactly, as a
+//! CARL trace's are, and the hand model normalises what it uses); a radius outside 0 to
+//! [`MAX_RADIUS_M`]. Order, replays and floods are the session's to judge (by `seq` and time),
+//! not the decoder's.
+//!
+//! **The other messages** of the page's socket share the first eight bytes (magic, kind, three
+//! zero bytes) and a u32 at 8; each has a fixed length ([`page`]): the page's frame statistics
+//! (kind 2) and its answer to a clock ping (kind 4) come in; the world (kind 3) and the ping
+//! (kind 5) go out.
 //!
 //! **Joints.** WebXR's hand has 25 joints; OpenXR's (`XR_EXT_hand_tracking`, which CARL traces
 //! and the `joints` topic carry) has the same 25 after a `palm` joint. [`to_joints`] derives the
@@ -109,12 +116,14 @@ pub enum WireError {
     Kind(u8),
     /// A reserved field is not 0.
     Reserved,
-    /// The hand mask names no hand, or bits beyond the two hands.
+    /// The hand mask has bits beyond the two hands.
     Hands(u8),
     /// The length the header implies is not the message's.
     Length { expected: usize, got: usize },
     /// The frame time is not a finite, non-negative number.
     FrameTime(f64),
+    /// A field of a statistics or clock message is not a finite number in its range.
+    Value { field: &'static str, value: f64 },
     /// A joint value is NaN or infinite.
     NonFinite { hand: Handedness, joint: usize },
     /// A joint farther than [`MAX_POSITION_M`] from the origin.
@@ -147,6 +156,7 @@ impl WireError {
             WireError::Hands(_) => "hands",
             WireError::Length { .. } => "length",
             WireError::FrameTime(_) => "frame_time",
+            WireError::Value { .. } => "value",
             WireError::NonFinite { .. } => "non_finite",
             WireError::Position { .. } => "position",
             WireError::Orientation { .. } => "orientation",
@@ -161,11 +171,12 @@ impl std::fmt::Display for WireError {
             WireError::Magic(m) => write!(f, "not a hands frame of this format (magic {m:02x?})"),
             WireError::Kind(k) => write!(f, "unknown message kind {k}"),
             WireError::Reserved => f.write_str("a reserved field is not 0"),
-            WireError::Hands(m) => write!(f, "hand mask {m:#04x}: allowed 1 (left), 2 (right), 3"),
+            WireError::Hands(m) => write!(f, "hand mask {m:#04x}: allowed 0 (none), 1 (left), 2 (right), 3"),
             WireError::Length { expected, got } => {
                 write!(f, "{got} bytes where the header implies {expected}")
             }
             WireError::FrameTime(t) => write!(f, "frame time {t} ms is not a finite time"),
+            WireError::Value { field, value } => write!(f, "{field} = {value} is out of range"),
             WireError::NonFinite { hand, joint } => {
                 write!(f, "{hand:?} hand, joint {joint}: not a finite number")
             }
@@ -201,6 +212,8 @@ fn f32_at(bytes: &[u8], at: usize) -> f32 {
     f32::from_le_bytes(b)
 }
 
+pub mod page;
+
 /// Decodes `bytes` into `out` (left as it was when refused). Allocates nothing.
 pub fn decode_into(bytes: &[u8], out: &mut HandsFrame) -> Result<(), WireError> {
     if bytes.len() < HEADER_BYTES {
@@ -217,7 +230,7 @@ pub fn decode_into(bytes: &[u8], out: &mut HandsFrame) -> Result<(), WireError> 
         return Err(WireError::Kind(bytes[4]));
     }
     let mask = bytes[5];
-    if mask == 0 || mask > 3 {
+    if mask > 3 {
         return Err(WireError::Hands(mask));
     }
     if bytes[6..8] != [0, 0] || bytes[12..16] != [0, 0, 0, 0] {
@@ -272,10 +285,9 @@ pub fn decode_into(bytes: &[u8], out: &mut HandsFrame) -> Result<(), WireError> 
                     metres: v[7],
                 });
             }
-            let n = f64::from(norm);
             joints.poses[joint] = Pose {
                 position: [v[0], v[1], v[2]].map(f64::from),
-                rotation: [v[3], v[4], v[5], v[6]].map(|q| f64::from(q) / n),
+                rotation: [v[3], v[4], v[5], v[6]].map(f64::from),
             };
             joints.radii[joint] = f64::from(v[7]);
         }
@@ -398,7 +410,7 @@ mod tests {
         let cases: Vec<(Spoil, &str)> = vec![
             (Box::new(|b| b[0] = b'X'), "magic"),
             (Box::new(|b| b[4] = 9), "kind"),
-            (Box::new(|b| b[5] = 0), "hands"),
+            (Box::new(|b| b[5] = 0), "length"),
             (Box::new(|b| b[5] = 4), "hands"),
             (Box::new(|b| b[5] = 3), "length"),
             (Box::new(|b| b[6] = 1), "reserved"),

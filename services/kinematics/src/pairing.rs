@@ -17,6 +17,8 @@ use crate::model::HandModel;
 /// Glove readings kept to pair with trackers that arrive late (a second of a 120 Hz glove).
 pub const GLOVE_HISTORY: usize = 128;
 
+pub use common::TRACKING_HOLD_NS;
+
 /// The most recent glove readings, in arrival order, in a fixed ring (no allocation).
 pub struct GloveHistory {
     ring: [GloveSample; GLOVE_HISTORY],
@@ -71,6 +73,10 @@ pub struct HandStream {
     hand: HandSample,
     /// Hands made so far: the next hand's `seq` (a bus outlet stamps its own on publishing).
     made: u64,
+    /// Source time of the last tracked joints sample.
+    last_tracked_ns: Option<u64>,
+    /// Lost hands released after [`TRACKING_HOLD_NS`] (each gap counted once).
+    releases: u64,
 }
 
 impl HandStream {
@@ -80,7 +86,14 @@ impl HandStream {
             gloves: GloveHistory::default(),
             hand: HandSample::default(),
             made: 0,
+            last_tracked_ns: None,
+            releases: 0,
         }
+    }
+
+    /// Gaps in tracking longer than [`TRACKING_HOLD_NS`], after which the hand let go.
+    pub fn releases(&self) -> u64 {
+        self.releases
     }
 
     /// Keeps a glove reading to pair with the trackers of its time (and later ones).
@@ -101,6 +114,7 @@ impl HandStream {
             &tracker.wrist,
             &mut self.hand,
         );
+        self.last_tracked_ns = Some(tracker.stamp.source_time_ns);
         let mut stamp = Stamp::derived(self.made, &tracker.stamp);
         if let Some(g) = glove {
             stamp.origin_ns = stamp.origin_ns.min(g.stamp.origin_ns);
@@ -109,10 +123,26 @@ impl HandStream {
     }
 
     /// The hand at a joints sample: the joints' hand, or, when the model cannot use them, the
-    /// previous hand marked lost.
+    /// previous hand marked lost. A hand lost for longer than [`TRACKING_HOLD_NS`] (source
+    /// time since its last tracked sample) lets go: it keeps its wrist but has no fingers and
+    /// no palm, so it touches nothing, until it is tracked again.
     pub fn joints(&mut self, joints: &JointsSample) -> &HandSample {
-        if !self.model.from_joints(joints, &mut self.hand) {
+        let now = joints.stamp.source_time_ns;
+        let tracked = joints.tracked != 0 && self.model.from_joints(joints, &mut self.hand);
+        if tracked {
+            self.last_tracked_ns = Some(now);
+        } else {
             self.hand.tracked = 0;
+            let held = self
+                .last_tracked_ns
+                .is_some_and(|t| now.saturating_sub(t) <= TRACKING_HOLD_NS);
+            if !held {
+                if self.hand.finger_count > 0 {
+                    self.releases += 1;
+                }
+                self.hand.finger_count = 0;
+                self.hand.palm_vertex_count = 0;
+            }
         }
         let stamp = Stamp::derived(self.made, &joints.stamp);
         self.stamped(stamp)
@@ -199,5 +229,43 @@ mod tests {
         assert_eq!(lost.tracked, 0);
         assert_eq!(lost.finger_points, hand.finger_points);
         assert_eq!((lost.stamp.seq, lost.stamp.source_time_ns), (1, 20));
+    }
+
+    /// A lost hand keeps its grasp (its last pose, fingers and all) for up to
+    /// `TRACKING_HOLD_NS` of source time, then lets go (no fingers, no palm), counted once per
+    /// gap; tracked again, it has its fingers back.
+    #[test]
+    fn a_lost_hand_holds_for_the_hold_time_then_lets_go() {
+        let mut stream = HandStream::new(HandModel::default());
+        let mut j = JointsSample::default();
+        for (k, p) in j.joints.iter_mut().enumerate() {
+            p.position = [0.01 * k as f64, 1.0, 0.0];
+        }
+        let at = |j: &JointsSample, ms: u64, tracked: u32| {
+            let mut j = *j;
+            j.stamp.source_time_ns = ms * 1_000_000;
+            j.tracked = tracked;
+            j
+        };
+        let fingers = |s: &mut HandStream, j: JointsSample| s.joints(&j).finger_count;
+        assert_eq!(fingers(&mut stream, at(&j, 0, 1)), 5);
+        assert_eq!(
+            fingers(&mut stream, at(&j, 50, 0)),
+            5,
+            "held within the hold time"
+        );
+        assert_eq!(
+            fingers(&mut stream, at(&j, 100, 0)),
+            5,
+            "held at exactly the hold time"
+        );
+        assert_eq!(stream.releases(), 0);
+        assert_eq!(fingers(&mut stream, at(&j, 101, 0)), 0, "let go after it");
+        assert_eq!(fingers(&mut stream, at(&j, 160, 0)), 0);
+        assert_eq!(stream.releases(), 1, "one gap, one release");
+        assert_eq!(stream.joints(&at(&j, 160, 0)).palm_vertex_count, 0);
+        assert_eq!(fingers(&mut stream, at(&j, 200, 1)), 5, "tracked again");
+        assert_eq!(fingers(&mut stream, at(&j, 250, 0)), 5);
+        assert_eq!(stream.releases(), 1);
     }
 }

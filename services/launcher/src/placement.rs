@@ -82,7 +82,11 @@ impl Placement {
         Some(match stage {
             // The bridge is a consumer too: what it sends is off the pipeline's path.
             Stage::Renderer | Stage::Recorder | Stage::Bridge => consumers,
-            Stage::Acquisition | Stage::Replay | Stage::Kinematics | Stage::Stepper => pipeline,
+            Stage::Acquisition
+            | Stage::Replay
+            | Stage::Webxr
+            | Stage::Kinematics
+            | Stage::Stepper => pipeline,
         })
     }
 

@@ -216,6 +216,11 @@ impl StageJson {
         if s.stage == Stage::Renderer {
             metrics.push(Metric::Photon);
         }
+        if s.stage == Stage::Webxr {
+            // The headset's page: a hands frame sent to the world that answers it drawn, and
+            // its JavaScript time per XR frame.
+            metrics.extend([Metric::Photon, Metric::Page]);
+        }
         StageJson {
             cpu_s: s.cpu_s,
             final_report: s.final_report,

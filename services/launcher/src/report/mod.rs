@@ -29,7 +29,7 @@ pub use table::TERMS;
 /// What the launcher heard from one stage.
 pub struct StageReport {
     pub stage: Stage,
-    pub histograms: [Histogram<u64>; 4],
+    pub histograms: [Histogram<u64>; common::samples::METRICS],
     pub counters: Vec<common::TopicCounter>,
     pub final_report: bool,
     /// A source only: the longest stretch without a sample it sent, ns.
@@ -59,6 +59,7 @@ impl StageReport {
                 h(Metric::Process)?,
                 h(Metric::Origin)?,
                 h(Metric::Photon)?,
+                h(Metric::Page)?,
             ],
             counters: sample
                 .counters
@@ -86,7 +87,7 @@ impl StageReport {
         let h = common::latency::new_histogram;
         StageReport {
             stage,
-            histograms: [h(), h(), h(), h()],
+            histograms: std::array::from_fn(|_| h()),
             counters: Vec::new(),
             final_report: false,
             silence_ns: 0,

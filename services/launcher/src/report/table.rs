@@ -13,6 +13,9 @@ process      receive to this stage's publish: its own work
 origin->out  the sample's origin (when its source sample entered the pipeline) to this stage's
              publish: the age of what it sends (at the stepper: origin -> world)
 origin->px   the renderer only: origin to the frame's GPU work complete (origin -> photon)
+sent->drawn  the webxr source only: a hands frame sent by the headset's page to the world that
+             answers it drawn there (the page's round trip, on the page's clock)
+page js      the webxr source only: the page's JavaScript time per XR frame
 received     per topic, the fewest samples any reader of it received; dropped = never read
              (sequence gaps, or published but not received by the end)";
 
@@ -34,7 +37,9 @@ impl Report {
                     Metric::Hop => "hop",
                     Metric::Process => "process",
                     Metric::Origin => "origin->out",
+                    Metric::Photon if s.stage == common::Stage::Webxr => "sent->drawn",
                     Metric::Photon => "origin->px",
+                    Metric::Page => "page js",
                 };
                 out.push_str(&format!(
                     "{:<12} {:<11} {:>8} {:>9.1} {:>9.1} {:>9.1} {:>9.1} {:>9.1}\n",

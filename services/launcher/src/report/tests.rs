@@ -6,12 +6,8 @@ use common::config::session::Budget;
 use super::*;
 
 fn stage(stage: Stage, metric: Metric, n: u64, silence_ms: u64) -> StageReport {
-    let mut histograms = [
-        common::latency::new_histogram(),
-        common::latency::new_histogram(),
-        common::latency::new_histogram(),
-        common::latency::new_histogram(),
-    ];
+    let mut histograms: [_; common::samples::METRICS] =
+        std::array::from_fn(|_| common::latency::new_histogram());
     for _ in 0..n {
         histograms[metric as usize].saturating_record(100_000);
     }

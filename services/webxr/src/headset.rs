@@ -1,0 +1,597 @@
+//! The webxr stage: a headset's page as the session's source.
+//!
+//! **Which page drives.** The first page that sends a hands frame drives the hand until its
+//! socket closes; frames of any other page meanwhile are counted and dropped (a second headset,
+//! or the same one reloaded before the old socket timed out, cannot make the hand jump between
+//! two people). Any number of pages may watch.
+//!
+//! **Time.** A frame's source time is its `predictedDisplayTime` mapped to this machine's
+//! CLOCK_MONOTONIC by the page's clock offset ([`crate::server`]), which is held fixed from
+//! the driving page's first frame on: the stepper's simulated time follows source time, and an
+//! offset that moved under it would stretch or shrink the world's time. Frames whose seq or
+//! source time does not increase are refused (`order`: replayed, reordered).
+//!
+//! **Tracking.** A frame without the driving hand publishes the hand's last joints marked
+//! untracked, in the frame's time; kinematics holds the grasp through such a gap up to
+//! `kinematics::TRACKING_HOLD_NS` (100 ms) and then lets go. A driving page whose socket
+//! closes (or that sends nothing for [`SILENCE_NS`]) is a gap too: untracked samples go on,
+//! every [`GAP_PERIOD_NS`] of this machine's time, so that the world goes on and what the
+//! hand held falls, until a page drives again.
+//!
+//! **Back to the page.** Every world goes to every page ([`webxr_wire::page::encode_world`]),
+//! with the seq of the driving page's frame it answers (looked up by the world's origin, which
+//! is that frame's arrival), so the page measures its round trip. The page's timing comes back
+//! as statistics, recorded here as the webxr stage's `sent->drawn` and `page js` latencies.
+
+use std::time::Duration;
+
+use common::bus::{wait_each, Bus, BusError, Inlet, Outlet, WaitStrategy, Waiter, Wakeable};
+use common::config::session::{Source, WebxrSource};
+use common::config::Session;
+use common::latency::{Metric, Reporter};
+use common::node::{self, Counters, Pass, Task};
+use common::{
+    monotonic_ns, shutdown, topics, DeviceCounters, JointsSample, Stage, Stamp, TRACKING_HOLD_NS,
+};
+use webxr_wire::page::NO_FRAME;
+use webxr_wire::{Handedness, HandsFrame};
+
+use crate::address;
+use crate::certificate::{self, CertificateError};
+use crate::server::{Inbound, Server, ServerError, ServerSettings};
+
+/// A driving page silent this long (this machine's time) is taken as gone.
+pub const SILENCE_NS: u64 = 250_000_000;
+/// While no page drives after one did: an untracked sample this often (60 Hz).
+pub const GAP_PERIOD_NS: u64 = 16_666_667;
+/// Frames remembered to answer a world with the frame it answers.
+const ORIGINS: usize = 256;
+/// Pages whose clock offsets are kept (more than the server admits at once).
+const CLOCKS: usize = 16;
+
+/// Why the webxr process stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum WebxrError {
+    #[error("{0}")]
+    Bus(#[from] BusError),
+    #[error("{0}")]
+    NotThisSource(String),
+    #[error("{0}")]
+    Certificate(#[from] CertificateError),
+    #[error("{0}")]
+    Server(#[from] ServerError),
+    #[error("cannot make the session's token: {0}")]
+    Token(#[source] std::io::Error),
+    #[error("{0}")]
+    Scene(String),
+}
+
+/// Runs until asked to stop.
+pub fn run(session: &Session, bus: &Bus) -> Result<(), WebxrError> {
+    let Source::Webxr(settings) = &session.source else {
+        return Err(WebxrError::NotThisSource(format!(
+            "{}: source kind \"{}\" is not run by the webxr process",
+            session.file.display(),
+            session.source.kind()
+        )));
+    };
+    let token = match &settings.token {
+        Some(t) => t.clone(),
+        None => address::random_token().map_err(WebxrError::Token)?,
+    };
+    let host = address::public_host(settings.listen);
+    let certificate = if settings.tls {
+        let dir = settings
+            .certificate_dir
+            .clone()
+            .unwrap_or_else(certificate::default_dir);
+        let mut hosts = vec!["localhost".to_string(), "127.0.0.1".to_string()];
+        if !host.is_loopback() {
+            hosts.push(host.to_string());
+        }
+        Some(certificate::load_or_make(&dir, &hosts)?)
+    } else {
+        None
+    };
+    let scene_json = scene_message(session, settings)?;
+    let server = Server::start(ServerSettings {
+        listen: settings.listen,
+        tls: certificate.as_ref().map(|c| c.config.clone()),
+        token: token.clone(),
+        scene_json,
+    })?;
+    let url = address::url(settings.tls, host, server.local_addr.port(), &token);
+    tell_the_user(
+        &url,
+        settings,
+        server.local_addr.port(),
+        &token,
+        certificate.as_ref(),
+    );
+
+    let mut headset = Headset {
+        joints_out: bus.outlet()?,
+        world_in: bus.inlet()?,
+        settings: settings.clone(),
+        server,
+        driver: None,
+        clocks: [(0, 0, 0); CLOCKS],
+        held_offset_ns: None,
+        last_seq: None,
+        last_source_ns: 0,
+        last_frame_arrival_ns: 0,
+        last_gap_ns: 0,
+        joints: None,
+        origins: [(0, NO_FRAME); ORIGINS],
+        origin_next: 0,
+        world_message: Vec::with_capacity(
+            webxr_wire::page::WORLD_HEADER_BYTES + 32 * session.scene.blocks.len() + 12 * 64,
+        ),
+        counts: Counts::default(),
+    };
+    node::run(Stage::Webxr, bus, WaitStrategy::Event, &mut headset)?;
+    Ok(())
+}
+
+/// The URL, its QR code, the certificate's fingerprint, and the other route.
+fn tell_the_user(
+    url: &str,
+    settings: &WebxrSource,
+    port: u16,
+    token: &str,
+    certificate: Option<&certificate::Certificate>,
+) {
+    let mut s = String::new();
+    s.push_str(&format!(
+        "handblocks webxr: open this in the headset's browser:\n\n    {url}\n\n"
+    ));
+    if let Some(qr) = address::qr(url) {
+        s.push_str(&qr);
+        s.push('\n');
+    }
+    if let Some(c) = certificate {
+        s.push_str(&format!(
+            "  The certificate ({}{}) is this machine's own: the browser warns once; accept it\n  \
+             (Advanced -> Proceed) after checking its SHA-256 fingerprint:\n  {}\n",
+            c.file.display(),
+            if c.made { ", made now" } else { "" },
+            c.fingerprint
+        ));
+    }
+    s.push_str(&format!(
+        "  Or, a Quest on USB: `adb reverse tcp:{port} tcp:{port}` and open \
+         {}://localhost:{port}/?token={token}\n",
+        if settings.tls { "https" } else { "http" }
+    ));
+    eprintln!("{s}");
+}
+
+/// The scene as the page draws it: each block's hull (its own frame, about its centre of
+/// gravity, as the world's poses place it), its name and colour; the floor; the driving hand.
+fn scene_message(session: &Session, settings: &WebxrSource) -> Result<String, WebxrError> {
+    let colours = common::config::colors::block_colors(&session.scene);
+    let mut blocks = Vec::with_capacity(session.scene.blocks.len());
+    for (b, colour) in session.scene.blocks.iter().zip(colours) {
+        let solid = shapes::Solid::from_spec(&b.shape).map_err(|problem| {
+            WebxrError::Scene(format!(
+                "{}: block {:?}: {problem}",
+                session.scene_file.display(),
+                b.name
+            ))
+        })?;
+        let vertices: Vec<f64> = solid.vertices.iter().flat_map(|v| v.to_array()).collect();
+        let indices: Vec<u32> = solid.triangles.iter().flatten().copied().collect();
+        blocks.push(serde_json::json!({
+            "name": b.name,
+            "color": colour,
+            "vertices": vertices,
+            "indices": indices,
+        }));
+    }
+    Ok(serde_json::json!({
+        "op": "scene",
+        "session": session.file.display().to_string(),
+        "hand": if settings.left_hand { "left" } else { "right" },
+        "floor_y": 0.0,
+        "step_hz": session.scene.world.step_hz,
+        "offset": settings.offset,
+        "blocks": blocks,
+    })
+    .to_string())
+}
+
+/// What the stage counted, for its report.
+#[derive(Debug, Default, Clone, Copy)]
+struct Counts {
+    /// Hands frames published as joints (tracked or not).
+    published: u64,
+    /// Frames without the driving hand, and samples sent while no page drove.
+    untracked: u64,
+    /// Frames of a page that was not driving.
+    other_page: u64,
+    /// Frames before the page's clock was known.
+    before_clock: u64,
+    /// Frames whose seq or time did not increase.
+    order: u64,
+    /// Driving sockets lost (closed or silent).
+    drops: u64,
+    /// Pages that took over driving after the first.
+    takeovers: u64,
+    /// Gaps (frames without the hand, or no page) longer than the hold time.
+    long_gaps: u64,
+    /// Start of the current gap (source time), when in one.
+    gap_from_ns: Option<u64>,
+    gap_counted: bool,
+    worlds_sent: u64,
+    offset_ns: i64,
+    offset_round_trip_ns: u64,
+    offset_pongs: u32,
+}
+
+struct Headset {
+    joints_out: Outlet<topics::Joints>,
+    world_in: Inlet<topics::World>,
+    settings: WebxrSource,
+    server: Server,
+    /// The page driving the hand.
+    driver: Option<u64>,
+    /// Each page's clock: (page, offset ns, round trip ns).
+    clocks: [(u64, i64, u64); CLOCKS],
+    /// The offset in force since the first driving frame.
+    held_offset_ns: Option<i64>,
+    last_seq: Option<u32>,
+    last_source_ns: u64,
+    last_frame_arrival_ns: u64,
+    /// When the last untracked sample was sent while no page drove (this machine's time).
+    last_gap_ns: u64,
+    /// The last joints published (what a gap repeats, untracked).
+    joints: Option<JointsSample>,
+    /// (origin ns, page seq) of the frames published, to answer worlds with their frame.
+    origins: [(u64, u32); ORIGINS],
+    origin_next: usize,
+    world_message: Vec<u8>,
+    counts: Counts,
+}
+
+impl Headset {
+    fn clock_of(&self, page: u64) -> Option<(i64, u64)> {
+        self.clocks
+            .iter()
+            .find(|c| c.0 == page)
+            .map(|&(_, offset, rt)| (offset, rt))
+    }
+
+    fn inbound(&mut self, message: Inbound, pass: &mut Pass<'_>) -> Result<(), BusError> {
+        match message {
+            Inbound::Clock {
+                page,
+                offset_ns,
+                round_trip_ns,
+                pongs,
+            } => {
+                let slot = match self.clocks.iter().position(|c| c.0 == page) {
+                    Some(i) => i,
+                    // The oldest page's slot (pages are numbered in connection order).
+                    None => (0..CLOCKS).min_by_key(|&i| self.clocks[i].0).unwrap_or(0),
+                };
+                self.clocks[slot] = (page, offset_ns, round_trip_ns);
+                if self.driver == Some(page) || self.driver.is_none() {
+                    self.counts.offset_pongs = pongs;
+                }
+            }
+            Inbound::Stats { page, stats } => {
+                if self.driver == Some(page) {
+                    pass.recorder
+                        .record(Metric::Page, (stats.js_ms * 1e6).round() as u64);
+                    if let Some(rt) = stats.round_trip_ms {
+                        pass.recorder
+                            .record(Metric::Photon, (rt * 1e6).round() as u64);
+                    }
+                }
+            }
+            Inbound::Closed { page } => {
+                if self.driver == Some(page) {
+                    self.driver = None;
+                    self.counts.drops += 1;
+                }
+            }
+            Inbound::Hands {
+                page,
+                arrived_ns,
+                frame,
+            } => self.frame(page, arrived_ns, &frame, pass)?,
+        }
+        Ok(())
+    }
+
+    fn frame(
+        &mut self,
+        page: u64,
+        arrived_ns: u64,
+        frame: &HandsFrame,
+        pass: &mut Pass<'_>,
+    ) -> Result<(), BusError> {
+        match self.driver {
+            Some(d) if d != page => {
+                self.counts.other_page += 1;
+                return Ok(());
+            }
+            _ => {}
+        }
+        let Some((offset_ns, round_trip_ns)) = self.clock_of(page) else {
+            self.counts.before_clock += 1;
+            return Ok(());
+        };
+        if self.driver.is_none() {
+            // A new driver: its seqs start over; its clock is its own. The offset of the
+            // first driver holds (a second one's frames are mapped by their own offset, and
+            // must still come after what was published).
+            if self.joints.is_some() {
+                self.counts.takeovers += 1;
+            }
+            self.driver = Some(page);
+            self.last_seq = None;
+            if self.held_offset_ns.is_none() {
+                self.counts.offset_ns = offset_ns;
+                self.counts.offset_round_trip_ns = round_trip_ns;
+            }
+            self.held_offset_ns = Some(offset_ns);
+        }
+        let offset_ns = self.held_offset_ns.unwrap_or(offset_ns);
+        let source_ns = (frame.frame_time_ms * 1e6).round() as i128 + i128::from(offset_ns);
+        let in_order = self.last_seq.is_none_or(|s| frame.seq > s)
+            && source_ns > i128::from(self.last_source_ns)
+            && source_ns <= i128::from(u64::MAX);
+        if !in_order {
+            self.counts.order += 1;
+            return Ok(());
+        }
+        self.last_seq = Some(frame.seq);
+        self.last_frame_arrival_ns = arrived_ns;
+        let which = if self.settings.left_hand {
+            Handedness::Left
+        } else {
+            Handedness::Right
+        };
+        let mut joints = match (frame.hand(which), self.joints) {
+            (Some(hand), _) => {
+                let mut j = JointsSample::default();
+                webxr_wire::to_joints(hand, &mut j);
+                let moved = |p: &mut [f64; 3]| {
+                    for (v, o) in p.iter_mut().zip(self.settings.offset) {
+                        *v += o;
+                    }
+                };
+                moved(&mut j.wrist.position);
+                for p in j.joints.iter_mut() {
+                    moved(&mut p.position);
+                }
+                j
+            }
+            (None, Some(last)) => {
+                let mut j = last;
+                j.tracked = 0;
+                j
+            }
+            // Not seen yet: nothing to hold.
+            (None, None) => return Ok(()),
+        };
+        joints.stamp = Stamp {
+            seq: 0,
+            source_time_ns: source_ns as u64,
+            origin_ns: arrived_ns,
+            publish_ns: 0,
+        };
+        self.publish(joints, frame.seq, pass)
+    }
+
+    /// Publishes `joints` (its source time and origin set), remembering which frame it was.
+    fn publish(
+        &mut self,
+        joints: JointsSample,
+        frame_seq: u32,
+        pass: &mut Pass<'_>,
+    ) -> Result<(), BusError> {
+        let t = joints.stamp.source_time_ns;
+        if joints.tracked == 0 {
+            self.counts.untracked += 1;
+            let from = *self.counts.gap_from_ns.get_or_insert(t);
+            if !self.counts.gap_counted && t - from > TRACKING_HOLD_NS {
+                self.counts.gap_counted = true;
+                self.counts.long_gaps += 1;
+            }
+        } else {
+            self.counts.gap_from_ns = None;
+            self.counts.gap_counted = false;
+        }
+        let sent = self.joints_out.publish(&joints)?;
+        pass.recorder.record(
+            Metric::Process,
+            sent.publish_ns.saturating_sub(sent.origin_ns),
+        );
+        pass.recorder.record(
+            Metric::Origin,
+            sent.publish_ns.saturating_sub(sent.origin_ns),
+        );
+        // A headset session waits for its user: silence counts from the first sample on.
+        pass.recorder.delivered_after_waiting(sent.publish_ns);
+        self.origins[self.origin_next] = (sent.origin_ns, frame_seq);
+        self.origin_next = (self.origin_next + 1) % ORIGINS;
+        self.last_source_ns = t;
+        self.joints = Some(joints);
+        self.counts.published += 1;
+        Ok(())
+    }
+
+    /// No page drives (after one did): the hand, untracked, every [`GAP_PERIOD_NS`].
+    fn keep_time(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
+        let now = monotonic_ns();
+        if let Some(d) = self.driver {
+            if now.saturating_sub(self.last_frame_arrival_ns) > SILENCE_NS {
+                // Silent: a page in the background, a socket that died without a close; its
+                // frames, should it come back, are another driver's.
+                let _ = d;
+                self.driver = None;
+                self.counts.drops += 1;
+            } else {
+                return Ok(());
+            }
+        }
+        let Some(last) = self.joints else {
+            return Ok(());
+        };
+        if now.saturating_sub(self.last_gap_ns) < GAP_PERIOD_NS {
+            return Ok(());
+        }
+        self.last_gap_ns = now;
+        let mut j = last;
+        j.tracked = 0;
+        j.stamp = Stamp {
+            seq: 0,
+            source_time_ns: now.max(self.last_source_ns + 1),
+            origin_ns: now,
+            publish_ns: 0,
+        };
+        self.publish(j, NO_FRAME, pass)
+    }
+
+    fn worlds(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
+        while let Some(s) = self.world_in.receive()? {
+            let header = s.user_header();
+            pass.arrived(&header.stamp);
+            let blocks = &s.payload()[..(header.block_count as usize).min(s.payload().len())];
+            let origin = header.stamp.origin_ns;
+            let frame_seq = self
+                .origins
+                .iter()
+                .find(|(o, _)| *o == origin && origin != 0)
+                .map_or(NO_FRAME, |&(_, seq)| seq);
+            let fingers = (header.finger_count as usize).min(header.finger_points.len());
+            let points = (0..fingers).flat_map(|f| {
+                let n = (header.finger_point_count[f] as usize).min(header.finger_points[f].len());
+                header.finger_points[f][..n].iter().copied()
+            });
+            let count = (0..fingers)
+                .map(|f| (header.finger_point_count[f] as usize).min(header.finger_points[f].len()))
+                .sum::<usize>();
+            webxr_wire::page::encode_world(
+                frame_seq,
+                header.stamp.source_time_ns as f64 * 1e-9,
+                header.grasped_block,
+                blocks
+                    .iter()
+                    .map(|b| (b.pose.position, b.pose.rotation, b.mode)),
+                Counted {
+                    inner: points,
+                    len: count,
+                },
+                &mut self.world_message,
+            );
+            self.server.send_world(&self.world_message);
+            self.counts.worlds_sent += 1;
+        }
+        Ok(())
+    }
+}
+
+/// An iterator with its length told (the finger points, flattened).
+struct Counted<I> {
+    inner: I,
+    len: usize,
+}
+
+impl<I: Iterator> Iterator for Counted<I> {
+    type Item = I::Item;
+    fn next(&mut self) -> Option<I::Item> {
+        let v = self.inner.next()?;
+        self.len -= 1;
+        Some(v)
+    }
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        (self.len, Some(self.len))
+    }
+}
+
+impl<I: Iterator> ExactSizeIterator for Counted<I> {}
+
+impl Task for Headset {
+    type Error = BusError;
+
+    fn wait(&mut self, _: &mut Waiter, timeout: Duration) -> Result<(), BusError> {
+        // While no page drives after one did, wake at the gap's period to keep time.
+        let timeout = if self.driver.is_none() && self.joints.is_some() {
+            timeout.min(Duration::from_nanos(GAP_PERIOD_NS))
+        } else {
+            timeout.min(Duration::from_nanos(SILENCE_NS))
+        };
+        let inlets: [&dyn Wakeable; 1] = [&self.world_in];
+        wait_each(inlets.into_iter(), Some(self.server.wake_fd()), timeout)
+    }
+
+    fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
+        self.server.clear_wake();
+        if !(pass.stopping || shutdown::requested()) {
+            while let Ok(m) = self.server.inbound.try_recv() {
+                self.inbound(m, pass)?;
+            }
+            self.keep_time(pass)?;
+        }
+        self.worlds(pass)
+    }
+
+    fn counters(&self) -> Counters {
+        Counters::of([self.joints_out.counter(), self.world_in.counter()])
+    }
+
+    fn stop(&mut self, reporter: &mut Reporter) -> Result<(), BusError> {
+        self.server.stop();
+        let c = self.counts;
+        let tally = &self.server.tally;
+        let refused: Vec<String> = tally.refusals().map(|(k, n)| format!("{k} {n}")).collect();
+        reporter.set_devices([
+            DeviceCounters {
+                device: 3,
+                samples: c.published,
+                rejected_records: tally.refused_total() + c.order + c.before_clock,
+                other_station_records: c.other_page,
+                link_losses: c.drops,
+                reconnects: c.takeovers,
+                device_errors: c.long_gaps,
+                ..DeviceCounters::default()
+            },
+            DeviceCounters::default(),
+        ]);
+        eprintln!(
+            "handblocks webxr: {} pages connected; {} frames published ({} untracked), {} worlds \
+             sent; refused: {}{}{}; frames of a page not driving {}; driving sockets lost {}; \
+             tracking gaps over 100 ms (the hand let go) {}; clock offset {:.3} ms from the best \
+             of {} pings (round trip {:.3} ms), held for the session",
+            tally.sockets.load(std::sync::atomic::Ordering::Relaxed),
+            c.published,
+            c.untracked,
+            c.worlds_sent,
+            if refused.is_empty() {
+                "none".to_string()
+            } else {
+                refused.join(", ")
+            },
+            if c.order > 0 {
+                format!(", order {}", c.order)
+            } else {
+                String::new()
+            },
+            if c.before_clock > 0 {
+                format!(", before the clock {}", c.before_clock)
+            } else {
+                String::new()
+            },
+            c.other_page,
+            c.drops,
+            c.long_gaps,
+            c.offset_ns as f64 / 1e6,
+            c.offset_pongs,
+            c.offset_round_trip_ns as f64 / 1e6,
+        );
+        Ok(())
+    }
+}

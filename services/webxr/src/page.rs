@@ -1,0 +1,7 @@
+//! The page and its script, served from the binary: written for this project, nothing fetched
+//! at run time but the socket, so a headset on a network without the internet works.
+
+/// `GET /` (with the session's token).
+pub const INDEX_HTML: &str = include_str!("../page/index.html");
+/// `GET /app.js`: the page's script (no secret in it; the token is in the page's URL).
+pub const APP_JS: &str = include_str!("../page/app.js");

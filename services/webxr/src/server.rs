@@ -1,0 +1,712 @@
+//! The page's server: HTTPS (or plain HTTP for `http://localhost`) and one WebSocket per page,
+//! on tokio's threads beside the synchronous stage loop.
+//!
+//! Routes: `GET /?token=T` the page (403 without the session's token), `GET /app.js` its
+//! script, `GET /ws?token=T` the socket (a wrong token is accepted as a WebSocket and closed at
+//! once with code 4001 and a reason the page shows, since a browser cannot read an HTTP
+//! refusal of a WebSocket). Anything else is 404; a request head over 8 KiB, or not complete
+//! in 10 s, is dropped.
+//!
+//! Per socket: the scene (text, once), a clock ping every 100 ms for the first second and every
+//! second after, and the newest world whenever there is one (a slow page skips worlds, never
+//! queues them). What the page sends is decoded here ([`webxr_wire`]); a refused message is
+//! counted by its kind in [`Tally`] and the socket stays open; a message over
+//! [`MAX_MESSAGE_BYTES`] closes it (counted `oversized`); hands frames beyond
+//! [`MAX_FRAMES_PER_S`] are dropped (counted `flood`). The stage gets the rest through a
+//! bounded queue ([`Inbound`]) and a [`Wake`].
+//!
+//! **The clock.** Each pong gives an estimate of the page's clock against this machine's
+//! (CLOCK_MONOTONIC): the ping's send and the pong's receive bracket the page's reading, so
+//! `offset = (sent + received) / 2 - page`, within half the round trip. The estimate with the
+//! shortest round trip so far is kept; after [`PONGS_BEFORE_READY`] pongs the page is told
+//! `ready` (it sends hands only then) and the stage is given the offset.
+
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use bytes::Bytes;
+use common::bus::Wake;
+use common::monotonic_ns;
+use futures_util::{SinkExt, StreamExt};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::sync::watch;
+use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
+use tokio_tungstenite::tungstenite::protocol::{CloseFrame, Role, WebSocketConfig};
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::WebSocketStream;
+use webxr_wire::page::{self, FrameStats};
+use webxr_wire::{HandsFrame, KIND_HANDS};
+
+use crate::page::{APP_JS, INDEX_HTML};
+
+/// The largest message a page may send (a hands frame is 1624 bytes).
+pub const MAX_MESSAGE_BYTES: usize = 4096;
+/// Hands frames a page may send per second, sustained (a headset draws at most 120).
+pub const MAX_FRAMES_PER_S: f64 = 240.0;
+/// Pages served at once; more are refused (503).
+pub const MAX_PAGES: u64 = 8;
+/// Pongs before the clock is trusted.
+pub const PONGS_BEFORE_READY: u32 = 5;
+/// Messages queued for the stage; beyond it they are dropped (counted `queue_full`).
+const INBOUND_QUEUE: usize = 256;
+/// The longest request head read.
+const MAX_HEAD_BYTES: usize = 8192;
+const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
+/// The close code a page with a wrong token is given.
+pub const CLOSE_WRONG_TOKEN: u16 = 4001;
+
+/// What the server was started with.
+pub struct ServerSettings {
+    pub listen: SocketAddr,
+    /// Some: HTTPS and WSS.
+    pub tls: Option<Arc<rustls::ServerConfig>>,
+    pub token: String,
+    /// The scene message every page is sent first (JSON).
+    pub scene_json: String,
+}
+
+/// What a page's socket hands the stage. The queue's slots are sized for the largest (a
+/// hands frame, 1.6 KB) and made once, so nothing is allocated per message: boxing the frame
+/// would allocate one per frame.
+#[derive(Debug, Clone, Copy)]
+#[allow(clippy::large_enum_variant)]
+pub enum Inbound {
+    /// A hands frame, decoded, with when its message arrived (CLOCK_MONOTONIC).
+    Hands {
+        page: u64,
+        arrived_ns: u64,
+        frame: HandsFrame,
+    },
+    /// The page's timing of one of its frames.
+    Stats { page: u64, stats: FrameStats },
+    /// The page's clock: add `offset_ns` to its time (ns) for this machine's.
+    Clock {
+        page: u64,
+        offset_ns: i64,
+        round_trip_ns: u64,
+        pongs: u32,
+    },
+    /// The page's socket closed.
+    Closed { page: u64 },
+}
+
+/// Kinds of refusal, counted by name (each message refused once, under its first fault).
+pub const REFUSALS: [&str; 18] = [
+    "token",
+    "busy",
+    "request",
+    "oversized",
+    "flood",
+    "text",
+    "queue_full",
+    "magic",
+    "kind",
+    "reserved",
+    "hands",
+    "length",
+    "frame_time",
+    "value",
+    "non_finite",
+    "position",
+    "orientation",
+    "radius",
+];
+
+/// The server's counts, read by the stage for its report.
+#[derive(Debug, Default)]
+pub struct Tally {
+    refused: [AtomicU64; REFUSALS.len() + 1],
+    pub pages: AtomicU64,
+    pub sockets: AtomicU64,
+    pages_now: AtomicU64,
+}
+
+impl Tally {
+    /// Counts a refusal of kind `kind` (a name of [`REFUSALS`]; anything else as "other").
+    pub fn refuse(&self, kind: &str) {
+        let i = REFUSALS
+            .iter()
+            .position(|k| *k == kind)
+            .unwrap_or(REFUSALS.len());
+        self.refused[i].fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Each kind of refusal with its count, those counted only.
+    pub fn refusals(&self) -> impl Iterator<Item = (&'static str, u64)> + '_ {
+        REFUSALS
+            .iter()
+            .copied()
+            .chain(["other"])
+            .zip(self.refused.iter().map(|c| c.load(Ordering::Relaxed)))
+            .filter(|(_, n)| *n > 0)
+    }
+
+    /// Every message refused.
+    pub fn refused_total(&self) -> u64 {
+        self.refused.iter().map(|c| c.load(Ordering::Relaxed)).sum()
+    }
+}
+
+/// Why the server could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum ServerError {
+    #[error("cannot listen on {listen}: {source}; another program (or session) uses the port? set [source] listen = \"0.0.0.0:PORT\"")]
+    Listen {
+        listen: SocketAddr,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("cannot start the page's server: {0}")]
+    Runtime(#[source] std::io::Error),
+}
+
+/// The running server; dropped, it stops (sockets closed, threads joined).
+pub struct Server {
+    runtime: Option<tokio::runtime::Runtime>,
+    pub inbound: crossbeam_channel::Receiver<Inbound>,
+    wake: Arc<Wake>,
+    world: watch::Sender<Bytes>,
+    stop: watch::Sender<bool>,
+    pub tally: Arc<Tally>,
+    pub local_addr: SocketAddr,
+}
+
+/// What every connection's task shares.
+struct Shared {
+    token: String,
+    scene_json: String,
+    tls: Option<tokio_rustls::TlsAcceptor>,
+    inbound: crossbeam_channel::Sender<Inbound>,
+    wake: Arc<Wake>,
+    tally: Arc<Tally>,
+    world: watch::Receiver<Bytes>,
+    stop: watch::Receiver<bool>,
+    next_page: AtomicU64,
+}
+
+impl Server {
+    /// Binds `listen` now (so a port in use fails the process before the session counts on
+    /// it) and serves on two tokio threads.
+    pub fn start(settings: ServerSettings) -> Result<Server, ServerError> {
+        let listener =
+            std::net::TcpListener::bind(settings.listen).map_err(|source| ServerError::Listen {
+                listen: settings.listen,
+                source,
+            })?;
+        listener
+            .set_nonblocking(true)
+            .map_err(ServerError::Runtime)?;
+        let local_addr = listener.local_addr().map_err(ServerError::Runtime)?;
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .thread_name("webxr-server")
+            .enable_io()
+            .enable_time()
+            .build()
+            .map_err(ServerError::Runtime)?;
+        let (tx, inbound) = crossbeam_channel::bounded(INBOUND_QUEUE);
+        let wake = Arc::new(Wake::new().map_err(ServerError::Runtime)?);
+        let tally = Arc::new(Tally::default());
+        let (world, world_rx) = watch::channel(Bytes::new());
+        let (stop, stop_rx) = watch::channel(false);
+        let shared = Arc::new(Shared {
+            token: settings.token,
+            scene_json: settings.scene_json,
+            tls: settings.tls.map(tokio_rustls::TlsAcceptor::from),
+            inbound: tx,
+            wake: wake.clone(),
+            tally: tally.clone(),
+            world: world_rx,
+            stop: stop_rx,
+            next_page: AtomicU64::new(1),
+        });
+        let listener = {
+            let _guard = runtime.enter();
+            tokio::net::TcpListener::from_std(listener).map_err(ServerError::Runtime)?
+        };
+        runtime.spawn(accept_loop(listener, shared));
+        Ok(Server {
+            runtime: Some(runtime),
+            inbound,
+            wake,
+            world,
+            stop,
+            tally,
+            local_addr,
+        })
+    }
+
+    /// The descriptor the stage sleeps on besides its inlets.
+    pub fn wake_fd(&self) -> std::os::fd::RawFd {
+        self.wake.fd()
+    }
+
+    /// Consumes the wake-ups (the queue is drained by the caller).
+    pub fn clear_wake(&self) {
+        self.wake.clear();
+    }
+
+    /// Sends `message` (a world) to every page: one copy, shared by all sockets, which each
+    /// send the newest they have not sent.
+    pub fn send_world(&self, message: &[u8]) {
+        self.world.send_replace(Bytes::copy_from_slice(message));
+    }
+
+    /// Closes every socket and stops the server's threads.
+    pub fn stop(&mut self) {
+        let _ = self.stop.send(true);
+        if let Some(rt) = self.runtime.take() {
+            rt.shutdown_timeout(Duration::from_secs(2));
+        }
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+async fn accept_loop(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
+    let mut stop = shared.stop.clone();
+    loop {
+        tokio::select! {
+            accepted = listener.accept() => {
+                let Ok((stream, _peer)) = accepted else {
+                    // Out of descriptors, say: wait a little rather than spin.
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                    continue;
+                };
+                let _ = stream.set_nodelay(true);
+                let shared = shared.clone();
+                tokio::spawn(async move {
+                    match shared.tls.clone() {
+                        Some(acceptor) => {
+                            let tls = tokio::time::timeout(HEAD_TIMEOUT, acceptor.accept(stream)).await;
+                            match tls {
+                                Ok(Ok(s)) => connection(s, &shared).await,
+                                // A browser that does not trust the certificate yet closes the
+                                // handshake; it is asked to accept it and comes back.
+                                _ => shared.tally.refuse("request"),
+                            }
+                        }
+                        None => connection(stream, &shared).await,
+                    }
+                });
+            }
+            _ = stop.changed() => return,
+        }
+    }
+}
+
+/// A request's first line and the headers that matter here.
+#[derive(Debug, Default, PartialEq)]
+struct Request {
+    method: String,
+    path: String,
+    token: Option<String>,
+    upgrade: bool,
+    key: Option<String>,
+}
+
+fn parse_head(head: &str) -> Option<Request> {
+    let mut lines = head.split("\r\n");
+    let mut first = lines.next()?.split(' ');
+    let method = first.next()?.to_string();
+    let target = first.next()?;
+    let (path, query) = target.split_once('?').unwrap_or((target, ""));
+    let token = query
+        .split('&')
+        .find_map(|kv| kv.strip_prefix("token="))
+        .map(str::to_string);
+    let mut r = Request {
+        method,
+        path: path.to_string(),
+        token,
+        ..Request::default()
+    };
+    for line in lines {
+        let Some((name, value)) = line.split_once(':') else {
+            continue;
+        };
+        let value = value.trim();
+        if name.eq_ignore_ascii_case("upgrade") {
+            r.upgrade = value.eq_ignore_ascii_case("websocket");
+        } else if name.eq_ignore_ascii_case("sec-websocket-key") {
+            r.key = Some(value.to_string());
+        }
+    }
+    Some(r)
+}
+
+/// Constant-time comparison of the token (its length is not secret).
+fn token_ok(given: Option<&str>, token: &str) -> bool {
+    given.is_some_and(|g| {
+        g.len() == token.len()
+            && g.bytes()
+                .zip(token.bytes())
+                .fold(0u8, |acc, (a, b)| acc | (a ^ b))
+                == 0
+    })
+}
+
+async fn read_head<S: AsyncRead + Unpin>(stream: &mut S) -> Option<String> {
+    let mut buf = Vec::with_capacity(1024);
+    let mut chunk = [0u8; 1024];
+    let read = async {
+        loop {
+            let n = stream.read(&mut chunk).await.ok()?;
+            if n == 0 {
+                return None;
+            }
+            buf.extend_from_slice(&chunk[..n]);
+            if let Some(end) = buf.windows(4).position(|w| w == b"\r\n\r\n") {
+                return String::from_utf8(buf[..end].to_vec()).ok();
+            }
+            if buf.len() > MAX_HEAD_BYTES {
+                return None;
+            }
+        }
+    };
+    tokio::time::timeout(HEAD_TIMEOUT, read)
+        .await
+        .ok()
+        .flatten()
+}
+
+async fn respond<S: AsyncWrite + Unpin>(stream: &mut S, status: &str, kind: &str, body: &[u8]) {
+    let head = format!(
+        "HTTP/1.1 {status}\r\nContent-Type: {kind}\r\nContent-Length: {}\r\n\
+         Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: close\r\n\r\n",
+        body.len()
+    );
+    let _ = stream.write_all(head.as_bytes()).await;
+    let _ = stream.write_all(body).await;
+    let _ = stream.shutdown().await;
+}
+
+const NO_TOKEN: &str =
+    "This page needs the session's token: open the URL that `handblocks launch` \
+printed (it ends in ?token=...), or scan its QR code.\n";
+
+async fn connection<S: AsyncRead + AsyncWrite + Unpin + Send>(mut stream: S, shared: &Shared) {
+    let Some(head) = read_head(&mut stream).await else {
+        shared.tally.refuse("request");
+        return;
+    };
+    let Some(req) = parse_head(&head) else {
+        shared.tally.refuse("request");
+        respond(
+            &mut stream,
+            "400 Bad Request",
+            "text/plain",
+            b"bad request\n",
+        )
+        .await;
+        return;
+    };
+    if req.method != "GET" {
+        shared.tally.refuse("request");
+        respond(
+            &mut stream,
+            "405 Method Not Allowed",
+            "text/plain",
+            b"GET only\n",
+        )
+        .await;
+        return;
+    }
+    match req.path.as_str() {
+        "/ws" if req.upgrade => socket(stream, req, shared).await,
+        "/" | "/index.html" => {
+            if token_ok(req.token.as_deref(), &shared.token) {
+                let html = "text/html; charset=utf-8";
+                respond(&mut stream, "200 OK", html, INDEX_HTML.as_bytes()).await;
+            } else {
+                shared.tally.refuse("token");
+                respond(
+                    &mut stream,
+                    "403 Forbidden",
+                    "text/plain",
+                    NO_TOKEN.as_bytes(),
+                )
+                .await;
+            }
+        }
+        "/app.js" => {
+            let js = "text/javascript; charset=utf-8";
+            respond(&mut stream, "200 OK", js, APP_JS.as_bytes()).await;
+        }
+        _ => respond(&mut stream, "404 Not Found", "text/plain", b"not found\n").await,
+    }
+}
+
+/// The WebSocket handshake's answer, then the page's socket until it closes or we stop.
+async fn socket<S: AsyncRead + AsyncWrite + Unpin + Send>(
+    mut stream: S,
+    req: Request,
+    shared: &Shared,
+) {
+    let Some(key) = req.key.as_deref() else {
+        shared.tally.refuse("request");
+        respond(
+            &mut stream,
+            "400 Bad Request",
+            "text/plain",
+            b"no Sec-WebSocket-Key\n",
+        )
+        .await;
+        return;
+    };
+    let accept = tokio_tungstenite::tungstenite::handshake::derive_accept_key(key.as_bytes());
+    let head = format!(
+        "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+         Sec-WebSocket-Accept: {accept}\r\n\r\n"
+    );
+    if stream.write_all(head.as_bytes()).await.is_err() {
+        return;
+    }
+    let config = WebSocketConfig::default()
+        .max_message_size(Some(MAX_MESSAGE_BYTES))
+        .max_frame_size(Some(MAX_MESSAGE_BYTES));
+    let mut ws = WebSocketStream::from_raw_socket(stream, Role::Server, Some(config)).await;
+    let refuse = |code: u16, reason: &'static str| CloseFrame {
+        code: CloseCode::from(code),
+        reason: reason.into(),
+    };
+    if !token_ok(req.token.as_deref(), &shared.token) {
+        shared.tally.refuse("token");
+        let why = "wrong token: open the URL the session printed";
+        let _ = ws.close(Some(refuse(CLOSE_WRONG_TOKEN, why))).await;
+        return;
+    }
+    if shared.tally.pages_now.fetch_add(1, Ordering::AcqRel) >= MAX_PAGES {
+        shared.tally.pages_now.fetch_sub(1, Ordering::AcqRel);
+        shared.tally.refuse("busy");
+        let _ = ws
+            .close(Some(refuse(
+                4003,
+                "too many pages are open on this session",
+            )))
+            .await;
+        return;
+    }
+    let page = shared.next_page.fetch_add(1, Ordering::Relaxed);
+    shared.tally.sockets.fetch_add(1, Ordering::Relaxed);
+    page_loop(&mut ws, page, shared).await;
+    shared.tally.pages_now.fetch_sub(1, Ordering::AcqRel);
+    let _ = shared.inbound.try_send(Inbound::Closed { page });
+    shared.wake.wake();
+}
+
+/// One page's clock estimate: the ping with the shortest round trip so far.
+#[derive(Debug, Default)]
+struct PageClock {
+    sent_ns: [(u32, u64); 16],
+    best: Option<(u64, i64)>,
+    pongs: u32,
+}
+
+impl PageClock {
+    fn sent(&mut self, seq: u32, at_ns: u64) {
+        self.sent_ns[seq as usize % 16] = (seq, at_ns);
+    }
+
+    /// A pong received at `now_ns`: true when the estimate improved.
+    fn pong(&mut self, pong: &page::Pong, now_ns: u64) -> bool {
+        let (seq, sent) = self.sent_ns[pong.seq as usize % 16];
+        if seq != pong.seq || sent == 0 || now_ns < sent {
+            return false;
+        }
+        self.pongs += 1;
+        let round_trip = now_ns - sent;
+        let offset = (sent + round_trip / 2) as i64 - (pong.page_ms * 1e6).round() as i64;
+        if self.best.is_none_or(|(rt, _)| round_trip < rt) {
+            self.best = Some((round_trip, offset));
+            return true;
+        }
+        false
+    }
+}
+
+async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
+    ws: &mut WebSocketStream<S>,
+    page: u64,
+    shared: &Shared,
+) {
+    if ws
+        .send(Message::text(shared.scene_json.clone()))
+        .await
+        .is_err()
+    {
+        return;
+    }
+    let mut world = shared.world.clone();
+    world.mark_unchanged();
+    let mut stop = shared.stop.clone();
+    let mut clock = PageClock::default();
+    let mut ping_seq: u32 = 0;
+    let mut ping = tokio::time::interval(Duration::from_millis(100));
+    ping.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut ready = false;
+    let mut out = Vec::with_capacity(page::PING_BYTES);
+    let mut frame = HandsFrame::default();
+    // The flood limit: a bucket of a second's frames, refilled continuously.
+    let mut bucket = MAX_FRAMES_PER_S;
+    let mut bucket_at = monotonic_ns();
+    let hand_in = |inbound: Inbound| {
+        if shared.inbound.try_send(inbound).is_ok() {
+            shared.wake.wake();
+        } else {
+            shared.tally.refuse("queue_full");
+        }
+    };
+    loop {
+        tokio::select! {
+            message = ws.next() => {
+                let bytes = match message {
+                    Some(Ok(Message::Binary(b))) => b,
+                    Some(Ok(Message::Text(_))) => {
+                        shared.tally.refuse("text");
+                        continue;
+                    }
+                    Some(Ok(Message::Close(_))) | None => return,
+                    Some(Ok(_)) => continue,
+                    Some(Err(e)) => {
+                        use tokio_tungstenite::tungstenite::Error;
+                        if matches!(e, Error::Capacity(_)) {
+                            shared.tally.refuse("oversized");
+                            let why = "a message over 4096 bytes";
+                            let _ = ws.close(Some(CloseFrame { code: CloseCode::Size, reason: why.into() })).await;
+                        }
+                        return;
+                    }
+                };
+                let arrived_ns = monotonic_ns();
+                let kind = match page::kind_of(&bytes) {
+                    Ok(k) => k,
+                    Err(e) => {
+                        shared.tally.refuse(e.kind());
+                        continue;
+                    }
+                };
+                match kind {
+                    KIND_HANDS => {
+                        bucket = (bucket + (arrived_ns - bucket_at) as f64 * 1e-9 * MAX_FRAMES_PER_S)
+                            .min(MAX_FRAMES_PER_S);
+                        bucket_at = arrived_ns;
+                        if bucket < 1.0 {
+                            shared.tally.refuse("flood");
+                            continue;
+                        }
+                        bucket -= 1.0;
+                        match webxr_wire::decode_into(&bytes, &mut frame) {
+                            Ok(()) => hand_in(Inbound::Hands { page, arrived_ns, frame }),
+                            Err(e) => shared.tally.refuse(e.kind()),
+                        }
+                    }
+                    page::KIND_STATS => match page::decode_stats(&bytes) {
+                        Ok(stats) => hand_in(Inbound::Stats { page, stats }),
+                        Err(e) => shared.tally.refuse(e.kind()),
+                    },
+                    page::KIND_PONG => match page::decode_pong(&bytes) {
+                        Ok(pong) => {
+                            let improved = clock.pong(&pong, arrived_ns);
+                            if let Some((round_trip_ns, offset_ns)) = clock.best {
+                                if improved || (!ready && clock.pongs >= PONGS_BEFORE_READY) {
+                                    hand_in(Inbound::Clock { page, offset_ns, round_trip_ns, pongs: clock.pongs });
+                                }
+                                if !ready && clock.pongs >= PONGS_BEFORE_READY {
+                                    ready = true;
+                                    let text = format!(
+                                        "{{\"op\":\"ready\",\"offset_ms\":{},\"round_trip_ms\":{}}}",
+                                        offset_ns as f64 / 1e6,
+                                        round_trip_ns as f64 / 1e6
+                                    );
+                                    if ws.send(Message::text(text)).await.is_err() {
+                                        return;
+                                    }
+                                }
+                            }
+                        }
+                        Err(e) => shared.tally.refuse(e.kind()),
+                    },
+                    _ => shared.tally.refuse("kind"),
+                }
+            }
+            changed = world.changed() => {
+                if changed.is_err() {
+                    return;
+                }
+                let message = world.borrow_and_update().clone();
+                if !message.is_empty() && ws.send(Message::Binary(message)).await.is_err() {
+                    return;
+                }
+            }
+            _ = ping.tick() => {
+                ping_seq = ping_seq.wrapping_add(1);
+                if ping_seq == 11 {
+                    // After the first second's ten, one a second keeps the estimate fresh.
+                    ping = tokio::time::interval(Duration::from_secs(1));
+                    ping.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+                    ping.tick().await;
+                }
+                let now = monotonic_ns();
+                clock.sent(ping_seq, now);
+                page::encode_ping(ping_seq, now as f64 / 1e6, &mut out);
+                if ws.send(Message::Binary(Bytes::copy_from_slice(&out))).await.is_err() {
+                    return;
+                }
+            }
+            _ = stop.changed() => {
+                let bye = CloseFrame { code: CloseCode::Away, reason: "the session ended".into() };
+                let _ = ws.close(Some(bye)).await;
+                return;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_request_head_gives_its_path_token_and_upgrade() {
+        let r = parse_head(
+            "GET /ws?token=abc&x=1 HTTP/1.1\r\nHost: h\r\nUpgrade: WebSocket\r\nSec-WebSocket-Key: k==",
+        )
+        .unwrap();
+        assert_eq!((r.path.as_str(), r.token.as_deref()), ("/ws", Some("abc")));
+        assert!(r.upgrade);
+        assert_eq!(r.key.as_deref(), Some("k=="));
+        assert!(parse_head("").is_none());
+        assert!(token_ok(Some("abcdef"), "abcdef"));
+        assert!(!token_ok(Some("abcdeg"), "abcdef"));
+        assert!(!token_ok(Some("abc"), "abcdef"));
+        assert!(!token_ok(None, "abcdef"));
+    }
+
+    #[test]
+    fn the_clock_keeps_the_estimate_of_the_shortest_round_trip() {
+        let mut c = PageClock::default();
+        // The page's clock reads 1000 ms when ours reads 5000 ms: offset +4000 ms.
+        c.sent(1, 5_000_000_000 - 2_000_000);
+        let pong = |seq, page_ms| page::Pong {
+            seq,
+            server_ms: 0.0,
+            page_ms,
+        };
+        assert!(c.pong(&pong(1, 1000.0), 5_000_000_000 + 2_000_000));
+        assert_eq!(c.best, Some((4_000_000, 4_000_000_000)));
+        // A slower ping (10 ms) whose midpoint is off does not replace it.
+        c.sent(2, 6_000_000_000);
+        assert!(!c.pong(&pong(2, 2003.0), 6_010_000_000));
+        assert_eq!(c.best.unwrap().1, 4_000_000_000);
+        // A pong for a ping never sent is ignored.
+        assert!(!c.pong(&pong(9, 1.0), 7_000_000_000));
+        assert_eq!(c.pongs, 2);
+    }
+}

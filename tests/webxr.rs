@@ -1,0 +1,411 @@
+//! `[source] kind = "webxr"` (issue 31): a headset's page as the session's hand, over the
+//! page's own protocol, spoken here by a client that plays a CARL trace as a headset would
+//! (one hands frame per trace sample, in the sample's own time). What a browser adds (the
+//! page's WebXR calls, IWER's emulated Quest) is tests/webxr_browser.rs's.
+
+mod support;
+
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{Pose, WorldSample};
+use recording::Recording;
+use support::{assert_nothing_left, assert_same_poses, repo, simulate_trace, Scratch, EXE};
+use tungstenite::{Message, WebSocket};
+use webxr_wire::page;
+use webxr_wire::{HandJoints, HandsFrame, WEBXR_JOINTS};
+
+const TOKEN: &str = "test-token-0123456789";
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+fn carl(name: &str) -> PathBuf {
+    repo().join(format!("../shared/data/carl/example_{name}_0.carl"))
+}
+
+/// `config/sessions/webxr.toml` on `port`, plain HTTP, the test's token, the scene of the
+/// CARL session `name`, recording to `rec`.
+fn launch(name: &str, id: &str, port: u16, seconds: f64, rec: &Path, report: &Path) -> Child {
+    let scene = repo().join(format!("config/scenes/carl-{name}.toml"));
+    Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--no-preview", "--bus-id", id])
+        .args(["--duration", &seconds.to_string()])
+        .args(["--set", &format!("scene={}", scene.display())])
+        .args(["--set", &format!("source.listen=127.0.0.1:{port}")])
+        .args(["--set", "source.tls=false"])
+        .args(["--set", &format!("source.token={TOKEN}")])
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .arg("--record")
+        .arg(rec)
+        .arg("--report")
+        .arg(report)
+        .arg(repo().join("config/sessions/webxr.toml"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run handblocks")
+}
+
+type Socket = WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>>;
+
+/// Connects to the session's socket with `token`, trying until the server listens.
+fn connect(port: u16, token: &str) -> Socket {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        match tungstenite::connect(format!("ws://127.0.0.1:{port}/ws?token={token}")) {
+            Ok((s, _)) => return s,
+            Err(e) if Instant::now() > deadline => panic!("no webxr server on {port}: {e}"),
+            Err(_) => std::thread::sleep(Duration::from_millis(50)),
+        }
+    }
+}
+
+/// A headset's page, as far as the protocol goes: answers pings, waits for `ready`, sends
+/// frames, measures round trips from the worlds that answer its frames.
+struct Page {
+    socket: Socket,
+    start: Instant,
+    scene: Option<serde_json::Value>,
+    ready: bool,
+    sent_at: Vec<(u32, f64)>,
+    round_trips_ms: Vec<f64>,
+    worlds: u64,
+    closed: Option<String>,
+    out: Vec<u8>,
+}
+
+impl Page {
+    fn open(port: u16, token: &str) -> Page {
+        let socket = connect(port, token);
+        if let tungstenite::stream::MaybeTlsStream::Plain(s) = socket.get_ref() {
+            s.set_read_timeout(Some(Duration::from_millis(2))).unwrap();
+        }
+        Page {
+            socket,
+            start: Instant::now(),
+            scene: None,
+            ready: false,
+            sent_at: Vec::new(),
+            round_trips_ms: Vec::new(),
+            worlds: 0,
+            closed: None,
+            out: Vec::new(),
+        }
+    }
+
+    /// The page's clock (ms), as performance.now() is.
+    fn now_ms(&self) -> f64 {
+        self.start.elapsed().as_secs_f64() * 1e3 + 1000.0
+    }
+
+    /// Reads what has arrived, answering it; stops at the first read that would block.
+    fn pump(&mut self) {
+        loop {
+            match self.socket.read() {
+                Ok(Message::Text(t)) => {
+                    let v: serde_json::Value = serde_json::from_str(&t).unwrap();
+                    match v["op"].as_str() {
+                        Some("scene") => self.scene = Some(v),
+                        Some("ready") => self.ready = true,
+                        other => panic!("unexpected text {other:?}"),
+                    }
+                }
+                Ok(Message::Binary(b)) => match page::kind_of(&b).unwrap() {
+                    page::KIND_PING => {
+                        let seq = u32::from_le_bytes(b[8..12].try_into().unwrap());
+                        let server_ms = f64::from_le_bytes(b[16..24].try_into().unwrap());
+                        let pong = page::Pong {
+                            seq,
+                            server_ms,
+                            page_ms: self.now_ms(),
+                        };
+                        page::encode_pong(&pong, &mut self.out);
+                        self.socket.send(Message::binary(self.out.clone())).unwrap();
+                    }
+                    page::KIND_WORLD => {
+                        self.worlds += 1;
+                        let seq = u32::from_le_bytes(b[8..12].try_into().unwrap());
+                        if let Some(&(_, at)) = self.sent_at.iter().rev().find(|(s, _)| *s == seq) {
+                            let rt = self.now_ms() - at;
+                            self.round_trips_ms.push(rt);
+                            let stats = page::FrameStats {
+                                seq,
+                                js_ms: 0.2,
+                                round_trip_ms: Some(rt),
+                            };
+                            page::encode_stats(&stats, &mut self.out);
+                            self.socket.send(Message::binary(self.out.clone())).unwrap();
+                        }
+                    }
+                    k => panic!("unexpected kind {k}"),
+                },
+                Ok(Message::Close(f)) => {
+                    self.closed = Some(
+                        f.map(|f| format!("{} {}", u16::from(f.code), f.reason))
+                            .unwrap_or_default(),
+                    );
+                    return;
+                }
+                Ok(_) => {}
+                Err(tungstenite::Error::Io(e))
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    return
+                }
+                Err(tungstenite::Error::ConnectionClosed | tungstenite::Error::AlreadyClosed) => {
+                    self.closed.get_or_insert_with(String::new);
+                    return;
+                }
+                Err(e) => panic!("socket: {e}"),
+            }
+        }
+    }
+
+    fn wait_ready(&mut self) {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !self.ready {
+            assert!(Instant::now() < deadline, "no ready from the server");
+            self.pump();
+        }
+    }
+
+    fn send(&mut self, bytes: &[u8]) {
+        self.socket.send(Message::binary(bytes.to_vec())).unwrap();
+    }
+}
+
+/// The trace's samples as a headset's right hand: WebXR's 25 joints (the wrist pose, then
+/// OpenXR's joints after palm and wrist), source time (ns from the first) and whether tracked.
+fn headset_samples(trace: &Path) -> Vec<(u64, bool, HandJoints)> {
+    let t = replay::CarlTrace::load(trace).unwrap();
+    let mut joints = Vec::new();
+    t.joints([0.0; 3], &mut joints);
+    joints
+        .iter()
+        .map(|j| {
+            let mut hand = HandJoints::default();
+            hand.poses[0] = j.wrist;
+            hand.poses[1..].copy_from_slice(&j.joints[2..]);
+            hand.radii = [0.01; WEBXR_JOINTS];
+            (j.stamp.source_time_ns, j.tracked != 0, hand)
+        })
+        .collect()
+}
+
+/// Plays `samples` through `page` at their own pace, one frame each.
+fn play(page: &mut Page, samples: &[(u64, bool, HandJoints)]) {
+    let start = Instant::now();
+    let mut frame = HandsFrame::default();
+    let mut bytes = Vec::new();
+    for (i, (t_ns, tracked, hand)) in samples.iter().enumerate() {
+        while start.elapsed() < Duration::from_nanos(*t_ns) {
+            page.pump();
+        }
+        frame.seq = i as u32 + 1;
+        frame.frame_time_ms = *t_ns as f64 / 1e6;
+        frame.present = [false, *tracked];
+        frame.hands[1] = *hand;
+        webxr_wire::encode(&frame, &mut bytes);
+        let now = page.now_ms();
+        page.sent_at.push((frame.seq, now));
+        page.send(&bytes);
+        page.pump();
+    }
+}
+
+fn wait_for(child: Child, what: &str) -> String {
+    let out = child.wait_with_output().unwrap();
+    let text = format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "{what}: {text}");
+    text
+}
+
+/// A headset that plays the CARL lift trace through the socket drives the session: the world
+/// that answers its last frame is `simulate --hand` of the trace, bit for bit; its frames'
+/// round trips come back and are in the report; a page with the wrong token is closed with
+/// 4001 and a page without it is refused.
+#[test]
+fn a_headset_playing_the_lift_trace_drives_the_session_as_simulate_does() {
+    let dir = Scratch::new("webxr-lift");
+    let port = free_port();
+    let id = format!("wx{}", std::process::id());
+    let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
+    let samples = headset_samples(&carl("lift"));
+    let seconds = samples.last().unwrap().0 as f64 / 1e9 + 6.0;
+    let child = launch("lift", &id, port, seconds, &rec, &report);
+
+    // The wrong token: closed with 4001 and a reason the page can show.
+    let mut wrong = Page::open(port, "wrong-token-0123456789");
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while wrong.closed.is_none() && Instant::now() < deadline {
+        wrong.pump();
+    }
+    let closed = wrong.closed.clone().unwrap_or_default();
+    assert!(closed.starts_with("4001"), "closed with {closed:?}");
+    // The page itself without the token: 403.
+    let mut http = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    use std::io::{Read, Write};
+    http.write_all(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n")
+        .unwrap();
+    let mut answer = String::new();
+    http.read_to_string(&mut answer).unwrap();
+    assert!(answer.starts_with("HTTP/1.1 403"), "{answer}");
+
+    let mut page = Page::open(port, TOKEN);
+    page.wait_ready();
+    let scene = page.scene.clone().expect("the scene first");
+    assert_eq!(scene["blocks"].as_array().unwrap().len(), 1);
+    assert!(!scene["blocks"][0]["indices"].as_array().unwrap().is_empty());
+    play(&mut page, &samples);
+    let until = Instant::now() + Duration::from_millis(800);
+    while Instant::now() < until {
+        page.pump();
+    }
+    drop(page);
+    let text = wait_for(child, "the webxr session");
+    assert_nothing_left(&id);
+    assert!(text.contains("handblocks webxr:"), "{text}");
+
+    let rec = Recording::open(&rec).unwrap();
+    let worlds: Vec<WorldSample> = rec.worlds().collect();
+    let tracked_from = samples.iter().position(|s| s.1).unwrap();
+    let played = samples.len() - tracked_from;
+    assert!(
+        worlds.len() >= played,
+        "{} worlds for {played} frames",
+        worlds.len()
+    );
+    // The world that answers the last frame (later ones: the page gone, the hand untracked).
+    let last = &worlds[played - 1];
+    let session =
+        common::config::Session::load(&repo().join("config/sessions/webxr.toml")).unwrap();
+    let common::config::session::Source::Webxr(settings) = &session.source else {
+        panic!("not a webxr session");
+    };
+    let v = simulate_trace(
+        &repo().join("config/scenes/carl-lift.toml"),
+        &carl("lift"),
+        settings.offset,
+        last.step,
+    );
+    assert_same_poses(&v, last);
+    let top = worlds[..played]
+        .iter()
+        .filter(|w| w.grasped_block == 0)
+        .map(|w| w.blocks()[0].pose.position[1])
+        .fold(f64::MIN, f64::max);
+    assert!(top > 0.4, "lifted only to {top} m");
+
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let stage = &r["stages"]["webxr"];
+    assert!(stage["photon_us"]["count"].as_u64().unwrap() > 0, "{stage}");
+    assert!(
+        stage["page_js_us"]["count"].as_u64().unwrap() > 0,
+        "{stage}"
+    );
+    eprintln!(
+        "webxr lift: {played} frames; the page's round trip p50 {} us, p99 {} us; the stepper's \
+         origin -> world p50 {} us, p99 {} us",
+        stage["photon_us"]["p50"],
+        stage["photon_us"]["p99"],
+        r["stages"]["stepper"]["origin_us"]["p50"],
+        r["stages"]["stepper"]["origin_us"]["p99"],
+    );
+}
+
+/// Bad input on the socket: malformed, truncated, oversized, out-of-order and replayed frames,
+/// NaN and huge joints, a flood: each refused by name and counted, the session unharmed.
+#[test]
+fn bad_frames_are_refused_by_name_and_the_session_goes_on() {
+    let dir = Scratch::new("webxr-bad");
+    let port = free_port();
+    let id = format!("wb{}", std::process::id());
+    let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
+    let child = launch("lift", &id, port, 6.0, &rec, &report);
+    let mut page = Page::open(port, TOKEN);
+    page.wait_ready();
+    let samples = headset_samples(&carl("lift"));
+    let (_, _, hand) = samples.iter().find(|s| s.1).copied().unwrap();
+    let mut frame = HandsFrame {
+        seq: 1,
+        frame_time_ms: 10.0,
+        present: [false, true],
+        ..Default::default()
+    };
+    frame.hands[1] = hand;
+    let mut good = Vec::new();
+    webxr_wire::encode(&frame, &mut good);
+    page.send(&good);
+    // Replayed (same seq) and out of order (an older time).
+    page.send(&good);
+    frame.seq = 2;
+    frame.frame_time_ms = 5.0;
+    webxr_wire::encode(&frame, &mut good);
+    page.send(&good);
+    // Truncated, a NaN joint, a huge joint.
+    page.send(&good[..100]);
+    let mut nan = good.clone();
+    nan[24..28].copy_from_slice(&f32::NAN.to_le_bytes());
+    page.send(&nan);
+    let mut huge = good.clone();
+    huge[24..28].copy_from_slice(&1e30f32.to_le_bytes());
+    page.send(&huge);
+    // Not ours at all.
+    page.send(b"GARBAGE-GARBAGE-GARBAGE");
+    page.socket.send(Message::text("hello")).unwrap();
+    // A flood: 600 frames at once (240 a second allowed).
+    for k in 0..600 {
+        frame.seq = 10 + k;
+        frame.frame_time_ms = 20.0 + f64::from(k);
+        webxr_wire::encode(&frame, &mut good);
+        page.send(&good);
+    }
+    page.pump();
+    // Oversized: closes this socket (and only it).
+    page.send(&vec![0u8; 10_000]);
+    let deadline = Instant::now() + Duration::from_secs(3);
+    while page.closed.is_none() && Instant::now() < deadline {
+        page.pump();
+    }
+    drop(page);
+    let text = wait_for(child, "the webxr session");
+    assert_nothing_left(&id);
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("handblocks webxr:") && l.contains("refused"))
+        .unwrap_or_else(|| panic!("no webxr summary: {text}"));
+    for kind in [
+        "length",
+        "non_finite",
+        "position",
+        "magic",
+        "text",
+        "flood",
+        "oversized",
+        "order",
+    ] {
+        assert!(line.contains(kind), "{kind} not counted: {line}");
+    }
+    let worlds: Vec<WorldSample> = Recording::open(&rec).unwrap().worlds().collect();
+    assert!(!worlds.is_empty());
+    for w in &worlds {
+        assert!(w.blocks().iter().all(|b| b.pose.is_finite()));
+        let p: Pose = w.blocks()[0].pose;
+        assert!(p.position.iter().all(|v| v.abs() < 100.0));
+    }
+}
