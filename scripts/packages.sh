@@ -20,6 +20,9 @@ hb_test_packages() {
     # Node.js and npm, for the stock Foxglove client tests/run installs into target/.
     need "Node.js and npm (the stock Foxglove client)" \
         'command -v node && command -v npm' nodejs npm
+    # Chromium, for the emulated headset (a WebXR page in a real browser, headless).
+    need "Chromium (the emulated headset's browser)" \
+        'test -x /usr/bin/chromium' chromium
     # A TrueType font for the benchmark figures' labels (plotters draws text through ab_glyph
     # with a system font; without one the figures have no labels).
     need "a TrueType font (the benchmark figures' labels)" \

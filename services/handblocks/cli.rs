@@ -172,18 +172,39 @@ pub enum Command {
         #[command(subcommand)]
         which: BenchKind,
     },
-    /// Emulate a CyberGlove or a FASTRAK on a pseudo-terminal, for sessions without hardware.
+    /// Emulate a CyberGlove or a FASTRAK on a pseudo-terminal, or a headset in a browser.
     ///
-    /// The device appears at --link (a symbolic link to the pty), which a session's
-    /// [source.glove] or [source.tracker] `port` names exactly as it would name /dev/ttyUSB0.
-    /// See config/devices/emulated-session.toml. Ctrl-C stops it.
+    /// glove, tracker: the device appears at --link (a symbolic link to the pty), which a
+    /// session's [source.glove] or [source.tracker] `port` names exactly as it would name
+    /// /dev/ttyUSB0. See config/devices/emulated-session.toml. Ctrl-C stops it.
+    ///
+    /// headset URL --trace FILE: opens a webxr session's page (the URL it printed) in headless
+    /// Chromium with IWER (Meta's WebXR emulation runtime: an emulated Quest with hand
+    /// tracking) as its XR runtime, enters VR, and plays the trace's hand (a CARL file, or one
+    /// of our recordings' joints) through the page's WebXR calls, one trace sample per XR frame
+    /// in the sample's own time. Needs Chromium and Node.js with playwright-core and iwer
+    /// (tests/run installs them: scripts/webxr-tools.sh). Prints what the page measured.
     Emulate {
-        /// glove or tracker.
-        #[arg(value_parser = ["glove", "tracker"])]
+        /// glove, tracker or headset.
+        #[arg(value_parser = ["glove", "tracker", "headset"])]
         device: String,
-        /// Where the device appears.
+        /// headset: the page's URL, as the session printed it (with its token).
+        url: Option<String>,
+        /// glove, tracker: where the device appears.
         #[arg(long, value_name = "PATH")]
-        link: PathBuf,
+        link: Option<PathBuf>,
+        /// headset: the hand to play (a CARL file, or a recording with `joints`).
+        #[arg(long, value_name = "FILE")]
+        trace: Option<PathBuf>,
+        /// headset: which of the page's hands plays the trace.
+        #[arg(long, default_value = "right", value_parser = ["right", "left"])]
+        hand: String,
+        /// headset: a screenshot of the page when done (PNG).
+        #[arg(long, value_name = "PNG")]
+        screenshot: Option<PathBuf>,
+        /// headset: open the page as a spectator (no XR), wait for a drawn world, screenshot.
+        #[arg(long)]
+        spectator: bool,
         /// Glove sensors (18 or 22).
         #[arg(long, default_value = "22", value_parser = clap::value_parser!(u8).range(18..=22))]
         sensors: u8,

@@ -1,5 +1,7 @@
 //! `handblocks emulate glove|tracker --link PATH`: a CyberGlove or a FASTRAK on a
-//! pseudo-terminal (acquisition's emulator), for sessions without hardware.
+//! pseudo-terminal (acquisition's emulator), for sessions without hardware; `handblocks
+//! emulate headset URL --trace FILE`: a headset's browser (headless Chromium with IWER as its
+//! XR runtime) playing a recorded hand through a webxr session's page.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -20,6 +22,14 @@ pub enum EmulateError {
         link: PathBuf,
         error: std::io::Error,
     },
+    /// A key this device needs is missing, or one it does not take was given.
+    Usage(String),
+    /// The trace cannot be played (the message names the file).
+    Trace(String),
+    /// A tool the emulated headset needs is missing (the message says how to install it).
+    Tool(String),
+    /// The browser's driver failed (what it said is above).
+    Driver(String),
 }
 
 impl fmt::Display for EmulateError {
@@ -31,6 +41,10 @@ impl fmt::Display for EmulateError {
                 "--rate {r}: allowed: more than 0 up to 10000 records per second"
             ),
             EmulateError::Device { link, error } => write!(f, "{}: {error}", link.display()),
+            EmulateError::Usage(m)
+            | EmulateError::Trace(m)
+            | EmulateError::Tool(m)
+            | EmulateError::Driver(m) => f.write_str(m),
         }
     }
 }
@@ -40,7 +54,7 @@ impl std::error::Error for EmulateError {}
 /// Serves the device until Ctrl-C, then says what it did.
 pub fn run(
     device: &str,
-    link: &Path,
+    link: Option<&Path>,
     sensors: u8,
     rate: Option<f64>,
     faults: &[String],
@@ -50,6 +64,11 @@ pub fn run(
         .map(|f| Fault::parse(f))
         .collect::<Result<Vec<_>, _>>()
         .map_err(EmulateError::Fault)?;
+    let link = link.ok_or_else(|| {
+        EmulateError::Usage(format!(
+            "a {device} needs --link PATH: where the device appears (e.g. /tmp/glove)"
+        ))
+    })?;
     if let Some(r) = rate.filter(|r| !(r.is_finite() && *r > 0.0 && *r <= 10_000.0)) {
         return Err(EmulateError::Rate(r));
     }
@@ -81,4 +100,148 @@ pub fn run(
         String::from_utf8_lossy(&report.received)
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// `emulate headset`'s arguments.
+pub struct Headset {
+    pub url: Option<String>,
+    pub trace: Option<PathBuf>,
+    pub left: bool,
+    pub screenshot: Option<PathBuf>,
+    pub spectator: bool,
+}
+
+/// Plays a trace through a webxr session's page in headless Chromium (or, `--spectator`,
+/// opens it as a spectator), through the browser driver `webxr::driver::HEADSET_JS` run by
+/// Node.js; prints the driver's summary (JSON) on stdout.
+pub fn headset(h: Headset) -> Result<ExitCode, EmulateError> {
+    let url = h.url.ok_or_else(|| {
+        EmulateError::Usage(
+            "headset needs the page's URL, as the webxr session printed it (with ?token=...)"
+                .into(),
+        )
+    })?;
+    let work = std::env::temp_dir().join(format!("handblocks-headset-{}", std::process::id()));
+    std::fs::create_dir_all(&work)
+        .map_err(|e| EmulateError::Tool(format!("{}: {e}", work.display())))?;
+    let driver = work.join("headset.js");
+    std::fs::write(&driver, webxr::driver::HEADSET_JS)
+        .map_err(|e| EmulateError::Tool(format!("{}: {e}", driver.display())))?;
+    let mut args: Vec<std::ffi::OsString> = vec![driver.into(), "--url".into(), url.into()];
+    if h.spectator {
+        args.push("--spectator".into());
+    } else {
+        let trace = h.trace.ok_or_else(|| {
+            EmulateError::Usage(
+                "headset needs --trace FILE (a CARL file or a recording with joints), or \
+                 --spectator"
+                    .into(),
+            )
+        })?;
+        let samples = work.join("samples.bin");
+        let n = write_headset_samples(&trace, &samples)?;
+        eprintln!(
+            "handblocks emulate: playing {n} samples of {} as the {} hand",
+            trace.display(),
+            if h.left { "left" } else { "right" }
+        );
+        args.extend(["--samples".into(), samples.into()]);
+        args.extend([
+            "--hand".into(),
+            if h.left { "left" } else { "right" }.into(),
+        ]);
+    }
+    if let Some(png) = &h.screenshot {
+        args.extend(["--screenshot".into(), png.into()]);
+    }
+    let node = std::env::var_os("HB_NODE").unwrap_or_else(|| "node".into());
+    let modules = webxr_node_modules();
+    let chromium = std::env::var_os("HB_CHROMIUM").unwrap_or_else(|| "/usr/bin/chromium".into());
+    if !Path::new(&chromium).exists() {
+        return Err(EmulateError::Tool(format!(
+            "no Chromium at {} (set HB_CHROMIUM, or install Debian's `chromium`; tests/run \
+             installs it)",
+            Path::new(&chromium).display()
+        )));
+    }
+    if !modules.join("playwright-core").is_dir() || !modules.join("iwer").is_dir() {
+        return Err(EmulateError::Tool(format!(
+            "no playwright-core and iwer in {} (scripts/webxr-tools.sh installs them there; \
+             or set HB_WEBXR_NODE_PATH to a node_modules that has them)",
+            modules.display()
+        )));
+    }
+    let out = std::process::Command::new(&node)
+        .args(&args)
+        .env("NODE_PATH", &modules)
+        .env("HB_CHROMIUM", &chromium)
+        .stderr(std::process::Stdio::inherit())
+        .output()
+        .map_err(|e| {
+            EmulateError::Tool(format!(
+                "cannot run {} ({e}): the emulated headset needs Node.js (set HB_NODE)",
+                Path::new(&node).display()
+            ))
+        })?;
+    let _ = std::fs::remove_dir_all(&work);
+    print!("{}", String::from_utf8_lossy(&out.stdout));
+    if !out.status.success() {
+        return Err(EmulateError::Driver(format!(
+            "the browser's driver failed ({}); what it said is above",
+            out.status
+        )));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Where the emulated headset's Node modules are: `HB_WEBXR_NODE_PATH`, or `webxr-node` in
+/// the build folder the running binary is in (`target/webxr-node/node_modules`).
+fn webxr_node_modules() -> PathBuf {
+    if let Some(p) = std::env::var_os("HB_WEBXR_NODE_PATH") {
+        return PathBuf::from(p);
+    }
+    let exe = std::env::current_exe().unwrap_or_default();
+    exe.parent()
+        .and_then(Path::parent)
+        .map(|target| target.join("webxr-node/node_modules"))
+        .unwrap_or_else(|| PathBuf::from("target/webxr-node/node_modules"))
+}
+
+/// The trace's joints as the driver plays them: u32 count, then per sample f64 time (ms from
+/// the first sample, so that the page's time maps back to the trace's nanoseconds exactly),
+/// u8 tracked, 3 zero bytes, and WebXR's 25 joints of 7 f32 (position, orientation): the
+/// trace's wrist pose, then OpenXR's joints after palm and wrist. Returns the sample count.
+fn write_headset_samples(trace: &Path, file: &Path) -> Result<usize, EmulateError> {
+    let t = replay::HandTrace::load(trace, [0.0; 3]).map_err(EmulateError::Trace)?;
+    let joints: Vec<&common::JointsSample> = t
+        .samples
+        .iter()
+        .filter_map(|s| match s {
+            replay::SourceSample::Joints(j) => Some(j),
+            _ => None,
+        })
+        .collect();
+    if joints.is_empty() {
+        return Err(EmulateError::Trace(format!(
+            "{}: no joints to play (a headset plays a hand tracker's joints: a CARL file, or a \
+             recording of a replayed CARL or webxr session)",
+            trace.display()
+        )));
+    }
+    let t0 = joints[0].stamp.source_time_ns;
+    let mut bytes = Vec::with_capacity(4 + joints.len() * (12 + 25 * 28));
+    bytes.extend_from_slice(&(joints.len() as u32).to_le_bytes());
+    for j in &joints {
+        let ms = (j.stamp.source_time_ns - t0) as f64 / 1e6;
+        bytes.extend_from_slice(&ms.to_le_bytes());
+        bytes.extend_from_slice(&[u8::from(j.tracked != 0), 0, 0, 0]);
+        for p in std::iter::once(&j.wrist).chain(&j.joints[2..]) {
+            for v in p.position.iter().chain(&p.rotation) {
+                bytes.extend_from_slice(&(*v as f32).to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(file, &bytes)
+        .map_err(|e| EmulateError::Trace(format!("{}: {e}", file.display())))?;
+    Ok(joints.len())
 }

@@ -143,11 +143,28 @@ fn run() -> Result<ExitCode, CliError> {
         }) => bench::transport_peer(&transport, endpoint, bytes, rate, count)?,
         Some(Command::Emulate {
             device,
+            url,
             link,
+            trace,
+            hand,
+            screenshot,
+            spectator,
             sensors,
             rate,
             faults,
-        }) => emulate::run(&device, &link, sensors, rate, &faults)?,
+        }) => {
+            if device == "headset" {
+                emulate::headset(emulate::Headset {
+                    url,
+                    trace,
+                    left: hand == "left",
+                    screenshot,
+                    spectator,
+                })?
+            } else {
+                emulate::run(&device, link.as_deref(), sensors, rate, &faults)?
+            }
+        }
     };
     Ok(code)
 }

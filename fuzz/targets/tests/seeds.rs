@@ -298,6 +298,24 @@ fn write_webxr_seeds() {
     frame.seq = 42;
     encode(&frame, &mut bytes);
     put("webxr", "seed-both-hands", &bytes);
+    frame.present = [false, false];
+    frame.seq = 43;
+    encode(&frame, &mut bytes);
+    put("webxr", "seed-no-hand", &bytes);
+    let stats = webxr_wire::page::FrameStats {
+        seq: 7,
+        js_ms: 1.5,
+        round_trip_ms: Some(40.0),
+    };
+    webxr_wire::page::encode_stats(&stats, &mut bytes);
+    put("webxr", "seed-stats", &bytes);
+    let pong = webxr_wire::page::Pong {
+        seq: 3,
+        server_ms: 10.0,
+        page_ms: 2.0,
+    };
+    webxr_wire::page::encode_pong(&pong, &mut bytes);
+    put("webxr", "seed-pong", &bytes);
 }
 
 /// Writes the generated seeds and copies the text ones from config/.
@@ -503,8 +521,16 @@ fn check_valid(target: &str, name: &str, bytes: &[u8], dir: &Path) {
             assert!(ok, "{what} does not decode");
         }
         "webxr" => {
-            let mut frame = webxr_wire::HandsFrame::default();
-            webxr_wire::decode_into(bytes, &mut frame).unwrap_or_else(|e| panic!("{what}: {e}"));
+            use webxr_wire::page;
+            match page::kind_of(bytes).unwrap_or_else(|e| panic!("{what}: {e}")) {
+                page::KIND_STATS => drop(page::decode_stats(bytes).unwrap()),
+                page::KIND_PONG => drop(page::decode_pong(bytes).unwrap()),
+                _ => {
+                    let mut frame = webxr_wire::HandsFrame::default();
+                    webxr_wire::decode_into(bytes, &mut frame)
+                        .unwrap_or_else(|e| panic!("{what}: {e}"));
+                }
+            }
             fuzz_targets::webxr(bytes);
         }
         "mcap" => {

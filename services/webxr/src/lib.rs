@@ -20,6 +20,7 @@
 
 pub mod address;
 pub mod certificate;
+pub mod driver;
 pub mod headset;
 pub mod page;
 pub mod server;

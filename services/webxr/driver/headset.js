@@ -1,0 +1,1 @@
+// placeholder: the driver comes from tests/webxr/headset.js
