@@ -1,1 +1,724 @@
-// placeholder
+// handblocks page: a spectator's orbit view of the stepper's world in any browser, and in a
+// WebXR headset the same world in stereo with the hands drawn from their local joints; each XR
+// frame's joints go to the server (the "hands" message), the server's worlds come back.
+// Our own code: no third-party script, no build step, nothing fetched but the WebSocket.
+'use strict';
+
+(() => {
+  // ---------------------------------------------------------------- test hook (merge, never clobber)
+  const HB = (() => {
+    const prior = (window.handblocks && typeof window.handblocks === 'object') ? window.handblocks : {};
+    const defaults = {
+      status: 'starting', ready: false, framesSent: 0, framesSkipped: 0, worldsReceived: 0,
+      worldsDrawn: 0, lastWorldTime: null, blocks: [], stats: { jsMs: [], roundTripMs: [] },
+      frameTimeOverride: null, xrMode: null, message: '',
+    };
+    const hb = Object.assign(defaults, prior);
+    if (!hb.stats || typeof hb.stats !== 'object') hb.stats = {};
+    if (!Array.isArray(hb.stats.jsMs)) hb.stats.jsMs = [];
+    if (!Array.isArray(hb.stats.roundTripMs)) hb.stats.roundTripMs = [];
+    window.handblocks = hb;
+    return hb;
+  })();
+  const STATS_KEEP = 10000;
+  function keep(list, value) {
+    list.push(value);
+    if (list.length > STATS_KEEP + 1000) list.splice(0, list.length - STATS_KEEP);
+  }
+
+  // ---------------------------------------------------------------- constants
+  const MAGIC = [0x48, 0x42, 0x58, 0x31]; // "HBX1"
+  const KIND_HANDS = 1, KIND_STATS = 2, KIND_WORLD = 3, KIND_PONG = 4, KIND_PING = 5;
+  const JOINTS = [
+    'wrist',
+    'thumb-metacarpal', 'thumb-phalanx-proximal', 'thumb-phalanx-distal', 'thumb-tip',
+    'index-finger-metacarpal', 'index-finger-phalanx-proximal', 'index-finger-phalanx-intermediate',
+    'index-finger-phalanx-distal', 'index-finger-tip',
+    'middle-finger-metacarpal', 'middle-finger-phalanx-proximal', 'middle-finger-phalanx-intermediate',
+    'middle-finger-phalanx-distal', 'middle-finger-tip',
+    'ring-finger-metacarpal', 'ring-finger-phalanx-proximal', 'ring-finger-phalanx-intermediate',
+    'ring-finger-phalanx-distal', 'ring-finger-tip',
+    'pinky-finger-metacarpal', 'pinky-finger-phalanx-proximal', 'pinky-finger-phalanx-intermediate',
+    'pinky-finger-phalanx-distal', 'pinky-finger-tip',
+  ];
+  const JOINT_COUNT = 25, JOINT_FLOATS = 8, HAND_BYTES = JOINT_COUNT * JOINT_FLOATS * 4;
+
+  // ---------------------------------------------------------------- DOM
+  const $ = (id) => document.getElementById(id);
+  const canvas = $('view');
+  const statusEl = $('status'), worldLine = $('worldline'), xrLine = $('xrline');
+  const legendEl = $('legend'), messageEl = $('message');
+  const vrButton = $('enter-vr'), arButton = $('enter-ar');
+  window.addEventListener('error', (e) => showMessage('page error: ' + e.message));
+
+  function setStatus(text, cls) {
+    HB.status = text;
+    statusEl.textContent = text;
+    statusEl.className = cls || '';
+  }
+  function showMessage(text) {
+    HB.message = text;
+    messageEl.textContent = text;
+  }
+
+  // ---------------------------------------------------------------- small matrix library (column-major)
+  const M = {
+    create() { const m = new Float32Array(16); m[0] = m[5] = m[10] = m[15] = 1; return m; },
+    multiply(out, a, b) {
+      const r = new Float32Array(16);
+      for (let c = 0; c < 4; c++) {
+        for (let rw = 0; rw < 4; rw++) {
+          r[c * 4 + rw] = a[rw] * b[c * 4] + a[4 + rw] * b[c * 4 + 1] + a[8 + rw] * b[c * 4 + 2] + a[12 + rw] * b[c * 4 + 3];
+        }
+      }
+      out.set(r);
+      return out;
+    },
+    perspective(out, fovy, aspect, near, far) {
+      const f = 1 / Math.tan(fovy / 2), nf = 1 / (near - far);
+      out.fill(0);
+      out[0] = f / aspect; out[5] = f; out[10] = (far + near) * nf; out[11] = -1; out[14] = 2 * far * near * nf;
+      return out;
+    },
+    lookAt(out, eye, at, up) {
+      let zx = eye[0] - at[0], zy = eye[1] - at[1], zz = eye[2] - at[2];
+      let l = Math.hypot(zx, zy, zz) || 1; zx /= l; zy /= l; zz /= l;
+      let xx = up[1] * zz - up[2] * zy, xy = up[2] * zx - up[0] * zz, xz = up[0] * zy - up[1] * zx;
+      l = Math.hypot(xx, xy, xz) || 1; xx /= l; xy /= l; xz /= l;
+      const yx = zy * xz - zz * xy, yy = zz * xx - zx * xz, yz = zx * xy - zy * xx;
+      out[0] = xx; out[1] = yx; out[2] = zx; out[3] = 0;
+      out[4] = xy; out[5] = yy; out[6] = zy; out[7] = 0;
+      out[8] = xz; out[9] = yz; out[10] = zz; out[11] = 0;
+      out[12] = -(xx * eye[0] + xy * eye[1] + xz * eye[2]);
+      out[13] = -(yx * eye[0] + yy * eye[1] + yz * eye[2]);
+      out[14] = -(zx * eye[0] + zy * eye[1] + zz * eye[2]);
+      out[15] = 1;
+      return out;
+    },
+    // translate(p) * rotate(q) * scale(s)
+    fromRTS(out, qx, qy, qz, qw, px, py, pz, s) {
+      const n = Math.hypot(qx, qy, qz, qw) || 1;
+      qx /= n; qy /= n; qz /= n; qw /= n;
+      const x2 = qx + qx, y2 = qy + qy, z2 = qz + qz;
+      const xx = qx * x2, yx = qy * x2, yy = qy * y2, zx = qz * x2, zy = qz * y2, zz = qz * z2;
+      const wx = qw * x2, wy = qw * y2, wz = qw * z2;
+      out[0] = (1 - yy - zz) * s; out[1] = (yx + wz) * s; out[2] = (zx - wy) * s; out[3] = 0;
+      out[4] = (yx - wz) * s; out[5] = (1 - xx - zz) * s; out[6] = (zy + wx) * s; out[7] = 0;
+      out[8] = (zx + wy) * s; out[9] = (zy - wx) * s; out[10] = (1 - xx - yy) * s; out[11] = 0;
+      out[12] = px; out[13] = py; out[14] = pz; out[15] = 1;
+      return out;
+    },
+  };
+
+  // ---------------------------------------------------------------- WebGL2
+  const gl = canvas.getContext('webgl2', { antialias: true, xrCompatible: true, alpha: true });
+  if (!gl) {
+    showMessage('This browser has no WebGL2: the view cannot be drawn (the connection still works).');
+  }
+
+  function compile(vsSrc, fsSrc) {
+    const mk = (type, src) => {
+      const s = gl.createShader(type);
+      gl.shaderSource(s, src);
+      gl.compileShader(s);
+      if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error('shader: ' + gl.getShaderInfoLog(s));
+      return s;
+    };
+    const p = gl.createProgram();
+    gl.attachShader(p, mk(gl.VERTEX_SHADER, vsSrc));
+    gl.attachShader(p, mk(gl.FRAGMENT_SHADER, fsSrc));
+    gl.bindAttribLocation(p, 0, 'a_pos');
+    gl.bindAttribLocation(p, 1, 'a_normal');
+    gl.linkProgram(p);
+    if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error('program: ' + gl.getProgramInfoLog(p));
+    const u = {};
+    const n = gl.getProgramParameter(p, gl.ACTIVE_UNIFORMS);
+    for (let i = 0; i < n; i++) {
+      const info = gl.getActiveUniform(p, i);
+      u[info.name] = gl.getUniformLocation(p, info.name);
+    }
+    return { p, u };
+  }
+
+  let litProg = null, flatProg = null;
+  if (gl) {
+    litProg = compile(`#version 300 es
+      layout(location=0) in vec3 a_pos;
+      layout(location=1) in vec3 a_normal;
+      uniform mat4 u_viewProj; uniform mat4 u_model;
+      out vec3 v_normal;
+      void main() {
+        v_normal = mat3(u_model) * a_normal;
+        gl_Position = u_viewProj * u_model * vec4(a_pos, 1.0);
+      }`, `#version 300 es
+      precision mediump float;
+      in vec3 v_normal; uniform vec3 u_color; uniform float u_alpha;
+      out vec4 o_color;
+      void main() {
+        vec3 n = normalize(v_normal);
+        float d = max(dot(n, normalize(vec3(0.35, 0.9, 0.45))), 0.0);
+        float b = max(dot(n, normalize(vec3(-0.5, 0.2, -0.6))), 0.0);
+        o_color = vec4(u_color * (0.38 + 0.55 * d + 0.12 * b), u_alpha);
+      }`);
+    flatProg = compile(`#version 300 es
+      layout(location=0) in vec3 a_pos;
+      uniform mat4 u_viewProj; uniform float u_pointSize;
+      void main() { gl_Position = u_viewProj * vec4(a_pos, 1.0); gl_PointSize = u_pointSize; }`, `#version 300 es
+      precision mediump float;
+      uniform vec4 u_color; out vec4 o_color;
+      void main() { o_color = u_color; }`);
+  }
+
+  // A flat-shaded mesh: triangles un-indexed, one normal per face.
+  function makeMesh(vertices, indices) {
+    const tris = Math.floor(indices.length / 3);
+    const data = new Float32Array(tris * 18);
+    let o = 0;
+    for (let t = 0; t < tris; t++) {
+      const ia = indices[3 * t] * 3, ib = indices[3 * t + 1] * 3, ic = indices[3 * t + 2] * 3;
+      const ax = vertices[ia], ay = vertices[ia + 1], az = vertices[ia + 2];
+      const bx = vertices[ib], by = vertices[ib + 1], bz = vertices[ib + 2];
+      const cx = vertices[ic], cy = vertices[ic + 1], cz = vertices[ic + 2];
+      const ux = bx - ax, uy = by - ay, uz = bz - az, vx = cx - ax, vy = cy - ay, vz = cz - az;
+      let nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
+      const l = Math.hypot(nx, ny, nz) || 1; nx /= l; ny /= l; nz /= l;
+      for (const [x, y, z] of [[ax, ay, az], [bx, by, bz], [cx, cy, cz]]) {
+        data[o++] = x; data[o++] = y; data[o++] = z; data[o++] = nx; data[o++] = ny; data[o++] = nz;
+      }
+    }
+    const vao = gl.createVertexArray();
+    gl.bindVertexArray(vao);
+    const buf = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+    gl.bufferData(gl.ARRAY_BUFFER, data, gl.STATIC_DRAW);
+    gl.enableVertexAttribArray(0);
+    gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 24, 0);
+    gl.enableVertexAttribArray(1);
+    gl.vertexAttribPointer(1, 3, gl.FLOAT, false, 24, 12);
+    gl.bindVertexArray(null);
+    return { vao, buf, count: tris * 3 };
+  }
+  function freeMesh(m) { if (m) { gl.deleteVertexArray(m.vao); gl.deleteBuffer(m.buf); } }
+
+  // A dynamic position-only buffer for lines and points.
+  function makeDynamic() {
+    const vao = gl.createVertexArray();
+    gl.bindVertexArray(vao);
+    const buf = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+    gl.enableVertexAttribArray(0);
+    gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 12, 0);
+    gl.bindVertexArray(null);
+    return { vao, buf, count: 0 };
+  }
+  function fillDynamic(d, floats, count) {
+    gl.bindBuffer(gl.ARRAY_BUFFER, d.buf);
+    gl.bufferData(gl.ARRAY_BUFFER, floats, gl.DYNAMIC_DRAW);
+    d.count = count;
+  }
+
+  const CUBE_V = [-1, -1, -1, 1, -1, -1, 1, 1, -1, -1, 1, -1, -1, -1, 1, 1, -1, 1, 1, 1, 1, -1, 1, 1];
+  const CUBE_I = [0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 3, 6, 2, 3, 7, 6, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5];
+
+  let cubeMesh = null, floorMesh = null, gridLines = null, pointsBuf = null, fingerLines = null;
+  let gridFloorY = null;
+  if (gl) {
+    cubeMesh = makeMesh(CUBE_V, CUBE_I);
+    gridLines = makeDynamic();
+    pointsBuf = makeDynamic();
+    fingerLines = makeDynamic();
+  }
+  function buildFloor(floorY) {
+    if (!gl || gridFloorY === floorY) return;
+    gridFloorY = floorY;
+    const half = 2.0, step = 0.1, y = floorY;
+    // short segments: a line that passes behind the eye is dropped whole by some rasterisers
+    // (SwiftShader), so each line is cut at every grid step
+    const lines = [], n = Math.round(2 * half / step), ly = y + 0.0005;
+    for (let i = 0; i <= n; i++) {
+      const c = -half + i * step;
+      for (let k = 0; k < n; k++) {
+        const a0 = -half + k * step, a1 = a0 + step;
+        lines.push(c, ly, a0, c, ly, a1, a0, ly, c, a1, ly, c);
+      }
+    }
+    fillDynamic(gridLines, new Float32Array(lines), lines.length / 3);
+    freeMesh(floorMesh);
+    floorMesh = makeMesh([-half, y, -half, half, y, -half, half, y, half, -half, y, half], [0, 2, 1, 0, 3, 2]);
+  }
+
+  // ---------------------------------------------------------------- scene and world state
+  let scene = null;            // { floorY, stepHz, blocks: [{name, color, mesh}] }
+  let world = null;            // newest world received
+  let worldsThisSecond = 0, worldsPerSecond = null, worldRateStart = performance.now();
+
+  function onScene(msg) {
+    if (scene) for (const b of scene.blocks) freeMesh(b.mesh);
+    const blocks = (msg.blocks || []).map((b) => ({
+      name: String(b.name),
+      color: Array.isArray(b.color) && b.color.length >= 3 ? b.color.slice(0, 3).map(Number) : [0.7, 0.7, 0.7],
+      mesh: gl && Array.isArray(b.vertices) && Array.isArray(b.indices) ? makeMesh(b.vertices, b.indices) : null,
+    }));
+    const floorY = Number.isFinite(msg.floor_y) ? msg.floor_y : 0;
+    scene = { session: msg.session, hand: msg.hand, floorY, stepHz: msg.step_hz, blocks };
+    HB.blocks = blocks.map((b) => b.name);
+    HB.session = msg.session;
+    buildFloor(floorY);
+    legendEl.textContent = '';
+    for (const b of blocks) {
+      const item = document.createElement('span');
+      item.className = 'item';
+      const sw = document.createElement('span');
+      sw.className = 'swatch';
+      const c = b.color.map((v) => Math.round(Math.min(1, Math.max(0, v)) * 255));
+      sw.style.background = `rgb(${c[0]},${c[1]},${c[2]})`;
+      item.appendChild(sw);
+      item.appendChild(document.createTextNode(b.name));
+      legendEl.appendChild(item);
+    }
+    orbit.autoTarget = true;
+  }
+
+  function parseWorld(dv, buf) {
+    const pageSeq = dv.getUint32(8, true);
+    const count = dv.getUint32(12, true);
+    const time = dv.getFloat64(16, true);
+    const grasped = dv.getInt32(24, true);
+    const points = dv.getUint32(28, true);
+    const need = 32 + 32 * count + 12 * points;
+    if (buf.byteLength < need) throw new Error(`world message of ${buf.byteLength} bytes, expected ${need}`);
+    const blocks = new Float32Array(count * 8);
+    for (let i = 0; i < count * 8; i++) blocks[i] = dv.getFloat32(32 + 4 * i, true);
+    const fingers = new Float32Array(points * 3);
+    const base = 32 + 32 * count;
+    for (let i = 0; i < points * 3; i++) fingers[i] = dv.getFloat32(base + 4 * i, true);
+    return { pageSeq, count, time, grasped, points, blocks, fingers, drawn: false };
+  }
+
+  // ---------------------------------------------------------------- round trip bookkeeping
+  const RING = 256;
+  const ringSeq = new Uint32Array(RING), ringTime = new Float64Array(RING);
+  let pendingRoundTrip = -1;   // newest round trip measured since the last stats message
+
+  function noteWorldDrawn(now) {
+    if (!world || world.drawn) return;
+    world.drawn = true;
+    HB.worldsDrawn++;
+    const s = world.pageSeq;
+    if (s !== 0xFFFFFFFF && s !== 0 && ringSeq[s % RING] === s) {
+      const rt = now - ringTime[s % RING];
+      pendingRoundTrip = rt;
+      keep(HB.stats.roundTripMs, rt);
+      ringSeq[s % RING] = 0;   // measure each seq once
+    }
+  }
+
+  // ---------------------------------------------------------------- WebSocket
+  const params = new URLSearchParams(location.search);
+  const token = params.get('token') || '';
+  let ws = null, refused = false;
+
+  function header(buf, kind) {
+    const u8 = new Uint8Array(buf);
+    u8[0] = MAGIC[0]; u8[1] = MAGIC[1]; u8[2] = MAGIC[2]; u8[3] = MAGIC[3]; u8[4] = kind;
+    return new DataView(buf);
+  }
+
+  function connect() {
+    if (refused) return;
+    const scheme = location.protocol === 'https:' ? 'wss://' : 'ws://';
+    const url = scheme + location.host + '/ws?token=' + encodeURIComponent(token);
+    setStatus('connecting', 'connecting');
+    let sock;
+    try {
+      sock = new WebSocket(url);
+    } catch (e) {
+      setStatus('disconnected (' + e.message + '), reconnecting', 'disconnected');
+      setTimeout(connect, 1000);
+      return;
+    }
+    sock.binaryType = 'arraybuffer';
+    ws = sock;
+    sock.onopen = () => { if (ws === sock) setStatus('connected, waiting for the server', 'connected'); };
+    sock.onmessage = (ev) => { if (ws === sock) onMessage(ev.data); };
+    sock.onclose = (ev) => {
+      if (ws !== sock) return;
+      ws = null;
+      HB.ready = false;
+      if (ev.code === 4001) {
+        refused = true;
+        setStatus('refused: ' + (ev.reason || 'wrong token') + ' (open the URL the server printed)', 'refused');
+        return;
+      }
+      setStatus(`disconnected (code ${ev.code}${ev.reason ? ', ' + ev.reason : ''}), reconnecting every 1 s`, 'disconnected');
+      setTimeout(connect, 1000);
+    };
+    sock.onerror = () => { /* onclose follows */ };
+  }
+
+  function send(buf) {
+    if (ws && ws.readyState === WebSocket.OPEN) { ws.send(buf); return true; }
+    return false;
+  }
+
+  function onMessage(data) {
+    if (typeof data === 'string') {
+      let msg;
+      try { msg = JSON.parse(data); } catch (e) { showMessage('bad text message from the server'); return; }
+      if (msg.op === 'scene') {
+        onScene(msg);
+        setStatus('connected, estimating the clock offset', 'connected');
+      } else if (msg.op === 'ready') {
+        HB.ready = true;
+        HB.offsetMs = msg.offset_ms;
+        setStatus('connected, ready', 'connected');
+      } else if (msg.op === 'error') {
+        showMessage('server: ' + msg.message);
+      }
+      return;
+    }
+    if (!(data instanceof ArrayBuffer) || data.byteLength < 8) return;
+    const dv = new DataView(data);
+    if (dv.getUint8(0) !== MAGIC[0] || dv.getUint8(1) !== MAGIC[1] || dv.getUint8(2) !== MAGIC[2] || dv.getUint8(3) !== MAGIC[3]) return;
+    const kind = dv.getUint8(4);
+    if (kind === KIND_PING && data.byteLength >= 24) {
+      const arrived = performance.now();
+      const buf = new ArrayBuffer(32);
+      const out = header(buf, KIND_PONG);
+      out.setUint32(8, dv.getUint32(8, true), true);
+      new Uint8Array(buf, 16, 8).set(new Uint8Array(data, 16, 8)); // the server's time, bytes as received
+      out.setFloat64(24, arrived, true);
+      send(buf);
+    } else if (kind === KIND_WORLD && data.byteLength >= 32) {
+      try {
+        world = parseWorld(dv, data);
+      } catch (e) {
+        showMessage(e.message);
+        return;
+      }
+      HB.worldsReceived++;
+      HB.lastWorldTime = world.time;
+      worldsThisSecond++;
+    }
+  }
+
+  // ---------------------------------------------------------------- drawing (shared by spectator and XR)
+  const tmpModel = M.create();
+  const FINGER_COLOR = [1.0, 0.62, 0.1, 1.0];
+
+  function drawScene(viewProj, opts) {
+    gl.enable(gl.DEPTH_TEST);
+    gl.depthFunc(gl.LEQUAL);
+    gl.disable(gl.CULL_FACE);
+    // floor
+    gl.useProgram(litProg.p);
+    gl.uniformMatrix4fv(litProg.u.u_viewProj, false, viewProj);
+    gl.uniform1f(litProg.u.u_alpha, 1);
+    if (floorMesh && !opts.passthrough) {
+      gl.uniformMatrix4fv(litProg.u.u_model, false, M.create());
+      gl.uniform3f(litProg.u.u_color, 0.30, 0.32, 0.36);
+      gl.bindVertexArray(floorMesh.vao);
+      gl.drawArrays(gl.TRIANGLES, 0, floorMesh.count);
+    }
+    // blocks
+    if (scene && world) {
+      const n = Math.min(world.count, scene.blocks.length);
+      for (let i = 0; i < n; i++) {
+        const b = scene.blocks[i];
+        if (!b.mesh) continue;
+        const o = i * 8, w = world.blocks;
+        M.fromRTS(tmpModel, w[o + 3], w[o + 4], w[o + 5], w[o + 6], w[o], w[o + 1], w[o + 2], 1);
+        gl.uniformMatrix4fv(litProg.u.u_model, false, tmpModel);
+        const k = w[o + 7] !== 0 ? 0.55 : 1.0;
+        gl.uniform3f(litProg.u.u_color, b.color[0] * k, b.color[1] * k, b.color[2] * k);
+        gl.bindVertexArray(b.mesh.vao);
+        gl.drawArrays(gl.TRIANGLES, 0, b.mesh.count);
+      }
+    }
+    // local hands (XR only): a cube per joint, half-size = radius
+    if (opts.hands) {
+      gl.bindVertexArray(cubeMesh.vao);
+      for (const h of opts.hands) {
+        if (!h.present) continue;
+        gl.uniform3f(litProg.u.u_color, h.left ? 0.55 : 0.35, 0.8, 0.95);
+        const j = h.joints;
+        for (let i = 0; i < JOINT_COUNT; i++) {
+          const o = i * 8;
+          const r = j[o + 7] > 0 ? j[o + 7] : 0.008;
+          M.fromRTS(tmpModel, j[o + 3], j[o + 4], j[o + 5], j[o + 6], j[o], j[o + 1], j[o + 2], r);
+          gl.uniformMatrix4fv(litProg.u.u_model, false, tmpModel);
+          gl.drawArrays(gl.TRIANGLES, 0, cubeMesh.count);
+        }
+      }
+    }
+    // grid and finger points
+    gl.useProgram(flatProg.p);
+    gl.uniformMatrix4fv(flatProg.u.u_viewProj, false, viewProj);
+    if (gridLines.count) {
+      gl.uniform4f(flatProg.u.u_color, 0.55, 0.58, 0.62, 1);
+      gl.bindVertexArray(gridLines.vao);
+      gl.drawArrays(gl.LINES, 0, gridLines.count);
+    }
+    if (pointsBuf.count) {
+      gl.uniform4f(flatProg.u.u_color, FINGER_COLOR[0], FINGER_COLOR[1], FINGER_COLOR[2], FINGER_COLOR[3]);
+      gl.uniform1f(flatProg.u.u_pointSize, opts.pointSize || 6);
+      gl.bindVertexArray(pointsBuf.vao);
+      gl.drawArrays(gl.POINTS, 0, pointsBuf.count);
+      if (fingerLines.count) {
+        gl.bindVertexArray(fingerLines.vao);
+        gl.drawArrays(gl.LINES, 0, fingerLines.count);
+      }
+    }
+    gl.bindVertexArray(null);
+  }
+
+  // Upload the newest world's finger points (points, and short crosses so they read at any size).
+  let uploadedWorld = null;
+  function uploadWorldPoints() {
+    if (!world || uploadedWorld === world) return;
+    uploadedWorld = world;
+    fillDynamic(pointsBuf, world.fingers, world.points);
+    const s = 0.006, f = world.fingers, cross = new Float32Array(world.points * 18);
+    for (let i = 0, o = 0; i < world.points; i++) {
+      const x = f[3 * i], y = f[3 * i + 1], z = f[3 * i + 2];
+      cross.set([x - s, y, z, x + s, y, z, x, y - s, z, x, y + s, z, x, y, z - s, x, y, z + s], o);
+      o += 18;
+    }
+    fillDynamic(fingerLines, cross, world.points * 6);
+  }
+
+  // ---------------------------------------------------------------- spectator view
+  const orbit = { yaw: 0.35, pitch: 0.42, dist: 1.2, target: [0, 0.9, -0.4], autoTarget: true, dragging: false, lx: 0, ly: 0 };
+  canvas.addEventListener('pointerdown', (e) => {
+    orbit.dragging = true; orbit.lx = e.clientX; orbit.ly = e.clientY;
+    canvas.setPointerCapture(e.pointerId);
+  });
+  canvas.addEventListener('pointermove', (e) => {
+    if (!orbit.dragging) return;
+    orbit.yaw -= (e.clientX - orbit.lx) * 0.008;
+    orbit.pitch = Math.min(1.5, Math.max(-1.2, orbit.pitch + (e.clientY - orbit.ly) * 0.008));
+    orbit.lx = e.clientX; orbit.ly = e.clientY;
+  });
+  const endDrag = () => { orbit.dragging = false; };
+  canvas.addEventListener('pointerup', endDrag);
+  canvas.addEventListener('pointercancel', endDrag);
+  canvas.addEventListener('wheel', (e) => {
+    e.preventDefault();
+    orbit.dist = Math.min(10, Math.max(0.15, orbit.dist * Math.exp(e.deltaY * 0.001)));
+  }, { passive: false });
+
+  const specView = M.create(), specProj = M.create(), specViewProj = M.create();
+  let xrSession = null;
+
+  function resizeCanvas() {
+    const dpr = Math.min(window.devicePixelRatio || 1, 2);
+    const w = Math.max(1, Math.round(canvas.clientWidth * dpr)), h = Math.max(1, Math.round(canvas.clientHeight * dpr));
+    if (canvas.width !== w || canvas.height !== h) { canvas.width = w; canvas.height = h; }
+  }
+
+  function updateOverlay(now) {
+    if (now - worldRateStart >= 1000) {
+      worldsPerSecond = worldsThisSecond * 1000 / (now - worldRateStart);
+      worldsThisSecond = 0;
+      worldRateStart = now;
+    }
+    const t = world ? world.time.toFixed(3) + ' s' : '-';
+    const g = world && world.grasped >= 0 && scene && scene.blocks[world.grasped] ? ', grasped: ' + scene.blocks[world.grasped].name : '';
+    const rate = worldsPerSecond === null ? '-' : worldsPerSecond.toFixed(1);
+    worldLine.textContent = `World time: ${t}, ${rate} worlds/s${g}`;
+  }
+
+  function spectatorFrame() {
+    if (xrSession) return;            // the XR loop draws while a session runs
+    window.requestAnimationFrame(spectatorFrame);
+    const now = performance.now();
+    updateOverlay(now);
+    if (!gl) { noteWorldDrawn(now); return; }
+    resizeCanvas();
+    if (orbit.autoTarget && world && scene && world.count > 0) {
+      let x = 0, y = 0, z = 0;
+      for (let i = 0; i < world.count; i++) { x += world.blocks[i * 8]; y += world.blocks[i * 8 + 1]; z += world.blocks[i * 8 + 2]; }
+      orbit.target = [x / world.count, y / world.count, z / world.count];
+      orbit.autoTarget = false;
+    }
+    const cp = Math.cos(orbit.pitch), tg = orbit.target;
+    const eye = [tg[0] + orbit.dist * cp * Math.sin(orbit.yaw), tg[1] + orbit.dist * Math.sin(orbit.pitch),
+      tg[2] + orbit.dist * cp * Math.cos(orbit.yaw)];
+    M.lookAt(specView, eye, tg, [0, 1, 0]);
+    M.perspective(specProj, 55 * Math.PI / 180, canvas.width / canvas.height, 0.02, 50);
+    M.multiply(specViewProj, specProj, specView);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    gl.viewport(0, 0, canvas.width, canvas.height);
+    gl.clearColor(0.13, 0.14, 0.17, 1);
+    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    uploadWorldPoints();
+    drawScene(specViewProj, { pointSize: 7 });
+    noteWorldDrawn(performance.now());
+  }
+
+  // ---------------------------------------------------------------- XR
+  let xrRefSpace = null;
+  let frameSeq = 0;                 // seq of the last hands message sent
+  let prevStats = null;             // { seq, jsMs } of the previous frame that sent hands
+  const hands = [
+    { left: true, present: false, joints: new Float32Array(JOINT_COUNT * JOINT_FLOATS) },
+    { left: false, present: false, joints: new Float32Array(JOINT_COUNT * JOINT_FLOATS) },
+  ];
+  const xrViewProj = M.create();
+
+  // Read one hand's 25 joints through getJointPose: its transform.position / .orientation carry
+  // the runtime's pose as given (no matrix -> quaternion round trip in the page).
+  function readHand(frame, hand, out) {
+    for (let i = 0; i < JOINT_COUNT; i++) {
+      const space = hand.get(JOINTS[i]);
+      if (!space) return false;
+      const pose = frame.getJointPose(space, xrRefSpace);
+      if (!pose) return false;
+      const p = pose.transform.position, q = pose.transform.orientation, o = i * 8;
+      out[o] = p.x; out[o + 1] = p.y; out[o + 2] = p.z;
+      out[o + 3] = q.x; out[o + 4] = q.y; out[o + 5] = q.z; out[o + 6] = q.w;
+      out[o + 7] = pose.radius;
+    }
+    return true;
+  }
+
+  function sendHands(frameTime, mask) {
+    const n = (mask & 1 ? 1 : 0) + (mask & 2 ? 1 : 0);
+    const buf = new ArrayBuffer(24 + HAND_BYTES * n);
+    const dv = header(buf, KIND_HANDS);
+    const seq = frameSeq + 1;
+    dv.setUint8(5, mask);
+    dv.setUint32(8, seq, true);
+    dv.setFloat64(16, frameTime, true);
+    let off = 24;
+    for (let h = 0; h < 2; h++) {
+      if (!(mask & (1 << h))) continue;
+      const j = hands[h].joints;
+      for (let i = 0; i < JOINT_COUNT * JOINT_FLOATS; i++, off += 4) dv.setFloat32(off, j[i], true);
+    }
+    if (!send(buf)) return 0;
+    frameSeq = seq;
+    ringSeq[seq % RING] = seq;
+    ringTime[seq % RING] = performance.now();
+    HB.framesSent++;
+    return seq;
+  }
+
+  function sendStats(seq, jsMs, roundTripMs) {
+    const buf = new ArrayBuffer(32);
+    const dv = header(buf, KIND_STATS);
+    dv.setUint32(8, seq, true);
+    dv.setFloat64(16, jsMs, true);
+    dv.setFloat64(24, roundTripMs, true);
+    send(buf);
+  }
+
+  let handSeen = false;
+
+  function onXRFrame(t, frame) {
+    const t0 = performance.now();
+    const session = frame.session;
+    session.requestAnimationFrame(onXRFrame);
+
+    // 1. the hands, read and sent first so that drawing never delays them
+    let mask = 0;
+    hands[0].present = hands[1].present = false;
+    for (const source of session.inputSources) {
+      if (!source.hand) continue;
+      const h = source.handedness === 'left' ? 0 : source.handedness === 'right' ? 1 : -1;
+      if (h < 0 || hands[h].present) continue;
+      if (readHand(frame, source.hand, hands[h].joints)) { hands[h].present = true; mask |= 1 << h; }
+    }
+    // Once a hand was seen, every frame is sent, a frame without a hand too (mask 0): the
+    // session holds a lost hand's grasp for a stated time, and it measures that time by frames.
+    if (mask) handSeen = true;
+    let seq = 0;
+    if (mask || handSeen) {
+      if (HB.ready && ws && ws.readyState === WebSocket.OPEN) {
+        const xrTime = typeof frame.predictedDisplayTime === 'number' ? frame.predictedDisplayTime : t;
+        const frameTime = typeof HB.frameTimeOverride === 'function' ? Number(HB.frameTimeOverride(xrTime)) : xrTime;
+        seq = sendHands(frameTime, mask);
+      } else {
+        HB.framesSkipped++;
+      }
+    }
+    // 2. the previous hands frame's own timing
+    if (prevStats) {
+      sendStats(prevStats.seq, prevStats.jsMs, pendingRoundTrip);
+      pendingRoundTrip = -1;
+      prevStats = null;
+    }
+
+    // 3. draw every view
+    const layer = session.renderState.baseLayer;
+    const viewer = xrRefSpace ? frame.getViewerPose(xrRefSpace) : null;
+    if (gl && layer && viewer) {
+      gl.bindFramebuffer(gl.FRAMEBUFFER, layer.framebuffer);
+      const passthrough = HB.xrMode === 'immersive-ar';
+      if (passthrough) gl.clearColor(0, 0, 0, 0); else gl.clearColor(0.13, 0.14, 0.17, 1);
+      gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+      uploadWorldPoints();
+      for (const view of viewer.views) {
+        const vp = layer.getViewport(view);
+        if (!vp) continue;
+        gl.viewport(vp.x, vp.y, vp.width, vp.height);
+        M.multiply(xrViewProj, view.projectionMatrix, view.transform.inverse.matrix);
+        drawScene(xrViewProj, { hands, passthrough, pointSize: 5 });
+      }
+      noteWorldDrawn(performance.now());
+    }
+    updateOverlay(t0);
+
+    const jsMs = performance.now() - t0;
+    keep(HB.stats.jsMs, jsMs);
+    if (seq) prevStats = { seq, jsMs };
+  }
+
+  async function enterXR(mode) {
+    if (xrSession) return;
+    try {
+      const session = await navigator.xr.requestSession(mode, {
+        requiredFeatures: ['local-floor'], optionalFeatures: ['hand-tracking'],
+      });
+      if (gl.makeXRCompatible) await gl.makeXRCompatible();
+      session.updateRenderState({ baseLayer: new XRWebGLLayer(session, gl) });
+      xrRefSpace = await session.requestReferenceSpace('local-floor');
+      xrSession = session;
+      HB.xrMode = mode;
+      vrButton.hidden = arButton.hidden = true;
+      xrLine.textContent = `WebXR: in ${mode}` + (session.enabledFeatures && !session.enabledFeatures.includes('hand-tracking') ? ' (no hand tracking granted)' : '');
+      session.addEventListener('end', () => {
+        xrSession = null; xrRefSpace = null; HB.xrMode = null; prevStats = null;
+        xrLine.textContent = 'WebXR: session ended';
+        checkXR();
+        window.requestAnimationFrame(spectatorFrame);
+      });
+      session.requestAnimationFrame(onXRFrame);
+    } catch (e) {
+      showMessage(`could not enter ${mode}: ${e.message || e}`);
+    }
+  }
+
+  async function checkXR() {
+    if (!navigator.xr) {
+      xrLine.textContent = window.isSecureContext ? 'WebXR: not in this browser (spectator view)'
+        : 'WebXR: needs https:// or http://localhost (spectator view)';
+      return;
+    }
+    let vr = false, ar = false;
+    try { vr = await navigator.xr.isSessionSupported('immersive-vr'); } catch (e) { vr = false; }
+    try { ar = await navigator.xr.isSessionSupported('immersive-ar'); } catch (e) { ar = false; }
+    vrButton.hidden = !vr || !gl;
+    arButton.hidden = !ar || !gl;
+    xrLine.textContent = vr || ar ? 'WebXR: available' + (vr ? ' (VR' + (ar ? ', AR)' : ')') : ' (AR)')
+      : 'WebXR: no immersive session here (spectator view)';
+  }
+  vrButton.addEventListener('click', () => enterXR('immersive-vr'));
+  arButton.addEventListener('click', () => enterXR('immersive-ar'));
+
+  // ---------------------------------------------------------------- start
+  buildFloor(0);
+  checkXR();
+  connect();
+  window.requestAnimationFrame(spectatorFrame);
+})();

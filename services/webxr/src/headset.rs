@@ -124,6 +124,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), WebxrError> {
         joints: None,
         origins: [(0, NO_FRAME); ORIGINS],
         origin_next: 0,
+        step_s: 1.0 / session.scene.world.step_hz,
         world_message: Vec::with_capacity(
             webxr_wire::page::WORLD_HEADER_BYTES + 32 * session.scene.blocks.len() + 12 * 64,
         ),
@@ -249,6 +250,8 @@ struct Headset {
     /// (origin ns, page seq) of the frames published, to answer worlds with their frame.
     origins: [(u64, u32); ORIGINS],
     origin_next: usize,
+    /// The world's step, seconds (a world's time is its step count times it).
+    step_s: f64,
     world_message: Vec<u8>,
     counts: Counts,
 }
@@ -405,6 +408,9 @@ impl Headset {
             self.counts.gap_counted = false;
         }
         let sent = self.joints_out.publish(&joints)?;
+        // A headset session waits for its user: silence counts from the first sample on
+        // (told before the first output is recorded, which ends the waiting).
+        pass.recorder.delivered_after_waiting(sent.publish_ns);
         pass.recorder.record(
             Metric::Process,
             sent.publish_ns.saturating_sub(sent.origin_ns),
@@ -413,8 +419,6 @@ impl Headset {
             Metric::Origin,
             sent.publish_ns.saturating_sub(sent.origin_ns),
         );
-        // A headset session waits for its user: silence counts from the first sample on.
-        pass.recorder.delivered_after_waiting(sent.publish_ns);
         self.origins[self.origin_next] = (sent.origin_ns, frame_seq);
         self.origin_next = (self.origin_next + 1) % ORIGINS;
         self.last_source_ns = t;
@@ -476,7 +480,7 @@ impl Headset {
                 .sum::<usize>();
             webxr_wire::page::encode_world(
                 frame_seq,
-                header.stamp.source_time_ns as f64 * 1e-9,
+                header.step as f64 * self.step_s,
                 header.grasped_block,
                 blocks
                     .iter()

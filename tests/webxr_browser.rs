@@ -1,0 +1,199 @@
+//! The webxr page in a real browser (issue 31): headless Chromium with IWER (Meta's WebXR
+//! emulation runtime, an emulated Quest with hand tracking) as the page's XR runtime, driven
+//! by `handblocks emulate headset`. Needs Chromium and the Node modules scripts/webxr-tools.sh
+//! installs (tests/run does); without them each test says it was skipped.
+
+mod support;
+
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use common::WorldSample;
+use recording::Recording;
+use support::{assert_nothing_left, assert_same_poses, repo, simulate_trace, Scratch, EXE};
+
+const TOKEN: &str = "browser-test-token-0123";
+
+/// Why the browser tests cannot run here, if they cannot.
+fn skipped() -> Option<String> {
+    let chromium = std::env::var("HB_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    if !Path::new(&chromium).exists() {
+        return Some(format!("no Chromium at {chromium}"));
+    }
+    match std::env::var("HB_WEBXR_NODE_PATH") {
+        Ok(p) if Path::new(&p).join("iwer").is_dir() => None,
+        _ => Some("HB_WEBXR_NODE_PATH does not name the modules of scripts/webxr-tools.sh".into()),
+    }
+}
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+fn carl(name: &str) -> PathBuf {
+    repo().join(format!("../shared/data/carl/example_{name}_0.carl"))
+}
+
+/// The CARL session `name`'s scene as a webxr session over HTTPS (a certificate made in
+/// `dir`) on `port`, for `seconds` at most (the test stops it sooner), recording to `rec`.
+fn launch(name: &str, id: &str, port: u16, dir: &Scratch, rec: &Path, report: &Path) -> Child {
+    let scene = repo().join(format!("config/scenes/carl-{name}.toml"));
+    Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--no-preview", "--bus-id", id])
+        .args(["--duration", "120"])
+        .args(["--set", &format!("scene={}", scene.display())])
+        .args(["--set", &format!("source.listen=127.0.0.1:{port}")])
+        .args(["--set", &format!("source.token={TOKEN}")])
+        .args([
+            "--set",
+            &format!(
+                "source.certificate_dir={}",
+                dir.path("certificate").display()
+            ),
+        ])
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .arg("--record")
+        .arg(rec)
+        .arg("--report")
+        .arg(report)
+        .arg(repo().join("config/sessions/webxr.toml"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run handblocks")
+}
+
+/// Asks the session to stop (as Ctrl-C does) and waits for its outcome.
+fn stop(child: Child) -> String {
+    // SAFETY: a plain signal to our own child.
+    unsafe {
+        libc::kill(child.id() as i32, libc::SIGINT);
+    }
+    let out = child.wait_with_output().unwrap();
+    let text = format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "the webxr session: {text}");
+    text
+}
+
+/// `handblocks emulate headset URL ARGS`: its JSON summary.
+fn emulate(port: u16, args: &[&str]) -> serde_json::Value {
+    let url = format!("https://127.0.0.1:{port}/?token={TOKEN}");
+    // The server may still be starting: the driver retries the page until it answers.
+    std::thread::sleep(Duration::from_millis(500));
+    let out = Command::new(EXE)
+        .args(["emulate", "headset", &url])
+        .args(args)
+        .output()
+        .expect("run handblocks emulate");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "emulate headset: {stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = stdout
+        .lines()
+        .rev()
+        .find(|l| l.starts_with('{'))
+        .unwrap_or("{}");
+    serde_json::from_str(line).unwrap_or_else(|e| panic!("{e}: {stdout}"))
+}
+
+/// Plays CARL trace `name` through the page in Chromium and compares the world that answers
+/// its last frame with `simulate --hand`; returns the driver's summary and whether identical.
+fn play_carl(name: &str) -> (serde_json::Value, bool) {
+    let dir = Scratch::new(&format!("webxr-browser-{name}"));
+    let port = free_port();
+    let id = format!("wc{name}{}", std::process::id());
+    let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
+    let child = launch(name, &id, port, &dir, &rec, &report);
+    let trace = carl(name);
+    let summary = emulate(port, &["--trace", trace.to_str().unwrap()]);
+    std::thread::sleep(Duration::from_millis(500));
+    let text = stop(child);
+    assert_nothing_left(&id);
+    let worlds: Vec<WorldSample> = Recording::open(&rec).unwrap().worlds().collect();
+    let joints = Recording::open(&rec).unwrap().stats()[common::Topic::Joints as usize].messages;
+    let samples = replay::CarlTrace::load(&trace).unwrap().samples;
+    let played = samples.len() - samples.iter().position(|s| s.tracked).unwrap_or(0);
+    assert!(
+        worlds.len() >= played,
+        "{name}: {} worlds, {joints} joints for {played} samples; {summary}\n{text}",
+        worlds.len()
+    );
+    let last = &worlds[played - 1];
+    let v = simulate_trace(
+        &repo().join(format!("config/scenes/carl-{name}.toml")),
+        &trace,
+        [0.0, -0.92, 0.0],
+        last.step,
+    );
+    let identical = std::panic::catch_unwind(|| assert_same_poses(&v, last)).is_ok();
+    (summary, identical)
+}
+
+/// The four CARL traces, each played through the page by the emulated Quest, one trace sample
+/// per XR frame in its own time: the session's world equals `simulate --hand` of the trace.
+#[test]
+fn the_emulated_headset_plays_the_four_carl_traces_as_simulate_does() {
+    if let Some(why) = skipped() {
+        eprintln!("skipped: {why}");
+        return;
+    }
+    for name in ["lift", "push", "pull", "settle"] {
+        let (summary, identical) = play_carl(name);
+        eprintln!("webxr browser {name}: identical to simulate --hand: {identical}; {summary}");
+        assert!(
+            identical,
+            "{name}: the world differs from simulate --hand; {summary}"
+        );
+    }
+}
+
+/// A browser without WebXR is a spectator: the page draws the session's blocks.
+#[test]
+fn the_spectator_page_draws_the_blocks() {
+    if let Some(why) = skipped() {
+        eprintln!("skipped: {why}");
+        return;
+    }
+    let dir = Scratch::new("webxr-spectator");
+    let port = free_port();
+    let id = format!("ws{}", std::process::id());
+    let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
+    let child = launch("lift", &id, port, &dir, &rec, &report);
+    // A headset drives in the background so that worlds flow; the spectator watches.
+    let png = dir.path("spectator.png");
+    let driver_port = port;
+    let player = std::thread::spawn(move || {
+        let trace = carl("lift");
+        emulate(driver_port, &["--trace", trace.to_str().unwrap()])
+    });
+    std::thread::sleep(Duration::from_secs(3));
+    let summary = emulate(
+        port,
+        &["--spectator", "--screenshot", png.to_str().unwrap()],
+    );
+    let _ = player.join();
+    stop(child);
+    assert_nothing_left(&id);
+    assert!(
+        summary["worldsDrawn"].as_u64().unwrap_or(0) > 0,
+        "{summary}"
+    );
+    let bytes = std::fs::read(&png).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG"), "a PNG screenshot");
+    if let Ok(keep) = std::env::var("HB_KEEP_SCREENSHOT") {
+        std::fs::copy(&png, keep).unwrap();
+    }
+}
