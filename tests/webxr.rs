@@ -409,3 +409,97 @@ fn bad_frames_are_refused_by_name_and_the_session_goes_on() {
         assert!(p.position.iter().all(|v| v.abs() < 100.0));
     }
 }
+
+/// The tracking rule: a hand that loses tracking mid-carry holds its grasp through a 50 ms gap,
+/// lets go once a gap passes 100 ms (counted), and a socket that drops is counted while the
+/// world goes on (the released block falls to the floor).
+#[test]
+fn a_lost_hand_holds_its_grasp_for_100_ms_then_lets_go_and_a_dropped_socket_is_counted() {
+    let dir = Scratch::new("webxr-gap");
+    let port = free_port();
+    let id = format!("wg{}", std::process::id());
+    let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
+    let samples = headset_samples(&carl("lift"));
+    let child = launch("lift", &id, port, 8.0, &rec, &report);
+    let mut page = Page::open(port, TOKEN);
+    page.wait_ready();
+    // The lift until the block is held up (about 1.9 s in: steps 200-240 hold it at ~0.55 m).
+    let held = samples
+        .iter()
+        .position(|s| s.0 >= 1_900_000_000)
+        .expect("a 2.9 s trace");
+    play(&mut page, &samples[..=held]);
+    let (t_held, _, hand) = samples[held];
+    let mut frame = HandsFrame::default();
+    let mut bytes = Vec::new();
+    let mut seq = held as u32 + 1;
+    let mut send = |page: &mut Page, ms: f64, hand: Option<&HandJoints>| {
+        seq += 1;
+        frame.seq = seq;
+        frame.frame_time_ms = ms;
+        frame.present = [false, hand.is_some()];
+        if let Some(h) = hand {
+            frame.hands[1] = *h;
+        }
+        webxr_wire::encode(&frame, &mut bytes);
+        page.send(&bytes);
+        page.pump();
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let t0 = t_held as f64 / 1e6;
+    // A 44 ms gap (frames without the hand), then the hand again: held throughout.
+    for k in 1..=4 {
+        send(&mut page, t0 + 11.0 * f64::from(k), None);
+    }
+    send(&mut page, t0 + 55.0, Some(&hand));
+    // A 220 ms gap: let go after 100 ms.
+    let gap_from = t0 + 55.0;
+    for k in 1..=20 {
+        send(&mut page, gap_from + 11.0 * f64::from(k), None);
+    }
+    // The socket drops; the world goes on without a hand.
+    drop(page);
+    let text = wait_for(child, "the webxr session");
+    assert_nothing_left(&id);
+
+    let worlds: Vec<WorldSample> = Recording::open(&rec).unwrap().worlds().collect();
+    let first = worlds[0].stamp.source_time_ns;
+    let at_ms = |w: &WorldSample| (w.stamp.source_time_ns - first) as f64 / 1e6;
+    let grasped = |from: f64, to: f64| {
+        worlds
+            .iter()
+            .filter(|w| (from..=to).contains(&at_ms(w)))
+            .map(|w| w.grasped_block == 0)
+            .collect::<Vec<_>>()
+    };
+    let short_gap = grasped(t0, t0 + 55.0);
+    assert!(
+        !short_gap.is_empty() && short_gap.iter().all(|g| *g),
+        "let go in a 44 ms gap: {short_gap:?}"
+    );
+    let within_hold = grasped(gap_from, gap_from + 99.0);
+    assert!(
+        within_hold.iter().all(|g| *g),
+        "let go within the hold: {within_hold:?}"
+    );
+    let after_hold = grasped(gap_from + 111.0, gap_from + 220.0);
+    assert!(
+        !after_hold.is_empty() && after_hold.iter().all(|g| !*g),
+        "still held after 100 ms: {after_hold:?}"
+    );
+    let last = worlds.last().unwrap();
+    assert!(
+        last.blocks()[0].pose.position[1] < 0.1,
+        "the released block fell: at {} m",
+        last.blocks()[0].pose.position[1]
+    );
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("handblocks webxr:") && l.contains("refused"))
+        .unwrap_or_else(|| panic!("no webxr summary: {text}"));
+    assert!(line.contains("driving sockets lost 1"), "{line}");
+    assert!(
+        line.contains("tracking gaps over 100 ms (the hand let go) 1"),
+        "{line}"
+    );
+}

@@ -139,6 +139,17 @@ fn play_carl(name: &str) -> (serde_json::Value, bool) {
         last.step,
     );
     let identical = std::panic::catch_unwind(|| assert_same_poses(&v, last)).is_ok();
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    eprintln!(
+        "webxr browser {name}: the stepper's origin -> world p50 {} us, p99 {} us; the page's \
+         round trip in the report p50 {} us, p99 {} us; page js p50 {} us, p99 {} us",
+        r["stages"]["stepper"]["origin_us"]["p50"],
+        r["stages"]["stepper"]["origin_us"]["p99"],
+        r["stages"]["webxr"]["photon_us"]["p50"],
+        r["stages"]["webxr"]["photon_us"]["p99"],
+        r["stages"]["webxr"]["page_js_us"]["p50"],
+        r["stages"]["webxr"]["page_js_us"]["p99"],
+    );
     (summary, identical)
 }
 

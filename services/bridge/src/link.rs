@@ -11,11 +11,12 @@
 //! callback hands samples to the bridge's loop through a bounded queue that drops, counted,
 //! when the loop falls behind. What was lost shows as gaps in the seqs the receiver publishes.
 
-use std::os::fd::{AsRawFd, FromRawFd, OwnedFd, RawFd};
+use std::os::fd::RawFd;
 use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+use common::bus::Wake;
 use common::config::session::{LinkRole, RemoteLink};
 use common::{monotonic_ns, Topic};
 use zenoh::bytes::ZBytes;
@@ -100,7 +101,7 @@ pub struct Link {
     _clock_answers: Vec<Queryable<()>>,
     pub incoming: crossbeam_channel::Receiver<Incoming>,
     /// Written by the subscribers' callback after each sample queued: the loop sleeps on it.
-    wake: Arc<OwnedFd>,
+    wake: Arc<Wake>,
     /// Samples the queue had no room for.
     pub queue_full: Arc<AtomicU64>,
     pub clock: Arc<SharedClock>,
@@ -155,25 +156,6 @@ pub fn declare_sender(
         .wait()
 }
 
-fn eventfd() -> Result<OwnedFd, LinkError> {
-    // SAFETY: plain syscall; the descriptor is owned by the returned OwnedFd.
-    let fd = unsafe { libc::eventfd(0, libc::EFD_NONBLOCK | libc::EFD_CLOEXEC) };
-    if fd < 0 {
-        return Err(LinkError::EventFd(std::io::Error::last_os_error()));
-    }
-    // SAFETY: `fd` is a fresh descriptor nobody else owns.
-    Ok(unsafe { OwnedFd::from_raw_fd(fd) })
-}
-
-fn write_wake(fd: RawFd) {
-    let one: u64 = 1;
-    // SAFETY: writes 8 bytes from a live u64 to an eventfd; a full counter (EAGAIN) is fine:
-    // the loop is awake already.
-    unsafe {
-        libc::write(fd, &one as *const u64 as *const libc::c_void, 8);
-    }
-}
-
 impl Link {
     pub fn open(link: &RemoteLink) -> Result<Link, LinkError> {
         let open_err = |reason: String| LinkError::Open {
@@ -204,7 +186,7 @@ impl Link {
                 .map_err(|e| declare_err(&clock_key, e))?;
             clock_answers.push(q);
         }
-        let wake = Arc::new(eventfd()?);
+        let wake = Arc::new(Wake::new().map_err(LinkError::EventFd)?);
         let queue_full = Arc::new(AtomicU64::new(0));
         let (tx, incoming) = crossbeam_channel::bounded(INCOMING_QUEUE);
         let mut subscribers = Vec::new();
@@ -222,7 +204,7 @@ impl Link {
                         bytes: sample.payload().clone(),
                     };
                     match tx.try_send(item) {
-                        Ok(()) => write_wake(wake.as_raw_fd()),
+                        Ok(()) => wake.wake(),
                         Err(_) => {
                             full.fetch_add(1, Ordering::Relaxed);
                         }
@@ -256,20 +238,12 @@ impl Link {
 
     /// The descriptor the loop sleeps on besides its inlets (readable: samples queued).
     pub fn wake_fd(&self) -> RawFd {
-        self.wake.as_raw_fd()
+        self.wake.fd()
     }
 
     /// Consumes the wake-ups (the queue itself is drained by the caller).
     pub fn clear_wake(&self) {
-        let mut n: u64 = 0;
-        // SAFETY: reads 8 bytes into a live u64 from a non-blocking eventfd.
-        unsafe {
-            libc::read(
-                self.wake.as_raw_fd(),
-                &mut n as *mut u64 as *mut libc::c_void,
-                8,
-            );
-        }
+        self.wake.clear();
     }
 
     /// Sends `message` on `topic`'s key; false when the topic is not sent on this link.

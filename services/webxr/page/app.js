@@ -261,6 +261,12 @@
     }));
     const floorY = Number.isFinite(msg.floor_y) ? msg.floor_y : 0;
     scene = { session: msg.session, hand: msg.hand, floorY, stepHz: msg.step_hz, blocks };
+    // The session moves the tracked hand by `offset` into the world (a standing user's hand,
+    // ~1 m up, reaches blocks on the world's floor). In the headset the world is moved back by
+    // as much, so that the blocks lie where the hand that moves them is: the world's floor at
+    // table height, the hand where it really is.
+    const off = Array.isArray(msg.offset) && msg.offset.length === 3 ? msg.offset.map(Number) : [0, 0, 0];
+    M.fromRTS(worldToHeadset, 0, 0, 0, 1, -off[0], -off[1], -off[2], 1);
     HB.blocks = blocks.map((b) => b.name);
     HB.session = msg.session;
     buildFloor(floorY);
@@ -404,15 +410,20 @@
 
   // ---------------------------------------------------------------- drawing (shared by spectator and XR)
   const tmpModel = M.create();
+  // The world's frame to the headset's (local-floor): translate(-offset), set by the scene.
+  const worldToHeadset = M.create();
   const FINGER_COLOR = [1.0, 0.62, 0.1, 1.0];
 
+  // `viewProj` draws in the headset's frame (its local hands); `opts.worldViewProj`, when
+  // given, draws the world's content (floor, blocks, the stepper's fingers) in it.
   function drawScene(viewProj, opts) {
+    const worldViewProj = opts.worldViewProj || viewProj;
     gl.enable(gl.DEPTH_TEST);
     gl.depthFunc(gl.LEQUAL);
     gl.disable(gl.CULL_FACE);
     // floor
     gl.useProgram(litProg.p);
-    gl.uniformMatrix4fv(litProg.u.u_viewProj, false, viewProj);
+    gl.uniformMatrix4fv(litProg.u.u_viewProj, false, worldViewProj);
     gl.uniform1f(litProg.u.u_alpha, 1);
     if (floorMesh && !opts.passthrough) {
       gl.uniformMatrix4fv(litProg.u.u_model, false, M.create());
@@ -437,6 +448,7 @@
     }
     // local hands (XR only): a cube per joint, half-size = radius
     if (opts.hands) {
+      gl.uniformMatrix4fv(litProg.u.u_viewProj, false, viewProj);
       gl.bindVertexArray(cubeMesh.vao);
       for (const h of opts.hands) {
         if (!h.present) continue;
@@ -453,7 +465,7 @@
     }
     // grid and finger points
     gl.useProgram(flatProg.p);
-    gl.uniformMatrix4fv(flatProg.u.u_viewProj, false, viewProj);
+    gl.uniformMatrix4fv(flatProg.u.u_viewProj, false, worldViewProj);
     if (gridLines.count) {
       gl.uniform4f(flatProg.u.u_color, 0.55, 0.58, 0.62, 1);
       gl.bindVertexArray(gridLines.vao);
@@ -565,6 +577,7 @@
     { left: false, present: false, joints: new Float32Array(JOINT_COUNT * JOINT_FLOATS) },
   ];
   const xrViewProj = M.create();
+  const xrWorldViewProj = M.create();
 
   // Read one hand's 25 joints through getJointPose: its transform.position / .orientation carry
   // the runtime's pose as given (no matrix -> quaternion round trip in the page).
@@ -663,7 +676,8 @@
         if (!vp) continue;
         gl.viewport(vp.x, vp.y, vp.width, vp.height);
         M.multiply(xrViewProj, view.projectionMatrix, view.transform.inverse.matrix);
-        drawScene(xrViewProj, { hands, passthrough, pointSize: 5 });
+        M.multiply(xrWorldViewProj, xrViewProj, worldToHeadset);
+        drawScene(xrViewProj, { hands, passthrough, pointSize: 5, worldViewProj: xrWorldViewProj });
       }
       noteWorldDrawn(performance.now());
     }

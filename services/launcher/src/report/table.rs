@@ -113,6 +113,8 @@ impl Report {
                 "reconnects",
                 "errors"
             ));
+            let serial = devices.iter().any(|d| d.device != 3);
+            let headset = devices.iter().any(|d| d.device == 3);
             for d in devices {
                 out.push_str(&format!(
                     "{:<8} {:>9} {:>8} {:>8} {:>8} {:>7} {:>10} {:>7}\n",
@@ -126,11 +128,21 @@ impl Report {
                     d.device_errors
                 ));
             }
-            out.push_str(
-                "garbage: bytes skipped between records; rejected: malformed or out-of-range \
-                 records; other: records of other tracker stations; errors: the device's own \
-                 error replies\n",
-            );
+            if serial {
+                out.push_str(
+                    "garbage: bytes skipped between records; rejected: malformed or out-of-range \
+                     records; other: records of other tracker stations; errors: the device's own \
+                     error replies\n",
+                );
+            }
+            if headset {
+                out.push_str(
+                    "headset: samples: hands frames published; rejected: messages refused (each \
+                     kind in the webxr line above); other: frames of a page not driving; losses: \
+                     driving sockets lost; reconnects: pages that drove after the first; errors: \
+                     tracking gaps over 100 ms (the hand let go)\n",
+                );
+            }
         }
         out.push('\n');
         out.push_str(TERMS);
