@@ -12,7 +12,6 @@
 //! beside the local iceoryx2 hop, the remote session's origin -> photon, and what a killed
 //! viewer cost the local session.
 
-use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -23,7 +22,7 @@ use recording::Recording;
 use serde_json::Value;
 
 mod support;
-use support::{assert_nothing_left, both, repo, Scratch, EXE};
+use support::{assert_nothing_left, both, free_port, repo, Scratch, EXE};
 
 /// Two hosts: network namespaces joined by a veth pair, or this machine's loopback.
 struct Hosts {
@@ -122,14 +121,6 @@ impl Halves {
             hosts,
         }
     }
-}
-
-/// A port free on this machine now (namespaces have ports of their own; loopback shares).
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free port")
 }
 
 /// Starts `handblocks launch SESSION` on `host` for `seconds`, recording to `rec`, with

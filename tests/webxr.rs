@@ -5,53 +5,27 @@
 
 mod support;
 
-use std::net::{TcpListener, TcpStream};
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::net::TcpStream;
+use std::path::Path;
+use std::process::{Child, Command};
 use std::time::{Duration, Instant};
 
 use common::{Pose, WorldSample};
 use recording::Recording;
-use support::{assert_nothing_left, assert_same_poses, repo, simulate_trace, Scratch, EXE};
+use support::{
+    assert_nothing_left, assert_same_poses, carl_example as carl, free_port, launch_webxr, repo,
+    simulate_trace, Scratch, EXE,
+};
 use tungstenite::{Message, WebSocket};
 use webxr_wire::page;
 use webxr_wire::{HandJoints, HandsFrame, WEBXR_JOINTS};
 
 const TOKEN: &str = "test-token-0123456789";
 
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free port")
-}
-
-fn carl(name: &str) -> PathBuf {
-    repo().join(format!("../shared/data/carl/example_{name}_0.carl"))
-}
-
-/// `config/sessions/webxr.toml` on `port`, plain HTTP, the test's token, the scene of the
-/// CARL session `name`, recording to `rec`.
+/// `config/sessions/webxr.toml` over plain HTTP (see `support::launch_webxr`).
 fn launch(name: &str, id: &str, port: u16, seconds: f64, rec: &Path, report: &Path) -> Child {
-    let scene = repo().join(format!("config/scenes/carl-{name}.toml"));
-    Command::new(EXE)
-        .current_dir(repo())
-        .args(["launch", "--quiet", "--no-preview", "--bus-id", id])
-        .args(["--duration", &seconds.to_string()])
-        .args(["--set", &format!("scene={}", scene.display())])
-        .args(["--set", &format!("source.listen=127.0.0.1:{port}")])
-        .args(["--set", "source.tls=false"])
-        .args(["--set", &format!("source.token={TOKEN}")])
-        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
-        .arg("--record")
-        .arg(rec)
-        .arg("--report")
-        .arg(report)
-        .arg(repo().join("config/sessions/webxr.toml"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run handblocks")
+    let extra = ["source.tls=false".to_string()];
+    launch_webxr(name, id, port, TOKEN, seconds, &extra, rec, report)
 }
 
 type Socket = WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>>;
@@ -502,4 +476,45 @@ fn a_lost_hand_holds_its_grasp_for_100_ms_then_lets_go_and_a_dropped_socket_is_c
         line.contains("tracking gaps over 100 ms (the hand let go) 1"),
         "{line}"
     );
+}
+
+/// A webxr session's keys are checked before anything starts, naming the file, the key and
+/// what is allowed; `emulate headset` says what it needs.
+#[test]
+fn bad_webxr_settings_and_emulate_usage_name_what_is_wrong() {
+    let session = repo().join("config/sessions/webxr.toml");
+    let check = |set: &str, want: &[&str]| {
+        let out = Command::new(EXE)
+            .args(["launch", "--quiet", "--duration", "1", "--set", set])
+            .arg(&session)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{set}: {err}");
+        for w in want {
+            assert!(err.contains(w), "{set}: {w:?} not in {err}");
+        }
+    };
+    check("source.token=short", &["webxr.toml", "token", "16 to 128"]);
+    check(
+        "source.listen=nowhere",
+        &["webxr.toml", "listen", "0.0.0.0:8443"],
+    );
+    check(
+        "source.hand=both",
+        &["webxr.toml", "hand", "\"right\", \"left\""],
+    );
+    let emulate = |args: &[&str], want: &str| {
+        let out = Command::new(EXE)
+            .arg("emulate")
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {want:?} not in {err}");
+    };
+    emulate(&["headset"], "the page's URL");
+    emulate(&["headset", "https://127.0.0.1:1/?token=x"], "--trace FILE");
+    emulate(&["glove"], "--link PATH");
 }

@@ -5,16 +5,22 @@
 
 mod support;
 
-use std::net::TcpListener;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::path::Path;
+use std::process::{Child, Command};
 use std::time::Duration;
 
 use common::WorldSample;
 use recording::Recording;
-use support::{assert_nothing_left, assert_same_poses, repo, simulate_trace, Scratch, EXE};
+use support::{
+    assert_nothing_left, assert_same_poses, carl_example as carl, free_port, launch_webxr, repo,
+    simulate_trace, Scratch, EXE,
+};
 
 const TOKEN: &str = "browser-test-token-0123";
+
+/// One browser at a time: two headless Chromiums with software rendering on a 2-core machine
+/// slow each other to a few frames a second.
+static BROWSER: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 /// Why the browser tests cannot run here, if they cannot.
 fn skipped() -> Option<String> {
@@ -28,45 +34,14 @@ fn skipped() -> Option<String> {
     }
 }
 
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free port")
-}
-
-fn carl(name: &str) -> PathBuf {
-    repo().join(format!("../shared/data/carl/example_{name}_0.carl"))
-}
-
 /// The CARL session `name`'s scene as a webxr session over HTTPS (a certificate made in
-/// `dir`) on `port`, for `seconds` at most (the test stops it sooner), recording to `rec`.
+/// `dir`) on `port`, for 120 s at most (the test stops it sooner), recording to `rec`.
 fn launch(name: &str, id: &str, port: u16, dir: &Scratch, rec: &Path, report: &Path) -> Child {
-    let scene = repo().join(format!("config/scenes/carl-{name}.toml"));
-    Command::new(EXE)
-        .current_dir(repo())
-        .args(["launch", "--quiet", "--no-preview", "--bus-id", id])
-        .args(["--duration", "120"])
-        .args(["--set", &format!("scene={}", scene.display())])
-        .args(["--set", &format!("source.listen=127.0.0.1:{port}")])
-        .args(["--set", &format!("source.token={TOKEN}")])
-        .args([
-            "--set",
-            &format!(
-                "source.certificate_dir={}",
-                dir.path("certificate").display()
-            ),
-        ])
-        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
-        .arg("--record")
-        .arg(rec)
-        .arg("--report")
-        .arg(report)
-        .arg(repo().join("config/sessions/webxr.toml"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run handblocks")
+    let extra = [format!(
+        "source.certificate_dir={}",
+        dir.path("certificate").display()
+    )];
+    launch_webxr(name, id, port, TOKEN, 120.0, &extra, rec, report)
 }
 
 /// Asks the session to stop (as Ctrl-C does) and waits for its outcome.
@@ -161,6 +136,7 @@ fn the_emulated_headset_plays_the_four_carl_traces_as_simulate_does() {
         eprintln!("skipped: {why}");
         return;
     }
+    let _one = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
     for name in ["lift", "push", "pull", "settle"] {
         let (summary, identical) = play_carl(name);
         eprintln!("webxr browser {name}: identical to simulate --hand: {identical}; {summary}");
@@ -178,6 +154,7 @@ fn the_spectator_page_draws_the_blocks() {
         eprintln!("skipped: {why}");
         return;
     }
+    let _one = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
     let dir = Scratch::new("webxr-spectator");
     let port = free_port();
     let id = format!("ws{}", std::process::id());

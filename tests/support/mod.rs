@@ -197,3 +197,53 @@ pub fn simulate_trace(
     assert!(out.status.success(), "{}", both(&out));
     serde_json::from_slice(&out.stdout).expect("simulate --json prints JSON")
 }
+
+/// A TCP port free on 127.0.0.1 now (for a server a test starts).
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+/// The CARL example trace `name` (`lift`, `push`, `pull`, `settle`) in ../shared/data/carl.
+pub fn carl_example(name: &str) -> PathBuf {
+    repo().join(format!("../shared/data/carl/example_{name}_0.carl"))
+}
+
+/// `config/sessions/webxr.toml` with the scene of the CARL session `name`, served on
+/// 127.0.0.1:`port` with `token`, for `seconds`, recording to `rec`, reporting to `report`;
+/// `extra` are more `--set` overrides (`source.tls=false`, a certificate folder).
+pub fn launch_webxr(
+    name: &str,
+    id: &str,
+    port: u16,
+    token: &str,
+    seconds: f64,
+    extra: &[String],
+    rec: &std::path::Path,
+    report: &std::path::Path,
+) -> std::process::Child {
+    let scene = repo().join(format!("config/scenes/carl-{name}.toml"));
+    let mut c = std::process::Command::new(EXE);
+    c.current_dir(repo())
+        .args(["launch", "--quiet", "--no-preview", "--bus-id", id])
+        .args(["--duration", &seconds.to_string()])
+        .args(["--set", &format!("scene={}", scene.display())])
+        .args(["--set", &format!("source.listen=127.0.0.1:{port}")])
+        .args(["--set", &format!("source.token={token}")])
+        // What is tested is the page and its hand, not this (shared, loaded) machine's latency.
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"]);
+    for e in extra {
+        c.args(["--set", e]);
+    }
+    c.arg("--record")
+        .arg(rec)
+        .arg("--report")
+        .arg(report)
+        .arg(repo().join("config/sessions/webxr.toml"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run handblocks")
+}

@@ -13,10 +13,12 @@
 //!
 //! **Tracking.** A frame without the driving hand publishes the hand's last joints marked
 //! untracked, in the frame's time; kinematics holds the grasp through such a gap up to
-//! `kinematics::TRACKING_HOLD_NS` (100 ms) and then lets go. A driving page whose socket
+//! [`common::TRACKING_HOLD_NS`] (100 ms) and then lets go. A driving page whose socket
 //! closes (or that sends nothing for [`SILENCE_NS`]) is a gap too: untracked samples go on,
-//! every [`GAP_PERIOD_NS`] of this machine's time, so that the world goes on and what the
-//! hand held falls, until a page drives again.
+//! every [`GAP_PERIOD_NS`] of this machine's time, in the driver's timeline continued from its
+//! last frame, so that the world goes on and what the hand held falls, until a page drives
+//! again. While a page drives, only its frames make samples: the world is a function of what
+//! it sent, however slowly it came.
 //!
 //! **Back to the page.** Every world goes to every page ([`webxr_wire::page::encode_world`]),
 //! with the seq of the driving page's frame it answers (looked up by the world's origin, which
@@ -40,8 +42,11 @@ use crate::address;
 use crate::certificate::{self, CertificateError};
 use crate::server::{Inbound, Server, ServerError, ServerSettings};
 
-/// A driving page silent this long (this machine's time) is taken as gone.
-pub const SILENCE_NS: u64 = 250_000_000;
+/// A driving page that sends no frame for this long (this machine's time) is taken as gone:
+/// it left its XR session, or its browser hid it. A page in XR sends a frame every display
+/// frame, a hand or not, so only a page that stopped drawing is this silent; a slow one (a
+/// loaded machine's emulated headset stalls for a few hundred milliseconds) is not.
+pub const SILENCE_NS: u64 = 2_000_000_000;
 /// While no page drives after one did: an untracked sample this often (60 Hz).
 pub const GAP_PERIOD_NS: u64 = 16_666_667;
 /// Frames remembered to answer a world with the frame it answers.
@@ -120,6 +125,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), WebxrError> {
         last_seq: None,
         last_source_ns: 0,
         last_frame_arrival_ns: 0,
+        last_frame_source_ns: 0,
         last_gap_ns: 0,
         joints: None,
         origins: [(0, NO_FRAME); ORIGINS],
@@ -243,6 +249,8 @@ struct Headset {
     last_seq: Option<u32>,
     last_source_ns: u64,
     last_frame_arrival_ns: u64,
+    /// The source time of the driving page's last frame.
+    last_frame_source_ns: u64,
     /// When the last untracked sample was sent while no page drove (this machine's time).
     last_gap_ns: u64,
     /// The last joints published (what a gap repeats, untracked).
@@ -351,6 +359,7 @@ impl Headset {
         }
         self.last_seq = Some(frame.seq);
         self.last_frame_arrival_ns = arrived_ns;
+        self.last_frame_source_ns = source_ns as u64;
         let which = if self.settings.left_hand {
             Handedness::Left
         } else {
@@ -430,11 +439,10 @@ impl Headset {
     /// No page drives (after one did): the hand, untracked, every [`GAP_PERIOD_NS`].
     fn keep_time(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
         let now = monotonic_ns();
-        if let Some(d) = self.driver {
+        if self.driver.is_some() {
             if now.saturating_sub(self.last_frame_arrival_ns) > SILENCE_NS {
-                // Silent: a page in the background, a socket that died without a close; its
-                // frames, should it come back, are another driver's.
-                let _ = d;
+                // Silent: a page in the background, a socket that died without a close. Should
+                // it come back, it drives again as a new driver (its seqs start over).
                 self.driver = None;
                 self.counts.drops += 1;
             } else {
@@ -450,9 +458,12 @@ impl Headset {
         self.last_gap_ns = now;
         let mut j = last;
         j.tracked = 0;
+        // The driver's timeline goes on at this machine's pace from its last frame (a page
+        // that drives again maps its frames by the same offset, so they follow on).
+        let since_last = now.saturating_sub(self.last_frame_arrival_ns);
         j.stamp = Stamp {
             seq: 0,
-            source_time_ns: now.max(self.last_source_ns + 1),
+            source_time_ns: (self.last_frame_source_ns + since_last).max(self.last_source_ns + 1),
             origin_ns: now,
             publish_ns: 0,
         };
