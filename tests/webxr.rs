@@ -25,7 +25,7 @@ const TOKEN: &str = "test-token-0123456789";
 /// `config/sessions/webxr.toml` over plain HTTP (see `support::launch_webxr`).
 fn launch(name: &str, id: &str, port: u16, seconds: f64, rec: &Path, report: &Path) -> Child {
     let extra = ["source.tls=false".to_string()];
-    launch_webxr(name, id, port, TOKEN, seconds, &extra, rec, report)
+    launch_webxr(name, id, port, TOKEN, seconds, &extra, (rec, report))
 }
 
 type Socket = WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>>;

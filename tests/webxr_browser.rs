@@ -41,7 +41,7 @@ fn launch(name: &str, id: &str, port: u16, dir: &Scratch, rec: &Path, report: &P
         "source.certificate_dir={}",
         dir.path("certificate").display()
     )];
-    launch_webxr(name, id, port, TOKEN, 120.0, &extra, rec, report)
+    launch_webxr(name, id, port, TOKEN, 120.0, &extra, (rec, report))
 }
 
 /// Asks the session to stop (as Ctrl-C does) and waits for its outcome.

@@ -212,8 +212,8 @@ pub fn carl_example(name: &str) -> PathBuf {
 }
 
 /// `config/sessions/webxr.toml` with the scene of the CARL session `name`, served on
-/// 127.0.0.1:`port` with `token`, for `seconds`, recording to `rec`, reporting to `report`;
-/// `extra` are more `--set` overrides (`source.tls=false`, a certificate folder).
+/// 127.0.0.1:`port` with `token`, for `seconds`, recording to and reporting in `(rec,
+/// report)`; `extra` are more `--set` overrides (`source.tls=false`, a certificate folder).
 pub fn launch_webxr(
     name: &str,
     id: &str,
@@ -221,8 +221,7 @@ pub fn launch_webxr(
     token: &str,
     seconds: f64,
     extra: &[String],
-    rec: &std::path::Path,
-    report: &std::path::Path,
+    (rec, report): (&std::path::Path, &std::path::Path),
 ) -> std::process::Child {
     let scene = repo().join(format!("config/scenes/carl-{name}.toml"));
     let mut c = std::process::Command::new(EXE);
