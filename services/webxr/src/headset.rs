@@ -220,6 +220,8 @@ struct Counts {
     before_clock: u64,
     /// Frames whose seq or time did not increase.
     order: u64,
+    /// Frames the driving page numbered that never came (lost on the way, or refused).
+    seq_gaps: u64,
     /// Driving sockets lost (closed or silent).
     drops: u64,
     /// Pages that took over driving after the first.
@@ -356,6 +358,9 @@ impl Headset {
         if !in_order {
             self.counts.order += 1;
             return Ok(());
+        }
+        if let Some(last) = self.last_seq {
+            self.counts.seq_gaps += u64::from(frame.seq - last - 1);
         }
         self.last_seq = Some(frame.seq);
         self.last_frame_arrival_ns = arrived_ns;
@@ -578,7 +583,8 @@ impl Task for Headset {
         ]);
         eprintln!(
             "handblocks webxr: {} pages connected; {} frames published ({} untracked), {} worlds \
-             sent; refused: {}{}{}; frames of a page not driving {}; driving sockets lost {}; \
+             sent; refused: {}{}{}; frames missing from the driver's seqs {}; frames of a page \
+             not driving {}; driving sockets lost {}; \
              tracking gaps over 100 ms (the hand let go) {}; clock offset {:.3} ms from the best \
              of {} pings (round trip {:.3} ms), held for the session",
             tally.sockets.load(std::sync::atomic::Ordering::Relaxed),
@@ -600,6 +606,7 @@ impl Task for Headset {
             } else {
                 String::new()
             },
+            c.seq_gaps,
             c.other_page,
             c.drops,
             c.long_gaps,
