@@ -12,17 +12,18 @@
 //! - [`server`]: HTTPS/WSS (or plain HTTP for `http://localhost`), the token, the socket per
 //!   page, the clock offset per page; on tokio's threads, handing decoded messages to the stage
 //!   through a bounded queue and an eventfd.
-//! - [`headset`]: the stage's [`common::node::Task`]: which page drives the hand, its frames'
+//! - [`service`]: the stage's [`common::node::Task`]: which page drives the hand, its frames'
 //!   order and time (the page's clock mapped to this machine's), the joints published, the
 //!   worlds sent back, the page's own timing recorded into the report.
 //! - [`certificate`]: the self-signed certificate made on first use and kept for the next.
+//! - [`driver`]: the emulated headset's browser driver (`handblocks emulate headset`).
 //! - [`address`]: the URL to open (this machine's address on the network) and its QR code.
 
 pub mod address;
 pub mod certificate;
 pub mod driver;
-pub mod headset;
 pub mod page;
 pub mod server;
+pub mod service;
 
-pub use headset::{run, WebxrError};
+pub use service::{run, WebxrError};
