@@ -7,12 +7,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 WEBXR_NODE=target/webxr-node
-WEBXR_PACKAGES="playwright-core@1 iwer@2"
+WEBXR_PACKAGES="playwright-core@1.65.2 iwer@2.5.0"
 if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
     echo "webxr-tools: Node.js and npm are missing (Debian: apt-get install nodejs npm)" >&2
     exit 1
 fi
-if NODE_PATH="$WEBXR_NODE/node_modules" node -e 'require("playwright-core"); require.resolve("iwer")' >/dev/null 2>&1; then
+if NODE_PATH="$WEBXR_NODE/node_modules" node -e 'const v = (p) => require(p + "/package.json").version; if (v("playwright-core") !== "1.65.2" || v("iwer") !== "2.5.0") process.exit(1)' >/dev/null 2>&1; then
     exit 0
 fi
 echo "webxr-tools: installing $WEBXR_PACKAGES into $WEBXR_NODE" >&2
