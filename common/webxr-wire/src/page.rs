@@ -17,6 +17,8 @@
 //! Statistics are bounded: a JavaScript time of 0 to 10 s, a round trip of -1 (none) or 0 to
 //! 60 s; clock times finite and non-negative.
 
+use common::{WorldView, MAX_FINGERS, MAX_FINGER_POINTS};
+
 use crate::{WireError, MAGIC};
 
 /// `kind` of the page's frame statistics.
@@ -162,30 +164,29 @@ pub fn encode_pong(pong: &Pong, out: &mut Vec<u8>) {
     out.extend_from_slice(&pong.page_ms.to_le_bytes());
 }
 
-/// A world message (kind 3) into `out` (cleared first, then grown once to its size: a kept
-/// buffer of the scene's size is written without allocating). `blocks` yields each block's
-/// position, orientation and mode; `points` the finger points as drawn.
-pub fn encode_world(
-    page_seq: u32,
-    world_time_s: f64,
-    grasped_block: i32,
-    blocks: impl ExactSizeIterator<Item = ([f64; 3], [f64; 4], u32)>,
-    points: impl ExactSizeIterator<Item = [f64; 3]>,
-    out: &mut Vec<u8>,
-) {
+/// A world message (kind 3) of `world` into `out` (cleared first, then grown once to its
+/// size: a kept buffer of the scene's size is written without allocating): its blocks'
+/// positions, orientations and modes, the grasped block, and the finger points as drawn.
+pub fn encode_world(page_seq: u32, world_time_s: f64, world: &WorldView<'_>, out: &mut Vec<u8>) {
+    let blocks = world.blocks();
+    let fingers = (world.finger_count as usize).min(MAX_FINGERS);
+    let points_of = |f: usize| (world.finger_point_count[f] as usize).min(MAX_FINGER_POINTS);
+    let points: usize = (0..fingers).map(points_of).sum();
     head(out, KIND_WORLD, page_seq, blocks.len() as u32);
     out.extend_from_slice(&world_time_s.to_le_bytes());
-    out.extend_from_slice(&grasped_block.to_le_bytes());
-    out.extend_from_slice(&(points.len() as u32).to_le_bytes());
-    for (p, q, mode) in blocks {
-        for v in p.into_iter().chain(q) {
+    out.extend_from_slice(&world.grasped_block.to_le_bytes());
+    out.extend_from_slice(&(points as u32).to_le_bytes());
+    for b in blocks {
+        for v in b.pose.position.into_iter().chain(b.pose.rotation) {
             out.extend_from_slice(&(v as f32).to_le_bytes());
         }
-        out.extend_from_slice(&(mode as f32).to_le_bytes());
+        out.extend_from_slice(&(b.mode as f32).to_le_bytes());
     }
-    for p in points {
-        for v in p {
-            out.extend_from_slice(&(v as f32).to_le_bytes());
+    for f in 0..fingers {
+        for p in &world.finger_points[f][..points_of(f)] {
+            for v in p {
+                out.extend_from_slice(&(*v as f32).to_le_bytes());
+            }
         }
     }
 }
@@ -243,16 +244,33 @@ mod tests {
     #[test]
     fn a_world_message_is_sized_by_its_header() {
         let mut b = Vec::new();
-        let blocks = [([1.0, 2.0, 3.0], [0.0, 0.0, 0.0, 1.0], 4u32); 2];
-        let points = [[0.5, 0.5, 0.5]; 3];
-        encode_world(7, 1.25, 1, blocks.into_iter(), points.into_iter(), &mut b);
+        let blocks = [common::BlockState {
+            pose: common::Pose {
+                position: [1.0, 2.0, 3.0],
+                rotation: [0.0, 0.0, 0.0, 1.0],
+            },
+            mode: 4,
+            _reserved: 0,
+        }; 2];
+        let mut header = common::WorldHeader {
+            block_count: 2,
+            grasped_block: 1,
+            finger_count: 1,
+            ..Default::default()
+        };
+        header.finger_point_count[0] = 3;
+        let world = WorldView {
+            header: &header,
+            blocks: &blocks,
+        };
+        encode_world(7, 1.25, &world, &mut b);
         assert_eq!(b.len(), WORLD_HEADER_BYTES + 2 * 32 + 3 * 12);
         assert_eq!(kind_of(&b), Ok(KIND_WORLD));
         assert_eq!(u32_at(&b, 8), 7);
         assert_eq!(u32_at(&b, 12), 2);
         assert_eq!(f64_at(&b, 16), 1.25);
         let cap = b.capacity();
-        encode_world(8, 1.5, -1, blocks.into_iter(), points.into_iter(), &mut b);
+        encode_world(8, 1.5, &world, &mut b);
         assert_eq!(b.capacity(), cap, "a kept buffer is not grown again");
     }
 }

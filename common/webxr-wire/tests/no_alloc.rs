@@ -43,8 +43,25 @@ fn decoding_mapping_and_writing_worlds_allocate_nothing() {
     bad[31] = 0xff;
     bad[32] = 0xff;
     bad[33] = 0x7f;
-    let blocks = [([0.0, 0.04, -0.3], [0.0, 0.0, 0.0, 1.0], 1u32); 16];
-    let points = [[0.1, 0.2, 0.3]; 20];
+    let blocks = [common::BlockState {
+        pose: common::Pose {
+            position: [0.0, 0.04, -0.3],
+            rotation: [0.0, 0.0, 0.0, 1.0],
+        },
+        mode: 1,
+        _reserved: 0,
+    }; 16];
+    let mut header = common::WorldHeader {
+        block_count: 16,
+        finger_count: 5,
+        finger_point_count: [4; 5],
+        ..Default::default()
+    };
+    header.finger_points[0][0] = [0.1, 0.2, 0.3];
+    let view = common::WorldView {
+        header: &header,
+        blocks: &blocks,
+    };
     let mut world = Vec::with_capacity(page::WORLD_HEADER_BYTES + 32 * 16 + 12 * 20);
     let mut decoded = HandsFrame::default();
     let mut joints = JointsSample::default();
@@ -55,14 +72,7 @@ fn decoding_mapping_and_writing_worlds_allocate_nothing() {
         to_joints(&decoded.hands[1], &mut joints);
         n += usize::from(page::decode_stats(&stats).is_ok());
         n += usize::from(page::decode_pong(&pong).is_ok());
-        page::encode_world(
-            k,
-            1.0,
-            0,
-            blocks.into_iter(),
-            points.into_iter(),
-            &mut world,
-        );
+        page::encode_world(k, 1.0, &view, &mut world);
         n
     };
     work(0);

@@ -118,7 +118,6 @@ pub const REFUSALS: [&str; 18] = [
 #[derive(Debug, Default)]
 pub struct Tally {
     refused: [AtomicU64; REFUSALS.len() + 1],
-    pub pages: AtomicU64,
     pub sockets: AtomicU64,
     pages_now: AtomicU64,
 }

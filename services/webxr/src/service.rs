@@ -33,7 +33,8 @@ use common::config::Session;
 use common::latency::{Metric, Reporter};
 use common::node::{self, Counters, Pass, Task};
 use common::{
-    monotonic_ns, shutdown, topics, DeviceCounters, JointsSample, Stage, Stamp, TRACKING_HOLD_NS,
+    monotonic_ns, shutdown, topics, DeviceCounters, JointsSample, Stage, Stamp, WorldView,
+    TRACKING_HOLD_NS,
 };
 use webxr_wire::page::NO_FRAME;
 use webxr_wire::{Handedness, HandsFrame};
@@ -479,32 +480,21 @@ impl Headset {
         while let Some(s) = self.world_in.receive()? {
             let header = s.user_header();
             pass.arrived(&header.stamp);
-            let blocks = &s.payload()[..(header.block_count as usize).min(s.payload().len())];
             let origin = header.stamp.origin_ns;
-            let frame_seq = self
-                .origins
-                .iter()
-                .find(|(o, _)| *o == origin && origin != 0)
-                .map_or(NO_FRAME, |&(_, seq)| seq);
-            let fingers = (header.finger_count as usize).min(header.finger_points.len());
-            let points = (0..fingers).flat_map(|f| {
-                let n = (header.finger_point_count[f] as usize).min(header.finger_points[f].len());
-                header.finger_points[f][..n].iter().copied()
-            });
-            let count = (0..fingers)
-                .map(|f| (header.finger_point_count[f] as usize).min(header.finger_points[f].len()))
-                .sum::<usize>();
+            // The frame it answers is almost always among the newest published: look back
+            // from the newest.
+            let frame_seq = (1..=ORIGINS)
+                .map(|back| self.origins[(self.origin_next + ORIGINS - back) % ORIGINS])
+                .find(|&(o, _)| o == origin && origin != 0)
+                .map_or(NO_FRAME, |(_, seq)| seq);
+            let world = WorldView {
+                header,
+                blocks: s.payload(),
+            };
             webxr_wire::page::encode_world(
                 frame_seq,
                 header.step as f64 * self.step_s,
-                header.grasped_block,
-                blocks
-                    .iter()
-                    .map(|b| (b.pose.position, b.pose.rotation, b.mode)),
-                Counted {
-                    inner: points,
-                    len: count,
-                },
+                &world,
                 &mut self.world_message,
             );
             self.server.send_world(&self.world_message);
@@ -513,26 +503,6 @@ impl Headset {
         Ok(())
     }
 }
-
-/// An iterator with its length told (the finger points, flattened).
-struct Counted<I> {
-    inner: I,
-    len: usize,
-}
-
-impl<I: Iterator> Iterator for Counted<I> {
-    type Item = I::Item;
-    fn next(&mut self) -> Option<I::Item> {
-        let v = self.inner.next()?;
-        self.len -= 1;
-        Some(v)
-    }
-    fn size_hint(&self) -> (usize, Option<usize>) {
-        (self.len, Some(self.len))
-    }
-}
-
-impl<I: Iterator> ExactSizeIterator for Counted<I> {}
 
 impl Task for Headset {
     type Error = BusError;
