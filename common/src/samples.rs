@@ -22,6 +22,35 @@ pub const MAX_PALM_VERTICES: usize = 16;
 pub const MAX_SCENE_BLOCKS: usize = 4096;
 /// Joints of an OpenXR hand (XR_EXT_hand_tracking order).
 pub const OPENXR_JOINTS: usize = 26;
+/// The joints' names, in that order (`XrHandJointEXT` without its prefix).
+pub const OPENXR_JOINT_NAMES: [&str; OPENXR_JOINTS] = [
+    "palm",
+    "wrist",
+    "thumb_metacarpal",
+    "thumb_proximal",
+    "thumb_distal",
+    "thumb_tip",
+    "index_metacarpal",
+    "index_proximal",
+    "index_intermediate",
+    "index_distal",
+    "index_tip",
+    "middle_metacarpal",
+    "middle_proximal",
+    "middle_intermediate",
+    "middle_distal",
+    "middle_tip",
+    "ring_metacarpal",
+    "ring_proximal",
+    "ring_intermediate",
+    "ring_distal",
+    "ring_tip",
+    "little_metacarpal",
+    "little_proximal",
+    "little_intermediate",
+    "little_distal",
+    "little_tip",
+];
 
 /// A rigid pose: position in metres and rotation as a unit quaternion `[x, y, z, w]`.
 #[repr(C)]
@@ -403,7 +432,9 @@ pub struct DeviceCounters {
     /// 0: none, 1: the glove, 2: the tracker, 3: a headset's page (webxr: samples = hands
     /// frames published, rejected_records = messages refused, other_station_records = frames
     /// of a page that was not driving the hand, link_losses = sockets lost, reconnects = pages
-    /// that drove the hand after the first, device_errors = tracking gaps longer than the hold).
+    /// that drove the hand after the first, device_errors = tracking gaps longer than the hold),
+    /// 4: an external source's program (samples = joints published, rejected_records = samples
+    /// refused by the range checks or for their order).
     pub device: u32,
     pub _reserved: u32,
     /// Valid records turned into samples.
@@ -429,6 +460,7 @@ impl DeviceCounters {
             1 => Some("glove"),
             2 => Some("tracker"),
             3 => Some("headset"),
+            4 => Some("external"),
             _ => None,
         }
     }

@@ -27,6 +27,16 @@ pub fn install_signal_handlers() {
     }
 }
 
+/// Installs the SIGTERM handler only: for a program of the user's that the launcher started
+/// (an external source in Python), whose Ctrl-C stays its own. Idempotent.
+pub fn install_term_handler() {
+    // SAFETY: as in `install_signal_handlers`.
+    unsafe {
+        let handler = on_signal as *const () as libc::sighandler_t;
+        libc::signal(libc::SIGTERM, handler);
+    }
+}
+
 /// For a process started by the launcher: a thread that reads standard input until end of
 /// file, which means "stop" (if not yet asked) and "released" (the launcher has what it needs).
 pub fn watch_parent_pipe() {

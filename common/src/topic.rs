@@ -297,8 +297,8 @@ topic_table! {
         Joints: JointsSample {
             name: "joints",
             buffer: 1024,
-            max_publishers: 3,
-            publishers: [Replay, Bridge, Webxr],
+            max_publishers: 4,
+            publishers: [Replay, Bridge, Webxr, External],
             readers: [Kinematics, Recorder, Bridge],
         },
         /// The hand model: finger check points and the palm, as the stepper reads them.
@@ -331,8 +331,8 @@ topic_table! {
         Latency: LatencySample {
             name: "latency",
             buffer: 32,
-            max_publishers: 8,
-            publishers: [Acquisition, Replay, Kinematics, Stepper, Renderer, Recorder, Bridge, Webxr],
+            max_publishers: 9,
+            publishers: [Acquisition, Replay, Kinematics, Stepper, Renderer, Recorder, Bridge, Webxr, External],
             readers: [],
         },
     }
@@ -466,6 +466,10 @@ stage_table! {
         /// A headset's browser (WebXR hand input): serves the page, publishes the hand it
         /// sends as joints, and sends it the world to draw.
         Webxr = 7 { name: "webxr", role: Source },
+        /// A program of the user's (Python's `handblocks.Source`): started by the launcher
+        /// as the session's source, it publishes OpenXR hand joints it made itself (a
+        /// webcam hand tracker, a model), stamped, checked and counted as any source's.
+        External = 8 { name: "external", role: Source },
     }
 }
 

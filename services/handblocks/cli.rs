@@ -89,6 +89,10 @@ pub enum Command {
         /// "topics": [{"topic", "messages", "gaps", "seconds", "rate_hz", "schema", "bytes"}]}.
         #[arg(long)]
         json: bool,
+        /// Print every sample of TOPIC instead (glove, tracker, joints, hand, world, frame):
+        /// one JSON object a line, field by field as the recording's schema names them.
+        #[arg(long, value_name = "TOPIC", conflicts_with = "json")]
+        samples: Option<String>,
     },
     /// Run a scene's block world alone, in one process, deterministically.
     ///

@@ -7,6 +7,57 @@ use std::time::{Duration, UNIX_EPOCH};
 
 use recording::{Recording, RecordingError, SegmentChain};
 
+/// `inspect FILE --samples TOPIC`: every sample of one topic, one JSON object a line, in file
+/// order, field by field as the recording's schema names them (what Python's
+/// `handblocks.Recording` arrays hold, from the reader every tool here uses).
+pub fn samples(path: &Path, topic: &str) -> Result<ExitCode, RecordingError> {
+    use common::samples::{FrameSample, GloveSample, HandSample, JointsSample, TrackerSample};
+    use common::Topic;
+    let Some(topic) = Topic::from_channel(topic).filter(|t| t.is_recorded()) else {
+        eprintln!(
+            "handblocks inspect: {topic:?} is not a topic; one of: {}",
+            Topic::RECORDED.map(|t| t.name()).join(", ")
+        );
+        return Ok(ExitCode::from(2));
+    };
+    let rec = Recording::open_topics(path, &[topic])?;
+    let mut message = Vec::new();
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    for m in rec.messages.iter().filter(|m| m.topic == topic) {
+        message.clear();
+        match topic {
+            Topic::World => {
+                let Some(w) = rec.world(m) else { continue };
+                recording::encode_slice(Topic::World, &w.header, &w.blocks, &mut message);
+            }
+            Topic::Glove => encode(rec.sample::<GloveSample>(m), &mut message),
+            Topic::Tracker => encode(rec.sample::<TrackerSample>(m), &mut message),
+            Topic::Joints => encode(rec.sample::<JointsSample>(m), &mut message),
+            Topic::Hand => encode(rec.sample::<HandSample>(m), &mut message),
+            Topic::Frame => encode(rec.sample::<FrameSample>(m), &mut message),
+            Topic::Latency => continue,
+        }
+        use std::io::Write as _;
+        if writeln!(out, "{}", crate::monitor::to_json(topic, &message)).is_err() {
+            break;
+        }
+    }
+    if let Some(d) = &rec.damage {
+        eprintln!("handblocks inspect: damage: {d}");
+    }
+    Ok(if rec.complete && rec.damage.is_none() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+fn encode<T: common::bus::Stamped>(sample: Option<T>, out: &mut Vec<u8>) {
+    if let Some(s) = sample {
+        recording::encode_sample(&s, out);
+    }
+}
+
 /// The most segments `inspect` follows (a recorder restarted this often is a broken setup).
 const MAX_SEGMENTS: u32 = 1000;
 

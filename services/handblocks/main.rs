@@ -93,7 +93,14 @@ fn run() -> Result<ExitCode, CliError> {
             hand_offset: hand_offset.unwrap_or_default(),
             json,
         })?,
-        Some(Command::Inspect { recording, json }) => inspect::run(&recording, json)?,
+        Some(Command::Inspect {
+            recording,
+            samples: Some(topic),
+            ..
+        }) => inspect::samples(&recording, &topic)?,
+        Some(Command::Inspect {
+            recording, json, ..
+        }) => inspect::run(&recording, json)?,
         Some(Command::Service {
             name,
             session,

@@ -125,28 +125,8 @@ pub fn sessions(json: bool) -> ExitCode {
 
 /// The session `--session ID` names, or the only one running.
 fn pick(id: Option<&str>) -> Result<RunningSession, MonitorError> {
-    let mut running = BusConfig::running();
-    match id {
-        Some(id) => running.into_iter().find(|s| s.bus.id == id).ok_or_else(|| {
-            MonitorError::NoSession(format!(
-                "no session {id:?} runs here (`handblocks sessions` lists those that do)"
-            ))
-        }),
-        None => match running.len() {
-            0 => Err(MonitorError::NoSession(
-                "no session runs on this machine; start one with `handblocks launch`".into(),
-            )),
-            1 => Ok(running.remove(0)),
-            n => Err(MonitorError::NoSession(format!(
-                "{n} sessions run ({}); choose one with --session ID",
-                running
-                    .iter()
-                    .map(|s| s.bus.id.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ))),
-        },
-    }
+    RunningSession::find(id)
+        .map_err(|why| MonitorError::NoSession(why.replace("by its id", "with --session ID")))
 }
 
 /// One topic's inlet, whatever its sample type: the next sample as a recording's bytes.
@@ -255,9 +235,7 @@ fn next_sample(
 }
 
 fn running_still(running: &RunningSession) -> bool {
-    BusConfig::running()
-        .iter()
-        .any(|s| s.bus.id == running.bus.id)
+    running.is_running()
 }
 
 /// `handblocks echo TOPIC`: each sample, field by field, `---` between them.
@@ -368,6 +346,81 @@ pub fn describe(topic: Topic, message: &[u8], out: &mut String) {
             out.push_str(&format!("- # [{i}]\n"));
             describe_struct("handblocks/BlockState", bytes, 1, out);
         }
+    }
+}
+
+/// A sample's fields as JSON (`inspect --samples`), from its message by its schema's field
+/// list, as [`describe`] prints them: nested messages as objects, arrays as lists, a slice
+/// topic's elements under `blocks`. Numbers print in Rust's shortest round-trip form, so a
+/// reader that parses them gets the recorded doubles exactly.
+pub fn to_json(topic: Topic, message: &[u8]) -> serde_json::Value {
+    let body = message.get(recording::CDR_LE_HEADER.len()..).unwrap_or(&[]);
+    let (name, size) = recording::sample_type(topic);
+    let mut value = struct_json(name, body);
+    if let (Some(element), serde_json::Value::Object(map)) = (topic.element_size(), &mut value) {
+        let count = body
+            .get(size..size + 4)
+            .map_or(0, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+        let at = recording::slice_elements_offset(topic);
+        let blocks: Vec<serde_json::Value> = (0..count)
+            .map_while(|i| body.get(at + i * element..at + (i + 1) * element))
+            .map(|bytes| struct_json("handblocks/BlockState", bytes))
+            .collect();
+        map.insert("blocks".into(), blocks.into());
+    }
+    value
+}
+
+fn struct_json(name: &str, bytes: &[u8]) -> serde_json::Value {
+    let mut map = serde_json::Map::new();
+    for f in recording::fields(name)
+        .into_iter()
+        .flatten()
+        .filter(|f| f.name != "reserved")
+    {
+        let (base, count, listed) = match f.ty.split_once('[') {
+            Some((b, n)) => (
+                b,
+                n.trim_end_matches(']').parse::<usize>().unwrap_or(1),
+                true,
+            ),
+            None => (f.ty, 1, false),
+        };
+        let Some(field) = bytes.get(f.offset..f.offset + f.size) else {
+            continue;
+        };
+        let each = f.size / count.max(1);
+        let values: Vec<serde_json::Value> = field
+            .chunks_exact(each.max(1))
+            .map(|c| {
+                if recording::fields(base).is_some() {
+                    struct_json(base, c)
+                } else {
+                    scalar_json(base, c)
+                }
+            })
+            .collect();
+        let value = if listed {
+            values.into()
+        } else {
+            values.into_iter().next().unwrap_or_default()
+        };
+        map.insert(f.name.to_string(), value);
+    }
+    map.into()
+}
+
+fn scalar_json(ty: &str, b: &[u8]) -> serde_json::Value {
+    let mut a = [0u8; 8];
+    a[..b.len().min(8)].copy_from_slice(&b[..b.len().min(8)]);
+    let w = [a[0], a[1], a[2], a[3]];
+    match ty {
+        "float64" => f64::from_le_bytes(a).into(),
+        "uint64" => u64::from_le_bytes(a).into(),
+        "int64" => i64::from_le_bytes(a).into(),
+        "uint32" => u32::from_le_bytes(w).into(),
+        "int32" => i32::from_le_bytes(w).into(),
+        _ => b.iter().map(|x| u64::from(*x)).collect::<Vec<_>>().into(),
     }
 }
 

@@ -64,6 +64,12 @@ pub enum StageError {
     Bridge(#[source] bridge::service::BridgeError),
     #[error("{0}")]
     Webxr(#[source] webxr::WebxrError),
+    /// `service external`: that stage is the user's own program.
+    #[error(
+        "the external source is a program of yours (Python's handblocks.Source), which the \
+         launcher starts from [source] command; it is not a handblocks service"
+    )]
+    External,
 }
 
 impl ServiceError {
@@ -157,5 +163,6 @@ fn run_stage(
         Stage::Replay => replay::service::run(&session, &bus).map_err(StageError::Replay),
         Stage::Bridge => bridge::service::run(&session, &bus).map_err(StageError::Bridge),
         Stage::Webxr => webxr::run(&session, &bus).map_err(StageError::Webxr),
+        Stage::External => Err(StageError::External),
     }
 }

@@ -444,6 +444,36 @@ pub struct RunningSession {
 }
 
 impl RunningSession {
+    /// The running session `id` names, or the only one running; otherwise a message that
+    /// says what runs and what to do (`handblocks echo`, Python's `handblocks.Session`).
+    pub fn find(id: Option<&str>) -> Result<RunningSession, String> {
+        let mut running = BusConfig::running();
+        match id {
+            Some(id) => running.into_iter().find(|s| s.bus.id == id).ok_or_else(|| {
+                format!("no session {id:?} runs here (`handblocks sessions` lists those that do)")
+            }),
+            None => match running.len() {
+                0 => Err(
+                    "no session runs on this machine; start one with `handblocks launch`".into(),
+                ),
+                1 => Ok(running.remove(0)),
+                n => Err(format!(
+                    "{n} sessions run ({}); choose one by its id",
+                    running
+                        .iter()
+                        .map(|s| s.bus.id.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )),
+            },
+        }
+    }
+
+    /// True while its launcher still runs and its card is there.
+    pub fn is_running(&self) -> bool {
+        BusConfig::running().iter().any(|s| s.bus.id == self.bus.id)
+    }
+
     /// The processes attached to its bus now: (iceoryx2 node name, pid), the launcher's own
     /// node included.
     pub fn processes(&self) -> Vec<(String, u32)> {

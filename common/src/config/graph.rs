@@ -26,6 +26,10 @@ impl Session {
         let (source, source_outputs) = match self.source {
             Source::Replay { .. } => (Stage::Replay, Stage::Replay.recorded_outputs().collect()),
             Source::Webxr(_) => (Stage::Webxr, Stage::Webxr.recorded_outputs().collect()),
+            Source::External { .. } => (
+                Stage::External,
+                Stage::External.recorded_outputs().collect(),
+            ),
             Source::Remote => (Stage::Bridge, self.bridge.outputs()),
             _ => (
                 Stage::Acquisition,
@@ -40,7 +44,7 @@ impl Session {
             // cores the pipeline needs, and a session pays only for what it asks for.
             Stage::Recorder => self.recorder.file.is_some(),
             Stage::Bridge => self.bridge.is_on() && !remote_fed,
-            Stage::Acquisition | Stage::Replay | Stage::Webxr => false,
+            Stage::Acquisition | Stage::Replay | Stage::Webxr | Stage::External => false,
         };
         let mut readers: Vec<Stage> = Stage::ALL
             .into_iter()

@@ -247,7 +247,12 @@ pub enum HandPoseSpec {
 impl Scene {
     /// Reads and checks a scene file.
     pub fn load(file: &Path) -> Result<Scene, ConfigError> {
-        let table = parse_file(file)?;
+        Scene::from_table(file, &parse_file(file)?)
+    }
+
+    /// Checks a scene already parsed as TOML (Python's `handblocks.simulate` given a dict):
+    /// `file` names it in errors, and relative paths in it are taken from its folder.
+    pub fn from_table(file: &Path, table: &toml::Table) -> Result<Scene, ConfigError> {
         let root = Reader::new(file, "", &table);
         let (blocks, block_colors) = blocks(&root)?;
         let scene = Scene {

@@ -119,6 +119,14 @@ pub enum Source {
     /// A headset's browser (WebXR hand input): the webxr process serves the page and its
     /// socket and publishes the hand it sends ([`WebxrSource`]).
     Webxr(WebxrSource),
+    /// A program of the user's that publishes OpenXR hand joints (Python's
+    /// `handblocks.Source`): the launcher starts `command` as the session's source, and the
+    /// session ends when it closes its source or exits.
+    External {
+        /// `command`: the program and its arguments, run from the folder `handblocks launch`
+        /// runs in, with `HANDBLOCKS_BUS` (this session's bus id) in its environment.
+        command: Vec<String>,
+    },
 }
 
 /// `[source] kind = "webxr"`: where the page is served and which hand drives the model.
@@ -151,6 +159,7 @@ impl Source {
             Source::Replay { .. } => "replay",
             Source::Remote => "remote",
             Source::Webxr(_) => "webxr",
+            Source::External { .. } => "external",
         }
     }
 }
@@ -595,8 +604,13 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
     let mut link = None;
     let s = match r.choice(
         "kind",
-        &["scripted", "devices", "replay", "remote", "webxr"],
+        &[
+            "scripted", "devices", "replay", "remote", "webxr", "external",
+        ],
     )? {
+        "external" => Source::External {
+            command: external_command(&r)?,
+        },
         "webxr" => Source::Webxr(webxr_source(&r, dir)?),
         "remote" => {
             link = Some(super::remote::remote_source(&r)?);
@@ -672,6 +686,32 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
     };
     r.finish()?;
     Ok((s, link))
+}
+
+/// `[source] kind = "external"`'s `command`: a non-empty list of strings (the program, then
+/// its arguments), or one string, split at spaces.
+fn external_command(r: &Reader) -> Result<Vec<String>, ConfigError> {
+    const WHAT: &str = "required for kind = \"external\": the program that publishes the \
+                        joints and its arguments, e.g. [\"python3\", \"my_tracker.py\"]";
+    let command: Vec<String> = match r.raw("command") {
+        None => return Err(r.err("command", WHAT)),
+        Some(toml::Value::String(s)) => s.split_whitespace().map(str::to_string).collect(),
+        Some(toml::Value::Array(items)) => items
+            .iter()
+            .map(|v| v.as_str().map(str::to_string))
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(|| r.err("command", format!("every item is a string; {WHAT}")))?,
+        Some(v) => {
+            return Err(r.err(
+                "command",
+                format!("expected a list of strings, found {}; {WHAT}", v.type_str()),
+            ))
+        }
+    };
+    if command.first().is_none_or(|p| p.is_empty()) {
+        return Err(r.err("command", format!("is empty; {WHAT}")));
+    }
+    Ok(command)
 }
 
 /// `[source] kind = "webxr"`'s keys.

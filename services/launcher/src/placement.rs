@@ -85,6 +85,7 @@ impl Placement {
             Stage::Acquisition
             | Stage::Replay
             | Stage::Webxr
+            | Stage::External
             | Stage::Kinematics
             | Stage::Stepper => pipeline,
         })

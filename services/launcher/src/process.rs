@@ -43,14 +43,51 @@ impl ServiceProcess {
                 });
             }
         }
-        let mut child = command
+        command
             .arg("service")
             .arg(stage.name())
             .arg("--session")
             .arg(session)
             .arg("--bus")
             .arg(bus_id)
-            .args(extra)
+            .args(extra);
+        Self::spawn(stage, &mut command)
+    }
+
+    /// Starts a program of the user's as the stage `stage` (an `external` source: Python's
+    /// `handblocks.Source`), with the session's bus id and file in its environment
+    /// (`HANDBLOCKS_BUS`, `HANDBLOCKS_SESSION`, `HANDBLOCKS_STAGE`): it is released and stopped
+    /// through its standard input as every service is.
+    pub fn start_program(
+        program: &[String],
+        stage: Stage,
+        session: &Path,
+        bus_id: &str,
+        cpus: Option<libc::cpu_set_t>,
+    ) -> std::io::Result<ServiceProcess> {
+        let (name, args) = program
+            .split_first()
+            .ok_or_else(|| std::io::Error::other("the command is empty"))?;
+        let mut command = Command::new(name);
+        if let Some(set) = cpus {
+            // SAFETY: as in `start`: one system call on a set already built.
+            unsafe {
+                command.pre_exec(move || {
+                    libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
+                    Ok(())
+                });
+            }
+        }
+        command
+            .args(args)
+            .env("HANDBLOCKS_BUS", bus_id)
+            .env("HANDBLOCKS_SESSION", session)
+            .env("HANDBLOCKS_STAGE", stage.name());
+        Self::spawn(stage, &mut command)
+    }
+
+    fn spawn(stage: Stage, command: &mut Command) -> std::io::Result<ServiceProcess> {
+        let mut child = command
             .stdin(Stdio::piped())
             .stdout(Stdio::inherit())
             .stderr(Stdio::inherit())

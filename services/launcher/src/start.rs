@@ -52,6 +52,8 @@ pub(crate) struct Starter<'a> {
     recorder_args: Vec<OsString>,
     stepper_args: Vec<OsString>,
     renderer_env: Vec<(&'static str, OsString)>,
+    /// `[source] kind = "external"`: the user's program, started as the source.
+    external_command: Option<Vec<String>>,
 }
 
 impl<'a> Starter<'a> {
@@ -96,6 +98,10 @@ impl<'a> Starter<'a> {
             recorder_args,
             stepper_args: vec!["--outcome-dir".into(), bus_config.root.clone().into()],
             renderer_env,
+            external_command: match &session.source {
+                common::config::session::Source::External { command } => Some(command.clone()),
+                _ => None,
+            },
         }
     }
 
@@ -107,6 +113,20 @@ impl<'a> Starter<'a> {
         placement: &Placement,
         restart: u32,
     ) -> Result<ServiceProcess, LaunchError> {
+        if let (Stage::External, Some(command)) = (stage, &self.external_command) {
+            return ServiceProcess::start_program(
+                command,
+                stage,
+                &self.session_file,
+                self.bus_id,
+                placement.cpus_of(stage),
+            )
+            .map_err(|reason| LaunchError::Spawn {
+                stage,
+                exe: PathBuf::from(&command[0]),
+                reason,
+            });
+        }
         let mut extra = self.overrides.clone();
         if restart > 0 {
             extra.extend(["--restart".into(), restart.to_string().into()]);

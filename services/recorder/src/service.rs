@@ -269,6 +269,18 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), RecorderError> {
                 ("session", name(&session.file)),
                 ("scene", name(&session.scene_file)),
                 ("source", session.source.kind().to_string()),
+                // The blocks' names, one a line (a name holds no control character), so that
+                // a reader names the world's blocks without the scene file.
+                (
+                    "blocks",
+                    session
+                        .scene
+                        .blocks
+                        .iter()
+                        .map(|b| b.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join("\n"),
+                ),
             ];
             let settings = &session.recorder;
             let mut writer = RecordingWriter::create_with(path, &about)

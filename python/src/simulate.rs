@@ -1,0 +1,205 @@
+//! `handblocks.simulate`: the block world as a function. It calls what `handblocks simulate`
+//! calls ([`simulation::run`]) and returns the report's figures as arrays beside the report's
+//! JSON text, which is the command's `--json` output byte for byte.
+
+use std::path::{Path, PathBuf};
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+
+use common::config::scene::ModelKind;
+use common::config::Scene;
+use simulation::{SimulateError as RunError, SimulateSettings};
+
+use crate::arrays::array;
+use crate::{RecordingError, SceneError, SimulateError};
+
+/// The name a scene given as a dict has in error messages.
+pub const DICT_SCENE: &str = "<dict>";
+
+/// Runs a scene (a file, a bare name found in the configuration folder, or a dict of the
+/// scene file's tables) and returns the report as a dict (see python/handblocks).
+#[pyfunction]
+#[pyo3(signature = (scene, hand=None, model=None, frames=None, hand_offset=(0.0, 0.0, 0.0)))]
+pub fn simulate<'py>(
+    py: Python<'py>,
+    scene: &Bound<'py, PyAny>,
+    hand: Option<PathBuf>,
+    model: Option<&str>,
+    frames: Option<u64>,
+    hand_offset: (f64, f64, f64),
+) -> PyResult<Bound<'py, PyDict>> {
+    let model = match model {
+        None => None,
+        Some("paper") => Some(ModelKind::Paper),
+        Some("precise") => Some(ModelKind::Precise),
+        Some(other) => {
+            return Err(PyValueError::new_err(format!(
+                "model={other:?}: allowed: \"paper\", \"precise\", or None for the scene's \
+                 [world] model"
+            )))
+        }
+    };
+    let scene = load_scene(scene)?;
+    let settings = SimulateSettings {
+        model,
+        trace: hand,
+        hand_offset: [hand_offset.0, hand_offset.1, hand_offset.2],
+        frames,
+    };
+    let (report, notes) =
+        py.detach(|| simulation::run(&scene, &settings))
+            .map_err(|e| match e {
+                RunError::Scene(e) => SceneError::new_err(e.to_string()),
+                RunError::Trace(e) => RecordingError::new_err(e),
+                e => SimulateError::new_err(e.to_string()),
+            })?;
+    let out = PyDict::new(py);
+    let b = report.blocks.len();
+    out.set_item("frames", report.frames)?;
+    out.set_item(
+        "names",
+        report
+            .blocks
+            .iter()
+            .map(|x| x.name.clone())
+            .collect::<Vec<_>>(),
+    )?;
+    out.set_item(
+        "position",
+        array(
+            py,
+            report.blocks.iter().flat_map(|x| x.position).collect(),
+            &[b, 3],
+        )?,
+    )?;
+    out.set_item(
+        "rotation",
+        array(
+            py,
+            report.blocks.iter().flat_map(|x| x.rotation).collect(),
+            &[b, 4],
+        )?,
+    )?;
+    out.set_item(
+        "mode",
+        array(
+            py,
+            report.blocks.iter().map(|x| x.mode as u32).collect(),
+            &[b],
+        )?,
+    )?;
+    let events = PyList::empty(py);
+    for e in &report.events {
+        let d = PyDict::new(py);
+        d.set_item("step", e.step)?;
+        d.set_item("kind", e.kind.name())?;
+        d.set_item("block", &e.block)?;
+        events.append(d)?;
+    }
+    out.set_item("events", events)?;
+    out.set_item("clock_jumps", report.clock_jumps)?;
+    out.set_item("refused_hands", report.refused_hands)?;
+    out.set_item("json", report.to_json())?;
+    out.set_item("text", report.to_text())?;
+    out.set_item("notes", notes.lines)?;
+    Ok(out)
+}
+
+/// The scene: a dict is checked as the file would be (its errors name `<dict>`); a path is
+/// used as given when it exists, else a bare name is looked up as the command line does.
+fn load_scene(scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
+    let loaded =
+        if let Ok(dict) = scene.cast::<PyDict>() {
+            let toml::Value::Table(table) = to_toml(dict.as_any(), "")? else {
+                return Err(PyValueError::new_err("a dict that is not a table"));
+            };
+            Scene::from_table(Path::new(DICT_SCENE), &table)
+        } else {
+            let path: PathBuf =
+                scene.extract().map_err(|_| {
+                    pyo3::exceptions::PyTypeError::new_err(format!(
+                "scene: a path (str or os.PathLike) or a dict of the scene's tables, not {}",
+                scene.get_type().name().map_or("?".into(), |n| n.to_string())
+            ))
+                })?;
+            Scene::load(&resolve_scene(&path))
+        };
+    loaded.map_err(|e| SceneError::new_err(e.to_string()))
+}
+
+/// `given` when it exists; else a bare name (`grasp-throw`) in `$HANDBLOCKS_CONFIG/scenes`
+/// or `./config/scenes`; else `given` (its error then names it as given).
+fn resolve_scene(given: &Path) -> PathBuf {
+    if given.exists() || given.components().count() != 1 {
+        return given.to_path_buf();
+    }
+    let name = given.to_string_lossy();
+    let file = if name.ends_with(".toml") {
+        name.into_owned()
+    } else {
+        format!("{name}.toml")
+    };
+    std::env::var_os("HANDBLOCKS_CONFIG")
+        .map(PathBuf::from)
+        .into_iter()
+        .chain([PathBuf::from("config")])
+        .map(|dir| dir.join("scenes").join(&file))
+        .find(|p| p.is_file())
+        .unwrap_or_else(|| given.to_path_buf())
+}
+
+/// A Python value as TOML: dicts, lists and tuples, bool, int, float, str, and anything with
+/// `tolist()` (a numpy array or scalar). `at` names the key in errors.
+fn to_toml(v: &Bound<'_, PyAny>, at: &str) -> PyResult<toml::Value> {
+    let name = |k: &str| {
+        if at.is_empty() {
+            k.to_string()
+        } else {
+            format!("{at}.{k}")
+        }
+    };
+    if let Ok(d) = v.cast::<PyDict>() {
+        let mut t = toml::Table::new();
+        for (k, item) in d.iter() {
+            let key: String = k.extract().map_err(|_| {
+                PyValueError::new_err(format!(
+                    "{DICT_SCENE}: the keys of {} must be strings",
+                    if at.is_empty() { "the scene" } else { at }
+                ))
+            })?;
+            let value = to_toml(&item, &name(&key))?;
+            t.insert(key, value);
+        }
+        return Ok(toml::Value::Table(t));
+    }
+    if v.is_instance_of::<PyBool>() {
+        return Ok(toml::Value::Boolean(v.extract()?));
+    }
+    if v.is_instance_of::<PyInt>() {
+        return v.extract::<i64>().map(toml::Value::Integer).map_err(|_| {
+            PyValueError::new_err(format!("{DICT_SCENE}: {at}: an integer beyond 64 bits"))
+        });
+    }
+    if v.is_instance_of::<PyFloat>() {
+        return Ok(toml::Value::Float(v.extract()?));
+    }
+    if v.is_instance_of::<PyString>() {
+        return Ok(toml::Value::String(v.extract()?));
+    }
+    if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
+        let mut items = Vec::new();
+        for (i, item) in v.try_iter()?.enumerate() {
+            items.push(to_toml(&item?, &format!("{at}[{i}]"))?);
+        }
+        return Ok(toml::Value::Array(items));
+    }
+    if v.hasattr("tolist")? {
+        return to_toml(&v.call_method0("tolist")?, at);
+    }
+    Err(PyValueError::new_err(format!(
+        "{DICT_SCENE}: {at}: a {} has no TOML form; give a dict, list, bool, int, float or str",
+        v.get_type().name().map_or("?".into(), |n| n.to_string())
+    )))
+}

@@ -1,0 +1,354 @@
+//! `handblocks.Source`: a Python program as the session's source (`[source] kind =
+//! "external"`). The launcher starts the program from `[source] command` with the session's
+//! bus id in `HANDBLOCKS_BUS`; the program publishes OpenXR hand joints with their time, and
+//! this module makes each one a `joints` sample exactly as a replay or a headset does: stamped
+//! (`seq`, the program's `time_ns` as source time, `origin_ns` = now, `publish_ns`), checked
+//! (finite, within [`MAX_POSITION_M`] of the origin, quaternions of norm 0.5 to 2, time
+//! increasing), counted (published and refused, in the session's report under the device
+//! `external`), and reported on `latency` like any stage, so the launcher judges it.
+//!
+//! The stage loop of a process the launcher starts ([`common::node::run`]) is inverted here:
+//! Python calls [`NativeSource::publish`] when it has a hand, and every call (and every look at
+//! `running`) sends the periodic latency report when it is due. `close` (or the end of the
+//! `with` block) sends the final report; the session then ends, as it does when a replay has
+//! played its trace.
+
+use std::time::Duration;
+
+use numpy::{PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use common::bus::{Bus, Outlet, RunningSession};
+use common::latency::Reporter;
+use common::samples::{DeviceCounters, JointsSample, Pose, OPENXR_JOINTS};
+use common::{shutdown, topics, Stage, Stamp};
+
+use crate::SourceError;
+
+/// The farthest a joint may be from the origin, metres: as far as a headset's page may send
+/// (`webxr_wire::MAX_POSITION_M`); farther is a unit or frame mistake, not a hand.
+pub const MAX_POSITION_M: f64 = 100.0;
+/// A joint's quaternion norm must lie in this range (it is normalised by the hand model).
+pub const QUATERNION_NORM: std::ops::RangeInclusive<f64> = 0.5..=2.0;
+/// The joint OpenXR names the wrist: its pose is the sample's `wrist`.
+const WRIST: usize = 1;
+/// How often `session_running` looks at the session's card (a directory walk).
+const LOOK_EVERY_NS: u64 = 250_000_000;
+
+/// Why a sample was refused; the index counts it.
+const REASONS: [&str; 4] = ["not finite", "too far", "rotation norm", "order"];
+
+/// Joint `j` by name (26: the wrist given apart).
+fn joint(j: usize) -> String {
+    match common::samples::OPENXR_JOINT_NAMES.get(j) {
+        Some(name) => format!("joint {j} ({name})"),
+        None => "the wrist".to_string(),
+    }
+}
+
+#[pyclass(module = "handblocks._native", unsendable, name = "NativeSource")]
+pub struct NativeSource {
+    running: RunningSession,
+    joints_out: Option<Outlet<topics::Joints>>,
+    reporter: Option<Reporter>,
+    _bus: Bus,
+    sample: JointsSample,
+    last_time_ns: Option<u64>,
+    published: u64,
+    refused: [u64; REASONS.len()],
+    first_refused: Option<String>,
+    session_gone: bool,
+    last_look_ns: u64,
+    closed: bool,
+}
+
+impl NativeSource {
+    fn counters(&self) -> common::node::Counters {
+        self.joints_out
+            .as_ref()
+            .map(|o| common::node::Counters::of([o.counter()]))
+            .unwrap_or_else(|| common::node::Counters::of([]))
+    }
+
+    fn devices(&self) -> [DeviceCounters; 2] {
+        [
+            DeviceCounters {
+                device: 4,
+                samples: self.published,
+                rejected_records: self.refused.iter().sum(),
+                ..DeviceCounters::default()
+            },
+            DeviceCounters::default(),
+        ]
+    }
+
+    fn report_if_due(&mut self) -> PyResult<()> {
+        let counters = self.counters();
+        let devices = self.devices();
+        if let Some(r) = self.reporter.as_mut() {
+            r.set_devices(devices);
+            r.maybe_report(counters.as_slice())
+                .map_err(|e| SourceError::new_err(e.to_string()))?;
+        }
+        Ok(())
+    }
+
+    fn refuse(&mut self, reason: usize, what: String) -> Option<String> {
+        self.refused[reason] += 1;
+        let first = self.refused[reason] == 1;
+        self.first_refused.get_or_insert_with(|| what.clone());
+        first.then_some(what)
+    }
+
+    /// Why these joints are refused, if they are: (reason index, what).
+    fn check(&self, time_ns: u64, position: &[f64], rotation: &[f64]) -> Option<(usize, String)> {
+        if let Some(j) = position
+            .chunks_exact(3)
+            .zip(rotation.chunks_exact(4))
+            .position(|(p, q)| !p.iter().chain(q).all(|x| x.is_finite()))
+        {
+            return Some((
+                0,
+                format!("{}: a position or rotation is not finite", joint(j)),
+            ));
+        }
+        for (j, p) in position.chunks_exact(3).enumerate() {
+            let metres = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+            if metres > MAX_POSITION_M {
+                return Some((
+                    1,
+                    format!(
+                        "{}: {metres} m from the origin (at most {MAX_POSITION_M}; positions \
+                         are metres)",
+                        joint(j)
+                    ),
+                ));
+            }
+        }
+        for (j, q) in rotation.chunks_exact(4).enumerate() {
+            let norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+            if !QUATERNION_NORM.contains(&norm) {
+                return Some((
+                    2,
+                    format!(
+                        "{}: a rotation of norm {norm} (a quaternion [x, y, z, w] of norm 0.5 \
+                         to 2)",
+                        joint(j)
+                    ),
+                ));
+            }
+        }
+        if let Some(last) = self.last_time_ns {
+            if time_ns <= last {
+                return Some((
+                    3,
+                    format!("time_ns {time_ns} is not after the last sample's {last}"),
+                ));
+            }
+        }
+        None
+    }
+}
+
+#[pymethods]
+impl NativeSource {
+    /// Opens the session's bus as its `external` stage: the session `bus_id` names, else
+    /// `$HANDBLOCKS_BUS` (set by the launcher that started this program).
+    #[new]
+    #[pyo3(signature = (bus_id=None))]
+    fn new(bus_id: Option<String>) -> PyResult<NativeSource> {
+        let launched = std::env::var("HANDBLOCKS_STAGE").is_ok_and(|s| s == "external");
+        let id = bus_id.or_else(|| std::env::var("HANDBLOCKS_BUS").ok());
+        let running = RunningSession::find(id.as_deref()).map_err(|why| {
+            SourceError::new_err(format!(
+                "{why}. An external source is started by its session: `handblocks launch` a \
+                 session whose [source] has kind = \"external\" and command = [\"python3\", \
+                 \"this_program.py\"]"
+            ))
+        })?;
+        if launched {
+            // The launcher asks its processes to stop with SIGTERM, and releases them (or says
+            // it is gone) by closing their standard input: `running` turns False on either.
+            shutdown::install_term_handler();
+            shutdown::watch_parent_pipe();
+        }
+        let err = |e: common::bus::BusError| SourceError::new_err(e.to_string());
+        let bus = Bus::for_stage(&running.bus, Stage::External).map_err(err)?;
+        let joints_out = bus.outlet::<topics::Joints>().map_err(err)?;
+        let reporter = Reporter::new(Stage::External, bus.outlet().map_err(err)?);
+        Ok(NativeSource {
+            running,
+            joints_out: Some(joints_out),
+            reporter: Some(reporter),
+            _bus: bus,
+            sample: JointsSample {
+                stamp: Stamp::default(),
+                tracked: 0,
+                _reserved: 0,
+                wrist: Pose::IDENTITY,
+                joints: [Pose::IDENTITY; OPENXR_JOINTS],
+            },
+            last_time_ns: None,
+            published: 0,
+            refused: [0; REASONS.len()],
+            first_refused: None,
+            session_gone: false,
+            last_look_ns: 0,
+            closed: false,
+        })
+    }
+
+    #[getter]
+    fn bus_id(&self) -> String {
+        self.running.bus.id.clone()
+    }
+
+    /// False once the session asks its source to stop (Ctrl-C at the launcher, its
+    /// `--duration`, a failed process) or has ended; also sends the latency report when due.
+    #[getter]
+    fn running(&mut self) -> PyResult<bool> {
+        if self.closed {
+            return Ok(false);
+        }
+        self.report_if_due()?;
+        let now = common::monotonic_ns();
+        if now.saturating_sub(self.last_look_ns) >= LOOK_EVERY_NS {
+            self.last_look_ns = now;
+            self.session_gone = !self.running.is_running();
+        }
+        Ok(!shutdown::requested() && !self.session_gone)
+    }
+
+    /// Publishes one hand: `position` (26, 3) metres and `rotation` (26, 4) quaternions
+    /// `[x, y, z, w]` of OpenXR's joints, at `time_ns` in the program's own timeline (it must
+    /// increase). Returns the sample's seq, or None when the joints were refused; a refusal
+    /// is counted, and the first of each kind is returned as a warning's text in
+    /// `last_refusal`.
+    #[pyo3(signature = (time_ns, position, rotation, tracked=true, wrist_position=None, wrist_rotation=None))]
+    fn publish(
+        &mut self,
+        time_ns: u64,
+        position: PyReadonlyArray2<'_, f64>,
+        rotation: PyReadonlyArray2<'_, f64>,
+        tracked: bool,
+        wrist_position: Option<PyReadonlyArray1<'_, f64>>,
+        wrist_rotation: Option<PyReadonlyArray1<'_, f64>>,
+    ) -> PyResult<(Option<u64>, Option<String>)> {
+        if self.closed {
+            return Err(SourceError::new_err(
+                "this source is closed; a session has one source, which ends it when it closes",
+            ));
+        }
+        if position.shape() != [OPENXR_JOINTS, 3] || rotation.shape() != [OPENXR_JOINTS, 4] {
+            return Err(PyValueError::new_err(format!(
+                "position must be (26, 3) and rotation (26, 4) (OpenXR's joints, handblocks.\
+                 JOINT_NAMES), not {:?} and {:?}",
+                position.shape(),
+                rotation.shape()
+            )));
+        }
+        let position = position.as_array();
+        let rotation = rotation.as_array();
+        let (mut p, mut q): (Vec<f64>, Vec<f64>) = (
+            position.iter().copied().collect(),
+            rotation.iter().copied().collect(),
+        );
+        // The wrist: OpenXR's joint 1, unless given apart (CARL's traces hold identity poses
+        // in joints 0 and 1 and the wrist beside them). Checked with the joints, as joint 26.
+        let wrist_given = match (&wrist_position, &wrist_rotation) {
+            (Some(wp), Some(wr)) if wp.shape() == [3] && wr.shape() == [4] => {
+                p.extend(wp.as_array().iter());
+                q.extend(wr.as_array().iter());
+                true
+            }
+            (None, None) => false,
+            _ => {
+                return Err(PyValueError::new_err(
+                    "give both wrist_position (3,) and wrist_rotation (4,), or neither (the \
+                     wrist is then joint 1, OpenXR's wrist)",
+                ))
+            }
+        };
+        let mut warning = None;
+        let seq = match self.check(time_ns, &p, &q) {
+            Some((reason, what)) => {
+                warning = self.refuse(reason, what);
+                None
+            }
+            None => {
+                for (j, pose) in self.sample.joints.iter_mut().enumerate() {
+                    pose.position.copy_from_slice(&p[j * 3..j * 3 + 3]);
+                    pose.rotation.copy_from_slice(&q[j * 4..j * 4 + 4]);
+                }
+                self.sample.wrist = if wrist_given {
+                    let w = OPENXR_JOINTS;
+                    let mut pose = Pose::IDENTITY;
+                    pose.position.copy_from_slice(&p[w * 3..w * 3 + 3]);
+                    pose.rotation.copy_from_slice(&q[w * 4..w * 4 + 4]);
+                    pose
+                } else {
+                    self.sample.joints[WRIST]
+                };
+                self.sample.tracked = tracked as u32;
+                self.sample.stamp = Stamp {
+                    source_time_ns: time_ns,
+                    origin_ns: common::monotonic_ns(),
+                    ..Stamp::default()
+                };
+                let out = self
+                    .joints_out
+                    .as_mut()
+                    .ok_or_else(|| SourceError::new_err("the source is closed"))?;
+                let sent = out
+                    .publish(&self.sample)
+                    .map_err(|e| SourceError::new_err(e.to_string()))?;
+                if let Some(r) = self.reporter.as_mut() {
+                    r.recorder.source_output(&sent);
+                }
+                self.last_time_ns = Some(time_ns);
+                self.published += 1;
+                Some(sent.seq)
+            }
+        };
+        self.report_if_due()?;
+        Ok((seq, warning))
+    }
+
+    /// Published and refused (by reason) so far.
+    fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("published", self.published)?;
+        let refused = PyDict::new(py);
+        for (name, n) in REASONS.iter().zip(self.refused) {
+            refused.set_item(*name, n)?;
+        }
+        d.set_item("refused", refused)?;
+        d.set_item("first_refused", self.first_refused.clone())?;
+        Ok(d)
+    }
+
+    /// Sends the final report and waits (at most a few seconds, the GIL released) until the
+    /// launcher has read it; the session then ends. Idempotent.
+    fn close(&mut self, py: Python<'_>) -> PyResult<()> {
+        if self.closed {
+            return Ok(());
+        }
+        self.closed = true;
+        let counters = self.counters();
+        let devices = self.devices();
+        let Some(mut reporter) = self.reporter.take() else {
+            return Ok(());
+        };
+        reporter.set_devices(devices);
+        reporter
+            .report(counters.as_slice(), true)
+            .map_err(|e| SourceError::new_err(e.to_string()))?;
+        // The ports must live until the launcher has read the report (iceoryx2 drops what a
+        // departed publisher had not delivered).
+        py.detach(|| shutdown::wait_for_release(Duration::from_secs(5)));
+        self.joints_out = None;
+        Ok(())
+    }
+}

@@ -1,0 +1,94 @@
+"""handblocks.Session: a running session read from Python, zero-copy; what Python read equals
+what the session recorded; Python's reader waits as long as the session's own readers do."""
+
+from __future__ import annotations
+
+import gc
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import handblocks as hb
+from conftest import CEILINGS, bus_id, finish, launch, nothing_left
+
+
+def attach(bus: str, child, within_s: float = 20.0) -> hb.Session:
+    deadline = time.monotonic() + within_s
+    while True:
+        try:
+            return hb.Session(bus)
+        except hb.SessionError:
+            if child.poll() is not None or time.monotonic() > deadline:
+                raise
+            time.sleep(0.01)
+
+
+def test_a_live_session_read_from_python_is_what_it_recorded(tmp_path: Path) -> None:
+    bus = bus_id("live")
+    rec, report = tmp_path / "live.mcap", tmp_path / "report.json"
+    child = launch(
+        "config/sessions/replay-carl-lift.toml",
+        "--bus-id", bus, "--record", str(rec), "--report", str(report), *CEILINGS,
+    )
+    session = attach(bus, child)
+    assert session.id == bus and not session.lossless and session.world_blocks == 1
+    assert session.session_file.endswith("replay-carl-lift.toml")
+    worlds = session.subscribe("world")
+    deadline = time.monotonic() + 20
+    while session.topics()["world"]["publishers"] == 0 and time.monotonic() < deadline:
+        time.sleep(0.01)  # the stepper starts after the launcher wrote its card
+    topics = session.topics()
+    assert topics["world"]["publishers"] == 1 and topics["world"]["subscribers"] >= 1
+    names = [name for name, _ in session.processes()]
+    assert "stepper" in names and "python" in names
+
+    seen = {}
+    hops = []
+    first = None
+    for w in worlds:
+        if first is None:
+            first = w
+            # Zero-copy: a read-only view of the publisher's memory, one row per block.
+            assert w.position.shape == (1, 3) and w.rotation.shape == (1, 4)
+            assert not w.position.flags.writeable and not w.position.flags.owndata
+            with pytest.raises(ValueError):
+                w.position[0, 0] = 1.0
+        hops.append(w.received_ns - w.publish_ns)
+        fields = w.fields()
+        seen[w.seq] = (fields["position"].copy(), fields["mode"].copy(), w.time_ns, fields["step"])
+    received, missed = worlds.counts()
+    # The first sample is still alive here, and so still readable.
+    assert first is not None and np.isfinite(first.position).all()
+    del first, w, fields, worlds, session
+    gc.collect()
+    finish(child, "the lift replay")
+    nothing_left(bus)
+
+    assert len(seen) > 100 and received == len(seen)
+    recorded = hb.Recording(rec).world()
+    by_seq = {int(s): i for i, s in enumerate(recorded.seq)}
+    for seq, (position, mode, time_ns, step) in seen.items():
+        i = by_seq[seq]
+        assert np.array_equal(position, recorded.position[i])
+        assert np.array_equal(mode, recorded.mode[i])
+        assert time_ns == recorded.time_ns[i] and step == recorded.step[i]
+    assert missed == 0
+
+    # Python's hop (publish -> taken here) beside the Rust readers' in the same session.
+    r = json.loads(report.read_text())
+    ours = np.percentile(np.array(hops) / 1e3, [50, 99])
+    recorder = r["stages"]["recorder"]["hop_us"]
+    print(
+        f"\nworld hop, publish -> taken: python p50 {ours[0]:.0f} us p99 {ours[1]:.0f} us; "
+        f"the recorder (Rust) p50 {recorder['p50']} us p99 {recorder['p99']} us"
+    )
+    # A ceiling only a broken reader crosses (no test fails on latency alone).
+    assert ours[0] < 50_000
+
+
+def test_a_session_that_does_not_run_is_named() -> None:
+    with pytest.raises(hb.SessionError, match="no session"):
+        hb.Session("nosuchsession0")
