@@ -352,7 +352,13 @@ def simulate(
     if hand is not None:
         hand = os.fspath(hand)
     if not isinstance(scene, Mapping):
-        scene = os.fspath(scene)
+        try:
+            scene = os.fspath(scene)
+        except TypeError:
+            raise TypeError(
+                f"scene: a path (str or os.PathLike) or a dict of the scene file's tables, "
+                f"not {type(scene).__name__}"
+            ) from None
     else:
         scene = dict(scene)
     offset = tuple(float(x) for x in hand_offset)

@@ -129,8 +129,9 @@ fn load_scene(scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
     loaded.map_err(|e| SceneError::new_err(e.to_string()))
 }
 
-/// `given` when it exists; else a bare name (`grasp-throw`) in `$HANDBLOCKS_CONFIG/scenes`
-/// or `./config/scenes`; else `given` (its error then names it as given).
+/// `given` when it exists; else a bare name (`grasp-throw`) in `$HANDBLOCKS_CONFIG/scenes`,
+/// `./config/scenes`, or the repository this package was built from (while its `config/` is
+/// there), as `handblocks simulate` looks; else `given` (its error then names it as given).
 fn resolve_scene(given: &Path) -> PathBuf {
     if given.exists() || given.components().count() != 1 {
         return given.to_path_buf();
@@ -144,7 +145,10 @@ fn resolve_scene(given: &Path) -> PathBuf {
     std::env::var_os("HANDBLOCKS_CONFIG")
         .map(PathBuf::from)
         .into_iter()
-        .chain([PathBuf::from("config")])
+        .chain([
+            PathBuf::from("config"),
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../config"),
+        ])
         .map(|dir| dir.join("scenes").join(&file))
         .find(|p| p.is_file())
         .unwrap_or_else(|| given.to_path_buf())

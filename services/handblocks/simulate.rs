@@ -40,7 +40,7 @@ pub fn run(args: SimulateArgs) -> Result<ExitCode, SimulateError> {
         eprintln!("handblocks simulate: {line}");
     }
     if args.json {
-        println!("{}", report.to_json());
+        print!("{}", report.to_json());
     } else {
         print!("{}", report.to_text());
     }
