@@ -200,6 +200,41 @@ fn the_recorder_keeps_up_with_a_1khz_hand_and_inspect_lists_it() {
         assert!(text.contains(name), "{text}");
     }
     assert!(text.contains("handblocks/msg/WorldSample"), "{text}");
+
+    // `inspect --samples TOPIC`: every sample as a JSON line, the reader's values exactly.
+    let out = Command::new(EXE)
+        .arg("inspect")
+        .arg(&file)
+        .args(["--samples", "world"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", both(&out));
+    let lines: Vec<Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let rec = Recording::open(&file).unwrap();
+    let worlds: Vec<WorldSample> = rec.worlds().collect();
+    assert_eq!(lines.len(), worlds.len());
+    for (line, w) in lines.iter().zip(&worlds) {
+        assert_eq!(line["stamp"]["seq"].as_u64(), Some(w.header.stamp.seq));
+        assert_eq!(line["step"].as_u64(), Some(w.header.step));
+        for (b, block) in w.blocks().iter().enumerate() {
+            let pose = &line["blocks"][b]["pose"];
+            for k in 0..3 {
+                assert_eq!(pose["position"][k].as_f64(), Some(block.pose.position[k]));
+            }
+            assert_eq!(line["blocks"][b]["mode"].as_u64(), Some(block.mode as u64));
+        }
+    }
+    let bad = Command::new(EXE)
+        .arg("inspect")
+        .arg(&file)
+        .args(["--samples", "worlds"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2), "{}", both(&bad));
+    assert!(both(&bad).contains("not a topic"), "{}", both(&bad));
 }
 
 #[test]

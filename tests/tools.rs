@@ -154,6 +154,8 @@ fn replay_sessions_hz_and_echo_work_from_another_folder() {
         .unwrap_or_else(|| panic!("no rate: {text}"));
     // A CARL trace is ~90 samples a second; only a broken tap reads none or absurdly many.
     assert!(rate > 10.0 && rate < 1000.0, "{text}");
+    // And how long its samples took to reach it (publish -> taken), as the stages' hop.
+    assert!(text.contains("publish -> taken here: p50 "), "{text}");
     let echo = run_in(&dir.0, &["echo", "/hand", "--session", &id, "-n", "2"]);
     let text = String::from_utf8_lossy(&echo.stdout).into_owned();
     assert!(echo.status.success(), "{}", both(&echo));

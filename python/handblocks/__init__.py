@@ -59,6 +59,7 @@ __all__ = [
     "Event",
     "Session",
     "Subscription",
+    "Sample",
     "Source",
     "RecordingWarning",
     "SourceWarning",
@@ -380,6 +381,13 @@ def simulate(
     )
 
 
+#: One live sample (``Subscription`` yields them): its stamp as attributes (``seq``,
+#: ``time_ns``, ``origin_ns``, ``publish_ns``, and ``received_ns``: when this reader took it),
+#: its fields as read-only numpy views of the publisher's shared memory (``fields()``, or by
+#: name: ``sample.position``), and ``copy()`` for arrays of your own.
+Sample = _native.LiveSample
+
+
 class Subscription:
     """One reader of one topic of a running session. Iterating yields each sample as it
     arrives, until the session ends; each is the publisher's shared memory itself: its fields
@@ -395,12 +403,12 @@ class Subscription:
         self._native = native
         self.topic = topic
 
-    def receive(self, timeout: Optional[float] = None) -> Optional[Any]:
+    def receive(self, timeout: Optional[float] = None) -> Optional[Sample]:
         """The next sample, waiting at most ``timeout`` seconds (None: until the session
         ends); None when none came."""
         return self._native.receive(timeout)
 
-    def __iter__(self) -> Iterator[Any]:
+    def __iter__(self) -> Iterator[Sample]:
         return iter(self._native)
 
     def counts(self) -> Tuple[int, int]:

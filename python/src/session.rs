@@ -10,7 +10,7 @@
 use std::rc::Rc;
 use std::time::{Duration, Instant};
 
-use numpy::{Element, PyArrayDyn, PyArrayMethods};
+use numpy::{Element, PyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -85,6 +85,7 @@ impl NativeSession {
 
     /// Per topic: how many publishers and subscribers are attached now.
     fn topics<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        self.still_running()?;
         let services = self.bus.create_services().map_err(bus_err)?;
         let out = PyDict::new(py);
         for t in Topic::RECORDED {
@@ -106,6 +107,7 @@ impl NativeSession {
                     Topic::RECORDED.map(|t| t.name()).join(", ")
                 ))
             })?;
+        self.still_running()?;
         if self.running.bus.lossless {
             return Err(SessionError::new_err(format!(
                 "session {} is a lossless replay (speed 0): its publishers wait for every \
@@ -129,6 +131,21 @@ impl NativeSession {
             last_check: Instant::now(),
             ended: false,
         })
+    }
+}
+
+impl NativeSession {
+    /// Refuses to open a port on a session that has ended: opening one would make its
+    /// services again, in files nobody removes.
+    fn still_running(&self) -> PyResult<()> {
+        if self.running.is_running() {
+            Ok(())
+        } else {
+            Err(SessionError::new_err(format!(
+                "session {} has ended (`handblocks sessions` lists those that run)",
+                self.running.bus.id
+            )))
+        }
     }
 }
 
@@ -311,32 +328,14 @@ unsafe fn view<'py, T: Element>(
     use numpy::ndarray::{ArrayViewD, IxDyn, ShapeBuilder};
     let v = ArrayViewD::from_shape_ptr(IxDyn(shape).strides(IxDyn(strides)), ptr);
     let array = PyArrayDyn::borrow_from_array(&v, owner.clone().into_any());
-    array.readwrite().make_nonwriteable();
+    // Read-only: the memory is the publisher's. (The flag itself, as rust-numpy's
+    // `make_nonwriteable` sets it, without its borrow bookkeeping on every sample.)
+    (*numpy::npyffi::_PyArray_GET_ITEM_DATA(array.as_array_ptr())).flags &=
+        !numpy::npyffi::NPY_ARRAY_WRITEABLE;
     Ok(array.into_any())
 }
 
 const F64S_PER_POSE: usize = std::mem::size_of::<Pose>() / 8;
-
-/// A pose's position (3,) and rotation (4,) as views.
-fn pose_views<'py>(
-    owner: &Bound<'py, LiveSample>,
-    pose: &Pose,
-    out: &Bound<'py, PyDict>,
-    prefix: &str,
-) -> PyResult<()> {
-    // SAFETY: the pose lies in the sample `owner` holds.
-    unsafe {
-        out.set_item(
-            format!("{prefix}position"),
-            view(owner, pose.position.as_ptr(), &[3], &[1])?,
-        )?;
-        out.set_item(
-            format!("{prefix}rotation"),
-            view(owner, pose.rotation.as_ptr(), &[4], &[1])?,
-        )?;
-    }
-    Ok(())
-}
 
 #[pymethods]
 impl LiveSample {
@@ -373,16 +372,15 @@ impl LiveSample {
         self.stamp().publish_ns
     }
 
-    /// A field by name (`sample.position`): one of [`LiveSample::fields`].
+    /// A field by name (`sample.position`): one of [`LiveSample::fields`], made alone.
     fn __getattr__<'py>(slf: &Bound<'py, Self>, name: &str) -> PyResult<Bound<'py, PyAny>> {
-        let fields = Self::fields(slf)?;
-        fields.get_item(name)?.ok_or_else(|| {
-            let names: Vec<String> = fields.keys().iter().map(|k| k.to_string()).collect();
+        field(slf, name)?.ok_or_else(|| {
+            let this = slf.borrow();
             pyo3::exceptions::PyAttributeError::new_err(format!(
                 "a {} sample has no field {name:?}; its fields: seq, time_ns, origin_ns, \
                  publish_ns, received_ns, {}",
-                slf.borrow().topic(),
-                names.join(", ")
+                this.topic(),
+                this.field_names().join(", ")
             ))
         })
     }
@@ -421,119 +419,190 @@ impl LiveSample {
     /// The sample's fields by name: scalars as Python numbers, arrays as read-only numpy
     /// views of the shared memory (valid while this sample or a view of it is alive).
     fn fields<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        let py = slf.py();
-        let out = PyDict::new(py);
-        let this = slf.borrow();
-        // SAFETY (every `view` below): each pointer is a field of the sample `slf` holds.
+        let out = PyDict::new(slf.py());
+        for name in slf.borrow().field_names() {
+            if let Some(v) = field(slf, name)? {
+                out.set_item(*name, v)?;
+            }
+        }
+        Ok(out)
+    }
+}
+
+impl LiveSample {
+    /// The fields of this sample's topic, as [`field`] makes them.
+    fn field_names(&self) -> &'static [&'static str] {
+        match &self.held {
+            Held::World(_) => &[
+                "step",
+                "hand_seq",
+                "grasped_block",
+                "block_count",
+                "finger_count",
+                "position",
+                "rotation",
+                "mode",
+                "finger_point_count",
+                "finger_points",
+            ],
+            Held::Hand(_) => &[
+                "tracked",
+                "finger_count",
+                "palm_vertex_count",
+                "wrist_position",
+                "wrist_rotation",
+                "finger_point_count",
+                "finger_points",
+                "finger_radius",
+                "palm_vertices",
+            ],
+            Held::Joints(_) => &[
+                "tracked",
+                "wrist_position",
+                "wrist_rotation",
+                "position",
+                "rotation",
+            ],
+            Held::Glove(_) => &["sensor_count", "angles"],
+            Held::Tracker(_) => &["station", "wrist_position", "wrist_rotation"],
+            Held::Frame(_) => &[
+                "world_seq",
+                "render_ns",
+                "origin_to_photon_ns",
+                "skipped_worlds",
+            ],
+        }
+    }
+}
+
+/// One field of the sample `slf` holds, by name (None: the topic has no such field): a scalar
+/// as a Python number, an array as a read-only view of the shared memory. Only the field asked
+/// for is made, so `sample.position` costs one view.
+fn field<'py>(slf: &Bound<'py, LiveSample>, name: &str) -> PyResult<Option<Bound<'py, PyAny>>> {
+    let py = slf.py();
+    let this = slf.borrow();
+    let num = |v: u64| Ok(Some(v.into_pyobject(py)?.into_any()));
+    let int = |v: i64| Ok(Some(v.into_pyobject(py)?.into_any()));
+    let flag = |v: u32| {
+        Ok(Some(
+            pyo3::types::PyBool::new(py, v != 0).to_owned().into_any(),
+        ))
+    };
+    // SAFETY (every `view` below): each pointer, shape and stride lies within the sample
+    // `slf` holds, which the view keeps alive.
+    unsafe {
+        let pose = |p: &Pose, rotation: bool| {
+            if rotation {
+                view(slf, p.rotation.as_ptr(), &[4], &[1])
+            } else {
+                view(slf, p.position.as_ptr(), &[3], &[1])
+            }
+        };
+        let fingers = |points: &[[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS]| {
+            view(
+                slf,
+                points.as_ptr() as *const f64,
+                &[MAX_FINGERS, MAX_FINGER_POINTS, 3],
+                &[MAX_FINGER_POINTS * 3, 3, 1],
+            )
+        };
         match &this.held {
             Held::World(s) => {
                 let h = s.user_header();
                 let blocks: &[BlockState] = s.payload();
                 let per_block = std::mem::size_of::<BlockState>() / 8;
                 let base = blocks.as_ptr() as *const f64;
-                out.set_item("step", h.step)?;
-                out.set_item("hand_seq", h.hand_seq)?;
-                out.set_item("grasped_block", h.grasped_block)?;
-                out.set_item("block_count", h.block_count)?;
-                out.set_item("finger_count", h.finger_count)?;
                 let n = blocks.len();
-                unsafe {
-                    out.set_item("position", view(slf, base, &[n, 3], &[per_block, 1])?)?;
-                    out.set_item(
-                        "rotation",
-                        view(slf, base.add(3), &[n, 4], &[per_block, 1])?,
-                    )?;
-                    let modes = (base.add(F64S_PER_POSE)) as *const u32;
-                    out.set_item("mode", view(slf, modes, &[n], &[per_block * 2])?)?;
-                    out.set_item(
-                        "finger_point_count",
-                        view(slf, h.finger_point_count.as_ptr(), &[MAX_FINGERS], &[1])?,
-                    )?;
-                    out.set_item(
-                        "finger_points",
-                        view(
-                            slf,
-                            h.finger_points.as_ptr() as *const f64,
-                            &[MAX_FINGERS, MAX_FINGER_POINTS, 3],
-                            &[MAX_FINGER_POINTS * 3, 3, 1],
-                        )?,
-                    )?;
+                match name {
+                    "step" => num(h.step),
+                    "hand_seq" => num(h.hand_seq),
+                    "grasped_block" => int(h.grasped_block.into()),
+                    "block_count" => num(h.block_count.into()),
+                    "finger_count" => num(h.finger_count.into()),
+                    "position" => view(slf, base, &[n, 3], &[per_block, 1]).map(Some),
+                    "rotation" => view(slf, base.add(3), &[n, 4], &[per_block, 1]).map(Some),
+                    "mode" => view(
+                        slf,
+                        base.add(F64S_PER_POSE) as *const u32,
+                        &[n],
+                        &[per_block * 2],
+                    )
+                    .map(Some),
+                    "finger_point_count" => {
+                        view(slf, h.finger_point_count.as_ptr(), &[MAX_FINGERS], &[1]).map(Some)
+                    }
+                    "finger_points" => fingers(&h.finger_points).map(Some),
+                    _ => Ok(None),
                 }
             }
             Held::Hand(s) => {
                 let h = s.payload();
-                out.set_item("tracked", h.tracked != 0)?;
-                out.set_item("finger_count", h.finger_count)?;
-                out.set_item("palm_vertex_count", h.palm_vertex_count)?;
-                pose_views(slf, &h.wrist, &out, "wrist_")?;
-                unsafe {
-                    out.set_item(
-                        "finger_point_count",
-                        view(slf, h.finger_point_count.as_ptr(), &[MAX_FINGERS], &[1])?,
-                    )?;
-                    out.set_item(
-                        "finger_points",
-                        view(
-                            slf,
-                            h.finger_points.as_ptr() as *const f64,
-                            &[MAX_FINGERS, MAX_FINGER_POINTS, 3],
-                            &[MAX_FINGER_POINTS * 3, 3, 1],
-                        )?,
-                    )?;
-                    out.set_item(
-                        "finger_radius",
-                        view(slf, h.finger_radius.as_ptr(), &[MAX_FINGERS], &[1])?,
-                    )?;
-                    out.set_item(
-                        "palm_vertices",
-                        view(
-                            slf,
-                            h.palm_vertices.as_ptr() as *const f64,
-                            &[MAX_PALM_VERTICES, 3],
-                            &[3, 1],
-                        )?,
-                    )?;
+                match name {
+                    "tracked" => flag(h.tracked),
+                    "finger_count" => num(h.finger_count.into()),
+                    "palm_vertex_count" => num(h.palm_vertex_count.into()),
+                    "wrist_position" => pose(&h.wrist, false).map(Some),
+                    "wrist_rotation" => pose(&h.wrist, true).map(Some),
+                    "finger_point_count" => {
+                        view(slf, h.finger_point_count.as_ptr(), &[MAX_FINGERS], &[1]).map(Some)
+                    }
+                    "finger_points" => fingers(&h.finger_points).map(Some),
+                    "finger_radius" => {
+                        view(slf, h.finger_radius.as_ptr(), &[MAX_FINGERS], &[1]).map(Some)
+                    }
+                    "palm_vertices" => view(
+                        slf,
+                        h.palm_vertices.as_ptr() as *const f64,
+                        &[MAX_PALM_VERTICES, 3],
+                        &[3, 1],
+                    )
+                    .map(Some),
+                    _ => Ok(None),
                 }
             }
             Held::Joints(s) => {
                 let j = s.payload();
-                out.set_item("tracked", j.tracked != 0)?;
-                pose_views(slf, &j.wrist, &out, "wrist_")?;
                 let base = j.joints.as_ptr() as *const f64;
-                unsafe {
-                    out.set_item(
-                        "position",
-                        view(slf, base, &[OPENXR_JOINTS, 3], &[F64S_PER_POSE, 1])?,
-                    )?;
-                    out.set_item(
-                        "rotation",
-                        view(slf, base.add(3), &[OPENXR_JOINTS, 4], &[F64S_PER_POSE, 1])?,
-                    )?;
+                match name {
+                    "tracked" => flag(j.tracked),
+                    "wrist_position" => pose(&j.wrist, false).map(Some),
+                    "wrist_rotation" => pose(&j.wrist, true).map(Some),
+                    "position" => {
+                        view(slf, base, &[OPENXR_JOINTS, 3], &[F64S_PER_POSE, 1]).map(Some)
+                    }
+                    "rotation" => {
+                        view(slf, base.add(3), &[OPENXR_JOINTS, 4], &[F64S_PER_POSE, 1]).map(Some)
+                    }
+                    _ => Ok(None),
                 }
             }
             Held::Glove(s) => {
                 let g = s.payload();
-                out.set_item("sensor_count", g.sensor_count)?;
-                unsafe {
-                    out.set_item(
-                        "angles",
-                        view(slf, g.angles.as_ptr(), &[MAX_GLOVE_SENSORS], &[1])?,
-                    )?;
+                match name {
+                    "sensor_count" => num(g.sensor_count.into()),
+                    "angles" => view(slf, g.angles.as_ptr(), &[MAX_GLOVE_SENSORS], &[1]).map(Some),
+                    _ => Ok(None),
                 }
             }
             Held::Tracker(s) => {
                 let t = s.payload();
-                out.set_item("station", t.station)?;
-                pose_views(slf, &t.wrist, &out, "wrist_")?;
+                match name {
+                    "station" => num(t.station.into()),
+                    "wrist_position" => pose(&t.wrist, false).map(Some),
+                    "wrist_rotation" => pose(&t.wrist, true).map(Some),
+                    _ => Ok(None),
+                }
             }
             Held::Frame(s) => {
                 let f = s.payload();
-                out.set_item("world_seq", f.world_seq)?;
-                out.set_item("render_ns", f.render_ns)?;
-                out.set_item("origin_to_photon_ns", f.origin_to_photon_ns)?;
-                out.set_item("skipped_worlds", f.skipped_worlds)?;
+                match name {
+                    "world_seq" => num(f.world_seq),
+                    "render_ns" => num(f.render_ns),
+                    "origin_to_photon_ns" => num(f.origin_to_photon_ns),
+                    "skipped_worlds" => num(f.skipped_worlds),
+                    _ => Ok(None),
+                }
             }
         }
-        Ok(out)
     }
 }

@@ -132,19 +132,21 @@ fn pick(id: Option<&str>) -> Result<RunningSession, MonitorError> {
 /// One topic's inlet, whatever its sample type: the next sample as a recording's bytes.
 trait Tap {
     fn wakeable(&self) -> &dyn Wakeable;
-    /// The next sample's message (CDR header and bytes) into `out`, and its stamp.
-    fn next(&self, out: &mut Vec<u8>) -> Result<Option<Stamp>, BusError>;
+    /// The next sample's message (CDR header and bytes) into `out`, its stamp, and when it
+    /// was taken (CLOCK_MONOTONIC, before it was copied out).
+    fn next(&self, out: &mut Vec<u8>) -> Result<Option<(Stamp, u64)>, BusError>;
 }
 
 impl<P: TopicSpec> Tap for Inlet<P> {
     fn wakeable(&self) -> &dyn Wakeable {
         self
     }
-    fn next(&self, out: &mut Vec<u8>) -> Result<Option<Stamp>, BusError> {
+    fn next(&self, out: &mut Vec<u8>) -> Result<Option<(Stamp, u64)>, BusError> {
         use common::bus::Stamped as _;
         Ok(self.receive()?.map(|s| {
+            let taken = common::monotonic_ns();
             recording::encode_sample(s.payload(), out);
-            *s.payload().stamp()
+            (*s.payload().stamp(), taken)
         }))
     }
 }
@@ -155,11 +157,12 @@ impl<P: SliceTopicSpec> Tap for SliceTap<P> {
     fn wakeable(&self) -> &dyn Wakeable {
         &self.0
     }
-    fn next(&self, out: &mut Vec<u8>) -> Result<Option<Stamp>, BusError> {
+    fn next(&self, out: &mut Vec<u8>) -> Result<Option<(Stamp, u64)>, BusError> {
         use common::bus::Stamped as _;
         Ok(self.0.receive()?.map(|s| {
+            let taken = common::monotonic_ns();
             recording::encode_slice(P::TOPIC, s.user_header(), s.payload(), out);
-            *s.user_header().stamp()
+            (*s.user_header().stamp(), taken)
         }))
     }
 }
@@ -218,10 +221,10 @@ fn next_sample(
     tap: &dyn Tap,
     running: &RunningSession,
     message: &mut Vec<u8>,
-) -> Result<Option<Stamp>, MonitorError> {
+) -> Result<Option<(Stamp, u64)>, MonitorError> {
     loop {
-        if let Some(stamp) = tap.next(message)? {
-            return Ok(Some(stamp));
+        if let Some(taken) = tap.next(message)? {
+            return Ok(Some(taken));
         }
         if common::shutdown::requested() || !running_still(running) {
             return Ok(None);
@@ -289,14 +292,17 @@ pub fn hz(
     let started = Instant::now();
     let mut last_print = Instant::now();
     let mut total = 0u64;
+    // Each sample's hop, publish -> taken here (a tool's, not a stage's: kept to the end).
+    let mut hops = common::latency::new_histogram();
     loop {
         if seconds.is_some_and(|s| started.elapsed().as_secs_f64() >= s) {
             break;
         }
-        let Some(stamp) = next_sample(tap.as_ref(), &running, &mut message)? else {
+        let Some((stamp, taken)) = next_sample(tap.as_ref(), &running, &mut message)? else {
             break;
         };
         total += 1;
+        let _ = hops.record(taken.saturating_sub(stamp.publish_ns).max(1));
         if times.len() == window {
             times.pop_front();
         }
@@ -323,6 +329,17 @@ pub fn hz(
         }
     }
     eprintln!("handblocks hz: {total} samples");
+    if total > 0 {
+        let us = |q: f64| hops.value_at_quantile(q) as f64 / 1e3;
+        eprintln!(
+            "handblocks hz: publish -> taken here: p50 {:.1} us, p90 {:.1} us, p99 {:.1} us, \
+             max {:.1} us",
+            us(0.5),
+            us(0.9),
+            us(0.99),
+            hops.max() as f64 / 1e3
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
 
