@@ -127,8 +127,10 @@ def run_reader(code: str, recording: Path) -> dict:
     return json.loads(done.stdout)
 
 
-def make_recording(out: Path, seconds: int) -> Path:
-    path = out / f"live-{seconds}s.mcap"
+def make_recording(seconds: int) -> Path:
+    # Beside the build, never under --out (which may be docs/bench).
+    path = REPO / "out" / "bench-python" / f"live-{seconds}s.mcap"
+    path.parent.mkdir(parents=True, exist_ok=True)
     if path.exists():
         return path
     say(f"recording {seconds} s of config/sessions/live.toml (renderer off) into {path}")
@@ -155,7 +157,7 @@ def bench_read(args: argparse.Namespace) -> dict:
     except ImportError:
         raise SystemExit("bench python read: the peer is missing: pip install mcap lz4")
     out = Path(args.out)
-    recording = Path(args.recording) if args.recording else make_recording(out, 60)
+    recording = Path(args.recording) if args.recording else make_recording(60)
     size = recording.stat().st_size
     rounds = {"handblocks": [], "mcap": []}
     for r in range(args.rounds):
@@ -319,8 +321,8 @@ def bench_live(args: argparse.Namespace) -> dict:
         "|---|---|---|---|---|",
     ]
     def row(label, x):
-        md.append(f"| {label} | {x['p50']:.1f} | {x.get('p90', float('nan')):.1f} | "
-                  f"{x['p99']:.1f} | {x.get('max', float('nan')):.1f} |")
+        cell = lambda q: f"{x[q]:.1f}" if q in x else "-"  # noqa: E731
+        md.append(f"| {label} | {cell('p50')} | {cell('p90')} | {cell('p99')} | {cell('max')} |")
     row("Python `Session.subscribe` (taken)", result["python_taken_us"])
     row("Python, numpy views in hand", result["python_views_us"])
     row("Rust `handblocks hz world` (the peer)", result["rust_hz_taken_us"])
@@ -341,8 +343,34 @@ def plot_live(axes, result: dict) -> None:
         ax.tick_params(axis="x", labelrotation=20)
 
 
+def provenance(command: str) -> list:
+    """Where a page's figures come from: the command, when, the commit, the machine."""
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
+                                capture_output=True, text=True).stdout.strip() or "?"
+    except OSError:
+        commit = "?"
+    cpu = "?"
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return [
+        f"- command: `{command}`",
+        f"- when: {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}",
+        f"- commit: {commit}",
+        f"- machine: {cpu}, {len(os.sched_getaffinity(0))} CPUs available to the run",
+        "",
+    ]
+
+
 def write(out: Path, name: str, result: dict, md: list, plot) -> None:
     out.mkdir(parents=True, exist_ok=True)
+    command = "python bench/python/python_package.py " + " ".join(sys.argv[1:])
+    md = md[:2] + provenance(command) + [f"![{md[0][2:]}]({name}.png)", ""] + md[2:]
     (out / f"{name}.json").write_text(json.dumps(result, indent=2) + "\n")
     (out / f"{name}.md").write_text("\n".join(md))
     try:

@@ -251,12 +251,26 @@ class Recording:
         return self._native.topics()
 
     def names(self, blocks: int) -> List[str]:
-        """The blocks' names, from the recording (or its scene file), else ``block0``, ..."""
+        """The blocks' names: as the recording lists them; for a recording made before it
+        listed them, from the scene file it names, when that file is still there and names
+        as many blocks; else ``block0``, ``block1``, ... (a scene's own default names)."""
         listed = self.metadata.get("blocks")
         if listed is not None:
             names = listed.split("\n")
             if len(names) == blocks:
                 return names
+        scene = self.scene
+        if scene and os.path.isfile(scene):
+            try:
+                import tomllib  # Python 3.11+
+
+                with open(scene, "rb") as f:
+                    tables = tomllib.load(f).get("block", [])
+                names = [t.get("name", f"block{i}") for i, t in enumerate(tables)]
+                if len(names) == blocks and all(isinstance(n, str) for n in names):
+                    return names
+            except (ImportError, OSError, ValueError, AttributeError):
+                pass
         return [f"block{i}" for i in range(blocks)]
 
     def world(self) -> World:

@@ -1,6 +1,7 @@
 """An external source for the tests: plays a CARL trace's joints through handblocks.Source,
 in the trace's own time, moved by an offset; then tries two bad samples (NaN, and a time that
-does not increase), which the source must refuse and count.
+does not increase, a joint a kilometre away, a zero quaternion), which the source must refuse
+and count.
 
 Usage (as a session's [source] command): python drive_from_trace.py TRACE DX DY DZ
 """
@@ -43,10 +44,18 @@ def main() -> None:
             nan[3, 1] = np.nan
             assert source.publish(end + 1_000_000, nan, joints.rotation[-1]) is None
             assert source.publish(end, joints.position[-1] + offset, joints.rotation[-1]) is None
-        assert [w.category for w in said] == [hb.SourceWarning] * 2, said
+            far = joints.position[-1] + offset
+            far[5] = [0.0, 1e3, 0.0]  # a kilometre: millimetres given as metres, say
+            assert source.publish(end + 2_000_000, far, joints.rotation[-1]) is None
+            flat = joints.rotation[-1].copy()
+            flat[7] = 0.0  # no rotation at all
+            assert source.publish(end + 3_000_000, joints.position[-1] + offset, flat) is None
+        assert [w.category for w in said] == [hb.SourceWarning] * 4, said
+        assert "thumb_tip" in str(said[2].message) and "index_proximal" in str(said[3].message)
         counts = source.counts()
         assert counts["published"] == len(joints), counts
-        assert counts["refused"]["not finite"] == 1 and counts["refused"]["order"] == 1, counts
+        assert counts["refused"] == {"not finite": 1, "too far": 1, "rotation norm": 1,
+                                     "order": 1}, counts
         print(f"drive_from_trace: published {counts['published']}, refused {counts['refused']}",
               flush=True)
         # Let the pipeline take the last hand before the session ends.

@@ -72,7 +72,7 @@ def test_a_python_source_drives_the_session_as_simulate_hand_does(tmp_path: Path
     assert r["budget"]["ok"], r["budget"]
     assert r["session"]["source"] == "external"
     assert r["devices"]["external"]["samples"] == len(played)
-    assert r["devices"]["external"]["rejected_records"] == 2
+    assert r["devices"]["external"]["rejected_records"] == 4
     assert r["stages"]["external"]["final_report"]
     assert r["stages"]["external"]["origin_us"]["count"] == len(played)
 

@@ -253,7 +253,7 @@ impl Scene {
     /// Checks a scene already parsed as TOML (Python's `handblocks.simulate` given a dict):
     /// `file` names it in errors, and relative paths in it are taken from its folder.
     pub fn from_table(file: &Path, table: &toml::Table) -> Result<Scene, ConfigError> {
-        let root = Reader::new(file, "", &table);
+        let root = Reader::new(file, "", table);
         let (blocks, block_colors) = blocks(&root)?;
         let scene = Scene {
             file: file.to_path_buf(),
