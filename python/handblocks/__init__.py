@@ -451,6 +451,12 @@ class Session:
         return self._native.session_file
 
     @property
+    def source(self) -> str:
+        """Its source's kind: ``scripted``, ``devices``, ``replay``, ``remote``, ``webxr`` or
+        ``external``."""
+        return self._native.source
+
+    @property
     def lossless(self) -> bool:
         return self._native.lossless
 

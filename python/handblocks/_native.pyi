@@ -64,6 +64,7 @@ class NativeSession:
     def __init__(self, bus_id: Optional[str] = None) -> None: ...
     id: str
     session_file: str
+    source: str
     lossless: bool
     world_blocks: int
     started_unix_s: int

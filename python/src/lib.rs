@@ -56,6 +56,20 @@ create_exception!(
     "The external source cannot publish: no session to publish into, or its bus failed."
 );
 
+/// A topic a session publishes and a recording holds, by its name (`world` or `/world`); a
+/// ValueError listing them for any other.
+pub(crate) fn recorded_topic(name: &str) -> PyResult<common::Topic> {
+    use common::Topic;
+    Topic::from_channel(name)
+        .filter(|t| t.is_recorded())
+        .ok_or_else(|| {
+            pyo3::exceptions::PyValueError::new_err(format!(
+                "{name:?} is not a topic; one of: {}",
+                Topic::RECORDED.map(|t| t.name()).join(", ")
+            ))
+        })
+}
+
 /// CLOCK_MONOTONIC in nanoseconds: the clock of every stamp's `origin_ns` and `publish_ns`, so
 /// `monotonic_ns() - sample.origin_ns` is a sample's age, as the session's report counts it.
 #[pyfunction]

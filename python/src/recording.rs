@@ -151,14 +151,7 @@ impl NativeRecording {
     /// One topic's samples as columns (a dict of numpy arrays, one row per sample): the
     /// stamps, then the topic's own fields. A topic the file does not hold gives 0 rows.
     fn arrays<'py>(&self, py: Python<'py>, topic: &str) -> PyResult<Bound<'py, PyDict>> {
-        let topic = Topic::from_channel(topic)
-            .filter(|t| t.is_recorded())
-            .ok_or_else(|| {
-                pyo3::exceptions::PyValueError::new_err(format!(
-                    "{topic:?} is not a topic; one of: {}",
-                    Topic::RECORDED.map(|t| t.name()).join(", ")
-                ))
-            })?;
+        let topic = crate::recorded_topic(topic)?;
         let out = PyDict::new(py);
         match (&self.data, topic) {
             (Data::Mcap(r), Topic::World) => world(r, &out)?,

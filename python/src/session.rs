@@ -58,6 +58,12 @@ impl NativeSession {
         self.running.session_file.clone()
     }
 
+    /// Its source's kind: `scripted`, `devices`, `replay`, `remote`, `webxr`, `external`.
+    #[getter]
+    fn source(&self) -> String {
+        self.running.source.clone()
+    }
+
     #[getter]
     fn lossless(&self) -> bool {
         self.running.bus.lossless
@@ -99,14 +105,7 @@ impl NativeSession {
 
     /// A reader of `topic`.
     fn subscribe(&self, topic: &str) -> PyResult<Subscription> {
-        let t = Topic::from_channel(topic)
-            .filter(|t| t.is_recorded())
-            .ok_or_else(|| {
-                pyo3::exceptions::PyValueError::new_err(format!(
-                    "{topic:?} is not a topic; one of: {}",
-                    Topic::RECORDED.map(|t| t.name()).join(", ")
-                ))
-            })?;
+        let t = crate::recorded_topic(topic)?;
         self.still_running()?;
         if self.running.bus.lossless {
             return Err(SessionError::new_err(format!(

@@ -168,6 +168,15 @@ impl NativeSource {
                  \"this_program.py\"]"
             ))
         })?;
+        // One source per session, of the kind it was launched with: joints published into a
+        // replay's or a headset's session would make a second hand fight the first.
+        if running.source != "external" && running.source != "?" {
+            return Err(SourceError::new_err(format!(
+                "session {} is fed by its {} source; an external source drives only a session \
+                 whose [source] has kind = \"external\"",
+                running.bus.id, running.source
+            )));
+        }
         if launched {
             // The launcher asks its processes to stop with SIGTERM, and releases them (or says
             // it is gone) by closing their standard input: `running` turns False on either.
@@ -176,6 +185,17 @@ impl NativeSource {
         }
         let err = |e: common::bus::BusError| SourceError::new_err(e.to_string());
         let bus = Bus::for_stage(&running.bus, Stage::External).map_err(err)?;
+        let publishers = bus
+            .create_services()
+            .map_err(err)?
+            .publishers(common::Topic::Joints);
+        if publishers > 0 {
+            return Err(SourceError::new_err(format!(
+                "session {} already has its source (a joints publisher is attached); a session \
+                 has one",
+                running.bus.id
+            )));
+        }
         let joints_out = bus.outlet::<topics::Joints>().map_err(err)?;
         let reporter = Reporter::new(Stage::External, bus.outlet().map_err(err)?);
         Ok(NativeSource {

@@ -35,7 +35,10 @@ def test_a_live_session_read_from_python_is_what_it_recorded(tmp_path: Path) -> 
     )
     session = attach(bus, child)
     assert session.id == bus and not session.lossless and session.world_blocks == 1
-    assert session.session_file.endswith("replay-carl-lift.toml")
+    assert session.session_file.endswith("replay-carl-lift.toml") and session.source == "replay"
+    # A replay's session has its source: an external one is refused, and says why.
+    with pytest.raises(hb.SourceError, match="replay"):
+        hb.Source(bus)
     worlds = session.subscribe("world")
     deadline = time.monotonic() + 20
     while session.topics()["world"]["publishers"] == 0 and time.monotonic() < deadline:

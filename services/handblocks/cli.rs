@@ -166,7 +166,7 @@ pub enum Command {
     },
     /// The sessions running on this machine: bus id, age, session file, processes.
     Sessions {
-        /// Print [{"id", "session", "started_unix_s", "launcher_pid", "lossless",
+        /// Print [{"id", "session", "source", "started_unix_s", "launcher_pid", "lossless",
         /// "processes": [{"name", "pid"}]}].
         #[arg(long)]
         json: bool,

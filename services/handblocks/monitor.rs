@@ -86,6 +86,7 @@ pub fn sessions(json: bool) -> ExitCode {
                 serde_json::json!({
                     "id": s.bus.id,
                     "session": s.session_file,
+                    "source": s.source,
                     "started_unix_s": s.started_unix_s,
                     "launcher_pid": s.launcher_pid,
                     "lossless": s.bus.lossless,

@@ -438,6 +438,8 @@ pub struct RunningSession {
     pub bus: BusConfig,
     /// The session file it runs.
     pub session_file: String,
+    /// Its source's kind (`scripted`, `replay`, `external`, ...), as its launcher read it.
+    pub source: String,
     /// When it started (Unix seconds) and the launcher's pid.
     pub started_unix_s: u64,
     pub launcher_pid: u32,
@@ -503,13 +505,14 @@ impl RunningSession {
 
 impl BusConfig {
     /// Leaves the card of this session in its folder (after [`BusConfig::claim_as_launcher`]).
-    pub fn write_card(&self, session_file: &StdPath) -> Result<(), BusError> {
+    pub fn write_card(&self, session_file: &StdPath, source: &str) -> Result<(), BusError> {
         let started = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_secs());
         let mut card = toml::Table::new();
         card.insert("id".into(), self.id.clone().into());
         card.insert("session".into(), session_file.display().to_string().into());
+        card.insert("source".into(), source.into());
         card.insert("world_blocks".into(), (self.world_blocks as i64).into());
         card.insert("lossless".into(), self.lossless.into());
         card.insert("started_unix_s".into(), (started as i64).into());
@@ -545,6 +548,11 @@ impl BusConfig {
                     RunningSession {
                         session_file: card
                             .get("session")
+                            .and_then(|s| s.as_str())
+                            .unwrap_or("?")
+                            .to_string(),
+                        source: card
+                            .get("source")
                             .and_then(|s| s.as_str())
                             .unwrap_or("?")
                             .to_string(),

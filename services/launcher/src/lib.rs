@@ -191,8 +191,10 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     // sweeps it at once if this launcher is killed.
     bus_config.claim_as_launcher()?;
     // ... and its card, for `handblocks sessions`, `echo` and `hz`.
-    bus_config
-        .write_card(&std::path::absolute(&session.file).unwrap_or_else(|_| session.file.clone()))?;
+    bus_config.write_card(
+        &std::path::absolute(&session.file).unwrap_or_else(|_| session.file.clone()),
+        session.source.kind(),
+    )?;
 
     let result = run_session(opts, &session, &bus_config);
     // The stepper left the world's outcome in the session's folder when it stopped.

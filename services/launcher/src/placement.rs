@@ -9,8 +9,10 @@
 //!
 //! So when a session renders and the machine has two CPUs or more, the pipeline (source,
 //! kinematics, stepper) gets the first quarter of the CPUs this process may use (at least one)
-//! and the consumers (renderer, recorder) get the rest. `[renderer] own_cpus = false` turns it
-//! off. Without a renderer nothing is pinned.
+//! and the consumers (renderer, recorder) get the rest. An external source (a program of the
+//! user's, often a tracker running a neural network) goes with the consumers, where the
+//! renderer yields to it. `[renderer] own_cpus = false` turns it off. Without a renderer
+//! nothing is pinned.
 
 use common::Stage;
 
@@ -80,12 +82,14 @@ impl Placement {
     pub fn cpus_of(&self, stage: Stage) -> Option<libc::cpu_set_t> {
         let (pipeline, consumers) = self.sets?;
         Some(match stage {
-            // The bridge is a consumer too: what it sends is off the pipeline's path.
-            Stage::Renderer | Stage::Recorder | Stage::Bridge => consumers,
+            // The bridge is a consumer too: what it sends is off the pipeline's path. A user's
+            // program (an external source: a webcam tracker runs a neural network per frame)
+            // is of unknown weight: beside the renderer (SCHED_IDLE, so it yields to it), not
+            // on the cores the stepper needs.
+            Stage::Renderer | Stage::Recorder | Stage::Bridge | Stage::External => consumers,
             Stage::Acquisition
             | Stage::Replay
             | Stage::Webxr
-            | Stage::External
             | Stage::Kinematics
             | Stage::Stepper => pipeline,
         })

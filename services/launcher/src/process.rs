@@ -20,6 +20,21 @@ pub struct ServiceProcess {
     pub exit: Option<ExitStatus>,
 }
 
+/// Starts `command`'s process on the CPUs `cpus` holds, when it holds any.
+fn pin(command: &mut Command, cpus: Option<libc::cpu_set_t>) {
+    if let Some(set) = cpus {
+        // SAFETY: runs in the child between fork and exec; sched_setaffinity is one system
+        // call on a set already built (no allocation, async-signal-safe). Every thread the
+        // process starts inherits it. Failure leaves the child where it may already run.
+        unsafe {
+            command.pre_exec(move || {
+                libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
+                Ok(())
+            });
+        }
+    }
+}
+
 impl ServiceProcess {
     pub fn start(
         exe: &Path,
@@ -32,17 +47,7 @@ impl ServiceProcess {
     ) -> std::io::Result<ServiceProcess> {
         let mut command = Command::new(exe);
         command.envs(env.iter().copied());
-        if let Some(set) = cpus {
-            // SAFETY: runs in the child between fork and exec; sched_setaffinity is one system
-            // call on a set already built (no allocation, async-signal-safe). Every thread the
-            // service starts inherits it. Failure leaves the child where it may already run.
-            unsafe {
-                command.pre_exec(move || {
-                    libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
-                    Ok(())
-                });
-            }
-        }
+        pin(&mut command, cpus);
         command
             .arg("service")
             .arg(stage.name())
@@ -69,15 +74,7 @@ impl ServiceProcess {
             .split_first()
             .ok_or_else(|| std::io::Error::other("the command is empty"))?;
         let mut command = Command::new(name);
-        if let Some(set) = cpus {
-            // SAFETY: as in `start`: one system call on a set already built.
-            unsafe {
-                command.pre_exec(move || {
-                    libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
-                    Ok(())
-                });
-            }
-        }
+        pin(&mut command, cpus);
         command
             .args(args)
             .env("HANDBLOCKS_BUS", bus_id)
