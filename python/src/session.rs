@@ -193,7 +193,7 @@ impl AnyInlet {
 }
 
 /// How often a waiting subscription looks whether the session still runs and whether Python
-/// has a signal (Ctrl-C) to deliver.
+/// has a signal (Ctrl-C) to deliver (it sleeps with the interpreter's lock released).
 const LOOK_EVERY: Duration = Duration::from_millis(100);
 
 /// One reader of one topic (the Python class `handblocks.Subscription` wraps it).
@@ -256,8 +256,12 @@ impl Subscription {
                 Some(d) => (d - now).min(LOOK_EVERY),
                 None => LOOK_EVERY,
             };
-            common::bus::wait_each(std::iter::once(self.inlet.wakeable()), None, wait)
+            // Asleep with the interpreter's lock released: the program's other threads (a
+            // GUI, a plot) run meanwhile.
+            let fd = common::bus::wake_fd(self.inlet.wakeable());
+            py.detach(|| common::bus::wait_fd(fd, wait))
                 .map_err(bus_err)?;
+            common::bus::take_wake_ups(self.inlet.wakeable());
         }
     }
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import gc
 import json
+import threading
 import time
 from pathlib import Path
 
@@ -47,6 +48,24 @@ def test_a_live_session_read_from_python_is_what_it_recorded(tmp_path: Path) -> 
     assert topics["world"]["publishers"] == 1 and topics["world"]["subscribers"] >= 1
     names = [name for name, _ in session.processes()]
     assert "stepper" in names and "python" in names
+
+    # A reader waits with the interpreter's lock released: another thread runs meanwhile.
+    frames = session.subscribe("frame")  # the renderer is off: no frame comes
+    spins, stop = [0], threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set():
+            spins[0] += 1
+
+    thread = threading.Thread(target=spin)
+    thread.start()
+    started = time.monotonic()
+    assert frames.receive(timeout=0.3) is None
+    waited = time.monotonic() - started
+    stop.set()
+    thread.join()
+    assert 0.29 <= waited < 5 and spins[0] > 1000, (waited, spins[0])
+    del frames
 
     seen = {}
     hops = []

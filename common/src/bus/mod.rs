@@ -48,7 +48,8 @@ use ports::*;
 pub use ports::{Inlet, Outlet, PayloadKind, PubSubBuilder, PubSubService};
 use wait::*;
 pub use wait::{
-    wait_any, wait_any_or, wait_each, WaitOutcome, WaitRecord, Waiter, Wake, Wakeable, MAX_WAIT,
+    take_wake_ups, wait_any, wait_any_or, wait_each, wait_fd, wake_fd, WaitOutcome, WaitRecord,
+    Waiter, Wake, Wakeable, MAX_WAIT,
 };
 
 /// A sample read from an [`Inlet`] of topic `P`: of a fixed-size topic, `payload()` is the

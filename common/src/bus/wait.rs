@@ -430,6 +430,31 @@ pub fn wait_each<'a>(
     Ok(())
 }
 
+/// The descriptor that becomes readable when `inlet` is woken, for a caller that must sleep
+/// on it without holding something else (Python's reader sleeps with the interpreter's lock
+/// released, so its other threads run): [`wait_fd`], then [`take_wake_ups`]. The listener
+/// owns it; it is valid while the inlet is.
+pub fn wake_fd(inlet: &dyn Wakeable) -> std::os::fd::RawFd {
+    use iceoryx2::prelude::FileDescriptorBased;
+    // SAFETY: the descriptor stays owned by the listener; the caller only polls it.
+    unsafe { inlet.listener().file_descriptor().native_handle() }
+}
+
+/// Sleeps until `fd` (a [`wake_fd`]) is readable, or `timeout` passes, to the nanosecond.
+pub fn wait_fd(fd: std::os::fd::RawFd, timeout: Duration) -> Result<(), BusError> {
+    let mut fds = [libc::pollfd {
+        fd,
+        events: libc::POLLIN,
+        revents: 0,
+    }];
+    poll_readable(&mut fds, timeout)
+}
+
+/// Takes the wake-ups `inlet` has had, so that its descriptor sleeps again.
+pub fn take_wake_ups(inlet: &dyn Wakeable) {
+    let _ = inlet.listener().try_wait(|_| {});
+}
+
 /// Sleeps on `listener` until a sample may have arrived, or `timeout` passes, to the
 /// nanosecond; consumes the wake-ups.
 pub(super) fn wait_on(
