@@ -28,9 +28,13 @@ import argparse
 import sys
 import time
 
-import numpy as np
+try:
+    import numpy as np
 
-import handblocks as hb
+    import handblocks as hb
+except ImportError as e:  # run by the launcher with whatever `python3` is on the PATH
+    sys.exit(f"webcam_hand: {e.name} is missing from {sys.executable}: pip install ./python "
+             "mediapipe opencv-python (or name your venv's python in [source] command)")
 
 # MediaPipe's 21 landmarks: 0 wrist; thumb 1-4 (CMC, MCP, IP, tip); index 5-8 (MCP, PIP, DIP,
 # tip); middle 9-12; ring 13-16; little 17-20.
