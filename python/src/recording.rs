@@ -214,6 +214,51 @@ fn read(path: &Path) -> PyResult<Data> {
     })
 }
 
+/// The fingers' check points of a world (as stepped) or a hand: `finger_count (n,)`,
+/// `finger_point_count (n, 5)`, `finger_points (n, 5, 5, 3)`.
+struct FingerColumns {
+    count: Vec<u32>,
+    point_count: Vec<u32>,
+    points: Vec<f64>,
+}
+
+impl FingerColumns {
+    fn with_capacity(n: usize) -> FingerColumns {
+        FingerColumns {
+            count: Vec::with_capacity(n),
+            point_count: Vec::with_capacity(n * MAX_FINGERS),
+            points: Vec::with_capacity(n * MAX_FINGERS * MAX_FINGER_POINTS * 3),
+        }
+    }
+
+    fn push(
+        &mut self,
+        count: u32,
+        point_count: &[u32; MAX_FINGERS],
+        points: &[[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
+    ) {
+        self.count.push(count);
+        self.point_count.extend_from_slice(point_count);
+        self.points
+            .extend(points.iter().flatten().flatten().copied());
+    }
+
+    fn into_dict(self, out: &Bound<'_, PyDict>) -> PyResult<()> {
+        let py = out.py();
+        let n = self.count.len();
+        out.set_item("finger_count", array(py, self.count, &[n])?)?;
+        out.set_item(
+            "finger_point_count",
+            array(py, self.point_count, &[n, MAX_FINGERS])?,
+        )?;
+        out.set_item(
+            "finger_points",
+            array(py, self.points, &[n, MAX_FINGERS, MAX_FINGER_POINTS, 3])?,
+        )?;
+        Ok(())
+    }
+}
+
 fn push_pose(p: &Pose, position: &mut Vec<f64>, rotation: &mut Vec<f64>) {
     position.extend_from_slice(&p.position);
     rotation.extend_from_slice(&p.rotation);
@@ -243,9 +288,7 @@ fn world_rows(
     let mut position = Vec::with_capacity(n * blocks * 3);
     let mut rotation = Vec::with_capacity(n * blocks * 4);
     let mut mode = Vec::with_capacity(n * blocks);
-    let mut finger_count = Vec::with_capacity(n);
-    let mut finger_point_count = Vec::with_capacity(n * MAX_FINGERS);
-    let mut finger_points = Vec::with_capacity(n * MAX_FINGERS * MAX_FINGER_POINTS * 3);
+    let mut fingers = FingerColumns::with_capacity(n);
     for w in &worlds {
         let h = &w.header;
         stamps.push(&h.stamp);
@@ -265,13 +308,7 @@ fn world_rows(
                 }
             }
         }
-        finger_count.push(h.finger_count);
-        finger_point_count.extend_from_slice(&h.finger_point_count);
-        for f in &h.finger_points {
-            for p in f {
-                finger_points.extend_from_slice(p);
-            }
-        }
+        fingers.push(h.finger_count, &h.finger_point_count, &h.finger_points);
     }
     stamps.into_dict(out)?;
     out.set_item("step", array(py, step, &[n])?)?;
@@ -280,16 +317,7 @@ fn world_rows(
     out.set_item("position", array(py, position, &[n, blocks, 3])?)?;
     out.set_item("rotation", array(py, rotation, &[n, blocks, 4])?)?;
     out.set_item("mode", array(py, mode, &[n, blocks])?)?;
-    out.set_item("finger_count", array(py, finger_count, &[n])?)?;
-    out.set_item(
-        "finger_point_count",
-        array(py, finger_point_count, &[n, MAX_FINGERS])?,
-    )?;
-    out.set_item(
-        "finger_points",
-        array(py, finger_points, &[n, MAX_FINGERS, MAX_FINGER_POINTS, 3])?,
-    )?;
-    Ok(())
+    fingers.into_dict(out)
 }
 
 fn hand(samples: &[HandSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
@@ -298,9 +326,7 @@ fn hand(samples: &[HandSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
     let mut stamps = StampColumns::with_capacity(n);
     let (mut wp, mut wr) = (Vec::with_capacity(n * 3), Vec::with_capacity(n * 4));
     let mut tracked = Vec::with_capacity(n);
-    let mut finger_count = Vec::with_capacity(n);
-    let mut finger_point_count = Vec::with_capacity(n * MAX_FINGERS);
-    let mut finger_points = Vec::with_capacity(n * MAX_FINGERS * MAX_FINGER_POINTS * 3);
+    let mut fingers = FingerColumns::with_capacity(n);
     let mut finger_radius = Vec::with_capacity(n * MAX_FINGERS);
     let mut palm_count = Vec::with_capacity(n);
     let mut palm = Vec::with_capacity(n * MAX_PALM_VERTICES * 3);
@@ -308,13 +334,7 @@ fn hand(samples: &[HandSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
         stamps.push(&h.stamp);
         push_pose(&h.wrist, &mut wp, &mut wr);
         tracked.push(h.tracked != 0);
-        finger_count.push(h.finger_count);
-        finger_point_count.extend_from_slice(&h.finger_point_count);
-        for f in &h.finger_points {
-            for p in f {
-                finger_points.extend_from_slice(p);
-            }
-        }
+        fingers.push(h.finger_count, &h.finger_point_count, &h.finger_points);
         finger_radius.extend_from_slice(&h.finger_radius);
         palm_count.push(h.palm_vertex_count);
         for v in &h.palm_vertices {
@@ -325,15 +345,7 @@ fn hand(samples: &[HandSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
     out.set_item("tracked", array(py, tracked, &[n])?)?;
     out.set_item("wrist_position", array(py, wp, &[n, 3])?)?;
     out.set_item("wrist_rotation", array(py, wr, &[n, 4])?)?;
-    out.set_item("finger_count", array(py, finger_count, &[n])?)?;
-    out.set_item(
-        "finger_point_count",
-        array(py, finger_point_count, &[n, MAX_FINGERS])?,
-    )?;
-    out.set_item(
-        "finger_points",
-        array(py, finger_points, &[n, MAX_FINGERS, MAX_FINGER_POINTS, 3])?,
-    )?;
+    fingers.into_dict(out)?;
     out.set_item(
         "finger_radius",
         array(py, finger_radius, &[n, MAX_FINGERS])?,
