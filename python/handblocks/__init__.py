@@ -495,7 +495,8 @@ class Source:
     and ``handblocks launch`` starts it with the session's bus in ``$HANDBLOCKS_BUS``. Each
     ``publish`` sends one hand (OpenXR's 26 joints, ``JOINT_NAMES``) at ``time_ns`` in this
     program's own timeline: stamped, checked and counted as any source's sample. The session
-    ends when the source closes (the end of its ``with`` block); ``running`` turns False when
+    ends when the source closes (the end of its ``with`` block, ``close()``, or the program's
+    end, which closes it too); ``running`` turns False when
     the session asks it to stop. Publish, or look at ``running``, at least once a second:
     each sends the latency report when it is due, and a source silent for 3 s is taken as
     stalled.

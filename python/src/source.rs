@@ -37,6 +37,12 @@ const WRIST: usize = 1;
 /// How often `session_running` looks at the session's card (a directory walk).
 const LOOK_EVERY_NS: u64 = 250_000_000;
 
+/// How long a closing source waits for its launcher to read its final report.
+const RELEASE_WAIT: Duration = Duration::from_secs(5);
+
+/// How long a source its launcher did not start keeps its ports after its final report.
+const UNLAUNCHED_LINGER: Duration = Duration::from_millis(200);
+
 /// Why a sample was refused; the index counts it.
 const REASONS: [&str; 4] = ["not finite", "too far", "rotation norm", "order"];
 
@@ -62,6 +68,8 @@ pub struct NativeSource {
     session_gone: bool,
     last_look_ns: u64,
     closed: bool,
+    /// Started by the session's launcher (which releases it through its standard input).
+    launched: bool,
 }
 
 impl NativeSource {
@@ -217,6 +225,7 @@ impl NativeSource {
             session_gone: false,
             last_look_ns: 0,
             closed: false,
+            launched,
         })
     }
 
@@ -355,6 +364,26 @@ impl NativeSource {
         if self.closed {
             return Ok(());
         }
+        self.final_report()?;
+        // The ports must live until the launcher has read the report (iceoryx2 drops what a
+        // departed publisher had not delivered): the launcher that started this program says
+        // so by releasing it; another program gives it a moment.
+        let launched = self.launched;
+        py.detach(|| {
+            if launched {
+                shutdown::wait_for_release(RELEASE_WAIT);
+            } else {
+                std::thread::sleep(UNLAUNCHED_LINGER);
+            }
+        });
+        self.joints_out = None;
+        Ok(())
+    }
+}
+
+impl NativeSource {
+    /// Sends the final report, once.
+    fn final_report(&mut self) -> PyResult<()> {
         self.closed = true;
         let counters = self.counters();
         let devices = self.devices();
@@ -364,11 +393,25 @@ impl NativeSource {
         reporter.set_devices(devices);
         reporter
             .report(counters.as_slice(), true)
-            .map_err(|e| SourceError::new_err(e.to_string()))?;
-        // The ports must live until the launcher has read the report (iceoryx2 drops what a
-        // departed publisher had not delivered).
-        py.detach(|| shutdown::wait_for_release(Duration::from_secs(5)));
-        self.joints_out = None;
-        Ok(())
+            .map_err(|e| SourceError::new_err(e.to_string()))
+    }
+}
+
+/// A program that ends without closing its source (no `with`, no `close()`) still ends its
+/// session cleanly: the final report goes out when the source is dropped, and a launched
+/// program waits for the launcher to read it. Whether the program succeeded is its exit
+/// status's to say, which the launcher judges.
+impl Drop for NativeSource {
+    fn drop(&mut self) {
+        if self.closed {
+            return;
+        }
+        if self.final_report().is_ok() {
+            if self.launched {
+                shutdown::wait_for_release(RELEASE_WAIT);
+            } else {
+                std::thread::sleep(UNLAUNCHED_LINGER);
+            }
+        }
     }
 }

@@ -93,3 +93,30 @@ def test_a_bad_command_is_refused_by_the_launcher(tmp_path: Path) -> None:
     out, _ = child.communicate(timeout=60)
     assert child.returncode == 2, out
     assert "command" in out and "external" in out
+
+
+def test_a_program_that_never_closes_its_source_still_ends_its_session(tmp_path: Path) -> None:
+    script = tmp_path / "forgetful.py"
+    script.write_text(
+        "import sys, time\n"
+        "import numpy as np\n"
+        "import handblocks as hb\n"
+        "joints = hb.Recording(sys.argv[1]).joints()\n"
+        "source = hb.Source()  # no `with`, no close(): the end of the program closes it\n"
+        "for i in range(60):\n"
+        "    source.publish(int(joints.time_ns[i]), joints.position[i], joints.rotation[i],\n"
+        "                   wrist_position=joints.wrist_position[i],\n"
+        "                   wrist_rotation=joints.wrist_rotation[i])\n"
+        "    time.sleep(0.01)\n"
+    )
+    bus = bus_id("forget")
+    report = tmp_path / "report.json"
+    child = launch(
+        str(session_file(tmp_path, [sys.executable, str(script), str(carl("lift"))])),
+        "--bus-id", bus, "--report", str(report), *CEILINGS,
+    )
+    finish(child, "the forgetful source's session")
+    nothing_left(bus)
+    r = json.loads(report.read_text())
+    assert r["stages"]["external"]["final_report"] and not r["failures"], r["failures"]
+    assert r["devices"]["external"]["samples"] == 60
