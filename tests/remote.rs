@@ -528,8 +528,18 @@ fn a_foxglove_client_subscribes_and_decodes_a_world() {
     let mut scene_schema = None;
     let mut world: Option<WorldSample> = None;
     let until = Instant::now() + Duration::from_secs(4);
+    let mut child = child;
     while world.is_none() && Instant::now() < until {
-        match socket.read().expect("a message") {
+        let message = match socket.read() {
+            Ok(m) => m,
+            Err(e) => {
+                // Say what the session said: the server went away under the client.
+                let _ = child.kill();
+                let out = child.wait_with_output().unwrap();
+                panic!("a message: {e}; the session said:\n{}", both(&out));
+            }
+        };
+        match message {
             Message::Text(t) => {
                 let v: Value = serde_json::from_str(&t).unwrap();
                 if v["op"] == "advertise" {

@@ -198,12 +198,25 @@ pub fn simulate_trace(
     serde_json::from_slice(&out.stdout).expect("simulate --json prints JSON")
 }
 
-/// A TCP port free on 127.0.0.1 now (for a server a test starts).
+/// A TCP port free on 127.0.0.1 now (for a server a test starts), and never one handed out
+/// before in this test binary: its tests run at once, and the system may give a port just
+/// released to the next that asks, so two sessions' servers could meet on one port (a client
+/// then talks to the other test's server, which ends under it).
 pub fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free port")
+    use std::collections::HashSet;
+    use std::sync::Mutex;
+    static GIVEN: Mutex<Option<HashSet<u16>>> = Mutex::new(None);
+    let mut given = GIVEN.lock().unwrap_or_else(|e| e.into_inner());
+    let given = given.get_or_insert_with(HashSet::new);
+    loop {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .map(|a| a.port())
+            .expect("a free port");
+        if given.insert(port) {
+            return port;
+        }
+    }
 }
 
 /// The CARL example trace `name` (`lift`, `push`, `pull`, `settle`) in ../shared/data/carl.
