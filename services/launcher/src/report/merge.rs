@@ -160,7 +160,12 @@ impl Report {
                     let gaps = c
                         .gaps
                         .saturating_sub(skipped.get(&topic).copied().unwrap_or(0));
-                    let dropped = if s.final_report {
+                    // A source that reads a topic back (a replay pacing itself on `world`, the
+                    // webxr stage sending each world to its page) stops first, by design,
+                    // before the stepper's last worlds: what is published after its last pass
+                    // was never its to read, so only its seq gaps count as lost.
+                    let feedback = s.stage.role() == common::topic::Role::Source;
+                    let dropped = if s.final_report && !feedback {
                         gaps.max(
                             flow.published
                                 .saturating_sub(c.count)

@@ -108,7 +108,8 @@ impl StageReport {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ReaderFlow {
     pub received: u64,
-    /// Never read: sequence gaps, or published but not received by the end.
+    /// Never read: sequence gaps, or published but not received by the end (of a source that
+    /// reads a topic back, its gaps only: it stops first, before the last samples).
     pub dropped: u64,
     /// Gaps in the sequence numbers it received (samples overwritten before it read them).
     pub gaps: u64,

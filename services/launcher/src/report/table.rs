@@ -17,7 +17,8 @@ sent->drawn  the webxr source only: a hands frame sent by the headset's page to 
              answers it drawn there (the page's round trip, on the page's clock)
 page js      the webxr source only: the page's JavaScript time per XR frame
 received     per topic, the fewest samples any reader of it received; dropped = never read
-             (sequence gaps, or published but not received by the end)";
+             (sequence gaps, or published but not received by the end; a source that reads
+             a topic back, as a replay or a headset reads the world, counts its gaps only)";
 
 impl Report {
     /// The percentile table and topic flow, for a terminal.
