@@ -278,18 +278,26 @@ impl NativeSource {
                 rotation.shape()
             )));
         }
-        let position = position.as_array();
-        let rotation = rotation.as_array();
-        let (mut p, mut q): (Vec<f64>, Vec<f64>) = (
-            position.iter().copied().collect(),
-            rotation.iter().copied().collect(),
-        );
+        // On the stack, the wrist's room after the joints: nothing is allocated per sample.
+        let mut p = [0.0f64; (OPENXR_JOINTS + 1) * 3];
+        let mut q = [0.0f64; (OPENXR_JOINTS + 1) * 4];
+        for (d, v) in p.iter_mut().zip(position.as_array().iter()) {
+            *d = *v;
+        }
+        for (d, v) in q.iter_mut().zip(rotation.as_array().iter()) {
+            *d = *v;
+        }
         // The wrist: OpenXR's joint 1, unless given apart (CARL's traces hold identity poses
         // in joints 0 and 1 and the wrist beside them). Checked with the joints, as joint 26.
         let wrist_given = match (&wrist_position, &wrist_rotation) {
             (Some(wp), Some(wr)) if wp.shape() == [3] && wr.shape() == [4] => {
-                p.extend(wp.as_array().iter());
-                q.extend(wr.as_array().iter());
+                let w = OPENXR_JOINTS;
+                for (d, v) in p[w * 3..].iter_mut().zip(wp.as_array().iter()) {
+                    *d = *v;
+                }
+                for (d, v) in q[w * 4..].iter_mut().zip(wr.as_array().iter()) {
+                    *d = *v;
+                }
                 true
             }
             (None, None) => false,
@@ -300,8 +308,10 @@ impl NativeSource {
                 ))
             }
         };
+        let checked = OPENXR_JOINTS + wrist_given as usize;
+        let (p, q) = (&p[..checked * 3], &q[..checked * 4]);
         let mut warning = None;
-        let seq = match self.check(time_ns, &p, &q) {
+        let seq = match self.check(time_ns, p, q) {
             Some((reason, what)) => {
                 warning = self.refuse(reason, what);
                 None
