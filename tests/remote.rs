@@ -114,7 +114,7 @@ impl Halves {
         let hosts = Hosts::new(tag, subnet);
         let pid = std::process::id();
         Halves {
-            endpoint: format!("tcp/{}:{}", hosts.local.1, free_port()),
+            endpoint: format!("tls/{}:{}", hosts.local.1, free_port()),
             key: format!("hbtest/{tag}{pid}"),
             local_id: format!("rm{tag}L{pid}"),
             viewer_id: format!("rm{tag}V{pid}"),
@@ -159,10 +159,13 @@ fn report(path: &Path) -> Value {
 
 /// The viewer's overrides: its link to `endpoint`, a small headless renderer, and a budget a
 /// software rasteriser on a loaded CI machine keeps (the frame rate is not what is tested).
-fn viewer_sets(endpoint: &str, key: &str) -> Vec<String> {
+/// Both halves keep their link keys in `keys` (one authority: they trust each other as two
+/// halves on one machine do), the test's own.
+fn viewer_sets(endpoint: &str, key: &str, keys: &Path) -> Vec<String> {
     vec![
         format!("source.endpoint={endpoint}"),
         format!("source.key={key}"),
+        format!("source.key_dir={}", keys.display()),
         "renderer.width=160".into(),
         "renderer.height=120".into(),
         "renderer.shadows=false".into(),
@@ -171,10 +174,11 @@ fn viewer_sets(endpoint: &str, key: &str) -> Vec<String> {
     ]
 }
 
-fn local_sets(endpoint: &str, key: &str) -> Vec<String> {
+fn local_sets(endpoint: &str, key: &str, keys: &Path) -> Vec<String> {
     vec![
         format!("remote.endpoint={endpoint}"),
         format!("remote.key={key}"),
+        format!("remote.key_dir={}", keys.display()),
         // Judged here on what must hold on any machine: nothing dropped locally.
         "budget.origin_to_world_p99_us=1000000".into(),
     ]
@@ -218,7 +222,7 @@ fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
     let (local_rep, viewer_rep) = (dir.path("local.json"), dir.path("viewer.json"));
 
     // Both directions: the viewer sends its frame stats back, the session records them.
-    let mut sets = viewer_sets(&endpoint, &key);
+    let mut sets = viewer_sets(&endpoint, &key, &dir.path("keys"));
     sets.push("source.publish=[\"frame\"]".into());
     let viewer = launch(
         &hosts.remote,
@@ -230,8 +234,11 @@ fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
         &sets,
     );
     std::thread::sleep(Duration::from_millis(1500));
-    let mut sets = local_sets(&endpoint, &key);
+    let mut sets = local_sets(&endpoint, &key, &dir.path("keys"));
     sets.push("remote.subscribe=[\"frame\"]".into());
+    // Issue 40: told to expect a viewer, the session starts its source once the viewer takes
+    // its topics, so the viewer (started first) records it from its first sample.
+    sets.push("remote.wait_for_viewer_s=20".into());
     let local = launch(
         &hosts.local,
         "live-remote.toml",
@@ -280,11 +287,10 @@ fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
         "worlds lost on the link once it was up"
     );
     assert_eq!(last, local_worlds.last().unwrap().header.stamp.seq);
-    assert!(
-        viewer_worlds.len() * 2 >= local_worlds.len(),
-        "the viewer got {} of {} worlds",
-        viewer_worlds.len(),
-        local_worlds.len()
+    assert_eq!(
+        (first, viewer_worlds.len()),
+        (local_worlds[0].header.stamp.seq, local_worlds.len()),
+        "a viewer attached before the source started missed the session's head"
     );
 
     let v = report(&viewer_rep);
@@ -296,6 +302,7 @@ fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
         "one clock, yet an offset of {offset} ns +/- {uncertainty}: {clock}"
     );
     assert_eq!(v["session"]["source"], "remote");
+    assert_eq!(v["topics"]["world"]["gaps"], 0, "{}", v["topics"]["world"]);
     assert_eq!(
         l["bridge"]["link"]["sent"]["world"].as_u64(),
         Some(local_worlds.len() as u64)
@@ -305,15 +312,20 @@ fn a_viewer_on_another_host_records_the_sessions_worlds_bit_for_bit() {
         .unwrap()
         .samples::<common::FrameSample>(Topic::Frame)
         .count();
-    assert!(frames_back > 0, "no frame stats came back: {}", l["bridge"]);
+    assert!(
+        frames_back > 0,
+        "no frame stats came back: {}\nthe viewer: {}\n{}",
+        l["bridge"],
+        v["topics"],
+        v["stages"]["bridge"]
+    );
     assert!(
         l["bridge"]["link"]["clock"]["offset_ns"].is_number(),
         "{}",
         l["bridge"]
     );
     eprintln!(
-        "worlds: local {}, viewer {} (from seq {first}; the link came up after the session \
-         started)\nclock offset {offset:.0} ns +/- {uncertainty:.0} ns over {} round trips\n\
+        "worlds: local {}, viewer {} (from seq {first}; the session waited for the viewer)\nclock offset {offset:.0} ns +/- {uncertainty:.0} ns over {} round trips\n\
          bridged hop (stepper publish there -> bridge here) p50 {:.0} / p99 {:.0} us; local \
          iceoryx2 hop to the stepper p50 {:.0} / p99 {:.0} us, to the local bridge p50 {:.0} / p99 \
          {:.0} us\n{frames_back} frame stats came back\nremote origin -> photon p50 {:.1} / p99 {:.1} ms; remote origin -> bridge \
@@ -355,7 +367,7 @@ fn killing_the_viewer_does_not_disturb_the_session() {
         5.0,
         &local_rep,
         &dir.path("local.mcap"),
-        &local_sets(&endpoint, &key),
+        &local_sets(&endpoint, &key, &dir.path("keys")),
     );
     std::thread::sleep(Duration::from_millis(700));
     let mut viewer = launch(
@@ -365,7 +377,7 @@ fn killing_the_viewer_does_not_disturb_the_session() {
         30.0,
         &viewer_rep,
         &dir.path("viewer.mcap"),
-        &viewer_sets(&endpoint, &key),
+        &viewer_sets(&endpoint, &key, &dir.path("keys")),
     );
     // Until the viewer's recording has worlds in it (it is receiving), then kill everything
     // of it: its launcher and every process of its bus.
@@ -706,7 +718,11 @@ fn bad_link_settings_name_the_key_and_the_form() {
     let session = repo().join("config/sessions/live-remote.toml");
     for (set, says) in [
         ("remote.endpoint=udp/1.2.3.4:7447", "remote.endpoint"),
-        ("remote.endpoint=tcp/1.2.3.4", "has no port"),
+        ("remote.endpoint=tls/1.2.3.4", "has no port"),
+        // Issue 40: a plain link only when asked for, and then without certificates.
+        ("remote.endpoint=tcp/1.2.3.4:7447", "allow_plain = true"),
+        ("remote.allow_plain=true", "only with a tcp/ endpoint"),
+        ("remote.names=[\"bad name\"]", "not a host name"),
         ("remote.publish=[\"hand\", \"stars\"]", "is not a topic"),
         ("remote.key=handblocks/*", "no wildcards"),
         ("remote.subscribe=[\"world\"]", "also in publish"),
@@ -724,4 +740,105 @@ fn bad_link_settings_name_the_key_and_the_form() {
         assert!(text.contains("live-remote.toml"), "{set}: {text}");
     }
     let _: PathBuf = session;
+}
+
+/// Issue 40, finding 1: one hand from the link whose `finger_point_count[0]` is 6 (bytes
+/// 100..103 of its message) crashed a viewer's recorder (its scene view drew the finger), and a
+/// `palm_vertex_count` of 17 its renderer too. A trusted peer (this test, holding the viewer's
+/// authority) sends both among good hands and worlds: the viewer refuses the two by name, draws
+/// and records the rest, and ends its session cleanly.
+#[test]
+fn a_sample_whose_counts_overrun_its_arrays_is_refused_by_name_and_the_viewer_lives() {
+    use bridge::link::Link;
+    use common::config::remote::LinkSecurity;
+    use common::config::session::{LinkRole, RemoteLink};
+    use common::HandSample;
+
+    let dir = Scratch::new("remote-counts");
+    let keys = dir.path("keys");
+    let endpoint = format!("tls/127.0.0.1:{}", free_port());
+    let key = format!("hbtest/counts{}", std::process::id());
+    let id = format!("rmc{}", std::process::id());
+    let (rec, rep) = (dir.path("viewer.mcap"), dir.path("viewer.json"));
+    let viewer = launch(
+        &(None, "127.0.0.1".into()),
+        "remote-viewer.toml",
+        &id,
+        5.0,
+        &rep,
+        &rec,
+        &viewer_sets(&endpoint, &key, &keys),
+    );
+    let peer = Link::open(&RemoteLink {
+        endpoint: endpoint.clone(),
+        security: LinkSecurity::Tls {
+            key_dir: keys.clone(),
+            peer_certificate: None,
+            names: Vec::new(),
+        },
+        role: LinkRole::Listen,
+        key,
+        publish: vec![Topic::Hand, Topic::World],
+        subscribe: vec![],
+        wait_for_viewer_s: 0,
+    })
+    .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while !peer.every_topic_taken() {
+        assert!(Instant::now() < deadline, "the viewer never attached");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let scene =
+        common::config::Scene::load(&repo().join("config/scenes/grasp-throw.toml")).unwrap();
+    let mut world = WorldSample::with_blocks(scene.blocks.len());
+    let mut hand = HandSample {
+        finger_count: 1,
+        tracked: 1,
+        ..HandSample::default()
+    };
+    hand.finger_point_count[0] = 2;
+    hand.finger_points[0][1] = [0.0, 0.1, 0.0];
+    let mut message = Vec::new();
+    for seq in 0..300u64 {
+        let now = common::monotonic_ns();
+        hand.stamp.seq = seq;
+        hand.stamp.origin_ns = now;
+        hand.stamp.publish_ns = now;
+        recording::encode_sample(&hand, &mut message);
+        match seq {
+            100 => message[100..104].copy_from_slice(&6u32.to_le_bytes()),
+            150 => message[120..124].copy_from_slice(&17u32.to_le_bytes()),
+            _ => {}
+        }
+        peer.put(Topic::Hand, &message).unwrap();
+        world.header.stamp = hand.stamp;
+        world.header.hand_seq = seq;
+        recording::encode_slice(Topic::World, &world.header, &world.blocks, &mut message);
+        peer.put(Topic::World, &message).unwrap();
+        std::thread::sleep(Duration::from_millis(8));
+    }
+    let out = viewer.wait_with_output().unwrap();
+    peer.close();
+    let text = both(&out);
+    assert!(out.status.success(), "{text}");
+    assert!(!text.contains("panicked"), "{text}");
+    assert_nothing_left(&id);
+    let v = report(&rep);
+    let link = &v["bridge"]["link"];
+    assert_eq!(link["malformed"], 2, "{link}");
+    assert_eq!(
+        link["malformed_by_name"]["hand counts: finger_point_count"], 1,
+        "{link}"
+    );
+    assert_eq!(
+        link["malformed_by_name"]["hand counts: palm_vertex_count"], 1,
+        "{link}"
+    );
+    let recorded = Recording::open(&rec).unwrap();
+    let hands: Vec<HandSample> = recorded.samples(Topic::Hand).collect();
+    assert!(hands.len() > 200, "{} hands recorded", hands.len());
+    assert!(hands.iter().all(|h| h.check_counts().is_ok()));
+    assert!(!hands
+        .iter()
+        .any(|h| h.stamp.seq == 100 || h.stamp.seq == 150));
 }

@@ -179,3 +179,200 @@ fn replay_sessions_hz_and_echo_work_from_another_folder() {
     let out = run_in(&dir.0, &["echo", "world", "--session", &id]);
     assert_eq!(out.status.code(), Some(2), "{}", both(&out));
 }
+
+/// Runs `handblocks ARGS` with `TMPDIR` set (where it looks for session folders besides
+/// /tmp) and its address space capped at 2 GiB (a card read without bound, a link to
+/// /dev/zero, then fails at once instead of taking the machine's memory), for at most
+/// `within`: None when it had not ended by then (it is killed).
+fn run_bounded(tmpdir: &std::path::Path, args: &[&str], within: Duration) -> Option<Output> {
+    let mut cmd = Command::new("sh");
+    cmd.arg("-c")
+        .arg("ulimit -v 2097152; exec \"$0\" \"$@\"")
+        .arg(EXE)
+        .args(args)
+        .env("TMPDIR", tmpdir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let mut child = cmd.spawn().expect("run handblocks");
+    let deadline = Instant::now() + within;
+    while child.try_wait().unwrap().is_none() {
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    Some(child.wait_with_output().unwrap())
+}
+
+/// When process `pid` started: /proc/PID/stat's 22nd field (clock ticks after boot).
+fn start_ticks(pid: u32) -> u64 {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
+    let rest = &stat[stat.rfind(')').unwrap() + 1..];
+    rest.split_whitespace().nth(19).unwrap().parse().unwrap()
+}
+
+/// Issue 40, finding 11: `handblocks sessions` read every `session.toml` under this user's
+/// folder of sessions: it listed a card another user owns, hung for ever on a card that is a
+/// FIFO, read a card linked to /dev/zero until memory ran out, and listed as running a card
+/// naming any live pid (`echo` and `hz` then waited for ever). Now a card is listed only when
+/// it is a regular file of this user's, of a few KiB at most, in a folder of this user's, and
+/// the pid and start time it records are a live process's of this user (its launcher).
+#[test]
+fn sessions_lists_only_cards_of_this_user_that_name_their_running_launcher() {
+    use std::os::unix::fs::DirBuilderExt as _;
+    let dir = Scratch::new("tools-cards");
+    // SAFETY: getuid has no preconditions.
+    let uid = unsafe { libc::getuid() };
+    let base = dir.path(&format!("hb-iox2-{uid}"));
+    std::fs::DirBuilder::new()
+        .mode(0o700)
+        .create(&base)
+        .unwrap();
+    let me = std::process::id();
+    let ticks = start_ticks(me);
+    let tag = format!("k{}", me % 100_000);
+    // A session folder as a launcher leaves it: its `launcher` record (pid, start time) and its
+    // card. This test process stands in for the launcher.
+    let folder = |suffix: &str, card_ticks: u64| -> (String, std::path::PathBuf) {
+        let id = format!("{tag}{suffix}");
+        let root = base.join(&id);
+        std::fs::DirBuilder::new()
+            .mode(0o700)
+            .create(&root)
+            .unwrap();
+        std::fs::write(root.join("launcher"), format!("{me} {ticks}\n")).unwrap();
+        std::fs::write(
+            root.join("session.toml"),
+            format!(
+                "id = \"{id}\"\nsession = \"/x/live.toml\"\nsource = \"scripted\"\n\
+                 world_blocks = 1\nlossless = false\nstarted_unix_s = 1\n\
+                 launcher_pid = {me}\nlauncher_start_ticks = {card_ticks}\n"
+            ),
+        )
+        .unwrap();
+        (id, root)
+    };
+    // A card as a launcher writes it: listed.
+    let (good, _) = folder("g", ticks);
+    // The pid of a process that started at another time (the launcher died and the kernel
+    // gave its pid to this process): not its launcher.
+    folder("r", ticks + 1);
+    // A FIFO in place of the card: nobody ever writes it.
+    let (_, fifo) = folder("f", ticks);
+    let card = fifo.join("session.toml");
+    std::fs::remove_file(&card).unwrap();
+    let c = std::ffi::CString::new(card.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: a valid NUL-terminated path.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    // A link to /dev/zero: endless.
+    let (_, zero) = folder("z", ticks);
+    std::fs::remove_file(zero.join("session.toml")).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", zero.join("session.toml")).unwrap();
+    // A card of another user's (root can make one): not this user's session.
+    if uid == 0 {
+        let (_, foreign) = folder("o", ticks);
+        std::os::unix::fs::chown(foreign.join("session.toml"), Some(4242), Some(4242)).unwrap();
+    }
+
+    let out = run_bounded(&dir.0, &["sessions", "--json"], Duration::from_secs(20))
+        .expect("`handblocks sessions` hung on a card (a FIFO?)");
+    assert!(out.status.success(), "{}", both(&out));
+    let list: Value = serde_json::from_slice(&out.stdout).expect("sessions --json");
+    let ours: Vec<&str> = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|s| s["id"].as_str())
+        .filter(|id| id.starts_with(&tag))
+        .collect();
+    assert_eq!(ours, [good.as_str()], "{list}");
+    // The text form and a look at one: the same cards, no hang.
+    let out = run_bounded(&dir.0, &["sessions"], Duration::from_secs(20))
+        .expect("`handblocks sessions` hung");
+    assert!(out.status.success(), "{}", both(&out));
+    let out = run_bounded(
+        &dir.0,
+        &["echo", "world", "--session", &format!("{tag}r")],
+        Duration::from_secs(20),
+    )
+    .expect("`handblocks echo` on a card of a pid that is not its launcher");
+    assert_eq!(out.status.code(), Some(2), "{}", both(&out));
+    assert!(both(&out).contains("no session"), "{}", both(&out));
+}
+
+/// Issue 40, findings 11 and 13: `echo` and `hz` left a file of the session's prefix in
+/// /dev/shm (iceoryx2's management segment, made again as they let go of a bus whose files
+/// the launcher had removed under them; four after a SIGKILL), and printed iceoryx2's raw
+/// warnings about each storage they could not remove when the session ended. Now the session's
+/// end withdraws its card and waits a moment for such readers to let go before it removes its
+/// files, a reader that let go tidies what an ended session left, and a tool says in one line
+/// that the session ended; one killed mid-session leaves nothing either (the launcher removes
+/// the session's files).
+#[test]
+fn echo_and_hz_say_when_the_session_ended_and_leave_nothing() {
+    let dir = Scratch::new("tools-end");
+    let id = format!("te{}", std::process::id());
+    let launcher = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--no-preview", "--duration", "6"])
+        .args(["--bus-id", &id])
+        .args(["--set", "renderer.mode=off"])
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run handblocks launch");
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let out = run_in(&dir.0, &["sessions", "--json"]);
+        let list: Value = serde_json::from_slice(&out.stdout).unwrap_or_default();
+        let runs = list.as_array().is_some_and(|l| {
+            l.iter().any(|s| {
+                s["id"] == id.as_str()
+                    && s["processes"]
+                        .as_array()
+                        .is_some_and(|p| p.iter().any(|p| p["name"] == "stepper"))
+            })
+        });
+        if runs {
+            break;
+        }
+        assert!(Instant::now() < deadline, "the session never showed");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let look = |args: &[&str]| {
+        Command::new(EXE)
+            .current_dir(&dir.0)
+            .args(args)
+            .args(["--session", &id])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("run handblocks")
+    };
+    let echo = look(&["echo", "world"]);
+    let hz = look(&["hz", "hand"]);
+    let mut killed = look(&["echo", "hand"]);
+    std::thread::sleep(Duration::from_millis(1500));
+    killed.kill().unwrap();
+    killed.wait().unwrap();
+    let out = launcher.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", both(&out));
+    for (tool, child) in [("echo", echo), ("hz", hz)] {
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{tool}: {}", both(&out));
+        assert!(
+            err.contains(&format!("handblocks {tool}: session {id} ended")),
+            "{tool}: {err}"
+        );
+        // Its own lines only: none of iceoryx2's log.
+        assert!(
+            err.lines().all(|l| l.starts_with("handblocks ")),
+            "{tool}: {err}"
+        );
+    }
+    assert_nothing_left(&id);
+}

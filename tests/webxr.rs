@@ -375,6 +375,32 @@ fn bad_frames_are_refused_by_name_and_the_session_goes_on() {
     ] {
         assert!(line.contains(kind), "{kind} not counted: {line}");
     }
+    // Issue 40: the JSON report names them too (it gave only a total), adding up to it.
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let headset = &v["devices"]["headset"];
+    let refused = headset["refused"]
+        .as_object()
+        .unwrap_or_else(|| panic!("no refusals by name: {headset}"));
+    for kind in [
+        "length",
+        "non_finite",
+        "magic",
+        "flood",
+        "oversized",
+        "order",
+    ] {
+        assert!(
+            refused.get(kind).is_some_and(|n| n.as_u64() > Some(0)),
+            "{kind}: {headset}"
+        );
+    }
+    let named: u64 = refused.values().filter_map(|n| n.as_u64()).sum();
+    assert_eq!(
+        Some(named),
+        headset["rejected_records"].as_u64(),
+        "{headset}"
+    );
     let worlds: Vec<WorldSample> = Recording::open(&rec).unwrap().worlds().collect();
     assert!(!worlds.is_empty());
     for w in &worlds {
@@ -517,4 +543,249 @@ fn bad_webxr_settings_and_emulate_usage_name_what_is_wrong() {
     emulate(&["headset"], "the page's URL");
     emulate(&["headset", "https://127.0.0.1:1/?token=x"], "--trace FILE");
     emulate(&["glove"], "--link PATH");
+}
+
+/// One hands frame of the right hand, encoded.
+fn hands_frame(seq: u32, time_ms: f64, hand: &HandJoints) -> Vec<u8> {
+    let mut frame = HandsFrame {
+        seq,
+        frame_time_ms: time_ms,
+        present: [false, true],
+        ..Default::default()
+    };
+    frame.hands[1] = *hand;
+    let mut bytes = Vec::new();
+    webxr_wire::encode(&frame, &mut bytes);
+    bytes
+}
+
+/// The session's summary line (`handblocks webxr: ... refused: ...`).
+fn summary(text: &str) -> &str {
+    text.lines()
+        .find(|l| l.starts_with("handblocks webxr:") && l.contains("refused"))
+        .unwrap_or_else(|| panic!("no webxr summary: {text}"))
+}
+
+/// The count after `label` in the summary line (`... label N ...`).
+fn count_after(line: &str, label: &str) -> u64 {
+    let rest = line
+        .split_once(label)
+        .unwrap_or_else(|| panic!("no {label:?} in {line}"))
+        .1;
+    rest.trim_start()
+        .split(|c: char| !c.is_ascii_digit())
+        .next()
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count after {label:?} in {line}"))
+}
+
+/// Issue 40, finding 4: a frame timed 1e9 ms ahead of its page's clock is refused by name
+/// (`clock`) instead of holding every later frame of the session to it, and a page that sent a
+/// time ahead (within the limit) does not hold the next driver to it either: a fresh page
+/// that plays the lift trace after it has every frame published, none refused as `order`,
+/// and the driver is not lost and retaken frame after frame.
+#[test]
+fn a_frame_far_ahead_of_its_pages_clock_is_refused_and_the_next_page_still_drives() {
+    let dir = Scratch::new("webxr-clock");
+    let port = free_port();
+    let id = format!("wc{}", std::process::id());
+    let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
+    let samples = headset_samples(&carl("lift"));
+    let seconds = samples.last().unwrap().0 as f64 / 1e9 + 7.0;
+    let child = launch("lift", &id, port, seconds, &rec, &report);
+    let (_, _, hand) = samples.iter().find(|s| s.1).copied().unwrap();
+
+    let mut first = Page::open(port, TOKEN);
+    first.wait_ready();
+    let now = first.now_ms();
+    first.send(&hands_frame(1, now, &hand));
+    // The session-freezing frame: refused (`clock`).
+    first.send(&hands_frame(2, now + 1e9, &hand));
+    // Ahead, but within the limit: published, and its page's own business.
+    first.send(&hands_frame(3, now + 4000.0, &hand));
+    let until = Instant::now() + Duration::from_millis(300);
+    while Instant::now() < until {
+        first.pump();
+    }
+    drop(first);
+
+    let mut second = Page::open(port, TOKEN);
+    second.wait_ready();
+    play(&mut second, &samples);
+    let until = Instant::now() + Duration::from_millis(500);
+    while Instant::now() < until {
+        second.pump();
+    }
+    drop(second);
+    let text = wait_for(child, "the webxr session");
+    assert_nothing_left(&id);
+    let line = summary(&text);
+    assert!(
+        line.contains("clock 1"),
+        "the far frame not refused: {line}"
+    );
+    assert!(
+        !line.contains(", order"),
+        "the next page held to it: {line}"
+    );
+    assert!(
+        count_after(line, "driving sockets lost") <= 2,
+        "the driver lost and retaken: {line}"
+    );
+    assert_eq!(count_after(line, "handblocks webxr:"), 2, "{line}");
+    assert!(
+        count_after(line, "pages connected;") >= samples.len() as u64 + 2,
+        "not every frame of the second page published: {line}"
+    );
+    assert!(second_page_drove(&rec), "no world grasped the block");
+}
+
+/// The second page of the test above lifted the block: some world has it grasped.
+fn second_page_drove(rec: &Path) -> bool {
+    Recording::open(rec)
+        .unwrap()
+        .worlds()
+        .any(|w| w.grasped_block == 0)
+}
+
+/// Issue 40, finding 5: a user who leaves XR for 2.5 s (the page stays, answering pings,
+/// sending no frame) is a pause within the session's silence budget: the untracked samples
+/// that keep the world going begin before the budget ends, and the session passes, here with
+/// the default budget of 1 s.
+#[test]
+fn a_pause_of_the_driving_page_stays_within_the_silence_budget() {
+    let dir = Scratch::new("webxr-pause");
+    let port = free_port();
+    let id = format!("wp{}", std::process::id());
+    let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
+    let samples = headset_samples(&carl("lift"));
+    let extra = [
+        "source.tls=false".to_string(),
+        "budget.source_silence_ms=1000".to_string(),
+    ];
+    let child = launch_webxr("lift", &id, port, TOKEN, 7.0, &extra, (&rec, &report));
+    let mut page = Page::open(port, TOKEN);
+    page.wait_ready();
+    let played = samples.len() / 3;
+    play(&mut page, &samples[..played]);
+    // Out of XR: pings answered, no frame.
+    let until = Instant::now() + Duration::from_millis(2500);
+    while Instant::now() < until {
+        page.pump();
+    }
+    // Back in XR: frames again, in the page's time after the pause.
+    let t_last = samples[played - 1].0;
+    let (_, _, hand) = samples.iter().find(|s| s.1).copied().unwrap();
+    for k in 1..=20u32 {
+        let ms = t_last as f64 / 1e6 + 2500.0 + 11.0 * f64::from(k);
+        page.send(&hands_frame(played as u32 + k, ms, &hand));
+        page.pump();
+        std::thread::sleep(Duration::from_millis(11));
+    }
+    drop(page);
+    let text = wait_for(child, "a webxr session with a 2.5 s pause");
+    assert_nothing_left(&id);
+    assert!(!text.contains("VIOLATED"), "{text}");
+    let line = summary(&text);
+    assert!(
+        count_after(line, "driving sockets lost") >= 1,
+        "the pause not taken as a gap: {line}"
+    );
+}
+
+/// Issue 40, findings 5 and 10: a session no headset joined says so plainly and exits 1 (as
+/// docs/webxr.md says); plain HTTP on every interface says where it listens and warns that
+/// the token crosses the network in clear.
+#[test]
+fn a_session_no_headset_joined_says_so_and_plain_http_on_a_network_is_warned_of() {
+    let dir = Scratch::new("webxr-nobody");
+    let port = free_port();
+    let id = format!("wn{}", std::process::id());
+    let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
+    let extra = [
+        "source.tls=false".to_string(),
+        format!("source.listen=0.0.0.0:{port}"),
+    ];
+    let child = launch_webxr("lift", &id, port, TOKEN, 2.0, &extra, (&rec, &report));
+    let out = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_nothing_left(&id);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(text.contains("no headset joined this session"), "{text}");
+    assert!(
+        text.contains(&format!(
+            "listening on 0.0.0.0:{port} (plain HTTP): every interface"
+        )),
+        "{text}"
+    );
+    assert!(
+        text.contains("WARNING") && text.contains("in clear"),
+        "{text}"
+    );
+}
+
+/// Issue 40, finding 7: pages that stop answering pings are dropped within a few seconds
+/// (counted), so eight idle pages do not hold every slot: a new page is served after them.
+#[test]
+fn pages_that_stop_answering_pings_are_dropped_and_free_their_slots() {
+    let dir = Scratch::new("webxr-idle");
+    let port = free_port();
+    let id = format!("wi{}", std::process::id());
+    let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
+    let child = launch("lift", &id, port, 20.0, &rec, &report);
+    // Eight pages that read nothing, so answer no ping.
+    let idle: Vec<Socket> = (0..8).map(|_| connect(port, TOKEN)).collect();
+    // The server counts a page once past the handshake the client has already seen.
+    std::thread::sleep(Duration::from_millis(500));
+    let mut ninth = Page::open(port, TOKEN);
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while ninth.closed.is_none() && Instant::now() < deadline {
+        ninth.pump();
+    }
+    let closed = ninth.closed.clone().unwrap_or_default();
+    assert!(
+        closed.starts_with("4003"),
+        "every slot held: closed {closed:?}"
+    );
+    // After the pong timeout (5 s) and a ping's period: the idle pages are gone.
+    std::thread::sleep(Duration::from_millis(7500));
+    let mut late = Page::open(port, TOKEN);
+    late.wait_ready();
+    assert!(late.closed.is_none(), "closed with {:?}", late.closed);
+    drop(late);
+    drop(idle);
+    // The session has no hand: it ends failing its silence budget (exit 1), as it should.
+    let out = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_nothing_left(&id);
+    let line = summary(&text);
+    assert_eq!(
+        count_after(line, "pages dropped for not answering pings"),
+        8,
+        "{line}"
+    );
+}
+
+/// Issue 40, finding 10: `webxr.toml` with `tls = false` serves this machine only (the token
+/// would cross the network in clear otherwise), unless `listen` names a network address.
+#[test]
+fn webxr_toml_with_tls_off_listens_on_this_machine_only_unless_told() {
+    use common::config::session::{Override, Source};
+    let file = repo().join("config/sessions/webxr.toml");
+    let listen = |sets: &[&str]| {
+        let overrides: Vec<Override> = sets.iter().map(|s| Override::parse(s).unwrap()).collect();
+        match common::config::Session::load_with(&file, &overrides)
+            .unwrap()
+            .source
+        {
+            Source::Webxr(w) => w.listen.to_string(),
+            _ => panic!("not a webxr session"),
+        }
+    };
+    assert_eq!(listen(&[]), "0.0.0.0:8443");
+    assert_eq!(listen(&["source.tls=false"]), "127.0.0.1:8443");
+    assert_eq!(
+        listen(&["source.tls=false", "source.listen=0.0.0.0"]),
+        "0.0.0.0:8443"
+    );
 }

@@ -234,6 +234,7 @@ pub fn peer(a: &PeerArgs) -> Result<(), Box<dyn std::error::Error>> {
             let session = zenoh::open(bridge::link::peer_config(
                 &format!("tcp/{}", a.endpoint),
                 LinkRole::Connect,
+                None,
             )?)
             .wait()
             .map_err(|e| e.to_string())?;
@@ -438,6 +439,7 @@ fn measure(exe: &Path, a: &PeerArgs) -> Result<Row, Box<dyn std::error::Error>> 
             let session = zenoh::open(bridge::link::peer_config(
                 &format!("tcp/{}", args.endpoint),
                 LinkRole::Listen,
+                None,
             )?)
             .wait()
             .map_err(|e| e.to_string())?;

@@ -186,14 +186,141 @@ impl Default for HandSample {
 }
 
 impl HandSample {
-    /// The check points of finger `f`, knuckle to tip.
+    /// The check points of finger `f`, knuckle to tip: never more than the arrays hold, and
+    /// none for a finger past them, whatever the counts say (a sample from outside may say
+    /// anything; [`HandSample::check_counts`] refuses it where it comes in).
     pub fn finger(&self, f: usize) -> &[[f64; 3]] {
-        &self.finger_points[f][..self.finger_point_count[f] as usize]
+        match (self.finger_points.get(f), self.finger_point_count.get(f)) {
+            (Some(points), Some(&n)) => &points[..(n as usize).min(MAX_FINGER_POINTS)],
+            _ => &[],
+        }
     }
-    /// The palm polyhedron's vertices (empty for a bare check-point hand).
+    /// The palm polyhedron's vertices (empty for a bare check-point hand), never more than the
+    /// array holds.
     pub fn palm(&self) -> &[[f64; 3]] {
-        &self.palm_vertices[..self.palm_vertex_count as usize]
+        &self.palm_vertices[..(self.palm_vertex_count as usize).min(MAX_PALM_VERTICES)]
     }
+
+    /// Every count field within the arrays it counts: the one check where outside bytes
+    /// become a hand sample (the zenoh link, a recording read back, Python), so that nothing
+    /// downstream indexes past an array on a sample a stranger wrote.
+    pub fn check_counts(&self) -> Result<(), CountError> {
+        check_finger_counts(self.finger_count, &self.finger_point_count)?;
+        CountError::check(
+            "palm_vertex_count",
+            None,
+            self.palm_vertex_count,
+            MAX_PALM_VERTICES,
+        )
+    }
+}
+
+/// A count field of a sample that its array cannot hold (a sample from outside: the link, a
+/// file). It names the field, so a peer's author knows what they wrote wrong.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CountError {
+    /// The field, as the layout names it (`finger_point_count`).
+    pub field: &'static str,
+    /// Which element of an array field (`finger_point_count[2]`).
+    pub index: Option<usize>,
+    pub value: i64,
+    /// The most the field allows.
+    pub max: i64,
+}
+
+impl CountError {
+    fn check(
+        field: &'static str,
+        index: Option<usize>,
+        value: u32,
+        max: usize,
+    ) -> Result<(), CountError> {
+        if value as usize > max {
+            return Err(CountError {
+                field,
+                index,
+                value: i64::from(value),
+                max: max as i64,
+            });
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Display for CountError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.index {
+            Some(i) => write!(f, "{}[{i}]", self.field)?,
+            None => f.write_str(self.field)?,
+        }
+        write!(f, " is {}; at most {} fit", self.value, self.max)
+    }
+}
+
+impl std::error::Error for CountError {}
+
+/// A sample type whose count fields say how much of its arrays is used: every topic's sample
+/// (the topic table requires it), so that each place where outside bytes become a sample (the
+/// zenoh link, a recording read back, Python) checks them once, here, and a topic added later
+/// cannot forget to. `slice_len` is the elements that came with a slice topic's header (the
+/// blocks after a world header); a fixed-size sample ignores it.
+pub trait Counted {
+    fn check_counts(&self, slice_len: usize) -> Result<(), CountError>;
+}
+
+impl Counted for HandSample {
+    fn check_counts(&self, _: usize) -> Result<(), CountError> {
+        HandSample::check_counts(self)
+    }
+}
+
+impl Counted for WorldHeader {
+    fn check_counts(&self, slice_len: usize) -> Result<(), CountError> {
+        WorldHeader::check_counts(self, slice_len)
+    }
+}
+
+impl Counted for GloveSample {
+    fn check_counts(&self, _: usize) -> Result<(), CountError> {
+        CountError::check("sensor_count", None, self.sensor_count, MAX_GLOVE_SENSORS)
+    }
+}
+
+impl Counted for LatencySample {
+    fn check_counts(&self, _: usize) -> Result<(), CountError> {
+        for (i, h) in self.histograms.iter().enumerate() {
+            if h.len as usize > HISTOGRAM_BYTES {
+                return Err(CountError {
+                    field: "histograms.len",
+                    index: Some(i),
+                    value: i64::from(h.len),
+                    max: HISTOGRAM_BYTES as i64,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Samples without count fields: any bit pattern of their size is one.
+macro_rules! uncounted {
+    ($($t:ty),*) => {$(
+        impl Counted for $t {
+            fn check_counts(&self, _: usize) -> Result<(), CountError> {
+                Ok(())
+            }
+        }
+    )*};
+}
+uncounted!(TrackerSample, JointsSample, FrameSample);
+
+/// `finger_count` and each `finger_point_count[f]` within their arrays.
+fn check_finger_counts(fingers: u32, points: &[u32; MAX_FINGERS]) -> Result<(), CountError> {
+    CountError::check("finger_count", None, fingers, MAX_FINGERS)?;
+    for (f, &n) in points.iter().enumerate() {
+        CountError::check("finger_point_count", Some(f), n, MAX_FINGER_POINTS)?;
+    }
+    Ok(())
 }
 
 /// What a block is doing (docs/model.md, "Per block the stepper keeps ... a mode").
@@ -293,6 +420,37 @@ impl Default for WorldHeader {
             finger_point_count: [0; MAX_FINGERS],
             finger_points: [[[0.0; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
         }
+    }
+}
+
+impl WorldHeader {
+    /// The check points of drawn finger `f`, as [`HandSample::finger`] clamps them.
+    pub fn finger(&self, f: usize) -> &[[f64; 3]] {
+        match (self.finger_points.get(f), self.finger_point_count.get(f)) {
+            (Some(points), Some(&n)) => &points[..(n as usize).min(MAX_FINGER_POINTS)],
+            _ => &[],
+        }
+    }
+
+    /// Every count field within what it counts (`block_count` within the scene's blocks,
+    /// `grasped_block` -1 or one of them), as [`HandSample::check_counts`] for a world.
+    pub fn check_counts(&self, blocks: usize) -> Result<(), CountError> {
+        check_finger_counts(self.finger_count, &self.finger_point_count)?;
+        CountError::check(
+            "block_count",
+            None,
+            self.block_count,
+            blocks.min(MAX_SCENE_BLOCKS),
+        )?;
+        if self.grasped_block < -1 || self.grasped_block >= self.block_count as i32 {
+            return Err(CountError {
+                field: "grasped_block",
+                index: None,
+                value: i64::from(self.grasped_block),
+                max: i64::from(self.block_count) - 1,
+            });
+        }
+        Ok(())
     }
 }
 
@@ -511,5 +669,69 @@ impl Default for LatencySample {
             devices: [DeviceCounters::default(); 2],
             histograms: [EncodedHistogram::default(); METRICS],
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Issue 40: a hand from the zenoh link with `finger_point_count[0] = 6` (or a palm of 17
+    /// vertices) panicked `finger`/`palm` in every viewer. They clamp to the arrays now, and
+    /// `check_counts` names the field where such a sample comes in.
+    #[test]
+    fn counts_past_the_arrays_are_clamped_and_named() {
+        let mut h = HandSample {
+            finger_count: 1,
+            ..HandSample::default()
+        };
+        h.finger_point_count[0] = 6;
+        h.palm_vertex_count = 17;
+        assert_eq!(h.finger(0).len(), MAX_FINGER_POINTS);
+        assert_eq!(h.finger(MAX_FINGERS + 3).len(), 0);
+        assert_eq!(h.palm().len(), MAX_PALM_VERTICES);
+        let e = h.check_counts().unwrap_err();
+        assert_eq!(e.to_string(), "finger_point_count[0] is 6; at most 5 fit");
+        h.finger_point_count[0] = 5;
+        let e = h.check_counts().unwrap_err();
+        assert_eq!(e.to_string(), "palm_vertex_count is 17; at most 16 fit");
+        h.palm_vertex_count = 16;
+        assert!(h.check_counts().is_ok());
+        h.finger_count = u32::MAX;
+        assert_eq!(h.check_counts().unwrap_err().field, "finger_count");
+    }
+
+    #[test]
+    fn a_worlds_counts_are_checked_against_the_blocks_that_came_with_it() {
+        let mut w = WorldSample::with_blocks(3);
+        assert!(w.header.check_counts(3).is_ok());
+        assert_eq!(w.header.check_counts(2).unwrap_err().field, "block_count");
+        w.header.grasped_block = 3;
+        assert_eq!(
+            w.header.check_counts(3).unwrap_err().to_string(),
+            "grasped_block is 3; at most 2 fit"
+        );
+        w.header.grasped_block = -2;
+        assert_eq!(w.header.check_counts(3).unwrap_err().field, "grasped_block");
+        w.header.grasped_block = 2;
+        w.header.finger_point_count[4] = 9;
+        assert_eq!(w.header.check_counts(3).unwrap_err().index, Some(4));
+        assert_eq!(w.header.finger(4).len(), MAX_FINGER_POINTS);
+    }
+
+    #[test]
+    fn a_glove_and_a_latency_sample_check_their_lengths() {
+        let g = GloveSample {
+            sensor_count: 23,
+            ..GloveSample::default()
+        };
+        assert_eq!(
+            Counted::check_counts(&g, 0).unwrap_err().field,
+            "sensor_count"
+        );
+        let mut l = LatencySample::default();
+        assert!(Counted::check_counts(&l, 0).is_ok());
+        l.histograms[2].len = HISTOGRAM_BYTES as u32 + 1;
+        assert_eq!(Counted::check_counts(&l, 0).unwrap_err().index, Some(2));
     }
 }

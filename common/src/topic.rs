@@ -33,8 +33,8 @@ pub trait TopicLayout: sealed::Sealed + 'static {
 /// A fixed-size topic: each sample is one value of `Sample`, carried as iceoryx2's payload,
 /// ports typed by the marker cannot carry another topic's samples.
 pub trait TopicSpec: TopicLayout<Payload = Self::Sample, Header = ()> {
-    /// What every sample of the topic is.
-    type Sample: Stamped;
+    /// What every sample of the topic is (its counts checked where outside bytes become one).
+    type Sample: Stamped + crate::samples::Counted;
 }
 
 mod sealed {
@@ -46,7 +46,7 @@ mod sealed {
 /// the scene). On the bus the header is iceoryx2's user header and the elements its slice
 /// payload, so a sample is sized from the scene and still read in place.
 pub trait SliceTopicSpec:
-    TopicLayout<Payload = [Self::Element], Header: Stamped + Default>
+    TopicLayout<Payload = [Self::Element], Header: Stamped + Default + crate::samples::Counted>
 {
     /// One element of the slice.
     type Element: Copy + std::fmt::Debug + iceoryx2::prelude::ZeroCopySend + 'static;

@@ -35,6 +35,7 @@ from ._native import (
     SessionError,
     SimulateError,
     SourceError,
+    MAX_FRAMES,
     TRACKING_HOLD_NS,
     monotonic_ns,
 )
@@ -73,6 +74,7 @@ __all__ = [
     "JOINT_NAMES",
     "TOPICS",
     "TRACKING_HOLD_NS",
+    "MAX_FRAMES",
     "monotonic_ns",
 ]
 
@@ -359,10 +361,16 @@ def simulate(
     tables (checked as the file would be; errors name ``<dict>``). ``hand``: one of our
     recordings or a CARL trace in place of the scene's ``[hand]``, moved by ``hand_offset``
     metres. ``model``: ``"paper"``, ``"precise"``, or None for the scene's ``[world] model``.
-    ``frames``: steps in all (None: the hand's end plus time to settle).
+    ``frames``: steps in all, 0 to ``MAX_FRAMES`` (ten million: a day of world time at the
+    default 120 steps a second); None: the hand's end plus time to settle.
+
+    The run lets other Python threads go on, and Ctrl-C stops it (``KeyboardInterrupt``,
+    looked for every 50 ms).
 
     Raises ``SceneError`` (a scene refused: file, key, allowed range), ``RecordingError``
-    (a trace that cannot be read) or ``SimulateError``.
+    (a trace that cannot be read: also a FIFO, a device or a folder given as ``hand``),
+    ``SimulateError``, or ``ValueError`` (``frames`` out of range; a scene dict that contains
+    itself, or nests deeper than 64 dicts and lists: the message names the key).
     """
     if hand is not None:
         hand = os.fspath(hand)
@@ -374,7 +382,9 @@ def simulate(
                 f"scene: a path (str or os.PathLike) or a dict of the scene file's tables, "
                 f"not {type(scene).__name__}"
             ) from None
-    else:
+    elif not isinstance(scene, dict):
+        # Not copied when it is a dict already: a key that refers back to the scene is then
+        # named as the scene itself (`world`), not as the copy's `world.world`.
         scene = dict(scene)
     offset = tuple(float(x) for x in hand_offset)
     if len(offset) != 3:
@@ -531,9 +541,10 @@ class Source:
         unless ``wrist_position (3,)`` and ``wrist_rotation (4,)`` give it apart.
         ``tracked=False``: the hand is lost (its last pose is held for ``TRACKING_HOLD_NS``,
         then let go). Returns the sample's seq, or None when it was refused (not finite,
-        farther than 100 m, a quaternion's norm outside 0.5-2, a time not after the last):
-        counted in ``counts()`` and the session's report, and the first of each kind said as
-        a ``SourceWarning``."""
+        farther than 100 m, a quaternion's norm outside 0.5-2, a time not after the last, or
+        faster than 240 hands a second (a burst of 60 allowed): ``rate``, so a runaway loop
+        cannot flood the session): counted in ``counts()`` and the session's report, and the
+        first of each kind said as a ``SourceWarning``."""
         f64 = np.float64
         seq, warning = self._native.publish(
             int(time_ns),

@@ -9,6 +9,7 @@ MODE_NAMES: List[str]
 JOINT_NAMES: List[str]
 TOPICS: List[str]
 TRACKING_HOLD_NS: int
+MAX_FRAMES: int
 
 class HandblocksError(Exception): ...
 class RecordingError(HandblocksError): ...

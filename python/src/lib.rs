@@ -102,6 +102,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
             .collect::<Vec<_>>(),
     )?;
     m.add("TRACKING_HOLD_NS", common::TRACKING_HOLD_NS)?;
+    m.add("MAX_FRAMES", simulate::MAX_FRAMES)?;
     m.add_function(wrap_pyfunction!(monotonic_ns, m)?)?;
     m.add_class::<recording::NativeRecording>()?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;

@@ -187,8 +187,10 @@ fn read(path: &Path) -> PyResult<Data> {
     let head = {
         use std::io::Read;
         let mut head = [0u8; 8];
-        let n = std::fs::File::open(path)
-            .and_then(|mut f| f.read(&mut head))
+        // Only a regular file, refused before a read could block: a FIFO with no writer
+        // would hang here for ever, deaf to Ctrl-C (issue 40).
+        let n = common::config::open_regular(path)
+            .and_then(|mut f| f.read(&mut head).map_err(|e| e.to_string()))
             .map_err(|e| refused(format!("{}: cannot read it: {e}", path.display())))?;
         head[..n].to_vec()
     };

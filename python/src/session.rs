@@ -27,11 +27,37 @@ fn bus_err(e: BusError) -> PyErr {
     SessionError::new_err(e.to_string())
 }
 
+/// This program's node on a session's bus, shared by the session and its subscriptions. When
+/// the last of them goes the node goes, and if the session has ended meanwhile, what the node
+/// left of it is removed ([`RunningSession::tidy_after_reader`]): a program that held its
+/// `Session` past the session's end leaves nothing in /dev/shm.
+struct Attached {
+    /// None only while being dropped.
+    bus: Option<Bus>,
+    running: RunningSession,
+}
+
+impl std::ops::Deref for Attached {
+    type Target = Bus;
+    fn deref(&self) -> &Bus {
+        self.bus
+            .as_ref()
+            .expect("the bus is taken only when the last holder drops it")
+    }
+}
+
+impl Drop for Attached {
+    fn drop(&mut self) {
+        drop(self.bus.take());
+        self.running.tidy_after_reader();
+    }
+}
+
 /// A running session (the Python class `handblocks.Session` wraps it).
 #[pyclass(module = "handblocks._native", unsendable, name = "NativeSession")]
 pub struct NativeSession {
     running: RunningSession,
-    bus: Rc<Bus>,
+    bus: Rc<Attached>,
 }
 
 #[pymethods]
@@ -41,10 +67,16 @@ impl NativeSession {
     #[pyo3(signature = (bus_id=None))]
     fn new(bus_id: Option<&str>) -> PyResult<NativeSession> {
         let running = RunningSession::find(bus_id).map_err(SessionError::new_err)?;
+        // iceoryx2 would warn, raw, about the files the launcher removes at the session's
+        // end; the subscription says the session ended (it yields None) instead.
+        RunningSession::quiet_bus_log();
         let bus = Bus::open(&running.bus, "python").map_err(bus_err)?;
         Ok(NativeSession {
+            bus: Rc::new(Attached {
+                bus: Some(bus),
+                running: running.clone(),
+            }),
             running,
-            bus: Rc::new(bus),
         })
     }
 
@@ -199,12 +231,13 @@ const LOOK_EVERY: Duration = Duration::from_millis(100);
 /// One reader of one topic (the Python class `handblocks.Subscription` wraps it).
 #[pyclass(module = "handblocks._native", unsendable)]
 pub struct Subscription {
-    /// The node the inlet belongs to.
-    _bus: Rc<Bus>,
     running: RunningSession,
     inlet: AnyInlet,
     last_check: Instant,
     ended: bool,
+    /// The node the inlet belongs to: declared last, so dropped after the inlet (the node's
+    /// last holder then removes what is left of an ended session).
+    _bus: Rc<Attached>,
 }
 
 #[pymethods]

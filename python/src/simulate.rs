@@ -1,8 +1,14 @@
 //! `handblocks.simulate`: the block world as a function. It calls what `handblocks simulate`
 //! calls ([`simulation::run`]) and returns the report's figures as arrays beside the report's
 //! JSON text, which is the command's `--json` output byte for byte.
+//!
+//! What comes from Python is bounded before anything runs (issue 40): a scene dict must be a
+//! tree no deeper than [`MAX_DICT_DEPTH`] (a dict that holds itself would recurse until the
+//! stack overflows and the interpreter dies), and `frames` at most [`MAX_FRAMES`]. The run
+//! itself lets go of the GIL and looks for Ctrl-C every [`SIGNAL_CHECK_EVERY`].
 
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -10,13 +16,29 @@ use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 
 use common::config::scene::ModelKind;
 use common::config::Scene;
-use simulation::{SimulateError as RunError, SimulateSettings};
+use simulation::{SimulateError as RunError, SimulateSettings, Stop};
 
 use crate::arrays::array;
 use crate::{RecordingError, SceneError, SimulateError};
 
 /// The name a scene given as a dict has in error messages.
 pub const DICT_SCENE: &str = "<dict>";
+
+/// The most steps `frames` may ask for: ten million, a day of world time at the default
+/// 120 steps a second (about 15 s of computing for grasp-throw, a day for the thousand blocks
+/// of field-1024 under the precise model; Ctrl-C stops either). More is a typo, or a run that
+/// would hold the interpreter for days.
+pub const MAX_FRAMES: u64 = 10_000_000;
+
+/// How often a run looks for Ctrl-C (and any other Python signal handler): often enough that
+/// a person sees Ctrl-C act at once, seldom enough that taking the GIL back costs the run
+/// nothing measurable (a step is microseconds; the hook that looks runs after each).
+const SIGNAL_CHECK_EVERY: Duration = Duration::from_millis(50);
+
+/// How deeply a scene dict may nest dicts, lists and tuples. A scene file's deepest value (a
+/// hand key's `fingers`: hand, keys, a key, its fingers, a finger, a point) is 6 deep; deeper
+/// is a mistake, and a bound keeps the conversion's recursion far from the stack's end.
+pub const MAX_DICT_DEPTH: usize = 64;
 
 /// Runs a scene (a file, a bare name found in the configuration folder, or a dict of the
 /// scene file's tables) and returns the report as a dict (see python/handblocks).
@@ -27,9 +49,10 @@ pub fn simulate<'py>(
     scene: &Bound<'py, PyAny>,
     hand: Option<PathBuf>,
     model: Option<&str>,
-    frames: Option<u64>,
+    frames: Option<&Bound<'py, PyAny>>,
     hand_offset: (f64, f64, f64),
 ) -> PyResult<Bound<'py, PyDict>> {
+    let frames = frames.map(checked_frames).transpose()?;
     let model = match model {
         None => None,
         Some("paper") => Some(ModelKind::Paper),
@@ -48,13 +71,31 @@ pub fn simulate<'py>(
         hand_offset: [hand_offset.0, hand_offset.1, hand_offset.2],
         frames,
     };
-    let (report, notes) =
-        py.detach(|| simulation::run(&scene, &settings))
-            .map_err(|e| match e {
-                RunError::Scene(e) => SceneError::new_err(e.to_string()),
-                RunError::Trace(e) => RecordingError::new_err(e),
-                e => SimulateError::new_err(e.to_string()),
-            })?;
+    // Without the GIL (other Python threads go on), back with it every
+    // `SIGNAL_CHECK_EVERY` for a moment to run the signal handlers: Ctrl-C's
+    // KeyboardInterrupt stops the run and is raised here.
+    let mut interrupted: Option<PyErr> = None;
+    let ran = py.detach(|| {
+        let mut last_check = Instant::now();
+        simulation::run_with_progress(&scene, &settings, &mut |_| {
+            if last_check.elapsed() < SIGNAL_CHECK_EVERY {
+                return Ok(());
+            }
+            last_check = Instant::now();
+            Python::attach(|py| py.check_signals()).map_err(|e| {
+                interrupted = Some(e);
+                Stop
+            })
+        })
+    });
+    let (report, notes) = ran.map_err(|e| match e {
+        RunError::Scene(e) => SceneError::new_err(e.to_string()),
+        RunError::Trace(e) => RecordingError::new_err(e),
+        RunError::Stopped { steps } => interrupted
+            .take()
+            .unwrap_or_else(|| SimulateError::new_err(format!("stopped after {steps} steps"))),
+        e => SimulateError::new_err(e.to_string()),
+    })?;
     let out = PyDict::new(py);
     let b = report.blocks.len();
     out.set_item("frames", report.frames)?;
@@ -107,12 +148,41 @@ pub fn simulate<'py>(
     Ok(out)
 }
 
+/// `frames` as given: an int from 0 to [`MAX_FRAMES`] (a numpy integer too); else a
+/// ValueError that states the range, or a TypeError for what is no int at all.
+fn checked_frames(frames: &Bound<'_, PyAny>) -> PyResult<u64> {
+    let allowed = format!(
+        "allowed: 0 to {MAX_FRAMES} steps, or None for the scene's hand (or the trace's) plus \
+         time to settle"
+    );
+    if frames.is_instance_of::<PyBool>() {
+        return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+            "frames={frames}: a number of steps, not a bool; {allowed}"
+        )));
+    }
+    match frames.extract::<u64>() {
+        Ok(n) if n <= MAX_FRAMES => Ok(n),
+        Ok(_) => Err(PyValueError::new_err(format!("frames={frames}: {allowed}"))),
+        // An int beyond u64 or below 0 (`__index__` worked, the range did not).
+        Err(_) if frames.hasattr("__index__").unwrap_or(false) => {
+            Err(PyValueError::new_err(format!("frames={frames}: {allowed}")))
+        }
+        Err(_) => Err(pyo3::exceptions::PyTypeError::new_err(format!(
+            "frames: an int, not {}; {allowed}",
+            frames
+                .get_type()
+                .name()
+                .map_or("?".into(), |n| n.to_string())
+        ))),
+    }
+}
+
 /// The scene: a dict is checked as the file would be (its errors name `<dict>`); a path is
 /// used as given when it exists, else a bare name is looked up as the command line does.
 fn load_scene(scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
     let loaded =
         if let Ok(dict) = scene.cast::<PyDict>() {
-            let toml::Value::Table(table) = to_toml(dict.as_any(), "")? else {
+            let toml::Value::Table(table) = to_toml(dict.as_any(), "", &mut Vec::new())? else {
                 return Err(PyValueError::new_err("a dict that is not a table"));
             };
             Scene::from_table(Path::new(DICT_SCENE), &table)
@@ -155,8 +225,57 @@ fn resolve_scene(given: &Path) -> PathBuf {
 }
 
 /// A Python value as TOML: dicts, lists and tuples, bool, int, float, str, and anything with
-/// `tolist()` (a numpy array or scalar). `at` names the key in errors.
-fn to_toml(v: &Bound<'_, PyAny>, at: &str) -> PyResult<toml::Value> {
+/// `tolist()` (a numpy array or scalar). `at` names the key in errors; `inside` holds the
+/// dicts, lists and tuples that contain `v` (their identity and key path), so that a value
+/// that holds itself is refused by name instead of recursing until the stack overflows, and
+/// so is nesting deeper than [`MAX_DICT_DEPTH`].
+fn to_toml(
+    v: &Bound<'_, PyAny>,
+    at: &str,
+    inside: &mut Vec<(usize, String)>,
+) -> PyResult<toml::Value> {
+    if inside.len() >= MAX_DICT_DEPTH {
+        return Err(PyValueError::new_err(format!(
+            "{DICT_SCENE}: `{at}` nests deeper than {MAX_DICT_DEPTH} dicts and lists (a scene \
+             nests a few); give the scene's tables as plain dicts and lists"
+        )));
+    }
+    let container = v.is_instance_of::<PyDict>()
+        || v.is_instance_of::<PyList>()
+        || v.is_instance_of::<PyTuple>();
+    if container {
+        let id = v.as_ptr() as usize;
+        if let Some((_, outer)) = inside.iter().find(|(i, _)| *i == id) {
+            let what = if v.is_instance_of::<PyDict>() {
+                "dict"
+            } else {
+                "list"
+            };
+            let outer = if outer.is_empty() {
+                "the scene dict itself".to_string()
+            } else {
+                format!("the {what} at `{outer}` again")
+            };
+            return Err(PyValueError::new_err(format!(
+                "{DICT_SCENE}: key `{at}` holds {outer}, which contains it (a cycle); a scene \
+                 is a tree: give each table a dict (or list) of its own"
+            )));
+        }
+        inside.push((id, at.to_string()));
+    }
+    let value = to_toml_in(v, at, inside);
+    if container {
+        inside.pop();
+    }
+    value
+}
+
+/// [`to_toml`] of one value, its containers already in `inside`.
+fn to_toml_in(
+    v: &Bound<'_, PyAny>,
+    at: &str,
+    inside: &mut Vec<(usize, String)>,
+) -> PyResult<toml::Value> {
     let name = |k: &str| {
         if at.is_empty() {
             k.to_string()
@@ -173,7 +292,7 @@ fn to_toml(v: &Bound<'_, PyAny>, at: &str) -> PyResult<toml::Value> {
                     if at.is_empty() { "the scene" } else { at }
                 ))
             })?;
-            let value = to_toml(&item, &name(&key))?;
+            let value = to_toml(&item, &name(&key), inside)?;
             t.insert(key, value);
         }
         return Ok(toml::Value::Table(t));
@@ -195,12 +314,17 @@ fn to_toml(v: &Bound<'_, PyAny>, at: &str) -> PyResult<toml::Value> {
     if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
         let mut items = Vec::new();
         for (i, item) in v.try_iter()?.enumerate() {
-            items.push(to_toml(&item?, &format!("{at}[{i}]"))?);
+            items.push(to_toml(&item?, &format!("{at}[{i}]"), inside)?);
         }
         return Ok(toml::Value::Array(items));
     }
     if v.hasattr("tolist")? {
-        return to_toml(&v.call_method0("tolist")?, at);
+        // Counted as a level of its own: a `tolist()` that returns its own kind again would
+        // otherwise recurse without end.
+        inside.push((0, at.to_string()));
+        let value = to_toml(&v.call_method0("tolist")?, at, inside);
+        inside.pop();
+        return value;
     }
     Err(PyValueError::new_err(format!(
         "{DICT_SCENE}: {at}: a {} has no TOML form; give a dict, list, bool, int, float or str",

@@ -4,8 +4,9 @@
 //! this module makes each one a `joints` sample exactly as a replay or a headset does: stamped
 //! (`seq`, the program's `time_ns` as source time, `origin_ns` = now, `publish_ns`), checked
 //! (finite, within [`MAX_POSITION_M`] of the origin, quaternions of norm 0.5 to 2, time
-//! increasing), counted (published and refused, in the session's report under the device
-//! `external`), and reported on `latency` like any stage, so the launcher judges it.
+//! increasing, at most [`MAX_RATE_HZ`] a second), counted (published and refused, in the
+//! session's report under the device `external`, the refusals by kind in `refused`), and
+//! reported on `latency` like any stage, so the launcher judges it.
 //!
 //! The stage loop of a process the launcher starts ([`common::node::run`]) is inverted here:
 //! Python calls [`NativeSource::publish`] when it has a hand, and every call (and every look at
@@ -44,7 +45,49 @@ const RELEASE_WAIT: Duration = Duration::from_secs(5);
 const UNLAUNCHED_LINGER: Duration = Duration::from_millis(200);
 
 /// Why a sample was refused; the index counts it.
-const REASONS: [&str; 4] = ["not finite", "too far", "rotation norm", "order"];
+const REASONS: [&str; 5] = ["not finite", "too far", "rotation norm", "order", "rate"];
+/// [`REASONS`]' index of a sample over [`MAX_RATE_HZ`].
+const RATE: usize = 4;
+
+/// The most hands a second a source may publish: a tracker's rate with room to spare (a
+/// headset's hand tracking runs at 30 to 120 Hz; the webxr stage takes a page's frames up to
+/// the same 240 a second). Faster, the pipeline behind it cannot keep up: 20,000 hands
+/// published at 123,000 a second made the session drop a third of its worlds (issue 40).
+/// Hands beyond it are refused and counted (`rate`), as a page's are (`flood`).
+pub const MAX_RATE_HZ: f64 = 240.0;
+/// How many hands may come at once after a pause (a quarter of a second's worth): a program
+/// that stalled briefly and sends what it held is not refused, a burst that would overrun
+/// the readers' buffers is.
+pub const MAX_BURST: f64 = MAX_RATE_HZ / 4.0;
+
+/// The rate limit: a bucket of [`MAX_BURST`] hands, refilled at [`MAX_RATE_HZ`] (on
+/// CLOCK_MONOTONIC: the program's own `time_ns` says nothing about how fast it sends).
+#[derive(Debug, Clone, Copy)]
+struct RateLimit {
+    tokens: f64,
+    at_ns: u64,
+}
+
+impl RateLimit {
+    fn new(now_ns: u64) -> RateLimit {
+        RateLimit {
+            tokens: MAX_BURST,
+            at_ns: now_ns,
+        }
+    }
+
+    /// Whether a hand may go out at `now_ns`; takes its token when it may.
+    fn take(&mut self, now_ns: u64) -> bool {
+        let elapsed_s = now_ns.saturating_sub(self.at_ns) as f64 * 1e-9;
+        self.tokens = (self.tokens + elapsed_s * MAX_RATE_HZ).min(MAX_BURST);
+        self.at_ns = now_ns;
+        if self.tokens < 1.0 {
+            return false;
+        }
+        self.tokens -= 1.0;
+        true
+    }
+}
 
 /// Joint `j` by name (26: the wrist given apart).
 fn joint(j: usize) -> String {
@@ -65,6 +108,10 @@ pub struct NativeSource {
     published: u64,
     refused: [u64; REASONS.len()],
     first_refused: Option<String>,
+    rate: RateLimit,
+    /// The session's folder, where the final report leaves the refusals by kind (the
+    /// launcher's report names them: `devices.external.refused`).
+    session_folder: std::path::PathBuf,
     session_gone: bool,
     last_look_ns: u64,
     closed: bool,
@@ -206,6 +253,7 @@ impl NativeSource {
         }
         let joints_out = bus.outlet::<topics::Joints>().map_err(err)?;
         let reporter = Reporter::new(Stage::External, bus.outlet().map_err(err)?);
+        let session_folder = bus.session_folder().to_path_buf();
         Ok(NativeSource {
             running,
             joints_out: Some(joints_out),
@@ -222,6 +270,8 @@ impl NativeSource {
             published: 0,
             refused: [0; REASONS.len()],
             first_refused: None,
+            rate: RateLimit::new(common::monotonic_ns()),
+            session_folder,
             session_gone: false,
             last_look_ns: 0,
             closed: false,
@@ -311,7 +361,18 @@ impl NativeSource {
         let checked = OPENXR_JOINTS + wrist_given as usize;
         let (p, q) = (&p[..checked * 3], &q[..checked * 4]);
         let mut warning = None;
-        let seq = match self.check(time_ns, p, q) {
+        let verdict = self.check(time_ns, p, q).or_else(|| {
+            (!self.rate.take(common::monotonic_ns())).then(|| {
+                (
+                    RATE,
+                    format!(
+                        "more than {MAX_RATE_HZ} hands a second (at most {MAX_BURST} at once): \
+                         publish at the tracker's own rate (Source.wait sleeps between hands)"
+                    ),
+                )
+            })
+        });
+        let seq = match verdict {
             Some((reason, what)) => {
                 warning = self.refuse(reason, what);
                 None
@@ -401,9 +462,26 @@ impl NativeSource {
             return Ok(());
         };
         reporter.set_devices(devices);
+        self.write_refusals();
         reporter
             .report(counters.as_slice(), true)
             .map_err(|e| SourceError::new_err(e.to_string()))
+    }
+
+    /// Leaves the refusals by kind in the session's folder, where the launcher reads them
+    /// into its report (`refused.external.json`; `rejected_records` carries only their
+    /// total). Written before the final report, which the launcher waits for. Best effort: the
+    /// counts also go to the program (`counts()`).
+    fn write_refusals(&self) {
+        // A JSON object of our own fixed names (letters and `_`): nothing to escape.
+        let kinds: Vec<String> = REASONS
+            .iter()
+            .zip(self.refused)
+            .filter(|(_, n)| *n > 0)
+            .map(|(k, n)| format!("\"{}\": {n}", k.replace(' ', "_")))
+            .collect();
+        let file = self.session_folder.join("refused.external.json");
+        let _ = std::fs::write(file, format!("{{{}}}\n", kinds.join(", ")));
     }
 }
 

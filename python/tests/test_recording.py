@@ -5,7 +5,11 @@ files give inspect's named errors."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import subprocess
+import sys
+import textwrap
 import warnings
 from pathlib import Path
 
@@ -158,3 +162,35 @@ def test_a_missing_file_and_a_folder_are_refused(tmp_path: Path) -> None:
         hb.Recording(tmp_path)
     with pytest.raises(ValueError, match="not a topic"):
         hb.Recording(carl("lift"))._native.arrays("latency")
+
+
+def test_a_fifo_is_refused_by_kind_instead_of_blocking(tmp_path: Path) -> None:
+    # In a Python of its own: a FIFO with no writer used to block Recording() for ever.
+    fifo = tmp_path / "lift.fifo"
+    os.mkfifo(fifo)
+    code = textwrap.dedent(
+        f"""
+        import handblocks as hb
+        try:
+            hb.Recording({str(fifo)!r})
+            print("read")
+        except hb.RecordingError as e:
+            print("RecordingError:", e)
+        """
+    )
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, timeout=30
+        )
+    except subprocess.TimeoutExpired:
+        raise AssertionError("Recording(fifo) still blocked after 30 s") from None
+    out = done.stdout + done.stderr
+    assert "RecordingError:" in out and "lift.fifo" in out, out
+    assert "it is a FIFO (named pipe), not a regular file" in out, out
+
+
+def test_a_folder_and_a_device_are_refused_by_kind(tmp_path: Path) -> None:
+    with pytest.raises(hb.RecordingError, match="it is a folder, not a regular file"):
+        hb.Recording(tmp_path)
+    with pytest.raises(hb.RecordingError, match="it is a character device, not a regular file"):
+        hb.Recording("/dev/zero")

@@ -114,3 +114,30 @@ def test_a_live_session_read_from_python_is_what_it_recorded(tmp_path: Path) -> 
 def test_a_session_that_does_not_run_is_named() -> None:
     with pytest.raises(hb.SessionError, match="no session"):
         hb.Session("nosuchsession0")
+
+
+def test_a_session_held_past_its_end_leaves_nothing_and_says_nothing(capfd) -> None:
+    """Issue 40: a Session with a subscription held past the session's end left a file of the
+    session's prefix in /dev/shm (iceoryx2's management segment), and iceoryx2 printed raw
+    warnings about the files the launcher had removed under it. The launcher waits a moment for
+    readers to let go; one that holds on longer (this one) removes what is left as it lets go,
+    and iceoryx2's log is silenced in it."""
+    bus = bus_id("held")
+    child = launch(
+        "config/sessions/replay-carl-lift.toml",
+        "--bus-id", bus, "--set", "renderer.mode=off", *CEILINGS,
+    )
+    session = attach(bus, child)
+    worlds = session.subscribe("world")
+    held = worlds.receive(timeout=30)
+    assert held is not None
+    # Held through the end: the launcher removes the session's files while this node lives.
+    finish(child, "the replay read from python")
+    assert not session.is_running()
+    while worlds.receive(timeout=0.5) is not None:
+        pass  # what the session published before it ended, then None
+    del held, worlds, session
+    gc.collect()
+    nothing_left(bus)
+    err = capfd.readouterr().err
+    assert "iceoryx2" not in err and "Unable to" not in err, err

@@ -5,7 +5,10 @@ byte; a dict scene is the file's scene, refused with the file's messages; a trac
 from __future__ import annotations
 
 import json
+import os
+import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -128,3 +131,132 @@ def test_wrong_arguments_say_what_is_allowed() -> None:
         hb.simulate(scene, hand="/no-trace.carl")
     with pytest.raises(TypeError, match="scene"):
         hb.simulate(42)  # type: ignore[arg-type]
+
+
+def run_python(code: str, timeout: float = 60) -> str:
+    """Runs `code` in a Python of its own (a crash or a hang there fails this test instead of
+    killing or blocking the test run); its stdout and stderr. Fails when it outlives
+    `timeout` seconds."""
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", textwrap.dedent(code)],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            cwd=REPO,
+        )
+    except subprocess.TimeoutExpired as e:
+        raise AssertionError(f"still running after {timeout} s: {e.stdout!r} {e.stderr!r}") from None
+    return f"exit {done.returncode}\n{done.stdout}{done.stderr}"
+
+
+REFUSED = """
+    import handblocks as hb
+    try:
+        hb.simulate(scene)
+        print("ran")
+    except ValueError as e:
+        print("ValueError:", e)
+"""
+
+
+def test_simulate_refuses_a_cyclic_dict_naming_the_key() -> None:
+    out = run_python("scene = {'block': []}\nscene['world'] = scene\n" + textwrap.dedent(REFUSED))
+    assert "exit 0" in out, out
+    assert "ValueError: <dict>: key `world` holds the scene dict itself" in out, out
+
+
+def test_simulate_refuses_a_list_that_contains_itself_naming_the_key() -> None:
+    out = run_python(
+        "loop = []\nloop.append(loop)\nscene = {'block': loop}\n" + textwrap.dedent(REFUSED)
+    )
+    assert "exit 0" in out, out
+    assert "ValueError: <dict>: key `block[0]` holds the list at `block` again" in out, out
+    # A cycle further down, through a list: named by its whole path.
+    out = run_python(
+        "scene = {'world': {'x': []}}\nscene['world']['x'].append(scene['world'])\n"
+        + textwrap.dedent(REFUSED)
+    )
+    assert "ValueError: <dict>: key `world.x[0]` holds the dict at `world` again" in out, out
+
+
+def test_simulate_refuses_a_dict_nested_30000_deep_naming_the_depth() -> None:
+    out = run_python(
+        "scene = {}\nat = scene\nfor _ in range(30000):\n    at['a'] = {}\n    at = at['a']\n"
+        + textwrap.dedent(REFUSED)
+    )
+    assert "exit 0" in out, out
+    assert "ValueError: <dict>: `a.a.a" in out and "nests deeper than 64" in out, out
+
+
+def test_a_list_shared_by_two_blocks_is_no_cycle() -> None:
+    size = [0.1, 0.1, 0.1]
+    scene = {
+        "block": [
+            {"name": "a", "shape": "box", "size": size, "position": [0.0, 0.05, 0.0]},
+            {"name": "b", "shape": "box", "size": size, "position": [0.5, 0.05, 0.0]},
+        ]
+    }
+    assert hb.simulate(scene, frames=10).names == ["a", "b"]
+
+
+def test_frames_beyond_its_bound_is_refused_stating_the_range() -> None:
+    scene = REPO / "config" / "scenes" / "grasp-throw.toml"
+    assert hb.MAX_FRAMES == 10_000_000
+    for frames in [hb.MAX_FRAMES + 1, 10**9, 10**30, -1]:
+        with pytest.raises(ValueError, match=f"frames={frames}: allowed: 0 to 10000000 steps"):
+            hb.simulate(scene, frames=frames)
+    with pytest.raises(TypeError, match="frames"):
+        hb.simulate(scene, frames="10")  # type: ignore[arg-type]
+    assert hb.simulate(scene, frames=np.int64(0)).frames == 0
+
+
+def test_ctrl_c_stops_a_long_simulation() -> None:
+    # The longest run allowed, of the field of 1024 blocks under the precise model (~7 ms a
+    # step: most of a day): SIGINT after 2 s must end it with KeyboardInterrupt at once.
+    out = run_python(
+        f"""
+        import os, signal, threading, time
+        import handblocks as hb
+        # Python's own Ctrl-C handler, whatever this process inherited (a shell's background
+        # job starts with SIGINT ignored).
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        threading.Timer(2.0, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+        start = time.monotonic()
+        try:
+            scene = {str(REPO / "config" / "scenes" / "field-1024.toml")!r}
+            hb.simulate(scene, model="precise", frames=hb.MAX_FRAMES)
+            print("finished")
+        except KeyboardInterrupt:
+            print(f"interrupted after {{time.monotonic() - start:.1f}} s")
+        """,
+        timeout=90,
+    )
+    assert "interrupted after" in out, out
+    seconds = float(out.split("interrupted after ")[1].split(" s")[0])
+    assert seconds < 30, out
+
+
+def test_simulate_refuses_a_fifo_as_hand_or_scene_instead_of_blocking(tmp_path: Path) -> None:
+    fifo = tmp_path / "lift.fifo"
+    os.mkfifo(fifo)
+    out = run_python(
+        f"""
+        import handblocks as hb
+        try:
+            hb.simulate("grasp-throw", hand={str(fifo)!r}, frames=10)
+            print("RAN TO ITS END")
+        except hb.RecordingError as e:
+            print("RecordingError:", e)
+        try:
+            hb.simulate({str(fifo)!r}, frames=10)
+            print("RAN TO ITS END")
+        except hb.SceneError as e:
+            print("SceneError:", e)
+        """,
+        timeout=30,
+    )
+    assert "RAN TO ITS END" not in out, out
+    assert "RecordingError: " + str(fifo) in out, out
+    assert "SceneError: " + str(fifo) in out, out
+    assert out.count("it is a FIFO (named pipe), not a regular file") == 2, out

@@ -120,3 +120,57 @@ def test_a_program_that_never_closes_its_source_still_ends_its_session(tmp_path:
     r = json.loads(report.read_text())
     assert r["stages"]["external"]["final_report"] and not r["failures"], r["failures"]
     assert r["devices"]["external"]["samples"] == 60
+
+
+def test_a_source_faster_than_its_limit_is_refused_and_the_session_drops_nothing(
+    tmp_path: Path,
+) -> None:
+    """Issue 40: 20,000 hands published at 123,000 a second made a session drop a third of its
+    worlds, and its budget said ok. A source now publishes at most hb's 240 hands a second (60
+    at once): the rest are refused, counted as `rate` in counts() and by name in the report
+    (`devices.external.refused`), and nothing downstream is dropped."""
+    script = tmp_path / "flood.py"
+    script.write_text(
+        "import json, sys, warnings\n"
+        "import numpy as np\n"
+        "import handblocks as hb\n"
+        "j = hb.Recording(sys.argv[1]).joints()\n"
+        "offset = np.array([float(x) for x in sys.argv[2:5]])\n"
+        "warnings.simplefilter('ignore')\n"
+        "with hb.Source() as source:\n"
+        "    for i in range(20000):\n"
+        "        k = i % len(j)\n"
+        "        source.publish((i + 1) * 8_333_333, j.position[k] + offset, j.rotation[k],\n"
+        "                       wrist_position=j.wrist_position[k] + offset,\n"
+        "                       wrist_rotation=j.wrist_rotation[k])\n"
+        "    print('flood: ' + json.dumps(source.counts()), flush=True)\n"
+        "    source.wait(0.5)\n"
+    )
+    bus = bus_id("flood")
+    rec, report = tmp_path / "flood.mcap", tmp_path / "report.json"
+    child = launch(
+        str(
+            session_file(
+                tmp_path,
+                [sys.executable, str(script), str(carl("lift"))] + [str(x) for x in OFFSET],
+            )
+        ),
+        "--bus-id", bus, "--record", str(rec), "--report", str(report), *CEILINGS,
+        "--set", "budget.max_dropped=0",
+    )
+    out = finish(child, "the flooding source's session")
+    nothing_left(bus)
+    line = next(l for l in out.splitlines() if l.startswith("flood: "))
+    counts = json.loads(line[len("flood: "):])
+    refused = counts["refused"]["rate"]
+    assert refused > 0 and counts["published"] + refused == 20000, counts
+    assert counts["published"] <= 60 + 240 * 10, counts  # the burst, then 240 a second
+
+    r = json.loads(report.read_text())
+    assert r["budget"]["ok"], r["budget"]
+    device = r["devices"]["external"]
+    assert device["samples"] == counts["published"], device
+    assert device["refused"] == {"rate": refused}, device
+    assert device["rejected_records"] == refused, device
+    dropped = {t: f["dropped"] for t, f in r["topics"].items() if f["dropped"]}
+    assert not dropped, dropped

@@ -85,7 +85,7 @@ pub enum Command {
     Inspect {
         /// The recording (.mcap).
         recording: PathBuf,
-        /// Print {"file", "complete", "damage", "foreign_messages", "scene_messages",
+        /// Print {"file", "complete", "damage", "foreign_messages", "scene_messages", "refused_messages",
         /// "topics": [{"topic", "messages", "gaps", "seconds", "rate_hz", "schema", "bytes"}]}.
         #[arg(long)]
         json: bool,

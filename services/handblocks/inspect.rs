@@ -134,6 +134,8 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                 "damage": summary.damage,
                 "foreign_messages": summary.foreign_messages,
                 "scene_messages": summary.scene_messages,
+                "refused_messages": summary.refused_messages,
+                "first_refused": summary.first_refused,
                 "topics": topics,
             })
         );
@@ -187,6 +189,13 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
             println!(
                 "{} messages on channels of other tools were skipped",
                 summary.foreign_messages
+            );
+        }
+        if summary.refused_messages > 0 {
+            println!(
+                "{} messages were skipped: their counts do not fit their arrays (the first {})",
+                summary.refused_messages,
+                summary.first_refused.as_deref().unwrap_or("")
             );
         }
         if let Some(d) = &summary.damage {

@@ -58,7 +58,9 @@ pub fn run(given: &Path) -> Result<ExitCode, ListError> {
     let mut scenes = Vec::new();
     let mut sessions = Vec::new();
     for f in files {
-        let Ok(text) = std::fs::read_to_string(&f) else {
+        // A regular file of a config's size only (a FIFO or a device there would hang it).
+        let Ok(text) = common::config::read_bounded_text(&f, common::config::MAX_CONFIG_BYTES)
+        else {
             continue;
         };
         let Ok(table) = text.parse::<toml::Table>() else {

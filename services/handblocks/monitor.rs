@@ -242,6 +242,32 @@ fn running_still(running: &RunningSession) -> bool {
     running.is_running()
 }
 
+/// Lets go of the session's bus and says how the look ended. When the session has ended
+/// (its launcher stopped it, or is gone), one line says so, an error its bus gave as it went
+/// is part of that end rather than a failure, and whatever this tool's node left of the
+/// session is removed ([`RunningSession::tidy_after_reader`]): a look leaves nothing in
+/// /dev/shm. Ctrl-C, `-n` and `--seconds` end it while the session runs, and the tool's
+/// node removes its own files as it goes.
+fn let_go(
+    tool: &str,
+    running: &RunningSession,
+    bus: Bus,
+    tap: Box<dyn Tap>,
+    outcome: Result<(), MonitorError>,
+) -> Result<ExitCode, MonitorError> {
+    drop(tap);
+    drop(bus);
+    if running.is_running() {
+        return outcome.map(|()| ExitCode::SUCCESS);
+    }
+    running.tidy_after_reader();
+    eprintln!(
+        "handblocks {tool}: session {} ended (`handblocks sessions` lists those that run)",
+        running.bus.id
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 /// `handblocks echo TOPIC`: each sample, field by field, `---` between them.
 pub fn echo(
     topic: &str,
@@ -249,7 +275,8 @@ pub fn echo(
     count: Option<u64>,
 ) -> Result<ExitCode, MonitorError> {
     common::shutdown::install_signal_handlers();
-    let (running, _bus, tap) = tap(topic, session)?;
+    RunningSession::quiet_bus_log();
+    let (running, bus, tap) = tap(topic, session)?;
     let topic = Topic::from_channel(topic).unwrap_or(Topic::World);
     eprintln!(
         "handblocks echo: {} of session {} (Ctrl-C stops)",
@@ -259,16 +286,20 @@ pub fn echo(
     let mut message = Vec::new();
     let mut text = String::new();
     let mut printed = 0;
-    while count.is_none_or(|n| printed < n) {
-        let Some(_) = next_sample(tap.as_ref(), &running, &mut message)? else {
-            break;
-        };
-        text.clear();
-        describe(topic, &message, &mut text);
-        println!("{text}---");
-        printed += 1;
-    }
-    Ok(ExitCode::SUCCESS)
+    let mut print_each = || -> Result<(), MonitorError> {
+        while count.is_none_or(|n| printed < n) {
+            let Some(_) = next_sample(tap.as_ref(), &running, &mut message)? else {
+                break;
+            };
+            text.clear();
+            describe(topic, &message, &mut text);
+            println!("{text}---");
+            printed += 1;
+        }
+        Ok(())
+    };
+    let outcome = print_each();
+    let_go("echo", &running, bus, tap, outcome)
 }
 
 /// `handblocks hz TOPIC`: once a second, the rate over the last `window` samples, as
@@ -280,7 +311,8 @@ pub fn hz(
     seconds: Option<f64>,
 ) -> Result<ExitCode, MonitorError> {
     common::shutdown::install_signal_handlers();
-    let (running, _bus, tap) = tap(topic, session)?;
+    RunningSession::quiet_bus_log();
+    let (running, bus, tap) = tap(topic, session)?;
     let name = Topic::from_channel(topic).map_or("?", |t| t.channel());
     eprintln!(
         "handblocks hz: {name} of session {} (Ctrl-C stops)",
@@ -295,12 +327,14 @@ pub fn hz(
     let mut total = 0u64;
     // Each sample's hop, publish -> taken here (a tool's, not a stage's: kept to the end).
     let mut hops = common::latency::new_histogram();
-    loop {
+    let outcome = loop {
         if seconds.is_some_and(|s| started.elapsed().as_secs_f64() >= s) {
-            break;
+            break Ok(());
         }
-        let Some((stamp, taken)) = next_sample(tap.as_ref(), &running, &mut message)? else {
-            break;
+        let (stamp, taken) = match next_sample(tap.as_ref(), &running, &mut message) {
+            Ok(Some(sample)) => sample,
+            Ok(None) => break Ok(()),
+            Err(e) => break Err(e),
         };
         total += 1;
         let _ = hops.record(taken.saturating_sub(stamp.publish_ns).max(1));
@@ -328,7 +362,7 @@ pub fn hz(
                 times.len()
             );
         }
-    }
+    };
     eprintln!("handblocks hz: {total} samples");
     if total > 0 {
         let us = |q: f64| hops.value_at_quantile(q) as f64 / 1e3;
@@ -341,7 +375,7 @@ pub fn hz(
             hops.max() as f64 / 1e3
         );
     }
-    Ok(ExitCode::SUCCESS)
+    let_go("hz", &running, bus, tap, outcome)
 }
 
 /// A sample's fields, one per line (`name: value`), nested types indented, from its message

@@ -26,9 +26,15 @@ fn scene_for(file: &Path, args: &ReplayArgs) -> Result<(PathBuf, [f64; 3], Strin
         let scene = locate::resolve(scene, Kind::Scene);
         return Ok((scene, args.offset.unwrap_or_default(), "--scene".into()));
     }
-    let head = std::fs::read(file)
-        .map(|b| b.into_iter().take(8).collect::<Vec<u8>>())
-        .map_err(|e| format!("{}: cannot read the trace: {e}", file.display()))?;
+    // Its first bytes only, from a regular file (refused before a read could block).
+    let head = {
+        use std::io::Read as _;
+        let mut head = Vec::with_capacity(8);
+        common::config::open_regular(file)
+            .and_then(|f| f.take(8).read_to_end(&mut head).map_err(|e| e.to_string()))
+            .map_err(|e| format!("{}: cannot read the trace: {e}", file.display()))?;
+        head
+    };
     if recording::Recording::is_mcap(&head) {
         let rec = recording::Recording::open_topics(file, &[]).map_err(|e| format!("{e}"))?;
         return match rec.metadata.get("scene").map(PathBuf::from) {
@@ -57,9 +63,11 @@ fn scene_for(file: &Path, args: &ReplayArgs) -> Result<(PathBuf, [f64; 3], Strin
             .flatten()
             .map(|e| e.path());
         for path in sessions {
-            let Ok(table) = std::fs::read_to_string(&path)
-                .unwrap_or_default()
-                .parse::<toml::Table>()
+            // Bounded, and only a regular file: a FIFO left in the folder must not hang it.
+            let Ok(table) =
+                common::config::read_bounded_text(&path, common::config::MAX_CONFIG_BYTES)
+                    .unwrap_or_default()
+                    .parse::<toml::Table>()
             else {
                 continue;
             };
@@ -107,11 +115,24 @@ fn toml_path(p: &Path) -> String {
 pub fn run(args: ReplayArgs) -> Result<ExitCode, crate::error::CliError> {
     let refuse = |why: String| crate::error::CliError::Replay(why);
     let file = std::path::absolute(&args.file).unwrap_or_else(|_| args.file.clone());
-    if !file.is_file() {
-        return Err(refuse(format!(
-            "{}: no such file (a recording, .mcap, or a CARL trace, .carl)",
-            args.file.display()
-        )));
+    // A FIFO, a device, a socket or a folder is named for what it is (not "no such file"),
+    // before anything opens it: a FIFO would block the replay for ever.
+    match std::fs::metadata(&file) {
+        Err(_) => {
+            return Err(refuse(format!(
+                "{}: no such file (a recording, .mcap, or a CARL trace, .carl)",
+                args.file.display()
+            )))
+        }
+        Ok(meta) if !meta.is_file() => {
+            return Err(refuse(format!(
+                "{}: it is {}, not a regular file: give the path of a recording (.mcap) or a \
+                 CARL trace (.carl)",
+                args.file.display(),
+                common::config::file_kind_name(&meta)
+            )))
+        }
+        Ok(_) => {}
     }
     let (scene, offset, why) = scene_for(&file, &args).map_err(refuse)?;
     let topics: Vec<String> = args

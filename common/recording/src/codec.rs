@@ -9,6 +9,7 @@ use std::mem::{size_of, size_of_val};
 use common::bus::Stamped;
 use common::stamp::Stamp;
 use common::topic::Topic;
+use common::Counted;
 
 /// Message encoding of every channel: CDR (little-endian), which for our layouts is the 4-byte
 /// [`CDR_LE_HEADER`] and then the sample's `#[repr(C)]` bytes.
@@ -85,9 +86,14 @@ impl fmt::Display for MessageError {
 impl std::error::Error for MessageError {}
 
 /// The sample of a fixed-size topic's message (`encode_sample`'s inverse): the length must be
-/// the CDR header and exactly the sample. Any bit pattern of the right length is a sample (only
-/// integers and floats); what the values mean is the reader's to check.
-pub fn decode_sample<T: Stamped>(topic: Topic, message: &[u8]) -> Result<T, MessageError> {
+/// the CDR header and exactly the sample, and its count fields within its arrays
+/// ([`Counted`]: a `finger_point_count` of 6 would index past a finger's 5 points in every
+/// viewer). Any other bit pattern of the right length is a sample (only integers and floats);
+/// what the values mean is the reader's to check.
+pub fn decode_sample<T: Stamped + Counted>(
+    topic: Topic,
+    message: &[u8],
+) -> Result<T, MessageError> {
     let want = CDR_LE_HEADER.len() + size_of::<T>();
     if topic.element_size().is_some() || size_of::<T>() != topic.sample_size() {
         return Err(MessageError(format!(
@@ -105,12 +111,23 @@ pub fn decode_sample<T: Stamped>(topic: Topic, message: &[u8]) -> Result<T, Mess
         )));
     }
     // SAFETY: the length matches; plain old data, read unaligned.
-    Ok(unsafe { std::ptr::read_unaligned(message[4..].as_ptr() as *const T) })
+    let sample: T = unsafe { std::ptr::read_unaligned(message[4..].as_ptr() as *const T) };
+    sample.check_counts(0).map_err(|e| counts_error(topic, e))?;
+    Ok(sample)
+}
+
+/// A message whose counts its arrays cannot hold, named by field.
+fn counts_error(topic: Topic, e: common::CountError) -> MessageError {
+    MessageError(format!("a `{}` sample whose {e}", topic.name()))
 }
 
 /// A slice topic's message (`encode_slice`'s inverse): its header and the bytes of its
-/// elements, whose count must agree with the message's length.
-pub fn decode_slice<H: Stamped>(topic: Topic, message: &[u8]) -> Result<(H, &[u8]), MessageError> {
+/// elements, whose count must agree with the message's length, and the header's counts with
+/// those elements ([`Counted`]).
+pub fn decode_slice<H: Stamped + Counted>(
+    topic: Topic,
+    message: &[u8],
+) -> Result<(H, &[u8]), MessageError> {
     let Some(element) = topic.element_size() else {
         return Err(MessageError(format!(
             "`{}` is not a slice topic",
@@ -145,8 +162,55 @@ pub fn decode_slice<H: Stamped>(topic: Topic, message: &[u8]) -> Result<(H, &[u8
         )));
     }
     // SAFETY: the length is checked; plain old data, read unaligned.
-    let header = unsafe { std::ptr::read_unaligned(message[4..].as_ptr() as *const H) };
+    let header: H = unsafe { std::ptr::read_unaligned(message[4..].as_ptr() as *const H) };
+    header
+        .check_counts(count)
+        .map_err(|e| counts_error(topic, e))?;
     Ok((header, body))
+}
+
+/// Checks the count fields of `sample` (a message of `topic` after its CDR header, whose
+/// length the caller checked against the topic) by the topic's own [`Counted`] impl: the
+/// recording reader's check of every message it keeps, so that a file a stranger edited
+/// cannot make a reader index past a sample's arrays. The topic table drives it, so a topic
+/// added later is checked too.
+pub fn check_message_counts(topic: Topic, sample: &[u8]) -> Result<(), MessageError> {
+    use common::topic::{SliceTopicSpec, TopicSpec, TopicVisitor};
+    struct Check<'a> {
+        topic: Topic,
+        bytes: &'a [u8],
+        found: Result<(), common::CountError>,
+    }
+    impl TopicVisitor for Check<'_> {
+        type Error = std::convert::Infallible;
+        fn visit<P: TopicSpec>(&mut self) -> Result<(), Self::Error> {
+            if P::TOPIC == self.topic && self.bytes.len() >= size_of::<P::Sample>() {
+                // SAFETY: the length is checked; plain old data, read unaligned.
+                let s: P::Sample =
+                    unsafe { std::ptr::read_unaligned(self.bytes.as_ptr() as *const P::Sample) };
+                self.found = s.check_counts(0);
+            }
+            Ok(())
+        }
+        fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), Self::Error> {
+            let start = slice_elements_offset(P::TOPIC);
+            if P::TOPIC == self.topic && self.bytes.len() >= start {
+                // SAFETY: the length is checked; plain old data, read unaligned.
+                let h: P::Header =
+                    unsafe { std::ptr::read_unaligned(self.bytes.as_ptr() as *const P::Header) };
+                let elements = (self.bytes.len() - start) / size_of::<P::Element>().max(1);
+                self.found = h.check_counts(elements);
+            }
+            Ok(())
+        }
+    }
+    let mut check = Check {
+        topic,
+        bytes: sample,
+        found: Ok(()),
+    };
+    let Ok(()) = Topic::visit_each(&mut check);
+    check.found.map_err(|e| counts_error(topic, e))
 }
 
 /// The stamp at the start of any topic's message (every sample starts with it).
@@ -154,4 +218,59 @@ pub fn message_stamp(message: &[u8]) -> Option<Stamp> {
     let bytes = message.get(4..4 + size_of::<Stamp>())?;
     // SAFETY: the length is checked; a stamp is four u64s, any bit pattern valid.
     Some(unsafe { std::ptr::read_unaligned(bytes.as_ptr() as *const Stamp) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use common::{HandSample, WorldSample};
+
+    /// Issue 40: one hand from the zenoh link with `finger_point_count[0] = 6` (bytes 100..103
+    /// of its 1148-byte message) crashed the recorder, the renderer and the Foxglove view. It
+    /// is refused where it comes in, naming the field; a recording's reader skips it the same.
+    #[test]
+    fn a_hand_whose_counts_overrun_its_arrays_is_refused_by_name() {
+        let mut hand = HandSample {
+            finger_count: 1,
+            ..HandSample::default()
+        };
+        hand.finger_point_count[0] = 2;
+        let mut message = Vec::new();
+        encode_sample(&hand, &mut message);
+        assert_eq!(message.len(), 1148);
+        assert!(decode_sample::<HandSample>(Topic::Hand, &message).is_ok());
+        message[100..104].copy_from_slice(&6u32.to_le_bytes());
+        let e = decode_sample::<HandSample>(Topic::Hand, &message).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "a `hand` sample whose finger_point_count[0] is 6; at most 5 fit"
+        );
+        assert_eq!(
+            check_message_counts(Topic::Hand, &message[4..]).unwrap_err(),
+            e
+        );
+        // The palm: 17 of 16 vertices.
+        encode_sample(&hand, &mut message);
+        message[120..124].copy_from_slice(&17u32.to_le_bytes());
+        let e = decode_sample::<HandSample>(Topic::Hand, &message).unwrap_err();
+        assert!(e.to_string().contains("palm_vertex_count is 17"), "{e}");
+    }
+
+    #[test]
+    fn a_world_whose_counts_overrun_its_blocks_is_refused_by_name() {
+        let world = WorldSample::with_blocks(3);
+        let mut message = Vec::new();
+        encode_slice(Topic::World, &world.header, &world.blocks, &mut message);
+        assert!(decode_slice::<common::WorldHeader>(Topic::World, &message).is_ok());
+        assert!(check_message_counts(Topic::World, &message[4..]).is_ok());
+        let mut bad = world.clone();
+        bad.header.block_count = 4;
+        encode_slice(Topic::World, &bad.header, &bad.blocks, &mut message);
+        let e = decode_slice::<common::WorldHeader>(Topic::World, &message).unwrap_err();
+        assert!(
+            e.to_string().contains("block_count is 4; at most 3 fit"),
+            "{e}"
+        );
+        assert!(check_message_counts(Topic::World, &message[4..]).is_err());
+    }
 }

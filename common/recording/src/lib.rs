@@ -41,8 +41,9 @@ mod test_support;
 mod writer;
 
 pub use codec::{
-    decode_sample, decode_slice, encode_sample, encode_slice, message_stamp, sample_type,
-    slice_elements_offset, slice_message_bytes, MessageError, CDR_LE_HEADER, MESSAGE_ENCODING,
+    check_message_counts, decode_sample, decode_slice, encode_sample, encode_slice, message_stamp,
+    sample_type, slice_elements_offset, slice_message_bytes, MessageError, CDR_LE_HEADER,
+    MESSAGE_ENCODING,
 };
 pub use error::RecordingError;
 pub use reader::{RecordedMessage, Recording, TopicStats, MAX_CHUNK_BYTES, MAX_RECORDING_BYTES};

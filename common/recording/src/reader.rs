@@ -54,6 +54,12 @@ pub struct Recording {
     pub messages: Vec<RecordedMessage>,
     /// Messages on channels that are not ours (a file written or edited by other tools).
     pub foreign_messages: u64,
+    /// Messages of our topics whose count fields their arrays cannot hold (a file edited by
+    /// hand or by a stranger: `finger_point_count` 6 of 5): counted and skipped, the messages
+    /// around them kept ([`crate::check_message_counts`]).
+    pub refused_messages: u64,
+    /// Why the first of them was refused (its topic, seq and field).
+    pub first_refused: Option<String>,
     /// Messages of the scene view ([`crate::SCENE_CHANNEL`], the 3D panel's drawing of the
     /// samples): ours, but derived from the topics, so no sample is read from them.
     pub scene_messages: u64,
@@ -114,6 +120,8 @@ impl Recording {
             path: path.to_path_buf(),
             messages: Vec::new(),
             foreign_messages: 0,
+            refused_messages: 0,
+            first_refused: None,
             scene_messages: 0,
             damage: None,
             complete: false,

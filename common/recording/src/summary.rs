@@ -52,6 +52,9 @@ pub struct RecordingSummary {
     pub foreign_messages: u64,
     /// Messages of the scene view (`/scene`, for Foxglove's 3D panel).
     pub scene_messages: u64,
+    /// Messages whose count fields their arrays cannot hold: skipped, and the first's reason.
+    pub refused_messages: u64,
+    pub first_refused: Option<String>,
 }
 
 impl Recording {
@@ -107,6 +110,8 @@ impl Recording {
             damage: self.damage.as_ref().map(|d| d.to_string()),
             foreign_messages: self.foreign_messages,
             scene_messages: self.scene_messages,
+            refused_messages: self.refused_messages,
+            first_refused: self.first_refused.clone(),
         }
     }
 }

@@ -2,6 +2,11 @@
 //! keyframes or from a trace, made into hands exactly as the live processes make them. The
 //! command `handblocks simulate` and Python's `handblocks.simulate` both call [`run`], so the
 //! two agree bit for bit (and with a live session of the same scene at the step rate).
+//!
+//! A run can be long (`--frames` is the caller's to choose) and a caller may need to stop it
+//! (Python's Ctrl-C, which only the caller can see): [`run_with_progress`] calls a hook after
+//! every step, which may [`Stop`] the run: the stepper's own runs
+//! ([`stepper::simulate_with`], [`stepper::simulate_samples_with`]) call it.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -10,6 +15,13 @@ use common::config::scene::{HandPoseSpec, ModelKind};
 use common::config::{ConfigError, Scene};
 
 pub use stepper::Report;
+
+/// A progress hook's answer ([`stepper::Stop`]): stop the run here (the run returns
+/// [`SimulateError::Stopped`]). The hook ([`Progress`]) is called once a step with the steps
+/// taken so far, whatever a step costs (a step of a thousand blocks takes milliseconds, one of
+/// a single block microseconds), so a caller that wants to look less often looks at the
+/// clock: see python/src/simulate.rs.
+pub use stepper::{Progress, Stop};
 
 /// What to simulate beside the scene.
 #[derive(Debug, Clone, Default)]
@@ -38,6 +50,8 @@ pub enum SimulateError {
     Trace(String),
     /// The world refused the scene or a step.
     World(stepper::WorldError),
+    /// The caller's progress hook stopped the run after `steps` steps.
+    Stopped { steps: u64 },
 }
 
 impl fmt::Display for SimulateError {
@@ -47,6 +61,7 @@ impl fmt::Display for SimulateError {
             SimulateError::Script { scene, error } => write!(f, "{}: {error}", scene.display()),
             SimulateError::Trace(e) => write!(f, "{e}"),
             SimulateError::World(e) => write!(f, "{e}"),
+            SimulateError::Stopped { steps } => write!(f, "stopped after {steps} steps"),
         }
     }
 }
@@ -62,6 +77,16 @@ pub struct Notes {
 
 /// Runs `scene` (already loaded) under `settings`; the report and what it noted.
 pub fn run(scene: &Scene, settings: &SimulateSettings) -> Result<(Report, Notes), SimulateError> {
+    run_with_progress(scene, settings, &mut |_| Ok(()))
+}
+
+/// [`run`], calling `progress` with the steps taken after every step; when it answers
+/// [`Stop`], the run ends there with [`SimulateError::Stopped`].
+pub fn run_with_progress(
+    scene: &Scene,
+    settings: &SimulateSettings,
+    progress: &mut Progress<'_>,
+) -> Result<(Report, Notes), SimulateError> {
     let mut scene = scene.clone();
     if let Some(model) = settings.model {
         scene.world.model = model;
@@ -88,27 +113,33 @@ pub fn run(scene: &Scene, settings: &SimulateSettings) -> Result<(Report, Notes)
             settings.hand_offset,
             settings.frames,
             &mut notes,
+            progress,
         )?,
-        None => simulate_scene(&scene, settings.frames)?,
+        None => simulate_scene(&scene, settings.frames, progress)?,
     };
     Ok((report, notes))
 }
 
 /// The scene's own hand: bare check points (`fingers` keys), or keyframes through the hand
 /// model as a live session samples them, or no hand.
-fn simulate_scene(scene: &Scene, frames: Option<u64>) -> Result<Report, SimulateError> {
+fn simulate_scene(
+    scene: &Scene,
+    frames: Option<u64>,
+    progress: &mut Progress<'_>,
+) -> Result<Report, SimulateError> {
     let frames = frames.unwrap_or_else(|| stepper::default_frames(scene));
     let bare = scene.hand.as_ref().is_some_and(|h| {
         h.keys
             .iter()
             .any(|k| matches!(k.pose, HandPoseSpec::Fingers(_)))
     });
-    let report = if bare {
+    if bare {
         let mut hand = stepper::BareFingersHand::from_scene(scene);
-        stepper::simulate(
+        step_hand(
             scene,
             frames,
             hand.as_mut().map(|h| h as &mut dyn stepper::HandSource),
+            progress,
         )
     } else if let Some(script) = &scene.hand {
         // The same path as a live session: keyframes -> glove + tracker -> the hand model.
@@ -133,11 +164,27 @@ fn simulate_scene(scene: &Scene, frames: Option<u64>) -> Result<Report, Simulate
             model.solve(&glove, &tracker.wrist, &mut hand);
             Some(hand)
         };
-        stepper::simulate(scene, frames, Some(&mut source))
+        step_hand(scene, frames, Some(&mut source), progress)
     } else {
-        stepper::simulate(scene, frames, None)
-    };
-    report.map_err(SimulateError::World)
+        step_hand(scene, frames, None, progress)
+    }
+}
+
+/// A run's end: the world's error, or where the hook stopped it.
+fn run_error(e: stepper::RunError) -> SimulateError {
+    match e {
+        stepper::RunError::World(e) => SimulateError::World(e),
+        stepper::RunError::Stopped { steps } => SimulateError::Stopped { steps },
+    }
+}
+
+fn step_hand(
+    scene: &Scene,
+    frames: u64,
+    hand: Option<&mut dyn stepper::HandSource>,
+    progress: &mut Progress<'_>,
+) -> Result<Report, SimulateError> {
+    stepper::simulate_with(scene, frames, hand, progress).map_err(run_error)
 }
 
 /// A trace's samples become hands exactly as in a live replay (kinematics'
@@ -150,6 +197,7 @@ fn simulate_trace(
     offset: [f64; 3],
     frames: Option<u64>,
     notes: &mut Notes,
+    progress: &mut Progress<'_>,
 ) -> Result<Report, SimulateError> {
     let trace = replay::HandTrace::load(trace, offset).map_err(SimulateError::Trace)?;
     for w in &trace.warnings {
@@ -173,5 +221,163 @@ fn simulate_trace(
         };
         hands.extend(hand.copied());
     }
-    stepper::simulate_samples(scene, &hands, frames).map_err(SimulateError::World)
+    stepper::simulate_samples_with(scene, &hands, frames, progress).map_err(run_error)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(name: &str) -> Scene {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../config/scenes")
+            .join(name);
+        Scene::load(&file).expect("a scene of the repository")
+    }
+
+    fn carl(name: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/data/carl")
+            .join(name)
+    }
+
+    /// The hands `simulate_trace` makes of a trace, for the stepper's own function.
+    fn hands_of(trace: &Path, offset: [f64; 3]) -> Vec<common::HandSample> {
+        let trace = replay::HandTrace::load(trace, offset).expect("a CARL trace");
+        let mut stream = kinematics::HandStream::new(kinematics::HandModel::default());
+        let mut hands = Vec::new();
+        for sample in &trace.samples {
+            match sample {
+                replay::SourceSample::Glove(g) => stream.glove(g),
+                replay::SourceSample::Tracker(t) => hands.extend(stream.tracker(t).copied()),
+                replay::SourceSample::Joints(j) => hands.push(*stream.joints(j)),
+            }
+        }
+        hands
+    }
+
+    #[test]
+    fn a_run_reports_what_the_stepper_reports_for_every_kind_of_hand() {
+        let frames = 700;
+        let settings = SimulateSettings {
+            frames: Some(frames),
+            ..SimulateSettings::default()
+        };
+        // The bare check points.
+        let bare = scene("grasp-throw-fingers.toml");
+        let mut hand = stepper::BareFingersHand::from_scene(&bare);
+        let theirs = stepper::simulate(
+            &bare,
+            frames,
+            hand.as_mut().map(|h| h as &mut dyn stepper::HandSource),
+        );
+        let (ours, _) = run(&bare, &settings).expect("the scene runs");
+        assert_eq!(ours, theirs.expect("the stepper runs it"));
+        assert_eq!(ours.frames, frames);
+        // The keyframes through the hand model, sampled as `simulate_scene` samples them.
+        let keyed = scene("grasp-throw.toml");
+        let script = keyed.hand.as_ref().expect("a scripted hand");
+        let scripted = acquisition::ScriptedHand::new(script).expect("a playable script");
+        let model = kinematics::HandModel::default();
+        let mut hand = common::HandSample::default();
+        let step_hz = keyed.world.step_hz;
+        let mut source = |step: u64, _t: f64| {
+            let (glove, tracker) = scripted.samples_at(
+                step as f64 / step_hz,
+                common::Stamp {
+                    seq: step,
+                    ..Default::default()
+                },
+            );
+            model.solve(&glove, &tracker.wrist, &mut hand);
+            Some(hand)
+        };
+        let theirs = stepper::simulate(&keyed, frames, Some(&mut source));
+        let (ours, _) = run(&keyed, &settings).expect("the scene runs");
+        assert_eq!(ours, theirs.expect("the stepper runs it"));
+        assert!(!ours.events.is_empty(), "the scripted hand does something");
+        // No hand.
+        let handless = scene("stack-paper.toml");
+        assert!(handless.hand.is_none());
+        let theirs = stepper::simulate(&handless, frames, None);
+        let (ours, _) = run(&handless, &settings).expect("the scene runs");
+        assert_eq!(ours, theirs.expect("the stepper runs it"));
+    }
+
+    #[test]
+    fn a_trace_run_reports_what_the_stepper_reports() {
+        let scene = scene("carl-push.toml");
+        let trace = carl("example_push_0.carl");
+        let offset = [0.0, -1.45, 0.0];
+        for frames in [None, Some(1000), Some(50)] {
+            let settings = SimulateSettings {
+                trace: Some(trace.clone()),
+                hand_offset: offset,
+                frames,
+                ..SimulateSettings::default()
+            };
+            let (ours, _) = run(&scene, &settings).expect("the trace runs");
+            let theirs = stepper::simulate_samples(&scene, &hands_of(&trace, offset), frames)
+                .expect("the stepper runs the trace");
+            assert_eq!(ours, theirs, "frames {frames:?}");
+            assert!(!ours.events.is_empty(), "the hand pushes the block");
+        }
+    }
+
+    #[test]
+    fn the_progress_hook_is_called_after_every_step_and_can_stop_the_run() {
+        let scene = scene("grasp-throw.toml");
+        let settings = SimulateSettings {
+            frames: Some(500),
+            ..SimulateSettings::default()
+        };
+        let mut seen = Vec::new();
+        run_with_progress(&scene, &settings, &mut |n| {
+            seen.push(n);
+            Ok(())
+        })
+        .expect("the scene runs");
+        assert_eq!(seen, (1..=500).collect::<Vec<u64>>());
+        let stopped = run_with_progress(&scene, &settings, &mut |n| {
+            if n == 123 {
+                Err(Stop)
+            } else {
+                Ok(())
+            }
+        });
+        assert!(
+            matches!(stopped, Err(SimulateError::Stopped { steps: 123 })),
+            "{stopped:?}"
+        );
+    }
+
+    #[test]
+    fn the_progress_hook_can_stop_a_trace_run_in_its_trace_and_in_its_settling() {
+        let scene = scene("carl-push.toml");
+        let trace = carl("example_push_0.carl");
+        // The 2.4 s trace brings ~290 steps at 120 Hz: 100 is inside it, 400 in the settling
+        // after it, 100_000 far into a long `frames`.
+        for (frames, stop_at) in [(None, 100), (None, 400), (Some(1 << 40), 100_000)] {
+            let settings = SimulateSettings {
+                trace: Some(trace.clone()),
+                hand_offset: [0.0, -1.45, 0.0],
+                frames,
+                ..SimulateSettings::default()
+            };
+            let mut last = 0;
+            let stopped = run_with_progress(&scene, &settings, &mut |n| {
+                assert_eq!(n, last + 1, "one call a step");
+                last = n;
+                if n >= stop_at {
+                    Err(Stop)
+                } else {
+                    Ok(())
+                }
+            });
+            assert!(
+                matches!(stopped, Err(SimulateError::Stopped { steps }) if steps == stop_at),
+                "{stopped:?}"
+            );
+        }
+    }
 }

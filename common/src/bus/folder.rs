@@ -176,7 +176,7 @@ impl BusConfig {
     /// start time it recorded, [`BusConfig::claim_as_launcher`], name no running process), or,
     /// for a folder with no such record, that has been untouched for [`ABANDONED_AFTER`].
     /// Their processes notice the launcher's death themselves (their stdin pipe closes) and
-    /// exit. A folder or /dev/shm file another user owns is never removed (also as root): it
+    /// exit; a sweep waits up to [`LAUNCHER_GONE_WAIT`] for them to. A folder or /dev/shm file another user owns is never removed (also as root): it
     /// is named and left. Returns one line per session: what was removed, or left and why.
     pub fn sweep_abandoned() -> Vec<String> {
         let mut said = Vec::new();
@@ -197,7 +197,8 @@ impl BusConfig {
             if session.root != entry.path() {
                 continue;
             }
-            let abandoned = match session.launcher_gone() {
+            let launcher_gone = session.launcher_gone();
+            let abandoned = match launcher_gone {
                 Some(gone) => gone,
                 None => {
                     // No launcher record (a session being set up right now has its folder
@@ -210,7 +211,19 @@ impl BusConfig {
                     age.is_some_and(|a| a >= ABANDONED_AFTER)
                 }
             };
-            if !abandoned || session.has_live_processes() {
+            if !abandoned {
+                continue;
+            }
+            // A killed launcher's processes notice at once (their stdin closes) and are gone
+            // moments later: a launch started right after the kill waits for them, or it would
+            // leave the folder to the next launch on the same bus id (issue 40).
+            if launcher_gone == Some(true) {
+                let deadline = std::time::Instant::now() + LAUNCHER_GONE_WAIT;
+                while session.has_live_processes() && std::time::Instant::now() < deadline {
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+            }
+            if session.has_live_processes() {
                 continue;
             }
             let shm = session.leftover_shm_files().len();
@@ -244,15 +257,16 @@ impl BusConfig {
     }
 
     /// Whether the launcher the session's folder names is gone: Some(true) when no process
-    /// of that pid and start time runs, Some(false) when it does, None without a record.
-    fn launcher_gone(&self) -> Option<bool> {
-        let text = std::fs::read_to_string(self.root.join(LAUNCHER_FILE)).ok()?;
+    /// of that pid and start time runs, Some(false) when it does, None without a record (or
+    /// with one that is not this user's regular file: never read, a FIFO would block).
+    pub fn launcher_gone(&self) -> Option<bool> {
+        let text = read_own_file(&self.root.join(LAUNCHER_FILE), 64)?;
         let mut words = text.split_whitespace().map(|w| w.parse::<u64>().ok());
         let (Some(Some(pid)), Some(Some(started))) = (words.next(), words.next()) else {
             return None;
         };
         let pid = u32::try_from(pid).ok()?;
-        Some(process_start_ticks(pid).is_none_or(|now| now != started))
+        Some(!launcher_alive(pid, started))
     }
 
     /// How many samples of `topic` its supervised publishers have sent so far: the largest
@@ -291,14 +305,18 @@ impl BusConfig {
         for f in shm.iter().chain(std::iter::once(&self.root)) {
             refuse_foreign(f)?;
         }
+        // What is gone already is not an error: another launcher's sweep, or a reader
+        // tidying up, may be removing the same dead session's files at the same moment.
+        let gone = |r: std::io::Result<()>| match r {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
+            r => r.map(|()| true),
+        };
         let mut removed = 0;
         for f in self.leftover_shm_files() {
-            std::fs::remove_file(&f)?;
-            removed += 1;
+            removed += usize::from(gone(std::fs::remove_file(&f))?);
         }
         if self.root.exists() {
-            std::fs::remove_dir_all(&self.root)?;
-            removed += 1;
+            removed += usize::from(gone(std::fs::remove_dir_all(&self.root))?);
         }
         // The shared parent folder goes too once the last session has left it.
         if let Some(parent) = self.root.parent() {
@@ -318,6 +336,57 @@ fn process_start_ticks(pid: u32) -> Option<u64> {
     // The command name (field 2) is in parentheses and may hold spaces: count after it.
     let rest = &stat[stat.rfind(')')? + 1..];
     rest.split_whitespace().nth(19)?.parse().ok()
+}
+
+/// Whether process `pid` runs, started at `started` (ticks after boot, as
+/// [`process_start_ticks`] reads them), and is this user's: a launcher that was killed and
+/// whose pid the kernel gave to another process is gone, as is a pid another user runs.
+fn launcher_alive(pid: u32, started: u64) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: as in base_dir.
+    let uid = unsafe { libc::getuid() };
+    pid > 0
+        && process_start_ticks(pid) == Some(started)
+        && std::fs::metadata(format!("/proc/{pid}")).is_ok_and(|m| m.uid() == uid)
+}
+
+/// How long a sweep waits for the processes of a session whose launcher was killed to exit.
+const LAUNCHER_GONE_WAIT: Duration = Duration::from_secs(3);
+
+/// How long a reader that let go of an ended session waits for its launcher, which removes the
+/// session's files and then exits, before it looks what is left.
+const LAUNCHER_EXIT_WAIT: Duration = Duration::from_secs(3);
+
+/// The most a session's card holds: a few hundred bytes; more is not a card.
+const MAX_CARD_BYTES: u64 = 64 << 10;
+
+/// The text of `path` when it is a regular file of this user's of at most `max` bytes; None
+/// otherwise. A session's folder is this user's own (0700), but the tools walk every folder
+/// in it: a FIFO there would block them forever, a link to `/dev/zero` would be read until
+/// memory ran out, and a file another user owns is not this user's session. The type and the
+/// owner are taken from the open descriptor ([`crate::config::open_regular`]: a FIFO is
+/// refused before anything could block), and at most `max` + 1 bytes are ever read.
+fn read_own_file(path: &StdPath, max: u64) -> Option<String> {
+    use std::io::Read as _;
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: as in base_dir.
+    let uid = unsafe { libc::getuid() };
+    let file = crate::config::open_regular(path).ok()?;
+    let meta = file.metadata().ok()?;
+    if meta.uid() != uid || meta.len() > max {
+        return None;
+    }
+    let mut text = String::new();
+    file.take(max + 1).read_to_string(&mut text).ok()?;
+    (text.len() as u64 <= max).then_some(text)
+}
+
+/// Whether `path` is a folder (not a link to one) of this user's.
+fn own_dir(path: &StdPath) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: as in base_dir.
+    let uid = unsafe { libc::getuid() };
+    std::fs::symlink_metadata(path).is_ok_and(|m| m.is_dir() && m.uid() == uid)
 }
 
 /// An error naming `path` when it exists and another user owns it.
@@ -443,6 +512,10 @@ pub struct RunningSession {
     /// When it started (Unix seconds) and the launcher's pid.
     pub started_unix_s: u64,
     pub launcher_pid: u32,
+    /// When the launcher process started (clock ticks after boot, /proc/PID/stat's 22nd
+    /// field): with the pid it names one process, so a pid the kernel reused after the
+    /// launcher was killed is not taken for it.
+    pub launcher_start_ticks: u64,
 }
 
 impl RunningSession {
@@ -471,9 +544,48 @@ impl RunningSession {
         }
     }
 
-    /// True while its launcher still runs and its card is there.
+    /// True while its launcher (that pid, started at that time) still runs and its card is
+    /// there.
     pub fn is_running(&self) -> bool {
-        BusConfig::running().iter().any(|s| s.bus.id == self.bus.id)
+        launcher_alive(self.launcher_pid, self.launcher_start_ticks)
+            && std::fs::symlink_metadata(self.bus.root.join(CARD_FILE)).is_ok_and(|m| m.is_file())
+    }
+
+    /// Removes what this reader (a tool: `echo`, `hz`, Python's `Session`) may have left of
+    /// the session once it has let go of its bus (its node dropped) and the session has
+    /// ended: its launcher gone, and no process attached to the bus. The launcher, when it
+    /// ends, withdraws the card and waits a moment for readers to let go before it removes
+    /// the session's files ([`BusConfig::withdraw_card`]); a reader that held on past that
+    /// (a Python program keeping its `Session`) would otherwise leave iceoryx2's files of its
+    /// own node and ports in /dev/shm. Nothing is removed while the session runs, before its
+    /// launcher, which removes the files itself, has exited (waited for up to
+    /// [`LAUNCHER_EXIT_WAIT`]), while a new session has claimed the bus id, or while any
+    /// process is attached. Returns how many entries were removed.
+    pub fn tidy_after_reader(&self) -> usize {
+        let bus = &self.bus;
+        // Once the card is withdrawn the launcher is removing the files itself: let it finish
+        // (it exits right after), so that two removals never meet.
+        let deadline = std::time::Instant::now() + LAUNCHER_EXIT_WAIT;
+        while launcher_alive(self.launcher_pid, self.launcher_start_ticks) {
+            let card = std::fs::symlink_metadata(bus.root.join(CARD_FILE)).is_ok();
+            if card || std::time::Instant::now() >= deadline {
+                return 0;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        if bus.launcher_gone() == Some(false) || (bus.root.exists() && bus.has_live_processes()) {
+            return 0;
+        }
+        bus.remove_resources().unwrap_or(0)
+    }
+
+    /// Silences iceoryx2's own log for a tool that looks at a session from outside (`echo`,
+    /// `hz`, Python's `Session`): when the session ends its launcher removes the session's
+    /// files while the tool is still attached, and iceoryx2 would print raw warnings about
+    /// each storage it can no longer remove. The tool says in one line that the session ended
+    /// instead; iceoryx2's fatal errors still print.
+    pub fn quiet_bus_log() {
+        iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Fatal);
     }
 
     /// The processes attached to its bus now: (iceoryx2 node name, pid), the launcher's own
@@ -516,14 +628,41 @@ impl BusConfig {
         card.insert("world_blocks".into(), (self.world_blocks as i64).into());
         card.insert("lossless".into(), self.lossless.into());
         card.insert("started_unix_s".into(), (started as i64).into());
-        card.insert("launcher_pid".into(), (std::process::id() as i64).into());
+        let pid = std::process::id();
+        card.insert("launcher_pid".into(), (pid as i64).into());
+        // The reader checks the pid and this together (a reused pid is another process).
+        let ticks = process_start_ticks(pid).unwrap_or(0);
+        card.insert("launcher_start_ticks".into(), (ticks as i64).into());
         let file = self.root.join(CARD_FILE);
         std::fs::write(&file, card.to_string())
             .map_err(|e| BusError::config(format!("cannot write {}: {e}", file.display())))
     }
 
-    /// The sessions of this user running on this machine (their launcher alive and their card
-    /// readable), oldest first.
+    /// Takes the card away at the session's end, so that the tools reading the session from
+    /// outside (`echo`, `hz`, Python's `Session`: not the launcher's children) see that it
+    /// ended and let go of the bus, and waits up to `wait` for them to: their nodes then
+    /// remove their own files, iceoryx2 does not warn about files removed under them, and
+    /// [`BusConfig::remove_resources`] that follows removes everything. Call it once the
+    /// session's own processes are gone. Returns whether a reader was still attached when
+    /// the wait ended.
+    pub fn withdraw_card(&self, wait: Duration) -> bool {
+        let _ = std::fs::remove_file(self.root.join(CARD_FILE));
+        let deadline = std::time::Instant::now() + wait;
+        loop {
+            let attached = self.has_live_processes();
+            if !attached || std::time::Instant::now() >= deadline {
+                return attached;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// The sessions of this user running on this machine, oldest first: those whose card is
+    /// a regular file of this user's (of at most [`MAX_CARD_BYTES`]), in a folder of this
+    /// user's, and whose launcher, the pid and start time the card records, still runs as
+    /// this user. Anything else in the folder (another user's card, a FIFO, a link to a
+    /// device, a card naming a pid that is not its launcher) is not a session, and is never
+    /// read past its size.
     pub fn running() -> Vec<RunningSession> {
         let bases = [
             base_dir(&std::env::temp_dir()),
@@ -532,10 +671,12 @@ impl BusConfig {
         let mut found: Vec<RunningSession> = bases
             .iter()
             .take(if bases[0] == bases[1] { 1 } else { 2 })
+            .filter(|b| own_dir(b))
             .filter_map(|b| std::fs::read_dir(b).ok())
             .flat_map(|e| e.flatten())
+            .filter(|entry| own_dir(&entry.path()))
             .filter_map(|entry| {
-                let text = std::fs::read_to_string(entry.path().join(CARD_FILE)).ok()?;
+                let text = read_own_file(&entry.path().join(CARD_FILE), MAX_CARD_BYTES)?;
                 let card: toml::Table = text.parse().ok()?;
                 let id = card.get("id")?.as_str()?;
                 let blocks = card.get("world_blocks")?.as_integer()?;
@@ -544,28 +685,26 @@ impl BusConfig {
                     .with_world_blocks(usize::try_from(blocks).ok()?)
                     .ok()?
                     .with_lossless(card.get("lossless")?.as_bool()?);
-                (bus.root == entry.path() && bus.launcher_gone() == Some(false)).then(|| {
-                    RunningSession {
-                        session_file: card
-                            .get("session")
-                            .and_then(|s| s.as_str())
-                            .unwrap_or("?")
-                            .to_string(),
-                        source: card
-                            .get("source")
-                            .and_then(|s| s.as_str())
-                            .unwrap_or("?")
-                            .to_string(),
-                        started_unix_s: card
-                            .get("started_unix_s")
-                            .and_then(|s| s.as_integer())
-                            .map_or(0, |s| s as u64),
-                        launcher_pid: card
-                            .get("launcher_pid")
-                            .and_then(|s| s.as_integer())
-                            .map_or(0, |s| s as u32),
-                        bus,
-                    }
+                let pid = u32::try_from(card.get("launcher_pid")?.as_integer()?).ok()?;
+                let ticks = u64::try_from(card.get("launcher_start_ticks")?.as_integer()?).ok()?;
+                (bus.root == entry.path() && launcher_alive(pid, ticks)).then(|| RunningSession {
+                    session_file: card
+                        .get("session")
+                        .and_then(|s| s.as_str())
+                        .unwrap_or("?")
+                        .to_string(),
+                    source: card
+                        .get("source")
+                        .and_then(|s| s.as_str())
+                        .unwrap_or("?")
+                        .to_string(),
+                    started_unix_s: card
+                        .get("started_unix_s")
+                        .and_then(|s| s.as_integer())
+                        .map_or(0, |s| s as u64),
+                    launcher_pid: pid,
+                    launcher_start_ticks: ticks,
+                    bus,
                 })
             })
             .collect();

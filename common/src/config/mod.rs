@@ -66,27 +66,83 @@ impl std::error::Error for ConfigError {}
 /// with every hull vertex written out is a few MiB.
 pub const MAX_CONFIG_BYTES: u64 = 64 << 20;
 
-/// Reads a file named by outside input, at most `max_bytes` of it: only a regular file (a
-/// device such as `/dev/zero`, a pipe or a terminal would never end, or block), and only
-/// while it holds no more than `max_bytes` (a `/proc` file says it is empty and can be any
-/// length). The error is the problem without the file's name, for the caller's message.
-pub fn read_bounded(file: &Path, max_bytes: u64) -> Result<Vec<u8>, String> {
-    let meta = std::fs::metadata(file).map_err(|e| e.to_string())?;
-    if !meta.is_file() {
-        let kind = if meta.is_dir() {
-            "a folder"
-        } else {
-            "a device, a pipe or a socket"
-        };
-        return Err(format!("it is {kind}, not a regular file"));
+/// What a path names, in words for a message: "a regular file", "a FIFO (named pipe)", ...
+pub fn file_kind_name(meta: &std::fs::Metadata) -> &'static str {
+    use std::os::unix::fs::FileTypeExt as _;
+    let t = meta.file_type();
+    if t.is_file() {
+        "a regular file"
+    } else if t.is_dir() {
+        "a folder"
+    } else if t.is_fifo() {
+        "a FIFO (named pipe)"
+    } else if t.is_char_device() {
+        "a character device"
+    } else if t.is_block_device() {
+        "a block device"
+    } else if t.is_socket() {
+        "a socket"
+    } else if t.is_symlink() {
+        "a symbolic link"
+    } else {
+        "not a regular file"
     }
+}
+
+/// Opens a file named by outside input for reading, refusing anything but a regular file
+/// *before* a read could block: it is opened with `O_NONBLOCK` (opening a FIFO with no writer
+/// then returns at once instead of waiting forever for one), its type is taken from the open
+/// descriptor (no window between a check and the open), and only a regular file is kept, in
+/// blocking mode again. The error is the problem without the file's name, for the caller's
+/// message ("it is a FIFO (named pipe), not a regular file").
+pub fn open_regular(file: &Path) -> Result<std::fs::File, String> {
+    use std::os::fd::AsRawFd as _;
+    use std::os::unix::fs::OpenOptionsExt as _;
+    let f = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK | libc::O_CLOEXEC)
+        .open(file)
+        .map_err(|e| {
+            // A socket cannot be opened at all (ENXIO): say what it is, not the errno.
+            match std::fs::metadata(file) {
+                Ok(meta) if !meta.is_file() => format!(
+                    "it is {}, not a regular file: give the path of a file",
+                    file_kind_name(&meta)
+                ),
+                _ => e.to_string(),
+            }
+        })?;
+    let meta = f.metadata().map_err(|e| e.to_string())?;
+    if !meta.is_file() {
+        return Err(format!(
+            "it is {}, not a regular file: give the path of a file",
+            file_kind_name(&meta)
+        ));
+    }
+    // SAFETY: fcntl on a descriptor this function owns; only O_NONBLOCK is cleared.
+    unsafe {
+        let flags = libc::fcntl(f.as_raw_fd(), libc::F_GETFL);
+        if flags >= 0 {
+            libc::fcntl(f.as_raw_fd(), libc::F_SETFL, flags & !libc::O_NONBLOCK);
+        }
+    }
+    Ok(f)
+}
+
+/// Reads a file named by outside input, at most `max_bytes` of it: only a regular file (a
+/// device such as `/dev/zero`, a pipe or a terminal would never end, or block: refused by
+/// [`open_regular`] before anything is read), and only while it holds no more than
+/// `max_bytes` (a `/proc` file says it is empty and can be any length). The error is the
+/// problem without the file's name, for the caller's message.
+pub fn read_bounded(file: &Path, max_bytes: u64) -> Result<Vec<u8>, String> {
+    let f = open_regular(file)?;
+    let meta = f.metadata().map_err(|e| e.to_string())?;
     if meta.len() > max_bytes {
         return Err(format!(
             "it holds {} bytes; at most {max_bytes} are read",
             meta.len()
         ));
     }
-    let f = std::fs::File::open(file).map_err(|e| e.to_string())?;
     let mut bytes = Vec::with_capacity(meta.len() as usize);
     f.take(max_bytes + 1)
         .read_to_end(&mut bytes)

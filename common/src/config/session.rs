@@ -132,8 +132,11 @@ pub enum Source {
 /// `[source] kind = "webxr"`: where the page is served and which hand drives the model.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WebxrSource {
-    /// `listen`: the address the page and its socket are served on (`0.0.0.0:8443`: every
-    /// interface, so a headset on the network reaches it).
+    /// `listen`: the address the page and its socket are served on, an address and port or an
+    /// address alone (port 8443). Default: with `tls`, `0.0.0.0:8443` (every interface, so a
+    /// headset on the network reaches it); without, `127.0.0.1:8443` (this machine only: plain
+    /// HTTP would carry the token and the hands across the network in clear, so that needs
+    /// saying, as `listen = "0.0.0.0"`, and the process warns of it).
     pub listen: std::net::SocketAddr,
     /// `tls`: HTTPS and WSS with a certificate kept in `certificate_dir` (WebXR needs a secure
     /// context); false: plain HTTP, for `http://localhost` through `adb reverse` and for tests.
@@ -478,15 +481,17 @@ impl Session {
                 ))
             }
             (Some(link), None) => Some(link),
-            (None, Some(t)) => Some(super::remote::remote_table(t)?),
+            (None, Some(t)) => Some(super::remote::remote_table(t, dir)?),
             (None, None) => None,
+        };
+        let (foxglove, foxglove_clients) = match r.table("viewer")? {
+            Some(t) => super::remote::viewer_table(t)?,
+            None => (None, super::remote::DEFAULT_FOXGLOVE_CLIENTS),
         };
         let bridge = BridgeSettings {
             link,
-            foxglove: match r.table("viewer")? {
-                Some(t) => super::remote::viewer_table(t)?,
-                None => None,
-            },
+            foxglove,
+            foxglove_clients,
         };
         if matches!(source, Source::Scripted { .. }) && scene.hand.is_none() {
             // Any scene can be launched: without a [hand] the hand rests out of the way.
@@ -613,7 +618,7 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
         },
         "webxr" => Source::Webxr(webxr_source(&r, dir)?),
         "remote" => {
-            link = Some(super::remote::remote_source(&r)?);
+            link = Some(super::remote::remote_source(&r, dir)?);
             Source::Remote
         }
         "devices" => {
@@ -716,14 +721,25 @@ fn external_command(r: &Reader) -> Result<Vec<String>, ConfigError> {
 
 /// `[source] kind = "webxr"`'s keys.
 fn webxr_source(r: &Reader, dir: &Path) -> Result<WebxrSource, ConfigError> {
+    const PORT: u16 = 8443;
+    let tls = r.bool("tls", true)?;
     let listen = match r.string("listen")? {
-        None => std::net::SocketAddr::from(([0, 0, 0, 0], 8443)),
-        Some(a) => a.parse().map_err(|e| {
-            r.err(
-                "listen",
-                format!("{a:?} is not an address and port ({e}); e.g. \"0.0.0.0:8443\""),
-            )
-        })?,
+        // Plain HTTP stays on this machine unless told otherwise (`adb reverse` reaches it).
+        None if !tls => std::net::SocketAddr::from(([127, 0, 0, 1], PORT)),
+        None => std::net::SocketAddr::from(([0, 0, 0, 0], PORT)),
+        Some(a) => match (a.parse(), a.parse::<std::net::IpAddr>()) {
+            (Ok(addr), _) => addr,
+            (_, Ok(ip)) => std::net::SocketAddr::new(ip, PORT),
+            (Err(e), _) => {
+                return Err(r.err(
+                    "listen",
+                    format!(
+                        "{a:?} is not an address and port ({e}); e.g. \"0.0.0.0:8443\" (every \
+                         interface), \"127.0.0.1:8443\" (this machine only) or \"0.0.0.0\""
+                    ),
+                ))
+            }
+        },
     };
     let token = r.string("token")?;
     if let Some(t) = &token {
@@ -738,7 +754,7 @@ fn webxr_source(r: &Reader, dir: &Path) -> Result<WebxrSource, ConfigError> {
     }
     Ok(WebxrSource {
         listen,
-        tls: r.bool("tls", true)?,
+        tls,
         certificate_dir: r.string("certificate_dir")?.map(|d| dir.join(d)),
         left_hand: r.choice("hand", &["right", "left"])? == "left",
         offset: r.array::<3>("offset", -1.0e5..=1.0e5)?.unwrap_or([0.0; 3]),
@@ -1115,6 +1131,33 @@ mod tests {
             hand.keys[0].wrist
         );
         assert!(hand.keys[0].wrist[1] >= 0.35);
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
+    #[test]
+    fn webxr_without_tls_listens_on_this_machine_unless_told_otherwise() {
+        let d = tmpdir("webxr-listen");
+        write(&d, "scene.toml", SCENE);
+        let load = |source: &str| {
+            let text = format!("scene = \"scene.toml\"\n[source]\nkind = \"webxr\"\n{source}");
+            Session::load(&write(&d, "s.toml", &text))
+        };
+        let listen = |source: &str| match load(source).unwrap().source {
+            Source::Webxr(w) => w.listen.to_string(),
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(listen(""), "0.0.0.0:8443");
+        assert_eq!(listen("tls = false\n"), "127.0.0.1:8443");
+        assert_eq!(
+            listen("tls = false\nlisten = \"0.0.0.0\"\n"),
+            "0.0.0.0:8443"
+        );
+        assert_eq!(listen("listen = \"[::1]:9000\"\n"), "[::1]:9000");
+        let e = load("listen = \"everywhere\"\n").unwrap_err().to_string();
+        assert!(
+            e.contains("s.toml") && e.contains("listen") && e.contains("127.0.0.1:8443"),
+            "{e}"
+        );
         std::fs::remove_dir_all(d).unwrap();
     }
 }

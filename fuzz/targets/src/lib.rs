@@ -22,7 +22,7 @@
 //! | `session`     | `common::config::Session::load` (a valid scene beside it)          |
 //! | `hand`        | `common::config::hand::HandModelSpec::load`                        |
 //! | `calibration` | `acquisition::devices::Calibration::parse`                         |
-//! | `link`        | `recording::decode_sample` / `decode_slice`: a sample from another machine (the bridge) |
+//! | `link`        | `recording::decode_sample` / `decode_slice`: a sample from another machine (the bridge), then the scene view a viewer draws it in |
 //! | `stepper_hand`| `stepper::Model::step` under both models, fed hand samples with arbitrary values |
 //! | `webxr`       | `webxr_wire::decode_into`: a headset page's hands frame, then `to_joints` |
 
@@ -668,30 +668,52 @@ pub fn generate(seed: u64, text: bool, out: &mut Vec<u8>) {
 /// `link`: a sample as the bridge takes it off a zenoh link from another machine (issue 17):
 /// the first byte picks the topic (of the recorded ones, in table order), the rest is its
 /// message. A message that decodes is exactly the sample it holds: encoding the sample again
-/// gives the message back (a world's, but for the CDR padding after its count).
+/// gives the message back (a world's, but for the CDR padding after its count); its counts
+/// fit its arrays (issue 40: a `finger_point_count` of 6 crashed every viewer); and it goes
+/// where a viewer's bridge and recorder send it: into the scene view, hand then world, and out
+/// as the view's update.
 pub fn link(data: &[u8]) {
-    use common::{BlockState, WorldHeader};
+    use common::{BlockState, Counted, WorldHeader};
     let Some((&which, message)) = data.split_first() else {
         return;
     };
     let topic = Topic::RECORDED[usize::from(which) % Topic::RECORDED.len()];
     let mut out = Vec::new();
-    fn round_trip<T: common::bus::Stamped>(topic: Topic, message: &[u8], out: &mut Vec<u8>) {
-        if let Ok(sample) = recording::decode_sample::<T>(topic, message) {
-            recording::encode_sample(&sample, out);
-            assert_eq!(out.as_slice(), message, "{topic:?}");
-        }
+    fn round_trip<T: common::bus::Stamped + Counted>(
+        topic: Topic,
+        message: &[u8],
+        out: &mut Vec<u8>,
+    ) -> Option<T> {
+        let sample = recording::decode_sample::<T>(topic, message).ok()?;
+        assert!(sample.check_counts(0).is_ok(), "{topic:?}: counts passed");
+        recording::encode_sample(&sample, out);
+        assert_eq!(out.as_slice(), message, "{topic:?}");
+        Some(sample)
     }
+    let view = || {
+        static VIEW: std::sync::OnceLock<Scene> = std::sync::OnceLock::new();
+        let scene = VIEW.get_or_init(|| stepper_scenes()[1].clone());
+        scene_view::SceneView::new(scene).expect("the grasp scene makes a view")
+    };
     match topic {
-        Topic::Glove => round_trip::<GloveSample>(topic, message, &mut out),
-        Topic::Tracker => round_trip::<TrackerSample>(topic, message, &mut out),
-        Topic::Joints => round_trip::<JointsSample>(topic, message, &mut out),
-        Topic::Hand => round_trip::<HandSample>(topic, message, &mut out),
-        Topic::Frame => round_trip::<FrameSample>(topic, message, &mut out),
+        Topic::Glove => drop(round_trip::<GloveSample>(topic, message, &mut out)),
+        Topic::Tracker => drop(round_trip::<TrackerSample>(topic, message, &mut out)),
+        Topic::Joints => drop(round_trip::<JointsSample>(topic, message, &mut out)),
+        Topic::Hand => {
+            if let Some(hand) = round_trip::<HandSample>(topic, message, &mut out) {
+                assert!(hand.finger_count as usize <= common::MAX_FINGERS);
+                let mut v = view();
+                v.set_hand(&hand);
+                v.set_world(0, |_| BlockState::default());
+                v.encode_into(&mut out);
+            }
+        }
+        Topic::Frame => drop(round_trip::<FrameSample>(topic, message, &mut out)),
         Topic::World => {
             if let Ok((header, body)) = recording::decode_slice::<WorldHeader>(topic, message) {
                 let size = std::mem::size_of::<BlockState>();
                 assert_eq!(body.len() % size, 0);
+                assert!(header.check_counts(body.len() / size).is_ok());
                 let blocks: Vec<BlockState> = body
                     .chunks_exact(size)
                     // SAFETY: whole elements of plain old data, read unaligned.
@@ -705,6 +727,9 @@ pub fn link(data: &[u8]) {
                 assert_eq!(out.len(), message.len());
                 assert_eq!(out[..count_end], message[..count_end]);
                 assert_eq!(out[body_at..], message[body_at..]);
+                let mut v = view();
+                v.set_world(blocks.len(), |i| blocks[i]);
+                v.encode_into(&mut out);
             }
         }
         Topic::Latency => {}

@@ -271,6 +271,38 @@ fn write_link_seeds() {
         "seed-world",
         &[&[index(Topic::World)][..], &msg].concat(),
     );
+    // Issue 40: one count its array cannot hold crashed a viewer (the recorder, the renderer
+    // and the Foxglove view indexed past a finger's 5 points or the palm's 16 vertices).
+    let mut put_hand = |name: &str, set: &dyn Fn(&mut HandSample)| {
+        let mut h = hand;
+        set(&mut h);
+        recording::encode_sample(&h, &mut msg);
+        put("link", name, &[&[index(Topic::Hand)][..], &msg].concat());
+    };
+    put_hand("regression-hand-finger-point-count-6", &|h| {
+        h.finger_point_count[0] = 6
+    });
+    put_hand("regression-hand-palm-vertex-count-17", &|h| {
+        h.palm_vertex_count = 17
+    });
+    put_hand("regression-hand-finger-count-1000", &|h| {
+        h.finger_count = 1000
+    });
+    let mut put_world = |name: &str, set: &dyn Fn(&mut WorldSample)| {
+        let mut w = world.clone();
+        set(&mut w);
+        recording::encode_slice(Topic::World, &w.header, &w.blocks, &mut msg);
+        put("link", name, &[&[index(Topic::World)][..], &msg].concat());
+    };
+    put_world("regression-world-finger-point-count-6", &|w| {
+        w.header.finger_point_count[0] = 6
+    });
+    put_world("regression-world-block-count-4000", &|w| {
+        w.header.block_count = 4000
+    });
+    put_world("regression-world-grasped-block-3", &|w| {
+        w.header.grasped_block = 3
+    });
 }
 
 #[test]
@@ -430,6 +462,46 @@ fn write_seeds() {
 
 /// Every seed is small; every `seed-*` parses (so fuzzing starts from valid inputs); every
 /// file is a seed or a regression.
+/// Issue 40: the payloads that crashed a viewer from the zenoh link (a count its array cannot
+/// hold: `finger_point_count[0]` 6, `palm_vertex_count` 17, ...) are the link target's
+/// `regression-*` inputs: each is refused where it comes in, naming the field.
+#[test]
+fn issue40_link_payloads_are_refused_naming_the_count() {
+    let folder = corpus().join("link");
+    let mut refused = 0;
+    for entry in std::fs::read_dir(&folder).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        if !name.starts_with("regression-") {
+            continue;
+        }
+        let bytes = std::fs::read(&path).unwrap();
+        let topic = Topic::RECORDED[usize::from(bytes[0]) % Topic::RECORDED.len()];
+        let e = match topic {
+            Topic::World => {
+                recording::decode_slice::<common::WorldHeader>(topic, &bytes[1..]).map(|_| ())
+            }
+            _ => recording::decode_sample::<HandSample>(topic, &bytes[1..]).map(|_| ()),
+        }
+        .expect_err(&name)
+        .to_string();
+        let field = [
+            "finger_point_count",
+            "palm_vertex_count",
+            "finger_count",
+            "block_count",
+            "grasped_block",
+        ]
+        .into_iter()
+        .find(|f| name.contains(&f.replace('_', "-")))
+        .unwrap_or_else(|| panic!("{name}: which field?"));
+        assert!(e.contains(field), "{name}: {e}");
+        fuzz_targets::link(&bytes);
+        refused += 1;
+    }
+    assert_eq!(refused, 6);
+}
+
 #[test]
 fn seeds_are_small_and_valid() {
     let dir = std::env::temp_dir().join(format!("hb-fuzz-seed-check-{}", std::process::id()));

@@ -7,12 +7,17 @@
 //! * To a **live Foxglove view** ([`viewer`]), over the Foxglove WebSocket protocol, with the
 //!   recording's schemas and a 3D scene of the blocks and the hand.
 //!
+//! * A link is protected ([`identity`]): TLS 1.3 with both sides' certificates, each trusting
+//!   only the authority it was told to, and what it refuses is counted by name ([`refusals`]).
+//!
 //! The session file asks for it (`[remote]`, `[source] kind = "remote"`, `[viewer]`); the
 //! launcher then starts `handblocks service bridge` as a reader of what it sends (or, in a
 //! remote-fed session, as the source). Backpressure never reaches the pipeline: see [`link`].
 
 pub mod clock;
 pub mod gate;
+pub mod identity;
 pub mod link;
+pub mod refusals;
 pub mod service;
 pub mod viewer;

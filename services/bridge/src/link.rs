@@ -17,6 +17,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use common::bus::Wake;
+use common::config::remote::LinkSecurity;
 use common::config::session::{LinkRole, RemoteLink};
 use common::{monotonic_ns, Topic};
 use zenoh::bytes::ZBytes;
@@ -26,6 +27,7 @@ use zenoh::query::Queryable;
 use zenoh::Wait;
 
 use crate::clock::{ClockOffset, Exchange};
+use crate::identity::{Identity, IdentityError};
 
 /// Samples taken in and not yet published on the bus: two seconds of a 1 kHz source per topic.
 const INCOMING_QUEUE: usize = 4096;
@@ -39,6 +41,8 @@ pub enum LinkError {
     Declare { key: String, reason: String },
     /// The wake-up descriptor could not be made.
     EventFd(std::io::Error),
+    /// This side's keys, or the trusted peer's certificate (a `tls/` link).
+    Identity(IdentityError),
 }
 
 impl std::fmt::Display for LinkError {
@@ -53,6 +57,7 @@ impl std::fmt::Display for LinkError {
                 write!(f, "cannot declare zenoh key {key}: {reason}")
             }
             LinkError::EventFd(e) => write!(f, "cannot make the bridge's wake-up descriptor: {e}"),
+            LinkError::Identity(e) => write!(f, "cannot open the zenoh link: {e}"),
         }
     }
 }
@@ -74,6 +79,9 @@ pub struct SharedClock {
     offset_ns: AtomicI64,
     uncertainty_ns: AtomicU64,
     exchanges: AtomicU64,
+    /// Clock answers whose signature is not the trusted authority's (an impostor on a `tls/`
+    /// link's other end): never taken, so nothing is published.
+    unsigned_answers: AtomicU64,
 }
 
 impl SharedClock {
@@ -90,6 +98,11 @@ impl SharedClock {
 
     pub fn exchanges(&self) -> u64 {
         self.exchanges.load(Ordering::Relaxed)
+    }
+
+    /// Clock answers refused: not signed by the trusted peer's authority.
+    pub fn unsigned_answers(&self) -> u64 {
+        self.unsigned_answers.load(Ordering::Relaxed)
     }
 }
 
@@ -108,19 +121,57 @@ pub struct Link {
     stop_clock: Arc<AtomicBool>,
     clock_thread: Option<std::thread::JoinHandle<()>>,
     pub endpoint: String,
+    /// What the terminal says of the link's protection.
+    pub protection: String,
 }
 
-/// zenoh's configuration for one side of a link: a peer, on TCP, that listens on or connects
-/// to `endpoint` (`tcp/HOST:PORT`; a connecting side retries every 100-500 ms until the other
-/// answers, so the halves start in either order), and finds no one by multicast (a session
-/// talks to whom its file names). The latency bench's zenoh rows use it too.
-pub fn peer_config(endpoint: &str, role: LinkRole) -> Result<zenoh::Config, String> {
+/// zenoh's configuration for one side of a link: a peer that listens on or connects to
+/// `endpoint` (`tls/HOST:PORT` or `tcp/HOST:PORT`; a connecting side retries every 100-500 ms
+/// until the other answers, so the halves start in either order), and finds no one by
+/// multicast or gossip (a session talks to whom its file names: issue 40, a stranger gossiped
+/// in as a peer's peer). With an [`Identity`], TLS 1.3 with both sides' certificates: this
+/// side presents its issued chain and accepts only certificates the peer's authority issued
+/// (a listener's check of a connecting side uses that authority alone; a connecting side
+/// checks the listener's name too). The latency bench's zenoh rows use it too, plain.
+pub fn peer_config(
+    endpoint: &str,
+    role: LinkRole,
+    identity: Option<&Identity>,
+) -> Result<zenoh::Config, String> {
     let mut c = zenoh::Config::default();
     let set = |c: &mut zenoh::Config, k: &str, v: &str| {
-        c.insert_json5(k, v).map_err(|e| format!("{k} = {v}: {e}"))
+        c.insert_json5(k, v).map_err(|e| format!("{k}: {e}"))
     };
     set(&mut c, "mode", "\"peer\"")?;
     set(&mut c, "scouting/multicast/enabled", "false")?;
+    set(&mut c, "scouting/gossip/enabled", "false")?;
+    if let Some(id) = identity {
+        let b64 = |pem: &[u8]| {
+            use base64::Engine as _;
+            serde_json::to_string(&base64::engine::general_purpose::STANDARD.encode(pem))
+                .map_err(|e| e.to_string())
+        };
+        let tls = "transport/link/tls";
+        set(
+            &mut c,
+            &format!("{tls}/root_ca_certificate_base64"),
+            &b64(&id.peer_pem)?,
+        )?;
+        for side in ["listen", "connect"] {
+            set(
+                &mut c,
+                &format!("{tls}/{side}_private_key_base64"),
+                &b64(&id.key_pem)?,
+            )?;
+            set(
+                &mut c,
+                &format!("{tls}/{side}_certificate_base64"),
+                &b64(&id.chain_pem)?,
+            )?;
+        }
+        set(&mut c, &format!("{tls}/enable_mtls"), "true")?;
+        set(&mut c, &format!("{tls}/verify_name_on_connect"), "true")?;
+    }
     let endpoint = serde_json::to_string(&[endpoint]).map_err(|e| e.to_string())?;
     match role {
         LinkRole::Listen => {
@@ -141,6 +192,22 @@ pub fn peer_config(endpoint: &str, role: LinkRole) -> Result<zenoh::Config, Stri
     Ok(c)
 }
 
+/// What a sender signs in answer to a receiver's clock query: a fixed label, the query's key,
+/// the receiver's nonce and the sender's clock reading (so an answer is good for one query of
+/// one link only).
+fn clock_statement(key: &str, nonce: &[u8], their_ns: u64) -> Vec<u8> {
+    let mut m = Vec::with_capacity(32 + key.len() + nonce.len());
+    m.extend_from_slice(b"handblocks link clock\0");
+    m.extend_from_slice(key.as_bytes());
+    m.push(0);
+    m.extend_from_slice(nonce);
+    m.extend_from_slice(&their_ns.to_le_bytes());
+    m
+}
+
+/// Bytes of a receiver's nonce in a clock query.
+const NONCE_BYTES: usize = 16;
+
 /// A publisher on `key` as the bridge sends: dropping rather than blocking when the link is
 /// full (backpressure never reaches the pipeline), high priority, and express (not batched:
 /// a world state goes out as soon as it is put). The latency bench's zenoh writer uses it too.
@@ -157,14 +224,44 @@ pub fn declare_sender(
 }
 
 impl Link {
+    /// Opens `link` as its session file says: on a `tls/` endpoint with this side's keys and
+    /// the trusted peer's authority ([`Identity::load`]).
     pub fn open(link: &RemoteLink) -> Result<Link, LinkError> {
+        let identity =
+            Identity::load(&link.security, &link.endpoint).map_err(LinkError::Identity)?;
+        Link::open_with(link, identity)
+    }
+
+    /// Opens `link` with the keys given (None: plain): a test plays an impostor with keys no
+    /// session file would give.
+    pub fn open_with(link: &RemoteLink, identity: Option<Identity>) -> Result<Link, LinkError> {
         let open_err = |reason: String| LinkError::Open {
             endpoint: link.endpoint.clone(),
             reason,
         };
-        let session = zenoh::open(peer_config(&link.endpoint, link.role).map_err(open_err)?)
-            .wait()
-            .map_err(|e| open_err(e.to_string()))?;
+        let identity = identity.map(Arc::new);
+        let protection = match (&identity, &link.security) {
+            (Some(id), _) => id.describe(),
+            (None, LinkSecurity::Plain) => {
+                let host = common::config::remote::endpoint_host(&link.endpoint);
+                if common::config::remote::is_loopback_host(host) {
+                    "plain TCP (allow_plain = true): in clear, any peer on this machine may join"
+                        .to_string()
+                } else {
+                    format!(
+                        "WARNING: plain TCP (allow_plain = true) on {host}: every sample \
+                         crosses the network in clear, and any peer that reaches the port may \
+                         read or inject them; use a tls/ endpoint"
+                    )
+                }
+            }
+            (None, LinkSecurity::Tls { .. }) => String::new(),
+        };
+        let session = zenoh::open(
+            peer_config(&link.endpoint, link.role, identity.as_deref()).map_err(open_err)?,
+        )
+        .wait()
+        .map_err(|e| open_err(e.to_string()))?;
         let declare_err = |key: &str, e: zenoh::Error| LinkError::Declare {
             key: key.to_string(),
             reason: e.to_string(),
@@ -176,11 +273,27 @@ impl Link {
             let p = declare_sender(&session, key.clone()).map_err(|e| declare_err(&key, e))?;
             publishers.push((topic, p));
             let clock_key = format!("{}/clock/{}", link.key, topic.name());
+            let signer = identity.clone();
+            let answer_key = clock_key.clone();
             let q = session
                 .declare_queryable(clock_key.clone())
-                .callback(|query| {
-                    let now = monotonic_ns().to_le_bytes();
-                    let _ = query.reply(query.key_expr().clone(), &now[..]).wait();
+                .callback(move |query| {
+                    let now = monotonic_ns();
+                    let mut answer = now.to_le_bytes().to_vec();
+                    // A receiver that sent a nonce gets it signed with this side's authority.
+                    if let (Some(id), Some(nonce)) = (&signer, query.payload()) {
+                        let nonce = nonce.to_bytes();
+                        if nonce.len() == NONCE_BYTES {
+                            match id
+                                .authority
+                                .sign(&clock_statement(&answer_key, &nonce, now))
+                            {
+                                Ok(sig) => answer.extend_from_slice(&sig),
+                                Err(_) => return,
+                            }
+                        }
+                    }
+                    let _ = query.reply(query.key_expr().clone(), answer).wait();
                 })
                 .wait()
                 .map_err(|e| declare_err(&clock_key, e))?;
@@ -219,7 +332,10 @@ impl Link {
         let clock_thread = link.subscribe.first().map(|first| {
             let key = format!("{}/clock/{}", link.key, first.name());
             let (session, clock, stop) = (session.clone(), clock.clone(), stop_clock.clone());
-            std::thread::spawn(move || exchange_clocks(&session, &key, &clock, &stop))
+            let trusted = identity.as_ref().map(|id| id.peer_pem.clone());
+            std::thread::spawn(move || {
+                exchange_clocks(&session, &key, trusted.as_deref(), &clock, &stop)
+            })
         });
         Ok(Link {
             session,
@@ -233,6 +349,7 @@ impl Link {
             stop_clock,
             clock_thread,
             endpoint: link.endpoint.clone(),
+            protection,
         })
     }
 
@@ -256,6 +373,29 @@ impl Link {
         Ok(true)
     }
 
+    /// True when every topic this side sends has a subscriber on the other side (a viewer
+    /// attached; zenoh's matching status of each publisher).
+    pub fn every_topic_taken(&self) -> bool {
+        !self.publishers.is_empty()
+            && self
+                .publishers
+                .iter()
+                .all(|(_, p)| p.matching_status().wait().is_ok_and(|m| m.matching()))
+    }
+
+    /// Waits until [`Link::every_topic_taken`], at most `limit`, or until the process is asked
+    /// to stop; returns how long it waited when a viewer attached, None when none did.
+    pub fn wait_for_viewer(&self, limit: Duration) -> Option<Duration> {
+        let started = std::time::Instant::now();
+        while started.elapsed() < limit && !common::shutdown::requested() {
+            if self.every_topic_taken() {
+                return Some(started.elapsed());
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        None
+    }
+
     /// How many peers this side is connected to now.
     pub fn peers(&self) -> usize {
         self.session.info().peers_zid().wait().count()
@@ -272,22 +412,45 @@ impl Link {
 }
 
 /// Asks the sender's clock every 50 ms until an answer came, then every second, and keeps the
-/// estimate in `shared` (see [`crate::clock`]).
-fn exchange_clocks(session: &zenoh::Session, key: &str, shared: &SharedClock, stop: &AtomicBool) {
+/// estimate in `shared` (see [`crate::clock`]). On a `tls/` link (`trusted`: the peer's
+/// authority certificate) each query carries a fresh nonce and an answer counts only when the
+/// authority signed it: until one did, the clock stays unknown and nothing taken in is
+/// published.
+fn exchange_clocks(
+    session: &zenoh::Session,
+    key: &str,
+    trusted: Option<&[u8]>,
+    shared: &SharedClock,
+    stop: &AtomicBool,
+) {
     let mut estimate = ClockOffset::default();
+    let mut nonce = [0u8; NONCE_BYTES];
     while !stop.load(Ordering::Acquire) {
         let sent_ns = monotonic_ns();
-        if let Ok(replies) = session.get(key).timeout(Duration::from_millis(500)).wait() {
+        let mut get = session.get(key).timeout(Duration::from_millis(500));
+        if trusted.is_some() {
+            fill_random(&mut nonce);
+            get = get.payload(nonce.to_vec());
+        }
+        if let Ok(replies) = get.wait() {
             while let Ok(reply) = replies.recv() {
                 let received_ns = monotonic_ns();
                 let Ok(sample) = reply.result() else { continue };
                 let bytes = sample.payload().to_bytes();
-                let Ok(their) = <[u8; 8]>::try_from(&bytes[..]) else {
+                let Some((their, signature)) = bytes.split_first_chunk::<8>() else {
                     continue;
                 };
+                let their_ns = u64::from_le_bytes(*their);
+                if let Some(pem) = trusted {
+                    let statement = clock_statement(key, &nonce, their_ns);
+                    if !keyfile::verify(pem, &statement, signature) {
+                        shared.unsigned_answers.fetch_add(1, Ordering::Relaxed);
+                        continue;
+                    }
+                }
                 estimate.add(Exchange {
                     sent_ns,
-                    their_ns: u64::from_le_bytes(their),
+                    their_ns,
                     received_ns,
                 });
                 if let (Some(offset), Some(u)) = (estimate.offset_ns(), estimate.uncertainty_ns()) {
@@ -308,5 +471,26 @@ fn exchange_clocks(session: &zenoh::Session, key: &str, shared: &SharedClock, st
         while monotonic_ns() < until && !stop.load(Ordering::Acquire) {
             std::thread::sleep(Duration::from_millis(10));
         }
+    }
+}
+
+/// Fills `buf` from the kernel's random source (getrandom(2)).
+fn fill_random(buf: &mut [u8]) {
+    let mut at = 0;
+    while at < buf.len() {
+        // SAFETY: writes at most the rest of `buf`, which is ours.
+        let n = unsafe {
+            libc::getrandom(
+                buf[at..].as_mut_ptr() as *mut libc::c_void,
+                buf.len() - at,
+                0,
+            )
+        };
+        if n <= 0 {
+            // getrandom fails only before the pool is ready or on a bad buffer: try again.
+            std::thread::sleep(Duration::from_millis(1));
+            continue;
+        }
+        at += n as usize;
     }
 }

@@ -29,6 +29,7 @@ use common::{monotonic_ns, Stage, Stamp, Topic, TopicCounter};
 
 use crate::clock::ClockOffset;
 use crate::link::{Link, LinkError};
+use crate::refusals;
 use crate::viewer::{Viewer, ViewerError};
 
 /// Why the bridge process stopped with an error.
@@ -51,9 +52,11 @@ const CLOCK_WAIT: Duration = Duration::from_millis(5);
 struct Counts {
     sent: BTreeMap<&'static str, u64>,
     taken_in: BTreeMap<&'static str, u64>,
-    /// Messages from the link that are not samples of their topic (with the first reason).
+    /// Messages from the link that are not samples of their topic (with the first reason),
+    /// and by name: topic and kind (`hand counts: finger_point_count`, `world length`, ...).
     malformed: u64,
     first_malformed: Option<String>,
+    malformed_by_name: BTreeMap<String, u64>,
     /// Sends the link refused (with the first reason).
     send_errors: u64,
     first_send_error: Option<String>,
@@ -255,7 +258,9 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), BridgeError> {
     let outputs = settings.outputs();
     let link = match &settings.link {
         Some(l) => {
+            refusals::install();
             let link = Link::open(l).map_err(BridgeError::Link)?;
+            eprintln!("handblocks bridge: the link: {}", link.protection);
             eprintln!(
                 "handblocks bridge: {} {} (key {}): sending {}, taking in {}",
                 match l.role {
@@ -279,8 +284,14 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), BridgeError> {
             } else {
                 inputs.clone()
             };
-            let v =
-                Viewer::start(host, *port, &session.scene, &served).map_err(BridgeError::Viewer)?;
+            let v = Viewer::start_capped(
+                host,
+                *port,
+                &session.scene,
+                &served,
+                settings.foxglove_clients,
+            )
+            .map_err(BridgeError::Viewer)?;
             eprintln!(
                 "handblocks bridge: Foxglove view on ws://{host}:{} (in Foxglove or \
                  Lichtblick: Open connection -> Foxglove WebSocket; the 3D panel on /scene, \
@@ -310,6 +321,31 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), BridgeError> {
         opened_out: outs,
         ..
     } = ports;
+    // A session that expects a viewer: the launcher starts the source once this stage
+    // reports (its latency publisher, made in `node::run`), as it does once every local reader
+    // is attached; so wait here until the viewer takes every topic sent (issue 40).
+    if let (Some(l), Some(k)) = (&settings.link, &link) {
+        if l.wait_for_viewer_s > 0 {
+            eprintln!(
+                "handblocks bridge: waiting up to {} s for a viewer to take {} on {}                  ([remote] wait_for_viewer_s) before the source starts",
+                l.wait_for_viewer_s,
+                names(&l.publish),
+                l.endpoint
+            );
+            match k.wait_for_viewer(Duration::from_secs(l.wait_for_viewer_s)) {
+                Some(waited) => eprintln!(
+                    "handblocks bridge: a viewer attached after {:.1} s: the source starts",
+                    waited.as_secs_f64()
+                ),
+                None if common::shutdown::requested() => {}
+                None => eprintln!(
+                    "handblocks bridge: no viewer attached within {} s: the source starts \
+                     without one (a viewer that attaches later misses what went before)",
+                    l.wait_for_viewer_s
+                ),
+            }
+        }
+    }
     let wake_fd = link
         .as_ref()
         .filter(|_| !outs.is_empty())
@@ -449,6 +485,10 @@ fn take_in(out: &mut Out, r: &mut LatencyRecorder, outs: &mut [Box<dyn Output>],
             }
             Err(why) => {
                 out.counts.malformed += 1;
+                *out.counts
+                    .malformed_by_name
+                    .entry(format!("{} {}", item.topic.name(), malformed_kind(&why)))
+                    .or_default() += 1;
                 if out.counts.first_malformed.is_none() {
                     eprintln!(
                         "handblocks bridge: dropped a {} sample from the link: {why}",
@@ -459,6 +499,23 @@ fn take_in(out: &mut Out, r: &mut LatencyRecorder, outs: &mut [Box<dyn Output>],
             }
         }
     }
+}
+
+/// The kind of a refused message, for its name in `bridge.json`: which count overran its
+/// array, or what else was wrong (its length, another scene).
+fn malformed_kind(why: &str) -> String {
+    if let Some(rest) = why.split_once("sample whose ").map(|(_, r)| r) {
+        let field = rest.split(' ').next().unwrap_or(rest);
+        let field = field.split('[').next().unwrap_or(field);
+        return format!("counts: {field}");
+    }
+    if why.contains("this session's scene gives") {
+        return "of another scene".into();
+    }
+    if why.contains("bytes") {
+        return "length".into();
+    }
+    "other".into()
 }
 
 fn names(topics: &[Topic]) -> String {
@@ -475,6 +532,14 @@ fn names(topics: &[Topic]) -> String {
 /// `bridge.json`: what the bridge did, for the session report.
 fn summary(session: &Session, out: &Out) -> serde_json::Value {
     use serde_json::json;
+    let mut refused = refusals::counts();
+    let unsigned = out.link.as_ref().map_or(0, |k| k.clock.unsigned_answers());
+    if unsigned > 0 {
+        refused.insert(
+            "clock answers not signed by the trusted authority (an impostor)".into(),
+            unsigned,
+        );
+    }
     let link = session.bridge.link.as_ref().map(|l| {
         let clock = out.link.as_ref().and_then(|k| {
             k.clock.offset_ns().map(|offset| {
@@ -501,6 +566,9 @@ fn summary(session: &Session, out: &Out) -> serde_json::Value {
             "queue_full": out.link.as_ref().map_or(0, |k| k.queue_full.load(std::sync::atomic::Ordering::Relaxed)),
             "malformed": out.counts.malformed,
             "first_malformed": out.counts.first_malformed,
+            "malformed_by_name": out.counts.malformed_by_name,
+            "protection": out.link.as_ref().map(|k| k.protection.clone()),
+            "refused": refused,
             "send_errors": out.counts.send_errors,
             "first_send_error": out.counts.first_send_error,
             "clock": clock,

@@ -9,6 +9,11 @@
 //! topic this session does not carry. Nothing is encoded for a channel no client subscribes
 //! to (`has_sinks`), so a view nobody opened costs the bridge a check per sample. The scene
 //! goes out at most 60 times a second.
+//!
+//! What a client may cost is bounded: the gate caps the clients (`[viewer] foxglove_clients`)
+//! and closes one that stops taking bytes; the server queues at most [`BACKLOG_BYTES`] of
+//! messages a client (the oldest dropped first), where the `foxglove` crate's default of 1024
+//! messages is ~64 MiB a client on a 1024-block field.
 
 use std::sync::Arc;
 
@@ -26,6 +31,30 @@ use crate::gate::Gate;
 /// The scene is sent at most this often (a 3D panel gains nothing from 120 updates a second,
 /// and a 1024-block scene is ~60 KB an update).
 const SCENE_PERIOD_NS: u64 = 1_000_000_000 / 60;
+
+/// About how many bytes of messages the server queues for a client that cannot take them as
+/// fast as they come (a slow link, or one that stopped reading), before it drops the oldest:
+/// a view is live, so old samples are worth less than memory. The server counts messages, so
+/// this is divided by the scene's largest message ([`backlog_messages`]).
+pub const BACKLOG_BYTES: usize = 4 << 20;
+/// The fewest messages queued a client, whatever their size: the server's control messages
+/// (the channels' advertisements) share the bound, and a client whose control queue fills is
+/// dropped.
+const MIN_BACKLOG: usize = 16;
+/// The most, the `foxglove` crate's default (small messages cost little).
+const MAX_BACKLOG: usize = 1024;
+/// The clients served at once when the session names no `[viewer] foxglove_clients`.
+pub const DEFAULT_CLIENTS: usize = common::config::remote::DEFAULT_FOXGLOVE_CLIENTS;
+
+/// How many messages the server queues a client: [`BACKLOG_BYTES`] over the largest message
+/// the scene makes (its world or its `/scene` update, a quarter more for the hand's entities
+/// and the labels that come and go), within [`MIN_BACKLOG`]..=[`MAX_BACKLOG`].
+fn backlog_messages(scene: &Scene, view: &SceneView) -> usize {
+    let world = recording::slice_message_bytes(Topic::World, scene.blocks.len()).unwrap_or(0);
+    let update = foxglove::Encode::encoded_len(view.update()).unwrap_or(0);
+    let largest = world.max(update).saturating_mul(5) / 4;
+    (BACKLOG_BYTES / largest.max(1)).clamp(MIN_BACKLOG, MAX_BACKLOG)
+}
 
 /// Why the view could not start.
 #[derive(Debug)]
@@ -55,13 +84,25 @@ pub struct Viewer {
 }
 
 impl Viewer {
-    /// Starts the server on `host:port` (0: any free port; `port` says which); the topics of
-    /// `topics` are served once they carry samples, the scene at once.
+    /// [`Viewer::start_capped`] with the default cap of clients ([`DEFAULT_CLIENTS`]).
     pub fn start(
         host: &str,
         port: u16,
         scene: &Scene,
         topics: &[Topic],
+    ) -> Result<Viewer, ViewerError> {
+        Viewer::start_capped(host, port, scene, topics, DEFAULT_CLIENTS)
+    }
+
+    /// Starts the server on `host:port` (0: any free port; `port` says which), serving at most
+    /// `clients` clients at once (`[viewer] foxglove_clients`); the topics of `topics` are
+    /// served once they carry samples, the scene at once.
+    pub fn start_capped(
+        host: &str,
+        port: u16,
+        scene: &Scene,
+        topics: &[Topic],
+        clients: usize,
     ) -> Result<Viewer, ViewerError> {
         let context = foxglove::Context::new();
         let scene_channel = ChannelBuilder::new(scene_view::CHANNEL)
@@ -72,11 +113,12 @@ impl Viewer {
         let server = WebSocketServer::new()
             .name("handblocks")
             .bind("127.0.0.1", 0)
+            .message_backlog_size(backlog_messages(scene, &view))
             .context(&context)
             .start_blocking()
             .map_err(|e| ViewerError(format!("cannot start the Foxglove server: {e}")))?;
         let inner = std::net::SocketAddr::from(([127, 0, 0, 1], server.port()));
-        let gate = Gate::start(host, port, inner).map_err(|e| {
+        let gate = Gate::start(host, port, inner, clients).map_err(|e| {
             ViewerError(format!(
                 "cannot serve the Foxglove view on {host}:{port}: {e} ([viewer] foxglove \
                  names the address; is the port in use?)"
@@ -164,5 +206,29 @@ impl Viewer {
         if let Some(s) = self.server.take() {
             let _ = s.stop();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(name: &str) -> Scene {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes");
+        Scene::load(&dir.join(name)).expect("the scene loads")
+    }
+
+    /// A 1024-block field queues tens of its ~64 KiB worlds a client, not the crate's 1024; a
+    /// small scene keeps the crate's 1024 small messages.
+    #[test]
+    fn the_backlog_is_a_few_mib_of_the_scenes_largest_message() {
+        let field = scene("field-1024.toml");
+        let n = backlog_messages(&field, &SceneView::new(&field).expect("a view"));
+        let world = recording::slice_message_bytes(Topic::World, 1024).expect("a size");
+        assert!((MIN_BACKLOG..=64).contains(&n), "{n} messages");
+        assert!(n * world <= BACKLOG_BYTES, "{n} x {world} bytes");
+        let push = scene("push.toml");
+        let n = backlog_messages(&push, &SceneView::new(&push).expect("a view"));
+        assert_eq!(n, MAX_BACKLOG);
     }
 }

@@ -18,7 +18,8 @@
 //! and give back; the rest is by concept: `start` (steps 3 and 4), `supervise` (5 and 6),
 //! `outputs` (the files a session writes: checked before, replaced with `--force`), `report`
 //! (step 7: the merged report, its budget, its table and JSON), `placement` (which CPUs each
-//! process gets) and `process` (one child process).
+//! process gets), `process` (one child process) and `sweep` (what crashed sessions left in
+//! /dev/shm outside their folders).
 
 mod error;
 mod outputs;
@@ -28,6 +29,7 @@ mod progress;
 pub mod report;
 mod start;
 mod supervise;
+pub mod sweep;
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
@@ -44,6 +46,11 @@ use outputs::{check_writable, frames_in};
 use report::Report;
 use start::{start_readers, start_source, Starter};
 use supervise::{Supervised, Supervision};
+
+/// How long a session's end waits for the tools reading it from outside (`echo`, `hz`,
+/// Python's `Session`, which look for the card every 100 to 200 ms) to let go of its bus
+/// before its files are removed.
+const READERS_LET_GO: Duration = Duration::from_secs(1);
 
 /// The renderer's exit status when it found no GPU adapter and the session goes on without it.
 pub const RENDERER_SKIPPED_EXIT: i32 = 3;
@@ -94,11 +101,12 @@ pub fn load_session(opts: &LaunchOptions) -> Result<Session, LaunchError> {
         session.recorder.file = Some(std::path::absolute(file).unwrap_or_else(|_| file.clone()));
     }
     if let Source::Replay { file, .. } = &session.source {
-        if let Err(reason) = std::fs::File::open(file) {
+        // Only a regular file (issue 40: a FIFO named here hung `launch`).
+        if let Err(reason) = common::config::open_regular(file) {
             return Err(LaunchError::TraceUnreadable {
                 session: session.file.clone(),
                 trace: file.clone(),
-                reason,
+                reason: std::io::Error::other(reason),
             });
         }
     }
@@ -206,7 +214,12 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     let bridge_json = std::fs::read_to_string(bus_config.root.join("bridge.json"))
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
-    // Every process is reaped and every port dropped by now: the files are ours to remove.
+    // And a source its refusals by kind.
+    let refused = report::refusals::read_refusals(&bus_config.root);
+    // Every process is reaped and every port dropped by now. A tool reading the session from
+    // outside (`echo`, `hz`, Python) sees the card go and lets go of the bus; then the files
+    // are ours to remove.
+    bus_config.withdraw_card(READERS_LET_GO);
     let cleanup = bus_config.remove_resources();
     let mut report = result?;
     cleanup.map_err(|reason| LaunchError::Cleanup {
@@ -215,6 +228,7 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     })?;
     report.meta.world = world_json;
     report.meta.bridge = bridge_json;
+    report.meta.refused = refused;
     let preview = opts.preview.clone().filter(|p| {
         report.meta.renderer_skipped.is_none() && p.metadata().is_ok_and(|m| m.len() > 0)
     });
@@ -226,11 +240,15 @@ pub fn launch(opts: &LaunchOptions) -> Result<LaunchOutcome, LaunchError> {
     })
 }
 
-/// Makes ready the bus `id`: the folders of sessions whose launcher is gone are swept; a
+/// Makes ready the bus `id`: the folders of sessions whose launcher is gone are swept, and
+/// what crashed sessions left in /dev/shm outside any folder ([`sweep::sweep_shm`]); a
 /// session still running on this id is refused; what one whose processes are all gone left
 /// on it is removed.
 fn clear_bus(bus_config: &BusConfig, id: &str) -> Result<(), LaunchError> {
-    for said in BusConfig::sweep_abandoned() {
+    for said in BusConfig::sweep_abandoned()
+        .into_iter()
+        .chain(sweep::sweep_shm())
+    {
         eprintln!("handblocks: {said}");
     }
     if bus_config.has_live_processes() {
@@ -324,6 +342,7 @@ fn run_session(
         renderer_skipped,
         world: None,
         bridge: None,
+        refused: report::refusals::Refusals::new(),
     };
     Ok(report)
 }

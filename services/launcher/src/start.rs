@@ -177,7 +177,18 @@ pub(crate) fn start_readers(
         procs.push(starter.start(*stage, placement, 0)?);
     }
     let bridge_inputs = session.bridge_inputs();
-    let renderer_skipped = wait_until_connected(services, &mut stages, &bridge_inputs, &mut procs)?;
+    // A session that waits for its viewer ([remote] wait_for_viewer_s): its bridge attaches
+    // once a viewer does, so it is given that long on top.
+    let timeout = CONNECT_TIMEOUT
+        + Duration::from_secs(
+            session
+                .bridge
+                .link
+                .as_ref()
+                .map_or(0, |l| l.wait_for_viewer_s),
+        );
+    let renderer_skipped =
+        wait_until_connected(services, &mut stages, &bridge_inputs, &mut procs, timeout)?;
     if let Some(line) = &renderer_skipped {
         eprintln!("handblocks: {line}");
         // The pipeline was placed apart from a renderer that is not there: give it every CPU.
@@ -213,9 +224,10 @@ pub(crate) fn start_source(
 /// or CONNECT_TIMEOUT passes (then the error says what `ready` last reported missing).
 fn wait_for_start(
     procs: &mut [ServiceProcess],
+    timeout: Duration,
     mut ready: impl FnMut() -> Option<String>,
 ) -> Result<(), LaunchError> {
-    let deadline = Instant::now() + CONNECT_TIMEOUT;
+    let deadline = Instant::now() + timeout;
     while let Some(missing) = ready() {
         if let Some(p) = procs.iter_mut().find_map(|p| p.poll_exit().map(|_| p)) {
             return Err(LaunchError::ExitedDuringStartup {
@@ -225,7 +237,7 @@ fn wait_for_start(
         }
         if Instant::now() > deadline {
             return Err(LaunchError::AttachTimeout {
-                waited: CONNECT_TIMEOUT,
+                waited: timeout,
                 missing,
             });
         }
@@ -242,8 +254,9 @@ fn wait_until_connected(
     stages: &mut Vec<Stage>,
     bridge_inputs: &[Topic],
     procs: &mut Vec<ServiceProcess>,
+    timeout: Duration,
 ) -> Result<Option<String>, LaunchError> {
-    let Err(e) = wait_for_readers(services, stages, bridge_inputs, procs) else {
+    let Err(e) = wait_for_readers(services, stages, bridge_inputs, procs, timeout) else {
         return Ok(None);
     };
     let skipped = procs.iter_mut().position(|p| {
@@ -256,7 +269,7 @@ fn wait_until_connected(
     };
     procs.remove(i);
     stages.retain(|s| *s != Stage::Renderer);
-    wait_for_readers(services, stages, bridge_inputs, procs)?;
+    wait_for_readers(services, stages, bridge_inputs, procs, timeout)?;
     Ok(Some(
         "renderer skipped: no GPU adapter (no Vulkan driver found), so no frames and no \
          preview; to draw, install one: sudo apt-get install mesa-vulkan-drivers libvulkan1 \
@@ -272,9 +285,10 @@ fn wait_for_readers(
     stages: &[Stage],
     bridge_inputs: &[Topic],
     procs: &mut [ServiceProcess],
+    timeout: Duration,
 ) -> Result<(), LaunchError> {
     let expected = expected_subscribers(stages, bridge_inputs);
-    wait_for_start(procs, || {
+    wait_for_start(procs, timeout, || {
         let mut missing: Vec<String> = expected
             .iter()
             .filter(|(t, n)| services.subscribers(*t) < *n)
@@ -297,7 +311,7 @@ fn wait_for_source(
     outputs: &[Topic],
     procs: &mut [ServiceProcess],
 ) -> Result<(), LaunchError> {
-    wait_for_start(procs, || {
+    wait_for_start(procs, CONNECT_TIMEOUT, || {
         let missing: Vec<&str> = outputs
             .iter()
             .copied()

@@ -429,8 +429,10 @@ mod tests {
         let e = CarlTrace::load(Path::new("/dev/zero")).unwrap_err();
         assert_eq!(e.offset, 0);
         assert!(
-            e.to_string()
-                .starts_with("/dev/zero: at byte 0: cannot read the file: it is a device"),
+            e.to_string().starts_with(
+                "/dev/zero: at byte 0: cannot read the file: it is a character device, not a \
+                 regular file"
+            ),
             "{e}"
         );
     }

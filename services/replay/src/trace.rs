@@ -97,8 +97,10 @@ impl HandTrace {
         let head = {
             use std::io::Read;
             let mut head = [0u8; 8];
-            let n = std::fs::File::open(file)
-                .and_then(|mut f| f.read(&mut head))
+            // Only a regular file, refused before a read could block (a FIFO with no writer
+            // would hang here for ever, deaf to Ctrl-C in Python; issue 40).
+            let n = common::config::open_regular(file)
+                .and_then(|mut f| f.read(&mut head).map_err(|e| e.to_string()))
                 .map_err(|e| format!("{}: cannot read the trace: {e}", file.display()))?;
             head[..n].to_vec()
         };

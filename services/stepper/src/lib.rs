@@ -49,7 +49,7 @@ pub use model::Model;
 pub use motion::{push_one_point, PushOutcome};
 pub use precise::PreciseWorld;
 pub use simulate::{
-    default_frames, outcome, simulate, simulate_samples, BareFingersHand, BlockReport, EventReport,
-    HandSource, Report,
+    default_frames, outcome, simulate, simulate_samples, simulate_samples_with, simulate_with,
+    BareFingersHand, BlockReport, EventReport, HandSource, Progress, Report, RunError, Stop,
 };
 pub use world::{BlockView, Event, EventKind, World, WorldError};

@@ -190,14 +190,56 @@ pub fn default_frames(scene: &Scene) -> u64 {
     ((hand_end + 3.0) * scene.world.step_hz).ceil() as u64
 }
 
+/// A progress hook's answer: stop the run here.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Stop;
+
+/// Called after every step of a run with the steps taken so far (a caller that checks for
+/// Ctrl-C, or shows progress); [`Stop`] ends the run there.
+pub type Progress<'a> = dyn FnMut(u64) -> Result<(), Stop> + 'a;
+
+/// Why a run with a progress hook gave no report.
+#[derive(Debug)]
+pub enum RunError {
+    World(WorldError),
+    /// Its hook said [`Stop`] after this many steps.
+    Stopped {
+        steps: u64,
+    },
+}
+
+impl From<WorldError> for RunError {
+    fn from(e: WorldError) -> RunError {
+        RunError::World(e)
+    }
+}
+
+/// The world error of a run whose hook never stops.
+fn never_stopped(e: RunError) -> WorldError {
+    match e {
+        RunError::World(e) => e,
+        RunError::Stopped { .. } => unreachable!("a hook that never stops stopped a run"),
+    }
+}
+
 /// Runs the scene's world for `frames` steps with the hand from `hand` (None: no hand; a scene
 /// whose hand uses `fingers` can pass a [`BareFingersHand`]), under the model the scene's
 /// `[world] model` names. Deterministic.
 pub fn simulate(
     scene: &Scene,
     frames: u64,
-    mut hand: Option<&mut dyn HandSource>,
+    hand: Option<&mut dyn HandSource>,
 ) -> Result<Report, WorldError> {
+    simulate_with(scene, frames, hand, &mut |_| Ok(())).map_err(never_stopped)
+}
+
+/// [`simulate`], calling `progress` after every step.
+pub fn simulate_with(
+    scene: &Scene,
+    frames: u64,
+    mut hand: Option<&mut dyn HandSource>,
+    progress: &mut Progress<'_>,
+) -> Result<Report, RunError> {
     let mut world = Model::new(scene)?;
     let dt = 1.0 / scene.world.step_hz;
     let mut events = Vec::new();
@@ -211,6 +253,7 @@ pub fn simulate(
             .and_then(|h| h.hand_at(n, n as f64 * dt));
         world.step(sample.as_ref());
         collect_events(&world, scene, &mut events);
+        progress(n).map_err(|Stop| RunError::Stopped { steps: n })?;
     }
     Ok(report(&world, scene, frames, events))
 }
@@ -225,11 +268,22 @@ pub fn simulate_samples(
     hands: &[HandSample],
     frames: Option<u64>,
 ) -> Result<Report, WorldError> {
+    simulate_samples_with(scene, hands, frames, &mut |_| Ok(())).map_err(never_stopped)
+}
+
+/// [`simulate_samples`], calling `progress` after every step.
+pub fn simulate_samples_with(
+    scene: &Scene,
+    hands: &[HandSample],
+    frames: Option<u64>,
+    progress: &mut Progress<'_>,
+) -> Result<Report, RunError> {
     let mut world = Model::new(scene)?;
     let mut events = Vec::new();
     let mut timeline = Timeline::new(scene.world.step_hz);
     let limit = frames.unwrap_or(u64::MAX);
     let (mut refused_hands, mut first_refused) = (0, None);
+    let mut stopped = None;
     for hand in hands {
         if let Some(why) = crate::hand::unusable_because(hand) {
             // Refused where it enters, as the stepper process refuses it: no steps of its own;
@@ -242,17 +296,25 @@ pub fn simulate_samples(
             world.set_previous_hand(Some(hand));
         }
         timeline.advance(hand, |h| {
-            if world.steps() < limit {
+            if world.steps() < limit && stopped.is_none() {
                 world.step(h);
                 collect_events(&world, scene, &mut events);
+                if progress(world.steps()).is_err() {
+                    stopped = Some(world.steps());
+                }
             }
         });
+        if let Some(steps) = stopped {
+            return Err(RunError::Stopped { steps });
+        }
     }
     let last = hands.iter().rev().find(|h| crate::hand::is_usable(h));
     let end = frames.unwrap_or(world.steps() + (2.0 * scene.world.step_hz) as u64);
     while world.steps() < end {
         world.step(last);
         collect_events(&world, scene, &mut events);
+        let n = world.steps();
+        progress(n).map_err(|Stop| RunError::Stopped { steps: n })?;
     }
     let steps = world.steps();
     let mut out = report(&world, scene, steps, events);

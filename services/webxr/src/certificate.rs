@@ -1,7 +1,8 @@
 //! The certificate WebXR's secure context needs: made on first use (self-signed, for
 //! `localhost` and this machine's addresses), kept in a folder for the next session so the
 //! headset's browser, once told to trust it, is not asked again, and named by its SHA-256
-//! fingerprint so the user can check what the browser shows.
+//! fingerprint so the user can check what the browser shows. Its files are [`keyfile`]'s:
+//! private, never written through a link, valid a year and made anew before they expire.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -10,20 +11,17 @@ use rustls::pki_types::pem::PemObject;
 use rustls::pki_types::{CertificateDer, PrivateKeyDer};
 use sha2::Digest;
 
+use keyfile::{KeyFileError, PairStatus};
+
 /// Why no certificate could be had.
 #[derive(Debug, thiserror::Error)]
 pub enum CertificateError {
-    #[error("{}: {source}; check the folder's permissions, or set [source] certificate_dir", dir.display())]
-    Folder {
-        dir: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// The folder, or the key's file: what to do is in the message ([`keyfile`]).
+    #[error("{0}; or set [source] certificate_dir")]
+    KeyFile(#[from] KeyFileError),
     #[error("{}: {problem}; delete the file to have a new certificate made", file.display())]
     Damaged { file: PathBuf, problem: String },
-    #[error("cannot make a certificate: {0}")]
-    Make(String),
-    #[error("the certificate is refused by TLS: {0}")]
+    #[error("the certificate is refused by TLS: {0}; delete certificate.pem and key.pem in its folder to have a new one made")]
     Tls(String),
 }
 
@@ -35,6 +33,10 @@ pub struct Certificate {
     pub file: PathBuf,
     /// True when it was made now (the browser will ask to trust it).
     pub made: bool,
+    /// Why it was made anew, when it was (expired, near expiry, made to last for ever).
+    pub renewed: Option<String>,
+    /// Days it is still valid, when kept.
+    pub days_left: Option<u64>,
 }
 
 /// The default folder: `$XDG_DATA_HOME/handblocks/webxr`, or `~/.local/share/handblocks/webxr`,
@@ -49,31 +51,24 @@ pub fn default_dir() -> PathBuf {
     PathBuf::from(".handblocks/webxr")
 }
 
-/// The certificate in `dir` (`certificate.pem`, `key.pem`), made there when absent, for the
-/// names `hosts` (`localhost` and addresses).
+/// The certificate in `dir` (`certificate.pem`, `key.pem`), made there when absent, expired or
+/// near expiry ([`keyfile::self_signed_pair`]: 0700 folder, 0600 files written without
+/// following links, a key others may read refused), for the names `hosts` (`localhost` and
+/// addresses).
 pub fn load_or_make(dir: &Path, hosts: &[String]) -> Result<Certificate, CertificateError> {
-    let cert_file = dir.join("certificate.pem");
-    let key_file = dir.join("key.pem");
-    let folder = |source| CertificateError::Folder {
-        dir: dir.to_path_buf(),
-        source,
-    };
-    let made = !cert_file.exists() || !key_file.exists();
-    if made {
-        std::fs::create_dir_all(dir).map_err(folder)?;
-        let key = rcgen::generate_simple_self_signed(hosts.to_vec())
-            .map_err(|e| CertificateError::Make(e.to_string()))?;
-        std::fs::write(&cert_file, key.cert.pem()).map_err(folder)?;
-        write_private(&key_file, key.signing_key.serialize_pem().as_bytes()).map_err(folder)?;
-    }
+    let pair = keyfile::self_signed_pair(dir, hosts)?;
     let damaged = |file: &Path, problem: String| CertificateError::Damaged {
         file: file.to_path_buf(),
         problem,
     };
-    let cert = CertificateDer::from_pem_file(&cert_file)
-        .map_err(|e| damaged(&cert_file, format!("not a PEM certificate ({e})")))?;
-    let key = PrivateKeyDer::from_pem_file(&key_file)
-        .map_err(|e| damaged(&key_file, format!("not a PEM private key ({e})")))?;
+    let cert = CertificateDer::from_pem_slice(&pair.certificate_pem).map_err(|e| {
+        damaged(
+            &pair.certificate_file,
+            format!("not a PEM certificate ({e})"),
+        )
+    })?;
+    let key = PrivateKeyDer::from_pem_slice(&pair.key_pem)
+        .map_err(|e| damaged(&pair.key_file, format!("not a PEM private key ({e})")))?;
     let fingerprint = sha2::Sha256::digest(cert.as_ref())
         .iter()
         .map(|b| format!("{b:02X}"))
@@ -86,25 +81,19 @@ pub fn load_or_make(dir: &Path, hosts: &[String]) -> Result<Certificate, Certifi
         .with_no_client_auth()
         .with_single_cert(vec![cert], key)
         .map_err(|e| CertificateError::Tls(e.to_string()))?;
+    let (made, renewed, days_left) = match pair.status {
+        PairStatus::Kept { days_left } => (false, None, Some(days_left)),
+        PairStatus::Made => (true, None, None),
+        PairStatus::Renewed { why } => (true, Some(why), None),
+    };
     Ok(Certificate {
         config: Arc::new(config),
         fingerprint,
-        file: cert_file,
+        file: pair.certificate_file,
         made,
+        renewed,
+        days_left,
     })
-}
-
-/// Writes the key readable by its owner only.
-fn write_private(file: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    use std::io::Write;
-    use std::os::unix::fs::OpenOptionsExt;
-    let mut f = std::fs::OpenOptions::new()
-        .write(true)
-        .create(true)
-        .truncate(true)
-        .mode(0o600)
-        .open(file)?;
-    f.write_all(bytes)
 }
 
 #[cfg(test)]

@@ -15,7 +15,9 @@
 //! - [`service`]: the stage's [`common::node::Task`]: which page drives the hand, its frames'
 //!   order and time (the page's clock mapped to this machine's), the joints published, the
 //!   worlds sent back, the page's own timing recorded into the report.
-//! - [`certificate`]: the self-signed certificate made on first use and kept for the next.
+//! - [`certificate`]: the self-signed certificate made on first use and kept for the next,
+//!   its files the shared `keyfile` crate's (0600, no links followed, 0700 folders, renewed
+//!   before it expires), as the zenoh link's keys are.
 //! - [`driver`]: the emulated headset's browser driver (`handblocks emulate headset`).
 //! - [`address`]: the URL to open (this machine's address on the network) and its QR code.
 

@@ -12,8 +12,12 @@
 //! queues them). What the page sends is decoded here ([`webxr_wire`]); a refused message is
 //! counted by its kind in [`Tally`] and the socket stays open; a message over
 //! [`MAX_MESSAGE_BYTES`] closes it (counted `oversized`); hands frames beyond
-//! [`MAX_FRAMES_PER_S`] are dropped (counted `flood`). The stage gets the rest through a
-//! bounded queue ([`Inbound`]) and a [`Wake`].
+//! [`MAX_FRAMES_PER_S`] are dropped (counted `flood`); a hands frame timed more than
+//! [`MAX_AHEAD_OF_CLOCK_MS`] ahead of its page's clock is refused (`clock`). A page that
+//! answers no ping for [`PONG_TIMEOUT`], or takes longer than that to take a message, is
+//! closed ([`CLOSE_UNANSWERED`], counted in [`Tally::unanswered`]), so idle pages do not hold
+//! the [`MAX_PAGES`] slots. The stage gets the rest through a bounded queue ([`Inbound`]) and
+//! a [`Wake`].
 //!
 //! **The clock.** Each pong gives an estimate of the page's clock against this machine's
 //! (CLOCK_MONOTONIC): the ping's send and the pong's receive bracket the page's reading, so
@@ -49,6 +53,20 @@ pub const MAX_FRAMES_PER_S: f64 = 240.0;
 pub const MAX_PAGES: u64 = 8;
 /// Pongs before the clock is trusted.
 pub const PONGS_BEFORE_READY: u32 = 5;
+/// A page that answers no ping for this long is dropped (counted `unanswered`), so pages
+/// left open and asleep (a headset taken off, a laptop's lid shut) do not hold the
+/// [`MAX_PAGES`] slots: pings go out every second, and a page, even one in the background,
+/// answers each within a round trip. A page that wakes reconnects by itself.
+pub const PONG_TIMEOUT: Duration = Duration::from_secs(5);
+/// The close code a page that stopped answering pings is given.
+pub const CLOSE_UNANSWERED: u16 = 4008;
+/// How far ahead of the page's own clock (as the pings estimate it) a frame's time may be.
+/// A frame's `predictedDisplayTime` is at most a few display frames ahead of the page's
+/// `performance.now()`; one much further ahead is refused (`clock`), since a source time far
+/// in the future would hold every later frame of the session to it (they would all be
+/// refused as `order`). Frames behind the clock are let through: a page may play a recording
+/// in the recording's own time (`emulate headset` does), and a late frame holds nobody.
+pub const MAX_AHEAD_OF_CLOCK_MS: f64 = 5000.0;
 /// Messages queued for the stage; beyond it they are dropped (counted `queue_full`).
 const INBOUND_QUEUE: usize = 256;
 /// The longest request head read.
@@ -93,7 +111,7 @@ pub enum Inbound {
 }
 
 /// Kinds of refusal, counted by name (each message refused once, under its first fault).
-pub const REFUSALS: [&str; 18] = [
+pub const REFUSALS: [&str; 19] = [
     "token",
     "busy",
     "request",
@@ -107,6 +125,7 @@ pub const REFUSALS: [&str; 18] = [
     "hands",
     "length",
     "frame_time",
+    "clock",
     "value",
     "non_finite",
     "position",
@@ -120,6 +139,8 @@ pub struct Tally {
     refused: [AtomicU64; REFUSALS.len() + 1],
     pub sockets: AtomicU64,
     pages_now: AtomicU64,
+    /// Pages dropped because they answered no ping for [`PONG_TIMEOUT`].
+    pub unanswered: AtomicU64,
 }
 
 impl Tally {
@@ -530,16 +551,39 @@ impl PageClock {
     }
 }
 
+/// Sends `message`, false when the socket failed or the page took more than [`PONG_TIMEOUT`]
+/// to take it (a page that reads nothing would otherwise hold its task, and its slot, for
+/// ever once the socket's buffers fill).
+/// A page too slow to take it is counted in [`Tally::unanswered`].
+async fn send_within<S: AsyncRead + AsyncWrite + Unpin + Send>(
+    ws: &mut WebSocketStream<S>,
+    message: Message,
+    tally: &Tally,
+) -> bool {
+    match tokio::time::timeout(PONG_TIMEOUT, ws.send(message)).await {
+        Ok(sent) => sent.is_ok(),
+        Err(_) => {
+            tally.unanswered.fetch_add(1, Ordering::Relaxed);
+            false
+        }
+    }
+}
+
+/// True when a frame of time `frame_time_ms` (the page's clock), arriving at `arrived_ns`
+/// (ours), is more than [`MAX_AHEAD_OF_CLOCK_MS`] ahead of the page's clock, whose offset to
+/// ours is `offset_ns`.
+fn ahead_of_clock(frame_time_ms: f64, offset_ns: i64, arrived_ns: u64) -> bool {
+    let page_now_ms = (i128::from(arrived_ns) - i128::from(offset_ns)) as f64 / 1e6;
+    frame_time_ms > page_now_ms + MAX_AHEAD_OF_CLOCK_MS
+}
+
 async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
     ws: &mut WebSocketStream<S>,
     page: u64,
     shared: &Shared,
 ) {
-    if ws
-        .send(Message::text(shared.scene_json.clone()))
-        .await
-        .is_err()
-    {
+    let tally = &*shared.tally;
+    if !send_within(ws, Message::text(shared.scene_json.clone()), tally).await {
         return;
     }
     let mut world = shared.world.clone();
@@ -552,6 +596,9 @@ async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
     let mut ready = false;
     let mut out = Vec::with_capacity(page::PING_BYTES);
     let mut frame = HandsFrame::default();
+    // When the page last answered a ping (from its socket's start: it has PONG_TIMEOUT to
+    // answer the first).
+    let mut last_pong_ns = monotonic_ns();
     // The flood limit: a bucket of a second's frames, refilled continuously.
     let mut bucket = MAX_FRAMES_PER_S;
     let mut bucket_at = monotonic_ns();
@@ -602,6 +649,9 @@ async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
                         }
                         bucket -= 1.0;
                         match webxr_wire::decode_into(&bytes, &mut frame) {
+                            Ok(()) if clock.best.is_some_and(|(_, offset_ns)| {
+                                ahead_of_clock(frame.frame_time_ms, offset_ns, arrived_ns)
+                            }) => shared.tally.refuse("clock"),
                             Ok(()) => hand_in(Inbound::Hands { page, arrived_ns, frame }),
                             Err(e) => shared.tally.refuse(e.kind()),
                         }
@@ -612,6 +662,7 @@ async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
                     },
                     page::KIND_PONG => match page::decode_pong(&bytes) {
                         Ok(pong) => {
+                            last_pong_ns = arrived_ns;
                             let improved = clock.pong(&pong, arrived_ns);
                             if let Some((round_trip_ns, offset_ns)) = clock.best {
                                 if improved || (!ready && clock.pongs >= PONGS_BEFORE_READY) {
@@ -624,7 +675,7 @@ async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
                                         offset_ns as f64 / 1e6,
                                         round_trip_ns as f64 / 1e6
                                     );
-                                    if ws.send(Message::text(text)).await.is_err() {
+                                    if !send_within(ws, Message::text(text), tally).await {
                                         return;
                                     }
                                 }
@@ -640,11 +691,20 @@ async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
                     return;
                 }
                 let message = world.borrow_and_update().clone();
-                if !message.is_empty() && ws.send(Message::Binary(message)).await.is_err() {
+                if !message.is_empty() && !send_within(ws, Message::Binary(message), tally).await {
                     return;
                 }
             }
             _ = ping.tick() => {
+                if monotonic_ns().saturating_sub(last_pong_ns) > PONG_TIMEOUT.as_nanos() as u64 {
+                    shared.tally.unanswered.fetch_add(1, Ordering::Relaxed);
+                    let why = CloseFrame {
+                        code: CloseCode::from(CLOSE_UNANSWERED),
+                        reason: "no answer to pings for 5 s".into(),
+                    };
+                    let _ = tokio::time::timeout(PONG_TIMEOUT, ws.close(Some(why))).await;
+                    return;
+                }
                 ping_seq = ping_seq.wrapping_add(1);
                 if ping_seq == 11 {
                     // After the first second's ten, one a second keeps the estimate fresh.
@@ -655,13 +715,13 @@ async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
                 let now = monotonic_ns();
                 clock.sent(ping_seq, now);
                 page::encode_ping(ping_seq, now as f64 / 1e6, &mut out);
-                if ws.send(Message::Binary(Bytes::copy_from_slice(&out))).await.is_err() {
+                if !send_within(ws, Message::Binary(Bytes::copy_from_slice(&out)), tally).await {
                     return;
                 }
             }
             _ = stop.changed() => {
                 let bye = CloseFrame { code: CloseCode::Away, reason: "the session ended".into() };
-                let _ = ws.close(Some(bye)).await;
+                let _ = tokio::time::timeout(PONG_TIMEOUT, ws.close(Some(bye))).await;
                 return;
             }
         }
@@ -686,6 +746,36 @@ mod tests {
         assert!(!token_ok(Some("abcdeg"), "abcdef"));
         assert!(!token_ok(Some("abc"), "abcdef"));
         assert!(!token_ok(None, "abcdef"));
+    }
+
+    #[test]
+    fn a_frame_far_ahead_of_the_pages_clock_is_refused_and_one_behind_it_is_not() {
+        // The page's clock reads 1000 ms when ours reads 5000 ms (offset +4000 ms).
+        let offset = 4_000_000_000;
+        let at = 5_000_000_000;
+        assert!(
+            !ahead_of_clock(1000.0 + 20.0, offset, at),
+            "a predicted display time"
+        );
+        assert!(!ahead_of_clock(
+            1000.0 + MAX_AHEAD_OF_CLOCK_MS - 1.0,
+            offset,
+            at
+        ));
+        assert!(ahead_of_clock(
+            1000.0 + MAX_AHEAD_OF_CLOCK_MS + 1.0,
+            offset,
+            at
+        ));
+        assert!(
+            ahead_of_clock(1000.0 + 1e9, offset, at),
+            "the session-freezing frame"
+        );
+        assert!(
+            !ahead_of_clock(0.0, offset, at),
+            "a recording's own time, behind"
+        );
+        assert!(REFUSALS.contains(&"clock"));
     }
 
     #[test]

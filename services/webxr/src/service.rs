@@ -7,14 +7,18 @@
 //!
 //! **Time.** A frame's source time is its `predictedDisplayTime` mapped to this machine's
 //! CLOCK_MONOTONIC by the page's clock offset ([`crate::server`]), which is held fixed from
-//! the driving page's first frame on: the stepper's simulated time follows source time, and an
+//! a driving page's first frame on: the stepper's simulated time follows source time, and an
 //! offset that moved under it would stretch or shrink the world's time. Frames whose seq or
-//! source time does not increase are refused (`order`: replayed, reordered).
+//! source time does not increase are refused (`order`: replayed, reordered). Order is the
+//! driver's own: a new driver's timeline is put after what was published (its held offset
+//! shifted when its first frame would come before it), so no page is held to the times of
+//! another, a page that sent a time far ahead included (the server refuses frames far ahead of
+//! their page's clock, `clock`, and this keeps any that got through from outliving their page).
 //!
 //! **Tracking.** A frame without the driving hand publishes the hand's last joints marked
 //! untracked, in the frame's time; kinematics holds the grasp through such a gap up to
 //! [`common::TRACKING_HOLD_NS`] (100 ms) and then lets go. A driving page whose socket
-//! closes (or that sends nothing for [`SILENCE_NS`]) is a gap too: untracked samples go on,
+//! closes (or that sends nothing for [`driver_silence_ns`]) is a gap too: untracked samples go on,
 //! every [`GAP_PERIOD_NS`] of this machine's time, in the driver's timeline continued from its
 //! last frame, so that the world goes on and what the hand held falls, until a page drives
 //! again. While a page drives, only its frames make samples: the world is a function of what
@@ -46,8 +50,23 @@ use crate::server::{Inbound, Server, ServerError, ServerSettings};
 /// A driving page that sends no frame for this long (this machine's time) is taken as gone:
 /// it left its XR session, or its browser hid it. A page in XR sends a frame every display
 /// frame, a hand or not, so only a page that stopped drawing is this silent; a slow one (a
-/// loaded machine's emulated headset stalls for a few hundred milliseconds) is not.
+/// loaded machine's emulated headset stalls for a few hundred milliseconds) is not. Less where
+/// the session's budget allows less silence ([`driver_silence_ns`]).
 pub const SILENCE_NS: u64 = 2_000_000_000;
+/// What the gap samples that follow a silent driver leave of the session's
+/// `source_silence_ms`: time for the stage to wake and publish on a loaded machine.
+pub const SILENCE_MARGIN_NS: u64 = 250_000_000;
+
+/// How long a driving page may send nothing before it is taken as gone and untracked samples
+/// go on: [`SILENCE_NS`], or less where the session's `[budget] source_silence_ms` is shorter
+/// (that budget less [`SILENCE_MARGIN_NS`], or half of it, whichever is longer), so that a user
+/// who leaves XR for a while is a pause within the budget, not a violated one.
+pub fn driver_silence_ns(source_silence_ms: f64) -> u64 {
+    let budget_ns = (source_silence_ms * 1e6).max(0.0) as u64;
+    (budget_ns.saturating_sub(SILENCE_MARGIN_NS))
+        .max(budget_ns / 2)
+        .min(SILENCE_NS)
+}
 /// While no page drives after one did: an untracked sample this often (60 Hz).
 pub const GAP_PERIOD_NS: u64 = 16_666_667;
 /// Frames remembered to answer a world with the frame it answers.
@@ -99,6 +118,15 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), WebxrError> {
     } else {
         None
     };
+    if let Some(c) = &certificate {
+        if let Some(why) = &c.renewed {
+            eprintln!(
+                "handblocks webxr: the certificate in {} was made anew: {why}. The headset's \
+                 browser will ask to trust the new one once.",
+                c.file.display()
+            );
+        }
+    }
     let scene_json = scene_message(session, settings)?;
     let server = Server::start(ServerSettings {
         listen: settings.listen,
@@ -110,7 +138,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), WebxrError> {
     tell_the_user(
         &url,
         settings,
-        server.local_addr.port(),
+        server.local_addr,
         &token,
         certificate.as_ref(),
     );
@@ -128,6 +156,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), WebxrError> {
         last_frame_arrival_ns: 0,
         last_frame_source_ns: 0,
         last_gap_ns: 0,
+        silence_ns: driver_silence_ns(session.budget.source_silence_ms),
         joints: None,
         origins: [(0, NO_FRAME); ORIGINS],
         origin_next: 0,
@@ -136,20 +165,28 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), WebxrError> {
             webxr_wire::page::WORLD_HEADER_BYTES + 32 * session.scene.blocks.len() + 12 * 64,
         ),
         counts: Counts::default(),
+        refusals_file: bus.session_folder().join("refused.headset.json"),
     };
     node::run(Stage::Webxr, bus, WaitStrategy::Event, &mut headset)?;
     Ok(())
 }
 
-/// The URL, its QR code, the certificate's fingerprint, and the other route.
+/// The URL, its QR code, the certificate's fingerprint, the other route, where the server
+/// listens, and a warning when the token would cross a network in clear.
 fn tell_the_user(
     url: &str,
     settings: &WebxrSource,
-    port: u16,
+    local: std::net::SocketAddr,
     token: &str,
     certificate: Option<&certificate::Certificate>,
 ) {
+    let port = local.port();
     let mut s = String::new();
+    s.push_str(&listening(
+        local,
+        settings.tls,
+        &address::interface_addresses(),
+    ));
     s.push_str(&format!(
         "handblocks webxr: open this in the headset's browser:\n\n    {url}\n\n"
     ));
@@ -172,6 +209,49 @@ fn tell_the_user(
         if settings.tls { "https" } else { "http" }
     ));
     eprintln!("{s}");
+}
+
+/// Where the server listens (every interface's address when it listens on all), and, when it
+/// serves plain HTTP beyond this machine, a warning: the token in the URL and every hand
+/// frame cross the network in clear, so anyone on it can read the token and drive the hand.
+pub fn listening(
+    local: std::net::SocketAddr,
+    tls: bool,
+    interfaces: &[std::net::IpAddr],
+) -> String {
+    let scheme = if tls { "HTTPS" } else { "plain HTTP" };
+    let ip = local.ip();
+    let mut s = if ip.is_loopback() {
+        format!(
+            "handblocks webxr: listening on {local} ({scheme}): this machine only; a headset \
+             reaches it through `adb reverse`\n"
+        )
+    } else if ip.is_unspecified() {
+        let list: Vec<String> = interfaces
+            .iter()
+            .filter(|a| a.is_ipv4() == ip.is_ipv4() || ip.is_ipv6())
+            .map(|a| a.to_string())
+            .collect();
+        format!(
+            "handblocks webxr: listening on {local} ({scheme}): every interface ({})\n",
+            if list.is_empty() {
+                "none found".to_string()
+            } else {
+                list.join(", ")
+            }
+        )
+    } else {
+        format!("handblocks webxr: listening on {local} ({scheme}): that interface only\n")
+    };
+    if !tls && !ip.is_loopback() {
+        s.push_str(
+            "handblocks webxr: WARNING: tls = false on a network interface: the token and the \
+             hands cross the network in clear, and anyone on it can read the token and drive \
+             the hand. Set tls = true, or leave listen out (tls = false then listens on \
+             127.0.0.1) and use `adb reverse`.\n",
+        );
+    }
+    s
 }
 
 /// The scene as the page draws it: each block's hull (its own frame, about its centre of
@@ -208,6 +288,14 @@ fn scene_message(session: &Session, settings: &WebxrSource) -> Result<String, We
     .to_string())
 }
 
+/// The offset a new driver's frames are mapped by: its clock's `offset_ns`, shifted later where
+/// its first frame (`frame_ns`, its clock) would not come after `last_source_ns`, the last
+/// source time published, so a new driver is never held to an earlier one's times.
+fn follow_on_offset(frame_ns: i128, offset_ns: i64, last_source_ns: u64) -> i64 {
+    let behind = i128::from(last_source_ns) + 1 - (frame_ns + i128::from(offset_ns));
+    offset_ns.saturating_add(behind.clamp(0, i128::from(i64::MAX)) as i64)
+}
+
 /// What the stage counted, for its report.
 #[derive(Debug, Default, Clone, Copy)]
 struct Counts {
@@ -227,6 +315,8 @@ struct Counts {
     drops: u64,
     /// Pages that took over driving after the first.
     takeovers: u64,
+    /// Drivers whose timeline was moved on to follow what was published.
+    shifted: u64,
     /// Gaps (frames without the hand, or no page) longer than the hold time.
     long_gaps: u64,
     /// Start of the current gap (source time), when in one.
@@ -256,6 +346,8 @@ struct Headset {
     last_frame_source_ns: u64,
     /// When the last untracked sample was sent while no page drove (this machine's time).
     last_gap_ns: u64,
+    /// How long a driver may be silent ([`driver_silence_ns`] of the session's budget).
+    silence_ns: u64,
     /// The last joints published (what a gap repeats, untracked).
     joints: Option<JointsSample>,
     /// (origin ns, page seq) of the frames published, to answer worlds with their frame.
@@ -265,6 +357,9 @@ struct Headset {
     step_s: f64,
     world_message: Vec<u8>,
     counts: Counts,
+    /// `refused.headset.json` in the session folder: what was refused, by kind, for the
+    /// session report (issue 40: its JSON gave only a total).
+    refusals_file: std::path::PathBuf,
 }
 
 impl Headset {
@@ -336,10 +431,10 @@ impl Headset {
             self.counts.before_clock += 1;
             return Ok(());
         };
+        let frame_ns = (frame.frame_time_ms * 1e6).round() as i128;
         if self.driver.is_none() {
-            // A new driver: its seqs start over; its clock is its own. The offset of the
-            // first driver holds (a second one's frames are mapped by their own offset, and
-            // must still come after what was published).
+            // A new driver: its seqs start over; its clock is its own, held from now on, and
+            // its timeline follows what was published (whatever times an earlier driver sent).
             if self.joints.is_some() {
                 self.counts.takeovers += 1;
             }
@@ -349,10 +444,14 @@ impl Headset {
                 self.counts.offset_ns = offset_ns;
                 self.counts.offset_round_trip_ns = round_trip_ns;
             }
-            self.held_offset_ns = Some(offset_ns);
+            let held = follow_on_offset(frame_ns, offset_ns, self.last_source_ns);
+            if held != offset_ns {
+                self.counts.shifted += 1;
+            }
+            self.held_offset_ns = Some(held);
         }
         let offset_ns = self.held_offset_ns.unwrap_or(offset_ns);
-        let source_ns = (frame.frame_time_ms * 1e6).round() as i128 + i128::from(offset_ns);
+        let source_ns = frame_ns + i128::from(offset_ns);
         let in_order = self.last_seq.is_none_or(|s| frame.seq > s)
             && source_ns > i128::from(self.last_source_ns)
             && source_ns <= i128::from(u64::MAX);
@@ -446,7 +545,7 @@ impl Headset {
     fn keep_time(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
         let now = monotonic_ns();
         if self.driver.is_some() {
-            if now.saturating_sub(self.last_frame_arrival_ns) > SILENCE_NS {
+            if now.saturating_sub(self.last_frame_arrival_ns) > self.silence_ns {
                 // Silent: a page in the background, a socket that died without a close. Should
                 // it come back, it drives again as a new driver (its seqs start over).
                 self.driver = None;
@@ -508,8 +607,13 @@ impl Task for Headset {
     type Error = BusError;
 
     fn wait(&mut self, _: &mut Waiter, timeout: Duration) -> Result<(), BusError> {
-        // While no page drives after one did, wake at the gap's period to keep time.
-        let timeout = if self.driver.is_none() && self.joints.is_some() {
+        // While no page drives after one did, wake at the gap's period to keep time; while one
+        // drives, when its silence would end (so the gap begins on time, not a period late).
+        let timeout = if self.driver.is_some() {
+            let due = self.last_frame_arrival_ns.saturating_add(self.silence_ns);
+            let left = due.saturating_sub(monotonic_ns()).saturating_add(1_000_000);
+            timeout.min(Duration::from_nanos(left))
+        } else if self.joints.is_some() {
             timeout.min(Duration::from_nanos(GAP_PERIOD_NS))
         } else {
             timeout.min(Duration::from_nanos(SILENCE_NS))
@@ -551,13 +655,44 @@ impl Task for Headset {
             },
             DeviceCounters::default(),
         ]);
+        // By kind, for the session report: the server's refusals and this stage's own (frames
+        // out of order, or before the page's clock), adding up to `rejected_records`.
+        let mut by_kind: serde_json::Map<String, serde_json::Value> = tally
+            .refusals()
+            .map(|(k, n)| (k.to_string(), n.into()))
+            .collect();
+        for (kind, n) in [("order", c.order), ("before_clock", c.before_clock)] {
+            if n > 0 {
+                by_kind.insert(kind.into(), n.into());
+            }
+        }
+        if let Err(e) = std::fs::write(
+            &self.refusals_file,
+            serde_json::Value::Object(by_kind).to_string(),
+        ) {
+            eprintln!(
+                "handblocks webxr: cannot write {}: {e}",
+                self.refusals_file.display()
+            );
+        }
+        let pages = tally.sockets.load(std::sync::atomic::Ordering::Relaxed);
+        if c.published == 0 {
+            // Said plainly, before the budget's verdict (source_silence_ms: the source
+            // delivered no sample), which is what a session without a hand gets: exit 1.
+            eprintln!(
+                "handblocks webxr: no headset joined this session: no page sent a hand ({pages} \
+                 pages opened the URL). The session fails its budget (source_silence_ms) and \
+                 exits with status 1, as any session whose source delivered nothing does."
+            );
+        }
         eprintln!(
             "handblocks webxr: {} pages connected; {} frames published ({} untracked), {} worlds \
              sent; refused: {}{}{}; frames missing from the driver's seqs {}; frames of a page \
-             not driving {}; driving sockets lost {}; \
+             not driving {}; driving sockets lost {}; pages dropped for not answering pings {}; \
+             drivers whose time was moved on to follow the published {}; \
              tracking gaps over 100 ms (the hand let go) {}; clock offset {:.3} ms from the best \
              of {} pings (round trip {:.3} ms), held for the session",
-            tally.sockets.load(std::sync::atomic::Ordering::Relaxed),
+            pages,
             c.published,
             c.untracked,
             c.worlds_sent,
@@ -579,11 +714,79 @@ impl Task for Headset {
             c.seq_gaps,
             c.other_page,
             c.drops,
+            tally.unanswered.load(std::sync::atomic::Ordering::Relaxed),
+            c.shifted,
             c.long_gaps,
             c.offset_ns as f64 / 1e6,
             c.offset_pongs,
             c.offset_round_trip_ns as f64 / 1e6,
         );
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    #[test]
+    fn a_new_driver_follows_what_was_published_whatever_time_came_before() {
+        // Nothing published yet: the page's own offset.
+        assert_eq!(follow_on_offset(1_000, 5_000, 0), 5_000);
+        // Its first frame after what was published: its own offset.
+        assert_eq!(follow_on_offset(1_000, 5_000, 5_999), 5_000);
+        // An earlier driver's time ran 1e9 ms ahead: the new driver's first frame comes just
+        // after it, not refused as out of order until our clock catches up with it.
+        let poisoned = 1_000_000_000_000_000_u64;
+        let held = follow_on_offset(1_000, 5_000, poisoned);
+        assert_eq!(1_000 + i128::from(held), i128::from(poisoned) + 1);
+    }
+
+    #[test]
+    fn gap_samples_begin_within_the_sessions_silence_budget() {
+        // The default budget (1 s): the gap begins 250 ms before it ends.
+        assert_eq!(driver_silence_ns(1000.0), 750_000_000);
+        assert!(driver_silence_ns(1000.0) + GAP_PERIOD_NS < 1_000_000_000);
+        // webxr.toml's (2.5 s) and larger: at most SILENCE_NS.
+        assert_eq!(driver_silence_ns(2500.0), SILENCE_NS);
+        assert_eq!(driver_silence_ns(600_000.0), SILENCE_NS);
+        // A short one: half of it.
+        assert_eq!(driver_silence_ns(100.0), 50_000_000);
+        let session = Session::load(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/sessions/webxr.toml"),
+        )
+        .unwrap();
+        let silence_ns = driver_silence_ns(session.budget.source_silence_ms);
+        assert!(
+            (silence_ns + SILENCE_MARGIN_NS) as f64 <= session.budget.source_silence_ms * 1e6,
+            "webxr.toml's gap begins after {silence_ns} ns of its {} ms budget",
+            session.budget.source_silence_ms
+        );
+    }
+
+    #[test]
+    fn the_terminal_says_where_the_server_listens_and_warns_of_plain_http_on_a_network() {
+        let lan = [
+            std::net::IpAddr::from([192, 168, 1, 5]),
+            std::net::IpAddr::from([127, 0, 0, 1]),
+        ];
+        let local = listening("127.0.0.1:8443".parse().unwrap(), false, &lan);
+        assert!(
+            local.contains("127.0.0.1:8443") && local.contains("this machine only"),
+            "{local}"
+        );
+        assert!(!local.contains("WARNING"), "{local}");
+        let all = listening("0.0.0.0:8443".parse().unwrap(), true, &lan);
+        assert!(
+            all.contains("every interface (192.168.1.5, 127.0.0.1)"),
+            "{all}"
+        );
+        assert!(!all.contains("WARNING"), "{all}");
+        let clear = listening("0.0.0.0:8443".parse().unwrap(), false, &lan);
+        assert!(
+            clear.contains("WARNING") && clear.contains("in clear"),
+            "{clear}"
+        );
     }
 }

@@ -374,6 +374,16 @@ impl Reader<'_> {
                 if !self.kept.contains(&topic) {
                     return Ok(());
                 }
+                if let Err(why) = crate::check_message_counts(topic, data) {
+                    rec.refused_messages += 1;
+                    if rec.first_refused.is_none() {
+                        rec.first_refused = Some(format!(
+                            "at byte offset {offset} (seq {}): {why}",
+                            stamp.seq
+                        ));
+                    }
+                    return Ok(());
+                }
                 let start = rec.data.len();
                 rec.data.extend_from_slice(data);
                 rec.messages.push(RecordedMessage {

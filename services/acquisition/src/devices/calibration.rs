@@ -436,7 +436,10 @@ mod tests {
         let e = Calibration::load(Path::new("/dev/zero")).unwrap_err();
         let msg = e.to_string();
         assert!(
-            msg.starts_with("/dev/zero: cannot read the calibration file: it is a device"),
+            msg.starts_with(
+                "/dev/zero: cannot read the calibration file: it is a character device, not a \
+                 regular file"
+            ),
             "{msg}"
         );
         let dir = std::env::temp_dir().join(format!("hb-cal-{}", std::process::id()));

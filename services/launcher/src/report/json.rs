@@ -66,7 +66,10 @@ impl<'a> ReportJson<'a> {
                 .stages
                 .iter()
                 .flat_map(|s| &s.devices)
-                .filter_map(|d| Some((d.name()?, DeviceJson::of(d))))
+                .filter_map(|d| {
+                    let name = d.name()?;
+                    Some((name, DeviceJson::of(d, m.refused.get(name))))
+                })
                 .collect(),
             failures: &report.failures,
             machine: MachineJson {
@@ -117,18 +120,23 @@ struct DeviceJson {
     link_losses: u64,
     other_station_records: u64,
     reconnects: u64,
+    /// A source's refusals by kind (`rejected_records` is their total), when its stage left
+    /// them ([`super::refusals`]); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    refused: Option<BTreeMap<String, u64>>,
     rejected_records: u64,
     samples: u64,
 }
 
 impl DeviceJson {
-    fn of(d: &DeviceCounters) -> DeviceJson {
+    fn of(d: &DeviceCounters, refused: Option<&BTreeMap<String, u64>>) -> DeviceJson {
         DeviceJson {
             device_errors: d.device_errors,
             garbage_bytes: d.garbage_bytes,
             link_losses: d.link_losses,
             other_station_records: d.other_station_records,
             reconnects: d.reconnects,
+            refused: refused.cloned(),
             rejected_records: d.rejected_records,
             samples: d.samples,
         }
@@ -256,8 +264,9 @@ impl SummaryJson {
     }
 }
 
-/// One topic: published, and of its readers together the fewest received, the dropped and the
-/// gaps; then each reader's own counts.
+/// One topic: published, and of its readers together the fewest received, the dropped, and
+/// the most gaps any one reader saw (a loss before the bus counted once); then each reader's
+/// own counts.
 #[derive(Serialize)]
 struct TopicJson {
     dropped: u64,

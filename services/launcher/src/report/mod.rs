@@ -7,11 +7,13 @@
 //! - `budget`: the session judged against its `[budget]` and what every session keeps
 //!   without asking (a source that delivers, a renderer that keeps its frame rate);
 //! - `table`: the report as the launcher prints it;
-//! - `json`: the report JSON of docs/design.md.
+//! - `json`: the report JSON of docs/design.md;
+//! - `refusals`: what a source refused, by kind, from the file its stage leaves.
 
 mod budget;
 mod json;
 mod merge;
+pub mod refusals;
 mod table;
 #[cfg(test)]
 mod tests;
@@ -137,8 +139,11 @@ impl TopicFlow {
     pub fn dropped(&self) -> u64 {
         self.readers.values().map(|r| r.dropped).sum()
     }
+    /// The most seqs any one reader missed: a loss before the bus (a link that came up late,
+    /// a source's restart) is missed by every reader alike and is counted once (issue 40: a
+    /// remote viewer's 28 missing worlds were 56 gaps, the recorder's and the renderer's).
     pub fn gaps(&self) -> u64 {
-        self.readers.values().map(|r| r.gaps).sum()
+        self.readers.values().map(|r| r.gaps).max().unwrap_or(0)
     }
 }
 
@@ -242,6 +247,9 @@ pub struct Meta {
     /// What the bridge did (`bridge.json`: the link, what crossed it, the clock estimate),
     /// when the session had one.
     pub bridge: Option<Value>,
+    /// What a source refused, by kind, per device name (`refused.NAME.json`, which its
+    /// stage leaves in the session's folder: [`refusals`]).
+    pub refused: refusals::Refusals,
 }
 
 impl Default for Meta {
@@ -258,6 +266,7 @@ impl Default for Meta {
             renderer_skipped: None,
             world: None,
             bridge: None,
+            refused: refusals::Refusals::new(),
         }
     }
 }

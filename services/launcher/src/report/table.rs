@@ -129,6 +129,11 @@ impl Report {
                     d.device_errors
                 ));
             }
+            // What a source refused, by kind (the `rejected` column is their total).
+            for (name, kinds) in self.meta.refused.iter().filter(|(_, k)| !k.is_empty()) {
+                let each: Vec<String> = kinds.iter().map(|(k, n)| format!("{k} {n}")).collect();
+                out.push_str(&format!("{name} refused: {}\n", each.join(", ")));
+            }
             if serial {
                 out.push_str(
                     "garbage: bytes skipped between records; rejected: malformed or out-of-range \

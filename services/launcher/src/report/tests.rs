@@ -218,3 +218,97 @@ fn times_are_utc_dates() {
     assert_eq!(rfc3339(at(951_782_400)), "2000-02-29T00:00:00Z");
     assert_eq!(rfc3339(at(1_796_143_985)), "2026-12-01T16:53:05Z");
 }
+
+/// Issue 40: the webxr stage's refusals were in the report only as a total
+/// (`rejected_records`), their kinds only on stderr. A source stage leaves its refusals by kind
+/// in the session's folder (`refused.headset.json`); the report names each kind under the
+/// device, in the JSON and in the table. A file that is not a regular file (a FIFO: never
+/// opened for a blocking read), too big, or not an object of counts is left out.
+#[test]
+fn a_sources_refusals_by_kind_are_in_the_report() {
+    let dir = std::env::temp_dir().join(format!("hb-refusals-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        refusals::refusals_file(&dir, "headset"),
+        r#"{"token": 2, "flood": 40, "text": 0}"#,
+    )
+    .unwrap();
+    let fifo = refusals::refusals_file(&dir, "external");
+    let path = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: a valid NUL-terminated path.
+    assert_eq!(unsafe { libc::mkfifo(path.as_ptr(), 0o600) }, 0);
+    let refused = refusals::read_refusals(&dir);
+    assert_eq!(refused.keys().copied().collect::<Vec<_>>(), ["headset"]);
+    std::fs::remove_file(&fifo).unwrap();
+    for bad in ["[1, 2]", r#"{"token": -1}"#, &" ".repeat(70 << 10)] {
+        std::fs::write(&fifo, bad).unwrap();
+        assert!(
+            !refusals::read_refusals(&dir).contains_key("external"),
+            "{bad:.20}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+
+    let mut webxr = stage(Stage::Webxr, Metric::Origin, 10, 0);
+    webxr.devices = vec![common::DeviceCounters {
+        device: 3,
+        samples: 10,
+        rejected_records: 42,
+        ..Default::default()
+    }];
+    let facts = SessionFacts {
+        seconds: 10.0,
+        source: Stage::Webxr,
+        renders: false,
+        real_time: true,
+        renderer_down_s: 0.0,
+    };
+    let mut r = Report::build(vec![webxr], &Budget::default(), Vec::new(), &facts);
+    r.meta.refused = refused;
+    let json = r.json();
+    assert_eq!(
+        json["devices"]["headset"]["refused"],
+        serde_json::json!({"flood": 40, "token": 2}),
+        "{json}"
+    );
+    assert_eq!(json["devices"]["headset"]["rejected_records"], 42);
+    let table = r.table();
+    assert!(
+        table.contains("headset refused: flood 40, token 2\n"),
+        "{table}"
+    );
+    // A device whose stage left no file has no `refused` key (the report's shape as before).
+    r.meta.refused.clear();
+    assert!(r.json()["devices"]["headset"].get("refused").is_none());
+}
+
+/// Issue 40: a remote viewer that missed the first 28 worlds (the link came up after the
+/// session's source started) showed 56 gaps per topic: its recorder's 28 and its renderer's
+/// 28, added. A loss before the bus is every reader's alike: the topic counts it once.
+#[test]
+fn a_loss_every_reader_saw_is_counted_once() {
+    let mut bridge = stage(Stage::Bridge, Metric::Hop, 10, 0);
+    // The bridge publishes under the sender's seqs: the 28 it never got are its outlet's gaps.
+    bridge.counters = vec![counter(Topic::World, 0, 72, 28, 99)];
+    let mut recorder = stage(Stage::Recorder, Metric::Process, 10, 0);
+    recorder.counters = vec![counter(Topic::World, 1, 72, 28, 99)];
+    let mut renderer = stage(Stage::Renderer, Metric::Photon, 10, 0);
+    renderer.counters = vec![counter(Topic::World, 1, 72, 28, 99)];
+    let facts = SessionFacts {
+        seconds: 1.0,
+        source: Stage::Bridge,
+        renders: true,
+        real_time: true,
+        renderer_down_s: 0.0,
+    };
+    let r = Report::build(
+        vec![bridge, recorder, renderer],
+        &Budget::default(),
+        Vec::new(),
+        &facts,
+    );
+    let world = &r.topics[&Topic::World];
+    assert_eq!(world.gaps(), 28, "{world:?}");
+    assert_eq!(world.dropped(), 0, "{world:?}");
+}
