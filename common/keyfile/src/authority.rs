@@ -16,8 +16,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use crate::{
-    certificate_der, private_dir, read_private, unix_now, validity, write_private, KeyFileError,
-    PairStatus, DAY_S, RENEW_DAYS, VALIDITY_DAYS,
+    certificate_der, private_dir, read_certificate, read_private, renewal, unix_now, write_private,
+    KeyFileError, PairStatus, DAY_S, VALIDITY_DAYS,
 };
 
 /// The authority's certificate in its folder: the file a peer is given to trust.
@@ -99,17 +99,11 @@ pub fn authority_at(dir: &Path, name: &str, now: u64) -> Result<Authority, KeyFi
     let make = |e: rcgen::Error| KeyFileError::Make(e.to_string());
     let exists = |f: &Path| std::fs::symlink_metadata(f).is_ok();
     let status = if exists(&certificate_file) && exists(&key_file) {
-        let pem = std::fs::read(&certificate_file).map_err(|source| KeyFileError::Io {
-            path: certificate_file.clone(),
-            source,
-        })?;
+        let (pem, der, not_after) = read_certificate(&certificate_file)?;
         let damaged = |problem: &str| KeyFileError::Damaged {
             file: certificate_file.clone(),
             problem: problem.into(),
         };
-        let der = certificate_der(&pem).ok_or_else(|| damaged("not a PEM certificate"))?;
-        let (_, not_after) =
-            validity(&der).ok_or_else(|| damaged("a certificate without a validity"))?;
         match renewal(not_after, now) {
             Some(why) => PairStatus::Renewed { why },
             None => {
@@ -172,30 +166,6 @@ pub fn authority_at(dir: &Path, name: &str, now: u64) -> Result<Authority, KeyFi
         status,
         key,
     })
-}
-
-/// Why a certificate valid until `not_after` is made anew at `now`, if it is.
-fn renewal(not_after: i64, now: u64) -> Option<String> {
-    let days = |t: i64| t.div_euclid(DAY_S as i64);
-    if not_after <= now as i64 {
-        Some(format!(
-            "it expired {} days ago",
-            days(now as i64 - not_after)
-        ))
-    } else if (not_after as u64) < now + RENEW_DAYS * DAY_S {
-        Some(format!(
-            "it expires in {} days",
-            days(not_after - now as i64)
-        ))
-    } else if (not_after as u64) > now + (VALIDITY_DAYS + 1) * DAY_S {
-        Some(format!(
-            "it was valid for {} more days, and a key is not kept for ever: a new one every \
-             {VALIDITY_DAYS} days",
-            days(not_after - now as i64)
-        ))
-    } else {
-        None
-    }
 }
 
 impl Authority {
@@ -323,7 +293,7 @@ mod tests {
         let dir = scratch("renew");
         let now = unix_now();
         let a = authority_at(&dir, "n", now).unwrap();
-        let later = now + (VALIDITY_DAYS - RENEW_DAYS + 1) * DAY_S;
+        let later = now + (VALIDITY_DAYS - crate::RENEW_DAYS + 1) * DAY_S;
         let b = authority_at(&dir, "n", later).unwrap();
         assert!(
             matches!(b.status, PairStatus::Renewed { .. }),

@@ -17,10 +17,12 @@
 //!   for ever (rcgen's default, 1975-4096, which earlier versions wrote).
 
 mod authority;
+mod names;
 pub use authority::{
     authority, authority_at, fingerprint, verify, Authority, Issued, AUTHORITY_FILE,
     AUTHORITY_KEY_FILE, ISSUED_VALIDITY_DAYS,
 };
+pub use names::{host_name, interface_addresses};
 
 use std::fs::OpenOptions;
 use std::io::Write;
@@ -193,33 +195,9 @@ pub fn self_signed_pair_at(dir: &Path, hosts: &[String], now: u64) -> Result<Pai
     let key_file = dir.join(KEY_FILE);
     let exists = |f: &Path| std::fs::symlink_metadata(f).is_ok();
     let status = if exists(&certificate_file) && exists(&key_file) {
-        let pem = std::fs::read(&certificate_file).map_err(|source| KeyFileError::Io {
-            path: certificate_file.clone(),
-            source,
-        })?;
-        let damaged = |problem: &str| KeyFileError::Damaged {
-            file: certificate_file.clone(),
-            problem: problem.into(),
-        };
-        let der = certificate_der(&pem).ok_or_else(|| damaged("not a PEM certificate"))?;
-        let (_, not_after) =
-            validity(&der).ok_or_else(|| damaged("a certificate without a validity"))?;
-        let until = date(not_after);
-        if not_after <= now as i64 {
-            PairStatus::Renewed {
-                why: format!("it expired on {until}"),
-            }
-        } else if (not_after as u64) < now + RENEW_DAYS * DAY_S {
-            PairStatus::Renewed {
-                why: format!("it expires on {until}"),
-            }
-        } else if (not_after as u64) > now + (VALIDITY_DAYS + 1) * DAY_S {
-            PairStatus::Renewed {
-                why: format!(
-                    "it was valid until {until}, and a key is not kept for ever: a new one \
-                     every {VALIDITY_DAYS} days"
-                ),
-            }
+        let (pem, _, not_after) = read_certificate(&certificate_file)?;
+        if let Some(why) = renewal(not_after, now) {
+            PairStatus::Renewed { why }
         } else {
             // Checked before use: a key others may read is refused, not loaded silently.
             let key_pem = read_private(&key_file)?;
@@ -260,6 +238,40 @@ pub fn self_signed_pair_at(dir: &Path, hosts: &[String], now: u64) -> Result<Pai
         key_pem,
         status,
     })
+}
+
+/// A kept certificate file: its PEM, its DER and its end of validity (seconds since 1970).
+pub(crate) fn read_certificate(file: &Path) -> Result<(Vec<u8>, Vec<u8>, i64), KeyFileError> {
+    let pem = std::fs::read(file).map_err(|source| KeyFileError::Io {
+        path: file.to_path_buf(),
+        source,
+    })?;
+    let damaged = |problem: &str| KeyFileError::Damaged {
+        file: file.to_path_buf(),
+        problem: problem.into(),
+    };
+    let der = certificate_der(&pem).ok_or_else(|| damaged("not a PEM certificate"))?;
+    let (_, not_after) =
+        validity(&der).ok_or_else(|| damaged("a certificate without a validity"))?;
+    Ok((pem, der, not_after))
+}
+
+/// Why a certificate valid until `not_after` is made anew at `now`, if it is: expired,
+/// expiring within [`RENEW_DAYS`], or made to last longer than [`VALIDITY_DAYS`].
+pub(crate) fn renewal(not_after: i64, now: u64) -> Option<String> {
+    let until = date(not_after);
+    if not_after <= now as i64 {
+        Some(format!("it expired on {until}"))
+    } else if (not_after as u64) < now + RENEW_DAYS * DAY_S {
+        Some(format!("it expires on {until}"))
+    } else if (not_after as u64) > now + (VALIDITY_DAYS + 1) * DAY_S {
+        Some(format!(
+            "it was valid until {until}, and a key is not kept for ever: a new one every \
+             {VALIDITY_DAYS} days"
+        ))
+    } else {
+        None
+    }
 }
 
 pub(crate) fn unix_now() -> u64 {

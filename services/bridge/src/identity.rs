@@ -25,7 +25,7 @@ fn authority_name() -> String {
     unsafe { libc::getrandom(tag.as_mut_ptr() as *mut libc::c_void, tag.len(), 0) };
     format!(
         "handblocks link authority ({}, {:02x}{:02x}{:02x}{:02x})",
-        host_name().unwrap_or_else(|| "a machine".into()),
+        keyfile::host_name().unwrap_or_else(|| "a machine".into()),
         tag[0],
         tag[1],
         tag[2],
@@ -155,7 +155,7 @@ fn read_peer(file: &Path) -> Result<Vec<u8>, IdentityError> {
 /// connected to against them.
 pub fn certificate_names(endpoint: &str, extra: &[String]) -> Vec<String> {
     let mut names: Vec<String> = vec!["localhost".into(), "127.0.0.1".into(), "::1".into()];
-    if let Some(h) = host_name() {
+    if let Some(h) = keyfile::host_name() {
         names.push(h);
     }
     names.extend(interface_addresses().iter().map(|a| a.to_string()));
@@ -172,59 +172,14 @@ pub fn certificate_names(endpoint: &str, extra: &[String]) -> Vec<String> {
     names
 }
 
-/// This machine's host name (`gethostname`), if it has one.
-fn host_name() -> Option<String> {
-    let mut buf = [0u8; 256];
-    // SAFETY: the buffer is ours and its length is given.
-    let r = unsafe { libc::gethostname(buf.as_mut_ptr() as *mut libc::c_char, buf.len()) };
-    if r != 0 {
-        return None;
-    }
-    let end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
-    let name = std::str::from_utf8(&buf[..end]).ok()?;
-    (!name.is_empty()
-        && name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '.' | '-')))
-    .then(|| name.to_string())
-}
-
-/// The addresses of this machine's interfaces that are up (`getifaddrs`), loopback left out.
+/// The addresses of this machine's interfaces a peer can name: loopback (named apart) and
+/// link-local IPv6 (it needs a zone to be used) left out.
 fn interface_addresses() -> Vec<std::net::IpAddr> {
-    let mut out = Vec::new();
-    let mut head: *mut libc::ifaddrs = std::ptr::null_mut();
-    // SAFETY: getifaddrs fills `head` with a list freed below by freeifaddrs; each entry's
-    // address is read only after its family is checked.
-    unsafe {
-        if libc::getifaddrs(&mut head) != 0 {
-            return out;
-        }
-        let mut at = head;
-        while !at.is_null() {
-            let entry = &*at;
-            at = entry.ifa_next;
-            if entry.ifa_addr.is_null() || entry.ifa_flags & libc::IFF_UP as u32 == 0 {
-                continue;
-            }
-            let addr = match i32::from((*entry.ifa_addr).sa_family) {
-                libc::AF_INET => {
-                    let a = &*(entry.ifa_addr as *const libc::sockaddr_in);
-                    std::net::IpAddr::from(u32::from_be(a.sin_addr.s_addr).to_be_bytes())
-                }
-                libc::AF_INET6 => {
-                    let a = &*(entry.ifa_addr as *const libc::sockaddr_in6);
-                    std::net::IpAddr::from(a.sin6_addr.s6_addr)
-                }
-                _ => continue,
-            };
-            // Link-local IPv6 addresses need a zone to be used: not names a peer gives.
-            let link_local =
-                matches!(addr, std::net::IpAddr::V6(v6) if v6.segments()[0] & 0xffc0 == 0xfe80);
-            if !addr.is_loopback() && !link_local {
-                out.push(addr);
-            }
-        }
-        libc::freeifaddrs(head);
-    }
+    let mut out = keyfile::interface_addresses();
+    out.retain(|a| {
+        let link_local =
+            matches!(a, std::net::IpAddr::V6(v6) if v6.segments()[0] & 0xffc0 == 0xfe80);
+        !a.is_loopback() && !link_local
+    });
     out
 }

@@ -145,6 +145,15 @@ pub fn peer_config(
     set(&mut c, "mode", "\"peer\"")?;
     set(&mut c, "scouting/multicast/enabled", "false")?;
     set(&mut c, "scouting/gossip/enabled", "false")?;
+    // A droppable put waits up to 20 ms for room before it is dropped (zenoh's default is
+    // 1 ms): a link that stalls briefly (a loaded machine, a TLS record being sealed) loses
+    // nothing, and the wait is the bridge's own (it reads the bus like any reader, with a
+    // second of samples buffered), never the pipeline's.
+    set(
+        &mut c,
+        "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
+        "20000",
+    )?;
     if let Some(id) = identity {
         let b64 = |pem: &[u8]| {
             use base64::Engine as _;

@@ -145,6 +145,15 @@ impl HandTrace {
             samples: Vec::new(),
             warnings: rec.damage.iter().map(|d| d.to_string()).collect(),
         };
+        if rec.refused_messages > 0 {
+            // Refused by the reader (issue 40: counts past their arrays), so never played.
+            trace.warnings.push(format!(
+                "{}: {} messages skipped, their counts past their arrays (the first {})",
+                rec.path.display(),
+                rec.refused_messages,
+                rec.first_refused.as_deref().unwrap_or("")
+            ));
+        }
         let sources: Vec<Topic> = Stage::Replay.recorded_outputs().collect();
         let mut order: Vec<_> = rec
             .messages

@@ -13,40 +13,9 @@ pub fn lan_ip() -> Option<IpAddr> {
     (!ip.is_unspecified() && !ip.is_loopback()).then_some(ip)
 }
 
-/// This machine's interfaces' addresses (IPv4 and IPv6, loopback included), to say where a
-/// server listening on every interface can be reached; empty when they cannot be listed.
-pub fn interface_addresses() -> Vec<IpAddr> {
-    let mut out = Vec::new();
-    let mut list: *mut libc::ifaddrs = std::ptr::null_mut();
-    // SAFETY: getifaddrs fills `list` with a linked list that freeifaddrs releases; each
-    // entry's ifa_addr is null or points at a sockaddr of the family it names.
-    unsafe {
-        if libc::getifaddrs(&mut list) != 0 {
-            return out;
-        }
-        let mut p = list;
-        while !p.is_null() {
-            let a = (*p).ifa_addr;
-            if !a.is_null() {
-                match i32::from((*a).sa_family) {
-                    libc::AF_INET => {
-                        let v4 = &*(a as *const libc::sockaddr_in);
-                        out.push(IpAddr::from(u32::from_be(v4.sin_addr.s_addr).to_be_bytes()));
-                    }
-                    libc::AF_INET6 => {
-                        let v6 = &*(a as *const libc::sockaddr_in6);
-                        out.push(IpAddr::from(v6.sin6_addr.s6_addr));
-                    }
-                    _ => {}
-                }
-            }
-            p = (*p).ifa_next;
-        }
-        libc::freeifaddrs(list);
-    }
-    out.dedup();
-    out
-}
+/// This machine's interfaces' addresses (the shared `keyfile` crate's, which names them in
+/// certificates too): to say where a server listening on every interface can be reached.
+pub use keyfile::interface_addresses;
 
 /// The host a headset should use for a server listening on `listen`.
 pub fn public_host(listen: SocketAddr) -> IpAddr {
