@@ -1,8 +1,10 @@
 //! Private key files, written and read so that nobody else reads or swaps them, and a
 //! self-signed certificate kept beside its key, made anew before it expires.
 //!
-//! Written for the webxr certificate and meant for any TLS key this
-//! project keeps (a zenoh link's, say): everything here takes a folder and a file name.
+//! Every TLS key this project keeps: the webxr page's certificate ([`self_signed_pair`]) and
+//! a zenoh link's authority ([`authority`], which issues each start's certificate for this
+//! machine's names, [`interface_addresses`] and [`host_name`], and signs what a peer checks
+//! with [`verify`]). Everything here takes a folder and a file name.
 //!
 //! - **Writing** ([`write_private`]): a temporary name in the same folder, created with
 //!   `O_CREAT|O_EXCL|O_NOFOLLOW` and mode 0600, written, synced, then renamed over the name.
