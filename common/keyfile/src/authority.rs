@@ -13,11 +13,10 @@
 use std::os::fd::AsRawFd as _;
 use std::os::unix::fs::OpenOptionsExt as _;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 use crate::{
-    certificate_der, private_dir, read_certificate, read_private, renewal, unix_now, write_private,
-    KeyFileError, PairStatus, DAY_S, VALIDITY_DAYS,
+    certificate_der, certificate_params, private_dir, read_certificate, read_private, renewal,
+    unix_now, write_private, KeyFileError, PairStatus, DAY_S, VALIDITY_DAYS,
 };
 
 /// The authority's certificate in its folder: the file a peer is given to trust.
@@ -140,14 +139,7 @@ pub fn authority_at(dir: &Path, name: &str, now: u64) -> Result<Authority, KeyFi
     } else {
         PairStatus::Made
     };
-    let mut params = rcgen::CertificateParams::default();
-    let epoch = rcgen::date_time_ymd(1970, 1, 1);
-    params.not_before = epoch + Duration::from_secs(now.saturating_sub(DAY_S));
-    params.not_after = epoch + Duration::from_secs(now + VALIDITY_DAYS * DAY_S);
-    params.distinguished_name = rcgen::DistinguishedName::new();
-    params
-        .distinguished_name
-        .push(rcgen::DnType::CommonName, name);
+    let mut params = certificate_params(&[], name, now, VALIDITY_DAYS)?;
     params.is_ca = rcgen::IsCa::Ca(rcgen::BasicConstraints::Constrained(0));
     params.key_usages = vec![
         rcgen::KeyUsagePurpose::KeyCertSign,
@@ -174,14 +166,7 @@ impl Authority {
     pub fn issue(&self, hosts: &[String]) -> Result<Issued, KeyFileError> {
         let make = |e: rcgen::Error| KeyFileError::Make(e.to_string());
         let now = unix_now();
-        let mut params = rcgen::CertificateParams::new(hosts.to_vec()).map_err(make)?;
-        let epoch = rcgen::date_time_ymd(1970, 1, 1);
-        params.not_before = epoch + Duration::from_secs(now.saturating_sub(DAY_S));
-        params.not_after = epoch + Duration::from_secs(now + ISSUED_VALIDITY_DAYS * DAY_S);
-        params.distinguished_name = rcgen::DistinguishedName::new();
-        params
-            .distinguished_name
-            .push(rcgen::DnType::CommonName, "handblocks link");
+        let mut params = certificate_params(hosts, "handblocks link", now, ISSUED_VALIDITY_DAYS)?;
         params.extended_key_usages = vec![
             rcgen::ExtendedKeyUsagePurpose::ServerAuth,
             rcgen::ExtendedKeyUsagePurpose::ClientAuth,

@@ -217,15 +217,7 @@ pub fn self_signed_pair_at(dir: &Path, hosts: &[String], now: u64) -> Result<Pai
         PairStatus::Made
     };
     let make = |e: rcgen::Error| KeyFileError::Make(e.to_string());
-    let mut params = rcgen::CertificateParams::new(hosts.to_vec()).map_err(make)?;
-    let epoch = rcgen::date_time_ymd(1970, 1, 1);
-    // A day's slack before now: a headset whose clock is a little behind still accepts it.
-    params.not_before = epoch + Duration::from_secs(now.saturating_sub(DAY_S));
-    params.not_after = epoch + Duration::from_secs(now + VALIDITY_DAYS * DAY_S);
-    params.distinguished_name = rcgen::DistinguishedName::new();
-    params
-        .distinguished_name
-        .push(rcgen::DnType::CommonName, "handblocks (self-signed)");
+    let params = certificate_params(hosts, "handblocks (self-signed)", now, VALIDITY_DAYS)?;
     let key = rcgen::KeyPair::generate().map_err(make)?;
     let cert = params.self_signed(&key).map_err(make)?;
     let key_pem = key.serialize_pem().into_bytes();
@@ -240,6 +232,26 @@ pub fn self_signed_pair_at(dir: &Path, hosts: &[String], now: u64) -> Result<Pai
         key_pem,
         status,
     })
+}
+
+/// A certificate's parameters: `hosts` as its names, `name` as its subject, valid from a day
+/// before `now` (a peer whose clock is a little behind still accepts it) for `days` days.
+pub(crate) fn certificate_params(
+    hosts: &[String],
+    name: &str,
+    now: u64,
+    days: u64,
+) -> Result<rcgen::CertificateParams, KeyFileError> {
+    let mut params = rcgen::CertificateParams::new(hosts.to_vec())
+        .map_err(|e| KeyFileError::Make(e.to_string()))?;
+    let epoch = rcgen::date_time_ymd(1970, 1, 1);
+    params.not_before = epoch + Duration::from_secs(now.saturating_sub(DAY_S));
+    params.not_after = epoch + Duration::from_secs(now + days * DAY_S);
+    params.distinguished_name = rcgen::DistinguishedName::new();
+    params
+        .distinguished_name
+        .push(rcgen::DnType::CommonName, name);
+    Ok(params)
 }
 
 /// A kept certificate file: its PEM, its DER and its end of validity (seconds since 1970).
