@@ -150,6 +150,35 @@ impl Default for JointsSample {
     }
 }
 
+/// Which of a person's hands a sample, a trace's track or a rule's count is about. A headset
+/// tracks both; a glove and its tracker are one (the right, unless a session says otherwise).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum HandSide {
+    Left,
+    Right,
+}
+
+impl HandSide {
+    pub const BOTH: [HandSide; 2] = [HandSide::Left, HandSide::Right];
+
+    /// `"left"` or `"right"`: as events, reports and options name it.
+    pub fn name(self) -> &'static str {
+        match self {
+            HandSide::Left => "left",
+            HandSide::Right => "right",
+        }
+    }
+
+    /// `"left"` or `"right"` (any case); None for anything else.
+    pub fn parse(text: &str) -> Option<HandSide> {
+        match text.to_ascii_lowercase().as_str() {
+            "left" => Some(HandSide::Left),
+            "right" => Some(HandSide::Right),
+            _ => None,
+        }
+    }
+}
+
 /// `hand`: the hand as the block world sees it (docs/model.md R1-R2): check points per finger
 /// (knuckle to tip), finger radii, the palm polyhedron and the wrist pose, all in the world frame.
 #[repr(C)]

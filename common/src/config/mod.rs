@@ -42,6 +42,18 @@ impl ConfigError {
             problem: problem.into(),
         }
     }
+
+    /// This error, saying "(given with --set)" when its key is one of `overrides` or inside
+    /// one: the user then looks at the command line, not the file.
+    pub fn given_with_set(mut self, overrides: &[session::Override]) -> Self {
+        if overrides
+            .iter()
+            .any(|o| self.key == o.key || self.key.starts_with(&format!("{}.", o.key)))
+        {
+            self.problem.push_str(" (given with --set)");
+        }
+        self
+    }
 }
 
 impl fmt::Display for ConfigError {

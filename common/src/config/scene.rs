@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use toml::Value;
 
 use super::reader::{parse_file, vector, Reader};
+use super::session::Override;
 use super::ConfigError;
 use crate::samples::{MAX_FINGERS, MAX_FINGER_POINTS, MAX_SCENE_BLOCKS};
 
@@ -49,6 +50,12 @@ pub struct WorldSettings {
     /// in `Scene`) because they only mean something together with it, and so that scenes built
     /// in code with `WorldSettings::default()` get them too.
     pub precise: PreciseSettings,
+    /// `[world] hands`: which rules a hand grasps and throws by (docs/model.md "Tracked
+    /// hands"): the paper's (R3, R13), the default, or the tracked rules T1-T3 beside them.
+    pub hands: HandRules,
+    /// `[tracked]`: the tracked rules' own settings (read whatever `hands` says, as
+    /// `[precise]` is, so that `--set tracked.KEY=...` can be given before `hands`).
+    pub tracked: TrackedSettings,
     /// Each `[[block]]`'s own `color = [r, g, b]` (0 to 1, sRGB), in scene order (lattice
     /// copies share their table's); None where the table has none (the renderer then takes it
     /// from the name, `config::colors::block_colors`). Only the views read it. It
@@ -70,7 +77,53 @@ impl Default for WorldSettings {
             release_angle: 120f64.to_radians(),
             throw_window: 1,
             precise: PreciseSettings::default(),
+            hands: HandRules::Paper,
+            tracked: TrackedSettings::default(),
             block_colors: Vec::new(),
+        }
+    }
+}
+
+/// `[world] hands`: the rules a hand grasps, holds and throws by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HandRules {
+    /// R3 decides every step afresh, R13 throws with the last step's displacement: the paper.
+    Paper,
+    /// docs/model.md T1-T3: a grasp holds while the grip stays within `grip_margin` of the
+    /// block, through tracking gaps up to `gap_hold`, and throws with a fitted velocity.
+    Tracked,
+}
+
+impl HandRules {
+    pub fn name(self) -> &'static str {
+        match self {
+            HandRules::Paper => "paper",
+            HandRules::Tracked => "tracked",
+        }
+    }
+}
+
+/// `[tracked]`: the numbers of docs/model.md's tracked-hand rules, each with why.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackedSettings {
+    /// T1: once grasped, a block stays grasped while R3's test passes with check points this
+    /// far outside the block counted as touching it (metres). Trackers jitter by 2-11 mm
+    /// (sd); a grip must open by more than that before it lets go.
+    pub grip_margin: f64,
+    /// T2: a hand that is not tracked keeps what it holds, unmoved by new contacts, for up to
+    /// this long (seconds); then it lets go with no throw.
+    pub gap_hold: f64,
+    /// T3: the throw's velocity is a least-squares fit of the held block's path over this
+    /// long before the grip left the block (seconds).
+    pub throw_fit_window: f64,
+}
+
+impl Default for TrackedSettings {
+    fn default() -> Self {
+        TrackedSettings {
+            grip_margin: 0.02,
+            gap_hold: 0.25,
+            throw_fit_window: 0.15,
         }
     }
 }
@@ -250,6 +303,17 @@ impl Scene {
         Scene::from_table(file, &parse_file(file)?)
     }
 
+    /// Reads a scene file with `--set KEY=VALUE` overrides applied (`world.hands=tracked`,
+    /// `tracked.grip_margin=0.03`), each checked exactly as the file's own keys are; an error
+    /// about an overridden key says it came from `--set`.
+    pub fn load_with(file: &Path, overrides: &[Override]) -> Result<Scene, ConfigError> {
+        let mut table = parse_file(file)?;
+        for o in overrides {
+            o.apply(file, &mut table)?;
+        }
+        Scene::from_table(file, &table).map_err(|e| e.given_with_set(overrides))
+    }
+
     /// Checks a scene already parsed as TOML (Python's `handblocks.simulate` given a dict):
     /// `file` names it in errors, and relative paths in it are taken from its folder.
     pub fn from_table(file: &Path, table: &toml::Table) -> Result<Scene, ConfigError> {
@@ -259,6 +323,7 @@ impl Scene {
             file: file.to_path_buf(),
             world: WorldSettings {
                 precise: precise(root.table("precise")?)?,
+                tracked: tracked(root.table("tracked")?)?,
                 block_colors,
                 ..world(root.table("world")?)?
             },
@@ -313,10 +378,33 @@ fn world(r: Option<Reader>) -> Result<WorldSettings, ConfigError> {
         release_angle: release_deg.to_radians(),
         throw_window: r.u64_in("throw_window", 1, 1..=1000)? as u32,
         precise: d.precise,
+        hands: match r.choice("hands", &["paper", "tracked"])? {
+            "tracked" => HandRules::Tracked,
+            _ => HandRules::Paper,
+        },
+        tracked: d.tracked,
         block_colors: Vec::new(),
     };
     r.finish()?;
     Ok(w)
+}
+
+fn tracked(r: Option<Reader>) -> Result<TrackedSettings, ConfigError> {
+    let d = TrackedSettings::default();
+    let Some(r) = r else { return Ok(d) };
+    let t = TrackedSettings {
+        grip_margin: r
+            .f64_in("grip_margin", Some(d.grip_margin), 0.0..=0.2)?
+            .unwrap_or(d.grip_margin),
+        gap_hold: r
+            .f64_in("gap_hold", Some(d.gap_hold), 0.0..=10.0)?
+            .unwrap_or(d.gap_hold),
+        throw_fit_window: r
+            .f64_in("throw_fit_window", Some(d.throw_fit_window), 0.0..=2.0)?
+            .unwrap_or(d.throw_fit_window),
+    };
+    r.finish()?;
+    Ok(t)
 }
 
 fn precise(r: Option<Reader>) -> Result<PreciseSettings, ConfigError> {

@@ -372,7 +372,7 @@ impl Override {
         })
     }
 
-    fn apply(&self, file: &Path, table: &mut toml::Table) -> Result<(), ConfigError> {
+    pub(crate) fn apply(&self, file: &Path, table: &mut toml::Table) -> Result<(), ConfigError> {
         // Another kind of source takes other keys: `--set source.kind=replay` starts the
         // [source] table afresh, so the file's `rate_hz` of a scripted source is not refused
         // as a key a replay does not take.
@@ -451,15 +451,7 @@ impl Session {
         for o in kinds.into_iter().chain(rest) {
             o.apply(file, &mut table)?;
         }
-        Session::from_table(file, &table).map_err(|mut e| {
-            if overrides
-                .iter()
-                .any(|o| e.key == o.key || e.key.starts_with(&format!("{}.", o.key)))
-            {
-                e.problem.push_str(" (given with --set)");
-            }
-            e
-        })
+        Session::from_table(file, &table).map_err(|e| e.given_with_set(overrides))
     }
 
     fn from_table(file: &Path, table: &toml::Table) -> Result<Session, ConfigError> {
