@@ -9,6 +9,7 @@ use common::BlockMode;
 
 use crate::block_set::BlockSet;
 use crate::geometry::Polyhedron;
+use crate::tracked::GripPath;
 
 /// A set of vertex indices (a block has at most 256 hull vertices: the scene loader's limit).
 /// A fixed bit set, so updating a contact set never allocates.
@@ -170,6 +171,9 @@ pub struct Block {
     /// R13: the last `throw_window` grasped displacements (ring buffer) and how many are valid.
     pub grasp_history: Vec<DVec3>,
     pub grasp_history_len: usize,
+    /// T3 (tracked hands only): G along the current grasp, for the fitted throw. Empty (no
+    /// memory) under the paper's rules; sized by `World::new`.
+    pub grip: GripPath,
 }
 
 impl Block {
@@ -214,6 +218,7 @@ impl Block {
             grasp_history: vec![DVec3::ZERO; window.max(1)],
             grasp_history_len: 0,
             grasp_history_next: 0,
+            grip: GripPath::default(),
         };
         b.rotate_rel();
         b

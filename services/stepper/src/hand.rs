@@ -22,6 +22,7 @@ use crate::geometry::{segment_segment, segment_triangle};
 use crate::grid::BlockGrid;
 use crate::motion::push_one_point;
 use crate::settings::Settings;
+use crate::tracked::{TrackedCounts, TrackedRules};
 
 /// Contacts kept per block and step (after merging; more are dropped, never allocated).
 pub const MAX_CONTACTS: usize = 64;
@@ -240,11 +241,15 @@ pub(crate) fn first_entries<'a>(
 /// R1 and R2 for one block: appends its contacts (relative to G, world orientation).
 /// `prev(f, k)` and `now(f, k)` are the check points in the world frame; `first` is
 /// [`first_entries`]: a locus entering this block after it entered another one is no contact.
+/// `touch` is how far outside the block a check point at P- still touches it: contact_eps,
+/// or T1's grip margin.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn block_contacts(
     b: &Block,
     hand: &HandSample,
     prev: Option<&HandSample>,
     contact_eps: f64,
+    touch: f64,
     hull_eps: f64,
     first: &FirstEntries,
     contacts: &mut Vec<Contact>,
@@ -278,11 +283,12 @@ pub(crate) fn block_contacts(
             let a0 = to_body(pm(k));
             let a1 = to_body(hand.finger_points[f][k]);
             let (s, face) = poly.max_face_distance(a0);
-            if s <= contact_eps {
-                // Already inside at P-, or within contact_eps of the surface: a contact at
-                // the nearest surface point, with that face's normal.
+            if s <= touch {
+                // Already inside at P-, or within contact_eps of the surface (`touch`: T1's
+                // grip margin for a block a tracked hand holds): a contact at the nearest
+                // surface point, with that face's normal.
                 let (cpt, dist, _) = poly.nearest_surface_point(a0);
-                if dist <= contact_eps {
+                if dist <= touch {
                     add(contacts, out(cpt, poly.faces[face].normal, a1), contact_eps);
                     continue;
                 }
@@ -407,19 +413,28 @@ impl HandContacts {
         reach: (DVec3, DVec3),
         settings: &Settings,
         grasp: bool,
+        step: u64,
+        counts: &mut TrackedCounts,
     ) -> bool {
         let eps = settings.contact_eps;
         let hull_eps = settings.hull_eps;
+        // T1 looks for check points up to the grip margin outside a held block: the broad
+        // phase reaches that far too.
+        let reach_eps = eps + settings.tracked.map_or(0.0, |t| t.grip_margin);
         // Broad phase: the box around every check point now and before, grown by eps (`reach`,
         // `hand_reach`: the caller has already found it near a block).
         let (lo, hi) = reach;
-        let near = |b: &Block| (b.pos().max(lo).min(hi) - b.pos()).length() <= b.poly.radius + eps;
+        let near =
+            |b: &Block| (b.pos().max(lo).min(hi) - b.pos()).length() <= b.poly.radius + reach_eps;
         // The grid's blocks within the box's half diagonal (and eps) of its centre: every block
         // `near` accepts (a superset; `near` decides). In no order: each block's action is its
         // own, and the first entries are minima. The grid sees every block where the last step
         // left it (its stage 5), and nothing has moved since.
-        let candidates: &[u32] =
-            grid.near_any_order(blocks, (lo + hi) * 0.5, 0.5 * (hi - lo).length() + eps);
+        let candidates: &[u32] = grid.near_any_order(
+            blocks,
+            (lo + hi) * 0.5,
+            0.5 * (hi - lo).length() + reach_eps,
+        );
         // Nothing near the hand: no block has an action to decide.
         if candidates.is_empty() {
             return false;
@@ -442,38 +457,36 @@ impl HandContacts {
                 continue;
             }
             contacts.clear();
-            block_contacts(b, hand, prev, eps, hull_eps, &first, contacts);
-            let action = match contacts.len() {
-                0 => HandAction::None,
-                1 => HandAction::Push {
-                    c: contacts[0].c,
-                    b: contacts[0].b,
-                },
-                _ => {
-                    let threshold = if b.mode == BlockMode::Grasped {
-                        settings.release_angle
-                    } else {
-                        settings.grasp_angle
-                    };
-                    if grasp && largest_angle(contacts) > threshold {
+            block_contacts(b, hand, prev, eps, eps, hull_eps, &first, contacts);
+            let paper = classify(contacts, b.mode, settings, grasp);
+            let action = match settings.tracked {
+                // T1: a grasp R3 no longer confirms holds while R3's test passes with the
+                // check points within the grip margin of the block counted as touching it.
+                Some(t) if grasp && b.mode == BlockMode::Grasped && paper != HandAction::Grasp => {
+                    contacts.clear();
+                    block_contacts(
+                        b,
+                        hand,
+                        prev,
+                        eps,
+                        t.grip_margin,
+                        hull_eps,
+                        &first,
+                        contacts,
+                    );
+                    if contacts.len() >= 2 && largest_angle(contacts) > settings.release_angle {
+                        counts.grip_held_steps += 1;
                         HandAction::Grasp
                     } else {
-                        // R6: the mean of the contacts' T vectors, leaving ones excluded.
-                        let mut sum = DVec3::ZERO;
-                        let mut n = 0usize;
-                        for c in contacts.iter() {
-                            if let Some(p) = push_one_point(c.c, c.b, DVec3::ZERO, hull_eps, eps) {
-                                sum += p.t;
-                                n += 1;
-                            }
-                        }
-                        if n > 0 {
-                            HandAction::Translate(sum / n as f64)
-                        } else {
-                            HandAction::None
-                        }
+                        paper
                     }
                 }
+                // T3's evaluation step: the last at which R3 itself found the grasp.
+                Some(_) if paper == HandAction::Grasp => {
+                    b.grip.firm_step = step;
+                    paper
+                }
+                _ => paper,
             };
             if action != HandAction::None {
                 // The hand acts on it: a resting block joins the step.
@@ -486,25 +499,101 @@ impl HandContacts {
     }
 }
 
+/// R3 for one block's merged contacts: none, one (R4), or two and more, grasped (R5) when
+/// their pseudo-normals open wider than grasp_angle (release_angle once grasped) and R6's
+/// translation otherwise. `grasp`: whether R5 may grasp at all (hand = "grasp").
+fn classify(contacts: &[Contact], mode: BlockMode, settings: &Settings, grasp: bool) -> HandAction {
+    let (eps, hull_eps) = (settings.contact_eps, settings.hull_eps);
+    match contacts.len() {
+        0 => HandAction::None,
+        1 => HandAction::Push {
+            c: contacts[0].c,
+            b: contacts[0].b,
+        },
+        _ => {
+            let threshold = if mode == BlockMode::Grasped {
+                settings.release_angle
+            } else {
+                settings.grasp_angle
+            };
+            if grasp && largest_angle(contacts) > threshold {
+                HandAction::Grasp
+            } else {
+                // R6: the mean of the contacts' T vectors, leaving ones excluded.
+                let mut sum = DVec3::ZERO;
+                let mut n = 0usize;
+                for c in contacts.iter() {
+                    if let Some(p) = push_one_point(c.c, c.b, DVec3::ZERO, hull_eps, eps) {
+                        sum += p.t;
+                        n += 1;
+                    }
+                }
+                if n > 0 {
+                    HandAction::Translate(sum / n as f64)
+                } else {
+                    HandAction::None
+                }
+            }
+        }
+    }
+}
+
 /// Stage 1's R13: a grasp that R3 no longer confirms ends (also when there is no hand this
 /// step). The block is free with v = its last grasped displacement (the mean over throw_window
 /// steps); "releases take effect for the next step": R7 moves it from the next step on, so
 /// that after k more steps it is at p + k v + g_step k (k + 1) / 2 (the floor stage still looks
 /// at it this step, so a block let go on the floor rests or tips with that inertia as its Gm).
-pub(crate) fn end_grasps(blocks: &mut [Block], active: &BlockSet, inertia: bool) {
+/// Under tracked hands T1 and T2 decide which grasps stage 1 confirms, and `letting` is T3's
+/// fit or T2's drop.
+pub(crate) fn end_grasps(
+    blocks: &mut [Block],
+    active: &BlockSet,
+    inertia: bool,
+    letting: Letting,
+    counts: &mut TrackedCounts,
+) {
     // A grasped block is never at rest: it is in `active`.
     for i in active.iter() {
         let b = &mut blocks[i];
         if b.mode == BlockMode::Grasped && b.action() != HandAction::Grasp {
             b.released = true;
             b.mode = BlockMode::Free;
-            b.v = if inertia {
-                b.throw_displacement()
-            } else {
-                DVec3::ZERO
+            b.v = match letting {
+                _ if !inertia => DVec3::ZERO,
+                Letting::Throw => b.throw_displacement(),
+                // T3: the fitted velocity, where there are tracked points to fit.
+                Letting::FittedThrow { now, rules } => match b.grip.throw_velocity(now, &rules) {
+                    Some(v) => {
+                        counts.fitted_throws += 1;
+                        v * rules.dt
+                    }
+                    None => b.throw_displacement(),
+                },
+                // T2: a hand lost for longer than gap_hold lets go with nothing to throw by.
+                Letting::Drop => {
+                    counts.gap_releases += 1;
+                    DVec3::ZERO
+                }
             };
+            // T3: the step that lets go gives the block its throw and nothing else: a finger
+            // still inside it (the thumb of an opening hand) would push it along that finger's
+            // normal alone (R4 sets v = T), and the throw would go where the thumb points.
+            if !matches!(letting, Letting::Throw) {
+                b.set_action(HandAction::None);
+            }
         }
     }
+}
+
+/// How [`end_grasps`] lets a block go.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Letting {
+    /// R13: the last grasped displacement (the mean over throw_window steps).
+    Throw,
+    /// T3: the fit of the held block's path, at step `now`.
+    FittedThrow { now: u64, rules: TrackedRules },
+    /// T2: no throw (v = 0), the hand was lost for too long.
+    Drop,
 }
 
 /// Stage 2: R5 grasp (rigidly with the wrist), R4 one-point push, R6 translation, as stage 1
@@ -517,6 +606,7 @@ pub(crate) fn move_by_hand(
     prev: Option<&HandSample>,
     settings: &Settings,
     fingers: &mut Fingers,
+    path_step: Option<u64>,
 ) -> bool {
     // R5's wrist motion, worked out for the first grasped block (a hand that acts on nothing
     // costs this stage a pass over the active set and nothing more).
@@ -545,6 +635,7 @@ pub(crate) fn move_by_hand(
                 // R5: pose <- W W-^-1 pose.
                 if b.mode_before != BlockMode::Grasped {
                     b.grasp_history_len = 0;
+                    b.grip.clear();
                 }
                 let (w_pos, wm_pos, dq) = *grasp_motion.get_or_insert_with(wrist_motion);
                 let new_pos = w_pos + dq * (b.pos() - wm_pos);
@@ -552,6 +643,10 @@ pub(crate) fn move_by_hand(
                 b.set_position(new_pos);
                 b.set_rotation((dq * b.rot()).normalize());
                 b.push_grasp_displacement(d);
+                // T3: the path of a block a tracked hand holds (untracked steps are no data).
+                if let Some(step) = path_step {
+                    b.grip.push(step, new_pos);
+                }
                 b.v = d;
                 b.moved = Moved::Hand;
                 b.mode = BlockMode::Grasped;

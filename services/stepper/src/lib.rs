@@ -43,6 +43,7 @@ mod settings;
 pub mod simulate;
 pub mod support;
 pub mod timeline;
+pub mod tracked;
 pub mod world;
 
 pub use model::Model;

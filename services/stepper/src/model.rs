@@ -7,11 +7,12 @@
 //! An enum, not a trait object: two variants, known here, and a step of the paper model must
 //! stay one predictable branch away (no allocation, no indirection on its hot path).
 
-use common::config::scene::{ModelKind, Stacking};
+use common::config::scene::{HandRules, ModelKind, Stacking};
 use common::config::Scene;
 use common::{BlockState, HandSample, WorldHeader, WorldSample};
 
 use crate::precise::PreciseWorld;
+use crate::tracked::TrackedCounts;
 use crate::world::{BlockView, Event, World, WorldError};
 
 /// A world under one of the two models.
@@ -31,6 +32,14 @@ impl Model {
     pub fn new(scene: &Scene) -> Result<Model, WorldError> {
         match scene.world.model {
             ModelKind::Paper => World::new(scene).map(Model::Paper),
+            ModelKind::Precise if scene.world.hands == HandRules::Tracked => Err(WorldError {
+                file: scene.file.clone(),
+                block: None,
+                problem: "`world.hands` = \"tracked\" is the paper model's (docs/model.md T1-T3); \
+                          the precise model grasps by R3 alone: give `world.hands` = \"paper\" \
+                          with `world.model` = \"precise\""
+                    .into(),
+            }),
             ModelKind::Precise => {
                 let mut checked = scene.clone();
                 checked.world.model = ModelKind::Paper;
@@ -38,6 +47,15 @@ impl Model {
                 World::new(&checked)?;
                 PreciseWorld::new(scene).map(|w| Model::Precise(Box::new(w)))
             }
+        }
+    }
+
+    /// What the tracked hand rules (T1-T3) did: zero under the paper's rules and under the
+    /// precise model (which has none).
+    pub fn tracked_counts(&self) -> TrackedCounts {
+        match self {
+            Model::Paper(w) => w.tracked_counts(),
+            Model::Precise(_) => TrackedCounts::default(),
         }
     }
 

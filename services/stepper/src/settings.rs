@@ -5,6 +5,8 @@
 
 use glam::DVec3;
 
+use crate::tracked::TrackedRules;
+
 /// The scene's numbers as the rules use them.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Settings {
@@ -16,6 +18,8 @@ pub(crate) struct Settings {
     pub angle_eps: f64,
     pub grasp_angle: f64,
     pub release_angle: f64,
+    /// T1-T3 under `[world] hands = "tracked"`; None under the paper's rules.
+    pub tracked: Option<TrackedRules>,
 }
 
 /// Which passes run each step (docs/design.md "Effects"): an effect that is off costs nothing.

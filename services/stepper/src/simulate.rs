@@ -177,6 +177,9 @@ pub struct Report {
     pub refused_hands: u64,
     /// The first refused sample: its seq and why.
     pub first_refused: Option<(u64, &'static str)>,
+    /// Under `[world] hands = "tracked"`: what T1-T3 did (None under the paper's rules, whose
+    /// reports stay as they were).
+    pub tracked: Option<crate::tracked::TrackedCounts>,
 }
 
 /// Steps `simulate` takes when the command line gives no `--frames`: the scripted hand's
@@ -368,6 +371,8 @@ fn report(world: &Model, scene: &Scene, frames: u64, events: Vec<EventReport>) -
         clock_jumps: 0,
         refused_hands: 0,
         first_refused: None,
+        tracked: (scene.world.hands == common::config::scene::HandRules::Tracked)
+            .then(|| world.tracked_counts()),
     }
 }
 
@@ -442,6 +447,14 @@ impl Report {
         if self.refused_hands > 0 {
             let _ = write!(o, ", \"refused_hands\": {}", self.refused_hands);
         }
+        if let Some(t) = &self.tracked {
+            let _ = write!(
+                o,
+                ", \"hands\": \"tracked\", \"tracked\": {{\"grip_held_steps\": {}, \"gaps_held\": {}, \
+                 \"gap_releases\": {}, \"fitted_throws\": {}}}",
+                t.grip_held_steps, t.gaps_held, t.gap_releases, t.fitted_throws
+            );
+        }
         o.push_str("}\n");
         o
     }
@@ -495,6 +508,14 @@ impl Report {
                 }
                 None => o.push('\n'),
             }
+        }
+        if let Some(t) = &self.tracked {
+            let _ = writeln!(
+                o,
+                "hands: tracked (docs/model.md T1-T3): {} step(s) held by the grip margin, {} \
+                 tracking gap(s) held, {} grasp(s) let go after a long gap, {} fitted throw(s)",
+                t.grip_held_steps, t.gaps_held, t.gap_releases, t.fitted_throws
+            );
         }
         if self.events.is_empty() {
             o.push_str("events: none\n");

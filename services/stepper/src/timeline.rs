@@ -121,6 +121,12 @@ pub fn interpolate(a: &HandSample, b: &HandSample, s: f64, out: &mut HandSample)
             .lerp(DVec3::from_array(q), s)
             .to_array()
     };
+    // A pose between a lost sample (held at its last pose) and a tracked one is not measured:
+    // it is the catch-up after a gap (T2 and T3 of tracked hands read this; the paper's
+    // rules do not).
+    if s < 1.0 {
+        out.tracked = a.tracked.min(b.tracked);
+    }
     out.wrist.position = lerp(a.wrist.position, b.wrist.position);
     out.wrist.rotation = DQuat::from_array(a.wrist.rotation)
         .slerp(DQuat::from_array(b.wrist.rotation), s)

@@ -32,12 +32,14 @@ use crate::grid::BlockGrid;
 // The check points as drawn are the hand's (R5 relocates them); the precise model fills the same.
 pub(crate) use crate::hand::Fingers;
 use crate::hand::{
-    check_point_box, end_grasps, hand_reach, is_usable, move_by_hand, HandContacts, EMPTY_BOX,
+    check_point_box, end_grasps, hand_reach, is_usable, move_by_hand, HandContacts, Letting,
+    EMPTY_BOX,
 };
 use crate::interference::Carry;
 use crate::motion::move_freely;
 use crate::settings::{Passes, Settings};
 use crate::support::Support;
+use crate::tracked::{hold_grasps, GripPath, TrackedCounts, TrackedRules};
 
 /// What is wrong with a scene for the model: names the file, the block (when one is at fault)
 /// and the problem.
@@ -123,6 +125,10 @@ pub struct World {
     /// The hand of this step in the world's frame (when `anchor` is not zero): the sample
     /// translated once, where it enters, into preallocated space.
     hand_local: HandSample,
+    /// T2: consecutive steps the hand has not been tracked (or absent), under tracked rules.
+    untracked_steps: u64,
+    /// What the tracked rules did.
+    tracked_counts: TrackedCounts,
 }
 
 /// The world frame's origin for blocks at `positions` (scene frame): the middle of their box
@@ -223,6 +229,7 @@ impl World {
             angle_eps: w.angle_eps,
             grasp_angle: w.grasp_angle,
             release_angle: w.release_angle,
+            tracked: TrackedRules::of(w.hands, &w.tracked, w.step_hz),
         };
         let mut blocks = Vec::with_capacity(scene.blocks.len());
         let mut max_vertices = 0;
@@ -284,10 +291,12 @@ impl World {
                 w.throw_window as usize,
             ));
         }
-        // R14's sets of blocks are sized for this world once, here.
+        // R14's sets of blocks are sized for this world once, here; so are T3's paths.
         let n = blocks.len();
+        let path_capacity = settings.tracked.map_or(0, |t| t.path_capacity());
         for b in &mut blocks {
             b.tipped_over = BlockSet::new(n);
+            b.grip = GripPath::with_capacity(path_capacity);
         }
         // Geometric validation (the loader checks form and ranges, we check shapes).
         if e.floor != FloorEffect::None {
@@ -384,7 +393,14 @@ impl World {
             anchor,
             hand_local: HandSample::default(),
             rejected_hands: 0,
+            untracked_steps: 0,
+            tracked_counts: TrackedCounts::default(),
         })
+    }
+
+    /// What the tracked rules (T1-T3) did; all zero under the paper's.
+    pub fn tracked_counts(&self) -> TrackedCounts {
+        self.tracked_counts
     }
 
     /// Hand samples this world refused where they entered (`hand::unusable_because`).
@@ -440,6 +456,8 @@ impl World {
             states,
             anchor,
             hand_local,
+            untracked_steps,
+            tracked_counts,
             ..
         } = self;
         let anchor = *anchor;
@@ -469,13 +487,35 @@ impl World {
         // last step's stage 5 brought it up to date: free motion then syncs it first.
         let mut grid_behind = false;
         if passes.hand {
+            // T2 (tracked hands): a hand that is not tracked touches nothing new and keeps
+            // what it holds, for up to gap_hold; then it lets go with no throw.
+            let gap = match settings.tracked {
+                Some(t) if hand.is_none_or(|h| h.tracked == 0) => {
+                    *untracked_steps += 1;
+                    Some(*untracked_steps <= t.gap_hold_steps)
+                }
+                _ => {
+                    *untracked_steps = 0;
+                    None
+                }
+            };
             // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
             //    action; then R13 ends the grasps they no longer confirm.
-            let acted = match hand {
-                Some(h) => {
+            let acted = match (hand, gap) {
+                (_, Some(hold)) => {
+                    *prev_hand_box = hand.map_or(EMPTY_BOX, check_point_box);
+                    hold && hold_grasps(blocks, active, *untracked_steps == 1, tracked_counts)
+                }
+                (Some(h), None) => {
                     let (now, before) = (check_point_box(h), *prev_hand_box);
                     *prev_hand_box = now;
-                    match hand_reach(blocks, grid, now, before, settings.contact_eps) {
+                    match hand_reach(
+                        blocks,
+                        grid,
+                        now,
+                        before,
+                        settings.contact_eps + settings.tracked.map_or(0.0, |t| t.grip_margin),
+                    ) {
                         Some(reach) => hand_contacts.decide_actions(
                             blocks,
                             active,
@@ -485,22 +525,36 @@ impl World {
                             reach,
                             settings,
                             passes.grasp,
+                            self.steps,
+                            tracked_counts,
                         ),
                         None => false,
                     }
                 }
-                None => false,
+                (None, None) => false,
             };
             // R5 grasps only with hand = "grasp": without it no block is ever grasped, and R13
             // has nothing to end (no pass over the active set: ~16 instructions a block).
             if passes.grasp {
-                end_grasps(blocks, active, settings.inertia);
+                let letting = match (settings.tracked, gap) {
+                    (None, _) => Letting::Throw,
+                    (Some(_), Some(false)) => Letting::Drop,
+                    (Some(rules), _) => Letting::FittedThrow {
+                        now: self.steps,
+                        rules,
+                    },
+                };
+                end_grasps(blocks, active, settings.inertia, letting, tracked_counts);
             }
             // 2. Hand-driven motion (R5, R4, R6), then carry (R10) from the blocks it moved. A
             //    hand that acts on nothing (far from every block, or no hand) moves nothing and
             //    carries nothing: neither stage runs, not even a pass over the active set.
+            //    T3 keeps the path of what a tracked hand holds.
+            let path_step = (settings.tracked.is_some() && gap.is_none()).then_some(self.steps);
             let moved = match hand {
-                Some(h) if acted => move_by_hand(blocks, active, h, prev, settings, fingers),
+                Some(h) if acted => {
+                    move_by_hand(blocks, active, h, prev, settings, fingers, path_step)
+                }
                 _ => false,
             };
             if passes.carry && moved {

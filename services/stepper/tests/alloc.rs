@@ -4,6 +4,7 @@
 
 mod support;
 
+use common::config::scene::HandRules;
 use stepper::{BareFingersHand, HandSource, World};
 use support::*;
 
@@ -26,9 +27,19 @@ fn a_step_does_not_allocate_after_warm_up() {
         "hard/push-into-stack",
         "hard/pyramid-15",
     ] {
-        let s = scene_file(name);
-        let mut world = World::new(&s).unwrap();
-        let mut hand = BareFingersHand::from_scene(&s);
+        for hands in [HandRules::Paper, HandRules::Tracked] {
+            let mut s = scene_file(name);
+            // docs/model.md T1-T3: the margin's contacts, the held path, the fitted throw.
+            s.world.hands = hands;
+            steps_without_allocating(name, &s);
+        }
+    }
+}
+
+fn steps_without_allocating(name: &str, s: &common::config::Scene) {
+    {
+        let mut world = World::new(s).unwrap();
+        let mut hand = BareFingersHand::from_scene(s);
         let dt = 1.0 / s.world.step_hz;
         let hands: Vec<Option<common::HandSample>> = (0..=600u64)
             .map(|n| hand.as_mut().and_then(|h| h.hand_at(n, n as f64 * dt)))
@@ -42,7 +53,11 @@ fn a_step_does_not_allocate_after_warm_up() {
             world.step(h.as_ref());
         }
         let made = counting_alloc::allocations() - before;
-        assert_eq!(made, 0, "{name}: {made} allocations in 597 steps");
+        assert_eq!(
+            made, 0,
+            "{name} ({:?} hands): {made} allocations in 597 steps",
+            s.world.hands
+        );
     }
 }
 
