@@ -24,7 +24,8 @@
 //
 // --spectator: the page without IWER; waits for a drawn world, takes the screenshot, prints a
 // summary. Otherwise: prints one JSON line {framesSent, worldsReceived, worldsDrawn, jsMs,
-// roundTripMs, samples, exactness, ...} after the last sample's worlds have come back.
+// roundTripMs, samples, exactness, held, ...} after the last sample's worlds have come back
+// (held: how far behind the hand a grasped block was drawn, see app.js's "the held block").
 // --timeout-s (default 120) bounds each wait: the page's load, the server's ready, the XR
 // session's start, and any 30 s-or-longer stall in the playback (the playback itself may take
 // longer in total: one sample per display frame, about 60 a second).
@@ -459,6 +460,8 @@ async function main() {
       const h = window.handblocks, D = window.__hbDriver;
       return { framesSent: h.framesSent, framesSkipped: h.framesSkipped, worldsReceived: h.worldsReceived,
         worldsDrawn: h.worldsDrawn, jsMs: h.stats.jsMs, roundTripMs: h.stats.roundTripMs, check: D.check,
+        held: { lagFrames: h.stats.heldLagFrames || [], distMm: h.stats.heldDistMm || [],
+          worldLagFrames: h.stats.heldWorldLagFrames || [], worldDistMm: h.stats.heldWorldDistMm || [] },
         checkError: D.checkError || null, played: D.index,
         playMs: D.doneAt - D.startedAt, status: h.status, message: h.message };
     });
@@ -484,6 +487,11 @@ async function main() {
       framesPerSecond: Math.round(r.played / (r.playMs / 1000) * 10) / 10, exactness,
       check: { compared: c.compared, exactFrames: c.exactFrames, sentWhileUntracked: c.sentWhileUntracked,
         wrongMask: c.wrongMask, fallbacks: c.fallbacks, afterEnd: c.afterEnd },
+      // Per XR frame drawing a grasped block with the hand in view: the drawn block's distance
+      // from where R5 puts it for the frame's hand (mm) and the frames its pose is late by;
+      // world*: the same for the world's pose of it (what the page drew before issue 41).
+      held: { lagFrames: percentiles(r.held.lagFrames), distMm: percentiles(r.held.distMm),
+        worldLagFrames: percentiles(r.held.worldLagFrames), worldDistMm: percentiles(r.held.worldDistMm) },
       pageErrors: pageErrors.length,
     };
     if (args.screenshot) out.screenshot = args.screenshot;

@@ -12,11 +12,17 @@
       status: 'starting', ready: false, framesSent: 0, framesSkipped: 0, worldsReceived: 0,
       worldsDrawn: 0, lastWorldTime: null, blocks: [], stats: { jsMs: [], roundTripMs: [] },
       frameTimeOverride: null, xrMode: null, message: '',
+      // true: draw a held block where the world put it, a round trip late (as before issue 41),
+      // to compare by eye; the statistics below then measure that
+      heldFromWorld: false,
     };
     const hb = Object.assign(defaults, prior);
     if (!hb.stats || typeof hb.stats !== 'object') hb.stats = {};
-    if (!Array.isArray(hb.stats.jsMs)) hb.stats.jsMs = [];
-    if (!Array.isArray(hb.stats.roundTripMs)) hb.stats.roundTripMs = [];
+    // jsMs, roundTripMs: per frame; held*: per XR frame that draws a grasped block with the
+    // driving hand in view (see "the held block" below)
+    for (const k of ['jsMs', 'roundTripMs', 'heldLagFrames', 'heldDistMm', 'heldWorldLagFrames', 'heldWorldDistMm']) {
+      if (!Array.isArray(hb.stats[k])) hb.stats[k] = [];
+    }
     window.handblocks = hb;
     return hb;
   })();
@@ -258,6 +264,8 @@
       name: String(b.name),
       color: Array.isArray(b.color) && b.color.length >= 3 ? b.color.slice(0, 3).map(Number) : [0.7, 0.7, 0.7],
       mesh: gl && Array.isArray(b.vertices) && Array.isArray(b.indices) ? makeMesh(b.vertices, b.indices) : null,
+      // its hull's vertices (its own frame): R8's lift of a held block
+      hull: Float64Array.from(Array.isArray(b.vertices) ? b.vertices.map(Number) : []),
     }));
     const floorY = Number.isFinite(msg.floor_y) ? msg.floor_y : 0;
     scene = { session: msg.session, hand: msg.hand, floorY, stepHz: msg.step_hz, blocks };
@@ -266,7 +274,12 @@
     // as much, so that the blocks lie where the hand that moves them is: the world's floor at
     // table height, the hand where it really is.
     const off = Array.isArray(msg.offset) && msg.offset.length === 3 ? msg.offset.map(Number) : [0, 0, 0];
-    M.fromRTS(worldToHeadset, 0, 0, 0, 1, -off[0], -off[1], -off[2], 1);
+    worldToHeadsetPose.set([-off[0], -off[1], -off[2], 0, 0, 0, 1]);
+    poseMatrix(worldToHeadset, worldToHeadsetPose, 0);
+    drivingHand = msg.hand === 'left' ? 0 : 1;
+    resetHeld();
+    wristSeq.fill(0);
+    originEstimated = false;
     HB.blocks = blocks.map((b) => b.name);
     HB.session = msg.session;
     buildFloor(floorY);
@@ -317,6 +330,233 @@
       keep(HB.stats.roundTripMs, rt);
       ringSeq[s % RING] = 0;   // measure each seq once
     }
+  }
+
+  // ---------------------------------------------------------------- the held block (R5)
+  // A world answers the page's frame a round trip late, so a block drawn where the world put
+  // it trails the hand drawn from this frame's joints. A grasped block moves rigidly with the
+  // wrist (docs/model.md R5): block = W * offset, offset constant while grasped. So the page
+  // takes the offset from each world that says block i is grasped (offset = W_S^-1 * block_S,
+  // with W_S the driving hand's wrist of the frame S that world answers, as the page sent it)
+  // and draws block i at W_now * offset: where the world will put it once it has this frame.
+  // All of it in the headset's frame (local-floor): the world's poses through worldToHeadset.
+  //
+  // Poses here are 7 numbers: position x y z, then the unit quaternion x y z w.
+  const WRIST_RING = 256;
+  const wristSeq = new Uint32Array(WRIST_RING);          // the seq a slot holds (0: none)
+  const wristKnown = new Uint8Array(WRIST_RING);         // 1: it sent a driving wrist
+  const wristPose = new Float64Array(WRIST_RING * 7);    // the driving wrist it sent
+  const wristTime = new Float64Array(WRIST_RING);        // the frame time it sent (ms)
+  const lastWrist = new Float64Array(7);                 // the driving wrist last seen
+  let lastWristValid = false;
+  let drivingHand = 1;                                   // hands[] index: the scene's `hand`
+  // The page's time (as sent) of world time 0: each world answering frame S is the world at
+  // the last step at or before S's time, so frameTime_S - 1000 * worldTime lies within one step
+  // above it; the least seen is taken (and taken again if the mapping moves: a new driver).
+  let originEstimated = false, originMs = 0;
+  const worldToHeadsetPose = new Float64Array([0, 0, 0, 0, 0, 0, 1]);
+  const held = {
+    world: null,       // the world this state was taken from
+    index: -1,         // the block the newest world says is grasped, -1: none
+    valid: false,      // offset known (the wrist of the frame it answers was found)
+    offset: new Float64Array(7),       // the block in the wrist's frame, from the newest world
+    graspValid: false,
+    // The reference: the offset of the grasp's first world, carried on by R5 and R8 (a lift
+    // out of the floor stays in it) frame by frame from this page's own hand.
+    refOffset: new Float64Array(7),
+  };
+  const tmpA = new Float64Array(7), tmpB = new Float64Array(7), tmpC = new Float64Array(7);
+  const heldDrawPose = new Float64Array(7), heldRefPose = new Float64Array(7);
+  const heldWorldPose = new Float64Array(7);
+  const heldModel = M.create();
+  let heldDraw = false;      // this frame draws block held.index at heldDrawPose
+
+  function resetHeld() {
+    held.world = null; held.index = -1; held.valid = false; held.graspValid = false;
+    heldDraw = false;
+  }
+
+  // out[o..o+7] = a[ao..] * b[bo..] (rigid transforms; out may not alias a or b)
+  function poseMul(out, o, a, ao, b, bo) {
+    const ax = a[ao + 3], ay = a[ao + 4], az = a[ao + 5], aw = a[ao + 6];
+    const bx = b[bo + 3], by = b[bo + 4], bz = b[bo + 5], bw = b[bo + 6];
+    rotate(out, o, ax, ay, az, aw, b[bo], b[bo + 1], b[bo + 2]);
+    out[o] += a[ao]; out[o + 1] += a[ao + 1]; out[o + 2] += a[ao + 2];
+    out[o + 3] = aw * bx + ax * bw + ay * bz - az * by;
+    out[o + 4] = aw * by - ax * bz + ay * bw + az * bx;
+    out[o + 5] = aw * bz + ax * by - ay * bx + az * bw;
+    out[o + 6] = aw * bw - ax * bx - ay * by - az * bz;
+  }
+  // out = a^-1 * b
+  function poseInvMul(out, o, a, ao, b, bo) {
+    const ax = -a[ao + 3], ay = -a[ao + 4], az = -a[ao + 5], aw = a[ao + 6];
+    const bx = b[bo + 3], by = b[bo + 4], bz = b[bo + 5], bw = b[bo + 6];
+    rotate(out, o, ax, ay, az, aw, b[bo] - a[ao], b[bo + 1] - a[ao + 1], b[bo + 2] - a[ao + 2]);
+    out[o + 3] = aw * bx + ax * bw + ay * bz - az * by;
+    out[o + 4] = aw * by - ax * bz + ay * bw + az * bx;
+    out[o + 5] = aw * bz + ax * by - ay * bx + az * bw;
+    out[o + 6] = aw * bw - ax * bx - ay * by - az * bz;
+  }
+  // out[o..o+3] = q * v (q unit)
+  function rotate(out, o, qx, qy, qz, qw, vx, vy, vz) {
+    const tx = 2 * (qy * vz - qz * vy), ty = 2 * (qz * vx - qx * vz), tz = 2 * (qx * vy - qy * vx);
+    out[o] = vx + qw * tx + (qy * tz - qz * ty);
+    out[o + 1] = vy + qw * ty + (qz * tx - qx * tz);
+    out[o + 2] = vz + qw * tz + (qx * ty - qy * tx);
+  }
+  function normalizeQuat(p, o) {
+    const n = Math.hypot(p[o + 3], p[o + 4], p[o + 5], p[o + 6]) || 1;
+    p[o + 3] /= n; p[o + 4] /= n; p[o + 5] /= n; p[o + 6] /= n;
+  }
+  function poseMatrix(out, p, o) {
+    return M.fromRTS(out, p[o + 3], p[o + 4], p[o + 5], p[o + 6], p[o], p[o + 1], p[o + 2], 1);
+  }
+  function poseDistanceMm(a, b) {
+    return 1000 * Math.hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+  }
+
+  // A sent frame's driving wrist (or, without the hand, the last one: the session holds it).
+  function noteWristSent(seq, frameTime, present) {
+    const slot = seq % WRIST_RING;
+    if (present) {
+      const j = hands[drivingHand].joints;
+      for (let k = 0; k < 7; k++) lastWrist[k] = j[k];
+      normalizeQuat(lastWrist, 0);
+      lastWristValid = true;
+    }
+    wristSeq[slot] = seq;
+    wristTime[slot] = frameTime;
+    wristKnown[slot] = lastWristValid ? 1 : 0;
+    if (lastWristValid) wristPose.set(lastWrist, slot * 7);
+  }
+
+  // Each world that answers a frame of this page's: the page's time of world time 0.
+  function noteWorldTime(w) {
+    const seq = w.pageSeq, slot = seq % WRIST_RING;
+    if (seq === 0 || seq === 0xFFFFFFFF || wristSeq[slot] !== seq) return;
+    const stepMs = scene && scene.stepHz > 0 ? 1000 / scene.stepHz : 1000 / 120;
+    const v = wristTime[slot] - 1000 * w.time;
+    if (!originEstimated || v < originMs || v > originMs + stepMs + 1e-3) {
+      originMs = v;
+      originEstimated = true;
+    }
+  }
+
+  // The driving wrist at world time `worldTime` (s) of the world answering frame `seq`, as the
+  // session's timeline has it (interpolated between the frames around that time: position
+  // linearly, orientation by slerp); false if the frames it needs are no longer known.
+  function wristAtWorld(seq, worldTime, out) {
+    const slot = seq % WRIST_RING;
+    if (!originEstimated || seq === 0 || seq === 0xFFFFFFFF || wristSeq[slot] !== seq || !wristKnown[slot]) return false;
+    const t = originMs + 1000 * worldTime;
+    const eps = 1e-4;   // ms: the session rounds frame times to whole ns
+    if (t >= wristTime[slot] - eps) {
+      for (let k = 0; k < 7; k++) out[k] = wristPose[slot * 7 + k];
+      return true;
+    }
+    // the frame before t, and the one after it
+    for (let back = 1; back < 16; back++) {
+      const s0 = seq - back, a = s0 % WRIST_RING, b = (s0 + 1) % WRIST_RING;
+      if (s0 <= 0 || wristSeq[a] !== s0 || !wristKnown[a]) return false;
+      if (wristTime[a] > t + eps) continue;
+      const span = wristTime[b] - wristTime[a];
+      const f = span > 0 ? Math.min(1, Math.max(0, (t - wristTime[a]) / span)) : 1;
+      interpolatePose(out, wristPose, a * 7, wristPose, b * 7, f);
+      return true;
+    }
+    return false;
+  }
+
+  // glam's lerp and slerp, as the stepper's timeline interpolates the wrist.
+  function interpolatePose(out, a, ao, b, bo, f) {
+    for (let k = 0; k < 3; k++) out[k] = a[ao + k] + (b[bo + k] - a[ao + k]) * f;
+    let bx = b[bo + 3], by = b[bo + 4], bz = b[bo + 5], bw = b[bo + 6];
+    const ax = a[ao + 3], ay = a[ao + 4], az = a[ao + 5], aw = a[ao + 6];
+    let dot = ax * bx + ay * by + az * bz + aw * bw;
+    if (dot < 0) { bx = -bx; by = -by; bz = -bz; bw = -bw; dot = -dot; }
+    let s0, s1;
+    if (dot > 1 - Number.EPSILON) {
+      s0 = 1 - f; s1 = f;
+    } else {
+      const th = Math.acos(dot), sn = Math.sin(th);
+      s0 = Math.sin(th * (1 - f)) / sn; s1 = Math.sin(th * f) / sn;
+    }
+    out[3] = ax * s0 + bx * s1; out[4] = ay * s0 + by * s1; out[5] = az * s0 + bz * s1; out[6] = aw * s0 + bw * s1;
+    normalizeQuat(out, 0);
+  }
+
+  // Block i of world w in the headset's frame.
+  function worldBlockPose(out, w, i) {
+    const o = i * 8, b = w.blocks;
+    tmpC[0] = b[o]; tmpC[1] = b[o + 1]; tmpC[2] = b[o + 2];
+    tmpC[3] = b[o + 3]; tmpC[4] = b[o + 4]; tmpC[5] = b[o + 5]; tmpC[6] = b[o + 6];
+    normalizeQuat(tmpC, 0);
+    poseMul(out, 0, worldToHeadsetPose, 0, tmpC, 0);
+  }
+
+  // A new world: the grasp it states, and the block's offset from the wrist it answers.
+  function updateHeld() {
+    if (held.world === world) return;
+    held.world = world;
+    const g = world && scene && world.grasped >= 0 && world.grasped < Math.min(world.count, scene.blocks.length)
+      ? world.grasped : -1;
+    if (g !== held.index) {
+      held.index = g; held.valid = false; held.graspValid = false;
+    }
+    if (g < 0) return;
+    // No wrist for the frame it answers (a world of no frame of this page's): keep the offset
+    // the grasp had, if any.
+    if (!wristAtWorld(world.pageSeq, world.time, tmpA)) return;
+    worldBlockPose(tmpB, world, g);
+    poseInvMul(held.offset, 0, tmpA, 0, tmpB, 0);
+    normalizeQuat(held.offset, 0);
+    held.valid = true;
+    if (!held.graspValid) {
+      held.refOffset.set(held.offset);
+      held.graspValid = true;
+    }
+  }
+
+  // out = the held block at the driving wrist (the one last seen) and `offset`, in the
+  // headset's frame: R5, with R8's lift, which a grasped block obeys too (lifted out of the
+  // floor by the depth its lowest vertex is below it).
+  function fromHand(out, offset) {
+    poseMul(tmpA, 0, lastWrist, 0, offset, 0);
+    poseInvMul(tmpB, 0, worldToHeadsetPose, 0, tmpA, 0);   // in the world's frame
+    const hull = scene.blocks[held.index].hull;
+    let low = Infinity;
+    for (let v = 0; v + 2 < hull.length; v += 3) {
+      rotate(tmpC, 0, tmpB[3], tmpB[4], tmpB[5], tmpB[6], hull[v], hull[v + 1], hull[v + 2]);
+      if (tmpC[1] < low) low = tmpC[1];
+    }
+    const depth = scene.floorY - (tmpB[1] + low);
+    if (depth > 0) tmpB[1] += depth;
+    poseMul(out, 0, worldToHeadsetPose, 0, tmpB, 0);
+  }
+
+  // Once per XR frame, before drawing: where the held block is drawn, and (with the driving
+  // hand in view and this frame sent as `seq`) how far the drawn block is from where R5 puts
+  // it for this frame's hand (held.refOffset: the grasp's first world's offset, carried on by
+  // R5 and R8 from this page's frames, never from a later world), and how many frames old
+  // the drawn pose is (0: this frame's hand); the same for the world's pose of the block
+  // (what the page drew before issue 41: a round trip late).
+  function prepareHeld(seq) {
+    updateHeld();
+    heldDraw = false;
+    if (!held.valid || !world || !lastWristValid) return;
+    fromHand(heldDrawPose, held.offset);
+    heldDraw = !HB.heldFromWorld;
+    if (!seq || !hands[drivingHand].present || !held.graspValid) return;
+    if (world.pageSeq === 0 || world.pageSeq > seq) return;   // a world of no frame of this page's
+    fromHand(heldRefPose, held.refOffset);
+    poseInvMul(held.refOffset, 0, lastWrist, 0, heldRefPose, 0);
+    worldBlockPose(heldWorldPose, world, held.index);
+    const worldLag = seq - world.pageSeq;
+    const worldDist = poseDistanceMm(heldWorldPose, heldRefPose);
+    keep(HB.stats.heldWorldLagFrames, worldLag);
+    keep(HB.stats.heldWorldDistMm, worldDist);
+    keep(HB.stats.heldLagFrames, heldDraw ? 0 : worldLag);
+    keep(HB.stats.heldDistMm, heldDraw ? poseDistanceMm(heldDrawPose, heldRefPose) : worldDist);
   }
 
   // ---------------------------------------------------------------- WebSocket
@@ -402,6 +642,7 @@
         showMessage(e.message);
         return;
       }
+      noteWorldTime(world);
       HB.worldsReceived++;
       HB.lastWorldTime = world.time;
       worldsThisSecond++;
@@ -438,8 +679,15 @@
         const b = scene.blocks[i];
         if (!b.mesh) continue;
         const o = i * 8, w = world.blocks;
-        M.fromRTS(tmpModel, w[o + 3], w[o + 4], w[o + 5], w[o + 6], w[o], w[o + 1], w[o + 2], 1);
-        gl.uniformMatrix4fv(litProg.u.u_model, false, tmpModel);
+        if (opts.held && i === held.index) {
+          // the held block, from this frame's hand: in the headset's frame
+          gl.uniformMatrix4fv(litProg.u.u_viewProj, false, viewProj);
+          gl.uniformMatrix4fv(litProg.u.u_model, false, poseMatrix(heldModel, heldDrawPose, 0));
+        } else {
+          gl.uniformMatrix4fv(litProg.u.u_viewProj, false, worldViewProj);
+          M.fromRTS(tmpModel, w[o + 3], w[o + 4], w[o + 5], w[o + 6], w[o], w[o + 1], w[o + 2], 1);
+          gl.uniformMatrix4fv(litProg.u.u_model, false, tmpModel);
+        }
         const k = w[o + 7] !== 0 ? 0.55 : 1.0;
         gl.uniform3f(litProg.u.u_color, b.color[0] * k, b.color[1] * k, b.color[2] * k);
         gl.bindVertexArray(b.mesh.vao);
@@ -611,6 +859,7 @@
     }
     if (!send(buf)) return 0;
     frameSeq = seq;
+    noteWristSent(seq, frameTime, (mask & (1 << drivingHand)) !== 0);
     ringSeq[seq % RING] = seq;
     ringTime[seq % RING] = performance.now();
     HB.framesSent++;
@@ -671,13 +920,14 @@
       if (passthrough) gl.clearColor(0, 0, 0, 0); else gl.clearColor(0.13, 0.14, 0.17, 1);
       gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
       uploadWorldPoints();
+      prepareHeld(seq);
       for (const view of viewer.views) {
         const vp = layer.getViewport(view);
         if (!vp) continue;
         gl.viewport(vp.x, vp.y, vp.width, vp.height);
         M.multiply(xrViewProj, view.projectionMatrix, view.transform.inverse.matrix);
         M.multiply(xrWorldViewProj, xrViewProj, worldToHeadset);
-        drawScene(xrViewProj, { hands, passthrough, pointSize: 5, worldViewProj: xrWorldViewProj });
+        drawScene(xrViewProj, { hands, passthrough, pointSize: 5, worldViewProj: xrWorldViewProj, held: heldDraw });
       }
       noteWorldDrawn(performance.now());
     }
