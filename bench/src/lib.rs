@@ -13,6 +13,7 @@
 //! * [`page`]: the head of each report's markdown page (what, how to read it, where from).
 
 pub mod accuracy;
+pub mod hands;
 pub mod hard_cases;
 pub mod hgrm;
 pub mod latency;

@@ -1,4 +1,4 @@
-//! `handblocks bench latency|accuracy|stability|stepper` (the benchmarks are the bench crate's), and
+//! `handblocks bench latency|accuracy|stability|stepper|hands` (the benchmarks are the bench crate's), and
 //! the hidden `bench-peer`, the publishing half of the latency benchmark's peer.
 
 use std::fmt;
@@ -11,7 +11,7 @@ use crate::cli::{BenchKind, LatencyPart};
 pub enum BenchError {
     /// The latency benchmark starts this executable as the session's services.
     OwnExecutable(std::io::Error),
-    /// The benchmark itself failed; `name` is `latency`, `accuracy`, `stability` or `stepper`.
+    /// The benchmark itself failed; `name` is `latency`, `accuracy`, `stability`, `stepper` or `hands`.
     Run {
         name: &'static str,
         error: Box<dyn std::error::Error>,
@@ -86,6 +86,21 @@ fn latency(
     Ok(())
 }
 
+/// `bench hands --traces`: the folder as given when it exists; else, for a relative path, the
+/// same path beside the repository this binary was built from (`../shared` beside the
+/// checkout, as the CARL traces are found when `target/release/handblocks` runs elsewhere).
+fn traces_dir(given: std::path::PathBuf) -> std::path::PathBuf {
+    if given.is_dir() || given.is_absolute() {
+        return given;
+    }
+    let beside = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(&given);
+    if beside.is_dir() {
+        beside
+    } else {
+        given
+    }
+}
+
 /// Runs one benchmark; its results are files under its `--out` folder.
 pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
     let (name, result) = match which {
@@ -118,6 +133,21 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
                 quick,
             };
             ("stability", handblocks_bench::stability::run(&b).map(drop))
+        }
+        BenchKind::Hands {
+            out,
+            traces,
+            throws,
+            quick,
+        } => {
+            let b = handblocks_bench::hands::HandsBench {
+                out_dir: out,
+                traces_dir: traces_dir(traces),
+                throws: usize::try_from(throws).unwrap_or(usize::MAX),
+                quick,
+                only: Vec::new(),
+            };
+            ("hands", handblocks_bench::hands::run(&b).map(drop))
         }
         BenchKind::Stepper { out, quick } => {
             let b = handblocks_bench::stepper::StepperBench {

@@ -116,9 +116,17 @@ pub enum Command {
         /// Move the traced hand by X,Y,Z metres (real traces hold the hand ~1 m above the floor).
         #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
         hand_offset: Option<[f64; 3]>,
+        /// Which hand of the trace drives the world: a CARL file tracks both (default: right).
+        #[arg(long, value_name = "SIDE", value_parser = ["left", "right"], requires = "hand")]
+        hands: Option<String>,
         /// Print {"frames", "blocks": [{"name", "position", "rotation", "mode"}], "events"}.
         #[arg(long)]
         json: bool,
+        /// Override a key of the scene file, checked as the file's own keys are, e.g.
+        /// --set world.hands=tracked (docs/model.md T1-T3 for tracked hands), --set
+        /// tracked.grip_margin=0.03, --set effects.stacking=supported. Repeatable.
+        #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
+        overrides: Vec<common::config::session::Override>,
     },
     /// Replay a recording or a CARL trace in place of the devices (as `ros2 bag play`).
     ///
@@ -445,6 +453,26 @@ pub enum BenchKind {
         #[arg(long, default_value = "out/bench")]
         out: PathBuf,
         /// Leave out the slowest precise runs (under a minute on 2 cores).
+        #[arg(long)]
+        quick: bool,
+    },
+    /// How well a tracked hand holds and throws (issue 41): scripted throws with a known
+    /// release velocity, degraded as trackers deliver hands (rate, noise, latency, gaps) at
+    /// named levels, scored for the world's `hands = "tracked"` and `"paper"` rules and four
+    /// SDK throw rules (release speed and direction error, false drops, flickers, release
+    /// timing); and the CARL recordings under --traces replayed under both rules.
+    Hands {
+        /// Where hands.json, hands.md and hands.png go.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+        /// The CARL recordings (a relative path not found here is also looked for beside the
+        /// repository this binary was built from).
+        #[arg(long, value_name = "DIR", default_value = "../shared/data/carl")]
+        traces: PathBuf,
+        /// Scripted throws per level.
+        #[arg(long, value_name = "N", default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+        throws: u64,
+        /// At most 100 throws per level (a few seconds).
         #[arg(long)]
         quick: bool,
     },

@@ -77,6 +77,9 @@ pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
             None => "until Ctrl-C".to_string(),
         };
         eprintln!("handblocks: launching {} {until}", opts.session.display());
+        if let Some(line) = hands_line(&s) {
+            eprintln!("handblocks: {line}");
+        }
     }
     let outcome = launcher::launch(&opts).map_err(LaunchCommandError::Run)?;
     if let Some(world) = &outcome.world {
@@ -179,4 +182,31 @@ fn gif_line(path: &Path) -> String {
         "GIF",
         "any image viewer",
     )
+}
+
+/// For a session whose hand is tracked (a headset, an external tracker, a replayed trace), which
+/// hand rules its scene grasps and throws by (docs/model.md "Tracked hands"): the paper's R3 and
+/// R13, which a tracker's jitter makes flicker, or T1-T3. None for a glove or a scripted hand.
+fn hands_line(s: &common::config::Session) -> Option<String> {
+    use common::config::scene::HandRules;
+    use common::config::session::Source;
+    let tracked_source = match &s.source {
+        Source::Webxr(_) => "a headset's tracked hand",
+        Source::External { .. } => "an external tracker's hand",
+        Source::Replay { .. } => "a recorded hand",
+        _ => return None,
+    };
+    let w = &s.scene.world;
+    Some(match w.hands {
+        HandRules::Tracked => format!(
+            "{tracked_source}, under the tracked hand rules (docs/model.md T1-T3: grip margin \
+             {} m, gaps held {} s, throws fitted over {} s)",
+            w.tracked.grip_margin, w.tracked.gap_hold, w.tracked.throw_fit_window
+        ),
+        HandRules::Paper => format!(
+            "{tracked_source}, under the paper's hand rules (R3, R13): a tracker's jitter can \
+             make a grasp flicker; the scene's `[world] hands = \"tracked\"` holds it \
+             (docs/model.md T1-T3)"
+        ),
+    })
 }

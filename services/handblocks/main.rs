@@ -84,14 +84,18 @@ fn run() -> Result<ExitCode, CliError> {
             model,
             hand,
             hand_offset,
+            hands,
             json,
+            overrides,
         }) => simulate::run(simulate::SimulateArgs {
+            side: hands.as_deref().and_then(common::HandSide::parse),
             scene,
             frames,
             model,
             trace: hand,
             hand_offset: hand_offset.unwrap_or_default(),
             json,
+            overrides,
         })?,
         Some(Command::Inspect {
             recording,

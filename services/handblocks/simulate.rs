@@ -17,14 +17,18 @@ pub struct SimulateArgs {
     /// `--hand TRACE`: one of our recordings or a CARL file, in place of the scene's [hand].
     pub trace: Option<PathBuf>,
     pub hand_offset: [f64; 3],
+    /// `--hands left|right`: which hand of the trace drives (None: the right).
+    pub side: Option<common::HandSide>,
     pub json: bool,
+    /// `--set KEY=VALUE`: scene keys given on the command line.
+    pub overrides: Vec<common::config::session::Override>,
 }
 
 pub use simulation::SimulateError;
 
 pub fn run(args: SimulateArgs) -> Result<ExitCode, SimulateError> {
     let file = crate::locate::resolve(&args.scene, crate::locate::Kind::Scene);
-    let scene = Scene::load(&file).map_err(SimulateError::Scene)?;
+    let scene = Scene::load_with(&file, &args.overrides).map_err(SimulateError::Scene)?;
     let settings = simulation::SimulateSettings {
         model: match args.model.as_deref() {
             Some("precise") => Some(ModelKind::Precise),
@@ -33,6 +37,7 @@ pub fn run(args: SimulateArgs) -> Result<ExitCode, SimulateError> {
         },
         trace: args.trace,
         hand_offset: args.hand_offset,
+        side: args.side,
         frames: args.frames,
     };
     let (report, notes) = simulation::run(&scene, &settings)?;

@@ -32,6 +32,9 @@ pub struct SimulateSettings {
     pub trace: Option<PathBuf>,
     /// Moves the trace's hand, metres.
     pub hand_offset: [f64; 3],
+    /// Which hand of the trace drives the world (a CARL file holds both); the right by
+    /// default.
+    pub side: Option<common::HandSide>,
     /// Steps in all; None: the scene's hand plus 3 s to settle, or the trace's hands plus 2 s.
     pub frames: Option<u64>,
 }
@@ -111,6 +114,7 @@ pub fn run_with_progress(
             &scene,
             trace,
             settings.hand_offset,
+            settings.side.unwrap_or(common::HandSide::Right),
             settings.frames,
             &mut notes,
             progress,
@@ -195,11 +199,12 @@ fn simulate_trace(
     scene: &Scene,
     trace: &Path,
     offset: [f64; 3],
+    side: common::HandSide,
     frames: Option<u64>,
     notes: &mut Notes,
     progress: &mut Progress<'_>,
 ) -> Result<Report, SimulateError> {
-    let trace = replay::HandTrace::load(trace, offset).map_err(SimulateError::Trace)?;
+    let trace = replay::HandTrace::load_hand(trace, offset, side).map_err(SimulateError::Trace)?;
     for w in &trace.warnings {
         notes.lines.push(format!("warning: {w}"));
     }

@@ -2,14 +2,17 @@
 //! sample count, then per sample a timestamp and optional poses (head, wrists, 26 joints per
 //! hand, controllers), then a trailer with the start and end times. All little-endian.
 //!
-//! Only the right hand is used: its wrist pose and its 26 joints. A sample without the right
-//! hand keeps the last known pose and is marked lost. A file that is cut off or damaged yields
-//! every sample before the damage, with an error that names the file and the byte offset.
+//! One hand is read at a time ([`CarlTrace::load_hand`]; [`CarlTrace::load`] reads the right
+//! one): its wrist pose and its 26 joints. A sample without that hand (its wrist or its joints
+//! absent) keeps the last known pose and is marked lost. [`CarlTrace::tracked_counts`] says
+//! which hands a file tracks, and in how many samples, without building either trace. A file
+//! that is cut off or damaged yields every sample before the damage, with an error that names
+//! the file and the byte offset.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use common::{JointsSample, Pose, Stamp, OPENXR_JOINTS};
+use common::{HandSide, JointsSample, Pose, Stamp, OPENXR_JOINTS};
 
 const MAGIC: &[u8; 4] = b"CARL";
 const POSE_BYTES: usize = 7 * 4;
@@ -19,7 +22,7 @@ const CONTROLLER_BYTES: usize = 7 * 4;
 const MAX_SAMPLES: u64 = 100_000_000;
 /// The fewest bytes a sample takes: its time and seven presence flags.
 const MIN_SAMPLE_BYTES: usize = 8 + 7;
-/// The fewest bytes a sample with the right hand takes (its wrist and joints): only samples
+/// The fewest bytes a sample with a hand takes (its wrist and joints): only samples
 /// that big can fill the file, so the sample list is first sized for that many.
 const MIN_HAND_SAMPLE_BYTES: usize = MIN_SAMPLE_BYTES + POSE_BYTES + JOINTS_BYTES;
 /// The largest CARL file read: about 1.4 KiB a sample, so over four hours at 90 Hz.
@@ -48,12 +51,13 @@ impl fmt::Display for CarlError {
 
 impl std::error::Error for CarlError {}
 
-/// One sample of the right hand.
+/// One sample of one hand (the trace's [`CarlTrace::side`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CarlSample {
     /// Seconds, in the recording's own clock.
     pub time: f64,
-    /// False when the right hand was not tracked in this sample (the poses are the last known).
+    /// False when the hand was not tracked in this sample (the poses are the last known, or
+    /// identity before the hand was first seen).
     pub tracked: bool,
     pub wrist: Pose,
     pub joints: [Pose; OPENXR_JOINTS],
@@ -63,6 +67,8 @@ pub struct CarlSample {
 #[derive(Debug, Clone)]
 pub struct CarlTrace {
     pub file: PathBuf,
+    /// The hand these samples are of.
+    pub side: HandSide,
     pub samples: Vec<CarlSample>,
     /// Set when the file is damaged after some good samples: they are kept, this says why the
     /// rest is not.
@@ -123,47 +129,76 @@ fn pose(b: &[u8]) -> Pose {
     }
 }
 
-impl CarlTrace {
-    /// Reads a CARL file. Fails only when not even one sample can be read; later damage is
-    /// reported in [`CarlTrace::damage`] with the good samples kept.
-    pub fn load(file: &Path) -> Result<CarlTrace, CarlError> {
-        let bytes = common::config::read_bounded(file, MAX_FILE_BYTES).map_err(|e| CarlError {
-            file: file.into(),
-            offset: 0,
-            problem: format!("cannot read the file: {e}"),
-        })?;
-        Self::parse(file, &bytes)
+/// Which slot of a sample's pair of hands `side` is: the file stores the left hand first.
+fn slot(side: HandSide) -> usize {
+    match side {
+        HandSide::Left => 0,
+        HandSide::Right => 1,
     }
+}
 
-    pub fn parse(file: &Path, bytes: &[u8]) -> Result<CarlTrace, CarlError> {
-        let fail = |(offset, problem): (usize, String)| CarlError {
-            file: file.into(),
+/// One hand as the file holds it in one sample: its wrist pose and its 26 joints, still bytes.
+type HandBytes<'a> = (&'a [u8], &'a [u8]);
+
+/// One good sample as read: its time, and each hand (left, right) that it holds whole.
+struct RawSample<'a> {
+    time: f64,
+    hands: [Option<HandBytes<'a>>; 2],
+}
+
+/// Reads a CARL file's header, then its samples one by one, then checks its trailer: what
+/// [`CarlTrace::parse_hand`] and [`CarlTrace::tracked_counts`] share, so that both read
+/// exactly the same samples and find the same damage at the same byte.
+struct Reader<'a> {
+    file: &'a Path,
+    c: Cursor<'a>,
+    count: u64,
+    /// The next sample's index.
+    next: u64,
+    /// The last good sample's time.
+    previous_time: Option<f64>,
+}
+
+impl<'a> Reader<'a> {
+    fn fail(&self, (offset, problem): (usize, String)) -> CarlError {
+        CarlError {
+            file: self.file.into(),
             offset,
             problem,
+        }
+    }
+
+    /// Checks the header: the magic, the version, and a sample count the file can hold.
+    fn open(file: &'a Path, bytes: &'a [u8]) -> Result<Reader<'a>, CarlError> {
+        let mut r = Reader {
+            file,
+            c: Cursor { bytes, at: 0 },
+            count: 0,
+            next: 0,
+            previous_time: None,
         };
-        let mut c = Cursor { bytes, at: 0 };
-        let magic = c.take(4, "the header").map_err(fail)?;
+        let magic = r.c.take(4, "the header").map_err(|e| r.fail(e))?;
         if magic != MAGIC {
-            return Err(fail((
+            return Err(r.fail((
                 0,
                 format!("not a CARL file: it starts with {magic:02x?}, not \"CARL\""),
             )));
         }
-        let version = c.u32("the header").map_err(fail)?;
+        let version = r.c.u32("the header").map_err(|e| r.fail(e))?;
         if version != 1 {
-            return Err(fail((
+            return Err(r.fail((
                 4,
                 format!("CARL version {version}; only version 1 is known"),
             )));
         }
-        let _kind = c.u32("the header").map_err(fail)?;
-        let count_at = c.at;
-        let count = c.u64("the header").map_err(fail)?;
+        let _kind = r.c.u32("the header").map_err(|e| r.fail(e))?;
+        let count_at = r.c.at;
+        let count = r.c.u64("the header").map_err(|e| r.fail(e))?;
         // Each sample takes at least its time and 7 flag bytes: a count the file cannot hold
         // is damage.
-        let most = ((bytes.len() - c.at) / MIN_SAMPLE_BYTES) as u64;
+        let most = ((bytes.len() - r.c.at) / MIN_SAMPLE_BYTES) as u64;
         if count > MAX_SAMPLES || count > most {
-            return Err(fail((
+            return Err(r.fail((
                 count_at,
                 format!(
                     "sample count {count} is impossible for a file of {} bytes (at most {most})",
@@ -171,63 +206,177 @@ impl CarlTrace {
                 ),
             )));
         }
-        // Sized for the samples the file could hold with hands (a sample is 1.5 KiB in memory
-        // and may take 15 bytes of the file): the count alone could claim 100 times the file.
-        let hand_samples = (bytes.len() - c.at) / MIN_HAND_SAMPLE_BYTES + 1;
-        let mut samples = Vec::with_capacity((count as usize).min(hand_samples));
+        r.count = count;
+        Ok(r)
+    }
+
+    /// How many samples to make room for: the count, but no more than the file could hold
+    /// with a hand in each (a sample is 1.5 KiB in memory and may take 15 bytes of the file:
+    /// the count alone could claim 100 times the file).
+    fn capacity(&self) -> usize {
+        let hand_samples = (self.c.bytes.len() - self.c.at) / MIN_HAND_SAMPLE_BYTES + 1;
+        (self.count as usize).min(hand_samples)
+    }
+
+    /// The next sample; None after the last one the header counts. After an error the
+    /// caller stops: the rest of the file is not read.
+    fn sample(&mut self) -> Option<Result<RawSample<'a>, CarlError>> {
+        if self.next >= self.count {
+            return None;
+        }
+        let i = self.next;
+        self.next += 1;
+        let start = self.c.at;
+        let raw = match read_sample(&mut self.c, i) {
+            Ok(raw) => raw,
+            Err(e) => return Some(Err(self.fail(e))),
+        };
+        if let Some(prev) = self.previous_time {
+            if raw.time < prev {
+                let time = raw.time;
+                return Some(Err(self.fail((
+                    start,
+                    format!("sample {i}: time {time} s goes back from {prev} s"),
+                ))));
+            }
+        }
+        self.previous_time = Some(raw.time);
+        Some(Ok(raw))
+    }
+
+    /// After the last sample: the trailer (start and end times) must follow, and nothing
+    /// after it. The damage, if any.
+    fn trailer(mut self) -> Option<CarlError> {
+        if let Err(e) = self.c.take(16, "the trailer") {
+            Some(self.fail(e))
+        } else if self.c.at != self.c.bytes.len() {
+            let extra = self.c.bytes.len() - self.c.at;
+            Some(self.fail((
+                self.c.at,
+                format!("{extra} unexpected bytes after the trailer"),
+            )))
+        } else {
+            None
+        }
+    }
+
+    /// Where reading stopped, for "no samples" errors.
+    fn no_samples(&self) -> CarlError {
+        self.fail((self.c.at, "the trace holds no samples".into()))
+    }
+}
+
+/// A hand's wrist and joints from their bytes.
+fn hand_poses((wrist, joints): HandBytes) -> (Pose, [Pose; OPENXR_JOINTS]) {
+    let mut out = [Pose::IDENTITY; OPENXR_JOINTS];
+    for (k, slot) in out.iter_mut().enumerate() {
+        *slot = pose(&joints[k * POSE_BYTES..(k + 1) * POSE_BYTES]);
+    }
+    (pose(wrist), out)
+}
+
+impl CarlTrace {
+    /// Reads a CARL file's right hand ([`CarlTrace::load_hand`] with [`HandSide::Right`]).
+    /// Fails only when not even one sample can be read; later damage is reported in
+    /// [`CarlTrace::damage`] with the good samples kept.
+    pub fn load(file: &Path) -> Result<CarlTrace, CarlError> {
+        Self::load_hand(file, HandSide::Right)
+    }
+
+    /// Reads one hand of a CARL file. Fails only when not even one sample can be read (a file
+    /// that tracks no `side` hand at all still reads: every sample is then lost); later damage
+    /// is reported in [`CarlTrace::damage`] with the good samples kept.
+    pub fn load_hand(file: &Path, side: HandSide) -> Result<CarlTrace, CarlError> {
+        let bytes = read(file)?;
+        Self::parse_hand(file, &bytes, side)
+    }
+
+    /// [`CarlTrace::load`] of a file's bytes: the right hand.
+    pub fn parse(file: &Path, bytes: &[u8]) -> Result<CarlTrace, CarlError> {
+        Self::parse_hand(file, bytes, HandSide::Right)
+    }
+
+    /// [`CarlTrace::load_hand`] of a file's bytes (`file` names it in errors).
+    pub fn parse_hand(file: &Path, bytes: &[u8], side: HandSide) -> Result<CarlTrace, CarlError> {
+        let mut r = Reader::open(file, bytes)?;
+        let mut samples = Vec::with_capacity(r.capacity());
         let mut last: Option<(Pose, [Pose; OPENXR_JOINTS])> = None;
         let mut damage = None;
-        for i in 0..count {
-            let start = c.at;
-            match read_sample(&mut c, i) {
-                Ok((time, right)) => {
-                    if let Some(prev) = samples.last().map(|s: &CarlSample| s.time) {
-                        if time < prev {
-                            damage = Some(fail((
-                                start,
-                                format!("sample {i}: time {time} s goes back from {prev} s"),
-                            )));
-                            break;
-                        }
+        while let Some(raw) = r.sample() {
+            let raw = match raw {
+                Ok(raw) => raw,
+                Err(e) => {
+                    damage = Some(e);
+                    break;
+                }
+            };
+            let hand = raw.hands[slot(side)];
+            if let Some(h) = hand {
+                last = Some(hand_poses(h));
+            }
+            let (wrist, joints) = last.unwrap_or((Pose::IDENTITY, [Pose::IDENTITY; OPENXR_JOINTS]));
+            samples.push(CarlSample {
+                time: raw.time,
+                tracked: hand.is_some(),
+                wrist,
+                joints,
+            });
+        }
+        if samples.is_empty() {
+            return Err(damage.unwrap_or_else(|| r.no_samples()));
+        }
+        if damage.is_none() {
+            damage = r.trailer();
+        }
+        Ok(CarlTrace {
+            file: file.into(),
+            side,
+            samples,
+            damage,
+        })
+    }
+
+    /// Which hands `file` tracks: for the left and the right hand (in that order), the number
+    /// of good samples that hold it whole (its wrist pose and its joints; what a trace of that
+    /// hand marks `tracked`). It reads the samples as [`CarlTrace::load_hand`] does, without
+    /// making poses, and fails where it fails; samples after damage are not counted.
+    pub fn tracked_counts(file: &Path) -> Result<[(HandSide, usize); 2], CarlError> {
+        let bytes = read(file)?;
+        Self::parse_tracked_counts(file, &bytes)
+    }
+
+    /// [`CarlTrace::tracked_counts`] of a file's bytes.
+    pub fn parse_tracked_counts(
+        file: &Path,
+        bytes: &[u8],
+    ) -> Result<[(HandSide, usize); 2], CarlError> {
+        let mut r = Reader::open(file, bytes)?;
+        let mut counts = [0usize; 2];
+        let mut samples = 0usize;
+        let mut damage = None;
+        while let Some(raw) = r.sample() {
+            match raw {
+                Ok(raw) => {
+                    samples += 1;
+                    for (n, hand) in counts.iter_mut().zip(raw.hands) {
+                        *n += hand.is_some() as usize;
                     }
-                    let tracked = right.is_some();
-                    if let Some(r) = right {
-                        last = Some(r);
-                    }
-                    let (wrist, joints) =
-                        last.unwrap_or((Pose::IDENTITY, [Pose::IDENTITY; OPENXR_JOINTS]));
-                    samples.push(CarlSample {
-                        time,
-                        tracked: tracked && last.is_some(),
-                        wrist,
-                        joints,
-                    });
                 }
                 Err(e) => {
-                    damage = Some(fail(e));
+                    damage = Some(e);
                     break;
                 }
             }
         }
-        if samples.is_empty() {
-            return Err(damage.unwrap_or_else(|| fail((c.at, "the trace holds no samples".into()))));
+        if samples == 0 {
+            return Err(damage.unwrap_or_else(|| r.no_samples()));
         }
-        if damage.is_none() {
-            // The trailer (start and end times) must follow, and nothing after it.
-            if let Err(e) = c.take(16, "the trailer") {
-                damage = Some(fail(e));
-            } else if c.at != bytes.len() {
-                damage = Some(fail((
-                    c.at,
-                    format!("{} unexpected bytes after the trailer", bytes.len() - c.at),
-                )));
-            }
-        }
-        Ok(CarlTrace {
-            file: file.into(),
-            samples,
-            damage,
-        })
+        Ok(HandSide::BOTH.map(|side| (side, counts[slot(side)])))
+    }
+
+    /// Samples in which the hand was tracked.
+    pub fn tracked_samples(&self) -> usize {
+        self.samples.iter().filter(|s| s.tracked).count()
     }
 
     /// The trace as `joints` samples: source time in ns from the first sample, poses moved by
@@ -281,9 +430,16 @@ impl CarlTrace {
     }
 }
 
-type RightHand = (Pose, [Pose; OPENXR_JOINTS]);
+/// Reads a CARL file, at most [`MAX_FILE_BYTES`] of a regular file.
+fn read(file: &Path) -> Result<Vec<u8>, CarlError> {
+    common::config::read_bounded(file, MAX_FILE_BYTES).map_err(|e| CarlError {
+        file: file.into(),
+        offset: 0,
+        problem: format!("cannot read the file: {e}"),
+    })
+}
 
-fn read_sample(c: &mut Cursor, i: u64) -> Result<(f64, Option<RightHand>), (usize, String)> {
+fn read_sample<'a>(c: &mut Cursor<'a>, i: u64) -> Result<RawSample<'a>, (usize, String)> {
     let what = |part: &str| format!("sample {i}'s {part}");
     let t_at = c.at;
     let time = c.f64(&what("time"))?;
@@ -291,23 +447,16 @@ fn read_sample(c: &mut Cursor, i: u64) -> Result<(f64, Option<RightHand>), (usiz
         return Err((t_at, format!("sample {i}: time is {time}")));
     }
     c.opt(POSE_BYTES, &what("head pose"))?;
-    c.opt(POSE_BYTES, &what("left wrist"))?;
+    let left_wrist = c.opt(POSE_BYTES, &what("left wrist"))?;
     let right_wrist = c.opt(POSE_BYTES, &what("right wrist"))?;
-    c.opt(JOINTS_BYTES, &what("left joints"))?;
+    let left_joints = c.opt(JOINTS_BYTES, &what("left joints"))?;
     let right_joints = c.opt(JOINTS_BYTES, &what("right joints"))?;
     c.opt(CONTROLLER_BYTES, &what("left controller"))?;
     c.opt(CONTROLLER_BYTES, &what("right controller"))?;
-    let right = match (right_wrist, right_joints) {
-        (Some(w), Some(j)) => {
-            let mut joints = [Pose::IDENTITY; OPENXR_JOINTS];
-            for (k, slot) in joints.iter_mut().enumerate() {
-                *slot = pose(&j[k * POSE_BYTES..(k + 1) * POSE_BYTES]);
-            }
-            Some((pose(w), joints))
-        }
-        _ => None,
-    };
-    Ok((time, right))
+    Ok(RawSample {
+        time,
+        hands: [left_wrist.zip(left_joints), right_wrist.zip(right_joints)],
+    })
 }
 
 #[cfg(test)]
@@ -458,5 +607,148 @@ mod tests {
                 .iter()
                 .all(|j| j.wrist.is_finite() && j.joints.iter().all(|p| p.is_finite())));
         }
+    }
+
+    /// FNV-1a over every bit of a trace's samples (time, tracked, wrist, joints).
+    fn fingerprint(t: &CarlTrace) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut eat = |x: u64| {
+            h ^= x;
+            h = h.wrapping_mul(0x100_0000_01b3);
+        };
+        for s in &t.samples {
+            eat(s.time.to_bits());
+            eat(s.tracked as u64);
+            for p in std::iter::once(&s.wrist).chain(s.joints.iter()) {
+                for v in p.rotation.iter().chain(p.position.iter()) {
+                    eat(v.to_bits());
+                }
+            }
+        }
+        h
+    }
+
+    /// The right hand reads bit for bit as it did before the side became a parameter: these
+    /// fingerprints were taken from the right-hand-only reader.
+    #[test]
+    fn the_right_hand_is_read_as_before_bit_for_bit() {
+        for (name, n, print) in [
+            ("example_push_0.carl", 218, 0x7f46_7ae0_300e_91fb_u64),
+            ("example_pull_0.carl", 254, 0x783c_b1a5_444f_6567),
+            ("example_lift_0.carl", 264, 0x9593_9dfa_a867_963d),
+            ("example_settle_0.carl", 305, 0xb82f_2dd7_e5a8_83de),
+        ] {
+            let file = data(name);
+            let bytes = std::fs::read(&file).unwrap();
+            for t in [
+                CarlTrace::load(&file).unwrap(),
+                CarlTrace::load_hand(&file, HandSide::Right).unwrap(),
+                CarlTrace::parse(&file, &bytes).unwrap(),
+                CarlTrace::parse_hand(&file, &bytes, HandSide::Right).unwrap(),
+            ] {
+                assert_eq!(t.side, HandSide::Right);
+                assert_eq!(t.samples.len(), n, "{name}");
+                assert_eq!(fingerprint(&t), print, "{name}");
+            }
+        }
+    }
+
+    /// Both hands of every recording: the right one tracked throughout, the left one in part
+    /// (it comes into view late, or leaves it, in three of the four).
+    #[test]
+    fn either_hand_of_every_recording_and_its_tracked_counts() {
+        for (name, n, left, right) in [
+            ("example_push_0.carl", 218, 165, 218),
+            ("example_pull_0.carl", 254, 168, 254),
+            ("example_lift_0.carl", 264, 264, 264),
+            ("example_settle_0.carl", 305, 246, 305),
+        ] {
+            let file = data(name);
+            let counts = CarlTrace::tracked_counts(&file).unwrap();
+            assert_eq!(
+                counts,
+                [(HandSide::Left, left), (HandSide::Right, right)],
+                "{name}"
+            );
+            let l = CarlTrace::load_hand(&file, HandSide::Left).unwrap();
+            let r = CarlTrace::load(&file).unwrap();
+            assert_eq!(l.side, HandSide::Left);
+            assert!(l.damage.is_none(), "{name}: {:?}", l.damage);
+            assert_eq!(l.samples.len(), n, "{name}");
+            assert_eq!(l.tracked_samples(), left, "{name}");
+            assert_eq!(r.tracked_samples(), right, "{name}");
+            // The same clock, different hands: the wrists are apart wherever both are tracked.
+            for (a, b) in l.samples.iter().zip(&r.samples) {
+                assert_eq!(a.time.to_bits(), b.time.to_bits());
+                if a.tracked {
+                    let d: f64 = (0..3)
+                        .map(|k| (a.wrist.position[k] - b.wrist.position[k]).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
+                    assert!(d > 0.05, "{name}: wrists {d} m apart");
+                    assert!((0.8..1.7).contains(&a.wrist.position[1]), "{name}");
+                }
+            }
+            // Before the left hand is first seen it is lost, at identity.
+            let first = l.samples.iter().position(|s| s.tracked).unwrap();
+            assert!(l.samples[..first]
+                .iter()
+                .all(|s| s.wrist == Pose::IDENTITY && !s.tracked));
+            // After, an untracked sample holds the last tracked pose.
+            for w in l.samples[first..].windows(2) {
+                if !w[1].tracked {
+                    assert_eq!(w[1].wrist, w[0].wrist, "{name}");
+                    assert_eq!(w[1].joints, w[0].joints, "{name}");
+                }
+            }
+        }
+    }
+
+    /// A damaged file keeps its good samples for the left hand as for the right: the same
+    /// samples, the same damage at the same byte, and the counts stop there too.
+    #[test]
+    fn a_cut_file_keeps_its_good_left_samples_too() {
+        let full_file = data("example_push_0.carl");
+        let bytes = std::fs::read(&full_file).unwrap();
+        let full = CarlTrace::parse_hand(&full_file, &bytes, HandSide::Left).unwrap();
+        let cut = &bytes[..bytes.len() * 3 / 4];
+        let l = CarlTrace::parse_hand(Path::new("cut.carl"), cut, HandSide::Left).unwrap();
+        let r = CarlTrace::parse(Path::new("cut.carl"), cut).unwrap();
+        assert_eq!(l.samples.len(), r.samples.len());
+        assert!(l.samples.len() > 100 && l.samples.len() < 218);
+        assert_eq!(l.samples[..], full.samples[..l.samples.len()]);
+        let (el, er) = (l.damage.unwrap(), r.damage.unwrap());
+        assert_eq!(el, er);
+        assert!(el.to_string().starts_with("cut.carl: at byte "), "{el}");
+        assert!(el.problem.contains("ends inside"), "{el}");
+        let tracked = l.samples.iter().filter(|s| s.tracked).count();
+        assert!(tracked > 0);
+        assert_eq!(
+            CarlTrace::parse_tracked_counts(Path::new("cut.carl"), cut).unwrap(),
+            [
+                (HandSide::Left, tracked),
+                (HandSide::Right, r.samples.len())
+            ]
+        );
+    }
+
+    #[test]
+    fn tracked_counts_name_what_is_wrong_and_count_no_hands_in_a_poseless_file() {
+        let e =
+            CarlTrace::parse_tracked_counts(Path::new("x.carl"), b"MCAP\x01\0\0\0").unwrap_err();
+        assert_eq!(e.offset, 0);
+        assert!(e.problem.contains("not a CARL file"), "{e}");
+        let e = CarlTrace::tracked_counts(Path::new("/dev/zero")).unwrap_err();
+        assert!(e.problem.contains("not a regular file"), "{e}");
+        let b = poseless(40, 40, &[0u8; 16]);
+        assert_eq!(
+            CarlTrace::parse_tracked_counts(Path::new("x.carl"), &b).unwrap(),
+            [(HandSide::Left, 0), (HandSide::Right, 0)]
+        );
+        let t = CarlTrace::parse_hand(Path::new("x.carl"), &b, HandSide::Left).unwrap();
+        assert_eq!((t.samples.len(), t.tracked_samples()), (40, 0));
+        let e = CarlTrace::parse_tracked_counts(Path::new("x.carl"), &poseless(0, 0, &[0u8; 16]))
+            .unwrap_err();
+        assert!(e.problem.contains("no samples"), "{e}");
     }
 }

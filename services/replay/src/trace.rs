@@ -94,6 +94,17 @@ impl HandTrace {
     /// Reads `file` (MCAP or CARL, by its first bytes) and moves its poses by `offset` metres.
     /// Fails when the file cannot be read, is neither kind, or holds no hand samples.
     pub fn load(file: &Path, offset: [f64; 3]) -> Result<HandTrace, String> {
+        HandTrace::load_hand(file, offset, common::HandSide::Right)
+    }
+
+    /// [`HandTrace::load`] of one hand: a CARL file holds both (`side`); one of our recordings
+    /// holds the one hand it was made with, which is read as the right (asking it for the left
+    /// is an error that says so).
+    pub fn load_hand(
+        file: &Path,
+        offset: [f64; 3],
+        side: common::HandSide,
+    ) -> Result<HandTrace, String> {
         let head = {
             use std::io::Read;
             let mut head = [0u8; 8];
@@ -105,11 +116,19 @@ impl HandTrace {
             head[..n].to_vec()
         };
         let trace = if Recording::is_mcap(&head) {
+            if side != common::HandSide::Right {
+                return Err(format!(
+                    "{}: one of our recordings holds the one hand it was recorded with (read as \
+                     the right); the {} hand can be taken from a CARL file, which holds both",
+                    file.display(),
+                    side.name()
+                ));
+            }
             let sources: Vec<Topic> = Stage::Replay.recorded_outputs().collect();
             let rec = Recording::open_topics(file, &sources).map_err(|e| e.to_string())?;
             HandTrace::from_recording(&rec, offset)
         } else {
-            let carl = CarlTrace::load(file).map_err(|e| {
+            let carl = CarlTrace::load_hand(file, side).map_err(|e| {
                 format!("{e} (a hand trace is one of our MCAP recordings or a CARL file)")
             })?;
             let mut joints = Vec::new();
