@@ -106,9 +106,9 @@ impl HandRules {
 /// `[tracked]`: the numbers of docs/model.md's tracked-hand rules, each with why.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackedSettings {
-    /// T1: once grasped, a block stays grasped while R3's test passes with check points this
-    /// far outside the block counted as touching it (metres). Trackers jitter by 2-11 mm
-    /// (sd); a grip must open by more than that before it lets go.
+    /// T1: once grasped, a block stays grasped until the hand's grip (the check points whose
+    /// contacts made R3's grasp) opens by this much (metres). Trackers jitter by 2-11 mm (sd);
+    /// a grip must open by more than that before it lets go.
     pub grip_margin: f64,
     /// T2: a hand that is not tracked keeps what it holds, unmoved by new contacts, for up to
     /// this long (seconds); then it lets go with no throw.

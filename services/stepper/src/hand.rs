@@ -36,6 +36,9 @@ pub struct Contact {
     pub n: DVec3,
     /// Where the touching hand point is now (R4's B).
     pub b: DVec3,
+    /// The check point it came from, `finger * MAX_FINGER_POINTS + index` (for R2's segment
+    /// contacts, the segment's first point): T1 remembers the grip by it.
+    pub point: u16,
 }
 
 /// The check points as drawn (R5's relocation), in the hand sample's layout.
@@ -241,15 +244,11 @@ pub(crate) fn first_entries<'a>(
 /// R1 and R2 for one block: appends its contacts (relative to G, world orientation).
 /// `prev(f, k)` and `now(f, k)` are the check points in the world frame; `first` is
 /// [`first_entries`]: a locus entering this block after it entered another one is no contact.
-/// `touch` is how far outside the block a check point at P- still touches it: contact_eps,
-/// or T1's grip margin.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn block_contacts(
     b: &Block,
     hand: &HandSample,
     prev: Option<&HandSample>,
     contact_eps: f64,
-    touch: f64,
     hull_eps: f64,
     first: &FirstEntries,
     contacts: &mut Vec<Contact>,
@@ -257,10 +256,11 @@ pub(crate) fn block_contacts(
     let inv = b.rot().conjugate();
     let to_body = |p: [f64; 3]| inv * (DVec3::from_array(p) - b.pos());
     let poly = &b.poly;
-    let out = |c: DVec3, n: DVec3, bb: DVec3| Contact {
+    let out = |c: DVec3, n: DVec3, bb: DVec3, f: usize, k: usize| Contact {
         c: b.rot() * c,
         n: b.rot() * n,
         b: b.rot() * bb,
+        point: (f * MAX_FINGER_POINTS + k) as u16,
     };
     // The block's box in its body frame: R2's broad phase below.
     let (body_lo, body_hi) = poly.vertices.iter().fold(
@@ -283,13 +283,16 @@ pub(crate) fn block_contacts(
             let a0 = to_body(pm(k));
             let a1 = to_body(hand.finger_points[f][k]);
             let (s, face) = poly.max_face_distance(a0);
-            if s <= touch {
-                // Already inside at P-, or within contact_eps of the surface (`touch`: T1's
-                // grip margin for a block a tracked hand holds): a contact at the nearest
-                // surface point, with that face's normal.
+            if s <= contact_eps {
+                // Already inside at P-, or within contact_eps of the surface: a contact at
+                // the nearest surface point, with that face's normal.
                 let (cpt, dist, _) = poly.nearest_surface_point(a0);
-                if dist <= touch {
-                    add(contacts, out(cpt, poly.faces[face].normal, a1), contact_eps);
+                if dist <= contact_eps {
+                    add(
+                        contacts,
+                        out(cpt, poly.faces[face].normal, a1, f, k),
+                        contact_eps,
+                    );
                     continue;
                 }
             }
@@ -300,7 +303,7 @@ pub(crate) fn block_contacts(
                     .and_then(|row| row.get(k))
                     .is_none_or(|&t_first| t <= t_first)
                 {
-                    add(contacts, out(a0 + (a1 - a0) * t, n, a1), contact_eps);
+                    add(contacts, out(a0 + (a1 - a0) * t, n, a1, f, k), contact_eps);
                 }
             }
         }
@@ -330,7 +333,7 @@ pub(crate) fn block_contacts(
                     let bb = a + (bn - a) * s;
                     add(
                         contacts,
-                        out(c, poly.edge_pseudo_normal(e), bb),
+                        out(c, poly.edge_pseudo_normal(e), bb, f, k),
                         contact_eps,
                     );
                 }
@@ -362,7 +365,7 @@ pub(crate) fn block_contacts(
                             let bb = a + (bn - a) * s;
                             add(
                                 contacts,
-                                out(c, poly.edge_pseudo_normal(e), bb),
+                                out(c, poly.edge_pseudo_normal(e), bb, f, k),
                                 contact_eps,
                             );
                         }
@@ -418,8 +421,8 @@ impl HandContacts {
     ) -> bool {
         let eps = settings.contact_eps;
         let hull_eps = settings.hull_eps;
-        // T1 looks for check points up to the grip margin outside a held block: the broad
-        // phase reaches that far too.
+        // T1 holds a grip that has not opened by the grip margin, its points up to that far
+        // outside the block: the broad phase reaches that far too.
         let reach_eps = eps + settings.tracked.map_or(0.0, |t| t.grip_margin);
         // Broad phase: the box around every check point now and before, grown by eps (`reach`,
         // `hand_reach`: the caller has already found it near a block).
@@ -457,33 +460,33 @@ impl HandContacts {
                 continue;
             }
             contacts.clear();
-            block_contacts(b, hand, prev, eps, eps, hull_eps, &first, contacts);
+            block_contacts(b, hand, prev, eps, hull_eps, &first, contacts);
             let paper = classify(contacts, b.mode, settings, grasp);
             let action = match settings.tracked {
-                // T1: a grasp R3 no longer confirms holds while R3's test passes with the
-                // check points within the grip margin of the block counted as touching it.
+                // T1: a grasp R3 no longer confirms holds while the hand's grip has not opened
+                // by the grip margin since the last firm step, nor left the block by twice it.
                 Some(t) if grasp && b.mode == BlockMode::Grasped && paper != HandAction::Grasp => {
-                    contacts.clear();
-                    block_contacts(
-                        b,
-                        hand,
-                        prev,
-                        eps,
-                        t.grip_margin,
-                        hull_eps,
-                        &first,
-                        contacts,
-                    );
-                    if contacts.len() >= 2 && largest_angle(contacts) > settings.release_angle {
+                    let (inv, at) = (b.rot().conjugate(), b.pos());
+                    let poly = &b.poly;
+                    let outside = |p: DVec3| poly.max_face_distance(inv * (p - at)).0;
+                    if b.grip
+                        .grip_holds(hand, settings.release_angle, t.grip_margin, outside)
+                    {
                         counts.grip_held_steps += 1;
                         HandAction::Grasp
                     } else {
                         paper
                     }
                 }
-                // T3's evaluation step: the last at which R3 itself found the grasp.
+                // A firm step (R3 itself grasps): T1 remembers the grip and T3 the step. Not
+                // after an untracked step (R1 then reads the lost hand's held pose as P-),
+                // unless the grasp is new.
                 Some(_) if paper == HandAction::Grasp => {
-                    b.grip.firm_step = step;
+                    if b.mode != BlockMode::Grasped || prev.is_some_and(|p| p.tracked != 0) {
+                        b.grip.firm_step = step;
+                        // Where R1 found them: at P-.
+                        b.grip.record_grip(contacts, prev.unwrap_or(hand));
+                    }
                     paper
                 }
                 _ => paper,

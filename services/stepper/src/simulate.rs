@@ -512,7 +512,7 @@ impl Report {
         if let Some(t) = &self.tracked {
             let _ = writeln!(
                 o,
-                "hands: tracked (docs/model.md T1-T3): {} step(s) held by the grip margin, {} \
+                "hands: tracked (docs/model.md T1-T3): {} step(s) held by the grip (T1: R3 alone let go), {} \
                  tracking gap(s) held, {} grasp(s) let go after a long gap, {} fitted throw(s)",
                 t.grip_held_steps, t.gaps_held, t.gap_releases, t.fitted_throws
             );

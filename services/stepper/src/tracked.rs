@@ -8,9 +8,11 @@
 //! noisy poses is the noisiest velocity there is. These rules keep the paper's contact model
 //! (R1-R2) and its grasp test (R3) and add, each with one number:
 //!
-//! * **T1 grip margin**: once grasped, a block stays grasped while R3's test still passes when
-//!   check points up to `grip_margin` outside the block count as touching it. A grip must open
-//!   by the margin (more than a tracker's jitter) to let go.
+//! * **T1 grip margin**: once grasped, a block stays grasped until the hand's own grip (the
+//!   check points whose contacts made R3's grasp at the last firm step) opens by `grip_margin`
+//!   (more than a tracker's jitter). The grip's aperture, not its points against the block: R5
+//!   moves the block by the wrist, and a tracker's error in the wrist moves the block against
+//!   every finger at once.
 //! * **T2 tracking gap**: a hand that is not tracked touches nothing new and keeps what it holds
 //!   for up to `gap_hold`; a longer gap lets go with no throw (the hand's last poses are old).
 //! * **T3 fitted throw**: the released block's velocity is a least-squares fit of its path
@@ -24,15 +26,16 @@
 use glam::DVec3;
 
 use common::config::scene::{HandRules, TrackedSettings};
-use common::BlockMode;
+use common::{BlockMode, HandSample, MAX_FINGERS, MAX_FINGER_POINTS};
 
 use crate::block_set::BlockSet;
 use crate::body::{Block, HandAction};
+use crate::hand::Contact;
 
 /// The tracked rules' numbers in steps, decided once by `World::new`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct TrackedRules {
-    /// T1, metres.
+    /// T1: how far the grip must open to let go, metres.
     pub grip_margin: f64,
     /// T2: the most consecutive untracked steps a hand keeps its grasps through.
     pub gap_hold_steps: u64,
@@ -63,18 +66,37 @@ impl TrackedRules {
     }
 }
 
+/// T3's polynomial degree.
+const FIT_DEGREE: usize = 2;
+
 /// The most path points a held block keeps (T3), whatever the window: 8.5 s at 120 Hz.
 pub const MAX_PATH_POINTS: usize = 1024;
 
-/// A held block's path for T3: G at each tracked step it was held (a ring buffer, preallocated
-/// once per block under tracked rules), and the last step at which R3 itself found the grasp.
+/// The most check points T1 remembers of a grip.
+pub const MAX_GRIP_POINTS: usize = 16;
+
+/// One check point of a grip (T1): which (`finger * MAX_FINGER_POINTS + index`), where it was
+/// at the last firm step, and the pseudo-normal of its contact then.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct GripPoint {
+    point: u16,
+    at: DVec3,
+    normal: DVec3,
+}
+
+/// A held block's grip and path: T1's grip (the check points whose contacts made R3's grasp
+/// at the last firm step, fixed-size), and T3's path (G at each tracked step it was held, a ring
+/// buffer preallocated once per block under tracked rules) with the last step at which R3 itself
+/// found the grasp.
 #[derive(Debug, Clone, Default)]
 pub struct GripPath {
     points: Vec<(u64, DVec3)>,
     next: usize,
     len: usize,
-    /// The last step at which R3 (not T1's margin) found the grasp.
+    /// The last step at which R3 (not T1) found the grasp.
     pub firm_step: u64,
+    grip: [GripPoint; MAX_GRIP_POINTS],
+    grip_len: usize,
 }
 
 impl GripPath {
@@ -85,7 +107,71 @@ impl GripPath {
             next: 0,
             len: 0,
             firm_step: 0,
+            grip: [GripPoint::default(); MAX_GRIP_POINTS],
+            grip_len: 0,
         }
+    }
+
+    /// T1: remembers the grip at a firm step: each check point with a contact (its first
+    /// contact's pseudo-normal), where `hand` has it (P-, where R1 found the contact).
+    pub(crate) fn record_grip(&mut self, contacts: &[Contact], hand: &HandSample) {
+        self.grip_len = 0;
+        for c in contacts {
+            if self.grip_len == MAX_GRIP_POINTS {
+                break;
+            }
+            if self.grip[..self.grip_len]
+                .iter()
+                .any(|g| g.point == c.point)
+            {
+                continue;
+            }
+            if let Some(at) = point_of(hand, c.point) {
+                self.grip[self.grip_len] = GripPoint {
+                    point: c.point,
+                    at,
+                    normal: c.n,
+                };
+                self.grip_len += 1;
+            }
+        }
+    }
+
+    /// T1: whether the grip still holds in `hand`: some two of its check points whose contacts'
+    /// pseudo-normals opened wider than `release_angle` at the firm step are no more than
+    /// `margin` farther apart now than they were then, and each no farther than twice the margin
+    /// outside the block (`outside(p)`: how far p is outside it, negative inside). The hand's
+    /// own aperture first: a tracker's error in the wrist (which R5 moves the block by) moves
+    /// the block against every finger at once, and would open a grip that did not open; the
+    /// distance to the block for a grip whose points cannot open (a block held between the
+    /// thumb's base and the knuckles) when the hand leaves it (presses it into the floor).
+    pub(crate) fn grip_holds(
+        &self,
+        hand: &HandSample,
+        release_angle: f64,
+        margin: f64,
+        outside: impl Fn(DVec3) -> f64,
+    ) -> bool {
+        let grip = &self.grip[..self.grip_len];
+        let opposed = release_angle.cos();
+        for (i, a) in grip.iter().enumerate() {
+            let Some(pa) = point_of(hand, a.point).filter(|&p| outside(p) <= 2.0 * margin) else {
+                continue;
+            };
+            for b in &grip[i + 1..] {
+                if a.normal.dot(b.normal) >= opposed {
+                    continue;
+                }
+                let Some(pb) = point_of(hand, b.point).filter(|&p| outside(p) <= 2.0 * margin)
+                else {
+                    continue;
+                };
+                if (pa - pb).length() <= (a.at - b.at).length() + margin {
+                    return true;
+                }
+            }
+        }
+        false
     }
 
     /// A new grasp starts a new path.
@@ -115,19 +201,35 @@ impl GripPath {
     /// T3: the velocity (m/s) the block leaves with when released at step `now`: the fit of
     /// [`fit_velocity`] over the kept points from one window before the evaluation step on,
     /// evaluated at the evaluation step (the last firm step, no more than a window before
-    /// `now`). None when fewer than two points fall in that span (then the caller throws as
-    /// R13 does).
+    /// `now`); with fewer than two points in that span (a tracking gap took them), the fit of
+    /// every point kept. None with fewer than two points in all (then the caller throws as R13
+    /// does).
     pub(crate) fn throw_velocity(&self, now: u64, rules: &TrackedRules) -> Option<DVec3> {
         let w = rules.fit_window_steps;
         let at = self.firm_step.clamp(now.saturating_sub(w), now);
         let from = at.saturating_sub(w);
         let origin = self.iter().last()?.1;
-        fit_velocity(
-            self.iter()
-                .filter(|(s, _)| (from..=now).contains(s))
-                .map(|(s, p)| ((s as f64 - at as f64) * rules.dt, p - origin)),
-        )
+        let fit = |from: u64| {
+            fit_velocity_of_degree(
+                self.iter()
+                    .filter(|(s, _)| (from..=now).contains(s))
+                    .map(|(s, p)| ((s as f64 - at as f64) * rules.dt, p - origin)),
+                FIT_DEGREE,
+            )
+        };
+        // Too few tracked points in the window (a gap took them): every point kept.
+        fit(from).or_else(|| fit(0))
     }
+}
+
+/// Check point `point` (`finger * MAX_FINGER_POINTS + index`) of `hand`, when it has it.
+fn point_of(hand: &HandSample, point: u16) -> Option<DVec3> {
+    let (f, k) = (
+        point as usize / MAX_FINGER_POINTS,
+        point as usize % MAX_FINGER_POINTS,
+    );
+    (f < (hand.finger_count as usize).min(MAX_FINGERS) && k < hand.finger_point_count[f] as usize)
+        .then(|| DVec3::from_array(hand.finger_points[f][k]))
 }
 
 /// The velocity at u = 0 of the least-squares fit of positions `p` at times `u` (seconds,
@@ -143,59 +245,85 @@ impl GripPath {
 /// two of them. Points should be relative to one of them (the caller's `origin`), so that the
 /// sums stay small far from the world's origin.
 pub fn fit_velocity(points: impl Iterator<Item = (f64, DVec3)>) -> Option<DVec3> {
-    // Normal equations for the basis (1, u, u^2): the sums of u^k (k = 0..4) and of p u^k.
-    let mut s = [0.0f64; 5];
-    let mut t = [DVec3::ZERO; 3];
+    fit_velocity_of_degree(points, 2)
+}
+
+/// [`fit_velocity`] with a polynomial of `degree` (1 to 3) in place of the quadratic, falling
+/// back to lower degrees where the points do not determine it (fewer than degree + 2 points,
+/// or too few distinct times).
+pub fn fit_velocity_of_degree(
+    points: impl Iterator<Item = (f64, DVec3)>,
+    degree: usize,
+) -> Option<DVec3> {
+    const K: usize = 4;
+    // Normal equations for the basis (1, x, x^2, x^3), x = u / SCALE: the sums of x^k
+    // (k = 0..6) and of p x^k (k = 0..3).
+    let mut sums = [0.0f64; 2 * K - 1];
+    let mut rhs = [DVec3::ZERO; K];
     let (mut u_lo, mut u_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    // Times are scaled by 0.1 s (windows are tens to hundreds of milliseconds), which keeps
+    // the powers near 1.
+    const SCALE: f64 = 0.1;
     for (u, p) in points {
-        let mut uk = 1.0;
-        for (k, sk) in s.iter_mut().enumerate() {
-            *sk += uk;
-            if k < 3 {
-                t[k] += p * uk;
+        let x = u / SCALE;
+        let mut xk = 1.0;
+        for (k, sk) in sums.iter_mut().enumerate() {
+            *sk += xk;
+            if k < K {
+                rhs[k] += p * xk;
             }
-            uk *= u;
+            xk *= x;
         }
         u_lo = u_lo.min(u);
         u_hi = u_hi.max(u);
     }
-    let n = s[0];
+    let n = sums[0];
     if n < 2.0 || u_hi - u_lo <= 0.0 {
         return None;
     }
-    // Quadratic: solve [[s0 s1 s2] [s1 s2 s3] [s2 s3 s4]] x = t by Cramer's rule for the
-    // middle coefficient (v), per axis.
-    if n >= 4.0 {
-        let det3 = |m: [[f64; 3]; 3]| {
-            m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-                - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-        };
-        let m = [[s[0], s[1], s[2]], [s[1], s[2], s[3]], [s[2], s[3], s[4]]];
-        let d = det3(m);
-        // A well-spread window's determinant is of the order of n^3 (span/2)^6 / 180; far
-        // below that the points crowd onto two times and the quadratic is not determined.
-        let span = u_hi - u_lo;
-        if d.abs() > 1e-9 * n * n * n * span.powi(6) {
-            let axis = |a: usize| {
-                let ta = [t[0][a], t[1][a], t[2][a]];
-                let mv = [
-                    [m[0][0], ta[0], m[0][2]],
-                    [m[1][0], ta[1], m[1][2]],
-                    [m[2][0], ta[2], m[2][2]],
-                ];
-                det3(mv) / d
-            };
-            return Some(DVec3::new(axis(0), axis(1), axis(2)));
+    let mut degree = degree.clamp(1, K - 1);
+    while degree >= 1 {
+        if n >= (degree + 2) as f64 || degree == 1 {
+            let m = degree + 1;
+            if let Some(v) = solve_slope(&sums, &rhs, m) {
+                return Some(v / SCALE);
+            }
+        }
+        degree -= 1;
+    }
+    None
+}
+
+/// The coefficient of x^1 in the least-squares polynomial with `m` coefficients, from the
+/// normal equations' sums (Gaussian elimination with partial pivoting, per axis at once);
+/// None when the system is singular (the points crowd onto fewer times than coefficients).
+fn solve_slope(sums: &[f64], rhs: &[DVec3], m: usize) -> Option<DVec3> {
+    let mut a = [[0.0f64; 4]; 4];
+    let mut b = [DVec3::ZERO; 4];
+    for (i, row) in a.iter_mut().enumerate().take(m) {
+        row[..m].copy_from_slice(&sums[i..i + m]);
+        b[i] = rhs[i];
+    }
+    let scale = (0..m).map(|i| a[i][i].abs()).fold(0.0, f64::max);
+    for col in 0..m {
+        let pivot = (col..m).max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs()))?;
+        if a[pivot][col].abs() <= 1e-12 * scale {
+            return None;
+        }
+        a.swap(col, pivot);
+        b.swap(col, pivot);
+        for row in 0..m {
+            if row != col {
+                let f = a[row][col] / a[col][col];
+                let pivot_row = a[col];
+                for (x, p) in a[row][col..m].iter_mut().zip(&pivot_row[col..m]) {
+                    *x -= f * p;
+                }
+                b[row] -= b[col] * f;
+            }
         }
     }
-    // Straight line: v = cov(u, p) / var(u).
-    let mean_u = s[1] / n;
-    let var = s[2] - n * mean_u * mean_u;
-    if var <= 0.0 {
-        return None;
-    }
-    Some((t[1] - t[0] * mean_u) / var)
+    Some(b[1] / a[1][1])
 }
 
 /// T2: a step of a tracking gap no longer than gap_hold. Every block the hand holds keeps its
@@ -259,6 +387,24 @@ mod tests {
             .collect();
         let v = fit_velocity(pts.iter().copied()).unwrap();
         assert!((v - v0).length() < 1e-9, "{v} vs {v0}");
+    }
+
+    #[test]
+    fn t3_a_cubic_fit_follows_a_changing_acceleration_and_falls_back_when_undetermined() {
+        let (v0, a, j) = (
+            DVec3::new(3.0, -1.0, 0.5),
+            DVec3::new(5.0, 2.0, 0.0),
+            DVec3::splat(-40.0),
+        );
+        let path = |u: f64| v0 * u + a * u * u * 0.5 + j * u * u * u / 6.0;
+        let pts: Vec<(f64, DVec3)> = (-20..=4)
+            .map(|k| (k as f64 / 120.0, path(k as f64 / 120.0)))
+            .collect();
+        let v = fit_velocity_of_degree(pts.iter().copied(), 3).unwrap();
+        assert!((v - v0).length() < 1e-8, "{v}");
+        // Four points: a cubic needs five for a least-squares fit here; the quadratic is used.
+        let v = fit_velocity_of_degree(pts[..4].iter().copied(), 3).unwrap();
+        assert!(v.is_finite());
     }
 
     #[test]
