@@ -763,8 +763,9 @@ fn stepper_scenes() -> &'static [Scene; 2] {
 /// Applies one `stepper_hand` record to a hand sample: `kind` picks what it sets (mod 8: a
 /// check point's coordinate, the wrist's position or rotation, the finger count, a finger's
 /// point count, a finger's radius, the palm vertex count, a palm vertex's coordinate, or no
-/// hand this step), `index` which one, `value` the value (its bits for a count).
-fn apply_hand_record(kind: u8, index: u16, value: f64, hand: &mut Option<HandSample>) {
+/// hand this step, or, with `lost`, the hand marked untracked as a tracker that lost it sends
+/// it), `index` which one, `value` the value (its bits for a count).
+fn apply_hand_record(kind: u8, index: u16, value: f64, lost: bool, hand: &mut Option<HandSample>) {
     use common::{MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
     let Some(h) = hand.as_mut() else {
         return;
@@ -788,13 +789,16 @@ fn apply_hand_record(kind: u8, index: u16, value: f64, hand: &mut Option<HandSam
             let i = i % (MAX_PALM_VERTICES * 3);
             h.palm_vertices[i / 3][i % 3] = value;
         }
+        _ if lost => h.tracked = 0,
         _ => *hand = None,
     }
 }
 
 /// `stepper_hand` (issue 28): the stepper driven by hand samples with arbitrary values, as a
 /// trace, a recording, a device or a remote peer could send them. Byte 0 picks the model (bit
-/// 0: paper or precise) and the scene (bit 1: push or grasp-throw-fingers); the rest is records
+/// 0: paper or precise), the scene (bit 1: push or grasp-throw-fingers), the paper model's hand
+/// rules (bit 2: docs/model.md's tracked hands, T1-T3) and what a "no hand" record means (bit
+/// 3: the hand marked untracked rather than absent); the rest is records
 /// of [`STEPPER_RECORD`] bytes: the step (mod [`STEPPER_STEPS`]), what to set
 /// ([`apply_hand_record`]), which, and the value. Each step's sample is the scene's scripted
 /// hand with that step's records applied. Promises: every step ends within
@@ -812,6 +816,10 @@ pub fn stepper_hand(data: &[u8]) {
     } else {
         ModelKind::Precise
     };
+    if pick & 4 != 0 && scene.world.model == ModelKind::Paper {
+        scene.world.hands = common::config::scene::HandRules::Tracked;
+    }
+    let lost = pick & 8 != 0;
     let mut model = Model::new(&scene).unwrap_or_else(|e| panic!("{e}"));
     let Some(mut script) = BareFingersHand::from_scene(&scene) else {
         panic!("{}: a scene with a scripted hand", scene.file.display());
@@ -824,7 +832,13 @@ pub fn stepper_hand(data: &[u8]) {
         for r in records.chunks_exact(STEPPER_RECORD) {
             if u64::from(r[0]) % STEPPER_STEPS == n - 1 {
                 let value = f64::from_le_bytes(r[4..12].try_into().expect("8 bytes"));
-                apply_hand_record(r[1], u16::from_le_bytes([r[2], r[3]]), value, &mut hand);
+                apply_hand_record(
+                    r[1],
+                    u16::from_le_bytes([r[2], r[3]]),
+                    value,
+                    lost,
+                    &mut hand,
+                );
             }
         }
         refused += u64::from(hand.as_ref().is_some_and(|h| !stepper::hand::is_usable(h)));
@@ -842,7 +856,7 @@ pub fn stepper_hand(data: &[u8]) {
             };
             assert!(
                 block.position.is_finite() && block.rotation.is_finite(),
-                "step {n}: block {b} at {:?} {:?}",
+                "step {n}: block {b} at {:?} {:?} (hand {hand:?})",
                 block.position,
                 block.rotation
             );

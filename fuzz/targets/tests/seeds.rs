@@ -195,7 +195,8 @@ fn unsafe_zeroed_hand() -> HandSample {
 }
 
 /// The `stepper_hand` seeds and the inputs of issue 28 that once hung the stepper (byte 0:
-/// bit 0 the precise model, bit 1 the grasp scene; then records of step, kind, index, value:
+/// bit 0 the precise model, bit 1 the grasp scene, bit 2 tracked hand rules, bit 3 "no hand"
+/// records mark the hand lost; then records of step, kind, index, value:
 /// `fuzz_targets::stepper_hand`).
 #[test]
 #[ignore = "writes fuzz/corpus/stepper_hand: run it by hand to regenerate those inputs"]
@@ -209,6 +210,22 @@ fn write_stepper_hand_seeds() {
     let input = |pick: u8, records: &[Vec<u8>]| [vec![pick], records.concat()].concat();
     let h = "stepper_hand";
     put(h, "seed-paper-push", &input(0, &[record(5, 0, 1, 0.3)]));
+    // Issue 41: a tracked hand lost mid-grasp for a while, then a NaN wrist and a check point
+    // far off while it holds.
+    let lost: Vec<Vec<u8>> = (40..70).map(|s| record(s, 7, 0, 0.0)).collect();
+    put(h, "seed-tracked-grasp-lost", &input(2 | 4 | 8, &lost));
+    put(
+        h,
+        "regression-tracked-grasp-nan-wrist-far-point",
+        &input(
+            2 | 4,
+            &[
+                record(45, 1, 1, f64::NAN),
+                record(50, 0, 7, 1e9),
+                record(55, 7, 0, 0.0),
+            ],
+        ),
+    );
     put(
         h,
         "seed-precise-grasp",

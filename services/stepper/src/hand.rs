@@ -181,10 +181,21 @@ pub(crate) fn hand_reach(
 
 fn wrist_of(p: &Pose) -> (DVec3, DQuat) {
     let q = DQuat::from_array(p.rotation);
-    let q = if q.length_squared() > 0.0 {
+    let l2 = q.length_squared();
+    let q = if l2.is_finite() && l2 >= f64::MIN_POSITIVE {
         q.normalize()
     } else {
-        DQuat::IDENTITY
+        // A finite rotation whose squared length overflows (components near 1e300) or
+        // underflows (near 1e-160) from a device or a file: scaled by its largest component
+        // first, so that it normalises to a unit quaternion, not to NaN (issue 41's fuzzing:
+        // a tracked hand holds a block through such a sample, and R5 turned it to NaN).
+        let m = p.rotation.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        let scale = 1.0 / m;
+        if m.is_finite() && scale.is_finite() {
+            (q * scale).normalize()
+        } else {
+            DQuat::IDENTITY
+        }
     };
     (DVec3::from_array(p.position), q)
 }

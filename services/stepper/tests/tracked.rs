@@ -244,3 +244,25 @@ fn paper_hands_are_every_scenes_default_and_the_precise_model_refuses_tracked() 
     t.world.model = common::config::scene::ModelKind::Paper;
     assert!(stepper::Model::new(&t).is_ok());
 }
+
+#[test]
+fn t2_a_held_block_stays_finite_through_a_wrist_rotation_of_huge_or_tiny_components() {
+    // Finite, so usable, but its squared length overflows or underflows: normalised as it
+    // stood, it turned the held block to NaN (found by fuzzing the tracked rules).
+    for components in [1e300, -1e300, 1e-170, 5e-324] {
+        for hands in ["paper", "tracked"] {
+            let mut w = floating_cube(hands);
+            grasped(&mut w);
+            let mut odd = pinch(-0.002, -0.002, DVec3::ZERO);
+            odd.wrist.rotation = [components, 0.0, components, components];
+            odd.tracked = 0;
+            w.step(Some(&odd));
+            w.step(Some(&pinch(-0.002, -0.002, DVec3::ZERO)));
+            let b = w.block(0).unwrap();
+            assert!(
+                b.position.is_finite() && b.rotation.is_finite(),
+                "{hands} {components}: {b:?}"
+            );
+        }
+    }
+}
