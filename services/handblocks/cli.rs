@@ -308,8 +308,9 @@ pub struct LaunchArgs {
     pub session: PathBuf,
     /// Override a key of the session file, e.g. --set renderer.mode=off, --set
     /// budget.max_dropped=0, --set source.file=/data/carl/example_push_0.carl (paths, as in
-    /// the file, start at the session file's folder). Checked as the file's keys are.
-    /// Repeatable.
+    /// the file, start at the session file's folder), or of its scene with `scene.`, e.g. --set
+    /// scene.world.hands=tracked (docs/model.md T1-T3 for a tracked hand). Checked as the
+    /// files' keys are. Repeatable.
     #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
     pub overrides: Vec<common::config::session::Override>,
     /// No animated preview (a headless session writes one by default).

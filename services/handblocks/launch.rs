@@ -205,8 +205,8 @@ fn hands_line(s: &common::config::Session) -> Option<String> {
         ),
         HandRules::Paper => format!(
             "{tracked_source}, under the paper's hand rules (R3, R13): a tracker's jitter can \
-             make a grasp flicker; the scene's `[world] hands = \"tracked\"` holds it \
-             (docs/model.md T1-T3)"
+             make a grasp flicker; --set scene.world.hands=tracked holds it (docs/model.md \
+             T1-T3)"
         ),
     })
 }

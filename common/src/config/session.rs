@@ -444,24 +444,40 @@ impl Session {
                 .unwrap_or_default();
             table.insert("scene".into(), toml::Value::String(name));
         }
+        // `scene.KEY` overrides the scene's KEY (`--set scene.world.hands=tracked`): they go to
+        // the scene file as `simulate --set` would give them.
+        let (scene_overrides, session_overrides): (Vec<&Override>, Vec<&Override>) =
+            overrides.iter().partition(|o| o.key.starts_with("scene."));
+        let scene_overrides: Vec<Override> = scene_overrides
+            .into_iter()
+            .map(|o| Override {
+                key: o.key["scene.".len()..].to_string(),
+                value: o.value.clone(),
+            })
+            .collect();
         // `source.kind` first: it starts [source] afresh (`Override::apply`), whatever the
         // order the other source keys were given in.
-        let (kinds, rest): (Vec<&Override>, Vec<&Override>) =
-            overrides.iter().partition(|o| o.key == "source.kind");
+        let (kinds, rest): (Vec<&Override>, Vec<&Override>) = session_overrides
+            .into_iter()
+            .partition(|o| o.key == "source.kind");
         for o in kinds.into_iter().chain(rest) {
             o.apply(file, &mut table)?;
         }
-        Session::from_table(file, &table).map_err(|e| e.given_with_set(overrides))
+        Session::from_table(file, &table, &scene_overrides).map_err(|e| e.given_with_set(overrides))
     }
 
-    fn from_table(file: &Path, table: &toml::Table) -> Result<Session, ConfigError> {
+    fn from_table(
+        file: &Path,
+        table: &toml::Table,
+        scene_overrides: &[Override],
+    ) -> Result<Session, ConfigError> {
         let r = Reader::new(file, "", table);
         let dir = file.parent().unwrap_or(Path::new("."));
         let scene_name = r
             .string("scene")?
             .ok_or_else(|| r.err("scene", "required: the scene file, relative to this file"))?;
         let scene_file = dir.join(&scene_name);
-        let mut scene = Scene::load(&scene_file)?;
+        let mut scene = Scene::load_with(&scene_file, scene_overrides)?;
         let (source, remote_source) = source(r.table("source")?, dir)?;
         let link = match (remote_source, r.table("remote")?) {
             (Some(_), Some(_)) => {
@@ -1046,8 +1062,20 @@ mod tests {
         );
         let e = Session::load_with(&f, &[o("budget.frame_hz=0")]).unwrap_err();
         assert_eq!(e.key, "budget.frame_hz");
+        // `scene.KEY` is the scene's KEY, checked as the scene file's own keys are.
+        let s = Session::load_with(&f, &[o("scene.world.hands=tracked")]).unwrap();
+        assert_eq!(
+            s.scene.world.hands,
+            crate::config::scene::HandRules::Tracked
+        );
         let e = Session::load_with(&f, &[o("scene.x=1")]).unwrap_err();
-        assert_eq!(e.key, "scene");
+        assert_eq!(
+            (e.key.as_str(), e.file.clone()),
+            ("x", d.join("scene.toml"))
+        );
+        assert!(e.problem.contains("(given with --set)"), "{e}");
+        let e = Session::load_with(&f, &[o("scene.world.hands=both")]).unwrap_err();
+        assert_eq!(e.key, "world.hands");
         assert!(Override::parse("renderer.mode").is_err());
         assert!(Override::parse("=off").is_err());
         assert!(Override::parse("a..b=1").is_err());
