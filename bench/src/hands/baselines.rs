@@ -19,9 +19,14 @@
 //!   inliers; grab and release by Meta's pinch hysteresis scaled to the cube ([`meta_pinch`]);
 //! * `mrtk`: the object's last-frame velocity: the difference of the last two samples (by
 //!   sample, not by step).
+//!
+//! And two references that are no baseline ([`oracle`]): least-squares fits of a straight line
+//! and of a constant acceleration to the same degraded path over a window centred on the
+//! release, evaluated there: what an estimator told the exact release moment could do with
+//! the same samples.
 
 use common::HandSample;
-use glam::{DQuat, DVec3};
+use glam::{DMat3, DQuat, DVec3};
 
 use super::throws::{Hold, CUBE};
 
@@ -190,6 +195,55 @@ pub fn meta(track: &Track, t_rel: f64) -> Option<DVec3> {
     line_fit(&its, &ips).map(|(_, b, _)| b)
 }
 
+/// The oracle references' half window (s): the fit takes the samples within this of the
+/// release, on both sides.
+pub const ORACLE_HALF_WINDOW: f64 = 0.05;
+
+/// A reference, not a baseline: the velocity at `centre` of the least-squares fit of a
+/// straight line (`quadratic` false) or of a constant acceleration (p(t) = p0 + v (t - c) +
+/// a (t - c)^2 / 2, c = `centre`) to the held block's path attached at `g_local` at every
+/// *tracked* sample stamped within `half` of `centre` (a gap's repeated poses left out). A
+/// quadratic with fewer than three distinct sample times is a line; None with fewer than two.
+pub fn oracle(
+    samples: &[HandSample],
+    g_local: DVec3,
+    centre: f64,
+    half: f64,
+    quadratic: bool,
+) -> Option<DVec3> {
+    let mut ts = Vec::new();
+    let mut ps = Vec::new();
+    for h in samples {
+        let t = time_of(h);
+        if h.tracked == 0 || (t - centre).abs() > half + 1e-12 {
+            continue;
+        }
+        let (w, r) = wrist_of(h);
+        ts.push(t);
+        ps.push(w + r * g_local);
+    }
+    let mut distinct = ts.clone();
+    distinct.dedup();
+    if quadratic && distinct.len() >= 3 && half > 0.0 {
+        // In u = (t - centre) / half, on [-1, 1]: a well-conditioned 3 x 3 system.
+        let mut m = DMat3::ZERO;
+        let mut rhs = DMat3::ZERO;
+        for (t, p) in ts.iter().zip(&ps) {
+            let u = (t - centre) / half;
+            let phi = DVec3::new(1.0, u, u * u);
+            m += DMat3::from_cols(phi * phi.x, phi * phi.y, phi * phi.z);
+            rhs += DMat3::from_cols(phi * p.x, phi * p.y, phi * p.z);
+        }
+        if m.determinant().abs() > 1e-12 {
+            let c = m.inverse() * rhs;
+            return Some(DVec3::new(c.x_axis.y, c.y_axis.y, c.z_axis.y) / half);
+        }
+    }
+    (distinct.len() >= 2)
+        .then(|| line_fit(&ts, &ps).map(|(_, b, _)| b))
+        .flatten()
+}
+
 /// Meta's pinch, scaled to the cube: grab when the thumb-tip to index-tip distance is within
 /// 2 cm of the cube's width; release when it opens 4 cm wider than the grip (the median
 /// aperture over the first 100 ms of the grab, or over what of it has been seen).
@@ -298,6 +352,63 @@ mod tests {
         let m = meta(&tr, tr.t[29]).expect("meta");
         assert!((m - v).length() < 1e-9, "{m}");
         assert!(mrtk(&tr, tr.t[28]).is_some_and(|r| (r - v).length() > 1.0));
+    }
+
+    /// Hand samples at `rate` whose wrist moves at constant `v` under a fixed rotation;
+    /// samples `lost` untracked (holding the last pose).
+    fn moving_hand(v: DVec3, rate: f64, n: usize, lost: &[usize]) -> Vec<HandSample> {
+        let r = DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
+        let mut out: Vec<HandSample> = Vec::new();
+        for k in 0..n {
+            let t_ns = (k as f64 * 1e9 / rate).ceil() as u64;
+            let t = t_ns as f64 / 1e9;
+            let mut h = match (lost.contains(&k), out.last()) {
+                (true, Some(last)) => HandSample {
+                    tracked: 0,
+                    ..*last
+                },
+                _ => HandSample {
+                    wrist: common::Pose {
+                        position: (DVec3::new(0.1, 1.0, -0.2) + v * t).to_array(),
+                        rotation: r.to_array(),
+                    },
+                    tracked: 1,
+                    ..HandSample::default()
+                },
+            };
+            h.stamp.source_time_ns = t_ns;
+            out.push(h);
+        }
+        out
+    }
+
+    #[test]
+    fn the_oracle_returns_a_constant_velocity() {
+        let v = DVec3::new(1.5, -0.4, 2.2);
+        let g = DVec3::new(0.0, -0.08, 0.01);
+        for rate in [30.0, 90.0, 120.0] {
+            let s = moving_hand(v, rate, 60, &[]);
+            let centre = time_of(&s[30]) + 0.003;
+            for quadratic in [false, true] {
+                let o = oracle(&s, g, centre, ORACLE_HALF_WINDOW, quadratic).expect("oracle");
+                assert!(
+                    (o - v).length() < 0.01 * v.length(),
+                    "{rate} {quadratic}: {o}"
+                );
+                assert!((o - v).length() < 1e-6, "{rate} {quadratic}: {o}");
+            }
+        }
+        // A gap's repeated poses are left out (kept, they would read a hand standing still).
+        let s = moving_hand(v, 90.0, 60, &[28, 29, 30, 31]);
+        let centre = time_of(&s[30]);
+        for quadratic in [false, true] {
+            let o = oracle(&s, g, centre, ORACLE_HALF_WINDOW, quadratic).expect("oracle");
+            assert!((o - v).length() < 1e-6, "gap {quadratic}: {o}");
+        }
+        // Nothing tracked in the window: no velocity.
+        let lost: Vec<usize> = (20..40).collect();
+        let s = moving_hand(v, 90.0, 60, &lost);
+        assert!(oracle(&s, g, time_of(&s[30]), ORACLE_HALF_WINDOW, true).is_none());
     }
 
     #[test]
