@@ -113,8 +113,8 @@ pub struct TrackedSettings {
     /// T2: a hand that is not tracked keeps what it holds, unmoved by new contacts, for up to
     /// this long (seconds); then it lets go with no throw.
     pub gap_hold: f64,
-    /// T3: the throw's velocity is a least-squares fit of the held block's path over this
-    /// long before the grip left the block (seconds).
+    /// T3: the throw's velocity is the least-squares line through the held block's path from
+    /// this long before the grip left the block up to the release (seconds).
     pub throw_fit_window: f64,
 }
 
@@ -123,7 +123,7 @@ impl Default for TrackedSettings {
         TrackedSettings {
             grip_margin: 0.02,
             gap_hold: 0.25,
-            throw_fit_window: 0.15,
+            throw_fit_window: 0.075,
         }
     }
 }
