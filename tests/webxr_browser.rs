@@ -188,8 +188,7 @@ fn the_held_block_is_drawn_with_the_hand_that_holds_it(summary: &serde_json::Val
     );
     assert_eq!(num(&h["lagFrames"]["max"]), 0.0, "{summary}");
     assert!(num(&h["distMm"]["max"]) < 1.0, "{summary}");
-    // Before: the world answering this frame cannot have come back before it is drawn.
-    assert!(num(&h["worldLagFrames"]["p50"]) >= 1.0, "{summary}");
+    // Before (the world's pose, printed above) is a figure of the machine's speed, not checked.
 }
 
 /// A browser without WebXR is a spectator: the page draws the session's blocks.
