@@ -179,6 +179,39 @@ impl HandSide {
     }
 }
 
+/// Which hands of a source drive a world: one of them (the other unused), or both (a headset
+/// tracks two; docs/model.md "Two hands").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HandsUsed {
+    One(HandSide),
+    Both,
+}
+
+impl Default for HandsUsed {
+    /// The right hand alone: a glove and its tracker are one hand, the right.
+    fn default() -> Self {
+        HandsUsed::One(HandSide::Right)
+    }
+}
+
+impl HandsUsed {
+    /// `"left"`, `"right"` or `"both"` (any case); None for anything else.
+    pub fn parse(text: &str) -> Option<HandsUsed> {
+        match text.to_ascii_lowercase().as_str() {
+            "both" => Some(HandsUsed::Both),
+            other => HandSide::parse(other).map(HandsUsed::One),
+        }
+    }
+
+    /// `"left"`, `"right"` or `"both"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            HandsUsed::One(side) => side.name(),
+            HandsUsed::Both => "both",
+        }
+    }
+}
+
 /// `hand`: the hand as the block world sees it (docs/model.md R1-R2): check points per finger
 /// (knuckle to tip), finger radii, the palm polyhedron and the wrist pose, all in the world frame.
 #[repr(C)]

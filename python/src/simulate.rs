@@ -69,7 +69,7 @@ pub fn simulate<'py>(
         model,
         trace: hand,
         hand_offset: [hand_offset.0, hand_offset.1, hand_offset.2],
-        side: None,
+        hands: common::HandsUsed::default(),
         frames,
     };
     // Without the GIL (other Python threads go on), back with it every

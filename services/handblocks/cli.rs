@@ -116,8 +116,10 @@ pub enum Command {
         /// Move the traced hand by X,Y,Z metres (real traces hold the hand ~1 m above the floor).
         #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
         hand_offset: Option<[f64; 3]>,
-        /// Which hand of the trace drives the world: a CARL file tracks both (default: right).
-        #[arg(long, value_name = "SIDE", value_parser = ["left", "right"], requires = "hand")]
+        /// Which hands of the trace drive the world: a CARL file tracks both (default: right).
+        /// `both`: the two hands in one world (docs/model.md "Two hands"); events then name
+        /// the hand ("hand": "left" or "right").
+        #[arg(long, value_name = "SIDE", value_parser = ["left", "right", "both"], requires = "hand")]
         hands: Option<String>,
         /// Print {"frames", "blocks": [{"name", "position", "rotation", "mode"}], "events"}.
         #[arg(long)]

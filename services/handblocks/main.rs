@@ -88,7 +88,10 @@ fn run() -> Result<ExitCode, CliError> {
             json,
             overrides,
         }) => simulate::run(simulate::SimulateArgs {
-            side: hands.as_deref().and_then(common::HandSide::parse),
+            hands: hands
+                .as_deref()
+                .and_then(common::HandsUsed::parse)
+                .unwrap_or_default(),
             scene,
             frames,
             model,

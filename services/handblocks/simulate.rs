@@ -17,8 +17,8 @@ pub struct SimulateArgs {
     /// `--hand TRACE`: one of our recordings or a CARL file, in place of the scene's [hand].
     pub trace: Option<PathBuf>,
     pub hand_offset: [f64; 3],
-    /// `--hands left|right`: which hand of the trace drives (None: the right).
-    pub side: Option<common::HandSide>,
+    /// `--hands left|right|both`: which hands of the trace drive (default: the right).
+    pub hands: common::HandsUsed,
     pub json: bool,
     /// `--set KEY=VALUE`: scene keys given on the command line.
     pub overrides: Vec<common::config::session::Override>,
@@ -37,7 +37,7 @@ pub fn run(args: SimulateArgs) -> Result<ExitCode, SimulateError> {
         },
         trace: args.trace,
         hand_offset: args.hand_offset,
-        side: args.side,
+        hands: args.hands,
         frames: args.frames,
     };
     let (report, notes) = simulation::run(&scene, &settings)?;

@@ -32,9 +32,9 @@ pub struct SimulateSettings {
     pub trace: Option<PathBuf>,
     /// Moves the trace's hand, metres.
     pub hand_offset: [f64; 3],
-    /// Which hand of the trace drives the world (a CARL file holds both); the right by
-    /// default.
-    pub side: Option<common::HandSide>,
+    /// Which hands of the trace drive the world (a CARL file holds both): one (the right by
+    /// default) or both (docs/model.md "Two hands").
+    pub hands: common::HandsUsed,
     /// Steps in all; None: the scene's hand plus 3 s to settle, or the trace's hands plus 2 s.
     pub frames: Option<u64>,
 }
@@ -114,7 +114,7 @@ pub fn run_with_progress(
             &scene,
             trace,
             settings.hand_offset,
-            settings.side.unwrap_or(common::HandSide::Right),
+            settings.hands,
             settings.frames,
             &mut notes,
             progress,
@@ -199,12 +199,25 @@ fn simulate_trace(
     scene: &Scene,
     trace: &Path,
     offset: [f64; 3],
-    side: common::HandSide,
+    hands: common::HandsUsed,
     frames: Option<u64>,
     notes: &mut Notes,
     progress: &mut Progress<'_>,
 ) -> Result<Report, SimulateError> {
+    let side = match hands {
+        common::HandsUsed::One(side) => side,
+        common::HandsUsed::Both => {
+            return simulate_both_hands(scene, trace, offset, frames, notes, progress)
+        }
+    };
     let trace = replay::HandTrace::load_hand(trace, offset, side).map_err(SimulateError::Trace)?;
+    let hands = hands_of(&trace, notes);
+    stepper::simulate_samples_with(scene, &hands, frames, progress).map_err(run_error)
+}
+
+/// A trace's samples as hands (kinematics' [`kinematics::HandStream`], as the live process
+/// makes them), noting the trace's warnings.
+fn hands_of(trace: &replay::HandTrace, notes: &mut Notes) -> Vec<common::HandSample> {
     for w in &trace.warnings {
         notes.lines.push(format!("warning: {w}"));
     }
@@ -226,7 +239,40 @@ fn simulate_trace(
         };
         hands.extend(hand.copied());
     }
-    stepper::simulate_samples_with(scene, &hands, frames, progress).map_err(run_error)
+    hands
+}
+
+/// Both hands of a CARL file (each frame holds both, a lost one marked so), in frames of the
+/// right and the left hand ([`stepper::slot_side`]), each hand made as the live process makes
+/// it; the world is two-handed ([`stepper::simulate_frames_with`]).
+fn simulate_both_hands(
+    scene: &Scene,
+    trace: &Path,
+    offset: [f64; 3],
+    frames: Option<u64>,
+    notes: &mut Notes,
+    progress: &mut Progress<'_>,
+) -> Result<Report, SimulateError> {
+    let [right, left] = [common::HandSide::Right, common::HandSide::Left].map(|side| {
+        replay::HandTrace::load_hand(trace, offset, side).map_err(SimulateError::Trace)
+    });
+    let (right, left) = (right?, left?);
+    let right = hands_of(&right, notes);
+    let left = hands_of(&left, &mut Notes::default());
+    if right.len() != left.len() {
+        return Err(SimulateError::Trace(format!(
+            "{}: its two hands hold {} and {} samples; a trace of both hands holds both in every              sample",
+            trace.display(),
+            right.len(),
+            left.len()
+        )));
+    }
+    let hand_frames: Vec<stepper::HandFrame> = right
+        .into_iter()
+        .zip(left)
+        .map(|(r, l)| [Some(r), Some(l)])
+        .collect();
+    stepper::simulate_frames_with(scene, &hand_frames, frames, progress).map_err(run_error)
 }
 
 #[cfg(test)]

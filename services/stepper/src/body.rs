@@ -174,6 +174,14 @@ pub struct Block {
     /// T3 (tracked hands only): G along the current grasp, for the fitted throw. Empty (no
     /// memory) under the paper's rules; sized by `World::new`.
     pub grip: GripPath,
+    /// The hands that grasp it (bit k: hand slot k, `crate::HAND_SLOTS`); 0 unless grasped.
+    /// A one-hand world's grasp is always slot 0's.
+    pub held_by: u8,
+    /// In a two-hand world, the hands acting on it this step (stage 1, for the events that
+    /// name them); 0 otherwise.
+    pub acting_hands: u8,
+    /// The hands that held it when R13 let it go (its release event names them).
+    pub released_by: u8,
 }
 
 impl Block {
@@ -219,9 +227,18 @@ impl Block {
             grasp_history_len: 0,
             grasp_history_next: 0,
             grip: GripPath::default(),
+            held_by: 0,
+            acting_hands: 0,
+            released_by: 0,
         };
         b.rotate_rel();
         b
+    }
+
+    /// Whether hand slot `slot` grasps it.
+    #[inline]
+    pub fn grasped_by(&self, slot: usize) -> bool {
+        self.mode == BlockMode::Grasped && self.held_by & (1 << slot) != 0
     }
 
     /// The rotation, body to world.

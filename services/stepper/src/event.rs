@@ -60,6 +60,9 @@ pub struct Event {
     pub step: u64,
     pub kind: EventKind,
     pub block: usize,
+    /// In a two-hand world, the hands a grasp, release or push is by (bit k: hand slot k,
+    /// `crate::HAND_SLOTS`); 0 for the other events and in a one-hand world.
+    pub hands: u8,
 }
 
 /// The events of the step being taken. A stage that reports something (the floor's R8 impacts,
@@ -69,6 +72,8 @@ pub struct Event {
 pub(crate) struct StepEvents {
     step: u64,
     events: Vec<Event>,
+    /// Whether events name their hands (a two-hand world).
+    pub(crate) name_hands: bool,
 }
 
 impl StepEvents {
@@ -76,6 +81,7 @@ impl StepEvents {
         StepEvents {
             step: 0,
             events: Vec::with_capacity(capacity),
+            name_hands: false,
         }
     }
 
@@ -86,10 +92,16 @@ impl StepEvents {
     }
 
     pub(crate) fn emit(&mut self, kind: EventKind, block: usize) {
+        self.emit_by(kind, block, 0);
+    }
+
+    /// An event by the hands `hands` (named only in a two-hand world).
+    pub(crate) fn emit_by(&mut self, kind: EventKind, block: usize, hands: u8) {
         self.events.push(Event {
             step: self.step,
             kind,
             block,
+            hands: if self.name_hands { hands } else { 0 },
         });
     }
 

@@ -23,6 +23,7 @@ use crate::grid::BlockGrid;
 use crate::motion::push_one_point;
 use crate::settings::Settings;
 use crate::tracked::{TrackedCounts, TrackedRules};
+use crate::HAND_SLOTS;
 
 /// Contacts kept per block and step (after merging; more are dropped, never allocated).
 pub const MAX_CONTACTS: usize = 64;
@@ -412,8 +413,8 @@ impl HandContacts {
         }
     }
 
-    /// Stage 1: R1-R3 for every block near the hand (`hand` now, `prev` the hand of the
-    /// previous step, P- and W-): decides each block's hand action. `grasp` says whether R5 may
+    /// Stage 1: R1-R3 for every block near the hand in slot `slot` (`hand` now, `prev` the
+    /// hand of the previous step, P- and W-): decides each block's hand action. `grasp` says whether R5 may
     /// grasp (hand = "grasp"); otherwise two contacts always push (R6). Whether it gave any
     /// block an action: when not, stage 2 has nothing to move.
     #[allow(clippy::too_many_arguments)]
@@ -422,6 +423,7 @@ impl HandContacts {
         blocks: &mut [Block],
         active: &mut BlockSet,
         grid: &mut BlockGrid,
+        slot: usize,
         hand: &HandSample,
         prev: Option<&HandSample>,
         reach: (DVec3, DVec3),
@@ -472,16 +474,23 @@ impl HandContacts {
             }
             contacts.clear();
             block_contacts(b, hand, prev, eps, hull_eps, &first, contacts);
-            let paper = classify(contacts, b.mode, settings, grasp);
+            // R3 judges by release_angle the grasps of this hand (in a one-hand world, every
+            // grasp): another hand's grasp is not this hand's to keep.
+            let grasped_here = b.grasped_by(slot);
+            let mode = match b.mode {
+                BlockMode::Grasped if !grasped_here => BlockMode::Free,
+                mode => mode,
+            };
+            let paper = classify(contacts, mode, settings, grasp);
             let action = match settings.tracked {
                 // T1: a grasp R3 no longer confirms holds while the hand's grip has not opened
                 // by the grip margin since the last firm step, nor left the block by twice it.
-                Some(t) if grasp && b.mode == BlockMode::Grasped && paper != HandAction::Grasp => {
+                Some(t) if grasp && grasped_here && paper != HandAction::Grasp => {
                     let (inv, at) = (b.rot().conjugate(), b.pos());
                     let poly = &b.poly;
                     let outside = |p: DVec3| poly.max_face_distance(inv * (p - at)).0;
                     if b.grip
-                        .grip_holds(hand, settings.release_angle, t.grip_margin, outside)
+                        .grip_holds(slot, hand, settings.release_angle, t.grip_margin, outside)
                     {
                         counts.grip_held_steps += 1;
                         HandAction::Grasp
@@ -493,10 +502,10 @@ impl HandContacts {
                 // after an untracked step (R1 then reads the lost hand's held pose as P-),
                 // unless the grasp is new.
                 Some(_) if paper == HandAction::Grasp => {
-                    if b.mode != BlockMode::Grasped || prev.is_some_and(|p| p.tracked != 0) {
+                    if !grasped_here || prev.is_some_and(|p| p.tracked != 0) {
                         b.grip.firm_step = step;
                         // Where R1 found them: at P-.
-                        b.grip.record_grip(contacts, prev.unwrap_or(hand));
+                        b.grip.record_grip(slot, contacts, prev.unwrap_or(hand));
                     }
                     paper
                 }
@@ -563,14 +572,19 @@ pub(crate) fn end_grasps(
     blocks: &mut [Block],
     active: &BlockSet,
     inertia: bool,
-    letting: Letting,
+    letting_of: impl Fn(u8) -> Letting,
     counts: &mut TrackedCounts,
 ) {
     // A grasped block is never at rest: it is in `active`.
     for i in active.iter() {
         let b = &mut blocks[i];
         if b.mode == BlockMode::Grasped && b.action() != HandAction::Grasp {
+            // How the hands that held it let go (T2's drop only when every one of them was
+            // lost for longer than gap_hold).
+            let letting = letting_of(b.held_by);
             b.released = true;
+            b.released_by = b.held_by;
+            b.held_by = 0;
             b.mode = BlockMode::Free;
             b.v = match letting {
                 _ if !inertia => DVec3::ZERO,
@@ -613,26 +627,30 @@ pub(crate) enum Letting {
 /// Stage 2: R5 grasp (rigidly with the wrist), R4 one-point push, R6 translation, as stage 1
 /// decided them; `fingers` are the check points as drawn, which R5 relocates. Whether it moved
 /// any block (R10 carries from those).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn move_by_hand(
     blocks: &mut [Block],
     active: &BlockSet,
-    hand: &HandSample,
-    prev: Option<&HandSample>,
+    hands: [Option<&HandSample>; HAND_SLOTS],
+    prevs: [Option<&HandSample>; HAND_SLOTS],
     settings: &Settings,
-    fingers: &mut Fingers,
+    fingers: &mut [Fingers; HAND_SLOTS],
     path_step: Option<u64>,
+    two_handed: bool,
 ) -> bool {
-    // R5's wrist motion, worked out for the first grasped block (a hand that acts on nothing
-    // costs this stage a pass over the active set and nothing more).
-    let wrist_motion = || {
+    // R5's wrist motion of each hand, worked out for the first block that hand grasps (a hand
+    // that acts on nothing costs this stage a pass over the active set and nothing more); None
+    // for a hand that is not there this step (a block it holds through a gap stays put).
+    let wrist_motion = |slot: usize| {
+        let hand = hands[slot]?;
         let (w_pos, w_rot) = wrist_of(&hand.wrist);
-        let (wm_pos, wm_rot) = match prev {
+        let (wm_pos, wm_rot) = match prevs[slot] {
             Some(p) => wrist_of(&p.wrist),
             None => (w_pos, w_rot),
         };
-        (w_pos, wm_pos, (w_rot * wm_rot.conjugate()).normalize())
+        Some((w_pos, wm_pos, (w_rot * wm_rot.conjugate()).normalize()))
     };
-    let mut grasp_motion: Option<(DVec3, DVec3, DQuat)> = None;
+    let mut grasp_motion: [Option<Option<(DVec3, DVec3, DQuat)>>; HAND_SLOTS] = [None; HAND_SLOTS];
     let eps = settings.contact_eps;
     let hull_eps = settings.hull_eps;
     let mut any_grasp = false;
@@ -646,16 +664,41 @@ pub(crate) fn move_by_hand(
         match b.action() {
             HandAction::None => {}
             HandAction::Grasp => {
-                // R5: pose <- W W-^-1 pose.
+                // R5: pose <- W W-^-1 pose, with the wrist of each hand that grasps it; two
+                // hands move it by the mean of their two motions (the middle of the two
+                // positions, the rotation halfway), so neither hand's tracking error flings it
+                // and a hand letting go of a two-hand grasp leaves it moving with the other.
+                let holders = if two_handed { b.acting_hands } else { 1 };
+                let mut moved_to: Option<(DVec3, DQuat)> = None;
+                for (slot, motion) in grasp_motion.iter_mut().enumerate() {
+                    if holders & (1 << slot) == 0 {
+                        continue;
+                    }
+                    let Some((w_pos, wm_pos, dq)) =
+                        *motion.get_or_insert_with(|| wrist_motion(slot))
+                    else {
+                        continue;
+                    };
+                    let pos = w_pos + dq * (b.pos() - wm_pos);
+                    let rot = (dq * b.rot()).normalize();
+                    moved_to = Some(match moved_to {
+                        None => (pos, rot),
+                        Some((p0, r0)) => ((p0 + pos) * 0.5, halfway(r0, rot)),
+                    });
+                }
                 if b.mode_before != BlockMode::Grasped {
                     b.grasp_history_len = 0;
                     b.grip.clear();
                 }
-                let (w_pos, wm_pos, dq) = *grasp_motion.get_or_insert_with(wrist_motion);
-                let new_pos = w_pos + dq * (b.pos() - wm_pos);
+                b.held_by = holders;
+                let Some((new_pos, new_rot)) = moved_to else {
+                    // Held through a gap by hands that are not there: it stays.
+                    b.mode = BlockMode::Grasped;
+                    continue;
+                };
                 let d = new_pos - b.pos();
                 b.set_position(new_pos);
-                b.set_rotation((dq * b.rot()).normalize());
+                b.set_rotation(new_rot);
                 b.push_grasp_displacement(d);
                 // T3: the path of a block a tracked hand holds (untracked steps are no data).
                 if let Some(step) = path_step {
@@ -691,14 +734,31 @@ pub(crate) fn move_by_hand(
         }
     }
     if any_grasp {
-        relocate_fingers(blocks, active, hand, fingers);
+        for (slot, (hand, fingers)) in hands.iter().zip(fingers.iter_mut()).enumerate() {
+            if let Some(hand) = hand {
+                relocate_fingers(blocks, active, slot, hand, fingers);
+            }
+        }
     }
     any_moved
 }
 
+/// The rotation halfway between unit quaternions `a` and `b` (the shorter way): the mean of
+/// two hands' rotations of a block they both hold.
+fn halfway(a: DQuat, b: DQuat) -> DQuat {
+    let b = if a.dot(b) < 0.0 { -b } else { b };
+    (a + b).normalize()
+}
+
 /// R5: check points that end inside a grasped block are moved to its surface (nearest point),
 /// for drawing; P- stays the hand's own sample.
-fn relocate_fingers(blocks: &[Block], active: &BlockSet, hand: &HandSample, fingers: &mut Fingers) {
+fn relocate_fingers(
+    blocks: &[Block],
+    active: &BlockSet,
+    slot: usize,
+    hand: &HandSample,
+    fingers: &mut Fingers,
+) {
     let fc = (hand.finger_count as usize).min(MAX_FINGERS);
     for f in 0..fc {
         for k in 0..(hand.finger_point_count[f] as usize).min(MAX_FINGER_POINTS) {
@@ -706,7 +766,7 @@ fn relocate_fingers(blocks: &[Block], active: &BlockSet, hand: &HandSample, fing
             // A grasped block is never at rest: in `active`, lowest index first (the order of a
             // loop over every block, without the loop: a point costs the active blocks).
             for b in active.iter().map(|i| &blocks[i]) {
-                if b.mode != BlockMode::Grasped {
+                if !b.grasped_by(slot) {
                     continue;
                 }
                 let local = b.rot().conjugate() * (p - b.pos());

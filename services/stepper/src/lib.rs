@@ -19,6 +19,7 @@
 //! - [`event`]: what a step reports (both models);
 //! - [`world`]: the world and its step, in docs/model.md's order: it hands each stage above
 //!   the sets that stage reads and writes, so none of them depends on the world;
+//! - `two_hands`: a two-hand world's stage 1, each hand's actions combined block by block;
 //! - [`block_set`]: sets of block indices as bit sets sized for their world (R14's);
 //! - [`precise`]: the precise reference model (rapier3d), beside the paper's;
 //! - [`model`]: the one switch between the two that the process and `simulate` hold;
@@ -44,13 +45,19 @@ pub mod simulate;
 pub mod support;
 pub mod timeline;
 pub mod tracked;
+mod two_hands;
 pub mod world;
+
+/// The hands a world takes in one step: a headset tracks two. Slot 0 is a one-hand world's
+/// only hand and a two-hand world's right; slot 1 is the left (docs/model.md "Two hands").
+pub const HAND_SLOTS: usize = 2;
 
 pub use model::Model;
 pub use motion::{push_one_point, PushOutcome};
 pub use precise::PreciseWorld;
 pub use simulate::{
-    default_frames, outcome, simulate, simulate_samples, simulate_samples_with, simulate_with,
-    BareFingersHand, BlockReport, EventReport, HandSource, Progress, Report, RunError, Stop,
+    default_frames, outcome, side_slot, simulate, simulate_frames_with, simulate_samples,
+    simulate_samples_with, simulate_with, slot_side, BareFingersHand, BlockReport, EventReport,
+    HandFrame, HandSource, Progress, Report, RunError, Stop,
 };
 pub use world::{BlockView, Event, EventKind, World, WorldError};

@@ -75,6 +75,25 @@ impl Model {
         }
     }
 
+    /// One step with each hand by slot ([`crate::HAND_SLOTS`]; [`World::step_hands`]). The
+    /// precise model takes the first hand only: two hands are the paper model's, and
+    /// `simulate` and the stepper refuse the precise model with two before they start.
+    pub fn step_hands(&mut self, hands: [Option<&HandSample>; crate::HAND_SLOTS]) {
+        match self {
+            Model::Paper(w) => w.step_hands(hands),
+            Model::Precise(w) => w.step(hands[0]),
+        }
+    }
+
+    /// [`World::set_previous_hand_of`].
+    pub fn set_previous_hand_of(&mut self, slot: usize, hand: Option<&HandSample>) {
+        match self {
+            Model::Paper(w) => w.set_previous_hand_of(slot, hand),
+            Model::Precise(w) if slot == 0 => w.set_previous_hand(hand),
+            Model::Precise(_) => {}
+        }
+    }
+
     /// Hand samples the world refused where they entered (`hand::unusable_because`); for
     /// each, the hand held its last good pose.
     pub fn rejected_hand_samples(&self) -> u64 {

@@ -161,6 +161,26 @@ pub struct EventReport {
     pub step: u64,
     pub kind: EventKind,
     pub block: String,
+    /// The hand a grasp, release or push is by, in a two-hand world (`"hand"` in the JSON).
+    pub hand: Option<common::HandSide>,
+}
+
+/// The side of the hand in slot `slot` of a two-hand world ([`crate::HAND_SLOTS`]): slot 0 is
+/// the right, slot 1 the left.
+pub fn slot_side(slot: usize) -> common::HandSide {
+    if slot == 0 {
+        common::HandSide::Right
+    } else {
+        common::HandSide::Left
+    }
+}
+
+/// The slot of `side` in a two-hand world ([`slot_side`]).
+pub fn side_slot(side: common::HandSide) -> usize {
+    match side {
+        common::HandSide::Right => 0,
+        common::HandSide::Left => 1,
+    }
 }
 
 /// What `simulate` returns.
@@ -255,7 +275,7 @@ pub fn simulate_with(
             .as_deref_mut()
             .and_then(|h| h.hand_at(n, n as f64 * dt));
         world.step(sample.as_ref());
-        collect_events(&world, scene, &mut events);
+        collect_events(&world, scene, &mut events, false);
         progress(n).map_err(|Stop| RunError::Stopped { steps: n })?;
     }
     Ok(report(&world, scene, frames, events))
@@ -281,27 +301,88 @@ pub fn simulate_samples_with(
     frames: Option<u64>,
     progress: &mut Progress<'_>,
 ) -> Result<Report, RunError> {
+    let pairs: Vec<HandFrame> = hands.iter().map(|h| [Some(*h), None]).collect();
+    simulate_frames_with(scene, &pairs, frames, progress)
+}
+
+/// One frame of a two-hand source: each hand by slot ([`crate::HAND_SLOTS`], [`slot_side`]),
+/// None for a hand the frame lacks.
+pub type HandFrame = [Option<HandSample>; crate::HAND_SLOTS];
+
+/// [`simulate_samples_with`] for a source of two hands: frames of both hands, each hand
+/// interpolated on its own between frames ([`Timeline::advance_hands`]), as the stepper
+/// process takes them. A hand the world cannot use (`hand::unusable_because`) is refused and
+/// counted; the other hand of its frame still counts, and the refused one holds its last good
+/// sample; a frame with no usable hand brings no steps. The world is two-handed from the first
+/// frame that holds slot 1's hand (before it, bit for bit the one-hand run).
+pub fn simulate_frames_with(
+    scene: &Scene,
+    hand_frames: &[HandFrame],
+    frames: Option<u64>,
+    progress: &mut Progress<'_>,
+) -> Result<Report, RunError> {
     let mut world = Model::new(scene)?;
+    if world.kind() == common::config::scene::ModelKind::Precise
+        && hand_frames.iter().any(|f| f[1].is_some())
+    {
+        return Err(RunError::World(WorldError {
+            file: scene.file.clone(),
+            block: None,
+            problem: "two hands are the paper model's (docs/model.md \"Two hands\"): the precise \
+                      model takes one; give one hand (--hands left or right) or `world.model` = \
+                      \"paper\""
+                .into(),
+        }));
+    }
     let mut events = Vec::new();
     let mut timeline = Timeline::new(scene.world.step_hz);
     let limit = frames.unwrap_or(u64::MAX);
     let (mut refused_hands, mut first_refused) = (0, None);
     let mut stopped = None;
-    for hand in hands {
-        if let Some(why) = crate::hand::unusable_because(hand) {
-            // Refused where it enters, as the stepper process refuses it: no steps of its own;
-            // the next good sample's steps bridge from the last good one.
-            refused_hands += 1;
-            first_refused.get_or_insert((hand.stamp.seq, why));
+    let mut last_good: HandFrame = [None, None];
+    let two_handed = hand_frames.iter().any(|f| f[1].is_some());
+    for frame in hand_frames {
+        // Refused where it enters, as the stepper process refuses it: a frame with no usable
+        // hand brings no steps of its own (the next good frame's steps bridge from the last
+        // good one); a refused hand beside a good one holds its last good sample.
+        let mut usable: HandFrame = [None, None];
+        for (slot, hand) in frame.iter().enumerate() {
+            let Some(hand) = hand else { continue };
+            match crate::hand::unusable_because(hand) {
+                Some(why) => {
+                    refused_hands += 1;
+                    first_refused.get_or_insert((hand.stamp.seq, why));
+                }
+                None => usable[slot] = Some(*hand),
+            }
+        }
+        let Some(time) = usable
+            .iter()
+            .flatten()
+            .map(|h| h.stamp.source_time_ns)
+            .max()
+        else {
             continue;
+        };
+        for slot in 0..crate::HAND_SLOTS {
+            if frame[slot].is_some() && usable[slot].is_none() {
+                usable[slot] = last_good[slot].map(|mut held| {
+                    held.stamp.source_time_ns = time;
+                    held
+                });
+            }
         }
         if !timeline.started() {
-            world.set_previous_hand(Some(hand));
+            for (slot, hand) in usable.iter().enumerate() {
+                if hand.is_some() || slot == 0 {
+                    world.set_previous_hand_of(slot, hand.as_ref());
+                }
+            }
         }
-        timeline.advance(hand, |h| {
+        timeline.advance_hands([usable[0].as_ref(), usable[1].as_ref()], |h| {
             if world.steps() < limit && stopped.is_none() {
-                world.step(h);
-                collect_events(&world, scene, &mut events);
+                world.step_hands(h);
+                collect_events(&world, scene, &mut events, two_handed);
                 if progress(world.steps()).is_err() {
                     stopped = Some(world.steps());
                 }
@@ -310,12 +391,16 @@ pub fn simulate_samples_with(
         if let Some(steps) = stopped {
             return Err(RunError::Stopped { steps });
         }
+        for slot in 0..crate::HAND_SLOTS {
+            if usable[slot].is_some() {
+                last_good[slot] = usable[slot];
+            }
+        }
     }
-    let last = hands.iter().rev().find(|h| crate::hand::is_usable(h));
     let end = frames.unwrap_or(world.steps() + (2.0 * scene.world.step_hz) as u64);
     while world.steps() < end {
-        world.step(last);
-        collect_events(&world, scene, &mut events);
+        world.step_hands([last_good[0].as_ref(), last_good[1].as_ref()]);
+        collect_events(&world, scene, &mut events, two_handed);
         let n = world.steps();
         progress(n).map_err(|Stop| RunError::Stopped { steps: n })?;
     }
@@ -327,12 +412,34 @@ pub fn simulate_samples_with(
     Ok(out)
 }
 
-fn collect_events(world: &Model, scene: &Scene, events: &mut Vec<EventReport>) {
+/// The step's events, one for each hand an event names in a two-hand world (right first).
+fn collect_events(world: &Model, scene: &Scene, events: &mut Vec<EventReport>, two: bool) {
     for e in world.events() {
-        events.push(EventReport {
+        push_event(e, scene, two, events);
+    }
+}
+
+fn push_event(e: &crate::world::Event, scene: &Scene, two: bool, out: &mut Vec<EventReport>) {
+    let block = scene
+        .blocks
+        .get(e.block)
+        .map_or_else(|| format!("block {}", e.block), |b| b.name.clone());
+    let named = (0..crate::HAND_SLOTS).filter(|k| e.hands & (1 << k) != 0);
+    if two && e.hands != 0 {
+        for slot in named {
+            out.push(EventReport {
+                step: e.step,
+                kind: e.kind,
+                block: block.clone(),
+                hand: Some(slot_side(slot)),
+            });
+        }
+    } else {
+        out.push(EventReport {
             step: e.step,
             kind: e.kind,
-            block: scene.blocks[e.block].name.clone(),
+            block,
+            hand: None,
         });
     }
 }
@@ -340,17 +447,12 @@ fn collect_events(world: &Model, scene: &Scene, events: &mut Vec<EventReport>) {
 /// What a live session's world came to (the stepper process writes it when it stops): the
 /// report `simulate` prints, from the world and the events it saw.
 pub fn outcome(world: &Model, scene: &Scene, events: &[crate::world::Event]) -> Report {
-    let events = events
-        .iter()
-        .map(|e| EventReport {
-            step: e.step,
-            kind: e.kind,
-            block: scene
-                .blocks
-                .get(e.block)
-                .map_or_else(|| format!("block {}", e.block), |b| b.name.clone()),
-        })
-        .collect();
+    let mut reports = Vec::with_capacity(events.len());
+    let two = events.iter().any(|e| e.hands != 0);
+    for e in events {
+        push_event(e, scene, two, &mut reports);
+    }
+    let events = reports;
     report(world, scene, world.steps(), events)
 }
 
@@ -434,11 +536,15 @@ impl Report {
             }
             let _ = write!(
                 o,
-                "{{\"step\": {}, \"kind\": {}, \"block\": {}}}",
+                "{{\"step\": {}, \"kind\": {}, \"block\": {}",
                 e.step,
                 json_str(e.kind.name()),
                 json_str(&e.block)
             );
+            if let Some(hand) = e.hand {
+                let _ = write!(o, ", \"hand\": {}", json_str(hand.name()));
+            }
+            o.push('}');
         }
         o.push(']');
         if self.clock_jumps > 0 {
@@ -529,21 +635,31 @@ impl Report {
                 while j < self.events.len()
                     && self.events[j].kind == e.kind
                     && self.events[j].block == e.block
+                    && self.events[j].hand == e.hand
                     && self.events[j].step == self.events[j - 1].step + 1
                 {
                     j += 1;
                 }
+                let by = e
+                    .hand
+                    .map_or(String::new(), |h| format!(" ({} hand)", h.name()));
                 if j - i > 1 {
                     let _ = writeln!(
                         o,
-                        "  steps {}-{}  {:8} {}",
+                        "  steps {}-{}  {:8} {}{by}",
                         e.step,
                         self.events[j - 1].step,
                         e.kind.name(),
                         e.block
                     );
                 } else {
-                    let _ = writeln!(o, "  step {:6}  {:8} {}", e.step, e.kind.name(), e.block);
+                    let _ = writeln!(
+                        o,
+                        "  step {:6}  {:8} {}{by}",
+                        e.step,
+                        e.kind.name(),
+                        e.block
+                    );
                 }
                 i = j;
             }

@@ -21,9 +21,12 @@ pub struct Timeline {
     step_hz: f64,
     /// Source time of the first hand sample: world time 0.
     origin_ns: Option<u64>,
-    previous: Option<HandSample>,
+    /// Each hand's last sample, by hand slot.
+    previous: [Option<HandSample>; 2],
+    /// The last frame's source time.
+    last_ns: Option<u64>,
     steps_taken: u64,
-    scratch: HandSample,
+    scratch: [HandSample; 2],
     /// Discontinuities of the source's clock so far (see [`MAX_CATCH_UP_NS`]).
     jumps: u64,
     /// Steps taken before the last discontinuity: world time since `origin_ns` counts from
@@ -36,9 +39,10 @@ impl Timeline {
         Timeline {
             step_hz,
             origin_ns: None,
-            previous: None,
+            previous: [None, None],
+            last_ns: None,
             steps_taken: 0,
-            scratch: HandSample::default(),
+            scratch: [HandSample::default(); 2],
             jumps: 0,
             base_steps: 0,
         }
@@ -81,14 +85,29 @@ impl Timeline {
 
     /// Takes the steps `hand` brings, calling `step` with the hand at each step's time.
     pub fn advance(&mut self, hand: &HandSample, mut step: impl FnMut(Option<&HandSample>)) {
-        let now = hand.stamp.source_time_ns;
-        if let Some(prev) = &self.previous {
-            if now.abs_diff(prev.stamp.source_time_ns) > MAX_CATCH_UP_NS {
+        self.advance_hands([Some(hand), None], |[first, _]| step(first));
+    }
+
+    /// Takes the steps one frame of two hands brings (by hand slot, `crate::HAND_SLOTS`; a
+    /// hand the frame lacks is None), calling `step` with each hand at each step's time: the
+    /// frame's time is its newest hand's, and each hand is interpolated between its own
+    /// previous sample and this one (a hand the last frame lacked is taken as it is). A
+    /// source that tracks two hands sends both in every frame, a lost one with `tracked = 0`.
+    pub fn advance_hands(
+        &mut self,
+        hands: [Option<&HandSample>; 2],
+        mut step: impl FnMut([Option<&HandSample>; 2]),
+    ) {
+        let Some(now) = hands.iter().flatten().map(|h| h.stamp.source_time_ns).max() else {
+            return;
+        };
+        if let Some(last) = self.last_ns {
+            if now.abs_diff(last) > MAX_CATCH_UP_NS {
                 // A jump of the source's clock: re-base so that this sample falls on the next
                 // step, taken with this hand as it is (no interpolation across the jump).
                 self.origin_ns = Some(now.saturating_sub(self.step_time_ns(1)));
                 self.base_steps = self.steps_taken;
-                self.previous = None;
+                self.previous = [None, None];
                 self.jumps += 1;
             }
         }
@@ -97,19 +116,15 @@ impl Timeline {
         while self.steps_taken < due {
             let k = self.steps_taken + 1;
             let t_ns = origin.saturating_add(self.step_time_ns(k - self.base_steps));
-            match &self.previous {
-                Some(prev) if prev.stamp.source_time_ns < now && t_ns < now => {
-                    let span = (now - prev.stamp.source_time_ns) as f64;
-                    let s = (t_ns.saturating_sub(prev.stamp.source_time_ns) as f64 / span)
-                        .clamp(0.0, 1.0);
-                    interpolate(prev, hand, s, &mut self.scratch);
-                    step(Some(&self.scratch));
-                }
-                _ => step(Some(hand)),
-            }
+            let [first, second] = &mut self.scratch;
+            step([
+                hand_at(t_ns, hands[0], &self.previous[0], first),
+                hand_at(t_ns, hands[1], &self.previous[1], second),
+            ]);
             self.steps_taken = k;
         }
-        self.previous = Some(*hand);
+        self.previous = hands.map(|h| h.copied());
+        self.last_ns = Some(now);
     }
 }
 
@@ -145,6 +160,27 @@ pub fn interpolate(a: &HandSample, b: &HandSample, s: f64, out: &mut HandSample)
             out.palm_vertices[i] = lerp(a.palm_vertices[i], b.palm_vertices[i]);
         }
     }
+}
+
+/// `hand` at the step of time `t_ns`: interpolated from `previous` (its last sample) when the
+/// step falls between the two, into `scratch`; as it is otherwise.
+fn hand_at<'a>(
+    t_ns: u64,
+    hand: Option<&'a HandSample>,
+    previous: &Option<HandSample>,
+    scratch: &'a mut HandSample,
+) -> Option<&'a HandSample> {
+    let hand = hand?;
+    let now = hand.stamp.source_time_ns;
+    Some(match previous {
+        Some(prev) if prev.stamp.source_time_ns < now && t_ns < now => {
+            let span = (now - prev.stamp.source_time_ns) as f64;
+            let s = (t_ns.saturating_sub(prev.stamp.source_time_ns) as f64 / span).clamp(0.0, 1.0);
+            interpolate(prev, hand, s, scratch);
+            &*scratch
+        }
+        _ => hand,
+    })
 }
 
 #[cfg(test)]

@@ -26,11 +26,12 @@
 use glam::DVec3;
 
 use common::config::scene::{HandRules, TrackedSettings};
-use common::{BlockMode, HandSample, MAX_FINGERS, MAX_FINGER_POINTS};
+use common::{HandSample, MAX_FINGERS, MAX_FINGER_POINTS};
 
 use crate::block_set::BlockSet;
 use crate::body::{Block, HandAction};
 use crate::hand::Contact;
+use crate::HAND_SLOTS;
 
 /// The tracked rules' numbers in steps, decided once by `World::new`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -97,10 +98,12 @@ pub struct GripPath {
     points: Vec<(u64, DVec3)>,
     next: usize,
     len: usize,
-    /// The last step at which R3 (not T1) found the grasp.
+    /// The last step at which R3 (not T1) found the grasp, by either hand.
     pub firm_step: u64,
-    grip: [GripPoint; MAX_GRIP_POINTS],
-    grip_len: usize,
+    /// Each hand's grip (by hand slot, `crate::HAND_SLOTS`): in a two-hand grasp each hand
+    /// opens its own.
+    grip: [[GripPoint; MAX_GRIP_POINTS]; HAND_SLOTS],
+    grip_len: [usize; HAND_SLOTS],
 }
 
 impl GripPath {
@@ -111,32 +114,31 @@ impl GripPath {
             next: 0,
             len: 0,
             firm_step: 0,
-            grip: [GripPoint::default(); MAX_GRIP_POINTS],
-            grip_len: 0,
+            grip: [[GripPoint::default(); MAX_GRIP_POINTS]; HAND_SLOTS],
+            grip_len: [0; HAND_SLOTS],
         }
     }
 
     /// T1: remembers the grip at a firm step: each check point with a contact (its first
-    /// contact's pseudo-normal), where `hand` has it (P-, where R1 found the contact).
-    pub(crate) fn record_grip(&mut self, contacts: &[Contact], hand: &HandSample) {
-        self.grip_len = 0;
+    /// contact's pseudo-normal), where `hand` (in slot `slot`) has it (P-, where R1 found the
+    /// contact).
+    pub(crate) fn record_grip(&mut self, slot: usize, contacts: &[Contact], hand: &HandSample) {
+        let (grip, len) = (&mut self.grip[slot], &mut self.grip_len[slot]);
+        *len = 0;
         for c in contacts {
-            if self.grip_len == MAX_GRIP_POINTS {
+            if *len == MAX_GRIP_POINTS {
                 break;
             }
-            if self.grip[..self.grip_len]
-                .iter()
-                .any(|g| g.point == c.point)
-            {
+            if grip[..*len].iter().any(|g| g.point == c.point) {
                 continue;
             }
             if let Some(at) = point_of(hand, c.point) {
-                self.grip[self.grip_len] = GripPoint {
+                grip[*len] = GripPoint {
                     point: c.point,
                     at,
                     normal: c.n,
                 };
-                self.grip_len += 1;
+                *len += 1;
             }
         }
     }
@@ -151,12 +153,13 @@ impl GripPath {
     /// thumb's base and the knuckles) when the hand leaves it (presses it into the floor).
     pub(crate) fn grip_holds(
         &self,
+        slot: usize,
         hand: &HandSample,
         release_angle: f64,
         margin: f64,
         outside: impl Fn(DVec3) -> f64,
     ) -> bool {
-        let grip = &self.grip[..self.grip_len];
+        let grip = &self.grip[slot][..self.grip_len[slot]];
         let opposed = release_angle.cos();
         for (i, a) in grip.iter().enumerate() {
             let Some(pa) = point_of(hand, a.point).filter(|&p| outside(p) <= 2.0 * margin) else {
@@ -337,6 +340,7 @@ fn solve_slope(sums: &[f64], rhs: &[DVec3], m: usize) -> Option<DVec3> {
 pub(crate) fn hold_grasps(
     blocks: &mut [Block],
     active: &BlockSet,
+    slot: usize,
     gap_starts: bool,
     counts: &mut TrackedCounts,
 ) -> bool {
@@ -344,7 +348,7 @@ pub(crate) fn hold_grasps(
     // A grasped block is never at rest: it is in `active`.
     for i in active.iter() {
         let b = &mut blocks[i];
-        if b.mode == BlockMode::Grasped {
+        if b.grasped_by(slot) {
             b.set_action(HandAction::Grasp);
             held = true;
         }

@@ -40,6 +40,8 @@ use crate::motion::move_freely;
 use crate::settings::{Passes, Settings};
 use crate::support::Support;
 use crate::tracked::{hold_grasps, GripPath, TrackedCounts, TrackedRules};
+use crate::two_hands::TwoHands;
+use crate::HAND_SLOTS;
 
 /// What is wrong with a scene for the model: names the file, the block (when one is at fault)
 /// and the problem.
@@ -75,12 +77,18 @@ pub struct World {
     blocks: Vec<Block>,
     steps: u64,
     events: StepEvents,
+    // ---- each hand's own state, by hand slot (`HAND_SLOTS`: slot 1 only in a two-hand world)
     /// The hand at the previous step (P-, W-), when there was one.
-    prev_hand: Option<HandSample>,
+    prev_hand: [Option<HandSample>; HAND_SLOTS],
     /// The box of its check points (`hand::check_point_box`; empty without one).
-    prev_hand_box: (DVec3, DVec3),
+    prev_hand_box: [(DVec3, DVec3); HAND_SLOTS],
     /// The check points as drawn (R5's relocation).
-    fingers: Fingers,
+    fingers: [Fingers; HAND_SLOTS],
+    /// Whether a second hand has taken part (a step given slot 1's hand): from then on every
+    /// step decides each hand's actions apart and combines them (`TwoHands`); before it, a
+    /// step is the one-hand step exactly.
+    two_handed: bool,
+    two_hands: TwoHands,
     // ---- the stages that keep scratch, each its own, preallocated so that a step does not
     // allocate ----
     hand_contacts: HandContacts,
@@ -124,9 +132,9 @@ pub struct World {
     rejected_hands: u64,
     /// The hand of this step in the world's frame (when `anchor` is not zero): the sample
     /// translated once, where it enters, into preallocated space.
-    hand_local: HandSample,
+    hand_local: [HandSample; HAND_SLOTS],
     /// T2: consecutive steps the hand has not been tracked (or absent), under tracked rules.
-    untracked_steps: u64,
+    untracked_steps: [u64; HAND_SLOTS],
     /// What the tracked rules did.
     tracked_counts: TrackedCounts,
 }
@@ -369,9 +377,11 @@ impl World {
             blocks,
             steps: 0,
             events: StepEvents::with_capacity(16 * n + 16),
-            prev_hand: None,
-            prev_hand_box: EMPTY_BOX,
-            fingers: Fingers::NONE,
+            prev_hand: [None; HAND_SLOTS],
+            prev_hand_box: [EMPTY_BOX; HAND_SLOTS],
+            fingers: [Fingers::NONE; HAND_SLOTS],
+            two_handed: false,
+            two_hands: TwoHands::new(n),
             hand_contacts: HandContacts::new(),
             carry: Carry::new(n),
             floor: Floor::new(max_vertices),
@@ -391,9 +401,9 @@ impl World {
                 max_vertices,
             ),
             anchor,
-            hand_local: HandSample::default(),
+            hand_local: [HandSample::default(); HAND_SLOTS],
             rejected_hands: 0,
-            untracked_steps: 0,
+            untracked_steps: [0; HAND_SLOTS],
             tracked_counts: TrackedCounts::default(),
         })
     }
@@ -432,10 +442,21 @@ impl World {
     /// Exactly one fixed step (dt = 1 / step_hz) with the hand's pose at this step; the world
     /// keeps the previous one itself (P-, W-). `None` is "no hand this step"; a hand the rules
     /// cannot use (`hand::unusable_because`: a value not finite, a point out of range) is
-    /// refused and counted, and the hand holds its last good pose. docs/model.md "Order of one step", each stage handed what it reads
-    /// and writes:
+    /// refused and counted, and the hand holds its last good pose. The one hand is slot 0's
+    /// ([`World::step_hands`]).
     pub fn step(&mut self, hand: Option<&HandSample>) {
+        self.step_hands([hand, None]);
+    }
+
+    /// Exactly one fixed step with each hand's pose at this step, by hand slot
+    /// ([`HAND_SLOTS`]: slot 0 the right, slot 1 the left). Until slot 1 is first given a hand
+    /// this is the one-hand step, bit for bit; from then on each hand's actions are decided
+    /// apart and combined block by block (docs/model.md "Two hands"). docs/model.md "Order of
+    /// one step", each stage handed what it reads and writes:
+    pub fn step_hands(&mut self, hands: [Option<&HandSample>; HAND_SLOTS]) {
         self.steps += 1;
+        self.two_handed |= hands[1].is_some();
+        let two = self.two_handed;
         let World {
             settings,
             passes,
@@ -444,6 +465,7 @@ impl World {
             prev_hand,
             prev_hand_box,
             fingers,
+            two_hands,
             hand_contacts,
             carry,
             support,
@@ -458,105 +480,139 @@ impl World {
             hand_local,
             untracked_steps,
             tracked_counts,
+            rejected_hands,
             ..
         } = self;
         let anchor = *anchor;
-        let refused = hand.is_some_and(|h| !is_usable(h));
-        self.rejected_hands += u64::from(refused);
-        let hand = if refused {
-            // Refused where it enters: the hand holds its last good pose (already in this
-            // frame), so a glitch of one sample neither drops what the hand grasps nor moves
-            // it; a hand that was absent stays absent.
-            match prev_hand.as_ref() {
-                Some(last_good) => {
-                    *hand_local = *last_good;
-                    Some(&*hand_local)
+        let mut now: [Option<&HandSample>; HAND_SLOTS] = [None; HAND_SLOTS];
+        for ((slot, local), hand) in hand_local.iter_mut().enumerate().zip(hands) {
+            let refused = hand.is_some_and(|h| !is_usable(h));
+            *rejected_hands += u64::from(refused);
+            now[slot] = if refused {
+                // Refused where it enters: the hand holds its last good pose (already in this
+                // frame), so a glitch of one sample neither drops what the hand grasps nor moves
+                // it; a hand that was absent stays absent.
+                match prev_hand[slot].as_ref() {
+                    Some(last_good) => {
+                        *local = *last_good;
+                        Some(&*local)
+                    }
+                    None => None,
                 }
-                None => None,
-            }
-        } else {
-            World::hand_in_world_frame(anchor, hand, hand_local)
-        };
-        let prev = prev_hand.as_ref();
+            } else {
+                World::hand_in_world_frame(anchor, hand, local)
+            };
+        }
+        let prev = [prev_hand[0].as_ref(), prev_hand[1].as_ref()];
         // 0. Every block starts the step where it is, with nothing done to it yet: the last
         //    step's stage 5 left it so (`Block::begin_step`, in the same pass), and nothing changes a
         //    block between steps.
         events.begin(self.steps);
-        fingers.copy_from(hand);
+        events.name_hands = two;
+        settled.name_hands = two;
+        for (f, hand) in fingers.iter_mut().zip(now) {
+            f.copy_from(hand);
+        }
         // Whether a stage moved blocks without telling the grid (the hand's, R14's) since the
         // last step's stage 5 brought it up to date: free motion then syncs it first.
         let mut grid_behind = false;
         if passes.hand {
-            // T2 (tracked hands): a hand that is not tracked touches nothing new and keeps
-            // what it holds, for up to gap_hold; then it lets go with no throw.
-            let gap = match settings.tracked {
-                Some(t) if hand.is_none_or(|h| h.tracked == 0) => {
-                    *untracked_steps += 1;
-                    Some(*untracked_steps <= t.gap_hold_steps)
-                }
-                _ => {
-                    *untracked_steps = 0;
-                    None
-                }
-            };
-            // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
-            //    action; then R13 ends the grasps they no longer confirm.
-            let acted = match (hand, gap) {
-                (_, Some(hold)) => {
-                    *prev_hand_box = hand.map_or(EMPTY_BOX, check_point_box);
-                    hold && hold_grasps(blocks, active, *untracked_steps == 1, tracked_counts)
-                }
-                (Some(h), None) => {
-                    let (now, before) = (check_point_box(h), *prev_hand_box);
-                    *prev_hand_box = now;
-                    match hand_reach(
-                        blocks,
-                        grid,
-                        now,
-                        before,
-                        settings.contact_eps + settings.tracked.map_or(0.0, |t| t.grip_margin),
-                    ) {
-                        Some(reach) => hand_contacts.decide_actions(
+            let mut gaps = [None; HAND_SLOTS];
+            let mut acted = false;
+            for slot in 0..if two { HAND_SLOTS } else { 1 } {
+                let (hand, prev) = (now[slot], prev[slot]);
+                // T2 (tracked hands): a hand that is not tracked touches nothing new and keeps
+                // what it holds, for up to gap_hold; then it lets go with no throw.
+                let gap = match settings.tracked {
+                    Some(t) if hand.is_none_or(|h| h.tracked == 0) => {
+                        untracked_steps[slot] += 1;
+                        Some(untracked_steps[slot] <= t.gap_hold_steps)
+                    }
+                    _ => {
+                        untracked_steps[slot] = 0;
+                        None
+                    }
+                };
+                gaps[slot] = gap;
+                // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
+                //    action; then R13 ends the grasps they no longer confirm.
+                acted |= match (hand, gap) {
+                    (_, Some(hold)) => {
+                        prev_hand_box[slot] = hand.map_or(EMPTY_BOX, check_point_box);
+                        hold && hold_grasps(
                             blocks,
                             active,
-                            grid,
-                            h,
-                            prev,
-                            reach,
-                            settings,
-                            passes.grasp,
-                            self.steps,
+                            slot,
+                            untracked_steps[slot] == 1,
                             tracked_counts,
-                        ),
-                        None => false,
+                        )
                     }
+                    (Some(h), None) => {
+                        let (now_box, before) = (check_point_box(h), prev_hand_box[slot]);
+                        prev_hand_box[slot] = now_box;
+                        match hand_reach(
+                            blocks,
+                            grid,
+                            now_box,
+                            before,
+                            settings.contact_eps + settings.tracked.map_or(0.0, |t| t.grip_margin),
+                        ) {
+                            Some(reach) => hand_contacts.decide_actions(
+                                blocks,
+                                active,
+                                grid,
+                                slot,
+                                h,
+                                prev,
+                                reach,
+                                settings,
+                                passes.grasp,
+                                self.steps,
+                                tracked_counts,
+                            ),
+                            None => false,
+                        }
+                    }
+                    (None, None) => false,
+                };
+                // Two hands: this hand's actions are kept apart until both are decided.
+                if two {
+                    two_hands.keep(slot, blocks, active);
                 }
-                (None, None) => false,
-            };
+            }
+            if two {
+                acted = two_hands.combine(blocks, settings, events);
+            }
             // R5 grasps only with hand = "grasp": without it no block is ever grasped, and R13
             // has nothing to end (no pass over the active set: ~16 instructions a block).
             if passes.grasp {
-                let letting = match (settings.tracked, gap) {
-                    (None, _) => Letting::Throw,
-                    (Some(_), Some(false)) => Letting::Drop,
-                    (Some(rules), _) => Letting::FittedThrow {
+                let letting_of = |held_by: u8| match settings.tracked {
+                    None => Letting::Throw,
+                    // T2: a drop when every hand that held it was lost for too long.
+                    Some(_)
+                        if (0..HAND_SLOTS)
+                            .filter(|k| held_by & (1 << k) != 0)
+                            .all(|k| gaps[k] == Some(false))
+                            && held_by != 0 =>
+                    {
+                        Letting::Drop
+                    }
+                    Some(rules) => Letting::FittedThrow {
                         now: self.steps,
                         rules,
                     },
                 };
-                end_grasps(blocks, active, settings.inertia, letting, tracked_counts);
+                end_grasps(blocks, active, settings.inertia, letting_of, tracked_counts);
             }
             // 2. Hand-driven motion (R5, R4, R6), then carry (R10) from the blocks it moved. A
             //    hand that acts on nothing (far from every block, or no hand) moves nothing and
             //    carries nothing: neither stage runs, not even a pass over the active set.
             //    T3 keeps the path of what a tracked hand holds.
-            let path_step = (settings.tracked.is_some() && gap.is_none()).then_some(self.steps);
-            let moved = match hand {
-                Some(h) if acted => {
-                    move_by_hand(blocks, active, h, prev, settings, fingers, path_step)
-                }
-                _ => false,
-            };
+            let tracked_now = (0..HAND_SLOTS).any(|k| now[k].is_some() && gaps[k].is_none());
+            let path_step = (settings.tracked.is_some() && tracked_now).then_some(self.steps);
+            let moved = acted
+                && now.iter().any(Option::is_some)
+                && move_by_hand(blocks, active, now, prev, settings, fingers, path_step, two);
             if passes.carry && moved {
                 carry.carry(blocks, active, grid, settings.hull_eps);
             }
@@ -634,11 +690,13 @@ impl World {
         }
         active.difference_with(quiet);
         events.append(settled);
-        *prev_hand = hand.copied();
-        if hand.is_none() {
-            // With a hand, stage 1 kept its box for the next step (and without the hand's
-            // stages nothing reads it).
-            *prev_hand_box = EMPTY_BOX;
+        for slot in 0..HAND_SLOTS {
+            prev_hand[slot] = now[slot].copied();
+            if now[slot].is_none() {
+                // With a hand, stage 1 kept its box for the next step (and without the hand's
+                // stages nothing reads it).
+                prev_hand_box[slot] = EMPTY_BOX;
+            }
         }
     }
 
@@ -646,13 +704,21 @@ impl World {
     /// caller that knows the hand before the first step (a scripted hand at t = 0) gives it
     /// here so that the first step sees the hand's motion, not a standing start.
     pub fn set_previous_hand(&mut self, hand: Option<&HandSample>) {
-        self.prev_hand = World::hand_in_world_frame(
+        self.set_previous_hand_of(0, hand);
+    }
+
+    /// [`World::set_previous_hand`] for the hand in slot `slot` (< [`HAND_SLOTS`]).
+    pub fn set_previous_hand_of(&mut self, slot: usize, hand: Option<&HandSample>) {
+        let slot = slot.min(HAND_SLOTS - 1);
+        self.prev_hand[slot] = World::hand_in_world_frame(
             self.anchor,
             hand.filter(|h| is_usable(h)),
-            &mut self.hand_local,
+            &mut self.hand_local[slot],
         )
         .copied();
-        self.prev_hand_box = self.prev_hand.as_ref().map_or(EMPTY_BOX, check_point_box);
+        self.prev_hand_box[slot] = self.prev_hand[slot]
+            .as_ref()
+            .map_or(EMPTY_BOX, check_point_box);
     }
 
     /// The `world` sample's header: steps, block count, the grasped block and the check points
@@ -667,9 +733,10 @@ impl World {
             .iter()
             .find(|&i| self.blocks[i].mode == BlockMode::Grasped)
             .map_or(-1, |i| i as i32);
-        out.finger_count = self.fingers.count;
-        out.finger_point_count = self.fingers.point_count;
-        out.finger_points = self.fingers.points;
+        let fingers = &self.fingers[0];
+        out.finger_count = fingers.count;
+        out.finger_point_count = fingers.point_count;
+        out.finger_points = fingers.points;
         if self.anchor != DVec3::ZERO {
             for f in 0..(out.finger_count as usize).min(MAX_FINGERS) {
                 let n = (out.finger_point_count[f] as usize).min(MAX_FINGER_POINTS);
@@ -789,11 +856,16 @@ fn finish_block(
     };
     b.stirred = shifted || b.turned_this_step() || b.mode != b.mode_before;
     if b.released {
-        events.emit(EventKind::Release, i);
+        events.emit_by(EventKind::Release, i, b.released_by);
     }
     if b.mode_before != b.mode {
         if let Some(k) = EventKind::on_entering(b.mode) {
-            events.emit(k, i);
+            let hands = match k {
+                EventKind::Grasp => b.held_by,
+                EventKind::Push => b.acting_hands,
+                _ => 0,
+            };
+            events.emit_by(k, i, hands);
         }
     }
     if b.mode == BlockMode::Resting

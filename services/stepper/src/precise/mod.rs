@@ -411,6 +411,7 @@ impl PreciseWorld {
             step: self.steps,
             kind,
             block,
+            hands: 0,
         });
     }
 
