@@ -125,7 +125,10 @@ pub struct JointsSample {
     pub stamp: Stamp,
     /// 1 when the hand is tracked; 0 when lost (the poses are then the last known ones).
     pub tracked: u32,
-    pub _reserved: u32,
+    /// Which hand ([`HandSide::code`]): 0 the right, 1 the left. A source of two hands sends
+    /// both in every frame, the right first, with the same source time (a lost one marked
+    /// `tracked = 0`); a recording made before two hands holds 0 here, the right.
+    pub side: u32,
     pub wrist: Pose,
     pub joints: [Pose; OPENXR_JOINTS],
 }
@@ -143,7 +146,7 @@ impl Default for JointsSample {
         JointsSample {
             stamp: Stamp::default(),
             tracked: 0,
-            _reserved: 0,
+            side: 0,
             wrist: Pose::IDENTITY,
             joints: [Pose::IDENTITY; OPENXR_JOINTS],
         }
@@ -166,6 +169,24 @@ impl HandSide {
         match self {
             HandSide::Left => "left",
             HandSide::Right => "right",
+        }
+    }
+
+    /// The side's code in a `joints` sample ([`JointsSample::side`]): 0 the right, 1 the left.
+    pub fn code(self) -> u32 {
+        match self {
+            HandSide::Right => 0,
+            HandSide::Left => 1,
+        }
+    }
+
+    /// [`HandSide::code`]'s inverse: 1 is the left; anything else the right (a sample's side
+    /// is outside input: an unknown code is read as the one hand a one-hand source has).
+    pub fn from_code(code: u32) -> HandSide {
+        if code == 1 {
+            HandSide::Left
+        } else {
+            HandSide::Right
         }
     }
 
@@ -229,6 +250,17 @@ pub struct HandSample {
     pub finger_points: [[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
     pub finger_radius: [f64; MAX_FINGERS],
     pub palm_vertices: [[f64; 3]; MAX_PALM_VERTICES],
+    /// Which hand ([`HandSide::code`]): 0 the right (or a one-hand session's only hand), 1
+    /// the left of a two-hand session (docs/model.md "Two hands"). Last, so that a hand
+    /// recorded before it had this field reads as the right ([`HandSample::LEGACY_SIZE`]).
+    pub side: u32,
+    pub _reserved: u32,
+}
+
+impl HandSample {
+    /// The size of a `hand` sample before it had `side`: a recording made then holds hands of
+    /// this size, which read as the right hand (the fields after it zero).
+    pub const LEGACY_SIZE: usize = std::mem::offset_of!(HandSample, side);
 }
 
 impl Default for HandSample {
@@ -243,6 +275,8 @@ impl Default for HandSample {
             finger_points: [[[0.0; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
             finger_radius: [0.0; MAX_FINGERS],
             palm_vertices: [[0.0; 3]; MAX_PALM_VERTICES],
+            side: 0,
+            _reserved: 0,
         }
     }
 }

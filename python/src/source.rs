@@ -262,7 +262,7 @@ impl NativeSource {
             sample: JointsSample {
                 stamp: Stamp::default(),
                 tracked: 0,
-                _reserved: 0,
+                side: 0,
                 wrist: Pose::IDENTITY,
                 joints: [Pose::IDENTITY; OPENXR_JOINTS],
             },

@@ -226,7 +226,7 @@ mod tests {
     use common::{HandSample, WorldSample};
 
     /// Issue 40: one hand from the zenoh link with `finger_point_count[0] = 6` (bytes 100..103
-    /// of its 1148-byte message) crashed the recorder, the renderer and the Foxglove view. It
+    /// of its 1156-byte message) crashed the recorder, the renderer and the Foxglove view. It
     /// is refused where it comes in, naming the field; a recording's reader skips it the same.
     #[test]
     fn a_hand_whose_counts_overrun_its_arrays_is_refused_by_name() {
@@ -237,7 +237,7 @@ mod tests {
         hand.finger_point_count[0] = 2;
         let mut message = Vec::new();
         encode_sample(&hand, &mut message);
-        assert_eq!(message.len(), 1148);
+        assert_eq!(message.len(), 1156);
         assert!(decode_sample::<HandSample>(Topic::Hand, &message).is_ok());
         message[100..104].copy_from_slice(&6u32.to_le_bytes());
         let e = decode_sample::<HandSample>(Topic::Hand, &message).unwrap_err();

@@ -76,7 +76,7 @@ pub fn fields(struct_name: &str) -> Option<Vec<Field>> {
         "handblocks/msg/JointsSample" => fields!(JointsSample {
             stamp: "handblocks/Stamp",
             tracked: "uint32",
-            _reserved: "uint32",
+            side: "uint32",
             wrist: "handblocks/Pose",
             joints: "handblocks/Pose[26]",
         }),
@@ -90,6 +90,8 @@ pub fn fields(struct_name: &str) -> Option<Vec<Field>> {
             finger_points: "float64[75]",
             finger_radius: "float64[5]",
             palm_vertices: "float64[48]",
+            side: "uint32",
+            _reserved: "uint32",
         }),
         // The header; `layout` adds the `blocks` sequence that follows it.
         "handblocks/msg/WorldSample" => fields!(WorldHeader {

@@ -204,13 +204,8 @@ fn simulate_trace(
     notes: &mut Notes,
     progress: &mut Progress<'_>,
 ) -> Result<Report, SimulateError> {
-    let side = match hands {
-        common::HandsUsed::One(side) => side,
-        common::HandsUsed::Both => {
-            return simulate_both_hands(scene, trace, offset, frames, notes, progress)
-        }
-    };
-    let trace = replay::HandTrace::load_hand(trace, offset, side).map_err(SimulateError::Trace)?;
+    let trace =
+        replay::HandTrace::load_hands(trace, offset, hands).map_err(SimulateError::Trace)?;
     let hands = hands_of(&trace, notes);
     stepper::simulate_samples_with(scene, &hands, frames, progress).map_err(run_error)
 }
@@ -240,39 +235,6 @@ fn hands_of(trace: &replay::HandTrace, notes: &mut Notes) -> Vec<common::HandSam
         hands.extend(hand.copied());
     }
     hands
-}
-
-/// Both hands of a CARL file (each frame holds both, a lost one marked so), in frames of the
-/// right and the left hand ([`stepper::slot_side`]), each hand made as the live process makes
-/// it; the world is two-handed ([`stepper::simulate_frames_with`]).
-fn simulate_both_hands(
-    scene: &Scene,
-    trace: &Path,
-    offset: [f64; 3],
-    frames: Option<u64>,
-    notes: &mut Notes,
-    progress: &mut Progress<'_>,
-) -> Result<Report, SimulateError> {
-    let [right, left] = [common::HandSide::Right, common::HandSide::Left].map(|side| {
-        replay::HandTrace::load_hand(trace, offset, side).map_err(SimulateError::Trace)
-    });
-    let (right, left) = (right?, left?);
-    let right = hands_of(&right, notes);
-    let left = hands_of(&left, &mut Notes::default());
-    if right.len() != left.len() {
-        return Err(SimulateError::Trace(format!(
-            "{}: its two hands hold {} and {} samples; a trace of both hands holds both in every              sample",
-            trace.display(),
-            right.len(),
-            left.len()
-        )));
-    }
-    let hand_frames: Vec<stepper::HandFrame> = right
-        .into_iter()
-        .zip(left)
-        .map(|(r, l)| [Some(r), Some(l)])
-        .collect();
-    stepper::simulate_frames_with(scene, &hand_frames, frames, progress).map_err(run_error)
 }
 
 #[cfg(test)]

@@ -112,6 +112,9 @@ pub enum Source {
         /// `topics`: the trace's source topics to play (glove, tracker, joints); empty: all
         /// it holds (as `ros2 bag play --topics`).
         topics: Vec<crate::topic::Topic>,
+        /// `hands`: which hands of a CARL trace to play, `"right"` (default), `"left"` or
+        /// `"both"` (docs/model.md "Two hands"); one of our recordings plays the hands it holds.
+        hands: crate::HandsUsed,
     },
     /// Another machine's session, over zenoh: the bridge publishes what it takes in
     /// (`session.bridge.link`), and this session renders and records it (a viewer).
@@ -689,6 +692,8 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
                     }
                     topics
                 },
+                hands: crate::HandsUsed::parse(r.choice("hands", &["right", "left", "both"])?)
+                    .unwrap_or_default(),
             }
         }
         _ => Source::Scripted {

@@ -71,10 +71,14 @@ pub struct HandStream {
     model: HandModel,
     gloves: GloveHistory,
     hand: HandSample,
+    /// The left hand of a two-hand tracker (`joints` with side 1), kept apart from the right
+    /// (`hand`), so that each hand's held pose and tracking gap are its own.
+    left: HandSample,
     /// Hands made so far: the next hand's `seq` (a bus outlet stamps its own on publishing).
     made: u64,
-    /// Source time of the last tracked joints sample.
+    /// Source time of the last tracked joints sample, the right's and the left's.
     last_tracked_ns: Option<u64>,
+    left_last_tracked_ns: Option<u64>,
     /// Lost hands released after [`TRACKING_HOLD_NS`] (each gap counted once).
     releases: u64,
 }
@@ -85,8 +89,13 @@ impl HandStream {
             model,
             gloves: GloveHistory::default(),
             hand: HandSample::default(),
+            left: HandSample {
+                side: common::HandSide::Left.code(),
+                ..HandSample::default()
+            },
             made: 0,
             last_tracked_ns: None,
+            left_last_tracked_ns: None,
             releases: 0,
         }
     }
@@ -126,26 +135,34 @@ impl HandStream {
     /// previous hand marked lost. A hand lost for longer than [`TRACKING_HOLD_NS`] (source
     /// time since its last tracked sample) lets go: it keeps its wrist but has no fingers and
     /// no palm, so it touches nothing, until it is tracked again.
+    ///
+    /// The hand is the joints' side ([`JointsSample::side`], copied to [`HandSample::side`]):
+    /// a two-hand tracker's hands are made apart, each with its own held pose and gap.
     pub fn joints(&mut self, joints: &JointsSample) -> &HandSample {
         let now = joints.stamp.source_time_ns;
-        let tracked = joints.tracked != 0 && self.model.from_joints(joints, &mut self.hand);
+        let side = common::HandSide::from_code(joints.side);
+        let (hand, last_tracked_ns) = match side {
+            common::HandSide::Right => (&mut self.hand, &mut self.last_tracked_ns),
+            common::HandSide::Left => (&mut self.left, &mut self.left_last_tracked_ns),
+        };
+        let tracked = joints.tracked != 0 && self.model.from_joints(joints, hand);
         if tracked {
-            self.last_tracked_ns = Some(now);
+            *last_tracked_ns = Some(now);
         } else {
-            self.hand.tracked = 0;
-            let held = self
-                .last_tracked_ns
-                .is_some_and(|t| now.saturating_sub(t) <= TRACKING_HOLD_NS);
+            hand.tracked = 0;
+            let held = last_tracked_ns.is_some_and(|t| now.saturating_sub(t) <= TRACKING_HOLD_NS);
             if !held {
-                if self.hand.finger_count > 0 {
+                if hand.finger_count > 0 {
                     self.releases += 1;
                 }
-                self.hand.finger_count = 0;
-                self.hand.palm_vertex_count = 0;
+                hand.finger_count = 0;
+                hand.palm_vertex_count = 0;
             }
         }
-        let stamp = Stamp::derived(self.made, &joints.stamp);
-        self.stamped(stamp)
+        hand.side = side.code();
+        hand.stamp = Stamp::derived(self.made, &joints.stamp);
+        self.made += 1;
+        hand
     }
 
     fn stamped(&mut self, stamp: Stamp) -> &HandSample {

@@ -399,7 +399,7 @@ impl CarlTrace {
                     ..Default::default()
                 },
                 tracked: s.tracked as u32,
-                _reserved: 0,
+                side: 0,
                 wrist: shift(s.wrist),
                 joints: s.joints.map(shift),
             };

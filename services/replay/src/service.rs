@@ -47,13 +47,14 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), ReplayError> {
         offset,
         looped,
         topics,
+        hands,
     } = &session.source
     else {
         return Err(ReplayError::NotAReplay {
             session: session.file.clone(),
         });
     };
-    let mut trace = HandTrace::load(file, *offset).map_err(ReplayError::Trace)?;
+    let mut trace = HandTrace::load_hands(file, *offset, *hands).map_err(ReplayError::Trace)?;
     if !topics.is_empty() {
         // `[source] topics`: only these are played (their seqs count only them).
         trace.samples.retain(|s| topics.contains(&s.topic()));

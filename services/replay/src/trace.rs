@@ -97,6 +97,36 @@ impl HandTrace {
         HandTrace::load_hand(file, offset, common::HandSide::Right)
     }
 
+    /// The hands `hands` names of `file`: one ([`HandTrace::load_hand`]), or both. Both of a
+    /// CARL file are its right and left hand of each sample, one after the other (the left's
+    /// `joints` marked `side` 1), as a headset sends them; one of our recordings holds the
+    /// hands it was made with, each `joints` sample marked with its side, and plays as it is.
+    pub fn load_hands(
+        file: &Path,
+        offset: [f64; 3],
+        hands: common::HandsUsed,
+    ) -> Result<HandTrace, String> {
+        let common::HandsUsed::One(side) = hands else {
+            let right = HandTrace::load_hand(file, offset, common::HandSide::Right)?;
+            if right.kind == TraceKind::Mcap {
+                return Ok(right);
+            }
+            let left = HandTrace::load_hand(file, offset, common::HandSide::Left)?;
+            let mut both = right.clone();
+            both.samples.clear();
+            for (r, l) in right.samples.iter().zip(&left.samples) {
+                both.samples.push(*r);
+                let mut l = *l;
+                if let SourceSample::Joints(j) = &mut l {
+                    j.side = common::HandSide::Left.code();
+                }
+                both.samples.push(l);
+            }
+            return Ok(both);
+        };
+        HandTrace::load_hand(file, offset, side)
+    }
+
     /// [`HandTrace::load`] of one hand: a CARL file holds both (`side`); one of our recordings
     /// holds the one hand it was made with, which is read as the right (asking it for the left
     /// is an error that says so).

@@ -25,6 +25,7 @@ const _: () = assert!(
         == std::mem::size_of::<Stamp>()
             + std::mem::size_of::<Pose>()
             + 4 * (3 + MAX_FINGERS)
+            + 4 * 2
             + 8 * 3 * MAX_FINGER_POINTS * MAX_FINGERS
             + 8 * MAX_FINGERS
             + 8 * 3 * MAX_PALM_VERTICES,

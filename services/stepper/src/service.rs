@@ -25,7 +25,7 @@ use std::time::Duration;
 
 use crate::hand_log::HandLog;
 use crate::model::Model;
-use crate::timeline::Timeline;
+use crate::timeline::{HandFrame, HandFrames, Timeline};
 use crate::world::WorldError;
 use common::bus::{Bus, BusError, Inlet, Outlet, Waiter};
 use common::config::Session;
@@ -72,11 +72,11 @@ pub fn run_with_outcome(
     let mut stepping = Stepping {
         world: Model::new(&session.scene).map_err(StepperError::Scene)?,
         timeline: Timeline::new(session.scene.world.step_hz),
+        frames: HandFrames::new(),
         events: Vec::with_capacity(OUTCOME_EVENTS),
         events_not_kept: 0,
         clock_jumps_told: 0,
-        refused_hands: 0,
-        first_refused: None,
+        refusals_told: 0,
     };
     let hand_in = bus.inlet::<topics::Hand>()?;
     let world_out = bus.slice_outlet::<topics::World>()?;
@@ -169,12 +169,14 @@ impl Task for StepperStage<'_> {
     }
 
     fn stop(&mut self, _: &mut Reporter) -> Result<(), StepperError> {
+        // A frame the source left incomplete (it stopped between a frame's two hands).
+        self.stepping.flush();
         let stepping = &self.stepping;
-        if stepping.refused_hands > 0 {
+        if stepping.frames.refused_hands > 0 {
             eprintln!(
                 "handblocks stepper: {} hand samples refused (a value not finite, or out \
                  of range): the hand held its last good pose",
-                stepping.refused_hands
+                stepping.frames.refused_hands
             );
         }
         if let Some(dir) = self.outcome_dir {
@@ -185,7 +187,7 @@ impl Task for StepperStage<'_> {
                 &stepping.events,
                 stepping.events_not_kept,
                 stepping.timeline.jumps(),
-                (stepping.refused_hands, stepping.first_refused),
+                (stepping.frames.refused_hands, stepping.frames.first_refused),
             );
         }
         Ok(())
@@ -196,55 +198,43 @@ impl Task for StepperStage<'_> {
 struct Stepping {
     world: Model,
     timeline: Timeline,
+    /// The hands taken, made into frames of both hands ([`HandFrames`]: a two-hand source's
+    /// right and left of one time are one frame); its counts are the refused hands.
+    frames: HandFrames,
     events: Vec<crate::world::Event>,
     events_not_kept: u64,
     clock_jumps_told: u64,
-    /// Hand samples refused where they entered (`hand::unusable_because`), and the first's
-    /// seq and why.
-    refused_hands: u64,
-    first_refused: Option<(u64, &'static str)>,
+    refusals_told: u64,
 }
 
 impl Stepping {
-    /// Takes one hand sample: the steps it brings (none for a hand the model cannot use, NaN
-    /// or bad counts: the world holds). `tell`: say a jump of the source's clock (a restart
-    /// taking the dead stepper's hands again does not say it twice).
+    /// Takes one hand sample: the steps its frame brings, once the frame is complete (none for
+    /// a hand the model cannot use, NaN or bad counts: it holds its last good pose). `tell`:
+    /// say a jump of the source's clock or a refusal (a restart taking the dead stepper's hands
+    /// again does not say them twice).
     fn take(&mut self, hand: &HandSample, tell: bool) {
-        if let Some(why) = crate::hand::unusable_because(hand) {
-            // Refused where it enters: the world holds. The first is named; the count is said
-            // when the stepper stops.
-            self.refused_hands += 1;
-            self.first_refused.get_or_insert((hand.stamp.seq, why));
-            if tell && self.refused_hands == 1 {
-                eprintln!(
-                    "handblocks stepper: hand sample seq {} refused: {why} (the hand holds \
-                     its last good pose; later refusals are counted)",
-                    hand.stamp.seq
-                );
-            }
-            return;
-        }
         let Stepping {
             world,
             timeline,
+            frames,
             events,
             events_not_kept,
             ..
         } = self;
-        if !timeline.started() {
-            // The first hand is the previous one of the first step (P- of R1, R2).
-            world.set_previous_hand(Some(hand));
-        }
-        timeline.advance(hand, |h| {
-            world.step(h);
-            for e in world.events() {
-                if events.len() < OUTCOME_EVENTS {
-                    events.push(*e);
-                } else {
-                    *events_not_kept += 1;
+        frames.push(hand, |frame| {
+            Self::step(world, timeline, events, events_not_kept, frame)
+        });
+        if frames.refused_hands > self.refusals_told {
+            if tell && self.refusals_told == 0 {
+                if let Some((seq, why)) = frames.first_refused {
+                    eprintln!(
+                        "handblocks stepper: hand sample seq {seq} refused: {why} (the hand \
+                         holds its last good pose; later refusals are counted)"
+                    );
                 }
             }
-        });
+            self.refusals_told = frames.refused_hands;
+        }
         if timeline.jumps() != self.clock_jumps_told {
             // Rare (a clock reset, a damaged trace): said when it happens.
             self.clock_jumps_told = timeline.jumps();
@@ -258,6 +248,47 @@ impl Stepping {
                 );
             }
         }
+    }
+
+    /// Takes the frame being gathered, complete or not.
+    fn flush(&mut self) {
+        let Stepping {
+            world,
+            timeline,
+            frames,
+            events,
+            events_not_kept,
+            ..
+        } = self;
+        frames.flush(|frame| Self::step(world, timeline, events, events_not_kept, frame));
+    }
+
+    /// The steps one frame of hands brings.
+    fn step(
+        world: &mut Model,
+        timeline: &mut Timeline,
+        events: &mut Vec<crate::world::Event>,
+        events_not_kept: &mut u64,
+        frame: &HandFrame,
+    ) {
+        if !timeline.started() {
+            // The first hands are the previous ones of the first step (P- of R1, R2).
+            for (slot, hand) in frame.iter().enumerate() {
+                if hand.is_some() || slot == 0 {
+                    world.set_previous_hand_of(slot, hand.as_ref());
+                }
+            }
+        }
+        timeline.advance_hands([frame[0].as_ref(), frame[1].as_ref()], |h| {
+            world.step_hands(h);
+            for e in world.events() {
+                if events.len() < OUTCOME_EVENTS {
+                    events.push(*e);
+                } else {
+                    *events_not_kept += 1;
+                }
+            }
+        });
     }
 }
 

@@ -16,7 +16,7 @@ use common::config::Scene;
 use common::{BlockMode, HandSample, Pose, Stamp, MAX_FINGERS, MAX_FINGER_POINTS};
 
 use crate::model::Model;
-use crate::timeline::Timeline;
+use crate::timeline::{HandFrames, Timeline};
 use crate::world::{EventKind, WorldError};
 
 /// Where `simulate` gets the hand of each step.
@@ -294,37 +294,57 @@ pub fn simulate_samples(
     simulate_samples_with(scene, hands, frames, &mut |_| Ok(())).map_err(never_stopped)
 }
 
-/// [`simulate_samples`], calling `progress` after every step.
+/// [`simulate_samples`], calling `progress` after every step. The samples are a stream of
+/// hands as the stepper process receives them, each marked with its side
+/// ([`HandSample::side`]): a one-hand source's are all the right's (side 0); a two-hand
+/// source's right and left of each frame make one frame ([`HandFrames`]), and the world is
+/// two-handed from the first left hand on.
 pub fn simulate_samples_with(
     scene: &Scene,
     hands: &[HandSample],
     frames: Option<u64>,
     progress: &mut Progress<'_>,
 ) -> Result<Report, RunError> {
-    let pairs: Vec<HandFrame> = hands.iter().map(|h| [Some(*h), None]).collect();
-    simulate_frames_with(scene, &pairs, frames, progress)
+    simulate_stream(scene, hands.iter().copied(), frames, progress)
 }
 
-/// One frame of a two-hand source: each hand by slot ([`crate::HAND_SLOTS`], [`slot_side`]),
-/// None for a hand the frame lacks.
-pub type HandFrame = [Option<HandSample>; crate::HAND_SLOTS];
+pub use crate::timeline::HandFrame;
 
-/// [`simulate_samples_with`] for a source of two hands: frames of both hands, each hand
-/// interpolated on its own between frames ([`Timeline::advance_hands`]), as the stepper
-/// process takes them. A hand the world cannot use (`hand::unusable_because`) is refused and
-/// counted; the other hand of its frame still counts, and the refused one holds its last good
-/// sample; a frame with no usable hand brings no steps. The world is two-handed from the first
-/// frame that holds slot 1's hand (before it, bit for bit the one-hand run).
+/// [`simulate_samples_with`] for frames of two hands by slot (slot 0 the right, slot 1 the
+/// left, whatever the samples' own `side`), each hand interpolated on its own between frames
+/// ([`Timeline::advance_hands`]).
 pub fn simulate_frames_with(
     scene: &Scene,
     hand_frames: &[HandFrame],
     frames: Option<u64>,
     progress: &mut Progress<'_>,
 ) -> Result<Report, RunError> {
+    let stream = hand_frames.iter().flat_map(|frame| {
+        frame.iter().enumerate().filter_map(|(slot, hand)| {
+            hand.map(|mut h| {
+                h.side = slot_side(slot).code();
+                h
+            })
+        })
+    });
+    simulate_stream(scene, stream, frames, progress)
+}
+
+/// The hands of `stream` made into frames and taken exactly as the stepper process takes
+/// them ([`HandFrames`]; a hand the world cannot use is refused and counted: it holds its last
+/// good sample beside a good one, and a frame with no usable hand brings no steps), then the
+/// last hands held for 2 s (or up to `frames` steps in all).
+fn simulate_stream(
+    scene: &Scene,
+    stream: impl Iterator<Item = HandSample> + Clone,
+    frames: Option<u64>,
+    progress: &mut Progress<'_>,
+) -> Result<Report, RunError> {
     let mut world = Model::new(scene)?;
-    if world.kind() == common::config::scene::ModelKind::Precise
-        && hand_frames.iter().any(|f| f[1].is_some())
-    {
+    let two_handed = stream
+        .clone()
+        .any(|h| common::HandSide::from_code(h.side) == common::HandSide::Left);
+    if world.kind() == common::config::scene::ModelKind::Precise && two_handed {
         return Err(RunError::World(WorldError {
             file: scene.file.clone(),
             block: None,
@@ -336,70 +356,41 @@ pub fn simulate_frames_with(
     }
     let mut events = Vec::new();
     let mut timeline = Timeline::new(scene.world.step_hz);
+    let mut assembled = HandFrames::new();
     let limit = frames.unwrap_or(u64::MAX);
-    let (mut refused_hands, mut first_refused) = (0, None);
-    let mut stopped = None;
-    let mut last_good: HandFrame = [None, None];
-    let two_handed = hand_frames.iter().any(|f| f[1].is_some());
-    for frame in hand_frames {
-        // Refused where it enters, as the stepper process refuses it: a frame with no usable
-        // hand brings no steps of its own (the next good frame's steps bridge from the last
-        // good one); a refused hand beside a good one holds its last good sample.
-        let mut usable: HandFrame = [None, None];
-        for (slot, hand) in frame.iter().enumerate() {
-            let Some(hand) = hand else { continue };
-            match crate::hand::unusable_because(hand) {
-                Some(why) => {
-                    refused_hands += 1;
-                    first_refused.get_or_insert((hand.stamp.seq, why));
-                }
-                None => usable[slot] = Some(*hand),
-            }
-        }
-        let Some(time) = usable
-            .iter()
-            .flatten()
-            .map(|h| h.stamp.source_time_ns)
-            .max()
-        else {
-            continue;
-        };
-        for slot in 0..crate::HAND_SLOTS {
-            if frame[slot].is_some() && usable[slot].is_none() {
-                usable[slot] = last_good[slot].map(|mut held| {
-                    held.stamp.source_time_ns = time;
-                    held
-                });
-            }
-        }
+    let stopped = std::cell::Cell::new(None);
+    let mut take = |frame: &HandFrame| {
         if !timeline.started() {
-            for (slot, hand) in usable.iter().enumerate() {
+            for (slot, hand) in frame.iter().enumerate() {
                 if hand.is_some() || slot == 0 {
                     world.set_previous_hand_of(slot, hand.as_ref());
                 }
             }
         }
-        timeline.advance_hands([usable[0].as_ref(), usable[1].as_ref()], |h| {
-            if world.steps() < limit && stopped.is_none() {
+        timeline.advance_hands([frame[0].as_ref(), frame[1].as_ref()], |h| {
+            if world.steps() < limit && stopped.get().is_none() {
                 world.step_hands(h);
                 collect_events(&world, scene, &mut events, two_handed);
                 if progress(world.steps()).is_err() {
-                    stopped = Some(world.steps());
+                    stopped.set(Some(world.steps()));
                 }
             }
         });
-        if let Some(steps) = stopped {
+    };
+    for hand in stream {
+        assembled.push(&hand, &mut take);
+        if let Some(steps) = stopped.get() {
             return Err(RunError::Stopped { steps });
         }
-        for slot in 0..crate::HAND_SLOTS {
-            if usable[slot].is_some() {
-                last_good[slot] = usable[slot];
-            }
-        }
     }
+    assembled.flush(&mut take);
+    if let Some(steps) = stopped.get() {
+        return Err(RunError::Stopped { steps });
+    }
+    let last = *assembled.last_good();
     let end = frames.unwrap_or(world.steps() + (2.0 * scene.world.step_hz) as u64);
     while world.steps() < end {
-        world.step_hands([last_good[0].as_ref(), last_good[1].as_ref()]);
+        world.step_hands([last[0].as_ref(), last[1].as_ref()]);
         collect_events(&world, scene, &mut events, two_handed);
         let n = world.steps();
         progress(n).map_err(|Stop| RunError::Stopped { steps: n })?;
@@ -407,8 +398,8 @@ pub fn simulate_frames_with(
     let steps = world.steps();
     let mut out = report(&world, scene, steps, events);
     out.clock_jumps = timeline.jumps();
-    out.refused_hands = refused_hands;
-    out.first_refused = first_refused;
+    out.refused_hands = assembled.refused_hands;
+    out.first_refused = assembled.first_refused;
     Ok(out)
 }
 

@@ -162,6 +162,103 @@ pub fn interpolate(a: &HandSample, b: &HandSample, s: f64, out: &mut HandSample)
     }
 }
 
+/// One frame of a source of two hands: each hand by slot (`crate::HAND_SLOTS`; slot 0 the
+/// right or a one-hand source's only hand, slot 1 the left), None for a hand it lacks.
+pub type HandFrame = [Option<HandSample>; 2];
+
+/// Makes a stream of hand samples (one per hand per source frame, each marked with its side,
+/// [`HandSample::side`]) into frames of both hands, for [`Timeline::advance_hands`]: the
+/// stepper process's and `simulate`'s one way of doing it, so that both take the same steps.
+///
+/// A frame is the samples of one source time. It is complete, and given out at once, when it
+/// holds the right hand and, once a left hand has been seen, the left; a sample of another
+/// time, or a second of the same hand, gives out the frame before it as it is (a source of two
+/// hands sends both in every frame, a lost one with `tracked = 0`, so this happens only when
+/// it does not). A one-hand source's frames are its samples, each given out as it arrives.
+///
+/// A hand the world cannot use (`hand::unusable_because`) is refused and counted: in a frame
+/// with a usable hand it holds its last good sample (so a glitch on one hand does not drop
+/// what it holds, nor stop the other hand); a frame with no usable hand brings no steps.
+#[derive(Debug, Clone, Default)]
+pub struct HandFrames {
+    pending: HandFrame,
+    refused: [bool; 2],
+    pending_ns: Option<u64>,
+    last_good: HandFrame,
+    two_handed: bool,
+    /// Hands refused so far, and the first one's seq and why.
+    pub refused_hands: u64,
+    pub first_refused: Option<(u64, &'static str)>,
+}
+
+impl HandFrames {
+    pub fn new() -> HandFrames {
+        HandFrames::default()
+    }
+
+    /// Whether a left hand has been seen: from then on a frame waits for both.
+    pub fn two_handed(&self) -> bool {
+        self.two_handed
+    }
+
+    /// Each hand's last good sample (the held hands of a world that steps on after its
+    /// source ended).
+    pub fn last_good(&self) -> &HandFrame {
+        &self.last_good
+    }
+
+    /// Takes one hand sample; calls `frame` with each frame it completes (none, one or two).
+    pub fn push(&mut self, hand: &HandSample, mut frame: impl FnMut(&HandFrame)) {
+        let slot = usize::from(common::HandSide::from_code(hand.side) == common::HandSide::Left);
+        self.two_handed |= slot == 1;
+        let t = hand.stamp.source_time_ns;
+        if self.pending[slot].is_some()
+            || self.refused[slot]
+            || self.pending_ns.is_some_and(|p| p != t)
+        {
+            self.flush(&mut frame);
+        }
+        self.pending_ns = Some(t);
+        match crate::hand::unusable_because(hand) {
+            Some(why) => {
+                self.refused[slot] = true;
+                self.refused_hands += 1;
+                self.first_refused.get_or_insert((hand.stamp.seq, why));
+            }
+            None => self.pending[slot] = Some(*hand),
+        }
+        let has = |k: usize| self.pending[k].is_some() || self.refused[k];
+        if has(0) && (!self.two_handed || has(1)) {
+            self.flush(&mut frame);
+        }
+    }
+
+    /// Gives out the frame being gathered, complete or not (the source stopped).
+    pub fn flush(&mut self, mut frame: impl FnMut(&HandFrame)) {
+        let Some(t) = self.pending_ns.take() else {
+            return;
+        };
+        if self.pending.iter().any(Option::is_some) {
+            for k in 0..2 {
+                if self.refused[k] && self.pending[k].is_none() {
+                    self.pending[k] = self.last_good[k].map(|mut held| {
+                        held.stamp.source_time_ns = t;
+                        held
+                    });
+                }
+            }
+            frame(&self.pending);
+            for k in 0..2 {
+                if self.pending[k].is_some() {
+                    self.last_good[k] = self.pending[k];
+                }
+            }
+        }
+        self.pending = [None, None];
+        self.refused = [false, false];
+    }
+}
+
 /// `hand` at the step of time `t_ns`: interpolated from `previous` (its last sample) when the
 /// step falls between the two, into `scratch`; as it is otherwise.
 fn hand_at<'a>(

@@ -3,7 +3,7 @@
 //! checked against its CRC, and the schemas, channels, metadata and messages inside taken into
 //! the [`Recording`]. mcap's own readers trust these lengths (issue 16); this one never does.
 
-use common::samples::MAX_SCENE_BLOCKS;
+use common::samples::{HandSample, MAX_SCENE_BLOCKS};
 use common::stamp::Stamp;
 use common::topic::Topic;
 
@@ -26,6 +26,23 @@ const USED_OPCODES: [u8; 6] = [
     OP_METADATA,
     OP_DATA_END,
 ];
+
+/// A `hand` message with its CDR header, as today's samples are.
+const WIDENED: usize = CDR_LE_HEADER.len() + std::mem::size_of::<HandSample>();
+
+/// A hand recorded before hands had a `side` (`HandSample::LEGACY_SIZE` bytes) is a prefix of
+/// today's: copied into `buf`, the rest zero, it reads as the right hand. Any other message is
+/// itself.
+fn widen_legacy_hand<'a>(topic: Topic, data: &'a [u8], buf: &'a mut [u8; WIDENED]) -> &'a [u8] {
+    if topic == Topic::Hand && data.len() == CDR_LE_HEADER.len() + HandSample::LEGACY_SIZE {
+        let (kept, added) = buf.split_at_mut(data.len());
+        kept.copy_from_slice(data);
+        added.fill(0);
+        &buf[..]
+    } else {
+        data
+    }
+}
 
 /// Checks every length inside a record against the bytes its body holds, before mcap parses
 /// it: mcap 0.26 reserves the length a string or map claims before it checks that the record
@@ -313,6 +330,8 @@ impl Reader<'_> {
                     rec.foreign_messages += 1;
                     return Ok(());
                 };
+                let mut widened = [0u8; WIDENED];
+                let data = widen_legacy_hand(topic, &data, &mut widened);
                 let (type_name, header_size) = sample_type(topic);
                 let size = match topic.element_size() {
                     None => header_size,
@@ -397,5 +416,42 @@ impl Reader<'_> {
             _ => {}
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A hand recorded before two hands (1148 bytes with its CDR header) reads as the right
+    /// hand, every field it had kept; other lengths and topics pass as they are.
+    #[test]
+    fn a_hand_recorded_before_sides_reads_as_the_right_hand() {
+        let mut hand = HandSample {
+            finger_count: 2,
+            tracked: 1,
+            ..HandSample::default()
+        };
+        hand.finger_points[1][0] = [0.5, 1.5, -2.0];
+        let mut message = Vec::new();
+        crate::codec::encode_sample(&hand, &mut message);
+        assert_eq!(message.len(), WIDENED);
+        let legacy = &message[..CDR_LE_HEADER.len() + HandSample::LEGACY_SIZE];
+        assert_eq!(legacy.len(), 1148);
+        let mut buf = [7u8; WIDENED];
+        let widened = widen_legacy_hand(Topic::Hand, legacy, &mut buf);
+        assert_eq!(widened, &message[..]);
+        let back: HandSample = crate::codec::decode_sample(Topic::Hand, widened).unwrap();
+        assert_eq!(back, hand);
+        assert_eq!(
+            common::HandSide::from_code(back.side),
+            common::HandSide::Right
+        );
+        let mut buf = [0u8; WIDENED];
+        assert_eq!(widen_legacy_hand(Topic::Joints, legacy, &mut buf), legacy);
+        assert_eq!(
+            widen_legacy_hand(Topic::Hand, &message[..100], &mut buf),
+            &message[..100]
+        );
     }
 }
