@@ -465,3 +465,70 @@ fn the_carl_lift_recording_picks_its_block_up() {
 fn the_carl_settle_recording_carries_its_block_and_puts_it_down() {
     carl_session_meets_its_block("settle", Contact::GraspCarried(0.3));
 }
+
+/// Issue 41 item 1: both hands of a CARL trace through the processes (`[source] hands =
+/// "both"`: the replay sends each sample's right and left, kinematics makes each apart, the
+/// stepper takes them as one frame) give the world `simulate --hands both` gives, bit for bit;
+/// the recording holds both hands (the left's `joints` and `hand` samples marked side 1).
+#[test]
+fn both_hands_of_a_carl_trace_replay_to_the_world_simulate_gives() {
+    let trace = carl("example_lift_0.carl");
+    let scene = repo().join("config/scenes/carl-lift.toml");
+    let samples = replay::CarlTrace::load(&trace).unwrap().samples.len();
+    let dir = Scratch::new("replay-both-hands");
+    let (log, session) = (dir.path("both.mcap"), dir.path("both.toml"));
+    std::fs::write(
+        &session,
+        format!(
+            "scene = {:?}\n[source]\nkind = \"replay\"\nfile = {:?}\nspeed = 0\nhands = \"both\"\n\
+             offset = [0.0, -0.92, 0.0]\n[renderer]\nmode = \"off\"\n[recorder]\nfile = {:?}\n\
+             [budget]\nmax_dropped = 0\n",
+            scene.to_string_lossy(),
+            trace.to_string_lossy(),
+            log.to_string_lossy(),
+        ),
+    )
+    .unwrap();
+    let id = format!("rb{}", std::process::id());
+    let out = Command::new(EXE)
+        .args(["launch", "--quiet", "--duration", "6", "--bus-id", &id])
+        .arg(&session)
+        .output()
+        .unwrap();
+    assert_nothing_left(&id);
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rec = Recording::open(&log).unwrap();
+    let joints: Vec<JointsSample> = rec.samples::<JointsSample>(Topic::Joints).collect();
+    assert_eq!(joints.len(), 2 * samples, "both hands of every sample");
+    assert!(joints.chunks(2).all(|p| p[0].side == 0
+        && p[1].side == 1
+        && p[0].stamp.source_time_ns == p[1].stamp.source_time_ns));
+    let hands: Vec<common::HandSample> = rec.samples(Topic::Hand).collect();
+    assert_eq!(hands.iter().filter(|h| h.side == 1).count(), samples);
+    let last = rec.worlds().last().unwrap();
+    let out = Command::new(EXE)
+        .args(["simulate", "--json", "--hands", "both", "--frames"])
+        .arg(last.step.to_string())
+        .args(["--hand-offset", "0,-0.92,0", "--hand"])
+        .arg(&trace)
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["frames"].as_u64(), Some(last.step));
+    assert_same_poses(&v, &last);
+    // The held cube says which hand holds it (bit 0: the right) while grasped.
+    assert!(rec
+        .worlds()
+        .any(|w| w.blocks()[0].mode() == BlockMode::Grasped && w.blocks()[0].held_by == 1));
+}

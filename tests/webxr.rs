@@ -28,6 +28,27 @@ fn launch(name: &str, id: &str, port: u16, seconds: f64, rec: &Path, report: &Pa
     launch_webxr(name, id, port, TOKEN, seconds, &extra, (rec, report))
 }
 
+/// `simulate --json --hands both --frames FRAMES --hand-offset X,Y,Z --hand TRACE SCENE`,
+/// which must succeed: its JSON report.
+fn simulate_both(scene: &Path, trace: &Path, offset: [f64; 3], frames: u64) -> serde_json::Value {
+    let out = Command::new(EXE)
+        .args(["simulate", "--json", "--hands", "both", "--frames"])
+        .arg(frames.to_string())
+        .arg("--hand-offset")
+        .arg(format!("{},{},{}", offset[0], offset[1], offset[2]))
+        .arg("--hand")
+        .arg(trace)
+        .arg(scene)
+        .output()
+        .expect("run handblocks simulate");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("simulate --json prints JSON")
+}
+
 type Socket = WebSocket<tungstenite::stream::MaybeTlsStream<TcpStream>>;
 
 /// Connects to the session's socket with `token`, trying until the server listens.
@@ -177,6 +198,55 @@ fn headset_samples(trace: &Path) -> Vec<(u64, bool, HandJoints)> {
         .collect()
 }
 
+/// The world that answers frame `k` of the session (0: the first frame published): the last
+/// world of that frame's source time. A frame of two hands is two `joints` samples of one time,
+/// and the stepper publishes a world after each (the first still the world before the frame).
+fn world_of_frame<'w>(
+    worlds: &'w [WorldSample],
+    joints: &[common::JointsSample],
+    k: usize,
+) -> &'w WorldSample {
+    let mut times: Vec<u64> = joints.iter().map(|j| j.stamp.source_time_ns).collect();
+    times.dedup();
+    let t = times[k];
+    worlds
+        .iter()
+        .rev()
+        .find(|w| w.stamp.source_time_ns == t)
+        .unwrap_or_else(|| panic!("no world of frame {k} (source time {t} ns)"))
+}
+
+/// Both hands of the trace as a headset's, one frame per sample: source time (ns from the
+/// first) and each hand (`Handedness` order: left, right) when tracked.
+fn headset_samples_both(trace: &Path) -> Vec<(u64, [Option<HandJoints>; 2])> {
+    let hand_of = |side| {
+        let t = replay::CarlTrace::load_hand(trace, side).unwrap();
+        let mut joints = Vec::new();
+        t.joints([0.0; 3], &mut joints);
+        joints
+    };
+    let (left, right) = (
+        hand_of(common::HandSide::Left),
+        hand_of(common::HandSide::Right),
+    );
+    let webxr = |j: &common::JointsSample| {
+        (j.tracked != 0).then(|| {
+            let mut hand = HandJoints::default();
+            hand.poses[0] = j.wrist;
+            hand.poses[1..].copy_from_slice(&j.joints[2..]);
+            hand.radii = [0.01; WEBXR_JOINTS];
+            hand
+        })
+    };
+    left.iter()
+        .zip(&right)
+        .map(|(l, r)| {
+            assert_eq!(l.stamp.source_time_ns, r.stamp.source_time_ns);
+            (r.stamp.source_time_ns, [webxr(l), webxr(r)])
+        })
+        .collect()
+}
+
 /// Plays `samples` through `page` at their own pace, one frame each.
 fn play(page: &mut Page, samples: &[(u64, bool, HandJoints)]) {
     let start = Instant::now();
@@ -300,6 +370,117 @@ fn a_headset_playing_the_lift_trace_drives_the_session_as_simulate_does() {
         r["stages"]["stepper"]["origin_us"]["p50"],
         r["stages"]["stepper"]["origin_us"]["p99"],
     );
+}
+
+/// Issue 41: `hand = "both"`. A headset that sends both hands of a CARL trace (one frame per
+/// sample, each hand when tracked) drives a two-hand world: the session publishes each frame's
+/// right then left hand at one source time (a lost hand untracked, a hand not seen yet not at
+/// all), and the world that answers the last frame is `simulate --hands both` of the trace, bit
+/// for bit. Lift has both hands in view throughout; pull's left comes into view 58 frames in.
+#[test]
+fn a_headset_sending_both_hands_drives_a_two_hand_world_as_simulate_does() {
+    for name in ["lift", "pull"] {
+        let dir = Scratch::new(&format!("webxr-both-{name}"));
+        let port = free_port();
+        let id = format!("wh{name}{}", std::process::id());
+        let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
+        let trace = carl(name);
+        let samples = headset_samples_both(&trace);
+        let seconds = samples.last().unwrap().0 as f64 / 1e9 + 6.0;
+        let extra = [
+            "source.tls=false".to_string(),
+            "source.hand=both".to_string(),
+        ];
+        let child = launch_webxr(name, &id, port, TOKEN, seconds, &extra, (&rec, &report));
+        let mut page = Page::open(port, TOKEN);
+        page.wait_ready();
+        assert_eq!(page.scene.as_ref().unwrap()["hand"], "both");
+        let start = Instant::now();
+        let mut frame = HandsFrame::default();
+        let mut bytes = Vec::new();
+        for (i, (t_ns, hands)) in samples.iter().enumerate() {
+            while start.elapsed() < Duration::from_nanos(*t_ns) {
+                page.pump();
+            }
+            frame.seq = i as u32 + 1;
+            frame.frame_time_ms = *t_ns as f64 / 1e6;
+            for (k, hand) in hands.iter().enumerate() {
+                frame.present[k] = hand.is_some();
+                frame.hands[k] = hand.unwrap_or_default();
+            }
+            webxr_wire::encode(&frame, &mut bytes);
+            page.sent_at.push((frame.seq, page.now_ms()));
+            page.send(&bytes);
+            page.pump();
+        }
+        let until = Instant::now() + Duration::from_millis(800);
+        while Instant::now() < until {
+            page.pump();
+        }
+        drop(page);
+        let text = wait_for(child, "the webxr session");
+        assert_nothing_left(&id);
+        let line = text
+            .lines()
+            .find(|l| l.starts_with("handblocks webxr:") && l.contains("frames published"))
+            .unwrap_or_else(|| panic!("no webxr summary: {text}"));
+        assert!(line.contains("untracked: the right hand"), "{line}");
+
+        let rec = Recording::open(&rec).unwrap();
+        let joints: Vec<common::JointsSample> = rec.samples(common::Topic::Joints).collect();
+        // Each frame: the right, then the left once it was seen, at the frame's time.
+        let first_left = samples.iter().position(|s| s.1[0].is_some()).unwrap();
+        let tracked_from = samples.iter().position(|s| s.1[1].is_some()).unwrap();
+        assert_eq!(
+            tracked_from, 0,
+            "{name}: the right hand is in view from the start"
+        );
+        let frames = samples.len();
+        assert!(
+            joints.len() >= 2 * frames - first_left,
+            "{name}: {} joints for {frames} frames",
+            joints.len()
+        );
+        let (before, after) = joints[..2 * frames - first_left].split_at(first_left);
+        assert!(before.iter().all(|j| j.side == 0), "{name}");
+        for (k, pair) in after.chunks(2).enumerate() {
+            let (r, l) = (&pair[0], &pair[1]);
+            assert!(
+                r.side == 0 && l.side == 1 && r.stamp.source_time_ns == l.stamp.source_time_ns,
+                "{name}: frame {}: sides {} {}",
+                first_left + k,
+                r.side,
+                l.side
+            );
+            assert_eq!(
+                l.tracked != 0,
+                samples[first_left + k].1[0].is_some(),
+                "{name}: the left hand's tracking in frame {}",
+                first_left + k
+            );
+        }
+        let worlds: Vec<WorldSample> = rec.worlds().collect();
+        assert!(worlds.len() >= frames, "{} worlds", worlds.len());
+        let last = world_of_frame(&worlds, &joints, frames - 1);
+        let v = simulate_both(
+            &repo().join(format!("config/scenes/carl-{name}.toml")),
+            &trace,
+            [0.0, -0.92, 0.0],
+            last.step,
+        );
+        assert_same_poses(&v, last);
+        // The blocks say which hand held them.
+        let held_by = worlds[..frames]
+            .iter()
+            .flat_map(|w| w.blocks().iter().map(|b| b.held_by))
+            .fold(0, |a, b| a | b);
+        eprintln!(
+            "webxr both hands {name}: {frames} frames ({} with the left hand seen), the world \
+             of the last frame identical to simulate --hands both; blocks held by (bits) \
+             {held_by:#b}",
+            frames - first_left
+        );
+    }
 }
 
 /// Bad input on the socket: malformed, truncated, oversized, out-of-order and replayed frames,
@@ -527,8 +708,8 @@ fn bad_webxr_settings_and_emulate_usage_name_what_is_wrong() {
         &["webxr.toml", "listen", "0.0.0.0:8443"],
     );
     check(
-        "source.hand=both",
-        &["webxr.toml", "hand", "\"right\", \"left\""],
+        "source.hand=middle",
+        &["webxr.toml", "hand", "\"right\", \"left\", \"both\""],
     );
     let emulate = |args: &[&str], want: &str| {
         let out = Command::new(EXE)

@@ -35,13 +35,45 @@ fn skipped() -> Option<String> {
 }
 
 /// The CARL session `name`'s scene as a webxr session over HTTPS (a certificate made in
-/// `dir`) on `port`, for 120 s at most (the test stops it sooner), recording to `rec`.
-fn launch(name: &str, id: &str, port: u16, dir: &Scratch, rec: &Path, report: &Path) -> Child {
-    let extra = [format!(
-        "source.certificate_dir={}",
-        dir.path("certificate").display()
-    )];
+/// `dir`) on `port`, for 120 s at most (the test stops it sooner), recording to `rec`; `hand`:
+/// the session's `[source] hand`.
+fn launch(
+    name: &str,
+    hand: &str,
+    id: &str,
+    port: u16,
+    dir: &Scratch,
+    (rec, report): (&Path, &Path),
+) -> Child {
+    let extra = [
+        format!(
+            "source.certificate_dir={}",
+            dir.path("certificate").display()
+        ),
+        format!("source.hand={hand}"),
+    ];
     launch_webxr(name, id, port, TOKEN, 120.0, &extra, (rec, report))
+}
+
+/// `simulate --json --hands both --frames FRAMES --hand-offset X,Y,Z --hand TRACE SCENE`,
+/// which must succeed: its JSON report.
+fn simulate_both(scene: &Path, trace: &Path, offset: [f64; 3], frames: u64) -> serde_json::Value {
+    let out = Command::new(EXE)
+        .args(["simulate", "--json", "--hands", "both", "--frames"])
+        .arg(frames.to_string())
+        .arg("--hand-offset")
+        .arg(format!("{},{},{}", offset[0], offset[1], offset[2]))
+        .arg("--hand")
+        .arg(trace)
+        .arg(scene)
+        .output()
+        .expect("run handblocks simulate");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("simulate --json prints JSON")
 }
 
 /// Asks the session to stop (as Ctrl-C does) and waits for its outcome.
@@ -84,39 +116,79 @@ fn emulate(port: u16, args: &[&str]) -> serde_json::Value {
     serde_json::from_str(line).unwrap_or_else(|e| panic!("{e}: {stdout}"))
 }
 
-/// Plays CARL trace `name` through the page in Chromium and compares the world that answers
-/// its last frame with `simulate --hand`; returns the driver's summary and whether identical.
-fn play_carl(name: &str) -> (serde_json::Value, bool) {
-    let dir = Scratch::new(&format!("webxr-browser-{name}"));
+/// The world that answers frame `k` of the session (0: the first frame published): the last
+/// world of that frame's source time. A frame of two hands is two `joints` samples of one time,
+/// and the stepper publishes a world after each (the first still the world before the frame).
+fn world_of_frame<'w>(
+    worlds: &'w [WorldSample],
+    joints: &[common::JointsSample],
+    k: usize,
+) -> &'w WorldSample {
+    let mut times: Vec<u64> = joints.iter().map(|j| j.stamp.source_time_ns).collect();
+    times.dedup();
+    let t = times[k];
+    worlds
+        .iter()
+        .rev()
+        .find(|w| w.stamp.source_time_ns == t)
+        .unwrap_or_else(|| panic!("no world of frame {k} (source time {t} ns)"))
+}
+
+/// Plays CARL trace `name` through the page in Chromium (`hand`: "right", the trace's right
+/// hand as the page's, or "both", its two hands, in a session of `hand`) and compares the
+/// world that answers its last frame with `simulate --hand` (`--hands both`); returns the
+/// driver's summary and whether identical.
+fn play_carl(name: &str, hand: &str) -> (serde_json::Value, bool) {
+    let dir = Scratch::new(&format!("webxr-browser-{name}-{hand}"));
     let port = free_port();
-    let id = format!("wc{name}{}", std::process::id());
+    let id = format!("wc{name}{hand}{}", std::process::id());
     let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
-    let child = launch(name, &id, port, &dir, &rec, &report);
+    let child = launch(name, hand, &id, port, &dir, (&rec, &report));
     let trace = carl(name);
-    let summary = emulate(port, &["--trace", trace.to_str().unwrap()]);
+    let summary = emulate(port, &["--trace", trace.to_str().unwrap(), "--hand", hand]);
     std::thread::sleep(Duration::from_millis(500));
     let text = stop(child);
     assert_nothing_left(&id);
     let worlds: Vec<WorldSample> = Recording::open(&rec).unwrap().worlds().collect();
-    let joints = Recording::open(&rec).unwrap().stats()[common::Topic::Joints as usize].messages;
-    let samples = replay::CarlTrace::load(&trace).unwrap().samples;
-    let played = samples.len() - samples.iter().position(|s| s.tracked).unwrap_or(0);
+    let joints: Vec<common::JointsSample> = Recording::open(&rec)
+        .unwrap()
+        .samples(common::Topic::Joints)
+        .collect();
+    // The session's first sample is the first frame with a hand it takes.
+    let tracked = |side| {
+        replay::CarlTrace::load_hand(&trace, side)
+            .unwrap()
+            .samples
+            .iter()
+            .map(|s| s.tracked)
+            .collect::<Vec<bool>>()
+    };
+    let right = tracked(common::HandSide::Right);
+    let left = match hand {
+        "both" => tracked(common::HandSide::Left),
+        _ => vec![false; right.len()],
+    };
+    let samples = right.len();
+    let first = (0..samples).position(|i| right[i] || left[i]).unwrap_or(0);
+    let played = samples - first;
     assert!(
         worlds.len() >= played,
-        "{name}: {} worlds, {joints} joints for {played} samples; {summary}\n{text}",
-        worlds.len()
+        "{name}: {} worlds, {} joints for {played} samples; {summary}\n{text}",
+        worlds.len(),
+        joints.len()
     );
-    let last = &worlds[played - 1];
-    let v = simulate_trace(
-        &repo().join(format!("config/scenes/carl-{name}.toml")),
-        &trace,
-        [0.0, -0.92, 0.0],
-        last.step,
-    );
+    // The world that answers the trace's last frame (later ones: the page's frames without a
+    // hand after the trace).
+    let last = world_of_frame(&worlds, &joints, played - 1);
+    let scene = repo().join(format!("config/scenes/carl-{name}.toml"));
+    let v = match hand {
+        "both" => simulate_both(&scene, &trace, [0.0, -0.92, 0.0], last.step),
+        _ => simulate_trace(&scene, &trace, [0.0, -0.92, 0.0], last.step),
+    };
     let identical = std::panic::catch_unwind(|| assert_same_poses(&v, last)).is_ok();
     let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     eprintln!(
-        "webxr browser {name}: the stepper's origin -> world p50 {} us, p99 {} us; the page's \
+        "webxr browser {name} ({hand}): the stepper's origin -> world p50 {} us, p99 {} us; the page's \
          round trip in the report p50 {} us, p99 {} us; page js p50 {} us, p99 {} us",
         r["stages"]["stepper"]["origin_us"]["p50"],
         r["stages"]["stepper"]["origin_us"]["p99"],
@@ -139,7 +211,7 @@ fn the_emulated_headset_plays_the_four_carl_traces_as_simulate_does() {
     }
     let _one = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
     for name in ["lift", "push", "pull", "settle"] {
-        let (summary, identical) = play_carl(name);
+        let (summary, identical) = play_carl(name, "right");
         eprintln!("webxr browser {name}: identical to simulate --hand: {identical}; {summary}");
         assert!(
             identical,
@@ -149,6 +221,34 @@ fn the_emulated_headset_plays_the_four_carl_traces_as_simulate_does() {
             the_held_block_is_drawn_with_the_hand_that_holds_it(&summary);
         }
     }
+}
+
+/// Issue 41: `hand = "both"`. The emulated Quest plays both hands of the lift trace (each
+/// sample's right and left in one XR frame): the session's two-hand world equals `simulate
+/// --hand TRACE --hands both`, bit for bit, and the cube the right hand grasps (its world's
+/// `held_by` says so) is drawn with the right hand, not the left, with no lag.
+#[test]
+fn the_emulated_headset_plays_both_hands_as_simulate_does() {
+    if let Some(why) = skipped() {
+        eprintln!("skipped: {why}");
+        return;
+    }
+    let _one = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let (summary, identical) = play_carl("lift", "both");
+    eprintln!("webxr browser lift, both hands: identical to simulate --hands both: {identical}; {summary}");
+    assert!(
+        identical,
+        "lift, both hands: the world differs from simulate --hands both; {summary}"
+    );
+    assert_eq!(summary["hand"], "both", "{summary}");
+    assert!(
+        summary["exactness"]
+            .as_str()
+            .is_some_and(|e| e.starts_with("bit-exact")),
+        "both hands reach the page as played: {summary}"
+    );
+    assert_eq!(summary["check"]["wrongMask"], 0, "{summary}");
+    the_held_block_is_drawn_with_the_hand_that_holds_it(&summary);
 }
 
 /// Issue 41 item 4: a held block never lags the hand in the headset. The lift trace grasps
@@ -203,7 +303,7 @@ fn the_spectator_page_draws_the_blocks() {
     let port = free_port();
     let id = format!("ws{}", std::process::id());
     let (rec, report) = (dir.path("run.mcap"), dir.path("report.json"));
-    let child = launch("lift", &id, port, &dir, &rec, &report);
+    let child = launch("lift", "right", &id, port, &dir, (&rec, &report));
     // A headset drives in the background so that worlds flow; the spectator watches.
     let png = dir.path("spectator.png");
     let driver_port = port;

@@ -470,7 +470,10 @@ pub struct BlockState {
     pub pose: Pose,
     /// A [`BlockMode`] as u32.
     pub mode: u32,
-    pub _reserved: u32,
+    /// The hands that grasp it: bit 0 the right hand (or a one-hand session's only hand), bit
+    /// 1 the left (docs/model.md "Two hands"); 0 when it is not grasped (and in a recording
+    /// made before two hands, where this was padding).
+    pub held_by: u32,
 }
 
 impl BlockState {

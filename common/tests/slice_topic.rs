@@ -21,7 +21,7 @@ fn block(i: usize) -> BlockState {
             rotation: [0.0, 0.0, 0.0, 1.0],
         },
         mode: BlockMode::Resting as u32,
-        _reserved: 0,
+        held_by: 0,
     }
 }
 

@@ -137,9 +137,11 @@ class World(_Stamps):
 
 @dataclass(frozen=True)
 class Hand(_Stamps):
-    """The hand model: wrist, fingers' check points, palm."""
+    """The hand model: wrist, fingers' check points, palm. ``side``: 0 the right hand (or a
+    one-hand session's only hand), 1 the left of a two-hand session."""
 
     tracked: Bools
+    side: U32
     wrist_position: F64
     wrist_rotation: F64
     finger_count: U32
@@ -153,9 +155,11 @@ class Hand(_Stamps):
 @dataclass(frozen=True)
 class Joints(_Stamps):
     """OpenXR hand joints: ``position (n, 26, 3)``, ``rotation (n, 26, 4)`` in the order of
-    ``joint_names``."""
+    ``joint_names``. ``side``: 0 the right hand (or a one-hand source's only hand), 1 the left
+    of a two-hand source."""
 
     tracked: Bools
+    side: U32
     wrist_position: F64
     wrist_rotation: F64
     position: F64
@@ -305,11 +309,13 @@ class Recording:
 @dataclass(frozen=True)
 class Event:
     """A world event: ``kind`` (impact, rest, push, grasp, release, ...) of ``block`` at
-    ``step``."""
+    ``step``; ``hand``: in a two-hand world, the hand a grasp, release or push is by
+    (``"right"`` or ``"left"``), else None."""
 
     step: int
     kind: str
     block: str
+    hand: Optional[str] = None
 
 
 @dataclass(frozen=True)
@@ -352,6 +358,7 @@ def simulate(
     model: Optional[str] = None,
     frames: Optional[int] = None,
     hand_offset: Sequence[float] = (0.0, 0.0, 0.0),
+    hands: str = "right",
 ) -> Simulation:
     """Runs a scene's block world to its end in this process, deterministically: what
     ``handblocks simulate SCENE [--hand TRACE] [--model M] [--frames N] --json`` prints.
@@ -360,7 +367,9 @@ def simulate(
     ``$HANDBLOCKS_CONFIG/scenes`` or ``./config/scenes``), or a dict of the scene file's
     tables (checked as the file would be; errors name ``<dict>``). ``hand``: one of our
     recordings or a CARL trace in place of the scene's ``[hand]``, moved by ``hand_offset``
-    metres. ``model``: ``"paper"``, ``"precise"``, or None for the scene's ``[world] model``.
+    metres; ``hands``: which of the trace's hands drive the world, ``"right"``, ``"left"`` or
+    ``"both"`` (a CARL trace holds both; docs/model.md "Two hands"). ``model``: ``"paper"``,
+    ``"precise"``, or None for the scene's ``[world] model``.
     ``frames``: steps in all, 0 to ``MAX_FRAMES`` (ten million: a day of world time at the
     default 120 steps a second); None: the hand's end plus time to settle.
 
@@ -389,7 +398,7 @@ def simulate(
     offset = tuple(float(x) for x in hand_offset)
     if len(offset) != 3:
         raise ValueError(f"hand_offset: 3 numbers (metres), not {len(offset)}")
-    d = _native.simulate(scene, hand, model, frames, offset)
+    d = _native.simulate(scene, hand, model, frames, offset, str(hands))
     return Simulation(
         frames=d["frames"],
         names=d["names"],
@@ -535,10 +544,15 @@ class Source:
         tracked: bool = True,
         wrist_position: Optional[npt.ArrayLike] = None,
         wrist_rotation: Optional[npt.ArrayLike] = None,
+        hand: str = "right",
     ) -> Optional[int]:
         """Publishes one hand: ``position (26, 3)`` metres, ``rotation (26, 4)`` quaternions
-        ``[x, y, z, w]``, at ``time_ns`` (increasing). The wrist is joint 1 (OpenXR's wrist)
-        unless ``wrist_position (3,)`` and ``wrist_rotation (4,)`` give it apart.
+        ``[x, y, z, w]``, at ``time_ns`` (increasing, for each hand). The wrist is joint 1
+        (OpenXR's wrist) unless ``wrist_position (3,)`` and ``wrist_rotation (4,)`` give it apart.
+        ``hand``: ``"right"`` (a one-hand tracker's only hand, whichever it is) or ``"left"``:
+        a tracker of two hands publishes, for each frame, the right and then the left with the
+        same ``time_ns`` (a lost one with ``tracked=False``), and the world takes both
+        (docs/model.md "Two hands").
         ``tracked=False``: the hand is lost (its last pose is held for ``TRACKING_HOLD_NS``,
         then let go). Returns the sample's seq, or None when it was refused (not finite,
         farther than 100 m, a quaternion's norm outside 0.5-2, a time not after the last, or
@@ -553,6 +567,7 @@ class Source:
             bool(tracked),
             None if wrist_position is None else np.ascontiguousarray(wrist_position, dtype=f64),
             None if wrist_rotation is None else np.ascontiguousarray(wrist_rotation, dtype=f64),
+            str(hand),
         )
         if warning is not None:
             warnings.warn(f"refused: {warning}", SourceWarning, stacklevel=2)

@@ -25,6 +25,7 @@ def simulate(
     model: Optional[str] = None,
     frames: Optional[int] = None,
     hand_offset: Tuple[float, float, float] = (0.0, 0.0, 0.0),
+    hands: str = "right",
 ) -> Dict[str, Any]: ...
 
 class NativeRecording:
@@ -86,6 +87,7 @@ class NativeSource:
         tracked: bool = True,
         wrist_position: Optional[npt.NDArray[np.float64]] = None,
         wrist_rotation: Optional[npt.NDArray[np.float64]] = None,
+        hand: str = "right",
     ) -> Tuple[Optional[int], Optional[str]]: ...
     def counts(self) -> Dict[str, Any]: ...
     def close(self) -> None: ...

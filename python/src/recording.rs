@@ -328,6 +328,7 @@ fn hand(samples: &[HandSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
     let mut stamps = StampColumns::with_capacity(n);
     let (mut wp, mut wr) = (Vec::with_capacity(n * 3), Vec::with_capacity(n * 4));
     let mut tracked = Vec::with_capacity(n);
+    let mut side = Vec::with_capacity(n);
     let mut fingers = FingerColumns::with_capacity(n);
     let mut finger_radius = Vec::with_capacity(n * MAX_FINGERS);
     let mut palm_count = Vec::with_capacity(n);
@@ -336,6 +337,7 @@ fn hand(samples: &[HandSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
         stamps.push(&h.stamp);
         push_pose(&h.wrist, &mut wp, &mut wr);
         tracked.push(h.tracked != 0);
+        side.push(h.side);
         fingers.push(h.finger_count, &h.finger_point_count, &h.finger_points);
         finger_radius.extend_from_slice(&h.finger_radius);
         palm_count.push(h.palm_vertex_count);
@@ -345,6 +347,7 @@ fn hand(samples: &[HandSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
     }
     stamps.into_dict(out)?;
     out.set_item("tracked", array(py, tracked, &[n])?)?;
+    out.set_item("side", array(py, side, &[n])?)?;
     out.set_item("wrist_position", array(py, wp, &[n, 3])?)?;
     out.set_item("wrist_rotation", array(py, wr, &[n, 4])?)?;
     fingers.into_dict(out)?;
@@ -370,9 +373,11 @@ fn joints(samples: &[JointsSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
         Vec::with_capacity(n * OPENXR_JOINTS * 4),
     );
     let mut tracked = Vec::with_capacity(n);
+    let mut side = Vec::with_capacity(n);
     for j in samples {
         stamps.push(&j.stamp);
         tracked.push(j.tracked != 0);
+        side.push(j.side);
         push_pose(&j.wrist, &mut wp, &mut wr);
         for p in &j.joints {
             push_pose(p, &mut jp, &mut jr);
@@ -380,6 +385,7 @@ fn joints(samples: &[JointsSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
     }
     stamps.into_dict(out)?;
     out.set_item("tracked", array(py, tracked, &[n])?)?;
+    out.set_item("side", array(py, side, &[n])?)?;
     out.set_item("wrist_position", array(py, wp, &[n, 3])?)?;
     out.set_item("wrist_rotation", array(py, wr, &[n, 4])?)?;
     out.set_item("position", array(py, jp, &[n, OPENXR_JOINTS, 3])?)?;

@@ -483,6 +483,7 @@ impl LiveSample {
             ],
             Held::Hand(_) => &[
                 "tracked",
+                "side",
                 "finger_count",
                 "palm_vertex_count",
                 "wrist_position",
@@ -494,6 +495,7 @@ impl LiveSample {
             ],
             Held::Joints(_) => &[
                 "tracked",
+                "side",
                 "wrist_position",
                 "wrist_rotation",
                 "position",
@@ -575,6 +577,7 @@ fn field<'py>(slf: &Bound<'py, LiveSample>, name: &str) -> PyResult<Option<Bound
                 let h = s.payload();
                 match name {
                     "tracked" => flag(h.tracked),
+                    "side" => num(h.side.into()),
                     "finger_count" => num(h.finger_count.into()),
                     "palm_vertex_count" => num(h.palm_vertex_count.into()),
                     "wrist_position" => pose(&h.wrist, false).map(Some),
@@ -601,6 +604,7 @@ fn field<'py>(slf: &Bound<'py, LiveSample>, name: &str) -> PyResult<Option<Bound
                 let base = j.joints.as_ptr() as *const f64;
                 match name {
                     "tracked" => flag(j.tracked),
+                    "side" => num(j.side.into()),
                     "wrist_position" => pose(&j.wrist, false).map(Some),
                     "wrist_rotation" => pose(&j.wrist, true).map(Some),
                     "position" => {

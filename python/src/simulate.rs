@@ -43,7 +43,7 @@ pub const MAX_DICT_DEPTH: usize = 64;
 /// Runs a scene (a file, a bare name found in the configuration folder, or a dict of the
 /// scene file's tables) and returns the report as a dict (see python/handblocks).
 #[pyfunction]
-#[pyo3(signature = (scene, hand=None, model=None, frames=None, hand_offset=(0.0, 0.0, 0.0)))]
+#[pyo3(signature = (scene, hand=None, model=None, frames=None, hand_offset=(0.0, 0.0, 0.0), hands="right"))]
 pub fn simulate<'py>(
     py: Python<'py>,
     scene: &Bound<'py, PyAny>,
@@ -51,7 +51,14 @@ pub fn simulate<'py>(
     model: Option<&str>,
     frames: Option<&Bound<'py, PyAny>>,
     hand_offset: (f64, f64, f64),
+    hands: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let Some(hands) = common::HandsUsed::parse(hands) else {
+        return Err(PyValueError::new_err(format!(
+            "hands={hands:?}: allowed: \"right\", \"left\" or \"both\" (the hands of the trace \
+             that drive the world)"
+        )));
+    };
     let frames = frames.map(checked_frames).transpose()?;
     let model = match model {
         None => None,
@@ -69,7 +76,7 @@ pub fn simulate<'py>(
         model,
         trace: hand,
         hand_offset: [hand_offset.0, hand_offset.1, hand_offset.2],
-        hands: common::HandsUsed::default(),
+        hands,
         frames,
     };
     // Without the GIL (other Python threads go on), back with it every
@@ -138,6 +145,7 @@ pub fn simulate<'py>(
         d.set_item("step", e.step)?;
         d.set_item("kind", e.kind.name())?;
         d.set_item("block", &e.block)?;
+        d.set_item("hand", e.hand.map(|h| h.name()))?;
         events.append(d)?;
     }
     out.set_item("events", events)?;

@@ -104,7 +104,8 @@ pub struct NativeSource {
     reporter: Option<Reporter>,
     _bus: Bus,
     sample: JointsSample,
-    last_time_ns: Option<u64>,
+    /// The last published time of each hand (right, left): each must increase.
+    last_time_ns: [Option<u64>; 2],
     published: u64,
     refused: [u64; REASONS.len()],
     first_refused: Option<String>,
@@ -158,7 +159,13 @@ impl NativeSource {
     }
 
     /// Why these joints are refused, if they are: (reason index, what).
-    fn check(&self, time_ns: u64, position: &[f64], rotation: &[f64]) -> Option<(usize, String)> {
+    fn check(
+        &self,
+        slot: usize,
+        time_ns: u64,
+        position: &[f64],
+        rotation: &[f64],
+    ) -> Option<(usize, String)> {
         if let Some(j) = position
             .chunks_exact(3)
             .zip(rotation.chunks_exact(4))
@@ -195,7 +202,7 @@ impl NativeSource {
                 ));
             }
         }
-        if let Some(last) = self.last_time_ns {
+        if let Some(last) = self.last_time_ns[slot] {
             if time_ns <= last {
                 return Some((
                     3,
@@ -266,7 +273,7 @@ impl NativeSource {
                 wrist: Pose::IDENTITY,
                 joints: [Pose::IDENTITY; OPENXR_JOINTS],
             },
-            last_time_ns: None,
+            last_time_ns: [None, None],
             published: 0,
             refused: [0; REASONS.len()],
             first_refused: None,
@@ -305,7 +312,10 @@ impl NativeSource {
     /// increase). Returns the sample's seq, or None when the joints were refused; a refusal
     /// is counted, and the first of each kind is returned as a warning's text in
     /// `last_refusal`.
-    #[pyo3(signature = (time_ns, position, rotation, tracked=true, wrist_position=None, wrist_rotation=None))]
+    /// `hand`: "right" (or a one-hand tracker's only hand) or "left": a tracker of two hands
+    /// publishes each frame's right, then its left, with the same `time_ns`.
+    #[pyo3(signature = (time_ns, position, rotation, tracked=true, wrist_position=None, wrist_rotation=None, hand="right"))]
+    #[allow(clippy::too_many_arguments)]
     fn publish(
         &mut self,
         time_ns: u64,
@@ -314,7 +324,15 @@ impl NativeSource {
         tracked: bool,
         wrist_position: Option<PyReadonlyArray1<'_, f64>>,
         wrist_rotation: Option<PyReadonlyArray1<'_, f64>>,
+        hand: &str,
     ) -> PyResult<(Option<u64>, Option<String>)> {
+        let Some(side) = common::HandSide::parse(hand) else {
+            return Err(PyValueError::new_err(format!(
+                "hand={hand:?}: \"right\" (a one-hand tracker's only hand, whichever it is) or \
+                 \"left\" (the second hand of a tracker of two)"
+            )));
+        };
+        let slot = usize::from(side == common::HandSide::Left);
         if self.closed {
             return Err(SourceError::new_err(
                 "this source is closed; a session has one source, which ends it when it closes",
@@ -361,7 +379,7 @@ impl NativeSource {
         let checked = OPENXR_JOINTS + wrist_given as usize;
         let (p, q) = (&p[..checked * 3], &q[..checked * 4]);
         let mut warning = None;
-        let verdict = self.check(time_ns, p, q).or_else(|| {
+        let verdict = self.check(slot, time_ns, p, q).or_else(|| {
             (!self.rate.take(common::monotonic_ns())).then(|| {
                 (
                     RATE,
@@ -392,6 +410,7 @@ impl NativeSource {
                     self.sample.joints[WRIST]
                 };
                 self.sample.tracked = tracked as u32;
+                self.sample.side = side.code();
                 self.sample.stamp = Stamp {
                     source_time_ns: time_ns,
                     origin_ns: common::monotonic_ns(),
@@ -407,7 +426,7 @@ impl NativeSource {
                 if let Some(r) = self.reporter.as_mut() {
                     r.recorder.source_output(&sent);
                 }
-                self.last_time_ns = Some(time_ns);
+                self.last_time_ns[slot] = Some(time_ns);
                 self.published += 1;
                 Some(sent.seq)
             }

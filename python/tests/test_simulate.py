@@ -260,3 +260,15 @@ def test_simulate_refuses_a_fifo_as_hand_or_scene_instead_of_blocking(tmp_path: 
     assert "RecordingError: " + str(fifo) in out, out
     assert "SceneError: " + str(fifo) in out, out
     assert out.count("it is a FIFO (named pipe), not a regular file") == 2, out
+
+
+def test_both_hands_of_a_trace_drive_the_world_and_events_name_them() -> None:
+    """Issue 41: ``hands="both"`` is ``simulate --hands both``: the events name the hand."""
+    scene = REPO / "config" / "scenes" / "carl-lift.toml"
+    both = hb.simulate(scene, hand=carl("lift"), hand_offset=(0.0, -0.92, 0.0), hands="both")
+    one = hb.simulate(scene, hand=carl("lift"), hand_offset=(0.0, -0.92, 0.0))
+    grasps = [e for e in both.events if e.kind == "grasp"]
+    assert grasps and all(e.hand in ("right", "left") for e in grasps), both.events
+    assert all(e.hand is None for e in one.events)
+    with pytest.raises(ValueError, match="both"):
+        hb.simulate(scene, hand=carl("lift"), hands="all")

@@ -174,3 +174,29 @@ def test_a_source_faster_than_its_limit_is_refused_and_the_session_drops_nothing
     assert device["rejected_records"] == refused, device
     dropped = {t: f["dropped"] for t, f in r["topics"].items() if f["dropped"]}
     assert not dropped, dropped
+
+
+def test_a_python_source_of_two_hands_drives_both(tmp_path: Path) -> None:
+    """Issue 41: a tracker of two hands publishes each frame's right, then its left, with one
+    time (``hand="left"``); the session takes both (docs/model.md "Two hands")."""
+    trace = carl("lift")
+    command = [sys.executable, str(Path(__file__).with_name("drive_two_hands.py")), str(trace)]
+    command += [str(x) for x in OFFSET]
+    bus = bus_id("two")
+    rec = tmp_path / "two.mcap"
+    child = launch(str(session_file(tmp_path, command)), "--bus-id", bus, "--record", str(rec),
+                   *CEILINGS)
+    out = finish(child, "the two-hand source's session")
+    nothing_left(bus)
+    assert "drive_two_hands: published" in out, out
+    played = hb.Recording(trace).joints()
+    recording = hb.Recording(rec)
+    joints = recording.joints()
+    assert len(joints) == 2 * len(played)
+    assert np.array_equal(joints.side, np.tile([0, 1], len(played)))
+    assert np.array_equal(joints.time_ns[0::2], joints.time_ns[1::2])
+    hands = recording.hand()
+    assert np.count_nonzero(hands.side == 1) == len(played)
+    # The left hand is the right's 40 cm over, made apart by kinematics.
+    right, left = hands.wrist_position[hands.side == 0], hands.wrist_position[hands.side == 1]
+    assert np.allclose(left - right, [0.4, 0.0, 0.0])

@@ -210,8 +210,10 @@ pub enum Command {
         /// headset: the hand to play (a CARL file, or a recording with `joints`).
         #[arg(long, value_name = "FILE")]
         trace: Option<PathBuf>,
-        /// headset: which of the page's hands plays the trace.
-        #[arg(long, default_value = "right", value_parser = ["right", "left"])]
+        /// headset: which of the page's hands plays the trace: right or left (the trace's hand,
+        /// a CARL file's right), or both (a CARL file's right and left hands, or a two-hand
+        /// recording's; both of a sample in one XR frame).
+        #[arg(long, visible_alias = "hands", default_value = "right", value_parser = ["right", "left", "both"])]
         hand: String,
         /// headset: a screenshot of the page when done (PNG).
         #[arg(long, value_name = "PNG")]

@@ -106,7 +106,9 @@ pub fn run(
 pub struct Headset {
     pub url: Option<String>,
     pub trace: Option<PathBuf>,
-    pub left: bool,
+    /// The page's hands that play the trace: one (the trace's hand, the right of a CARL
+    /// file), or both (a CARL file's right and left, or a two-hand recording's).
+    pub hand: common::HandsUsed,
     pub screenshot: Option<PathBuf>,
     pub spectator: bool,
 }
@@ -139,17 +141,17 @@ pub fn headset(h: Headset) -> Result<ExitCode, EmulateError> {
             )
         })?;
         let samples = work.join("samples.bin");
-        let n = write_headset_samples(&trace, &samples)?;
+        let n = write_headset_samples(&trace, &samples, h.hand)?;
         eprintln!(
-            "handblocks emulate: playing {n} samples of {} as the {} hand",
+            "handblocks emulate: playing {n} samples of {} as {}",
             trace.display(),
-            if h.left { "left" } else { "right" }
+            match h.hand {
+                common::HandsUsed::Both => "both hands".to_string(),
+                common::HandsUsed::One(side) => format!("the {} hand", side.name()),
+            }
         );
         args.extend(["--samples".into(), samples.into()]);
-        args.extend([
-            "--hand".into(),
-            if h.left { "left" } else { "right" }.into(),
-        ]);
+        args.extend(["--hand".into(), h.hand.name().into()]);
     }
     if let Some(png) = &h.screenshot {
         args.extend(["--screenshot".into(), png.into()]);
@@ -207,12 +209,23 @@ fn webxr_node_modules() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from("target/webxr-node/node_modules"))
 }
 
-/// The trace's joints as the driver plays them: u32 count, then per sample f64 time (ms from
-/// the first sample, so that the page's time maps back to the trace's nanoseconds exactly),
-/// u8 tracked, 3 zero bytes, and WebXR's 25 joints of 7 f32 (position, orientation): the
-/// trace's wrist pose, then OpenXR's joints after palm and wrist. Returns the sample count.
-fn write_headset_samples(trace: &Path, file: &Path) -> Result<usize, EmulateError> {
-    let t = replay::HandTrace::load(trace, [0.0; 3]).map_err(EmulateError::Trace)?;
+/// The trace's joints as the driver plays them: u32 count, then per sample one record per hand
+/// played (`hands`: one, or both, the right then the left), each f64 time (ms from the first
+/// sample, so that the page's time maps back to the trace's nanoseconds exactly), u8 tracked,
+/// 3 zero bytes, and WebXR's 25 joints of 7 f32 (position, orientation): the trace's wrist
+/// pose, then OpenXR's joints after palm and wrist. One hand is the trace's (a CARL file's
+/// right); both are a CARL file's two hands, or a recording's `joints` of either side, paired
+/// by source time (a hand a sample lacks is written untracked). Returns the sample count.
+fn write_headset_samples(
+    trace: &Path,
+    file: &Path,
+    hands: common::HandsUsed,
+) -> Result<usize, EmulateError> {
+    let t = match hands {
+        common::HandsUsed::Both => replay::HandTrace::load_hands(trace, [0.0; 3], hands),
+        common::HandsUsed::One(_) => replay::HandTrace::load(trace, [0.0; 3]),
+    }
+    .map_err(EmulateError::Trace)?;
     let joints: Vec<&common::JointsSample> = t
         .samples
         .iter()
@@ -228,20 +241,73 @@ fn write_headset_samples(trace: &Path, file: &Path) -> Result<usize, EmulateErro
             trace.display()
         )));
     }
-    let t0 = joints[0].stamp.source_time_ns;
-    let mut bytes = Vec::with_capacity(4 + joints.len() * (12 + 25 * 28));
-    bytes.extend_from_slice(&(joints.len() as u32).to_le_bytes());
+    // Each sample's hands, by slot (0 the right or the one hand, 1 the left).
+    let mut frames: Vec<[Option<&common::JointsSample>; 2]> = Vec::with_capacity(joints.len());
     for j in &joints {
-        let ms = (j.stamp.source_time_ns - t0) as f64 / 1e6;
-        bytes.extend_from_slice(&ms.to_le_bytes());
-        bytes.extend_from_slice(&[u8::from(j.tracked != 0), 0, 0, 0]);
-        for p in std::iter::once(&j.wrist).chain(&j.joints[2..]) {
-            for v in p.position.iter().chain(&p.rotation) {
-                bytes.extend_from_slice(&(*v as f32).to_le_bytes());
+        let slot = match hands {
+            common::HandsUsed::Both => {
+                usize::from(common::HandSide::from_code(j.side) == common::HandSide::Left)
+            }
+            common::HandsUsed::One(_) => 0,
+        };
+        match frames.last_mut() {
+            Some(f)
+                if f[slot].is_none()
+                    && f.iter()
+                        .flatten()
+                        .all(|o| o.stamp.source_time_ns == j.stamp.source_time_ns) =>
+            {
+                f[slot] = Some(j);
+            }
+            _ => {
+                let mut f = [None, None];
+                f[slot] = Some(*j);
+                frames.push(f);
+            }
+        }
+    }
+    if hands == common::HandsUsed::Both && frames.iter().all(|f| f[1].is_none()) {
+        return Err(EmulateError::Trace(format!(
+            "{}: --hand both: the trace holds one hand (both are a CARL file's two hands, or a \
+             recording of a two-hand session); play it with --hand right or left",
+            trace.display()
+        )));
+    }
+    let played = if hands == common::HandsUsed::Both {
+        2
+    } else {
+        1
+    };
+    let t0 = frames[0]
+        .iter()
+        .flatten()
+        .map(|j| j.stamp.source_time_ns)
+        .min()
+        .unwrap_or(0);
+    let mut bytes = Vec::with_capacity(4 + frames.len() * played * (12 + 25 * 28));
+    bytes.extend_from_slice(&(frames.len() as u32).to_le_bytes());
+    for f in &frames {
+        let time_ns = f.iter().flatten().map(|j| j.stamp.source_time_ns).min();
+        let ms = time_ns.unwrap_or(t0).saturating_sub(t0) as f64 / 1e6;
+        for hand in &f[..played] {
+            bytes.extend_from_slice(&ms.to_le_bytes());
+            let tracked = hand.is_some_and(|j| j.tracked != 0);
+            bytes.extend_from_slice(&[u8::from(tracked), 0, 0, 0]);
+            let pose = |k: usize| match hand {
+                Some(j) if k == 0 => j.wrist,
+                Some(j) => j.joints[k + 1],
+                None => common::Pose::IDENTITY,
+            };
+            // WebXR's 25 joints: OpenXR's after the palm.
+            for k in 0..common::samples::OPENXR_JOINTS - 1 {
+                let p = pose(k);
+                for v in p.position.iter().chain(&p.rotation) {
+                    bytes.extend_from_slice(&(*v as f32).to_le_bytes());
+                }
             }
         }
     }
     std::fs::write(file, &bytes)
         .map_err(|e| EmulateError::Trace(format!("{}: {e}", file.display())))?;
-    Ok(joints.len())
+    Ok(frames.len())
 }

@@ -190,9 +190,17 @@ fn gif_line(path: &Path) -> String {
 fn hands_line(s: &common::config::Session) -> Option<String> {
     use common::config::scene::HandRules;
     use common::config::session::Source;
+    use common::HandsUsed;
     let tracked_source = match &s.source {
+        Source::Webxr(w) if w.hand == HandsUsed::Both => {
+            "a headset's two tracked hands (docs/model.md \"Two hands\")"
+        }
         Source::Webxr(_) => "a headset's tracked hand",
-        Source::External { .. } => "an external tracker's hand",
+        Source::External { .. } => "an external tracker's hand (or two)",
+        Source::Replay {
+            hands: HandsUsed::Both,
+            ..
+        } => "a recorded pair of hands (docs/model.md \"Two hands\")",
         Source::Replay { .. } => "a recorded hand",
         _ => return None,
     };

@@ -171,7 +171,8 @@ fn run() -> Result<ExitCode, CliError> {
                 emulate::headset(emulate::Headset {
                     url,
                     trace,
-                    left: hand == "left",
+                    // clap allows only right, left and both.
+                    hand: common::HandsUsed::parse(&hand).unwrap_or_default(),
                     screenshot,
                     spectator,
                 })?

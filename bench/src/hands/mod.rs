@@ -9,6 +9,10 @@
 //!   SDK rules are in [`baselines`], and so are two references that are no baseline (kind
 //!   "bound", the oracle rows): fits of the same degraded path over a window centred on the
 //!   true release, what an estimator told the release moment could do with those samples.
+//! * **Two hands** ([`two_hands`]): the same throws with the cube held by both hands of one
+//!   world, letting go together or the left first, at ideal, quest and worst: release error,
+//!   false drops, and slingshots (a release after which the cube leaves faster than twice the
+//!   hands' speed).
 //! * **Traces** ([`traces`]): the real CARL recordings under `--traces`, replayed under both
 //!   rules: grasps, drops, flickers, whether the block was lifted.
 //!
@@ -18,6 +22,7 @@
 pub mod baselines;
 pub mod throws;
 pub mod traces;
+pub mod two_hands;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -572,7 +577,7 @@ fn find<'a>(rows: &'a [Row], level: &str, e: Estimator) -> Option<&'a Row> {
 }
 
 /// The issue's goals, judged on the rows (only those whose levels ran).
-pub fn goals(rows: &[Row]) -> Vec<Goal> {
+pub fn goals(rows: &[Row], two: &[two_hands::TwoRow]) -> Vec<Goal> {
     let mut out = Vec::new();
     let quest = find(rows, "quest", Estimator::Tracked);
     if let Some(q) = quest {
@@ -627,10 +632,17 @@ pub fn goals(rows: &[Row]) -> Vec<Goal> {
             figures: list(&flicker_levels, |r| r.flickers),
         });
     }
-    out.push(Goal {
-        goal: "0 slingshots".into(),
-        met: None,
-        figures: "two-hand releases: not measured yet (one hand per world)".into(),
+    out.push(match two_hands::slingshot_goal(two) {
+        Some((met, figures)) => Goal {
+            goal: "0 slingshots (two hands)".into(),
+            met: Some(met),
+            figures,
+        },
+        None => Goal {
+            goal: "0 slingshots (two hands)".into(),
+            met: None,
+            figures: "no two-hand level ran (ideal, quest, worst)".into(),
+        },
     });
     if let Some(q) = quest {
         let others: Vec<&Row> = Estimator::ALL
@@ -673,6 +685,7 @@ pub fn goals(rows: &[Row]) -> Vec<Goal> {
 /// `hands.json`.
 pub fn to_json(
     rows: &[Row],
+    two: &[two_hands::TwoRow],
     levels: &[Level],
     traces: &Result<Vec<traces::TraceRow>, String>,
     throws_per_level: usize,
@@ -689,10 +702,11 @@ pub fn to_json(
     };
     json!({
         "throws": rows.iter().map(row_json).collect::<Vec<_>>(),
+        "two_hands": two_hands::rows_json(two),
         "traces": trace_rows,
         "traces_error": trace_error,
         "levels": levels.iter().map(level_json).collect::<Vec<_>>(),
-        "goals": goals(rows).iter().map(|g| json!({
+        "goals": goals(rows, two).iter().map(|g| json!({
             "goal": g.goal,
             "met": g.met,
             "figures": g.figures,
@@ -706,7 +720,7 @@ pub fn to_json(
         "seed": SEED,
         "seconds": seconds,
         "notes": {
-            "slingshots": "two-hand releases: not measured yet (one hand per world)",
+            "slingshots": "measured with two hands (\"two_hands\"): a release event after which the cube's mean speed over the next 3 steps exceeds twice the hands' speed; null in the one-hand rows, whose release cannot slingshot (the block leaves with its own grasped path)",
             "baselines": "ultraleap, xri and mrtk take the paper world's release time, grasp, false drops and flickers; meta decides its own by pinch hysteresis",
             "oracles": format!("oracle-line and oracle-quadratic (kind \"bound\") are references, not baselines, and no goal counts them: fits over +-{:.0} ms of the degraded path centred on the true release as delivered (t_r + latency), told the grasp and the release", baselines::ORACLE_HALF_WINDOW * 1e3),
         },
@@ -811,8 +825,10 @@ script's release speed: {} (log-uniform speeds: about 30 / 30 / 40 % of the thro
     );
     let _ = writeln!(
         s,
-        "- {count} throws a level; slingshots: two-hand releases: not measured yet (one hand per \
-world).\n"
+        "- {count} throws a level; slingshots (\"-\" in the one-hand tables: one hand's release \
+throws the block with its own grasped path and cannot slingshot) are measured with two hands \
+(\"Two hands\" above), min({count}, {}) throws per level and kind.\n",
+        two_hands::MAX_THROWS
     );
     s.push_str("## Levels\n\n| level | rate (Hz) | noise sd (mm) | latency (ms) | gaps | what |\n|---|---:|---:|---:|---|---|\n");
     for l in levels {
@@ -1141,8 +1157,10 @@ levels: {}.",
 }
 
 /// `hands.md`.
+#[allow(clippy::too_many_arguments)]
 pub fn markdown(
     rows: &[Row],
+    two: &[two_hands::TwoRow],
     levels: &[Level],
     traces: &Result<Vec<traces::TraceRow>, String>,
     traces_dir: &Path,
@@ -1153,7 +1171,7 @@ pub fn markdown(
     let mut s = page::head("Tracked hands: throws and real recordings", WHAT, p);
     let _ = writeln!(s, "The run took {seconds:.0} s.\n");
     s.push_str("## Goals (issue 41)\n\n| goal | verdict | figures |\n|---|---|---|\n");
-    for g in goals(rows) {
+    for g in goals(rows, two) {
         let verdict = match g.met {
             Some(true) => "met",
             Some(false) => "**not met**",
@@ -1181,6 +1199,7 @@ pub fn markdown(
         s.push_str(&throws_table(rows, l.name));
         s.push('\n');
     }
+    s.push_str(&two_hands::markdown(two));
     s.push_str(&traces_text(traces, traces_dir));
     s.push_str(&method_text(levels, count));
     s
@@ -1282,6 +1301,19 @@ pub fn run(b: &HandsBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
         Estimator::ALL.len()
     );
     let rows = measure_throws(&chosen, count, workers, &|line| eprintln!("hands: {line}"))?;
+    eprintln!(
+        "hands: two hands: {} x {} throws x 2 kinds x 2 rules",
+        two_hands::LEVELS
+            .iter()
+            .filter(|n| chosen.iter().any(|(_, l)| l.name == **n))
+            .copied()
+            .collect::<Vec<_>>()
+            .join(", "),
+        count.min(two_hands::MAX_THROWS)
+    );
+    let two = two_hands::measure(&chosen, count, workers, &|line| {
+        eprintln!("hands: two hands: {line}")
+    })?;
     eprintln!("hands: traces under {}", b.traces_dir.display());
     let traces = traces::measure(&b.traces_dir, &mut |line| {
         eprintln!("hands: traces: {line}")
@@ -1292,11 +1324,13 @@ pub fn run(b: &HandsBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
     let seconds = started.elapsed().as_secs_f64();
     let levels: Vec<Level> = chosen.iter().map(|(_, l)| l.clone()).collect();
     let json_path = b.out_dir.join("hands.json");
-    let text = serde_json::to_string_pretty(&to_json(&rows, &levels, &traces, count, seconds))?;
+    let text =
+        serde_json::to_string_pretty(&to_json(&rows, &two, &levels, &traces, count, seconds))?;
     std::fs::write(&json_path, text).map_err(|e| format!("{}: {e}", json_path.display()))?;
     let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
     let md = markdown(
         &rows,
+        &two,
         &levels,
         &traces,
         &b.traces_dir,
@@ -1313,7 +1347,7 @@ pub fn run(b: &HandsBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
             png.display()
         );
     }
-    for g in goals(&rows) {
+    for g in goals(&rows, &two) {
         println!(
             "hands: {}: {} ({})",
             g.goal,
@@ -1350,8 +1384,10 @@ mod tests {
         let rows = measure_throws(&chosen, 3, 2, &|_| {}).expect("rows");
         assert_eq!(rows.len(), 2 * Estimator::ALL.len());
         let levels: Vec<Level> = chosen.iter().map(|(_, l)| l.clone()).collect();
-        let v = to_json(&rows, &levels, &Ok(Vec::new()), 3, 0.0);
-        for key in ["throws", "traces", "levels", "goals"] {
+        let two = two_hands::measure(&chosen, 2, 2, &|_| {}).expect("two hands");
+        assert_eq!(two.len(), 2 * 2 * 2);
+        let v = to_json(&rows, &two, &levels, &Ok(Vec::new()), 3, 0.0);
+        for key in ["throws", "traces", "levels", "goals", "two_hands"] {
             assert!(v.get(key).is_some(), "{key}");
         }
         let row = &v["throws"][0];
@@ -1385,8 +1421,23 @@ mod tests {
             .find(|r| r.level == "ideal" && r.estimator == Estimator::Paper)
             .expect("ideal paper");
         assert_eq!((ideal.missed_grasps, ideal.scored), (0, 3));
+        let two_row = &v["two_hands"][0];
+        for key in [
+            "level",
+            "kind",
+            "rules",
+            "throws",
+            "speed_error_pct",
+            "direction_error_deg",
+            "false_drops",
+            "slingshots",
+            "kept_by_the_other",
+        ] {
+            assert!(two_row.get(key).is_some(), "{key}: {two_row}");
+        }
         let md = markdown(
             &rows,
+            &two,
             &levels,
             &Err("no folder".into()),
             Path::new("nowhere"),
@@ -1400,7 +1451,8 @@ mod tests {
             },
             0.0,
         );
-        assert!(md.contains("### quest") && md.contains("not measured"));
+        assert!(md.contains("### quest") && md.contains("Not measured: no folder"));
+        assert!(md.contains("## Two hands") && md.contains("| quest | left first | tracked |"));
         assert!(md.contains("## Where the error comes from"));
         assert!(md.contains("by release speed: quest") && md.contains("by release speed: ideal"));
         // The by-speed bins partition each row's throws and its scored throws.
@@ -1429,7 +1481,12 @@ mod tests {
             .map(|a| a.iter().map(|r| &r["kind"]).collect())
             .unwrap_or_default();
         assert_eq!(kinds.iter().filter(|k| **k == "bound").count(), 4);
-        assert!(goals(&rows).iter().all(|g| !g.figures.contains("oracle")));
+        assert!(goals(&rows, &two)
+            .iter()
+            .all(|g| !g.figures.contains("oracle")));
+        assert!(goals(&rows, &two)
+            .iter()
+            .any(|g| g.goal.contains("slingshots") && g.met.is_some()));
     }
 
     #[test]

@@ -56,6 +56,24 @@ const HOLD_HALF: f64 = CUBE / 2.0 - GRIP_DEPTH;
 /// The check points along each finger (wrist frame y, knuckle to tip) and each finger's z.
 const POINT_Y: [f64; 3] = [-0.06, -0.08, -0.10];
 const FINGER_Z: [f64; 3] = [0.0, -0.012, 0.012];
+/// The left hand's check points along each finger, knuckle to tip: how much farther from G
+/// than the tip along the grip axis (wrist frame y). Its fingertips press on the cube's y
+/// faces, each finger square to its face: a finger lying along a face (points spread along x
+/// or z) with its end points within 1 cm of the side faces is one that R1's contact of a
+/// point inside the block (its nearest face) reads as touching two opposite side faces once
+/// the cube sits a centimetre off in the grip (as it does: R8 lifts the cube out of the floor
+/// every time a noisy wrist presses it in, before the lift), and R3 / T1 then never let go.
+pub const LEFT_POINT_OUT: [f64; 3] = [0.04, 0.02, 0.0];
+/// How far the left's fingers are held off along the wrist frame's +z until they slide in
+/// (clear of the cube: FINGER_Z within 1.2 cm, the cube's half 3 cm).
+const LEFT_SLIDE: f64 = 0.07;
+/// The left joins the right's grasp during the lift: its open fingers slide in along z from
+/// LEFT_SLIDE_START to LEFT_CLOSE_START (the cube then 5 cm up or more, so that no left
+/// fingertip is ever below its bottom face on the floor), then close over LEFT_CLOSE_END -
+/// LEFT_CLOSE_START, as long as the right's closing.
+pub const LEFT_SLIDE_START: f64 = 0.65;
+pub const LEFT_CLOSE_START: f64 = 0.75;
+pub const LEFT_CLOSE_END: f64 = LEFT_CLOSE_START + 0.12;
 /// The script's phases (s): the hand comes down over the cube until DESCEND_END, closes
 /// until CLOSE_END, holds, lifts from LIFT_START to the ready point at WINDUP_START.
 const DESCEND_END: f64 = 0.3;
@@ -263,25 +281,53 @@ impl Throw {
         }
     }
 
-    /// Half the grip's aperture (thumb and fingers from G along the grip axis) at time t.
-    fn half_aperture(&self, t: f64) -> f64 {
-        if t < DESCEND_END {
+    /// G's true speed (m/s) at time t: the script's path differentiated (central, 10 us).
+    pub fn g_speed(&self, t: f64) -> f64 {
+        let h = 1e-5;
+        (self.pose(t + h).0 - self.pose((t - h).max(0.0)).0).length() / (t + h - (t - h).max(0.0))
+    }
+
+    /// Half the grip's aperture (thumb and fingers from G along the grip axis) at time t: the
+    /// fingers closing over [`close.0`, `close.1`) (the right's: DESCEND_END to CLOSE_END) and
+    /// opening from `open_at` (the one-hand throw's: t_r).
+    fn half_aperture(&self, t: f64, close: (f64, f64), open_at: f64) -> f64 {
+        let (from, to) = close;
+        if t < from {
             OPEN_HALF
-        } else if t < CLOSE_END {
-            OPEN_HALF
-                + (HOLD_HALF - OPEN_HALF) * minjerk((t - DESCEND_END) / (CLOSE_END - DESCEND_END))
-        } else if t < self.t_r {
+        } else if t < to {
+            OPEN_HALF + (HOLD_HALF - OPEN_HALF) * minjerk((t - from) / (to - from))
+        } else if t < open_at {
             HOLD_HALF
         } else {
-            HOLD_HALF + self.open * minjerk((t - self.t_r) / OPEN_TIME)
+            HOLD_HALF + self.open * minjerk((t - open_at) / OPEN_TIME)
         }
     }
 
-    /// The ideal hand at time t (tracked, stamped 0).
+    /// The ideal hand at time t (tracked, stamped 0): the right hand of the one-hand throw,
+    /// opening at t_r.
     pub fn hand(&self, t: f64) -> HandSample {
+        self.hand_of(Side::Right, t, self.t_r)
+    }
+
+    /// The ideal hand on `side` at time t, its fingers opening from `open_at` (t_r: the
+    /// throw's). Both have the same wrist. The right pinches across the wrist frame's x
+    /// faces ([`Throw::hand`]); the left across its y faces: its thumb on the +y face (toward
+    /// the wrist), index and middle on the -y face, each finger square to its face (its
+    /// points [`LEFT_POINT_OUT`] out from the tip, at x = 0 and the fingers' z [`FINGER_Z`]),
+    /// the tips GRIP_DEPTH inside the faces when held; the same opening. The
+    /// right picks the cube up; the left joins during the lift: its open fingers, held
+    /// [`LEFT_SLIDE`] off along the wrist's +z until then, slide in from [`LEFT_SLIDE_START`]
+    /// and close from [`LEFT_CLOSE_START`] to [`LEFT_CLOSE_END`] (as long as the right's
+    /// closing): a hand cannot get a finger under a cube on the floor, and one pushing it up
+    /// from below would throw it into the other fingers.
+    pub fn hand_of(&self, side: Side, t: f64, open_at: f64) -> HandSample {
         let (g, rot) = self.pose(t);
         let wrist = g - rot * G_LOCAL;
-        let half = self.half_aperture(t);
+        let close = match side {
+            Side::Right => (DESCEND_END, CLOSE_END),
+            Side::Left => (LEFT_CLOSE_START, LEFT_CLOSE_END),
+        };
+        let half = self.half_aperture(t, close, open_at);
         let mut h = HandSample {
             stamp: Stamp::default(),
             wrist: Pose {
@@ -293,16 +339,35 @@ impl Throw {
             palm_vertex_count: 0,
             ..HandSample::default()
         };
+        let slide = if t < LEFT_SLIDE_START {
+            LEFT_SLIDE
+        } else {
+            LEFT_SLIDE
+                * (1.0 - minjerk((t - LEFT_SLIDE_START) / (LEFT_CLOSE_START - LEFT_SLIDE_START)))
+        };
         for (f, z) in FINGER_Z.iter().enumerate() {
-            let x = if f == 0 { half } else { -half };
+            let side_sign = if f == 0 { 1.0 } else { -1.0 };
+            let x = side_sign * half;
             h.finger_point_count[f] = POINT_Y.len() as u32;
             for (j, y) in POINT_Y.iter().enumerate() {
-                let local = G_LOCAL + DVec3::new(x, y - G_LOCAL.y, *z);
+                let local = match side {
+                    Side::Right => G_LOCAL + DVec3::new(x, y - G_LOCAL.y, *z),
+                    Side::Left => {
+                        G_LOCAL + DVec3::new(0.0, x + side_sign * LEFT_POINT_OUT[j], z + slide)
+                    }
+                };
                 h.finger_points[f][j] = (wrist + rot * local).to_array();
             }
         }
         h
     }
+}
+
+/// Which hand: slot 0 of a two-hand world is the right, slot 1 the left.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    Right,
+    Left,
 }
 
 /// Tracking gaps of a level.
@@ -513,7 +578,24 @@ pub fn place_gaps(g: &Gaps, throw: &Throw, latency: f64, rng: &mut Rng) -> Vec<(
 
 /// The throw's samples as `level` delivers them; `seed` and the level's index make the draw.
 pub fn degrade(throw: &Throw, level: &Level, level_index: usize, seed: u64) -> Vec<HandSample> {
-    let mut rng = Rng::seeded(&[seed, level_index as u64, throw.index as u64, 0xde9]);
+    degrade_hand(throw, level, level_index, seed, None, |t| throw.hand(t))
+}
+
+/// [`degrade`] for any ideal hand of the throw, `hand(t)`: the samples as `level` delivers
+/// them, on its time grid. `salt` None draws exactly as [`degrade`]; `Some(s)` mixes `s` into
+/// the seed, so that each hand of a pair gets its own noise, gaps and latency jitter.
+pub fn degrade_hand(
+    throw: &Throw,
+    level: &Level,
+    level_index: usize,
+    seed: u64,
+    salt: Option<u64>,
+    hand: impl Fn(f64) -> HandSample,
+) -> Vec<HandSample> {
+    let mut rng = match salt {
+        None => Rng::seeded(&[seed, level_index as u64, throw.index as u64, 0xde9]),
+        Some(s) => Rng::seeded(&[seed, level_index as u64, throw.index as u64, 0xde9, s]),
+    };
     let gaps = level
         .gaps
         .as_ref()
@@ -541,7 +623,7 @@ pub fn degrade(throw: &Throw, level: &Level, level_index: usize, seed: u64) -> V
                 } else {
                     t
                 };
-                let mut h = throw.hand(pose_t);
+                let mut h = hand(pose_t);
                 if level.noise > 0.0 {
                     let w = DVec3::from_array(h.wrist.position) + rng.normal3(level.noise);
                     h.wrist.position = w.to_array();

@@ -58,7 +58,7 @@ pub fn encode_slice<H: Stamped, E: Copy>(
     out: &mut Vec<u8>,
 ) {
     // SAFETY: as in `encode_sample`: #[repr(C)] plain data without implicit padding
-    // (BlockState's `_reserved` fills its gap), so every byte is initialised.
+    // (BlockState's `held_by` fills what would be its gap), so every byte is initialised.
     let head =
         unsafe { std::slice::from_raw_parts(header as *const H as *const u8, size_of::<H>()) };
     let body = unsafe {
@@ -85,6 +85,27 @@ impl fmt::Display for MessageError {
 
 impl std::error::Error for MessageError {}
 
+/// A `hand` message with its CDR header, as today's samples are.
+pub(crate) const WIDENED: usize = CDR_LE_HEADER.len() + size_of::<common::HandSample>();
+
+/// A hand recorded or sent before hands had a `side` (`HandSample::LEGACY_SIZE` bytes) is a
+/// prefix of today's: copied into `buf`, the rest zero, it reads as the right hand. Any other
+/// message is itself.
+pub(crate) fn widen_legacy_hand<'a>(
+    topic: Topic,
+    data: &'a [u8],
+    buf: &'a mut [u8; WIDENED],
+) -> &'a [u8] {
+    if topic == Topic::Hand && data.len() == CDR_LE_HEADER.len() + common::HandSample::LEGACY_SIZE {
+        let (kept, added) = buf.split_at_mut(data.len());
+        kept.copy_from_slice(data);
+        added.fill(0);
+        &buf[..]
+    } else {
+        data
+    }
+}
+
 /// The sample of a fixed-size topic's message (`encode_sample`'s inverse): the length must be
 /// the CDR header and exactly the sample, and its count fields within its arrays
 /// ([`Counted`]: a `finger_point_count` of 6 would index past a finger's 5 points in every
@@ -94,6 +115,10 @@ pub fn decode_sample<T: Stamped + Counted>(
     topic: Topic,
     message: &[u8],
 ) -> Result<T, MessageError> {
+    // A hand from a peer of before two hands reads as the right hand (on the stack: no
+    // allocation per sample).
+    let mut widened = [0u8; WIDENED];
+    let message = widen_legacy_hand(topic, message, &mut widened);
     let want = CDR_LE_HEADER.len() + size_of::<T>();
     if topic.element_size().is_some() || size_of::<T>() != topic.sample_size() {
         return Err(MessageError(format!(

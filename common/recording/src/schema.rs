@@ -59,7 +59,7 @@ pub fn fields(struct_name: &str) -> Option<Vec<Field>> {
         "handblocks/BlockState" => fields!(BlockState {
             pose: "handblocks/Pose",
             mode: "uint32",
-            _reserved: "uint32",
+            held_by: "uint32",
         }),
         "handblocks/msg/GloveSample" => fields!(GloveSample {
             stamp: "handblocks/Stamp",
@@ -238,6 +238,6 @@ mod tests {
         assert!(text.contains("MSG: handblocks/BlockState"));
         assert!(text.contains("MSG: handblocks/Pose"));
         assert!(text.contains("MSG: handblocks/Stamp"));
-        assert!(text.contains("uint32 reserved"));
+        assert!(text.contains("uint32 held_by"));
     }
 }

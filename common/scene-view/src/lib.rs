@@ -1,6 +1,9 @@
 //! The session's scene as Foxglove's 3D panel draws it: a `foxglove.SceneUpdate` of the floor,
 //! each block (its own shape, its own colour, and a label naming it and its mode) and the hand
-//! (a line per finger, knuckle to tip, and the palm's hull).
+//! (a line per finger, knuckle to tip, and the palm's hull). A two-hand session's left hand
+//! (`HandSample::side` 1) is an entity of its own, [`LEFT_HAND_ID`], after the right hand's
+//! ([`HAND_ID`]); it exists from the first left hand on, so a one-hand session's update is
+//! what it was before there were two hands.
 //!
 //! One implementation serves the live view (the bridge sends it on `/scene`) and recordings
 //! (the recorder writes it on the same `/scene` channel), so a recording opens in the 3D panel
@@ -22,7 +25,7 @@ use std::fmt::Write as _;
 
 use common::config::scene::ShapeSpec;
 use common::config::Scene;
-use common::samples::{BlockMode, BlockState, HandSample};
+use common::samples::{BlockMode, BlockState, HandSample, HandSide};
 use foxglove::schemas::{
     Color, CubePrimitive, LinePrimitive, Point3, Pose, Quaternion, SceneEntity, SceneUpdate,
     TextPrimitive, TriangleListPrimitive, Vector3,
@@ -34,6 +37,10 @@ use glam::{DQuat, DVec3};
 pub const CHANNEL: &str = "/scene";
 /// The frame every entity is in: z-up (see the module's doc).
 pub const FRAME_ID: &str = "world";
+/// The hand's entity: the right hand, or a one-hand session's only hand.
+pub const HAND_ID: &str = "hand";
+/// A two-hand session's left hand's entity.
+pub const LEFT_HAND_ID: &str = "hand-left";
 
 /// A handblocks (y-up) point in Foxglove's z-up frame: `(x, y, z)` -> `(x, -z, y)`.
 pub fn z_up(p: [f64; 3]) -> [f64; 3] {
@@ -83,10 +90,36 @@ pub struct SceneView {
     /// The newest hand, drawn (its hull built) only with the next world: hands come at the
     /// source's rate, scenes go out at a fraction of it, or not at all.
     hand: Option<HandSample>,
+    /// A two-hand session's newest left hand, drawn as `hand` is.
+    left: Option<HandSample>,
 }
 
-/// Entity 0 is the floor, 1..=n the blocks, n + 1 the hand; the hand has a line per finger.
+/// Entity 0 is the floor, 1..=n the blocks, n + 1 the hand, n + 2 the left hand (once there is
+/// one); a hand has a line per finger.
 const FINGERS: usize = 5;
+
+/// A hand's entity, empty: a line strip per finger and the palm's triangles.
+fn hand_entity(id: &str) -> SceneEntity {
+    let mut hand = entity(id);
+    let skin = rgba([0.93, 0.76, 0.62], 0.9);
+    for _ in 0..FINGERS {
+        hand.lines.push(LinePrimitive {
+            r#type: 0, // a line strip, knuckle to tip
+            pose: Some(identity()),
+            thickness: 0.0,
+            scale_invariant: false,
+            points: Vec::new(),
+            color: skin,
+            ..Default::default()
+        });
+    }
+    hand.triangles.push(TriangleListPrimitive {
+        pose: Some(identity()),
+        color: skin,
+        ..Default::default()
+    });
+    hand
+}
 
 fn point(p: [f64; 3]) -> Point3 {
     let [x, y, z] = z_up(p);
@@ -221,25 +254,7 @@ impl SceneView {
             entities.push(e);
             labels.push((b.name.clone(), above, None));
         }
-        let mut hand = entity("hand");
-        let skin = rgba([0.93, 0.76, 0.62], 0.9);
-        for _ in 0..FINGERS {
-            hand.lines.push(LinePrimitive {
-                r#type: 0, // a line strip, knuckle to tip
-                pose: Some(identity()),
-                thickness: 0.0,
-                scale_invariant: false,
-                points: Vec::new(),
-                color: skin,
-                ..Default::default()
-            });
-        }
-        hand.triangles.push(TriangleListPrimitive {
-            pose: Some(identity()),
-            color: skin,
-            ..Default::default()
-        });
-        entities.push(hand);
+        entities.push(hand_entity(HAND_ID));
         Ok(SceneView {
             update: SceneUpdate {
                 deletions: Vec::new(),
@@ -249,6 +264,7 @@ impl SceneView {
             palm_points: Vec::new(),
             palm_triangles: Vec::new(),
             hand: None,
+            left: None,
         })
     }
 
@@ -289,19 +305,32 @@ impl SceneView {
         for i in 0..count.min(self.labels.len()) {
             self.set_block(i, &block(i));
         }
+        let right = 1 + self.labels.len();
         if let Some(hand) = self.hand.take() {
-            self.draw_hand(&hand);
+            self.draw_hand(right, &hand);
+        }
+        if let Some(left) = self.left.take() {
+            if self.update.entities.len() == right + 1 {
+                // The first left hand: its entity, once (a one-hand session never has it).
+                self.update.entities.push(hand_entity(LEFT_HAND_ID));
+            }
+            self.draw_hand(right + 1, &left);
         }
     }
 
-    /// The newest hand: kept, and drawn with the next world ([`SceneView::set_world`]).
+    /// The newest hand of its side (`HandSample::side`: the left hand of a two-hand session,
+    /// else the right): kept, and drawn with the next world ([`SceneView::set_world`]).
     pub fn set_hand(&mut self, hand: &HandSample) {
-        self.hand = Some(*hand);
+        match HandSide::from_code(hand.side) {
+            HandSide::Left => self.left = Some(*hand),
+            HandSide::Right => self.hand = Some(*hand),
+        }
     }
 
-    /// The hand: a line strip per finger (as thick as the finger), the palm's hull.
-    fn draw_hand(&mut self, hand: &HandSample) {
-        let Some(e) = self.update.entities.last_mut() else {
+    /// The hand of entity `index`: a line strip per finger (as thick as the finger), the
+    /// palm's hull.
+    fn draw_hand(&mut self, index: usize, hand: &HandSample) {
+        let Some(e) = self.update.entities.get_mut(index) else {
             return;
         };
         let fingers = (hand.finger_count as usize).min(hand.finger_points.len());
@@ -350,6 +379,102 @@ impl SceneView {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn two_blocks() -> Scene {
+        let block = |name: &str, x: f64| common::config::scene::BlockSpec {
+            name: name.into(),
+            shape: ShapeSpec::Box { size: [0.05; 3] },
+            position: [x, 0.025, 0.0],
+            rotation: [0.0, 0.0, 0.0, 1.0],
+            velocity: [0.0; 3],
+        };
+        Scene {
+            file: "t.toml".into(),
+            world: Default::default(),
+            effects: Default::default(),
+            blocks: vec![block("red", 0.0), block("blue", 0.1)],
+            hand: None,
+        }
+    }
+
+    fn hand_at(x: f64, side: HandSide) -> HandSample {
+        let mut h = HandSample {
+            finger_count: 2,
+            palm_vertex_count: 4,
+            side: side.code(),
+            ..Default::default()
+        };
+        h.finger_point_count[..2].copy_from_slice(&[3, 3]);
+        h.finger_radius[..2].copy_from_slice(&[0.008, 0.008]);
+        for f in 0..2 {
+            for k in 0..3 {
+                h.finger_points[f][k] = [x + 0.02 * f as f64, 0.2, 0.03 * k as f64];
+            }
+        }
+        h.palm_vertices[..4].copy_from_slice(&[
+            [x, 0.2, -0.05],
+            [x + 0.06, 0.2, -0.05],
+            [x, 0.23, -0.05],
+            [x, 0.2, -0.09],
+        ]);
+        h
+    }
+
+    fn ids(v: &SceneView) -> Vec<&str> {
+        v.update().entities.iter().map(|e| e.id.as_str()).collect()
+    }
+
+    /// A left hand (side 1) is an entity of its own, after the right hand's, which it leaves
+    /// alone; a one-hand session never has it, and its update is a prefix of the two-hand one.
+    #[test]
+    fn a_left_hand_is_its_own_entity_and_one_hand_is_unchanged() {
+        let scene = two_blocks();
+        let block = |_: usize| BlockState {
+            pose: common::Pose::IDENTITY,
+            ..Default::default()
+        };
+        let right = hand_at(0.0, HandSide::Right);
+        let left = hand_at(-0.4, HandSide::Left);
+
+        let mut one = SceneView::new(&scene).expect("a view");
+        one.set_hand(&right);
+        one.set_world(2, block);
+        assert_eq!(ids(&one), ["floor", "red", "blue", HAND_ID]);
+        let mut one_bytes = Vec::new();
+        one.encode_into(&mut one_bytes);
+
+        let mut two = SceneView::new(&scene).expect("a view");
+        two.set_hand(&right);
+        two.set_hand(&left);
+        two.set_world(2, block);
+        assert_eq!(ids(&two), ["floor", "red", "blue", HAND_ID, LEFT_HAND_ID]);
+        let mut two_bytes = Vec::new();
+        two.encode_into(&mut two_bytes);
+        // The same entities first, the left hand's appended.
+        assert!(two_bytes.len() > one_bytes.len());
+        assert!(two_bytes.starts_with(&one_bytes));
+        assert_eq!(two.update().entities[..4], one.update().entities[..]);
+
+        let (r, l) = (&two.update().entities[3], &two.update().entities[4]);
+        assert_eq!(l.frame_id, FRAME_ID);
+        assert_eq!(l.lines.len(), FINGERS);
+        let x0 = |e: &SceneEntity| e.lines[0].points.first().map(|p| p.x);
+        assert_eq!(x0(r), Some(0.0));
+        assert_eq!(x0(l), Some(-0.4));
+        assert_eq!(l.lines[0].points.len(), 3);
+        assert!(l.lines[2].points.is_empty());
+        assert_eq!(l.triangles[0].points.len(), r.triangles[0].points.len());
+        assert!(!l.triangles[0].points.is_empty());
+
+        // The next left hand redraws its entity in place; a world without a new hand leaves
+        // both as they are; the entity is made once.
+        two.set_hand(&hand_at(-0.5, HandSide::Left));
+        two.set_world(2, block);
+        two.set_world(2, block);
+        assert_eq!(ids(&two).len(), 5);
+        assert_eq!(x0(&two.update().entities[4]), Some(-0.5));
+        assert_eq!(x0(&two.update().entities[3]), Some(0.0));
+    }
 
     #[test]
     fn z_up_puts_handblocks_up_on_foxgloves_z() {

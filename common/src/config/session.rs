@@ -147,8 +147,10 @@ pub struct WebxrSource {
     /// `certificate_dir`: where the certificate made on first use is kept for the next
     /// (default `$XDG_DATA_HOME/handblocks/webxr`, or `~/.local/share/handblocks/webxr`).
     pub certificate_dir: Option<PathBuf>,
-    /// `hand`: the hand that drives the model, `"right"` (default) or `"left"`.
-    pub left_hand: bool,
+    /// `hand`: the hands that drive the model: `"right"` (default) or `"left"`, published as
+    /// a one-hand source's only hand (side 0), or `"both"`, each frame's right then left hand
+    /// (docs/model.md "Two hands", docs/webxr.md).
+    pub hand: crate::HandsUsed,
     /// `offset`: moves the tracked hand, metres (a standing user's hands are ~1 m above the
     /// floor; the blocks of most scenes are on it).
     pub offset: [f64; 3],
@@ -508,6 +510,24 @@ impl Session {
             // Any scene can be launched: without a [hand] the hand rests out of the way.
             scene.hand = Some(hand_at_rest(&scene));
         }
+        let two_hands = match &source {
+            Source::Replay { hands, .. } => *hands == crate::HandsUsed::Both,
+            Source::Webxr(w) => w.hand == crate::HandsUsed::Both,
+            _ => false,
+        };
+        if two_hands && scene.world.model == super::scene::ModelKind::Precise {
+            let key = match &source {
+                Source::Webxr(_) => "source.hand",
+                _ => "source.hands",
+            };
+            return Err(ConfigError::new(
+                file,
+                key,
+                "\"both\": two hands are the paper model's (docs/model.md \"Two hands\"), and \
+                 the scene's [world] model is \"precise\", which takes one: give one hand \
+                 (\"right\" or \"left\") or --set scene.world.model=paper",
+            ));
+        }
         let renderer = renderer(r.table("renderer")?)?;
         let budget_reader = r.table("budget")?;
         let budget = budget(budget_reader)?;
@@ -769,7 +789,8 @@ fn webxr_source(r: &Reader, dir: &Path) -> Result<WebxrSource, ConfigError> {
         listen,
         tls,
         certificate_dir: r.string("certificate_dir")?.map(|d| dir.join(d)),
-        left_hand: r.choice("hand", &["right", "left"])? == "left",
+        hand: crate::HandsUsed::parse(r.choice("hand", &["right", "left", "both"])?)
+            .unwrap_or_default(),
         offset: r.array::<3>("offset", -1.0e5..=1.0e5)?.unwrap_or([0.0; 3]),
         token,
     })
@@ -1133,6 +1154,37 @@ mod tests {
         assert_eq!(e.file, f);
         assert_eq!(e.key, "budget.origin_to_photon_p99_ms");
         assert!(e.problem.contains("cannot be judged"), "{e}");
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
+    /// Two hands are the paper model's: a two-hand source over a precise scene is refused
+    /// before anything starts, naming the key (issue 41).
+    #[test]
+    fn two_hands_with_the_precise_model_are_refused_naming_the_key() {
+        let d = tmpdir("two-precise");
+        write(&d, "scene.toml", SCENE);
+        write(&d, "t.carl", "");
+        let f = write(
+            &d,
+            "s.toml",
+            "scene = \"scene.toml\"\n[source]\nkind = \"replay\"\nfile = \"t.carl\"\n\
+             hands = \"both\"\n",
+        );
+        let ok = Session::load(&f).unwrap();
+        assert!(matches!(
+            ok.source,
+            Source::Replay {
+                hands: crate::HandsUsed::Both,
+                ..
+            }
+        ));
+        let e = Session::load_with(&f, &[Override::parse("scene.world.model=precise").unwrap()])
+            .unwrap_err();
+        assert_eq!(
+            (e.file.as_path(), e.key.as_str()),
+            (f.as_path(), "source.hands")
+        );
+        assert!(e.problem.contains("paper model"), "{e}");
         std::fs::remove_dir_all(d).unwrap();
     }
 

@@ -11,8 +11,10 @@
 //! kind 5, ping (us -> page), 24 bytes: u32 seq; f64 the server's time (ms)
 //! kind 3, world (us -> page), 32 + 32 blocks + 12 points bytes: u32 the hands frame's seq this
 //!         world answers (u32::MAX: none of this page's); u32 blocks; f64 world time (s); i32
-//!         the grasped block (-1: none); u32 finger points; per block 8 f32 (position x y z,
-//!         orientation x y z w, mode); per finger point 3 f32
+//!         the grasped block (-1: none; the first grasped); u32 finger points; per block 7 f32
+//!         (position x y z, orientation x y z w), u16 its mode (`BlockMode`), u16 the hands
+//!         that hold it (`BlockState::held_by`: bit 0 the right hand or a one-hand session's
+//!         only hand, bit 1 the left; 0 when not grasped); per finger point 3 f32
 //! ```
 //! Statistics are bounded: a JavaScript time of 0 to 10 s, a round trip of -1 (none) or 0 to
 //! 60 s; clock times finite and non-negative.
@@ -35,6 +37,10 @@ pub const STATS_BYTES: usize = 32;
 pub const PING_BYTES: usize = 24;
 /// Bytes of a world message before its blocks.
 pub const WORLD_HEADER_BYTES: usize = 32;
+/// Bytes of one block in a world message.
+pub const WORLD_BLOCK_BYTES: usize = 32;
+/// Bytes of one finger point in a world message.
+pub const WORLD_POINT_BYTES: usize = 12;
 /// `page_seq` of a world that answers none of the page's frames.
 pub const NO_FRAME: u32 = u32::MAX;
 
@@ -166,7 +172,8 @@ pub fn encode_pong(pong: &Pong, out: &mut Vec<u8>) {
 
 /// A world message (kind 3) of `world` into `out` (cleared first, then grown once to its
 /// size: a kept buffer of the scene's size is written without allocating): its blocks'
-/// positions, orientations and modes, the grasped block, and the finger points as drawn.
+/// positions, orientations, modes and the hands that hold them, the grasped block, and the
+/// finger points as drawn.
 pub fn encode_world(page_seq: u32, world_time_s: f64, world: &WorldView<'_>, out: &mut Vec<u8>) {
     let blocks = world.blocks();
     let fingers = (world.finger_count as usize).min(MAX_FINGERS);
@@ -180,7 +187,8 @@ pub fn encode_world(page_seq: u32, world_time_s: f64, world: &WorldView<'_>, out
         for v in b.pose.position.into_iter().chain(b.pose.rotation) {
             out.extend_from_slice(&(v as f32).to_le_bytes());
         }
-        out.extend_from_slice(&(b.mode as f32).to_le_bytes());
+        out.extend_from_slice(&(b.mode.min(u32::from(u16::MAX)) as u16).to_le_bytes());
+        out.extend_from_slice(&((b.held_by & 0xFFFF) as u16).to_le_bytes());
     }
     for f in 0..fingers {
         for p in &world.finger_points[f][..points_of(f)] {
@@ -244,14 +252,16 @@ mod tests {
     #[test]
     fn a_world_message_is_sized_by_its_header() {
         let mut b = Vec::new();
-        let blocks = [common::BlockState {
+        let mut blocks = [common::BlockState {
             pose: common::Pose {
                 position: [1.0, 2.0, 3.0],
                 rotation: [0.0, 0.0, 0.0, 1.0],
             },
             mode: 4,
-            _reserved: 0,
+            held_by: 0,
         }; 2];
+        blocks[1].mode = common::BlockMode::Grasped as u32;
+        blocks[1].held_by = 0b10;
         let mut header = common::WorldHeader {
             block_count: 2,
             grasped_block: 1,
@@ -264,11 +274,23 @@ mod tests {
             blocks: &blocks,
         };
         encode_world(7, 1.25, &world, &mut b);
-        assert_eq!(b.len(), WORLD_HEADER_BYTES + 2 * 32 + 3 * 12);
+        assert_eq!(
+            b.len(),
+            WORLD_HEADER_BYTES + 2 * WORLD_BLOCK_BYTES + 3 * WORLD_POINT_BYTES
+        );
         assert_eq!(kind_of(&b), Ok(KIND_WORLD));
         assert_eq!(u32_at(&b, 8), 7);
         assert_eq!(u32_at(&b, 12), 2);
         assert_eq!(f64_at(&b, 16), 1.25);
+        // Each block's mode and holders after its pose: the second held by the left hand.
+        let block = |i: usize, at: usize| WORLD_HEADER_BYTES + i * WORLD_BLOCK_BYTES + at;
+        assert_eq!(
+            f32::from_le_bytes(b[block(0, 0)..block(0, 4)].try_into().unwrap()),
+            1.0
+        );
+        assert_eq!(b[block(0, 28)..block(0, 32)], [4, 0, 0, 0]);
+        let grasped = common::BlockMode::Grasped as u8;
+        assert_eq!(b[block(1, 28)..block(1, 32)], [grasped, 0, 2, 0]);
         let cap = b.capacity();
         encode_world(8, 1.5, &world, &mut b);
         assert_eq!(b.capacity(), cap, "a kept buffer is not grown again");

@@ -49,7 +49,7 @@ fn decoding_mapping_and_writing_worlds_allocate_nothing() {
             rotation: [0.0, 0.0, 0.0, 1.0],
         },
         mode: 1,
-        _reserved: 0,
+        held_by: 0,
     }; 16];
     let mut header = common::WorldHeader {
         block_count: 16,

@@ -797,11 +797,13 @@ fn apply_hand_record(kind: u8, index: u16, value: f64, lost: bool, hand: &mut Op
 /// `stepper_hand` (issue 28): the stepper driven by hand samples with arbitrary values, as a
 /// trace, a recording, a device or a remote peer could send them. Byte 0 picks the model (bit
 /// 0: paper or precise), the scene (bit 1: push or grasp-throw-fingers), the paper model's hand
-/// rules (bit 2: docs/model.md's tracked hands, T1-T3) and what a "no hand" record means (bit
-/// 3: the hand marked untracked rather than absent); the rest is records
-/// of [`STEPPER_RECORD`] bytes: the step (mod [`STEPPER_STEPS`]), what to set
-/// ([`apply_hand_record`]), which, and the value. Each step's sample is the scene's scripted
-/// hand with that step's records applied. Promises: every step ends within
+/// rules (bit 2: docs/model.md's tracked hands, T1-T3), what a "no hand" record means (bit
+/// 3: the hand marked untracked rather than absent) and, for the paper model, a second hand
+/// (bit 4: docs/model.md "Two hands": the scripted hand 1 cm over, in slot 1, so that both
+/// hands meet the same block); the rest is records of [`STEPPER_RECORD`] bytes: the step (mod
+/// [`STEPPER_STEPS`]), what to set ([`apply_hand_record`]; bit 3 of the kind: on the second
+/// hand), which, and the value. Each step's samples are the scene's scripted hand with that
+/// step's records applied. Promises: every step ends within
 /// [`STEPPER_STEP_BOUND`] (a coordinate of 1e20 once hung it), the world counts exactly the
 /// samples `hand::unusable_because` refuses, and every block's pose stays finite.
 pub fn stepper_hand(data: &[u8]) {
@@ -820,15 +822,33 @@ pub fn stepper_hand(data: &[u8]) {
         scene.world.hands = common::config::scene::HandRules::Tracked;
     }
     let lost = pick & 8 != 0;
+    let two = pick & 16 != 0 && scene.world.model == ModelKind::Paper;
     let mut model = Model::new(&scene).unwrap_or_else(|e| panic!("{e}"));
     let Some(mut script) = BareFingersHand::from_scene(&scene) else {
         panic!("{}: a scene with a scripted hand", scene.file.display());
     };
     let dt = 1.0 / scene.world.step_hz;
-    model.set_previous_hand(script.hand_at(0, 0.0).as_ref());
+    // The second hand: the scripted one 1 cm along x (every point and the wrist).
+    let beside = |h: Option<HandSample>| {
+        h.filter(|_| two).map(|mut h| {
+            for p in h.finger_points.iter_mut().flatten() {
+                p[0] += 0.01;
+            }
+            for p in h.palm_vertices.iter_mut() {
+                p[0] += 0.01;
+            }
+            h.wrist.position[0] += 0.01;
+            h.side = common::HandSide::Left.code();
+            h
+        })
+    };
+    let first = script.hand_at(0, 0.0);
+    model.set_previous_hand(first.as_ref());
+    model.set_previous_hand_of(1, beside(first).as_ref());
     let mut refused = 0u64;
     for n in 1..=STEPPER_STEPS {
         let mut hand = script.hand_at(n, n as f64 * dt);
+        let mut second = beside(hand);
         for r in records.chunks_exact(STEPPER_RECORD) {
             if u64::from(r[0]) % STEPPER_STEPS == n - 1 {
                 let value = f64::from_le_bytes(r[4..12].try_into().expect("8 bytes"));
@@ -837,13 +857,20 @@ pub fn stepper_hand(data: &[u8]) {
                     u16::from_le_bytes([r[2], r[3]]),
                     value,
                     lost,
-                    &mut hand,
+                    if r[1] & 8 != 0 {
+                        &mut second
+                    } else {
+                        &mut hand
+                    },
                 );
             }
         }
-        refused += u64::from(hand.as_ref().is_some_and(|h| !stepper::hand::is_usable(h)));
+        refused += [&hand, &second]
+            .iter()
+            .filter(|h| h.as_ref().is_some_and(|h| !stepper::hand::is_usable(h)))
+            .count() as u64;
         let t0 = std::time::Instant::now();
-        model.step(hand.as_ref());
+        model.step_hands([hand.as_ref(), second.as_ref()]);
         let took = t0.elapsed();
         assert!(
             took < STEPPER_STEP_BOUND,

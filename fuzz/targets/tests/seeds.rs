@@ -196,7 +196,7 @@ fn unsafe_zeroed_hand() -> HandSample {
 
 /// The `stepper_hand` seeds and the inputs of issue 28 that once hung the stepper (byte 0:
 /// bit 0 the precise model, bit 1 the grasp scene, bit 2 tracked hand rules, bit 3 "no hand"
-/// records mark the hand lost; then records of step, kind, index, value:
+/// records mark the hand lost, bit 4 a second hand; then records of step, kind, index, value:
 /// `fuzz_targets::stepper_hand`).
 #[test]
 #[ignore = "writes fuzz/corpus/stepper_hand: run it by hand to regenerate those inputs"]
@@ -223,6 +223,29 @@ fn write_stepper_hand_seeds() {
                 record(45, 1, 1, f64::NAN),
                 record(50, 0, 7, 1e9),
                 record(55, 7, 0, 0.0),
+            ],
+        ),
+    );
+    // Issue 41, two hands (bit 4; kind bit 3 puts a record on the second hand): both grasp
+    // the thrown block, the second is lost for a while (tracked rules), then turns its wrist
+    // half over and disappears while the first still holds; and under the paper's rules the
+    // second's check points jump through the block.
+    let mut two: Vec<Vec<u8>> = (30..40).map(|s| record(s, 8 | 7, 0, 0.0)).collect();
+    two.extend([record(42, 8 | 1, 3, 0.7), record(44, 8 | 7, 0, 0.0)]);
+    put(
+        h,
+        "seed-two-hands-tracked-lost",
+        &input(16 | 8 | 4 | 2, &two),
+    );
+    put(
+        h,
+        "seed-two-hands-paper-jump",
+        &input(
+            16 | 2,
+            &[
+                record(20, 8, 0, 0.5),
+                record(21, 8, 4, -0.5),
+                record(22, 8 | 1, 0, 0.9),
             ],
         ),
     );

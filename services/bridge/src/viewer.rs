@@ -2,7 +2,8 @@
 //! which lets in clients of either subprotocol name) that serves the session's topics as they
 //! flow, with the very schemas, bytes and channel names a recording carries (`/world`, ... as
 //! `cdr` messages of `ros2msg` schemas, `recording::layout`), so a layout made on a recording
-//! shows the live session unchanged; plus `/scene`, the blocks, the floor and the hand as a
+//! shows the live session unchanged; plus `/scene`, the blocks, the floor and the hand (a
+//! two-hand session's left hand its own entity, `scene_view::LEFT_HAND_ID`) as a
 //! `foxglove.SceneUpdate` in Foxglove's z-up frame (`scene_view`), which recordings carry too.
 //!
 //! A topic's channel is declared when its first sample arrives, so a client is never offered a
@@ -172,11 +173,7 @@ impl Viewer {
     pub fn observe(&mut self, topic: Topic, message: &[u8], now_ns: u64) {
         self.log(topic, message);
         match topic {
-            Topic::Hand => {
-                if let Ok(hand) = recording::decode_sample::<HandSample>(topic, message) {
-                    self.view.set_hand(&hand);
-                }
-            }
+            Topic::Hand => scene_hand(&mut self.view, message),
             Topic::World => {
                 if !self.scene.has_sinks()
                     || now_ns.saturating_sub(self.last_scene_ns) < SCENE_PERIOD_NS
@@ -209,9 +206,60 @@ impl Viewer {
     }
 }
 
+/// A `hand` message (a recording's bytes) into the scene. Both hands of a two-hand session
+/// come here: the view keeps each side's newest (its `side`), the left hand drawn as an
+/// entity of its own (`scene_view::LEFT_HAND_ID`).
+fn scene_hand(view: &mut SceneView, message: &[u8]) {
+    if let Ok(hand) = recording::decode_sample::<HandSample>(Topic::Hand, message) {
+        view.set_hand(&hand);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A two-hand source's hand messages, the right then the left, make two hand entities;
+    /// a one-hand source's, one.
+    #[test]
+    fn a_left_hand_message_is_drawn_as_its_own_entity() {
+        let push = scene("push.toml");
+        let hand = |side: common::HandSide, x: f64| {
+            let mut h = HandSample {
+                finger_count: 1,
+                side: side.code(),
+                ..Default::default()
+            };
+            h.finger_point_count[0] = 2;
+            h.finger_points[0][..2].copy_from_slice(&[[x, 0.2, 0.0], [x, 0.2, 0.03]]);
+            let mut bytes = Vec::new();
+            recording::encode_sample(&h, &mut bytes);
+            bytes
+        };
+        let ids = |v: &SceneView| -> Vec<String> {
+            v.update().entities.iter().map(|e| e.id.clone()).collect()
+        };
+        let blocks = push.blocks.len();
+        let mut one = SceneView::new(&push).expect("a view");
+        scene_hand(&mut one, &hand(common::HandSide::Right, 0.0));
+        one.set_world(blocks, |_| BlockState::default());
+        let mut two = SceneView::new(&push).expect("a view");
+        scene_hand(&mut two, &hand(common::HandSide::Right, 0.0));
+        scene_hand(&mut two, &hand(common::HandSide::Left, -0.3));
+        two.set_world(blocks, |_| BlockState::default());
+        let (one_ids, two_ids) = (ids(&one), ids(&two));
+        assert_eq!(
+            one_ids.last().map(String::as_str),
+            Some(scene_view::HAND_ID)
+        );
+        assert_eq!(two_ids[..one_ids.len()], one_ids[..]);
+        assert_eq!(
+            two_ids[one_ids.len()..],
+            [scene_view::LEFT_HAND_ID.to_string()]
+        );
+        let left = &two.update().entities[one_ids.len()];
+        assert_eq!(left.lines[0].points.first().map(|p| p.x), Some(-0.3));
+    }
 
     fn scene(name: &str) -> Scene {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes");

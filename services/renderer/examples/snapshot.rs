@@ -148,7 +148,7 @@ fn demo() -> (Scene, WorldSample, HandSample) {
                 rotation: q.map(|v| v / n),
             },
             mode: m as u32,
-            _reserved: 0,
+            held_by: 0,
         };
     }
     // Four fingers curling down over the block's near face (towards the viewer), the thumb

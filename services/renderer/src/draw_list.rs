@@ -5,6 +5,11 @@
 //! have contiguous instances and one draw call, so a frame's draw calls grow with the shapes
 //! of a scene, not its blocks.
 //!
+//! A two-hand session's left hand (`HandSample::side` 1) is drawn beside the right from its
+//! own sample, as tracked: the world's drawn finger points (relocated onto a grasped block)
+//! are the right hand's. Its joints, segments and palm join the right hand's ranges (the
+//! same draws), so a one-hand frame's list is what it was before there were two.
+//!
 //! Anything non-finite in a sample (a NaN pose from a device or a bug upstream) skips that
 //! block, finger segment or palm for the frame instead of drawing garbage or failing.
 
@@ -99,16 +104,20 @@ pub const SKIN: [f32; 3] = [0.85, 0.60, 0.45];
 /// Radius used when a hand sample gives none (bare check-point hands).
 pub const DEFAULT_FINGER_RADIUS: f64 = 0.008;
 
+/// The hands a frame draws at most: the right (or a one-hand session's only hand) and the left.
+pub const HANDS: usize = 2;
 const SEGMENTS: usize = MAX_FINGERS * (MAX_FINGER_POINTS - 1);
 const JOINTS: usize = MAX_FINGERS * MAX_FINGER_POINTS;
-/// Instance slots for a scene of `blocks` blocks: floor, palm, blocks, finger segments, finger
-/// joints.
+/// Instance slots for a scene of `blocks` blocks: floor, palm, blocks, finger segments and
+/// finger joints of both hands.
 pub const fn instance_capacity(blocks: usize) -> usize {
-    2 + blocks + SEGMENTS + JOINTS
+    2 + blocks + HANDS * (SEGMENTS + JOINTS)
 }
-/// The palm's hull: at most one triangle per point triple.
-pub const PALM_VERTEX_CAPACITY: usize =
+/// One palm's hull: at most one triangle per point triple.
+const HAND_PALM_VERTICES: usize =
     3 * MAX_PALM_VERTICES * (MAX_PALM_VERTICES - 1) * (MAX_PALM_VERTICES - 2) / 6;
+/// Both palms' hulls.
+pub const PALM_VERTEX_CAPACITY: usize = HANDS * HAND_PALM_VERTICES;
 
 const FLOOR_INSTANCE: u32 = 0;
 const PALM_INSTANCE: u32 = 1;
@@ -178,8 +187,8 @@ impl DrawList {
             palm_instance: PALM_INSTANCE,
             palm_vertices: Vec::with_capacity(PALM_VERTEX_CAPACITY),
             palm_points: Vec::with_capacity(MAX_PALM_VERTICES),
-            palm_tris: Vec::with_capacity(PALM_VERTEX_CAPACITY / 3),
-            segment_scratch: Vec::with_capacity(SEGMENTS),
+            palm_tris: Vec::with_capacity(HAND_PALM_VERTICES / 3),
+            segment_scratch: Vec::with_capacity(HANDS * SEGMENTS),
         }
     }
 }
@@ -221,6 +230,20 @@ impl DrawList {
         &mut self,
         world: WorldView<'_>,
         hand: &HandSample,
+        in_static_layer: &[bool],
+        draw_static: bool,
+    ) {
+        self.build_hands(world, hand, None, in_static_layer, draw_static);
+    }
+
+    /// [`Self::build_layered`] with a two-hand session's `left` hand too, drawn from its own
+    /// sample (its check points as tracked). `None`: the one hand, exactly as
+    /// [`Self::build_layered`] draws it.
+    pub fn build_hands(
+        &mut self,
+        world: WorldView<'_>,
+        hand: &HandSample,
+        left: Option<&HandSample>,
         in_static_layer: &[bool],
         draw_static: bool,
     ) {
@@ -290,51 +313,81 @@ impl DrawList {
         let (count, counts, points) = drawn_fingers(world.header, hand);
         self.segment_scratch.clear();
         let joints_start = self.instances.len() as u32;
-        for f in 0..(count as usize).min(MAX_FINGERS) {
-            let r = hand.finger_radius[f];
-            let r = if r.is_finite() && r > 0.0 && r < 0.1 {
-                r
-            } else {
-                DEFAULT_FINGER_RADIUS
-            };
-            let n = (counts[f] as usize).min(MAX_FINGER_POINTS);
-            let pts = &points[f][..n];
-            for (k, p) in pts.iter().enumerate() {
-                let Some(a) = finite3(p) else { continue };
-                let joint = Mat4::from_scale_rotation_translation(
-                    Vec3::splat(r as f32),
-                    glam::Quat::IDENTITY,
-                    a.as_vec3(),
-                );
-                self.instances.push(instance(joint, SKIN, 0.0));
-                let Some(b) = pts.get(k + 1).and_then(finite3) else {
-                    continue;
-                };
-                if let Some(m) = segment_matrix(a, b, r) {
-                    self.segment_scratch.push(instance(m, SKIN, 0.0));
-                }
-            }
+        push_fingers(
+            &mut self.instances,
+            &mut self.segment_scratch,
+            (count, counts, points),
+            &hand.finger_radius,
+        );
+        if let Some(left) = left {
+            push_fingers(
+                &mut self.instances,
+                &mut self.segment_scratch,
+                (
+                    left.finger_count,
+                    &left.finger_point_count,
+                    &left.finger_points,
+                ),
+                &left.finger_radius,
+            );
         }
         self.joints = joints_start..self.instances.len() as u32;
         let seg_start = self.instances.len() as u32;
         self.instances.extend_from_slice(&self.segment_scratch);
         self.segments = seg_start..self.instances.len() as u32;
 
-        self.palm_points.clear();
-        self.palm_points.extend(
-            hand.palm()
-                .iter()
-                .take(MAX_PALM_VERTICES)
-                .map(|p| DVec3::from_array(*p)),
-        );
-        hull_triangles_into(&self.palm_points, &mut self.palm_tris);
         self.palm_vertices.clear();
-        for t in &self.palm_tris {
-            for p in t {
-                self.palm_vertices.push(Vertex {
-                    position: p.as_vec3().to_array(),
-                    edge: [1.0; 4],
-                });
+        for h in std::iter::once(hand).chain(left) {
+            self.palm_points.clear();
+            self.palm_points.extend(
+                h.palm()
+                    .iter()
+                    .take(MAX_PALM_VERTICES)
+                    .map(|p| DVec3::from_array(*p)),
+            );
+            hull_triangles_into(&self.palm_points, &mut self.palm_tris);
+            for t in &self.palm_tris {
+                for p in t {
+                    self.palm_vertices.push(Vertex {
+                        position: p.as_vec3().to_array(),
+                        edge: [1.0; 4],
+                    });
+                }
+            }
+        }
+    }
+}
+
+/// One hand's fingers: a joint instance per finite check point into `instances`, a segment
+/// instance per pair of finite neighbours into `segments`.
+fn push_fingers(
+    instances: &mut Vec<Instance>,
+    segments: &mut Vec<Instance>,
+    (count, counts, points): (u32, &[u32; MAX_FINGERS], &FingerPoints),
+    radii: &[f64; MAX_FINGERS],
+) {
+    for f in 0..(count as usize).min(MAX_FINGERS) {
+        let r = radii[f];
+        let r = if r.is_finite() && r > 0.0 && r < 0.1 {
+            r
+        } else {
+            DEFAULT_FINGER_RADIUS
+        };
+        let n = (counts[f] as usize).min(MAX_FINGER_POINTS);
+        let pts = &points[f][..n];
+        for (k, p) in pts.iter().enumerate() {
+            let Some(a) = finite3(p) else { continue };
+            let joint = Mat4::from_scale_rotation_translation(
+                Vec3::splat(r as f32),
+                glam::Quat::IDENTITY,
+                a.as_vec3(),
+            );
+            instances.push(instance(joint, SKIN, 0.0));
+            let Some(b) = pts.get(k + 1).and_then(finite3) else {
+                continue;
+            };
+            if let Some(m) = segment_matrix(a, b, r) {
+                segments.push(instance(m, SKIN, 0.0));
             }
         }
     }
@@ -378,7 +431,7 @@ mod tests {
                     rotation: [0.0, 0.0, 0.0, 1.0],
                 },
                 mode: BlockMode::Resting as u32,
-                _reserved: 0,
+                held_by: 0,
             };
         }
         w
@@ -546,6 +599,164 @@ mod tests {
             .collect();
         let want: Vec<[f32; 3]> = BlockMode::ALL.iter().map(|m| mode_color(*m)).collect();
         assert_eq!(rows, want);
+    }
+
+    /// A hand of `fingers` fingers of 3 points each, along x at height `y`, and a palm of 4
+    /// points (a tetrahedron) there.
+    fn hand_at(x: f64, y: f64, fingers: usize) -> HandSample {
+        let mut h = HandSample {
+            finger_count: fingers as u32,
+            palm_vertex_count: 4,
+            ..Default::default()
+        };
+        for f in 0..fingers {
+            h.finger_point_count[f] = 3;
+            h.finger_radius[f] = 0.009;
+            for k in 0..3 {
+                h.finger_points[f][k] = [x + f as f64 * 0.02, y, k as f64 * 0.03];
+            }
+        }
+        h.palm_vertices[..4].copy_from_slice(&[
+            [x, y, -0.05],
+            [x + 0.06, y, -0.05],
+            [x, y + 0.03, -0.05],
+            [x, y, -0.09],
+        ]);
+        h
+    }
+
+    /// A two-hand session's left hand adds its joints, segments and palm, at its own tracked
+    /// points (the world's drawn points are the right hand's); with no left hand the list is
+    /// the one-hand list, instance for instance.
+    #[test]
+    fn a_left_hand_adds_its_own_geometry_and_one_hand_is_unchanged() {
+        let mut w = world_with(2);
+        w.grasped_block = 0;
+        // The right hand's points as drawn: relocated by the stepper (one finger, 2 points).
+        w.finger_count = 1;
+        w.finger_point_count[0] = 2;
+        w.finger_points[0][0] = [0.0, 0.3, 0.0];
+        w.finger_points[0][1] = [0.0, 0.3, 0.04];
+        let right = hand_at(0.0, 0.2, 2);
+        let mut left = hand_at(-0.4, 0.25, 3);
+        left.side = common::HandSide::Left.code();
+        let mut d = DrawList::new(&[0..3, 3..6]);
+
+        d.build(w.view(), &right);
+        let one = (
+            d.instances.clone(),
+            d.blocks.clone(),
+            d.joints.clone(),
+            d.segments.clone(),
+            d.palm_vertices.clone(),
+        );
+        d.build_hands(w.view(), &right, None, &[], false);
+        let none = (
+            d.instances.clone(),
+            d.blocks.clone(),
+            d.joints.clone(),
+            d.segments.clone(),
+            d.palm_vertices.clone(),
+        );
+        assert_eq!(none, one, "no left hand: the one-hand list");
+        assert_eq!((one.2.len(), one.3.len()), (2, 1), "the world's points");
+
+        d.build_hands(w.view(), &right, Some(&left), &[], false);
+        // Floor, palm, blocks and the right hand's joints come first, as before.
+        let before_joints = one.2.end as usize;
+        assert_eq!(d.instances[..before_joints], one.0[..before_joints]);
+        assert_eq!(d.blocks, one.1);
+        assert_eq!(d.joints.start, one.2.start);
+        assert_eq!(d.joints.len(), 2 + 3 * 3, "right 2, left 3 fingers of 3");
+        assert_eq!(d.segments.len(), 1 + 3 * 2);
+        assert_eq!(d.instances.len() as u32, d.segments.end);
+        // The left joints are at the left hand's own points, with its radius.
+        let left_joints = &d.instances[before_joints..d.joints.end as usize];
+        for (inst, p) in left_joints
+            .iter()
+            .zip((0..3).flat_map(|f| left.finger_points[f][..3].iter()))
+        {
+            let m = Mat4::from_cols_array_2d(&inst.model);
+            let at = m.transform_point3(Vec3::ZERO);
+            assert!(at.distance(DVec3::from_array(*p).as_vec3()) < 1e-6, "{at}");
+            assert!((m.x_axis.length() - 0.009).abs() < 1e-6);
+        }
+        // Each segment starts at a joint of its own hand.
+        let right_segment = Mat4::from_cols_array_2d(&d.instances[d.segments.start as usize].model);
+        assert!(
+            right_segment
+                .transform_point3(Vec3::ZERO)
+                .distance(Vec3::new(0.0, 0.3, 0.0))
+                < 1e-6
+        );
+        let left_segment =
+            Mat4::from_cols_array_2d(&d.instances[d.segments.start as usize + 1].model);
+        let p = left.finger_points[0][0];
+        assert!(
+            left_segment
+                .transform_point3(Vec3::ZERO)
+                .distance(DVec3::from_array(p).as_vec3())
+                < 1e-6
+        );
+        // Both palms: the right hull's vertices, then the left's.
+        let n = one.4.len();
+        assert!(n > 0);
+        assert_eq!(d.palm_vertices[..n], one.4[..]);
+        assert_eq!(d.palm_vertices.len(), 2 * n, "two tetrahedra");
+        assert!(d.palm_vertices[n..]
+            .iter()
+            .all(|v| v.position[0] <= -0.4 + 0.06 + 1e-6));
+        assert!(d.instances.len() <= instance_capacity(2));
+        assert!(d.palm_vertices.len() <= PALM_VERTEX_CAPACITY);
+    }
+
+    #[test]
+    fn two_full_hands_fit_the_buffers_and_allocate_nothing_once_warm() {
+        let w = world_with(common::MAX_SCENE_BLOCKS);
+        let full = |x: f64| {
+            let mut h = HandSample {
+                finger_count: 5,
+                finger_point_count: [5; 5],
+                palm_vertex_count: 16,
+                ..Default::default()
+            };
+            for (i, p) in h.palm_vertices.iter_mut().enumerate() {
+                *p = [
+                    x + (i % 2) as f64,
+                    ((i / 2) % 2) as f64,
+                    ((i / 4) % 4) as f64 * 0.3,
+                ];
+            }
+            for f in 0..5 {
+                for k in 0..5 {
+                    h.finger_points[f][k] = [x + f as f64 * 0.02, 0.2, k as f64 * 0.02];
+                }
+            }
+            h
+        };
+        let (right, mut left) = (full(0.0), full(-2.0));
+        left.side = 1;
+        let meshes: Vec<_> = (0..common::MAX_SCENE_BLOCKS as u32)
+            .map(|i| i * 3..i * 3 + 3)
+            .collect();
+        let mut d = DrawList::new(&meshes);
+        let caps = (
+            d.instances.capacity(),
+            d.palm_vertices.capacity(),
+            d.segment_scratch.capacity(),
+        );
+        d.build_hands(w.view(), &right, Some(&left), &[], false);
+        d.build_hands(w.view(), &right, Some(&left), &[], false);
+        assert_eq!(
+            (
+                d.instances.capacity(),
+                d.palm_vertices.capacity(),
+                d.segment_scratch.capacity()
+            ),
+            caps
+        );
+        assert_eq!(d.instances.len(), instance_capacity(meshes.len()));
+        assert!(d.palm_vertices.len() <= PALM_VERTEX_CAPACITY);
     }
 
     #[test]

@@ -8,7 +8,7 @@
 //! - framed on the action, with its own camera: the render loop keeps the world every
 //!   1 / PREVIEW_HZ seconds (a copy into a recycled slot; nothing is read back during the
 //!   session); when the session ends, a mono camera is fitted to all that those worlds hold
-//!   (`camera::frame_spheres`: blocks, the floor under them, the hand), each is drawn again
+//!   (`camera::frame_spheres`: blocks, the floor under them, the hands), each is drawn again
 //!   with it (`Renderer::render_preview`), and every frame is cut at one rectangle, the union
 //!   of what each frame's blocks and hand cover, with a margin, at 4:3 to 16:9, zoomed at most
 //!   [`MAX_ZOOM`] times. Deterministic, free while the session runs, and it holds what the
@@ -289,14 +289,16 @@ impl PreviewScene {
 }
 
 /// Where `world`'s blocks (each one's bounding sphere's box, and the floor under it) and the
-/// hand (finger points, palm) land in an eye's `width` x `height` image; None when nothing is
-/// in front of the eye. Allocates nothing.
+/// hand (finger points, palm; and a two-hand session's `left` hand's, as tracked) land in an
+/// eye's `width` x `height` image; None when nothing is in front of the eye. Allocates
+/// nothing.
 pub fn action_rect(
     eye: &EyeView,
     width: u32,
     height: u32,
     world: WorldView<'_>,
     hand: &HandSample,
+    left: Option<&HandSample>,
     radii: &[f64],
 ) -> Option<Rect> {
     let mut r: Option<Rect> = None;
@@ -329,6 +331,11 @@ pub fn action_rect(
     for p in hand.palm() {
         add(DVec3::from_array(*p));
     }
+    if let Some(left) = left {
+        for p in tracked_points(left).chain(left.palm().iter().map(|p| DVec3::from_array(*p))) {
+            add(p);
+        }
+    }
     r
 }
 
@@ -342,11 +349,12 @@ struct PreviewFrame {
 }
 
 /// A world as the preview keeps it until the session ends: the header, the blocks, the hand
-/// it answers, and the facts of the moment.
+/// it answers (and a two-hand session's newest left hand), and the facts of the moment.
 struct KeptState {
     header: WorldHeader,
     blocks: Vec<BlockState>,
     hand: HandSample,
+    left: Option<HandSample>,
     facts: FrameFacts,
 }
 
@@ -397,6 +405,7 @@ impl KeptState {
             header: WorldHeader::default(),
             blocks: Vec::new(),
             hand: HandSample::default(),
+            left: None,
             facts: FrameFacts::default(),
         }
     }
@@ -424,8 +433,16 @@ fn drawn_finger_points<'a>(
         .map(|p| DVec3::from_array(*p))
 }
 
+/// A hand's own check points, as tracked (a two-hand session's left hand: the world's drawn
+/// points are the right hand's).
+fn tracked_points(hand: &HandSample) -> impl Iterator<Item = DVec3> + '_ {
+    (0..(hand.finger_count as usize).min(common::MAX_FINGERS))
+        .flat_map(|f| hand.finger(f).iter())
+        .map(|p| DVec3::from_array(*p))
+}
+
 /// The spheres that matter in a kept world: each block's bounding sphere and a point on the
-/// floor under it, the finger points and the palm.
+/// floor under it, the finger points and the palm (of both hands in a two-hand session).
 fn spheres_of(state: &KeptState, radii: &[f64], out: &mut Vec<(DVec3, f64)>) {
     let world = state.view();
     for (i, b) in world.blocks().iter().enumerate() {
@@ -439,6 +456,10 @@ fn spheres_of(state: &KeptState, radii: &[f64], out: &mut Vec<(DVec3, f64)>) {
     }
     for p in hand.palm() {
         out.push((DVec3::from_array(*p), 0.0));
+    }
+    if let Some(left) = &state.left {
+        out.extend(tracked_points(left).map(|p| (p, 0.01)));
+        out.extend(left.palm().iter().map(|p| (DVec3::from_array(*p), 0.0)));
     }
 }
 
@@ -501,10 +522,17 @@ impl PreviewWriter {
         })
     }
 
-    /// Called after each frame drawn at `now_ns` (of `world` and `hand`): follows the events,
-    /// and keeps the world when a preview frame is due (a copy into a recycled state: nothing
-    /// is read back from the GPU during the session).
-    pub fn after_frame(&mut self, now_ns: u64, world: WorldView<'_>, hand: &HandSample) {
+    /// Called after each frame drawn at `now_ns` (of `world` and `hand`, and a two-hand
+    /// session's `left` hand): follows the events, and keeps the world when a preview frame is
+    /// due (a copy into a recycled state: nothing is read back from the GPU during the
+    /// session).
+    pub fn after_frame(
+        &mut self,
+        now_ns: u64,
+        world: WorldView<'_>,
+        hand: &HandSample,
+        left: Option<&HandSample>,
+    ) {
         let time_s = world.step as f64 / self.step_hz;
         self.events.observe(world, time_s);
         if now_ns < self.next_ns {
@@ -519,6 +547,7 @@ impl PreviewWriter {
         s.blocks.clear();
         s.blocks.extend_from_slice(world.blocks());
         s.hand = *hand;
+        s.left = left.copied();
         s.facts.time_s = time_s;
         s.facts.modes.clear();
         s.facts.modes.extend(
@@ -571,10 +600,11 @@ impl PreviewWriter {
             let Ok(mut f) = self.free.recv() else {
                 break; // the thread is gone: its error is reported by finish
             };
-            let eye = r.render_preview(s.view(), &s.hand, &camera)?;
+            let left = s.left.as_ref();
+            let eye = r.render_preview(s.view(), &s.hand, left, &camera)?;
             r.read_back_left_eye_into(&mut f.image)?;
             f.facts.clone_from(&s.facts);
-            f.facts.action = action_rect(&eye, w, h, s.view(), &s.hand, &self.radii);
+            f.facts.action = action_rect(&eye, w, h, s.view(), &s.hand, left, &self.radii);
             f.periods = periods;
             if let Some(tx) = &self.to_writer {
                 if tx.send(f).is_err() {
@@ -1175,6 +1205,55 @@ mod tests {
         let step = t[1] - t[0];
         assert!(t.windows(2).all(|w| w[1] - w[0] == step), "{t:?}");
         assert_eq!(step, f64::from(store.keep_every));
+    }
+
+    /// A two-hand session's left hand is part of what the preview frames and crops; without
+    /// one, both are as for one hand.
+    #[test]
+    fn the_left_hand_is_framed_and_cropped_too() {
+        let mut w = common::WorldSample::with_blocks(1);
+        w.blocks[0].pose.rotation = [0.0, 0.0, 0.0, 1.0];
+        let mut right = HandSample {
+            finger_count: 1,
+            ..Default::default()
+        };
+        right.finger_point_count[0] = 2;
+        right.finger_points[0][..2].copy_from_slice(&[[0.0, 0.2, 0.0], [0.0, 0.2, 0.04]]);
+        let mut left = HandSample {
+            finger_count: 1,
+            palm_vertex_count: 1,
+            side: common::HandSide::Left.code(),
+            ..Default::default()
+        };
+        left.finger_point_count[0] = 1;
+        left.finger_points[0][0] = [-0.3, 0.25, 0.0];
+        left.palm_vertices[0] = [-0.32, 0.25, 0.0];
+        let radii = [0.05];
+        let mut state = KeptState::placeholder();
+        state.header = w.header;
+        state.blocks = w.blocks.clone();
+        state.hand = right;
+        let mut one = Vec::new();
+        spheres_of(&state, &radii, &mut one);
+        state.left = Some(left);
+        let mut two = Vec::new();
+        spheres_of(&state, &radii, &mut two);
+        assert_eq!(two[..one.len()], one[..]);
+        assert_eq!(
+            two[one.len()..],
+            [
+                (DVec3::new(-0.3, 0.25, 0.0), 0.01),
+                (DVec3::new(-0.32, 0.25, 0.0), 0.0)
+            ]
+        );
+        let [eye, _] = crate::camera::stereo(&CameraSettings::default(), 640, 480);
+        let without = action_rect(&eye, 640, 480, w.view(), &right, None, &radii).unwrap();
+        let with = action_rect(&eye, 640, 480, w.view(), &right, Some(&left), &radii).unwrap();
+        let (x, y) = eye
+            .project_px(DVec3::new(-0.32, 0.25, 0.0), 640, 480)
+            .unwrap();
+        assert!(without.x0 > x, "{without:?} already holds {x}");
+        assert!(with.x0 <= x && with.y0 <= y, "{with:?} {x} {y}");
     }
 
     #[test]

@@ -396,9 +396,21 @@ impl Renderer {
         world: WorldView<'_>,
         hand: &HandSample,
     ) -> Result<FrameTimes, RenderError> {
+        self.render_hands(world, hand, None)
+    }
+
+    /// [`Self::render`] with a two-hand session's `left` hand too (`HandSample::side` 1),
+    /// drawn from its own sample as tracked; `hand` is the right hand, drawn at the world's
+    /// finger points when it carries them. `None`: exactly [`Self::render`]'s frame.
+    pub fn render_hands(
+        &mut self,
+        world: WorldView<'_>,
+        hand: &HandSample,
+        left: Option<&HandSample>,
+    ) -> Result<FrameTimes, RenderError> {
         let started_ns = monotonic_ns();
         let layer = if self.use_layer {
-            self.layer.update(world, hand)
+            self.layer.update_hands(world, hand, left)
         } else {
             LayerFrame::Off
         };
@@ -407,7 +419,7 @@ impl Renderer {
             _ => self.layer.members(),
         };
         self.list
-            .build_layered(world, hand, members, layer == LayerFrame::Redraw);
+            .build_hands(world, hand, left, members, layer == LayerFrame::Redraw);
         self.upload_draw_list();
         let list = &self.list;
         let mut encoder = self
@@ -626,7 +638,8 @@ impl Renderer {
         }
     }
 
-    /// Draws `world` and `hand` into the left eye's half, seen by `camera`'s left eye, every
+    /// Draws `world` and `hand` (and a two-hand session's `left` hand, as
+    /// [`Self::render_hands`]) into the left eye's half, seen by `camera`'s left eye, every
     /// block live (the static layer, drawn for the session's camera, is left alone), and waits
     /// for the GPU; read it with [`Self::read_back_left_eye_into`]. The next [`Self::render`]
     /// draws the session's view again. For the preview, which frames the whole session's
@@ -635,6 +648,7 @@ impl Renderer {
         &mut self,
         world: WorldView<'_>,
         hand: &HandSample,
+        left: Option<&HandSample>,
         camera: &crate::camera::CameraSettings,
     ) -> Result<EyeView, RenderError> {
         let (w, h) = (self.settings.width, self.settings.height);
@@ -648,7 +662,7 @@ impl Renderer {
             2 * EYE_UNIFORM_STRIDE,
             bytemuck::bytes_of(&u),
         );
-        self.list.build_layered(world, hand, &[], false);
+        self.list.build_hands(world, hand, left, &[], false);
         self.upload_draw_list();
         let list = &self.list;
         let mut encoder = self
@@ -819,4 +833,108 @@ fn composite_pass(
     pass.set_pipeline(&pipeline.pipeline);
     pass.set_bind_group(0, bind_group, &[]);
     pass.draw(0..3, 0..1);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use common::config::scene::{BlockSpec, ShapeSpec};
+    use common::{BlockMode, BlockState, HandSide, Pose, WorldSample};
+
+    /// A hand of three fingers along -z at (`x`, 0.15), with a palm behind them.
+    fn hand_at(x: f64, side: HandSide) -> HandSample {
+        let mut h = HandSample {
+            finger_count: 3,
+            palm_vertex_count: 4,
+            side: side.code(),
+            ..Default::default()
+        };
+        for f in 0..3 {
+            h.finger_point_count[f] = 4;
+            h.finger_radius[f] = 0.01;
+            for k in 0..4 {
+                h.finger_points[f][k] = [x + 0.025 * f as f64, 0.15, 0.1 - 0.03 * k as f64];
+            }
+        }
+        h.palm_vertices[..4].copy_from_slice(&[
+            [x, 0.15, 0.12],
+            [x + 0.06, 0.15, 0.12],
+            [x, 0.18, 0.12],
+            [x + 0.03, 0.15, 0.18],
+        ]);
+        h
+    }
+
+    /// Without a left hand, [`Renderer::render_hands`] draws [`Renderer::render`]'s frame
+    /// byte for byte; with one, its pixels appear where it is, and the rest of the frame (the
+    /// right hand's half of the image) is unchanged.
+    #[test]
+    fn the_left_hand_is_drawn_and_one_hand_frames_are_unchanged() {
+        let scene = Scene {
+            file: "t.toml".into(),
+            world: Default::default(),
+            effects: Default::default(),
+            blocks: vec![BlockSpec {
+                name: "red".into(),
+                shape: ShapeSpec::Box { size: [0.05; 3] },
+                position: [0.0; 3],
+                rotation: [0.0, 0.0, 0.0, 1.0],
+                velocity: [0.0; 3],
+            }],
+            hand: None,
+        };
+        let settings = RenderSettings {
+            width: 160,
+            height: 120,
+            shadows: true,
+            ..RenderSettings::default()
+        };
+        let mut r = match Renderer::new_headless(&settings, &scene) {
+            Ok(r) => r,
+            Err(RenderError::NoAdapter(e)) => {
+                eprintln!("no GPU adapter ({e}): skipped");
+                return;
+            }
+            Err(e) => panic!("{e}"),
+        };
+        let mut w = WorldSample::with_blocks(1);
+        w.blocks[0] = BlockState {
+            pose: Pose {
+                position: [0.0, 0.025, 0.0],
+                rotation: [0.0, 0.0, 0.0, 1.0],
+            },
+            mode: BlockMode::Resting as u32,
+            held_by: 0,
+        };
+        let right = hand_at(0.1, HandSide::Right);
+        let left = hand_at(-0.16, HandSide::Left);
+        r.render(w.view(), &right).unwrap();
+        let one = r.read_back().unwrap();
+        r.render_hands(w.view(), &right, None).unwrap();
+        assert!(
+            r.read_back().unwrap() == one,
+            "no left hand: the one-hand frame"
+        );
+        r.render_hands(w.view(), &right, Some(&left)).unwrap();
+        let two = r.read_back().unwrap();
+        // Count changed pixels left and right of each eye's centre.
+        let (mut on_left, mut on_right) = (0, 0);
+        for y in 0..one.height {
+            for x in 0..one.width {
+                let i = ((y * one.width + x) * 4) as usize;
+                if one.rgba[i..i + 4] != two.rgba[i..i + 4] {
+                    if x % settings.width < settings.width / 2 {
+                        on_left += 1;
+                    } else {
+                        on_right += 1;
+                    }
+                }
+            }
+        }
+        assert!(on_left > 100, "{on_left} pixels changed for the left hand");
+        assert!(
+            on_right < on_left / 10,
+            "{on_right} pixels changed on the right"
+        );
+    }
 }

@@ -2,7 +2,8 @@
 //!
 //! It takes every `world` sample as it arrives (so the hop latency is the bus's, not the
 //! frame pacing's), keeps only the newest, and at each frame deadline (absolute, at the
-//! session's `frame_hz`) draws it with the hand sample it answers, waits for the GPU to finish
+//! session's `frame_hz`) draws it with the hand sample it answers (and, in a two-hand session,
+//! the newest left hand: the world answers the right one), waits for the GPU to finish
 //! ("photon"), and publishes frame statistics. It never blocks upstream: samples that arrive
 //! during a frame wait in the bus and are drained, newest kept, before the next one.
 //!
@@ -20,7 +21,8 @@ use common::config::Session;
 use common::latency::{Metric, Reporter};
 use common::node::{self, Counters, Pass, Task};
 use common::{
-    monotonic_ns, shutdown, topics, FrameSample, HandSample, Stage, Stamp, WorldHeader, WorldView,
+    monotonic_ns, shutdown, topics, FrameSample, HandSample, HandSide, Stage, Stamp, WorldHeader,
+    WorldView,
 };
 
 use crate::error::RenderError;
@@ -124,6 +126,7 @@ pub fn run_with_preview(
         world: None,
         hands: Box::new([HandSample::default(); HAND_HISTORY]),
         hand_next: 0,
+        left: None,
         superseded: 0,
         frame_no: 0,
     };
@@ -149,8 +152,11 @@ struct RendererStage {
     newest: Option<Stamp>,
     /// The newest world sample, held in place (read from the stepper's memory, not copied).
     world: Option<Received<topics::World>>,
+    /// The recent right hands (side 0: a one-hand session's only hand).
     hands: Box<[HandSample; HAND_HISTORY]>,
     hand_next: usize,
+    /// A two-hand session's newest left hand (side 1); None until one came.
+    left: Option<HandSample>,
     superseded: u64,
     frame_no: u64,
 }
@@ -187,8 +193,12 @@ impl Task for RendererStage {
         }
         while let Some(s) = self.hand_in.receive()? {
             pass.recorder.hop(&s.stamp, monotonic_ns());
-            self.hands[self.hand_next % HAND_HISTORY] = *s.payload();
-            self.hand_next += 1;
+            keep_hand(
+                &mut self.hands,
+                &mut self.hand_next,
+                &mut self.left,
+                s.payload(),
+            );
         }
         if let (Some(w), Some(r)) = (&mut self.window, &mut self.renderer) {
             if w.pump(r) == WindowStatus::Closed {
@@ -217,7 +227,8 @@ impl Task for RendererStage {
                 blocks: world.payload(),
             };
             let hand = matching_hand(&self.hands[..self.hand_next.min(HAND_HISTORY)], view.header);
-            let times = r.render(view, hand)?;
+            let left = self.left.as_ref();
+            let times = r.render_hands(view, hand, left)?;
             done = times.done_ns;
             if let (Some(w), Some(every)) = (&mut self.writer, self.frames_every) {
                 if self.frame_no.is_multiple_of(every) {
@@ -225,7 +236,7 @@ impl Task for RendererStage {
                 }
             }
             if let Some(p) = &mut self.preview {
-                p.after_frame(done, view, hand);
+                p.after_frame(done, view, hand, left);
             }
             self.frame_no += 1;
         }
@@ -271,6 +282,22 @@ impl Task for RendererStage {
         if let Some(p) = self.preview.take() {
             p.finish(self.renderer.as_mut());
         }
+    }
+}
+
+/// Keeps `hand`: a left hand (side 1) as the newest `left`, any other into the right hands'
+/// ring (`hands`, `next` the count so far). Allocates nothing.
+fn keep_hand(
+    hands: &mut [HandSample; HAND_HISTORY],
+    next: &mut usize,
+    left: &mut Option<HandSample>,
+    hand: &HandSample,
+) {
+    if HandSide::from_code(hand.side) == HandSide::Left {
+        *left = Some(*hand);
+    } else {
+        hands[*next % HAND_HISTORY] = *hand;
+        *next += 1;
     }
 }
 
@@ -353,5 +380,45 @@ impl FrameWriter {
                 self.dropped
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Left hands are kept apart, the newest one; the right hands' ring and the match by
+    /// `hand_seq` see only right hands, as in a one-hand session.
+    #[test]
+    fn left_hands_are_kept_apart_from_the_right_ones() {
+        let mut hands = Box::new([HandSample::default(); HAND_HISTORY]);
+        let (mut next, mut left) = (0, None);
+        for seq in 1..=6u64 {
+            let mut h = HandSample::default();
+            h.stamp.seq = seq;
+            // Per frame, the right hand then the left (odd seq the right).
+            h.side = if seq % 2 == 0 { 1 } else { 0 };
+            keep_hand(&mut hands, &mut next, &mut left, &h);
+        }
+        assert_eq!(next, 3);
+        assert_eq!(left.map(|h| h.stamp.seq), Some(6));
+        let kept = &hands[..next];
+        assert!(kept.iter().all(|h| h.side == 0));
+        let world = WorldHeader {
+            hand_seq: 3,
+            ..Default::default()
+        };
+        assert_eq!(matching_hand(kept, &world).stamp.seq, 3);
+        // A world that answers no kept hand: the newest right hand, never the left.
+        let world = WorldHeader {
+            hand_seq: 6,
+            ..Default::default()
+        };
+        assert_eq!(matching_hand(kept, &world).stamp.seq, 5);
+        // A one-hand session has no left hand.
+        let (mut next, mut left) = (0, None);
+        keep_hand(&mut hands, &mut next, &mut left, &HandSample::default());
+        assert!(left.is_none());
+        assert_eq!(next, 1);
     }
 }

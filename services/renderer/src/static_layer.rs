@@ -55,9 +55,13 @@ pub struct StaticLayer {
     drawn_once: bool,
 }
 
-/// The box of the hand's finite check points grown by [`NEAR_HAND`] (empty: no points).
-fn near_hand_box(hand: &HandSample) -> (DVec3, DVec3) {
+/// The box of the hand's finite check points grown by [`NEAR_HAND`] (empty: no points, or no
+/// hand).
+fn near_hand_box(hand: Option<&HandSample>) -> (DVec3, DVec3) {
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    let Some(hand) = hand else {
+        return (lo, hi);
+    };
     for f in 0..(hand.finger_count as usize).min(MAX_FINGERS) {
         for p in
             &hand.finger_points[f][..(hand.finger_point_count[f] as usize).min(MAX_FINGER_POINTS)]
@@ -72,14 +76,16 @@ fn near_hand_box(hand: &HandSample) -> (DVec3, DVec3) {
     (lo - NEAR_HAND, hi + NEAR_HAND)
 }
 
-/// A block the layer may hold: resting, not grasped, not near the hand, with a pose the draw
-/// list draws.
-fn may_hold(b: &BlockState, i: usize, grasped: i32, near_hand: &(DVec3, DVec3)) -> bool {
+/// A block the layer may hold: resting, not grasped, near neither hand (each hand's box, as
+/// [`near_hand_box`] makes it), with a pose the draw list draws.
+fn may_hold(b: &BlockState, i: usize, grasped: i32, near_hands: &[(DVec3, DVec3); 2]) -> bool {
     if b.mode() != BlockMode::Resting || grasped == i as i32 || !b.pose.is_finite() {
         return false;
     }
     let p = DVec3::from_array(b.pose.position);
-    !(p.cmpge(near_hand.0).all() && p.cmple(near_hand.1).all())
+    !near_hands
+        .iter()
+        .any(|near| p.cmpge(near.0).all() && p.cmple(near.1).all())
 }
 
 impl StaticLayer {
@@ -118,9 +124,20 @@ impl StaticLayer {
     /// Decides what this frame does with the layer, and updates its members when it redraws.
     /// One pass over the world's block states; allocates nothing.
     pub fn update(&mut self, world: WorldView<'_>, hand: &HandSample) -> LayerFrame {
+        self.update_hands(world, hand, None)
+    }
+
+    /// [`Self::update`] with a two-hand session's `left` hand too: the blocks near either
+    /// hand stay live.
+    pub fn update_hands(
+        &mut self,
+        world: WorldView<'_>,
+        hand: &HandSample,
+        left: Option<&HandSample>,
+    ) -> LayerFrame {
         let states = world.blocks();
         let grasped = world.grasped_block;
-        let near = near_hand_box(hand);
+        let near = [near_hand_box(Some(hand)), near_hand_box(left)];
         let mut changed = !self.drawn_once;
         let (mut outside, mut live) = (0usize, 0usize);
         for (i, member) in self.member.iter().enumerate() {
@@ -173,7 +190,7 @@ mod tests {
                     rotation: [0.0, 0.0, 0.0, 1.0],
                 },
                 mode: *m as u32,
-                _reserved: 0,
+                held_by: 0,
             });
         }
         w.header.block_count = modes.len() as u32;
@@ -241,6 +258,36 @@ mod tests {
         w.blocks[1].pose.position[1] = f64::NAN;
         assert_eq!(layer.update(w.view(), &no_hand), LayerFrame::Redraw);
         assert!(!layer.members()[1]);
+    }
+
+    /// A two-hand session's left hand keeps the blocks near it live too.
+    #[test]
+    fn blocks_near_the_left_hand_stay_live_too() {
+        let w = world(&[BlockMode::Resting; 20]);
+        let point_at = |x: f64| {
+            let mut h = HandSample {
+                finger_count: 1,
+                ..HandSample::default()
+            };
+            h.finger_point_count[0] = 1;
+            h.finger_points[0][0] = [x, 0.02, 0.0];
+            h
+        };
+        let (right, mut left) = (point_at(0.0), point_at(1.5));
+        left.side = 1;
+        let mut one = StaticLayer::new(20);
+        assert_eq!(one.update(w.view(), &right), LayerFrame::Redraw);
+        let mut two = StaticLayer::new(20);
+        assert_eq!(two.update_hands(w.view(), &right, None), LayerFrame::Redraw);
+        assert_eq!(two.members(), one.members(), "no left hand: as one hand");
+        two.clear();
+        assert_eq!(
+            two.update_hands(w.view(), &right, Some(&left)),
+            LayerFrame::Redraw
+        );
+        // Near the right (x = 0 .. 0.2) and near the left (x = 1.3 .. 1.7): live.
+        let live: Vec<usize> = (0..20).filter(|&i| !two.members()[i]).collect();
+        assert_eq!(live, [0, 1, 2, 13, 14, 15, 16, 17]);
     }
 
     /// Blocks near the hand's check points are live, and the layer is not redrawn as the hand

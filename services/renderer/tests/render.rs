@@ -69,7 +69,7 @@ fn world(positions: &[[f64; 3]], mode: BlockMode) -> WorldSample {
                 rotation: [0.0, 0.0, 0.0, 1.0],
             },
             mode: mode as u32,
-            _reserved: 0,
+            held_by: 0,
         };
     }
     w

@@ -1,5 +1,5 @@
 //! The stepper process: runs the block world on the hand's timeline and publishes one `world`
-//! sample per `hand` sample.
+//! sample per `hand` sample (with two hands, per frame: after its left, the frame's last).
 //!
 //! Time (docs/model.md, "Conventions") is the library's [`Timeline`], the one `simulate` replays
 //! a trace with: steps follow the hand's source time, never a wall clock, so the same hand
@@ -110,6 +110,7 @@ pub fn run_with_outcome(
         None
     };
     let mut stage = StepperStage {
+        frame_origin_ns: None,
         hand_in,
         world_out,
         log,
@@ -122,6 +123,8 @@ pub fn run_with_outcome(
 
 /// The stepper stage: its ports, its hand log and the world.
 struct StepperStage<'s> {
+    /// The oldest origin among the hands of the frame being gathered (two hands).
+    frame_origin_ns: Option<u64>,
     hand_in: Inlet<topics::Hand>,
     world_out: Outlet<topics::World>,
     log: Option<HandLog>,
@@ -148,13 +151,27 @@ impl Task for StepperStage<'_> {
                     .map_err(|e| StepperError::HandLog(e.to_string()))?;
             }
             self.stepping.take(hand, true);
+            // The oldest origin of the frame this world answers (two hands: its right's).
+            let origin_ns = self
+                .frame_origin_ns
+                .map_or(hand.stamp.origin_ns, |o| o.min(hand.stamp.origin_ns));
+            if self.stepping.frames.waiting() {
+                // The frame's right came and its left not yet: the world answers the frame
+                // once it is whole (a world now would be the last frame's, stamped as this).
+                self.frame_origin_ns = Some(origin_ns);
+                continue;
+            }
+            self.frame_origin_ns = None;
             let world = &self.stepping.world;
             // Written straight into the sample's shared memory: no copy of the world.
             let sent = self.world_out.publish_with(
                 world.block_count(),
                 |header| {
                     world.write_header(header);
-                    header.stamp = Stamp::derived(0, &hand.stamp);
+                    header.stamp = Stamp {
+                        origin_ns,
+                        ..Stamp::derived(0, &hand.stamp)
+                    };
                     header.hand_seq = hand.stamp.seq;
                 },
                 |i| world.block_state(i),

@@ -201,6 +201,12 @@ impl HandFrames {
         self.two_handed
     }
 
+    /// Whether a frame is being gathered (its right came, its left not yet): the world does
+    /// not answer it until it is complete.
+    pub fn waiting(&self) -> bool {
+        self.pending_ns.is_some()
+    }
+
     /// Each hand's last good sample (the held hands of a world that steps on after its
     /// source ended).
     pub fn last_good(&self) -> &HandFrame {

@@ -817,7 +817,7 @@ fn state_of(b: &Block, anchor: DVec3) -> BlockState {
             rotation: b.rot().to_array(),
         },
         mode: b.mode as u32,
-        _reserved: 0,
+        held_by: u32::from(b.held_by),
     }
 }
 
@@ -846,6 +846,7 @@ fn finish_block(
         state.pose.rotation = b.rot().to_array();
     }
     state.mode = b.mode as u32;
+    state.held_by = u32::from(b.held_by);
     // The grid sees every block where this step left it (the floor stage's moves, the
     // hand's): the next step's stages query it without a pass of their own to sync it.
     grid.stands_at(i, b.pos());

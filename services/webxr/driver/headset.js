@@ -3,18 +3,21 @@
 // with IWER (Meta's Immersive Web Emulation Runtime) as the page's WebXR runtime.
 //
 // Usage:
-//   node services/webxr/driver/headset.js --url URL --samples FILE.bin [--hand right|left]
+//   node services/webxr/driver/headset.js --url URL --samples FILE.bin [--hand right|left|both]
 //        [--screenshot OUT.png] [--spectator] [--timeout-s N] [--plain-iwer] [--verbose]
 //
 // Modules (playwright-core, iwer) come from NODE_PATH (scripts/webxr-tools.sh, run by tests/run,
 // installs them into target/webxr-node); Chromium is the system's /usr/bin/chromium, or $HB_CHROMIUM.
 //
-// FILE.bin: u32 count, then per sample: f64 time_ms, u8 tracked (1/0), 3 bytes pad, then 25 joints
-// x 7 f32 (px py pz qx qy qz qw) in WebXR's joint order, little-endian, for the one hand (--hand).
+// FILE.bin: u32 count (samples), then per sample one record per hand played (--hand right or
+// left: one, for that hand; --hand both: two, the right then the left): f64 time_ms, u8 tracked
+// (1/0), 3 bytes pad, then 25 joints x 7 f32 (px py pz qx qy qz qw) in WebXR's joint order,
+// little-endian. Both records of a sample hold the same time_ms.
 //
-// One sample per XR frame: before the frame's callbacks run, the hand's 25 joint spaces are set
-// to the sample (tracked = 0: the hand input is disconnected, so the page sees no hand that
-// frame), and the page's window.handblocks.frameTimeOverride returns the sample's time_ms.
+// One sample per XR frame: before the frame's callbacks run, each hand's 25 joint spaces are set
+// to its record (tracked = 0: that hand's input is disconnected, so the page sees no such hand
+// that frame), so both hands of a sample reach the page in the same XR frame; and the page's
+// window.handblocks.frameTimeOverride returns the sample's time_ms.
 // The joint poses reach the page bit for bit: IWER's own getJointPose goes through a 4x4 matrix
 // and back (mat4.getRotation, then a re-normalisation in XRRigidTransform), which changes the
 // orientation's last bits and sometimes its sign, so this driver hands the page the sample's own
@@ -60,7 +63,7 @@ function parseArgs(argv) {
       case '--plain-iwer': a.plainIwer = true; break;
       case '--verbose': a.verbose = true; break;
       case '-h': case '--help':
-        process.stdout.write('usage: node tests/webxr/headset.js --url URL --samples FILE.bin [--hand right|left] ' +
+        process.stdout.write('usage: node services/webxr/driver/headset.js --url URL --samples FILE.bin [--hand right|left|both] ' +
           '[--screenshot OUT.png] [--spectator] [--timeout-s N] [--plain-iwer] [--verbose]\n');
         process.exit(0);
         break;
@@ -69,7 +72,7 @@ function parseArgs(argv) {
   }
   if (!a.url) fail('--url is required');
   if (!a.spectator && !a.samples) fail('--samples is required (or --spectator)');
-  if (a.hand !== 'right' && a.hand !== 'left') fail(`--hand must be right or left, not ${a.hand}`);
+  if (!['right', 'left', 'both'].includes(a.hand)) fail(`--hand must be right, left or both, not ${a.hand}`);
   if (!(a.timeoutS > 0)) fail('--timeout-s must be a positive number');
   return a;
 }
@@ -114,19 +117,31 @@ function findChromium() {
 }
 
 // ---------------------------------------------------------------- samples
-const SAMPLE_BYTES = 8 + 4 + 25 * 7 * 4;
+const RECORD_BYTES = 8 + 4 + 25 * 7 * 4;
+// The hands played, in the order of a sample's records.
+const PLAYED = args.hand === 'both' ? ['right', 'left'] : [args.hand];
 function readSamples(file) {
   let buf;
   try { buf = fs.readFileSync(file); } catch (e) { fail(`cannot read samples ${file}: ${e.message}`); }
   if (buf.length < 4) fail(`samples ${file}: shorter than its count`);
   const count = buf.readUInt32LE(0);
-  if (buf.length !== 4 + count * SAMPLE_BYTES) {
-    fail(`samples ${file}: ${buf.length} bytes, but a count of ${count} needs ${4 + count * SAMPLE_BYTES}`);
+  const sampleBytes = RECORD_BYTES * PLAYED.length;
+  if (buf.length !== 4 + count * sampleBytes) {
+    fail(`samples ${file}: ${buf.length} bytes, but a count of ${count} samples of ${PLAYED.length} ` +
+      `hand(s) needs ${4 + count * sampleBytes}`);
   }
   if (count === 0) fail(`samples ${file}: no samples`);
+  // samples with a hand tracked, and each hand's
   let tracked = 0;
-  for (let i = 0; i < count; i++) if (buf[4 + i * SAMPLE_BYTES + 8] === 1) tracked++;
-  return { buf, count, tracked };
+  const trackedByHand = PLAYED.map(() => 0);
+  for (let i = 0; i < count; i++) {
+    let any = false;
+    PLAYED.forEach((h, k) => {
+      if (buf[4 + (i * PLAYED.length + k) * RECORD_BYTES + 8] === 1) { trackedByHand[k]++; any = true; }
+    });
+    if (any) tracked++;
+  }
+  return { buf, count, tracked, trackedByHand };
 }
 
 // ---------------------------------------------------------------- the page side (runs in the page)
@@ -146,7 +161,8 @@ function pageSetup(opts) {
   ];
   const D = {
     error: null, playing: false, done: false, index: 0, count: 0, frames: 0,
-    current: -1, currentTime: null, currentTracked: false,
+    // currentTracked: the sample's hands (opts.hands' order) tracked; tracked: any of them
+    current: -1, currentTime: null, currentTracked: opts.hands.map(() => false), tracked: false,
     check: { compared: 0, exactFrames: 0, framesWithDiff: 0, sentWhileUntracked: 0, wrongMask: 0,
       timeExact: 0, timeDiff: 0, maxPosDiff: 0, maxQuatDiff: 0, quatSignFlips: 0, floatsDiffering: 0,
       fallbacks: 0, afterEnd: 0 },
@@ -178,38 +194,9 @@ function pageSetup(opts) {
     D.device = device;
     const P_DEVICE = IW.P_DEVICE, P_SPACE = IW.P_SPACE, P_JOINT_SPACE = IW.P_JOINT_SPACE;
     const P_RIGID = IW.P_RIGID_TRANSFORM;
-    const hand = device.hands[opts.hand];
-    const other = device.hands[opts.hand === 'right' ? 'left' : 'right'];
-    hand.connected = false;   // no hand until the playback starts
-    other.connected = false;  // the other hand never appears
-    const spaces = JOINTS.map((j) => hand.inputSource.hand.get(j));
-    if (spaces.some((s) => !s)) throw new Error('IWER hand lacks a WebXR joint');
-    const exact = spaces.map(() => ({ p: new Float32Array(3), q: new Float32Array(4), on: false }));
-    spaces.forEach((s, i) => { s.__hbExact = exact[i]; });
-
-    // The target ray space is the hand's root: identity, so a joint's global pose is its offset.
-    hand.updateTargetRaySpace = function () {
-      const m = this.inputSource.targetRaySpace[P_SPACE].offsetMatrix;
-      m.fill(0); m[0] = m[5] = m[10] = m[15] = 1;
-    };
-    // The joints: IWER's own pose update first (it keeps its per-joint radii), then the sample's
-    // translation and rotation into each joint space's offset matrix (what fillPoses and IWER's
-    // getJointPose read), and the exact values for exactJointPose.
-    const protoUpdate = Object.getPrototypeOf(hand).updateHandPose;
-    hand.updateHandPose = function () {
-      protoUpdate.call(this);
-      if (D.current < 0 || !D.currentTracked) return;
-      const base = (4 + D.current * 712 + 12) / 4;
-      const f = D.f32;
-      for (let i = 0; i < 25; i++) {
-        const o = base + i * 7;
-        const e = exact[i];
-        e.p[0] = f[o]; e.p[1] = f[o + 1]; e.p[2] = f[o + 2];
-        e.q[0] = f[o + 3]; e.q[1] = f[o + 4]; e.q[2] = f[o + 5]; e.q[3] = f[o + 6];
-        e.on = !opts.plainIwer;
-        fromRotationTranslation(spaces[i][P_SPACE].offsetMatrix, e.q, e.p);
-      }
-    };
+    const RECORD = 712, PER_SAMPLE = RECORD * opts.hands.length;
+    // Byte offset of record k (opts.hands' order) of sample i.
+    const recordAt = (i, k) => 4 + i * PER_SAMPLE + k * RECORD;
     // gl-matrix's mat4.fromRotationTranslation, as IWER uses it.
     function fromRotationTranslation(out, q, v) {
       const x = q[0], y = q[1], z = q[2], w = q[3];
@@ -221,8 +208,45 @@ function pageSetup(opts) {
       out[8] = xz + wy; out[9] = yz - wx; out[10] = 1 - (xx + yy); out[11] = 0;
       out[12] = v[0]; out[13] = v[1]; out[14] = v[2]; out[15] = 1;
     }
+    // The hands played (each with its record in a sample) and those not: disconnected until
+    // the playback starts; a hand not played never appears.
+    const played = opts.hands.map((name, k) => {
+      const hand = device.hands[name];
+      hand.connected = false;
+      const spaces = JOINTS.map((j) => hand.inputSource.hand.get(j));
+      if (spaces.some((s) => !s)) throw new Error('IWER hand lacks a WebXR joint');
+      const exact = spaces.map(() => ({ p: new Float32Array(3), q: new Float32Array(4), on: false }));
+      spaces.forEach((s, i) => { s.__hbExact = exact[i]; });
+      // The target ray space is the hand's root: identity, so a joint's global pose is its offset.
+      hand.updateTargetRaySpace = function () {
+        const m = this.inputSource.targetRaySpace[P_SPACE].offsetMatrix;
+        m.fill(0); m[0] = m[5] = m[10] = m[15] = 1;
+      };
+      // The joints: IWER's own pose update first (it keeps its per-joint radii), then the
+      // record's translation and rotation into each joint space's offset matrix (what
+      // fillPoses and IWER's getJointPose read), and the exact values for exactJointPose.
+      const protoUpdate = Object.getPrototypeOf(hand).updateHandPose;
+      hand.updateHandPose = function () {
+        protoUpdate.call(this);
+        if (D.current < 0 || !D.currentTracked[k]) return;
+        const base = (recordAt(D.current, k) + 12) / 4;
+        const f = D.f32;
+        for (let i = 0; i < 25; i++) {
+          const o = base + i * 7;
+          const e = exact[i];
+          e.p[0] = f[o]; e.p[1] = f[o + 1]; e.p[2] = f[o + 2];
+          e.q[0] = f[o + 3]; e.q[1] = f[o + 4]; e.q[2] = f[o + 5]; e.q[3] = f[o + 6];
+          e.on = !opts.plainIwer;
+          fromRotationTranslation(spaces[i][P_SPACE].offsetMatrix, e.q, e.p);
+        }
+      };
+      return { name, hand, exact };
+    });
+    for (const name of ['right', 'left']) {
+      if (!opts.hands.includes(name)) device.hands[name].connected = false;
+    }
 
-    // Every device frame, before the page's callbacks: the next sample.
+    // Every device frame, before the page's callbacks: the next sample, every hand of it.
     const priv = device[P_DEVICE];
     const origFrameStart = priv.onFrameStart;
     priv.onFrameStart = function (frame) {
@@ -231,16 +255,21 @@ function pageSetup(opts) {
         if (D.index < D.count) {
           if (D.index === 0) D.startedAt = performance.now();
           D.current = D.index++;
-          const byteBase = 4 + D.current * 712;
-          D.currentTime = D.dv.getFloat64(byteBase, true);
-          D.currentTracked = D.dv.getUint8(byteBase + 8) === 1;
-          hand.connected = D.currentTracked;
-          spaces.forEach((s, i) => { exact[i].on = false; });
+          D.currentTime = D.dv.getFloat64(recordAt(D.current, 0), true);
+          D.tracked = false;
+          played.forEach((h, k) => {
+            const on = D.dv.getUint8(recordAt(D.current, k) + 8) === 1;
+            D.currentTracked[k] = on;
+            D.tracked = D.tracked || on;
+            h.hand.connected = on;
+            h.exact.forEach((e) => { e.on = false; });
+          });
         } else {
           D.done = true;
           D.doneAt = performance.now();
           D.current = -1;
-          hand.connected = false;
+          D.tracked = false;
+          played.forEach((h, k) => { D.currentTracked[k] = false; h.hand.connected = false; });
         }
       }
       return origFrameStart.call(this, frame);
@@ -286,43 +315,53 @@ function pageSetup(opts) {
       } catch (err) { D.checkError = String(err); }
       return origSend.call(this, data);
     };
+    // The page's mask bit of each hand (bit 0 left, bit 1 right); a message holds the left
+    // hand's joints first.
+    const BIT = { left: 1, right: 2 };
     function checkHands(dv) {
       if (dv.getUint32(0, true) !== 0x31584248 || dv.getUint8(4) !== 1) return;
       const c = D.check;
       if (!D.playing) return;
       if (D.done || D.current < 0) { c.afterEnd++; return; }
-      if (!D.currentTracked) { c.sentWhileUntracked++; return; }
+      if (!D.tracked) { c.sentWhileUntracked++; return; }
       const mask = dv.getUint8(5);
-      const want = opts.hand === 'left' ? 1 : 2;
-      if (mask !== want || dv.byteLength !== 824) { c.wrongMask++; return; }
+      let want = 0;
+      played.forEach((h, k) => { if (D.currentTracked[k]) want |= BIT[h.name]; });
+      const n = (want & 1) + (want >> 1);
+      if (mask !== want || dv.byteLength !== 24 + 800 * n) { c.wrongMask++; return; }
       c.compared++;
       const t = dv.getFloat64(16, true);
       if (t === D.currentTime) c.timeExact++; else c.timeDiff++;
-      const base = 4 + D.current * 712 + 12;
       let diff = 0;
-      for (let i = 0; i < 25; i++) {
-        let qDot = 0;
-        for (let k = 0; k < 7; k++) {
-          const want32 = D.dv.getUint32(base + (i * 7 + k) * 4, true);
-          const gotF = dv.getFloat32(24 + i * 32 + k * 4, true);
-          const got32 = bitsOf(gotF);
-          const wantF = D.dv.getFloat32(base + (i * 7 + k) * 4, true);
-          if (k >= 3) qDot += gotF * wantF;
-          if (want32 !== got32) {
-            diff++;
-            const d = Math.abs(gotF - wantF);
-            if (k < 3) c.maxPosDiff = Math.max(c.maxPosDiff, d);
+      played.forEach((h, k) => {
+        if (!D.currentTracked[k]) return;
+        // where this hand's joints are in the message: after the left hand's, if present
+        const at = 24 + (h.name === 'right' && (want & 1) ? 800 : 0);
+        const base = recordAt(D.current, k) + 12;
+        for (let i = 0; i < 25; i++) {
+          let qDot = 0;
+          for (let m = 0; m < 7; m++) {
+            const want32 = D.dv.getUint32(base + (i * 7 + m) * 4, true);
+            const gotF = dv.getFloat32(at + i * 32 + m * 4, true);
+            const got32 = bitsOf(gotF);
+            const wantF = D.dv.getFloat32(base + (i * 7 + m) * 4, true);
+            if (m >= 3) qDot += gotF * wantF;
+            if (want32 !== got32) {
+              diff++;
+              const d = Math.abs(gotF - wantF);
+              if (m < 3) c.maxPosDiff = Math.max(c.maxPosDiff, d);
+            }
           }
+          if (qDot < 0) c.quatSignFlips++;
+          // orientation difference up to sign
+          let dq = 0, dqn = 0;
+          for (let m = 3; m < 7; m++) {
+            const g = dv.getFloat32(at + i * 32 + m * 4, true), w = D.dv.getFloat32(base + (i * 7 + m) * 4, true);
+            dq = Math.max(dq, Math.abs(g - w)); dqn = Math.max(dqn, Math.abs(g + w));
+          }
+          c.maxQuatDiff = Math.max(c.maxQuatDiff, Math.min(dq, dqn));
         }
-        if (qDot < 0) c.quatSignFlips++;
-        // orientation difference up to sign
-        let dq = 0, dqn = 0;
-        for (let k = 3; k < 7; k++) {
-          const g = dv.getFloat32(24 + i * 32 + k * 4, true), w = D.dv.getFloat32(base + (i * 7 + k) * 4, true);
-          dq = Math.max(dq, Math.abs(g - w)); dqn = Math.max(dqn, Math.abs(g + w));
-        }
-        c.maxQuatDiff = Math.max(c.maxQuatDiff, Math.min(dq, dqn));
-      }
+      });
       c.floatsDiffering += diff;
       if (diff === 0) c.exactFrames++; else c.framesWithDiff++;
     }
@@ -335,7 +374,8 @@ function pageSetup(opts) {
     for (let i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
     D.dv = new DataView(bytes.buffer);
     D.count = D.dv.getUint32(0, true);
-    // joints start at byte 4 + 712 i + 12: 4-aligned, so one Float32Array view serves them all
+    // joints start at byte 4 + 712 r + 12 (record r): 4-aligned, so one Float32Array view
+    // serves them all
     D.f32 = new Float32Array(bytes.buffer, 0, bytes.length >> 2);
     return D.count;
   };
@@ -387,7 +427,7 @@ async function main() {
     if (!args.spectator) {
       const bundle = fs.readFileSync(iwerBundle, 'utf8');
       await page.addInitScript({ content: bundle + '\n;(' + pageSetup.toString() + ')(' +
-        JSON.stringify({ hand: args.hand, plainIwer: args.plainIwer, headPitchDeg: 40 }) + ');\n' });
+        JSON.stringify({ hands: PLAYED, plainIwer: args.plainIwer, headPitchDeg: 40 }) + ');\n' });
     }
 
     try {
@@ -438,7 +478,7 @@ async function main() {
     const stallMs = Math.max(30000, timeoutMs);
     for (;;) {
       const s = await page.evaluate(() => ({ i: window.__hbDriver.index, done: window.__hbDriver.done,
-        status: window.handblocks.status, tracked: window.__hbDriver.currentTracked }));
+        status: window.handblocks.status, tracked: window.__hbDriver.tracked }));
       if (s.done) break;
       if (!shot && s.i >= samples.count / 2 && s.tracked) {
         // mid-playback, the hand in view (at the end it is gone)
@@ -483,7 +523,9 @@ async function main() {
     const out = {
       framesSent: r.framesSent, framesSkipped: r.framesSkipped, worldsReceived: r.worldsReceived,
       worldsDrawn: r.worldsDrawn, jsMs: percentiles(r.jsMs), roundTripMs: percentiles(r.roundTripMs),
-      samples: samples.count, samplesTracked: samples.tracked, samplesPlayed: r.played,
+      hand: args.hand, samples: samples.count, samplesTracked: samples.tracked,
+      samplesTrackedByHand: Object.fromEntries(PLAYED.map((h, k) => [h, samples.trackedByHand[k]])),
+      samplesPlayed: r.played,
       framesPerSecond: Math.round(r.played / (r.playMs / 1000) * 10) / 10, exactness,
       check: { compared: c.compared, exactFrames: c.exactFrames, sentWhileUntracked: c.sentWhileUntracked,
         wrongMask: c.wrongMask, fallbacks: c.fallbacks, afterEnd: c.afterEnd },

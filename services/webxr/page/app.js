@@ -276,8 +276,10 @@
     const off = Array.isArray(msg.offset) && msg.offset.length === 3 ? msg.offset.map(Number) : [0, 0, 0];
     worldToHeadsetPose.set([-off[0], -off[1], -off[2], 0, 0, 0, 1]);
     poseMatrix(worldToHeadset, worldToHeadsetPose, 0);
-    drivingHand = msg.hand === 'left' ? 0 : 1;
-    resetHeld();
+    // the hands[] index of each hand slot: hands[0] is the left, hands[1] the right
+    slotHand = msg.hand === 'both' ? [1, 0] : msg.hand === 'left' ? [0] : [1];
+    resetHeld(blocks.length);
+    lastWristValid[0] = lastWristValid[1] = false;
     wristSeq.fill(0);
     originEstimated = false;
     HB.blocks = blocks.map((b) => b.name);
@@ -306,12 +308,19 @@
     const points = dv.getUint32(28, true);
     const need = 32 + 32 * count + 12 * points;
     if (buf.byteLength < need) throw new Error(`world message of ${buf.byteLength} bytes, expected ${need}`);
-    const blocks = new Float32Array(count * 8);
-    for (let i = 0; i < count * 8; i++) blocks[i] = dv.getFloat32(32 + 4 * i, true);
+    // per block 7 f32 (pose), u16 mode, u16 the hands that hold it (held_by); kept here as 8
+    // numbers per block (the pose, the mode) and the holders apart
+    const blocks = new Float32Array(count * 8), heldBy = new Uint8Array(count);
+    for (let i = 0; i < count; i++) {
+      const at = 32 + 32 * i;
+      for (let k = 0; k < 7; k++) blocks[i * 8 + k] = dv.getFloat32(at + 4 * k, true);
+      blocks[i * 8 + 7] = dv.getUint16(at + 28, true);
+      heldBy[i] = dv.getUint16(at + 30, true) & 3;
+    }
     const fingers = new Float32Array(points * 3);
     const base = 32 + 32 * count;
     for (let i = 0; i < points * 3; i++) fingers[i] = dv.getFloat32(base + 4 * i, true);
-    return { pageSeq, count, time, grasped, points, blocks, fingers, drawn: false };
+    return { pageSeq, count, time, grasped, points, blocks, heldBy, fingers, drawn: false };
   }
 
   // ---------------------------------------------------------------- round trip bookkeeping
@@ -332,47 +341,75 @@
     }
   }
 
-  // ---------------------------------------------------------------- the held block (R5)
+  // ---------------------------------------------------------------- the held blocks (R5)
   // A world answers the page's frame a round trip late, so a block drawn where the world put
-  // it trails the hand drawn from this frame's joints. A grasped block moves rigidly with the
-  // wrist (docs/model.md R5): block = W * offset, offset constant while grasped. So the page
-  // takes the offset from each world that says block i is grasped (offset = W_S^-1 * block_S,
-  // with W_S the driving hand's wrist of the frame S that world answers, as the page sent it)
-  // and draws block i at W_now * offset: where the world will put it once it has this frame.
-  // All of it in the headset's frame (local-floor): the world's poses through worldToHeadset.
+  // it trails the hands drawn from this frame's joints. A grasped block moves rigidly with the
+  // wrist of the hand that holds it (docs/model.md R5): block = W * offset, offset constant
+  // while grasped. Each world says which hands hold each block (BlockState.held_by: bit 0 the
+  // session's slot 0, the right hand or a one-hand session's only hand; bit 1 the left). So
+  // the page takes, for each held block and each hand that holds it, the offset from that world
+  // (offset = W_S^-1 * block_S, with W_S that hand's wrist of the frame S the world answers, as
+  // the page sent it) and draws the block at W_now * offset: where the world will put it once
+  // it has this frame. A block both hands hold moves by the mean of the two wrists' motions
+  // (docs/model.md "Two hands"): it is drawn halfway between where each hand would put it
+  // (the middle of the positions, the rotation halfway). All of it in the headset's frame
+  // (local-floor): the world's poses through worldToHeadset.
   //
   // Poses here are 7 numbers: position x y z, then the unit quaternion x y z w.
   const WRIST_RING = 256;
   const wristSeq = new Uint32Array(WRIST_RING);          // the seq a slot holds (0: none)
-  const wristKnown = new Uint8Array(WRIST_RING);         // 1: it sent a driving wrist
-  const wristPose = new Float64Array(WRIST_RING * 7);    // the driving wrist it sent
   const wristTime = new Float64Array(WRIST_RING);        // the frame time it sent (ms)
-  const lastWrist = new Float64Array(7);                 // the driving wrist last seen
-  let lastWristValid = false;
-  let drivingHand = 1;                                   // hands[] index: the scene's `hand`
+  // Per hand (hands[] index, 0 left, 1 right): whether the ring slot holds that hand's wrist
+  // (sent, or held from before while the hand was not in view: the session holds it too), the
+  // wrist, and the wrist last seen.
+  const wristKnown = [new Uint8Array(WRIST_RING), new Uint8Array(WRIST_RING)];
+  const wristPose = [new Float64Array(WRIST_RING * 7), new Float64Array(WRIST_RING * 7)];
+  const lastWrist = [new Float64Array(7), new Float64Array(7)];
+  const lastWristValid = [false, false];
+  // The hands[] index of each of the session's hand slots (the scene's `hand`): one hand in
+  // slot 0, or the right in slot 0 and the left in slot 1.
+  let slotHand = [1];
   // The page's time (as sent) of world time 0: each world answering frame S is the world at
   // the last step at or before S's time, so frameTime_S - 1000 * worldTime lies within one step
   // above it; the least seen is taken (and taken again if the mapping moves: a new driver).
   let originEstimated = false, originMs = 0;
   const worldToHeadsetPose = new Float64Array([0, 0, 0, 0, 0, 0, 1]);
+  // Per block (sized by the scene): what the newest world says of it and what is drawn.
   const held = {
-    world: null,       // the world this state was taken from
-    index: -1,         // the block the newest world says is grasped, -1: none
-    valid: false,      // offset known (the wrist of the frame it answers was found)
-    offset: new Float64Array(7),       // the block in the wrist's frame, from the newest world
-    graspValid: false,
-    // The reference: the offset of the grasp's first world, carried on by R5 and R8 (a lift
-    // out of the floor stays in it) frame by frame from this page's own hand.
-    refOffset: new Float64Array(7),
+    world: null,            // the world this state was taken from
+    n: 0,                   // blocks
+    mask: new Uint8Array(0),      // the slots that hold it (held_by), 0: not held
+    valid: new Uint8Array(0),     // the slots whose offset is known (from the newest world's frame)
+    offset: new Float64Array(0),  // per block, per slot (2): the block in that wrist's frame
+    graspValid: new Uint8Array(0),
+    // The reference of a block one hand holds: the offset of the grasp's first world, carried
+    // on by R5 and R8 (a lift out of the floor stays in it) frame by frame from this page's
+    // own hand.
+    refOffset: new Float64Array(0),
+    list: [],               // the blocks held (mask != 0), lowest first
+    draw: new Uint8Array(0),      // this frame draws block i at drawPose[7 i]
+    drawPose: new Float64Array(0),
   };
   const tmpA = new Float64Array(7), tmpB = new Float64Array(7), tmpC = new Float64Array(7);
-  const heldDrawPose = new Float64Array(7), heldRefPose = new Float64Array(7);
+  const tmpD = new Float64Array(7), heldRefPose = new Float64Array(7);
   const heldWorldPose = new Float64Array(7);
   const heldModel = M.create();
-  let heldDraw = false;      // this frame draws block held.index at heldDrawPose
+  let heldDraw = false;      // this frame draws some held block from the hands
 
-  function resetHeld() {
-    held.world = null; held.index = -1; held.valid = false; held.graspValid = false;
+  function resetHeld(blocks) {
+    if (blocks !== undefined && blocks !== held.n) {
+      held.n = blocks;
+      held.mask = new Uint8Array(blocks);
+      held.valid = new Uint8Array(blocks);
+      held.offset = new Float64Array(blocks * 14);
+      held.graspValid = new Uint8Array(blocks);
+      held.refOffset = new Float64Array(blocks * 7);
+      held.draw = new Uint8Array(blocks);
+      held.drawPose = new Float64Array(blocks * 7);
+    }
+    held.world = null;
+    held.mask.fill(0); held.valid.fill(0); held.graspValid.fill(0); held.draw.fill(0);
+    held.list.length = 0;
     heldDraw = false;
   }
 
@@ -411,23 +448,26 @@
   function poseMatrix(out, p, o) {
     return M.fromRTS(out, p[o + 3], p[o + 4], p[o + 5], p[o + 6], p[o], p[o + 1], p[o + 2], 1);
   }
-  function poseDistanceMm(a, b) {
-    return 1000 * Math.hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+  function poseDistanceMm(a, ao, b, bo) {
+    return 1000 * Math.hypot(a[ao] - b[bo], a[ao + 1] - b[bo + 1], a[ao + 2] - b[bo + 2]);
   }
 
-  // A sent frame's driving wrist (or, without the hand, the last one: the session holds it).
-  function noteWristSent(seq, frameTime, present) {
+  // A sent frame's wrists (a hand the frame lacks: its last one, as the session holds it).
+  function noteWristSent(seq, frameTime, mask) {
     const slot = seq % WRIST_RING;
-    if (present) {
-      const j = hands[drivingHand].joints;
-      for (let k = 0; k < 7; k++) lastWrist[k] = j[k];
-      normalizeQuat(lastWrist, 0);
-      lastWristValid = true;
-    }
     wristSeq[slot] = seq;
     wristTime[slot] = frameTime;
-    wristKnown[slot] = lastWristValid ? 1 : 0;
-    if (lastWristValid) wristPose.set(lastWrist, slot * 7);
+    for (const h of slotHand) {
+      const last = lastWrist[h];
+      if (mask & (1 << h)) {
+        const j = hands[h].joints;
+        for (let k = 0; k < 7; k++) last[k] = j[k];
+        normalizeQuat(last, 0);
+        lastWristValid[h] = true;
+      }
+      wristKnown[h][slot] = lastWristValid[h] ? 1 : 0;
+      if (lastWristValid[h]) wristPose[h].set(last, slot * 7);
+    }
   }
 
   // Each world that answers a frame of this page's: the page's time of world time 0.
@@ -442,26 +482,26 @@
     }
   }
 
-  // The driving wrist at world time `worldTime` (s) of the world answering frame `seq`, as the
+  // Hand h's wrist at world time `worldTime` (s) of the world answering frame `seq`, as the
   // session's timeline has it (interpolated between the frames around that time: position
   // linearly, orientation by slerp); false if the frames it needs are no longer known.
-  function wristAtWorld(seq, worldTime, out) {
-    const slot = seq % WRIST_RING;
-    if (!originEstimated || seq === 0 || seq === 0xFFFFFFFF || wristSeq[slot] !== seq || !wristKnown[slot]) return false;
+  function wristAtWorld(h, seq, worldTime, out) {
+    const slot = seq % WRIST_RING, known = wristKnown[h], poses = wristPose[h];
+    if (!originEstimated || seq === 0 || seq === 0xFFFFFFFF || wristSeq[slot] !== seq || !known[slot]) return false;
     const t = originMs + 1000 * worldTime;
     const eps = 1e-4;   // ms: the session rounds frame times to whole ns
     if (t >= wristTime[slot] - eps) {
-      for (let k = 0; k < 7; k++) out[k] = wristPose[slot * 7 + k];
+      for (let k = 0; k < 7; k++) out[k] = poses[slot * 7 + k];
       return true;
     }
     // the frame before t, and the one after it
     for (let back = 1; back < 16; back++) {
       const s0 = seq - back, a = s0 % WRIST_RING, b = (s0 + 1) % WRIST_RING;
-      if (s0 <= 0 || wristSeq[a] !== s0 || !wristKnown[a]) return false;
+      if (s0 <= 0 || wristSeq[a] !== s0 || !known[a]) return false;
       if (wristTime[a] > t + eps) continue;
       const span = wristTime[b] - wristTime[a];
       const f = span > 0 ? Math.min(1, Math.max(0, (t - wristTime[a]) / span)) : 1;
-      interpolatePose(out, wristPose, a * 7, wristPose, b * 7, f);
+      interpolatePose(out, poses, a * 7, poses, b * 7, f);
       return true;
     }
     return false;
@@ -494,36 +534,50 @@
     poseMul(out, 0, worldToHeadsetPose, 0, tmpC, 0);
   }
 
-  // A new world: the grasp it states, and the block's offset from the wrist it answers.
+  // A new world: the grasps it states, and each held block's offset from the wrist of each
+  // hand that holds it, at the frame it answers.
   function updateHeld() {
     if (held.world === world) return;
     held.world = world;
-    const g = world && scene && world.grasped >= 0 && world.grasped < Math.min(world.count, scene.blocks.length)
-      ? world.grasped : -1;
-    if (g !== held.index) {
-      held.index = g; held.valid = false; held.graspValid = false;
-    }
-    if (g < 0) return;
-    // No wrist for the frame it answers (a world of no frame of this page's): keep the offset
-    // the grasp had, if any.
-    if (!wristAtWorld(world.pageSeq, world.time, tmpA)) return;
-    worldBlockPose(tmpB, world, g);
-    poseInvMul(held.offset, 0, tmpA, 0, tmpB, 0);
-    normalizeQuat(held.offset, 0);
-    held.valid = true;
-    if (!held.graspValid) {
-      held.refOffset.set(held.offset);
-      held.graspValid = true;
+    held.list.length = 0;
+    const n = world && scene ? Math.min(world.count, scene.blocks.length, held.n) : 0;
+    for (let i = 0; i < held.n; i++) {
+      // held_by's slots this session has (a one-hand session: slot 0 alone)
+      const mask = i < n ? world.heldBy[i] & ((1 << slotHand.length) - 1) : 0;
+      if (mask !== held.mask[i]) {
+        held.mask[i] = mask; held.valid[i] = 0; held.graspValid[i] = 0;
+      }
+      if (!mask) continue;
+      held.list.push(i);
+      // No wrist for the frame it answers (a world of no frame of this page's): keep the
+      // offsets the grasp had, if any.
+      worldBlockPose(tmpB, world, i);
+      for (let s = 0; s < slotHand.length; s++) {
+        if (!(mask & (1 << s)) || !wristAtWorld(slotHand[s], world.pageSeq, world.time, tmpA)) continue;
+        const o = (i * 2 + s) * 7;
+        poseInvMul(held.offset, o, tmpA, 0, tmpB, 0);
+        normalizeQuat(held.offset, o);
+        held.valid[i] |= 1 << s;
+      }
+      if (held.valid[i] === mask && !held.graspValid[i]) {
+        // the reference of a one-hand grasp (a two-hand grasp's is not measured)
+        const s = mask === 1 ? 0 : mask === 2 ? 1 : -1;
+        if (s >= 0) held.refOffset.set(held.offset.subarray((i * 2 + s) * 7, (i * 2 + s + 1) * 7), i * 7);
+        held.graspValid[i] = 1;
+      }
     }
   }
 
-  // out = the held block at the driving wrist (the one last seen) and `offset`, in the
-  // headset's frame: R5, with R8's lift, which a grasped block obeys too (lifted out of the
-  // floor by the depth its lowest vertex is below it).
-  function fromHand(out, offset) {
-    poseMul(tmpA, 0, lastWrist, 0, offset, 0);
-    poseInvMul(tmpB, 0, worldToHeadsetPose, 0, tmpA, 0);   // in the world's frame
-    const hull = scene.blocks[held.index].hull;
+  // out = block i at hand h's last wrist and `offset[oo..]`, in the headset's frame: R5.
+  function atHand(out, h, offset, oo) {
+    poseMul(out, 0, lastWrist[h], 0, offset, oo);
+  }
+
+  // out = pose (block i in the headset's frame) with R8's lift, which a grasped block obeys
+  // too (lifted out of the floor by the depth its lowest vertex is below it). out may be pose.
+  function lifted(out, i, pose) {
+    poseInvMul(tmpB, 0, worldToHeadsetPose, 0, pose, 0);   // in the world's frame
+    const hull = scene.blocks[i].hull;
     let low = Infinity;
     for (let v = 0; v + 2 < hull.length; v += 3) {
       rotate(tmpC, 0, tmpB[3], tmpB[4], tmpB[5], tmpB[6], hull[v], hull[v + 1], hull[v + 2]);
@@ -534,29 +588,63 @@
     poseMul(out, 0, worldToHeadsetPose, 0, tmpB, 0);
   }
 
-  // Once per XR frame, before drawing: where the held block is drawn, and (with the driving
-  // hand in view and this frame sent as `seq`) how far the drawn block is from where R5 puts
-  // it for this frame's hand (held.refOffset: the grasp's first world's offset, carried on by
-  // R5 and R8 from this page's frames, never from a later world), and how many frames old
-  // the drawn pose is (0: this frame's hand); the same for the world's pose of the block
-  // (what the page drew before issue 41: a round trip late).
+  // out = held block i where its holders' hands (their last wrists) put it: one hand's R5, or
+  // halfway between two hands' (the middle of the positions, the rotation halfway), lifted.
+  function fromHands(out, i) {
+    const mask = held.mask[i];
+    let first = true;
+    for (let s = 0; s < slotHand.length; s++) {
+      if (!(mask & (1 << s))) continue;
+      atHand(first ? out : tmpD, slotHand[s], held.offset, (i * 2 + s) * 7);
+      if (!first) {
+        for (let k = 0; k < 3; k++) out[k] = (out[k] + tmpD[k]) / 2;
+        const sign = out[3] * tmpD[3] + out[4] * tmpD[4] + out[5] * tmpD[5] + out[6] * tmpD[6] < 0 ? -1 : 1;
+        for (let k = 3; k < 7; k++) out[k] += sign * tmpD[k];
+        normalizeQuat(out, 0);
+      }
+      first = false;
+    }
+    lifted(out, i, out);
+  }
+
+  // Once per XR frame, before drawing: where each held block is drawn, and (for a block one
+  // hand holds, with that hand in view and this frame sent as `seq`) how far the drawn block
+  // is from where R5 puts it for this frame's hand (held.refOffset: the grasp's first world's
+  // offset, carried on by R5 and R8 from this page's frames, never from a later world), and
+  // how many frames old the drawn pose is (0: this frame's hand); the same for the world's
+  // pose of the block (what the page drew before issue 41: a round trip late).
   function prepareHeld(seq) {
     updateHeld();
     heldDraw = false;
-    if (!held.valid || !world || !lastWristValid) return;
-    fromHand(heldDrawPose, held.offset);
-    heldDraw = !HB.heldFromWorld;
-    if (!seq || !hands[drivingHand].present || !held.graspValid) return;
-    if (world.pageSeq === 0 || world.pageSeq > seq) return;   // a world of no frame of this page's
-    fromHand(heldRefPose, held.refOffset);
-    poseInvMul(held.refOffset, 0, lastWrist, 0, heldRefPose, 0);
-    worldBlockPose(heldWorldPose, world, held.index);
-    const worldLag = seq - world.pageSeq;
-    const worldDist = poseDistanceMm(heldWorldPose, heldRefPose);
-    keep(HB.stats.heldWorldLagFrames, worldLag);
-    keep(HB.stats.heldWorldDistMm, worldDist);
-    keep(HB.stats.heldLagFrames, heldDraw ? 0 : worldLag);
-    keep(HB.stats.heldDistMm, heldDraw ? poseDistanceMm(heldDrawPose, heldRefPose) : worldDist);
+    for (const i of held.list) {
+      held.draw[i] = 0;
+      const mask = held.mask[i];
+      if (!world || held.valid[i] !== mask) continue;
+      let inView = true, known = true;
+      for (let s = 0; s < slotHand.length; s++) {
+        if (!(mask & (1 << s))) continue;
+        known = known && lastWristValid[slotHand[s]];
+        inView = inView && hands[slotHand[s]].present;
+      }
+      if (!known) continue;
+      const pose = held.drawPose.subarray(i * 7, i * 7 + 7);
+      fromHands(pose, i);
+      held.draw[i] = HB.heldFromWorld ? 0 : 1;
+      heldDraw = heldDraw || held.draw[i] === 1;
+      if (!seq || !inView || !held.graspValid[i] || (mask !== 1 && mask !== 2)) continue;
+      if (world.pageSeq === 0 || world.pageSeq > seq) continue;   // a world of no frame of this page's
+      const h = slotHand[mask === 1 ? 0 : 1];
+      atHand(heldRefPose, h, held.refOffset, i * 7);
+      lifted(heldRefPose, i, heldRefPose);
+      poseInvMul(held.refOffset, i * 7, lastWrist[h], 0, heldRefPose, 0);
+      worldBlockPose(heldWorldPose, world, i);
+      const worldLag = seq - world.pageSeq;
+      const worldDist = poseDistanceMm(heldWorldPose, 0, heldRefPose, 0);
+      keep(HB.stats.heldWorldLagFrames, worldLag);
+      keep(HB.stats.heldWorldDistMm, worldDist);
+      keep(HB.stats.heldLagFrames, held.draw[i] ? 0 : worldLag);
+      keep(HB.stats.heldDistMm, held.draw[i] ? poseDistanceMm(pose, 0, heldRefPose, 0) : worldDist);
+    }
   }
 
   // ---------------------------------------------------------------- WebSocket
@@ -679,10 +767,10 @@
         const b = scene.blocks[i];
         if (!b.mesh) continue;
         const o = i * 8, w = world.blocks;
-        if (opts.held && i === held.index) {
-          // the held block, from this frame's hand: in the headset's frame
+        if (opts.held && held.draw[i]) {
+          // a held block, from this frame's hands that hold it: in the headset's frame
           gl.uniformMatrix4fv(litProg.u.u_viewProj, false, viewProj);
-          gl.uniformMatrix4fv(litProg.u.u_model, false, poseMatrix(heldModel, heldDrawPose, 0));
+          gl.uniformMatrix4fv(litProg.u.u_model, false, poseMatrix(heldModel, held.drawPose, i * 7));
         } else {
           gl.uniformMatrix4fv(litProg.u.u_viewProj, false, worldViewProj);
           M.fromRTS(tmpModel, w[o + 3], w[o + 4], w[o + 5], w[o + 6], w[o], w[o + 1], w[o + 2], 1);
@@ -859,7 +947,7 @@
     }
     if (!send(buf)) return 0;
     frameSeq = seq;
-    noteWristSent(seq, frameTime, (mask & (1 << drivingHand)) !== 0);
+    noteWristSent(seq, frameTime, mask);
     ringSeq[seq % RING] = seq;
     ringTime[seq % RING] = performance.now();
     HB.framesSent++;

@@ -15,7 +15,12 @@
 //! another, a page that sent a time far ahead included (the server refuses frames far ahead of
 //! their page's clock, `clock`, and this keeps any that got through from outliving their page).
 //!
-//! **Tracking.** A frame without the driving hand publishes the hand's last joints marked
+//! **Hands.** `hand = "right"` or `"left"`: that hand of each frame is published as a one-hand
+//! source's only hand (side 0). `hand = "both"`: each frame publishes the right hand, then the
+//! left (side 1), with the same source time (docs/model.md "Two hands"); a hand not seen yet
+//! is not sent.
+//!
+//! **Tracking.** A frame without a driving hand publishes that hand's last joints marked
 //! untracked, in the frame's time; kinematics holds the grasp through such a gap up to
 //! [`common::TRACKING_HOLD_NS`] (100 ms) and then lets go. A driving page whose socket
 //! closes (or that sends nothing for [`driver_silence_ns`]) is a gap too: untracked samples go on,
@@ -37,8 +42,8 @@ use common::config::Session;
 use common::latency::{Metric, Reporter};
 use common::node::{self, Counters, Pass, Task};
 use common::{
-    monotonic_ns, shutdown, topics, DeviceCounters, JointsSample, Stage, Stamp, WorldView,
-    TRACKING_HOLD_NS,
+    monotonic_ns, shutdown, topics, DeviceCounters, HandSide, HandsUsed, JointsSample, Stage,
+    Stamp, WorldView, TRACKING_HOLD_NS,
 };
 use webxr_wire::page::NO_FRAME;
 use webxr_wire::{Handedness, HandsFrame};
@@ -157,8 +162,8 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), WebxrError> {
         last_frame_source_ns: 0,
         last_gap_ns: 0,
         silence_ns: driver_silence_ns(session.budget.source_silence_ms),
-        joints: None,
-        origins: [(0, NO_FRAME); ORIGINS],
+        joints: [None; 2],
+        origins: [(0, NO_FRAME, 0); ORIGINS],
         origin_next: 0,
         step_s: 1.0 / session.scene.world.step_hz,
         world_message: Vec::with_capacity(
@@ -279,7 +284,7 @@ fn scene_message(session: &Session, settings: &WebxrSource) -> Result<String, We
     Ok(serde_json::json!({
         "op": "scene",
         "session": session.file.display().to_string(),
-        "hand": if settings.left_hand { "left" } else { "right" },
+        "hand": settings.hand.name(),
         "floor_y": 0.0,
         "step_hz": session.scene.world.step_hz,
         "offset": settings.offset,
@@ -296,13 +301,24 @@ fn follow_on_offset(frame_ns: i128, offset_ns: i64, last_source_ns: u64) -> i64 
     offset_ns.saturating_add(behind.clamp(0, i128::from(i64::MAX)) as i64)
 }
 
+/// The hands a session's frames publish: (slot, the page's hand), slot being the `joints`
+/// sample's side ([`HandSide::code`]): one hand as side 0, or the right (0) then the left (1).
+fn slots(hands: HandsUsed) -> &'static [(usize, Handedness)] {
+    match hands {
+        HandsUsed::One(HandSide::Right) => &[(0, Handedness::Right)],
+        HandsUsed::One(HandSide::Left) => &[(0, Handedness::Left)],
+        HandsUsed::Both => &[(0, Handedness::Right), (1, Handedness::Left)],
+    }
+}
+
 /// What the stage counted, for its report.
 #[derive(Debug, Default, Clone, Copy)]
 struct Counts {
-    /// Hands frames published as joints (tracked or not).
+    /// Frames published as joints (tracked or not; with both hands, one frame is two samples).
     published: u64,
-    /// Frames without the driving hand, and samples sent while no page drove.
-    untracked: u64,
+    /// Per slot ([`slots`]): hands published untracked (frames without that hand, and samples
+    /// sent while no page drove).
+    untracked: [u64; 2],
     /// Frames of a page that was not driving.
     other_page: u64,
     /// Frames before the page's clock was known.
@@ -317,11 +333,11 @@ struct Counts {
     takeovers: u64,
     /// Drivers whose timeline was moved on to follow what was published.
     shifted: u64,
-    /// Gaps (frames without the hand, or no page) longer than the hold time.
+    /// Gaps of a hand (frames without it, or no page) longer than the hold time, both hands'.
     long_gaps: u64,
-    /// Start of the current gap (source time), when in one.
-    gap_from_ns: Option<u64>,
-    gap_counted: bool,
+    /// Per slot: start of the hand's current gap (source time), when in one.
+    gap_from_ns: [Option<u64>; 2],
+    gap_counted: [bool; 2],
     worlds_sent: u64,
     offset_ns: i64,
     offset_round_trip_ns: u64,
@@ -348,10 +364,11 @@ struct Headset {
     last_gap_ns: u64,
     /// How long a driver may be silent ([`driver_silence_ns`] of the session's budget).
     silence_ns: u64,
-    /// The last joints published (what a gap repeats, untracked).
-    joints: Option<JointsSample>,
-    /// (origin ns, page seq) of the frames published, to answer worlds with their frame.
-    origins: [(u64, u32); ORIGINS],
+    /// Per slot ([`slots`]), the last joints published (what a gap repeats, untracked).
+    joints: [Option<JointsSample>; 2],
+    /// (origin ns, page seq) of the frames published, to answer worlds with their frame,
+    /// and how many hand samples the frame was.
+    origins: [(u64, u32, u8); ORIGINS],
     origin_next: usize,
     /// The world's step, seconds (a world's time is its step count times it).
     step_s: f64,
@@ -435,7 +452,7 @@ impl Headset {
         if self.driver.is_none() {
             // A new driver: its seqs start over; its clock is its own, held from now on, and
             // its timeline follows what was published (whatever times an earlier driver sent).
-            if self.joints.is_some() {
+            if self.published_any() {
                 self.counts.takeovers += 1;
             }
             self.driver = Some(page);
@@ -465,78 +482,97 @@ impl Headset {
         self.last_seq = Some(frame.seq);
         self.last_frame_arrival_ns = arrived_ns;
         self.last_frame_source_ns = source_ns as u64;
-        let which = if self.settings.left_hand {
-            Handedness::Left
-        } else {
-            Handedness::Right
-        };
-        let mut joints = match (frame.hand(which), self.joints) {
-            (Some(hand), _) => {
-                let mut j = JointsSample::default();
-                webxr_wire::to_joints(hand, &mut j);
-                let moved = |p: &mut [f64; 3]| {
-                    for (v, o) in p.iter_mut().zip(self.settings.offset) {
-                        *v += o;
-                    }
-                };
-                moved(&mut j.wrist.position);
-                for p in j.joints.iter_mut() {
-                    moved(&mut p.position);
-                }
-                j
-            }
-            (None, Some(last)) => {
-                let mut j = last;
-                j.tracked = 0;
-                j
-            }
-            // Not seen yet: nothing to hold.
-            (None, None) => return Ok(()),
-        };
-        joints.stamp = Stamp {
+        let stamp = Stamp {
             seq: 0,
             source_time_ns: source_ns as u64,
             origin_ns: arrived_ns,
             publish_ns: 0,
         };
-        self.publish(joints, frame.seq, pass)
+        let mut out = [None; 2];
+        for &(slot, which) in slots(self.settings.hand) {
+            out[slot] = match (frame.hand(which), self.joints[slot]) {
+                (Some(hand), _) => {
+                    let mut j = JointsSample::default();
+                    webxr_wire::to_joints(hand, &mut j);
+                    let moved = |p: &mut [f64; 3]| {
+                        for (v, o) in p.iter_mut().zip(self.settings.offset) {
+                            *v += o;
+                        }
+                    };
+                    moved(&mut j.wrist.position);
+                    for p in j.joints.iter_mut() {
+                        moved(&mut p.position);
+                    }
+                    Some(j)
+                }
+                (None, Some(last)) => {
+                    let mut j = last;
+                    j.tracked = 0;
+                    Some(j)
+                }
+                // Not seen yet: nothing to hold.
+                (None, None) => None,
+            }
+            .map(|mut j| {
+                j.side = slot as u32;
+                j.stamp = stamp;
+                j
+            });
+        }
+        self.publish(&out, frame.seq, pass)
     }
 
-    /// Publishes `joints` (its source time and origin set), remembering which frame it was.
+    /// Whether any hand was published yet.
+    fn published_any(&self) -> bool {
+        self.joints.iter().any(Option::is_some)
+    }
+
+    /// Publishes one frame's hands, the right (slot 0) first, each with its source time and
+    /// origin set, remembering which page frame they were; nothing when `hands` holds none.
     fn publish(
         &mut self,
-        joints: JointsSample,
+        hands: &[Option<JointsSample>; 2],
         frame_seq: u32,
         pass: &mut Pass<'_>,
     ) -> Result<(), BusError> {
-        let t = joints.stamp.source_time_ns;
-        if joints.tracked == 0 {
-            self.counts.untracked += 1;
-            let from = *self.counts.gap_from_ns.get_or_insert(t);
-            if !self.counts.gap_counted && t - from > TRACKING_HOLD_NS {
-                self.counts.gap_counted = true;
-                self.counts.long_gaps += 1;
+        let mut origin = None;
+        let mut samples = 0u8;
+        for (slot, joints) in hands.iter().enumerate() {
+            let Some(joints) = joints else { continue };
+            let t = joints.stamp.source_time_ns;
+            if joints.tracked == 0 {
+                self.counts.untracked[slot] += 1;
+                let from = *self.counts.gap_from_ns[slot].get_or_insert(t);
+                if !self.counts.gap_counted[slot] && t - from > TRACKING_HOLD_NS {
+                    self.counts.gap_counted[slot] = true;
+                    self.counts.long_gaps += 1;
+                }
+            } else {
+                self.counts.gap_from_ns[slot] = None;
+                self.counts.gap_counted[slot] = false;
             }
-        } else {
-            self.counts.gap_from_ns = None;
-            self.counts.gap_counted = false;
+            let sent = self.joints_out.publish(joints)?;
+            // A headset session waits for its user: silence counts from the first sample on
+            // (told before the first output is recorded, which ends the waiting).
+            pass.recorder.delivered_after_waiting(sent.publish_ns);
+            pass.recorder.record(
+                Metric::Process,
+                sent.publish_ns.saturating_sub(sent.origin_ns),
+            );
+            pass.recorder.record(
+                Metric::Origin,
+                sent.publish_ns.saturating_sub(sent.origin_ns),
+            );
+            origin = Some(sent.origin_ns);
+            samples += 1;
+            self.last_source_ns = t;
+            self.joints[slot] = Some(*joints);
         }
-        let sent = self.joints_out.publish(&joints)?;
-        // A headset session waits for its user: silence counts from the first sample on
-        // (told before the first output is recorded, which ends the waiting).
-        pass.recorder.delivered_after_waiting(sent.publish_ns);
-        pass.recorder.record(
-            Metric::Process,
-            sent.publish_ns.saturating_sub(sent.origin_ns),
-        );
-        pass.recorder.record(
-            Metric::Origin,
-            sent.publish_ns.saturating_sub(sent.origin_ns),
-        );
-        self.origins[self.origin_next] = (sent.origin_ns, frame_seq);
+        let Some(origin) = origin else {
+            return Ok(());
+        };
+        self.origins[self.origin_next] = (origin, frame_seq, samples);
         self.origin_next = (self.origin_next + 1) % ORIGINS;
-        self.last_source_ns = t;
-        self.joints = Some(joints);
         self.counts.published += 1;
         Ok(())
     }
@@ -554,25 +590,28 @@ impl Headset {
                 return Ok(());
             }
         }
-        let Some(last) = self.joints else {
-            return Ok(());
-        };
-        if now.saturating_sub(self.last_gap_ns) < GAP_PERIOD_NS {
+        if !self.published_any() || now.saturating_sub(self.last_gap_ns) < GAP_PERIOD_NS {
             return Ok(());
         }
         self.last_gap_ns = now;
-        let mut j = last;
-        j.tracked = 0;
         // The driver's timeline goes on at this machine's pace from its last frame (a page
         // that drives again maps its frames by the same offset, so they follow on).
         let since_last = now.saturating_sub(self.last_frame_arrival_ns);
-        j.stamp = Stamp {
+        let stamp = Stamp {
             seq: 0,
             source_time_ns: (self.last_frame_source_ns + since_last).max(self.last_source_ns + 1),
             origin_ns: now,
             publish_ns: 0,
         };
-        self.publish(j, NO_FRAME, pass)
+        // Every hand seen so far, untracked, at one time.
+        let hands = self.joints.map(|last| {
+            last.map(|mut j| {
+                j.tracked = 0;
+                j.stamp = stamp;
+                j
+            })
+        });
+        self.publish(&hands, NO_FRAME, pass)
     }
 
     fn worlds(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
@@ -582,10 +621,12 @@ impl Headset {
             let origin = header.stamp.origin_ns;
             // The frame it answers is almost always among the newest published: look back
             // from the newest.
+            // (A frame of two hands is answered by one world: the stepper publishes once the
+            // frame is whole.)
             let frame_seq = (1..=ORIGINS)
                 .map(|back| self.origins[(self.origin_next + ORIGINS - back) % ORIGINS])
-                .find(|&(o, _)| o == origin && origin != 0)
-                .map_or(NO_FRAME, |(_, seq)| seq);
+                .find(|&(o, _, _)| o == origin && origin != 0)
+                .map_or(NO_FRAME, |(_, seq, _)| seq);
             let world = WorldView {
                 header,
                 blocks: s.payload(),
@@ -613,7 +654,7 @@ impl Task for Headset {
             let due = self.last_frame_arrival_ns.saturating_add(self.silence_ns);
             let left = due.saturating_sub(monotonic_ns()).saturating_add(1_000_000);
             timeout.min(Duration::from_nanos(left))
-        } else if self.joints.is_some() {
+        } else if self.published_any() {
             timeout.min(Duration::from_nanos(GAP_PERIOD_NS))
         } else {
             timeout.min(Duration::from_nanos(SILENCE_NS))
@@ -686,7 +727,7 @@ impl Task for Headset {
             );
         }
         eprintln!(
-            "handblocks webxr: {} pages connected; {} frames published ({} untracked), {} worlds \
+            "handblocks webxr: {} pages connected; {} frames published ({}), {} worlds \
              sent; refused: {}{}{}; frames missing from the driver's seqs {}; frames of a page \
              not driving {}; driving sockets lost {}; pages dropped for not answering pings {}; \
              drivers whose time was moved on to follow the published {}; \
@@ -694,7 +735,13 @@ impl Task for Headset {
              of {} pings (round trip {:.3} ms), held for the session",
             pages,
             c.published,
-            c.untracked,
+            match self.settings.hand {
+                HandsUsed::Both => format!(
+                    "untracked: the right hand {}, the left {}",
+                    c.untracked[0], c.untracked[1]
+                ),
+                HandsUsed::One(_) => format!("{} untracked", c.untracked[0]),
+            },
             c.worlds_sent,
             if refused.is_empty() {
                 "none".to_string()
@@ -741,6 +788,23 @@ mod tests {
         let poisoned = 1_000_000_000_000_000_u64;
         let held = follow_on_offset(1_000, 5_000, poisoned);
         assert_eq!(1_000 + i128::from(held), i128::from(poisoned) + 1);
+    }
+
+    #[test]
+    fn one_hand_is_published_as_side_0_and_both_as_the_right_then_the_left() {
+        assert_eq!(
+            slots(HandsUsed::One(HandSide::Left)),
+            &[(0, Handedness::Left)]
+        );
+        assert_eq!(
+            slots(HandsUsed::One(HandSide::Right)),
+            &[(0, Handedness::Right)]
+        );
+        assert_eq!(
+            slots(HandsUsed::Both),
+            &[(0, Handedness::Right), (1, Handedness::Left)]
+        );
+        assert_eq!(HandSide::Left.code(), 1);
     }
 
     #[test]

@@ -3,12 +3,14 @@
 //! checked against its CRC, and the schemas, channels, metadata and messages inside taken into
 //! the [`Recording`]. mcap's own readers trust these lengths (issue 16); this one never does.
 
-use common::samples::{HandSample, MAX_SCENE_BLOCKS};
+use common::samples::MAX_SCENE_BLOCKS;
 use common::stamp::Stamp;
 use common::topic::Topic;
 
 use super::{RecordedMessage, Recording, MAX_CHUNK_BYTES};
-use crate::codec::{sample_type, slice_message_bytes, CDR_LE_HEADER, MESSAGE_ENCODING};
+use crate::codec::{
+    sample_type, slice_message_bytes, widen_legacy_hand, CDR_LE_HEADER, MESSAGE_ENCODING, WIDENED,
+};
 use crate::{RECORDED_TOPICS, SCENE_CHANNEL};
 
 const OP_SCHEMA: u8 = 0x03;
@@ -26,23 +28,6 @@ const USED_OPCODES: [u8; 6] = [
     OP_METADATA,
     OP_DATA_END,
 ];
-
-/// A `hand` message with its CDR header, as today's samples are.
-const WIDENED: usize = CDR_LE_HEADER.len() + std::mem::size_of::<HandSample>();
-
-/// A hand recorded before hands had a `side` (`HandSample::LEGACY_SIZE` bytes) is a prefix of
-/// today's: copied into `buf`, the rest zero, it reads as the right hand. Any other message is
-/// itself.
-fn widen_legacy_hand<'a>(topic: Topic, data: &'a [u8], buf: &'a mut [u8; WIDENED]) -> &'a [u8] {
-    if topic == Topic::Hand && data.len() == CDR_LE_HEADER.len() + HandSample::LEGACY_SIZE {
-        let (kept, added) = buf.split_at_mut(data.len());
-        kept.copy_from_slice(data);
-        added.fill(0);
-        &buf[..]
-    } else {
-        data
-    }
-}
 
 /// Checks every length inside a record against the bytes its body holds, before mcap parses
 /// it: mcap 0.26 reserves the length a string or map claims before it checks that the record
@@ -422,6 +407,7 @@ impl Reader<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use common::HandSample;
 
     /// A hand recorded before two hands (1148 bytes with its CDR header) reads as the right
     /// hand, every field it had kept; other lengths and topics pass as they are.

@@ -441,7 +441,8 @@ impl PreciseWorld {
                 rotation: body.rotation().to_array(),
             },
             mode: b.mode as u32,
-            _reserved: 0,
+            // The precise model takes one hand (slot 0).
+            held_by: u32::from(b.mode == BlockMode::Grasped),
         }
     }
 
