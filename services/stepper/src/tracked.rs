@@ -209,8 +209,8 @@ impl GripPath {
     /// ([`fit_velocity_of_degree`], [`FIT_DEGREE`]) through the kept points from one window
     /// before the evaluation step on, evaluated at the evaluation step (the last firm step, no more than a window before
     /// `now`); with fewer than two points in that span (a tracking gap took them), the fit of
-    /// every point kept. None with fewer than two points in all (then the caller throws as R13
-    /// does).
+    /// every point kept. None with fewer than two points in all (then the caller throws
+    /// nothing: v = 0).
     pub(crate) fn throw_velocity(&self, now: u64, rules: &TrackedRules) -> Option<DVec3> {
         let w = rules.fit_window_steps;
         let at = self.firm_step.clamp(now.saturating_sub(w), now);
