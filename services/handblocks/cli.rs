@@ -362,6 +362,10 @@ pub struct ReplayArgs {
     /// Play only these source topics (glove, tracker, joints; comma-separated or repeated).
     #[arg(long, value_name = "TOPIC")]
     pub topics: Vec<String>,
+    /// Which hands of a CARL trace play: right, left, or both in one world (docs/model.md
+    /// "Two hands"); a recording plays the hands it holds.
+    #[arg(long, value_name = "SIDE", default_value = "right", value_parser = ["right", "left", "both"])]
+    pub hands: String,
     /// The scene (a file, or a name of `handblocks list`); default: see above.
     #[arg(long, value_name = "SCENE")]
     pub scene: Option<PathBuf>,

@@ -7,7 +7,7 @@
 //!   metadata names it); else, for a CARL trace, the scene and offset of the configuration's
 //!   session that replays the same file (`replay-carl-push.toml` for `example_push_0.carl`);
 //!   else `scenes/carl-push.toml` with the CARL sessions' offset;
-//! - `[source] kind = "replay"` with `--speed`, `--loop`, `--topics` and `--offset`;
+//! - `[source] kind = "replay"` with `--speed`, `--loop`, `--topics`, `--hands` and `--offset`;
 //! - the renderer headless (an animated preview is left in out/), `--set` for the rest.
 
 use std::path::{Path, PathBuf};
@@ -156,14 +156,15 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode, crate::error::CliError> {
     }
     text.push_str(&format!(
         "\n[source]\nkind = \"replay\"\nfile = {}\nspeed = {}\nloop = {}\noffset = [{}, {}, {}]\n\
-         topics = [{}]\n\n[renderer]\nmode = \"headless\"\n",
+         topics = [{}]\nhands = {}\n\n[renderer]\nmode = \"headless\"\n",
         toml_path(&file),
         args.speed,
         args.looped,
         offset[0],
         offset[1],
         offset[2],
-        topics.join(", ")
+        topics.join(", "),
+        toml::Value::String(args.hands.clone())
     ));
     // A private folder of its own for the session file, removed when the session ends.
     let dir = std::env::temp_dir().join(format!("handblocks-replay-{}", std::process::id()));
