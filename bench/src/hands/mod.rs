@@ -922,12 +922,21 @@ fn traces_text(traces: &Result<Vec<traces::TraceRow>, String>, dir: &Path) -> St
         s,
         "Each recording under `{}` replayed under both rules: grasps, drops (a release the \
 recording's hand did not mean), flickers (a release then a grasp within 200 ms), whether the \
-block was lifted.\n",
+block was lifted. Each hand is replayed alone, and again (`with_other_hand`) with the recording's \
+other hand in the same world, where it is tracked at all (docs/model.md \"Two hands\"; the \
+counts are still this hand's cube's).\n",
         dir.display()
     );
     // The brief's columns first, then whatever else the rows carry (alphabetically).
-    const FIRST: [&str; 7] = [
-        "file", "hand", "rules", "grasps", "drops", "flickers", "lifted",
+    const FIRST: [&str; 8] = [
+        "file",
+        "hand",
+        "rules",
+        "with_other_hand",
+        "grasps",
+        "drops",
+        "flickers",
+        "lifted",
     ];
     let mut keys: Vec<&str> = FIRST
         .iter()

@@ -99,6 +99,9 @@ pub struct TraceRow {
     pub hand: String,
     /// `"paper"` or `"tracked"`.
     pub rules: String,
+    /// The recording's other hand in the same world too (docs/model.md "Two hands"): the
+    /// counts are still this hand's cube's, now with the other hand beside it.
+    pub with_other_hand: bool,
     pub grasps: u32,
     /// Releases while the hand was still closed ([`COUNT_RULE`]).
     pub drops: u32,
@@ -433,6 +436,91 @@ pub fn run(scene: &Scene, hands: &[HandSample], threshold: f64) -> Result<Counts
     Ok(counts)
 }
 
+/// [`run`] with the recording's other hand in the same world (`other`, sample for sample with
+/// `hands`; `side` is the side of `hands`): the frames of a two-hand source, made into frames as
+/// the stepper makes them (`stepper::timeline::HandFrames`), each hand in its slot. The
+/// counts are of block 0, and the aperture (for drops) is this hand's.
+pub fn run_with_other(
+    scene: &Scene,
+    hands: &[HandSample],
+    other: &[HandSample],
+    side: HandSide,
+    threshold: f64,
+) -> Result<Counts, String> {
+    use stepper::timeline::{HandFrame, HandFrames};
+    let mut world = Model::new(scene).map_err(|e| e.to_string())?;
+    let start_y = scene.blocks.first().map_or(0.0, |b| b.position[1]);
+    let flicker_steps = (FLICKER_S * scene.world.step_hz).round() as u64;
+    let slot = stepper::side_slot(side);
+    let mut counts = Counts::default();
+    let mut last_release: Option<u64> = None;
+    let mut last_aperture = f64::INFINITY;
+    let mut observe = |world: &Model, hand: Option<&HandSample>, counts: &mut Counts| {
+        if let Some(g) = hand.and_then(grip) {
+            last_aperture = g.aperture;
+        }
+        for e in world.events().iter().filter(|e| e.block == 0) {
+            match e.kind {
+                EventKind::Grasp => {
+                    counts.grasps += 1;
+                    if last_release.is_some_and(|r| e.step - r <= flicker_steps) {
+                        counts.flickers += 1;
+                    }
+                    last_release = None;
+                }
+                EventKind::Release => {
+                    counts.releases += 1;
+                    if last_aperture < threshold {
+                        counts.drops += 1;
+                    }
+                    last_release = Some(e.step);
+                }
+                _ => {}
+            }
+        }
+        if let Some(b) = world.block(0) {
+            if b.mode == BlockMode::Grasped {
+                counts.grasped_steps += 1;
+                counts.max_rise_m = counts.max_rise_m.max(b.position.y - start_y);
+            }
+        }
+    };
+    let mut timeline = Timeline::new(scene.world.step_hz);
+    let mut frames = HandFrames::new();
+    let mut take = |frame: &HandFrame| {
+        if !timeline.started() {
+            for (k, h) in frame.iter().enumerate() {
+                world.set_previous_hand_of(k, h.as_ref());
+            }
+        }
+        timeline.advance_hands([frame[0].as_ref(), frame[1].as_ref()], |h| {
+            world.step_hands(h);
+            observe(&world, h[slot], &mut counts);
+        });
+    };
+    for (this, that) in hands.iter().zip(other) {
+        // The right first, then the left, as a two-hand source sends them.
+        let (mut right, mut left) = if slot == 0 {
+            (*this, *that)
+        } else {
+            (*that, *this)
+        };
+        right.side = HandSide::Right.code();
+        left.side = HandSide::Left.code();
+        frames.push(&right, &mut take);
+        frames.push(&left, &mut take);
+    }
+    frames.flush(&mut take);
+    let last = *frames.last_good();
+    let end = world.steps() + (SETTLE_S * scene.world.step_hz) as u64;
+    while world.steps() < end {
+        world.step_hands([last[0].as_ref(), last[1].as_ref()]);
+        observe(&world, last[slot].as_ref(), &mut counts);
+    }
+    counts.steps = world.steps();
+    Ok(counts)
+}
+
 /// Every `*.carl` file of `dir`, sorted by name.
 fn carl_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
     let entries =
@@ -550,16 +638,42 @@ fn measure_hand(
         },
         shift
     ));
+    // The recording's other hand, moved as this one, when it is tracked at all: the same cube
+    // with both hands in the world (docs/model.md "Two hands").
+    let other_side = match side {
+        HandSide::Right => HandSide::Left,
+        HandSide::Left => HandSide::Right,
+    };
+    let other = CarlTrace::load_hand(file, other_side)
+        .ok()
+        .filter(|t| t.tracked_samples() > 0 && t.samples.len() == trace.samples.len())
+        .map(|t| hand_samples(&t, [0.0, shift, 0.0]));
+    let runs = [HandRules::Paper, HandRules::Tracked]
+        .into_iter()
+        .map(|r| (r, None))
+        .chain(
+            other
+                .iter()
+                .flat_map(|o| [HandRules::Paper, HandRules::Tracked].map(|r| (r, Some(o)))),
+        );
     let mut rows = Vec::new();
-    for rules in [HandRules::Paper, HandRules::Tracked] {
+    for (rules, other) in runs {
         let scene = scene(&label, &cube, rules);
-        let c = run(&scene, &hands, first.open_threshold())
-            .map_err(|e| format!("{} rules: {e}", rules.name()))?;
+        let c = match other {
+            None => run(&scene, &hands, first.open_threshold()),
+            Some(o) => run_with_other(&scene, &hands, o, side, first.open_threshold()),
+        }
+        .map_err(|e| format!("{} rules: {e}", rules.name()))?;
         let lifted = c.max_rise_m >= LIFT_M;
         progress(&format!(
-            "{label} {}: {} grasp(s) ({:.2} s grasped), {} release(s), {} drop(s), {} flicker(s), \
+            "{label} {}{}: {} grasp(s) ({:.2} s grasped), {} release(s), {} drop(s), {} flicker(s), \
              {}",
             rules.name(),
+            if other.is_some() {
+                ", with the other hand"
+            } else {
+                ""
+            },
             c.grasps,
             c.grasped_steps as f64 / scene.world.step_hz,
             c.releases,
@@ -575,6 +689,7 @@ fn measure_hand(
             file: name.to_string(),
             hand: side.name().to_string(),
             rules: rules.name().to_string(),
+            with_other_hand: other.is_some(),
             grasps: c.grasps,
             drops: c.drops,
             flickers: c.flickers,
@@ -887,8 +1002,24 @@ mod tests {
                     .collect();
                 if closes {
                     closing += 1;
-                    let rules: Vec<&str> = of.iter().map(|r| r.rules.as_str()).collect();
-                    assert_eq!(rules, ["paper", "tracked"], "{name} {}", side.name());
+                    let rules: Vec<(&str, bool)> = of
+                        .iter()
+                        .map(|r| (r.rules.as_str(), r.with_other_hand))
+                        .collect();
+                    // Alone under both rules; then with the other hand, where it is tracked.
+                    let other = match side {
+                        HandSide::Right => HandSide::Left,
+                        HandSide::Left => HandSide::Right,
+                    };
+                    let other_tracked = CarlTrace::load_hand(&file, other)
+                        .unwrap()
+                        .tracked_samples()
+                        > 0;
+                    let mut want = vec![("paper", false), ("tracked", false)];
+                    if other_tracked {
+                        want.extend([("paper", true), ("tracked", true)]);
+                    }
+                    assert_eq!(rules, want, "{name} {}", side.name());
                     for r in of {
                         assert!(r.closures >= 1 && r.cube_m > 2.0 * TIP_DEPTH_M);
                         assert!(r.drops <= r.releases && r.flickers <= r.releases);
