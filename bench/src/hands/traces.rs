@@ -371,35 +371,50 @@ pub struct Counts {
     pub steps: u64,
 }
 
-/// Runs `scene` (its block 0 is the cube) on `hands` along their timeline, then
-/// [`SETTLE_S`] with the last usable hand held, counting by [`COUNT_RULE`] with `threshold` as
-/// the closure's open threshold.
-pub fn run(scene: &Scene, hands: &[HandSample], threshold: f64) -> Result<Counts, String> {
-    let mut world = Model::new(scene).map_err(|e| e.to_string())?;
-    let start_y = scene.blocks.first().map_or(0.0, |b| b.position[1]);
-    let flicker_steps = (FLICKER_S * scene.world.step_hz).round() as u64;
-    let mut counts = Counts::default();
-    let mut last_release: Option<u64> = None;
-    let mut last_aperture = f64::INFINITY;
-    let mut observe = |world: &Model, hand: Option<&HandSample>, counts: &mut Counts| {
+/// What [`run`] and [`run_with_other`] count after each step ([`COUNT_RULE`]): the cube's grasps,
+/// releases, drops (released while this hand's aperture was under the threshold), flickers,
+/// grasped steps and rise.
+struct Tally {
+    start_y: f64,
+    flicker_steps: u64,
+    last_release: Option<u64>,
+    last_aperture: f64,
+    threshold: f64,
+}
+
+impl Tally {
+    fn new(scene: &Scene, threshold: f64) -> Tally {
+        Tally {
+            start_y: scene.blocks.first().map_or(0.0, |b| b.position[1]),
+            flicker_steps: (FLICKER_S * scene.world.step_hz).round() as u64,
+            last_release: None,
+            last_aperture: f64::INFINITY,
+            threshold,
+        }
+    }
+
+    fn observe(&mut self, world: &Model, hand: Option<&HandSample>, counts: &mut Counts) {
         if let Some(g) = hand.and_then(grip) {
-            last_aperture = g.aperture;
+            self.last_aperture = g.aperture;
         }
         for e in world.events().iter().filter(|e| e.block == 0) {
             match e.kind {
                 EventKind::Grasp => {
                     counts.grasps += 1;
-                    if last_release.is_some_and(|r| e.step - r <= flicker_steps) {
+                    if self
+                        .last_release
+                        .is_some_and(|r| e.step - r <= self.flicker_steps)
+                    {
                         counts.flickers += 1;
                     }
-                    last_release = None;
+                    self.last_release = None;
                 }
                 EventKind::Release => {
                     counts.releases += 1;
-                    if last_aperture < threshold {
+                    if self.last_aperture < self.threshold {
                         counts.drops += 1;
                     }
-                    last_release = Some(e.step);
+                    self.last_release = Some(e.step);
                 }
                 _ => {}
             }
@@ -407,9 +422,21 @@ pub fn run(scene: &Scene, hands: &[HandSample], threshold: f64) -> Result<Counts
         if let Some(b) = world.block(0) {
             if b.mode == BlockMode::Grasped {
                 counts.grasped_steps += 1;
-                counts.max_rise_m = counts.max_rise_m.max(b.position.y - start_y);
+                counts.max_rise_m = counts.max_rise_m.max(b.position.y - self.start_y);
             }
         }
+    }
+}
+
+/// Runs `scene` (its block 0 is the cube) on `hands` along their timeline, then
+/// [`SETTLE_S`] with the last usable hand held, counting by [`COUNT_RULE`] with `threshold` as
+/// the closure's open threshold.
+pub fn run(scene: &Scene, hands: &[HandSample], threshold: f64) -> Result<Counts, String> {
+    let mut world = Model::new(scene).map_err(|e| e.to_string())?;
+    let mut counts = Counts::default();
+    let mut tally = Tally::new(scene, threshold);
+    let mut observe = |world: &Model, hand: Option<&HandSample>, counts: &mut Counts| {
+        tally.observe(world, hand, counts)
     };
     let mut timeline = Timeline::new(scene.world.step_hz);
     let mut last_usable: Option<&HandSample> = None;
@@ -449,41 +476,11 @@ pub fn run_with_other(
 ) -> Result<Counts, String> {
     use stepper::timeline::{HandFrame, HandFrames};
     let mut world = Model::new(scene).map_err(|e| e.to_string())?;
-    let start_y = scene.blocks.first().map_or(0.0, |b| b.position[1]);
-    let flicker_steps = (FLICKER_S * scene.world.step_hz).round() as u64;
     let slot = stepper::side_slot(side);
     let mut counts = Counts::default();
-    let mut last_release: Option<u64> = None;
-    let mut last_aperture = f64::INFINITY;
+    let mut tally = Tally::new(scene, threshold);
     let mut observe = |world: &Model, hand: Option<&HandSample>, counts: &mut Counts| {
-        if let Some(g) = hand.and_then(grip) {
-            last_aperture = g.aperture;
-        }
-        for e in world.events().iter().filter(|e| e.block == 0) {
-            match e.kind {
-                EventKind::Grasp => {
-                    counts.grasps += 1;
-                    if last_release.is_some_and(|r| e.step - r <= flicker_steps) {
-                        counts.flickers += 1;
-                    }
-                    last_release = None;
-                }
-                EventKind::Release => {
-                    counts.releases += 1;
-                    if last_aperture < threshold {
-                        counts.drops += 1;
-                    }
-                    last_release = Some(e.step);
-                }
-                _ => {}
-            }
-        }
-        if let Some(b) = world.block(0) {
-            if b.mode == BlockMode::Grasped {
-                counts.grasped_steps += 1;
-                counts.max_rise_m = counts.max_rise_m.max(b.position.y - start_y);
-            }
-        }
+        tally.observe(world, hand, counts)
     };
     let mut timeline = Timeline::new(scene.world.step_hz);
     let mut frames = HandFrames::new();
