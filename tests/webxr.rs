@@ -249,17 +249,30 @@ fn headset_samples_both(trace: &Path) -> Vec<(u64, [Option<HandJoints>; 2])> {
 
 /// Plays `samples` through `page` at their own pace, one frame each.
 fn play(page: &mut Page, samples: &[(u64, bool, HandJoints)]) {
+    play_frames(page, samples.iter().map(|s| s.0), |i, frame| {
+        let (_, tracked, hand) = samples[i];
+        frame.present = [false, tracked];
+        frame.hands[1] = hand;
+    });
+}
+
+/// Sends one hands frame at each of `times` (ns from now), `fill` setting frame `i`'s hands,
+/// pumping the page's socket while it waits.
+fn play_frames(
+    page: &mut Page,
+    times: impl Iterator<Item = u64>,
+    mut fill: impl FnMut(usize, &mut HandsFrame),
+) {
     let start = Instant::now();
     let mut frame = HandsFrame::default();
     let mut bytes = Vec::new();
-    for (i, (t_ns, tracked, hand)) in samples.iter().enumerate() {
-        while start.elapsed() < Duration::from_nanos(*t_ns) {
+    for (i, t_ns) in times.enumerate() {
+        while start.elapsed() < Duration::from_nanos(t_ns) {
             page.pump();
         }
         frame.seq = i as u32 + 1;
-        frame.frame_time_ms = *t_ns as f64 / 1e6;
-        frame.present = [false, *tracked];
-        frame.hands[1] = *hand;
+        frame.frame_time_ms = t_ns as f64 / 1e6;
+        fill(i, &mut frame);
         webxr_wire::encode(&frame, &mut bytes);
         let now = page.now_ms();
         page.sent_at.push((frame.seq, now));
@@ -395,24 +408,12 @@ fn a_headset_sending_both_hands_drives_a_two_hand_world_as_simulate_does() {
         let mut page = Page::open(port, TOKEN);
         page.wait_ready();
         assert_eq!(page.scene.as_ref().unwrap()["hand"], "both");
-        let start = Instant::now();
-        let mut frame = HandsFrame::default();
-        let mut bytes = Vec::new();
-        for (i, (t_ns, hands)) in samples.iter().enumerate() {
-            while start.elapsed() < Duration::from_nanos(*t_ns) {
-                page.pump();
-            }
-            frame.seq = i as u32 + 1;
-            frame.frame_time_ms = *t_ns as f64 / 1e6;
-            for (k, hand) in hands.iter().enumerate() {
+        play_frames(&mut page, samples.iter().map(|s| s.0), |i, frame| {
+            for (k, hand) in samples[i].1.iter().enumerate() {
                 frame.present[k] = hand.is_some();
                 frame.hands[k] = hand.unwrap_or_default();
             }
-            webxr_wire::encode(&frame, &mut bytes);
-            page.sent_at.push((frame.seq, page.now_ms()));
-            page.send(&bytes);
-            page.pump();
-        }
+        });
         let until = Instant::now() + Duration::from_millis(800);
         while Instant::now() < until {
             page.pump();
