@@ -416,46 +416,129 @@ fn a_live_scripted_session_computes_exactly_what_simulate_computes() {
     // for bit, through a grasp, a throw and a landing.
     let dir = Scratch::new("same");
     let log = dir.path("same.mcap");
-    let s = session(
-        &dir,
-        "same.toml",
-        &format!(
-            "[renderer]\nmode = \"off\"\n[recorder]\nfile = {:?}\n",
-            log.to_string_lossy()
-        ),
+    let events = live_equals_simulate(&dir, &log, "grasp-throw.toml", 3.5, 300);
+    assert!(
+        events.contains(&"grasp".to_string()) && events.contains(&"release".to_string()),
+        "{events:?}"
     );
-    let id = unique_id("same");
-    let out = launch(&s, &id, 3.5, &dir.path("same.json"));
+}
+
+#[test]
+fn a_live_session_of_two_scripted_hands_computes_exactly_what_simulate_computes() {
+    // A scene's [hand] and [left_hand]: each deadline sends a glove and a tracker per hand
+    // (marked with its side), kinematics makes each hand apart (the left mirrored), and the
+    // stepper takes the two as one frame: the world is `simulate`'s, bit for bit, through a
+    // two-hand grasp, a carry, the right hand letting go and the left setting the block down.
+    let dir = Scratch::new("twohand");
+    let log = dir.path("twohand.mcap");
+    let events = live_equals_simulate(&dir, &log, "two-hand-carry.toml", 4.5, 480);
+    let expected = ["grasp right", "grasp left", "release right", "release left"];
+    let named: Vec<&String> = events
+        .iter()
+        .filter(|e| e.starts_with("grasp") || e.starts_with("release"))
+        .collect();
+    assert_eq!(named, expected.iter().collect::<Vec<_>>(), "{events:?}");
+
+    // The recording holds both hands' gloves and trackers, each marked with its side, and a
+    // replay of it as fast as the pipeline takes it makes the same worlds, bit for bit.
+    let rec = Recording::open(&log).unwrap();
+    let sides: std::collections::BTreeSet<u32> = rec
+        .samples::<TrackerSample>(Topic::Tracker)
+        .map(|t| t.side)
+        .collect();
+    assert_eq!(sides, [0, 1].into_iter().collect());
+    let replayed = dir.path("replayed.mcap");
+    let replay = dir.path("replay.toml");
+    std::fs::write(
+        &replay,
+        format!(
+            "scene = {:?}\n[source]\nkind = \"replay\"\nfile = {:?}\nspeed = 0\n\
+             [renderer]\nmode = \"off\"\n[recorder]\nfile = {:?}\n",
+            repo()
+                .join("config/scenes/two-hand-carry.toml")
+                .to_string_lossy(),
+            log.to_string_lossy(),
+            replayed.to_string_lossy()
+        ),
+    )
+    .unwrap();
+    let out = launch(&replay, &unique_id("twohandre"), 10.0, &dir.path("re.json"));
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let last: WorldSample = Recording::open(&log).unwrap().worlds().last().unwrap();
-    assert!(last.step >= 300, "the session ran only {} steps", last.step);
+    let live: std::collections::HashMap<u64, WorldSample> =
+        rec.worlds().map(|w| (w.step, w)).collect();
+    let mut compared = 0;
+    for w in Recording::open(&replayed).unwrap().worlds() {
+        if let Some(l) = live.get(&w.step) {
+            assert_eq!(l.blocks(), w.blocks(), "step {}", w.step);
+            compared += 1;
+        }
+    }
+    assert!(compared >= 480, "only {compared} worlds compared");
+}
+
+/// Launches a scripted session of `scene` (renderer off, recording to `log` in `dir`) for
+/// `seconds`, checks
+/// that it ran at least `min_steps` steps and that its last world is `simulate --frames` of
+/// the same steps, pose for pose and mode for mode; returns simulate's events as "kind" or
+/// "kind hand".
+fn live_equals_simulate(
+    dir: &Scratch,
+    log: &Path,
+    scene: &str,
+    seconds: f64,
+    min_steps: u64,
+) -> Vec<String> {
+    let tag = scene.trim_end_matches(".toml").replace('-', "");
+    let scene_file = repo().join("config/scenes").join(scene);
+    let file = dir.path(&format!("{tag}.toml"));
+    std::fs::write(
+        &file,
+        format!(
+            "scene = {:?}\n[renderer]\nmode = \"off\"\n[recorder]\nfile = {:?}\n",
+            scene_file.to_string_lossy(),
+            log.to_string_lossy()
+        ),
+    )
+    .unwrap();
+    let id = unique_id(&tag);
+    let out = launch(&file, &id, seconds, &dir.path(&format!("{tag}.json")));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let last: WorldSample = Recording::open(log).unwrap().worlds().last().unwrap();
+    assert!(
+        last.step >= min_steps,
+        "the session ran only {} steps",
+        last.step
+    );
 
     let sim = Command::new(EXE)
         .args(["simulate", "--json", "--frames", &last.step.to_string()])
-        .arg(repo().join("config/scenes/grasp-throw.toml"))
+        .arg(&scene_file)
         .output()
         .unwrap();
     assert!(sim.status.success());
     let v: Value = serde_json::from_slice(&sim.stdout).unwrap();
-    let events: Vec<&str> = v["events"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["kind"].as_str().unwrap())
-        .collect();
-    assert!(
-        events.contains(&"grasp") && events.contains(&"release"),
-        "{events:?}"
-    );
     assert_same_poses(&v, &last);
     for (i, block) in v["blocks"].as_array().unwrap().iter().enumerate() {
         let live = last.blocks()[i];
         assert_eq!(block["mode"].as_str().unwrap(), live.mode().name());
     }
+    v["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| match e["hand"].as_str() {
+            Some(hand) => format!("{} {hand}", e["kind"].as_str().unwrap()),
+            None => e["kind"].as_str().unwrap().to_string(),
+        })
+        .collect()
 }
 
 /// `Cpus_allowed_list` of a running process.

@@ -323,6 +323,7 @@ fn scene_of(name: &str, blocks: Vec<BlockSpec>) -> Scene {
         effects: Default::default(),
         blocks,
         hand: None,
+        left_hand: None,
     }
 }
 

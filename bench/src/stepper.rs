@@ -250,6 +250,7 @@ pub fn field(n: usize, situation: Situation, model: ModelKind) -> Scene {
         },
         blocks,
         hand,
+        left_hand: None,
     }
 }
 
@@ -407,6 +408,7 @@ pub fn pyramid_field() -> Scene {
         effects: Effects::default(),
         blocks,
         hand: None,
+        left_hand: None,
     }
 }
 

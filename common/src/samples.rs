@@ -90,7 +90,10 @@ pub struct GloveSample {
     pub stamp: Stamp,
     /// 18 or 22 (CyberGlove models).
     pub sensor_count: u32,
-    pub _reserved: u32,
+    /// Which hand wears the glove ([`HandSide::code`]): 0 the right, 1 the left. A scene of
+    /// two scripted hands sends a glove and a tracker for each (the right's first); a device
+    /// glove, and a recording made before two hands, hold 0 here, the right.
+    pub side: u32,
     /// Joint angles in radians, in the CyberGlove's sensor order.
     pub angles: [f64; MAX_GLOVE_SENSORS],
 }
@@ -100,7 +103,7 @@ impl Default for GloveSample {
         GloveSample {
             stamp: Stamp::default(),
             sensor_count: 22,
-            _reserved: 0,
+            side: 0,
             angles: [0.0; 22],
         }
     }
@@ -113,7 +116,8 @@ impl Default for GloveSample {
 pub struct TrackerSample {
     pub stamp: Stamp,
     pub station: u32,
-    pub _reserved: u32,
+    /// Which hand the tracker is on ([`HandSide::code`]), as [`GloveSample::side`].
+    pub side: u32,
     pub wrist: Pose,
 }
 

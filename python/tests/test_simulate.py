@@ -272,3 +272,18 @@ def test_both_hands_of_a_trace_drive_the_world_and_events_name_them() -> None:
     assert all(e.hand is None for e in one.events)
     with pytest.raises(ValueError, match="both"):
         hb.simulate(scene, hand=carl("lift"), hands="all")
+
+
+@pytest.mark.skipif(tomllib is None, reason="tomllib is Python 3.11+")
+def test_a_scene_of_two_scripted_hands_names_them_and_its_dict_is_the_file() -> None:
+    """Issue 41: a scene's ``[left_hand]`` beside its ``[hand]``: the events name the hand, as
+    from a file so from a dict; the precise model refuses the second hand naming the key."""
+    scene = REPO / "config" / "scenes" / "two-hand-carry.toml"
+    sim = hb.simulate(scene)
+    held = [(e.kind, e.hand) for e in sim.events if e.kind in ("grasp", "release")]
+    assert held == [("grasp", "right"), ("grasp", "left"), ("release", "right"), ("release", "left")]
+    table = tomllib.loads(scene.read_text())
+    assert hb.simulate(table).to_json() == sim.to_json()
+    table["world"] = {"model": "precise"}
+    with pytest.raises(ValueError, match="left_hand"):
+        hb.simulate(table)

@@ -667,6 +667,7 @@ pub fn scene(rules: HandRules) -> Scene {
             velocity: [0.0; 3],
         }],
         hand: None,
+        left_hand: None,
     }
 }
 

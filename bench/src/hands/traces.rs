@@ -355,6 +355,7 @@ pub fn scene(name: &str, cube: &CubePlacement, rules: HandRules) -> Scene {
             velocity: [0.0; 3],
         }],
         hand: None,
+        left_hand: None,
     }
 }
 

@@ -64,13 +64,13 @@ pub fn fields(struct_name: &str) -> Option<Vec<Field>> {
         "handblocks/msg/GloveSample" => fields!(GloveSample {
             stamp: "handblocks/Stamp",
             sensor_count: "uint32",
-            _reserved: "uint32",
+            side: "uint32",
             angles: "float64[22]",
         }),
         "handblocks/msg/TrackerSample" => fields!(TrackerSample {
             stamp: "handblocks/Stamp",
             station: "uint32",
-            _reserved: "uint32",
+            side: "uint32",
             wrist: "handblocks/Pose",
         }),
         "handblocks/msg/JointsSample" => fields!(JointsSample {

@@ -394,6 +394,7 @@ mod tests {
             effects: Default::default(),
             blocks: vec![block("red", 0.0), block("blue", 0.1)],
             hand: None,
+            left_hand: None,
         }
     }
 

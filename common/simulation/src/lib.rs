@@ -11,7 +11,7 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use common::config::scene::{HandPoseSpec, ModelKind};
+use common::config::scene::ModelKind;
 use common::config::{ConfigError, Scene};
 
 pub use stepper::Report;
@@ -124,54 +124,64 @@ pub fn run_with_progress(
     Ok((report, notes))
 }
 
-/// The scene's own hand: bare check points (`fingers` keys), or keyframes through the hand
-/// model as a live session samples them, or no hand.
+/// The scene's own hands (its `[hand]`, and its `[left_hand]` if it has one): bare check
+/// points (`fingers` keys), or keyframes through the hand model as a live session samples
+/// them, or no hand.
 fn simulate_scene(
     scene: &Scene,
     frames: Option<u64>,
     progress: &mut Progress<'_>,
 ) -> Result<Report, SimulateError> {
     let frames = frames.unwrap_or_else(|| stepper::default_frames(scene));
-    let bare = scene.hand.as_ref().is_some_and(|h| {
-        h.keys
-            .iter()
-            .any(|k| matches!(k.pose, HandPoseSpec::Fingers(_)))
-    });
+    let bare = scene.hand.as_ref().is_some_and(|h| h.is_bare());
     if bare {
-        let mut hand = stepper::BareFingersHand::from_scene(scene);
-        step_hand(
-            scene,
-            frames,
-            hand.as_mut().map(|h| h as &mut dyn stepper::HandSource),
-            progress,
-        )
-    } else if let Some(script) = &scene.hand {
-        // The same path as a live session: keyframes -> glove + tracker -> the hand model.
-        let scripted =
-            acquisition::ScriptedHand::new(script).map_err(|error| SimulateError::Script {
-                scene: scene.file.clone(),
-                error,
-            })?;
-        let model = kinematics::HandModel::default();
-        let mut hand = common::HandSample::default();
-        let step_hz = scene.world.step_hz;
-        let mut source = |step: u64, _t: f64| {
-            // Sampled exactly as the acquisition process samples it (k / rate), so that a live
-            // session at the step rate computes bit-identical worlds.
-            let (glove, tracker) = scripted.samples_at(
-                step as f64 / step_hz,
-                common::Stamp {
-                    seq: step,
-                    ..Default::default()
-                },
-            );
-            model.solve(&glove, &tracker.wrist, &mut hand);
-            Some(hand)
-        };
-        step_hand(scene, frames, Some(&mut source), progress)
-    } else {
-        step_hand(scene, frames, None, progress)
+        let mut right = stepper::BareFingersHand::from_scene(scene);
+        let mut left = stepper::BareFingersHand::left_of_scene(scene);
+        let hands = [
+            right.as_mut().map(|h| h as &mut dyn stepper::HandSource),
+            left.as_mut().map(|h| h as &mut dyn stepper::HandSource),
+        ];
+        return stepper::simulate_hands_with(scene, frames, hands, progress).map_err(run_error);
     }
+    if scene.hand.is_none() {
+        return step_hand(scene, frames, None, progress);
+    }
+    // The same path as a live session: keyframes -> glove + tracker -> the hand model, each
+    // hand on its own side (the left mirrored).
+    let scripted =
+        acquisition::ScriptedHand::of_scene(scene).map_err(|error| SimulateError::Script {
+            scene: scene.file.clone(),
+            error,
+        })?;
+    let model = kinematics::HandModel::default();
+    let step_hz = scene.world.step_hz;
+    let mut sources: Vec<_> = scripted
+        .iter()
+        .zip([common::HandSide::Right, common::HandSide::Left])
+        .map(|(script, side)| {
+            let model = &model;
+            let mut hand = common::HandSample::default();
+            move |step: u64, _t: f64| {
+                // Sampled exactly as the acquisition process samples it (k / rate), so that a
+                // live session at the step rate computes bit-identical worlds.
+                let (glove, tracker) = script.samples_at(
+                    step as f64 / step_hz,
+                    common::Stamp {
+                        seq: step,
+                        ..Default::default()
+                    },
+                );
+                model.solve_side(side, &glove, &tracker.wrist, &mut hand);
+                Some(hand)
+            }
+        })
+        .collect();
+    let mut sources = sources.iter_mut();
+    let hands = [
+        sources.next().map(|h| h as &mut dyn stepper::HandSource),
+        sources.next().map(|h| h as &mut dyn stepper::HandSource),
+    ];
+    stepper::simulate_hands_with(scene, frames, hands, progress).map_err(run_error)
 }
 
 /// A run's end: the world's error, or where the hook stopped it.

@@ -24,8 +24,14 @@ pub struct Scene {
     pub world: WorldSettings,
     pub effects: Effects,
     pub blocks: Vec<BlockSpec>,
-    /// The scripted hand; None when the scene has no `[hand]`.
+    /// The scripted hand; None when the scene has no `[hand]`. With a `[left_hand]` beside
+    /// it, this is the right hand (docs/model.md "Two hands": slot 0).
     pub hand: Option<HandScript>,
+    /// `[left_hand]`: a second scripted hand, the left (slot 1), in the same form as `[hand]`.
+    /// Through the hand model it is the right hand mirrored in its wrist's x (the thumb on the
+    /// wrist's +x side); bare `fingers` are taken as given. Only beside a `[hand]`, shaped the
+    /// same way (both bare or both through the hand model), and only in the paper model.
+    pub left_hand: Option<HandScript>,
 }
 
 /// `[world]`.
@@ -330,10 +336,17 @@ impl Scene {
             effects: effects(root.table("effects")?)?,
             blocks,
             hand: match root.table("hand")? {
-                Some(h) => Some(hand(h)?),
+                Some(h) => Some(hand(h, "hand")?),
+                None => None,
+            },
+            left_hand: match root.table("left_hand")? {
+                Some(h) => Some(hand(h, "left_hand")?),
                 None => None,
             },
         };
+        if scene.left_hand.is_some() {
+            two_hands(&root, &scene)?;
+        }
         root.finish()?;
         Ok(scene)
     }
@@ -643,10 +656,55 @@ fn hull_vertices(r: &Reader) -> Result<Vec<[f64; 3]>, ConfigError> {
         .collect()
 }
 
-fn hand(r: Reader) -> Result<HandScript, ConfigError> {
+/// A `[left_hand]` beside the scene's `[hand]`: what two scripted hands need.
+fn two_hands(root: &Reader, scene: &Scene) -> Result<(), ConfigError> {
+    let (Some(right), Some(left)) = (&scene.hand, &scene.left_hand) else {
+        return Err(root.err(
+            "left_hand",
+            "a [left_hand] needs a [hand] beside it (the right hand; a scene of one hand gives \
+             it as [hand], whichever hand it means)",
+        ));
+    };
+    if right.is_bare() != left.is_bare() {
+        return Err(root.err(
+            "left_hand",
+            "[hand] and [left_hand] must shape their fingers the same way: both bare `fingers`, \
+             or both `grip`/`angles` through the hand model",
+        ));
+    }
+    if scene.world.model == ModelKind::Precise {
+        return Err(root.err(
+            "left_hand",
+            "two hands are the paper model's (docs/model.md \"Two hands\"): the precise model \
+             takes one; remove [left_hand] or set `world.model` = \"paper\"",
+        ));
+    }
+    Ok(())
+}
+
+impl HandScript {
+    /// Whether the keys give bare check points (`fingers`) rather than going through the hand
+    /// model (every key of a script is shaped the same way).
+    pub fn is_bare(&self) -> bool {
+        self.keys
+            .iter()
+            .any(|k| matches!(k.pose, HandPoseSpec::Fingers(_)))
+    }
+
+    /// The time of the last key, after which the hand holds still.
+    pub fn end_time(&self) -> f64 {
+        self.keys.last().map_or(0.0, |k| k.t)
+    }
+}
+
+/// A `[hand]` or `[left_hand]` table (`name`) of keys.
+fn hand(r: Reader, name: &str) -> Result<HandScript, ConfigError> {
     let keys = r.tables("key")?;
     if keys.is_empty() {
-        return Err(r.err("key", "a [hand] needs at least one [[hand.key]]"));
+        return Err(r.err(
+            "key",
+            format!("a [{name}] needs at least one [[{name}.key]]"),
+        ));
     }
     let mut out: Vec<HandKey> = Vec::with_capacity(keys.len());
     for k in keys {
@@ -948,6 +1006,34 @@ mod tests {
         assert!(e.problem.contains("not a finite"), "{e}");
         let e = load("[[block]]\nposition = [0, 0.05, 0]\nrotation = [0, 0, 0, 2]\n").unwrap_err();
         assert!(e.problem.contains("unit quaternion"), "{e}");
+    }
+
+    #[test]
+    fn a_left_hand_needs_a_right_one_shaped_alike_and_the_paper_model() {
+        let right = "[hand]\n[[hand.key]]\nt = 0\nwrist = [0.1, 0.2, 0]\ngrip = 0.5\n";
+        let left = "[left_hand]\n[[left_hand.key]]\nt = 0\nwrist = [-0.1, 0.2, 0]\ngrip = 0.5\n\
+                    [[left_hand.key]]\nt = 2\nwrist = [-0.1, 0.3, 0]\n";
+        let s = load(&format!("{right}{left}")).unwrap();
+        assert_eq!(s.left_hand.as_ref().unwrap().keys.len(), 2);
+        assert_eq!(s.left_hand.as_ref().unwrap().end_time(), 2.0);
+        assert!(!s.left_hand.unwrap().is_bare());
+        assert!(load(right).unwrap().left_hand.is_none());
+
+        let e = load(left).unwrap_err();
+        assert!(
+            e.key == "left_hand" && e.problem.contains("needs a [hand]"),
+            "{e}"
+        );
+        let bare = "[hand]\n[[hand.key]]\nt = 0\nwrist = [0, 0.2, 0]\nfingers = [[[0, 0, 0]]]\n";
+        let e = load(&format!("{bare}{left}")).unwrap_err();
+        assert!(
+            e.key == "left_hand" && e.problem.contains("the same way"),
+            "{e}"
+        );
+        let e = load(&format!("[world]\nmodel = \"precise\"\n{right}{left}")).unwrap_err();
+        assert!(e.key == "left_hand" && e.problem.contains("precise"), "{e}");
+        let e = load("[hand]\n[[hand.key]]\nt = 0\nwrist = [0, 0, 0]\n[left_hand]\n").unwrap_err();
+        assert!(e.problem.contains("[[left_hand.key]]"), "{e}");
     }
 
     #[test]

@@ -138,7 +138,7 @@ fn mcap_recording(samples: u64, world_blocks: usize) -> Vec<u8> {
             &TrackerSample {
                 stamp: stamp(k),
                 station: 1,
-                _reserved: 0,
+                side: 0,
                 wrist,
             },
         )

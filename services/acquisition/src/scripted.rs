@@ -5,8 +5,9 @@
 //! exercises the same kinematics as a real glove. After the last key the hand holds still.
 
 use common::config::scene::{HandPoseSpec, HandScript};
+use common::config::Scene;
 use common::glove::{GloveJoint, SENSORS_22};
-use common::{GloveSample, Pose, Stamp, TrackerSample, MAX_GLOVE_SENSORS};
+use common::{GloveSample, HandSide, Pose, Stamp, TrackerSample, MAX_GLOVE_SENSORS};
 use glam::{DQuat, DVec3};
 
 /// The hand a script asks for at one moment.
@@ -70,6 +71,9 @@ pub fn fist_angles() -> [f64; MAX_GLOVE_SENSORS] {
 pub struct ScriptedHand {
     keys: Vec<(f64, Pose, [f64; MAX_GLOVE_SENSORS])>,
     sensor_count: u32,
+    /// The hand the samples are marked with: a scene's `[hand]` is the right, its
+    /// `[left_hand]` the left.
+    side: HandSide,
 }
 
 impl ScriptedHand {
@@ -97,7 +101,28 @@ impl ScriptedHand {
                 Ok((k.t, wrist, angles))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        Ok(ScriptedHand { keys, sensor_count })
+        Ok(ScriptedHand {
+            keys,
+            sensor_count,
+            side: HandSide::Right,
+        })
+    }
+
+    /// The same script played as the hand `side` (its samples marked with it).
+    pub fn with_side(self, side: HandSide) -> ScriptedHand {
+        ScriptedHand { side, ..self }
+    }
+
+    /// The scene's scripted hands: its `[hand]` (the right) and its `[left_hand]`, if any.
+    pub fn of_scene(scene: &Scene) -> Result<Vec<ScriptedHand>, ScriptError> {
+        let mut hands = Vec::with_capacity(2);
+        if let Some(right) = &scene.hand {
+            hands.push(ScriptedHand::new(right)?);
+        }
+        if let Some(left) = &scene.left_hand {
+            hands.push(ScriptedHand::new(left)?.with_side(HandSide::Left));
+        }
+        Ok(hands)
     }
 
     /// The time of the last key, after which the hand holds still.
@@ -147,13 +172,14 @@ impl ScriptedHand {
         let glove = GloveSample {
             stamp,
             sensor_count: h.sensor_count,
-            _reserved: 0,
+            side: self.side.code(),
             angles: h.angles,
         };
         let tracker = TrackerSample {
             stamp,
-            station: 1,
-            _reserved: 0,
+            // One tracker station per hand, as a two-receiver tracker numbers them.
+            station: 1 + self.side.code(),
+            side: self.side.code(),
             wrist: h.wrist,
         };
         (glove, tracker)

@@ -185,7 +185,9 @@ fn run_devices(
 
 /// The scripted hand: the scene's keyframes sampled at `rate_hz` on absolute deadlines.
 struct Scripted {
-    hand: ScriptedHand,
+    /// The scene's hands: its `[hand]`, then its `[left_hand]` if it has one. Each deadline
+    /// sends a glove and a tracker for each, the right's first, with one source time.
+    hands: Vec<ScriptedHand>,
     rate_hz: f64,
     start_ns: u64,
     period_ns: f64,
@@ -208,10 +210,12 @@ impl Task for Scripted {
         }
         let k = self.k;
         let stamp = Stamp::at_origin(0, source_time_ns(k, self.rate_hz));
-        let (g, t) = self.hand.samples_at(k as f64 / self.rate_hz, stamp);
-        self.out.glove.publish(&g)?;
-        let sent = self.out.tracker.publish(&t)?;
-        pass.recorder.source_output(&sent);
+        for hand in &self.hands {
+            let (g, t) = hand.samples_at(k as f64 / self.rate_hz, stamp);
+            self.out.glove.publish(&g)?;
+            let sent = self.out.tracker.publish(&t)?;
+            pass.recorder.source_output(&sent);
+        }
         self.k += 1;
         Ok(())
     }
@@ -222,20 +226,21 @@ impl Task for Scripted {
 }
 
 fn run_scripted(session: &Session, bus: &Bus, rate_hz: f64) -> Result<(), AcquisitionError> {
-    let script = session.scene.hand.as_ref().ok_or_else(|| {
-        AcquisitionError::Script(format!(
+    if session.scene.hand.is_none() {
+        return Err(AcquisitionError::Script(format!(
             "{}: the scene has no [hand] for the scripted source",
             session.scene_file.display()
-        ))
-    })?;
-    let hand = ScriptedHand::new(script)
+        )));
+    }
+    let hands = ScriptedHand::of_scene(&session.scene)
         .map_err(|e| AcquisitionError::Script(format!("{}: {e}", session.scene_file.display())))?;
     let mut out = Outlets::open(bus)?;
 
     // The session's timeline: a restarted source goes on on its first incarnation's deadline
     // grid, at the first deadline still ahead, so source time (and the hand the script gives)
     // goes on where it would have been. Sample k has seq k: the deadlines missed while it was
-    // down are seqs never sent, which every reader counts as lost.
+    // down are seqs never sent, which every reader counts as lost (with two hands, deadline k
+    // sends seqs 2k and 2k + 1).
     let (start_ns, resumed) = bus.session_epoch_ns("acquisition");
     let period_ns = 1e9 / rate_hz;
     let k: u64 = if resumed {
@@ -243,10 +248,10 @@ fn run_scripted(session: &Session, bus: &Bus, rate_hz: f64) -> Result<(), Acquis
     } else {
         0
     };
-    out.glove.skip_to(k);
-    out.tracker.skip_to(k);
+    out.glove.skip_to(k * hands.len() as u64);
+    out.tracker.skip_to(k * hands.len() as u64);
     let mut scripted = Scripted {
-        hand,
+        hands,
         rate_hz,
         start_ns,
         period_ns,

@@ -9,7 +9,7 @@
 
 use common::config::hand::{FingerSpec, HandModelSpec};
 use common::glove::{angle, GloveJoint};
-use common::{GloveSample, HandSample, JointsSample, Pose, MAX_FINGERS, OPENXR_JOINTS};
+use common::{GloveSample, HandSample, HandSide, JointsSample, Pose, MAX_FINGERS, OPENXR_JOINTS};
 use glam::{DQuat, DVec3};
 
 /// The hand model: bone lengths, finger radii and palm shape, from a hand model file
@@ -60,14 +60,40 @@ impl HandModel {
     /// wrist pose. Each joint's orientation is the bone that starts there (OpenXR: -z along the
     /// bone toward the tip, +y the back of the hand); a tip takes its distal bone's.
     pub fn glove_joints(&self, glove: &GloveSample, wrist: &Pose, out: &mut [Pose; OPENXR_JOINTS]) {
+        self.glove_joints_of(HandSide::Right, glove, wrist, out);
+    }
+
+    /// [`HandModel::glove_joints`] of the hand `side`. The model is a right hand; the left is
+    /// its mirror image in the wrist's x (the thumb on the wrist's +x side), so that a left
+    /// wrist pose mirrored from a right one gives the mirrored hand. Each joint's orientation
+    /// is mirrored too (a rotation R becomes M R M, M = diag(-1, 1, 1)): a proper rotation
+    /// that keeps -z along the bone and +y on the back of the hand, as OpenXR's left hand has.
+    pub fn glove_joints_of(
+        &self,
+        side: HandSide,
+        glove: &GloveSample,
+        wrist: &Pose,
+        out: &mut [Pose; OPENXR_JOINTS],
+    ) {
         let a = |j: GloveJoint| angle(glove, j).filter(|v| v.is_finite()).unwrap_or(0.0);
         // An 18-sensor glove has no DIP sensor: the DIP follows the PIP (about 2/3).
         let dip = |d: GloveJoint, p: GloveJoint| angle(glove, d).unwrap_or(a(p) * 2.0 / 3.0);
         let position = DVec3::from_array(wrist.position);
         let rotation = DQuat::from_array(wrist.rotation).normalize();
-        let pose = |p: DVec3, bone: DQuat| Pose {
-            position: (position + rotation * p).to_array(),
-            rotation: (rotation * bone).normalize().to_array(),
+        let left = side == HandSide::Left;
+        let pose = |p: DVec3, bone: DQuat| {
+            let (p, bone) = if left {
+                (
+                    DVec3::new(-p.x, p.y, p.z),
+                    DQuat::from_xyzw(bone.x, -bone.y, -bone.z, bone.w),
+                )
+            } else {
+                (p, bone)
+            };
+            Pose {
+                position: (position + rotation * p).to_array(),
+                rotation: (rotation * bone).normalize().to_array(),
+            }
         };
         let along = |d: DVec3| DQuat::from_rotation_arc(DVec3::NEG_Z, d.normalize());
 
@@ -137,11 +163,25 @@ impl HandModel {
     /// joints ([`HandModel::glove_joints`]) made into a hand exactly as a hand tracker's are
     /// ([`HandModel::from_joints`]). `out.stamp` is left for the caller.
     pub fn solve(&self, glove: &GloveSample, wrist: &Pose, out: &mut HandSample) {
+        self.solve_side(HandSide::Right, glove, wrist, out);
+    }
+
+    /// [`HandModel::solve`] of the hand `side` ([`HandModel::glove_joints_of`]), marked with
+    /// it (`out.side`).
+    pub fn solve_side(
+        &self,
+        side: HandSide,
+        glove: &GloveSample,
+        wrist: &Pose,
+        out: &mut HandSample,
+    ) {
         let mut joints = JointsSample {
             tracked: 1,
+            side: side.code(),
             ..Default::default()
         };
-        self.glove_joints(glove, wrist, &mut joints.joints);
+        out.side = side.code();
+        self.glove_joints_of(side, glove, wrist, &mut joints.joints);
         joints.wrist = joints.joints[1];
         if !self.from_joints(&joints, out) {
             // Only a non-finite wrist gets here: keep the previous hand, marked lost.
@@ -235,6 +275,50 @@ mod tests {
 
     fn close(a: [f64; 3], b: [f64; 3]) -> bool {
         a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12)
+    }
+
+    #[test]
+    fn the_left_hand_is_the_right_mirrored_in_the_wrist_x() {
+        let m = HandModel::default();
+        let fist = glove(|j| match j {
+            GloveJoint::ThumbRotation => 0.8,
+            GloveJoint::IndexMcp | GloveJoint::MiddleMcp => 1.2,
+            GloveJoint::IndexPip | GloveJoint::MiddlePip => 1.3,
+            _ => 0.4,
+        });
+        // A right wrist turned about y and its mirror in the plane x = 0 (x negated, the turn
+        // about y reversed): the left hand is the right hand mirrored, point for point.
+        let turn = 0.7;
+        let right_wrist = Pose {
+            position: [0.2, 0.1, -0.3],
+            rotation: DQuat::from_rotation_y(turn).to_array(),
+        };
+        let left_wrist = Pose {
+            position: [-0.2, 0.1, -0.3],
+            rotation: DQuat::from_rotation_y(-turn).to_array(),
+        };
+        let (mut r, mut l) = (HandSample::default(), HandSample::default());
+        m.solve_side(HandSide::Right, &fist, &right_wrist, &mut r);
+        m.solve_side(HandSide::Left, &fist, &left_wrist, &mut l);
+        assert_eq!((r.side, l.side), (0, 1));
+        let mirrored = |p: [f64; 3]| [-p[0], p[1], p[2]];
+        for f in 0..5 {
+            for (a, b) in r.finger(f).iter().zip(l.finger(f)) {
+                let d = DVec3::from_array(mirrored(*a)) - DVec3::from_array(*b);
+                assert!(d.length() < 1e-12, "finger {f}: {a:?} vs {b:?}");
+            }
+        }
+        // In its own wrist frame, the left thumb is on +x.
+        let mut at_origin = HandSample::default();
+        m.solve_side(HandSide::Left, &fist, &Pose::IDENTITY, &mut at_origin);
+        assert!(at_origin.finger(0)[2][0] > 0.0);
+        // And the left joints' orientations are proper rotations that keep -z along the bone.
+        let mut joints = [Pose::IDENTITY; OPENXR_JOINTS];
+        m.glove_joints_of(HandSide::Left, &fist, &left_wrist, &mut joints);
+        let (tip, dip) = (joints[10].position, joints[9].position);
+        let along = DVec3::from_array(tip) - DVec3::from_array(dip);
+        let minus_z = DQuat::from_array(joints[9].rotation) * DVec3::NEG_Z;
+        assert!(along.normalize().dot(minus_z) > 1.0 - 1e-9);
     }
 
     #[test]

@@ -69,33 +69,53 @@ impl GloveHistory {
 /// Nothing here allocates: the service calls it for every sample.
 pub struct HandStream {
     model: HandModel,
-    gloves: GloveHistory,
-    hand: HandSample,
-    /// The left hand of a two-hand tracker (`joints` with side 1), kept apart from the right
-    /// (`hand`), so that each hand's held pose and tracking gap are its own.
-    left: HandSample,
+    /// Each hand's own gloves, hand and tracking gap, by slot (0 the right, 1 the left): a
+    /// two-hand source's hands are made apart, so that one hand's samples never shape the
+    /// other.
+    sides: [SideStream; 2],
     /// Hands made so far: the next hand's `seq` (a bus outlet stamps its own on publishing).
     made: u64,
-    /// Source time of the last tracked joints sample, the right's and the left's.
-    last_tracked_ns: Option<u64>,
-    left_last_tracked_ns: Option<u64>,
     /// Lost hands released after [`TRACKING_HOLD_NS`] (each gap counted once).
     releases: u64,
+}
+
+/// One hand's part of a [`HandStream`].
+struct SideStream {
+    gloves: GloveHistory,
+    hand: HandSample,
+    /// Source time of the last tracked joints sample.
+    last_tracked_ns: Option<u64>,
+}
+
+impl SideStream {
+    fn new(side: common::HandSide) -> SideStream {
+        SideStream {
+            gloves: GloveHistory::default(),
+            hand: HandSample {
+                side: side.code(),
+                ..HandSample::default()
+            },
+            last_tracked_ns: None,
+        }
+    }
+}
+
+fn slot(side: u32) -> usize {
+    match common::HandSide::from_code(side) {
+        common::HandSide::Right => 0,
+        common::HandSide::Left => 1,
+    }
 }
 
 impl HandStream {
     pub fn new(model: HandModel) -> Self {
         HandStream {
             model,
-            gloves: GloveHistory::default(),
-            hand: HandSample::default(),
-            left: HandSample {
-                side: common::HandSide::Left.code(),
-                ..HandSample::default()
-            },
+            sides: [
+                SideStream::new(common::HandSide::Right),
+                SideStream::new(common::HandSide::Left),
+            ],
             made: 0,
-            last_tracked_ns: None,
-            left_last_tracked_ns: None,
             releases: 0,
         }
     }
@@ -105,30 +125,37 @@ impl HandStream {
         self.releases
     }
 
-    /// Keeps a glove reading to pair with the trackers of its time (and later ones).
+    /// Keeps a glove reading to pair with the trackers of its time (and later ones) on the
+    /// same hand ([`GloveSample::side`]).
     pub fn glove(&mut self, glove: &GloveSample) {
-        self.gloves.push(glove);
+        self.sides[slot(glove.side)].gloves.push(glove);
     }
 
-    /// The hand at a tracker sample; `None` for a wrist pose that is not finite (no hand can
-    /// be placed there, and the stepper must never see a NaN). Before any glove the hand is
-    /// the model's at zero angles.
+    /// The hand at a tracker sample, on the tracker's side ([`TrackerSample::side`], the left
+    /// through the mirrored model): `None` for a wrist pose that is not finite (no hand can be
+    /// placed there, and the stepper must never see a NaN). Before any glove the hand is the
+    /// model's at zero angles.
     pub fn tracker(&mut self, tracker: &TrackerSample) -> Option<&HandSample> {
         if !tracker.wrist.is_finite() {
             return None;
         }
-        let glove = self.gloves.at(tracker.stamp.source_time_ns);
-        self.model.solve(
+        let side = common::HandSide::from_code(tracker.side);
+        let own = &mut self.sides[slot(tracker.side)];
+        let glove = own.gloves.at(tracker.stamp.source_time_ns);
+        self.model.solve_side(
+            side,
             glove.unwrap_or(&GloveSample::default()),
             &tracker.wrist,
-            &mut self.hand,
+            &mut own.hand,
         );
-        self.last_tracked_ns = Some(tracker.stamp.source_time_ns);
+        own.last_tracked_ns = Some(tracker.stamp.source_time_ns);
         let mut stamp = Stamp::derived(self.made, &tracker.stamp);
         if let Some(g) = glove {
             stamp.origin_ns = stamp.origin_ns.min(g.stamp.origin_ns);
         }
-        Some(self.stamped(stamp))
+        own.hand.stamp = stamp;
+        self.made += 1;
+        Some(&own.hand)
     }
 
     /// The hand at a joints sample: the joints' hand, or, when the model cannot use them, the
@@ -141,16 +168,16 @@ impl HandStream {
     pub fn joints(&mut self, joints: &JointsSample) -> &HandSample {
         let now = joints.stamp.source_time_ns;
         let side = common::HandSide::from_code(joints.side);
-        let (hand, last_tracked_ns) = match side {
-            common::HandSide::Right => (&mut self.hand, &mut self.last_tracked_ns),
-            common::HandSide::Left => (&mut self.left, &mut self.left_last_tracked_ns),
-        };
+        let own = &mut self.sides[slot(joints.side)];
+        let hand = &mut own.hand;
         let tracked = joints.tracked != 0 && self.model.from_joints(joints, hand);
         if tracked {
-            *last_tracked_ns = Some(now);
+            own.last_tracked_ns = Some(now);
         } else {
             hand.tracked = 0;
-            let held = last_tracked_ns.is_some_and(|t| now.saturating_sub(t) <= TRACKING_HOLD_NS);
+            let held = own
+                .last_tracked_ns
+                .is_some_and(|t| now.saturating_sub(t) <= TRACKING_HOLD_NS);
             if !held {
                 if hand.finger_count > 0 {
                     self.releases += 1;
@@ -164,12 +191,6 @@ impl HandStream {
         self.made += 1;
         hand
     }
-
-    fn stamped(&mut self, stamp: Stamp) -> &HandSample {
-        self.hand.stamp = stamp;
-        self.made += 1;
-        &self.hand
-    }
 }
 
 #[cfg(test)]
@@ -180,6 +201,34 @@ mod tests {
         let mut g = GloveSample::default();
         g.stamp.source_time_ns = t;
         g
+    }
+
+    #[test]
+    fn each_hand_pairs_its_own_gloves_and_is_made_on_its_own_side() {
+        let mut stream = HandStream::new(HandModel::default());
+        // A fist on the left glove, an open right glove, the same source time.
+        let mut left_glove = glove(10);
+        left_glove.side = 1;
+        left_glove.angles = [1.0; common::MAX_GLOVE_SENSORS];
+        stream.glove(&glove(10));
+        stream.glove(&left_glove);
+        let tracker = |side: u32| TrackerSample {
+            stamp: Stamp {
+                source_time_ns: 10,
+                ..Stamp::default()
+            },
+            station: 1 + side,
+            side,
+            wrist: common::Pose::IDENTITY,
+        };
+        let right = *stream.tracker(&tracker(0)).unwrap();
+        let left = *stream.tracker(&tracker(1)).unwrap();
+        assert_eq!((right.side, left.side), (0, 1));
+        // The right hand is flat (its own open glove), the left curled (its own fist).
+        let tip_y = |h: &HandSample| h.finger(1)[3][1];
+        assert!(tip_y(&right).abs() < 1e-12, "{}", tip_y(&right));
+        assert!(tip_y(&left) < -0.03, "{}", tip_y(&left));
+        assert_eq!((right.stamp.seq, left.stamp.seq), (0, 1));
     }
 
     #[test]

@@ -39,6 +39,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })
             .collect(),
         hand: None,
+        left_hand: None,
     };
     let mut world = WorldSample::with_blocks(blocks);
     for (i, b) in world.blocks[..blocks].iter_mut().enumerate() {

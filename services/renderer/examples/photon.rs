@@ -56,6 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })
             .collect(),
         hand: None,
+        left_hand: None,
     };
     let session = Session {
         file: PathBuf::from("photon.toml"),

@@ -115,6 +115,7 @@ fn demo() -> (Scene, WorldSample, HandSample) {
             ),
         ],
         hand: None,
+        left_hand: None,
     };
     let half = std::f64::consts::FRAC_1_SQRT_2;
     let tilt = (0.2f64).sin_cos();

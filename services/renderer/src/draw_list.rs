@@ -540,6 +540,7 @@ mod tests {
             effects: Default::default(),
             blocks: vec![block("red"), block("a"), block("b"), block("green")],
             hand: None,
+            left_hand: None,
         };
         scene.world.block_colors = vec![None, None, None, Some([0.1, 0.2, 0.3])];
         let c = block_colors(&scene);

@@ -882,6 +882,7 @@ mod tests {
                 velocity: [0.0; 3],
             }],
             hand: None,
+            left_hand: None,
         };
         let settings = RenderSettings {
             width: 160,

@@ -17,6 +17,7 @@ fn no_adapter_is_a_clear_error_naming_the_package() {
         effects: Effects::default(),
         blocks: vec![],
         hand: None,
+        left_hand: None,
     };
     match Renderer::new_headless(&RenderSettings::default(), &scene) {
         Err(e @ RenderError::NoAdapter(_)) => {

@@ -56,6 +56,7 @@ fn scene(n: usize) -> Scene {
             })
             .collect(),
         hand: None,
+        left_hand: None,
     }
 }
 

@@ -30,6 +30,7 @@ fn session() -> Session {
             velocity: [0.0; 3],
         }],
         hand: None,
+        left_hand: None,
     };
     Session {
         file: PathBuf::from("test-session.toml"),

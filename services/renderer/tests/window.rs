@@ -24,6 +24,7 @@ fn window_mode_draws_with_a_display_and_explains_itself_without_one() {
             velocity: [0.0; 3],
         }],
         hand: None,
+        left_hand: None,
     };
     let settings = RenderSettings {
         width: 160,

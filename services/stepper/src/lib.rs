@@ -56,8 +56,8 @@ pub use model::Model;
 pub use motion::{push_one_point, PushOutcome};
 pub use precise::PreciseWorld;
 pub use simulate::{
-    default_frames, outcome, side_slot, simulate, simulate_frames_with, simulate_samples,
-    simulate_samples_with, simulate_with, slot_side, BareFingersHand, BlockReport, EventReport,
-    HandFrame, HandSource, Progress, Report, RunError, Stop,
+    default_frames, outcome, side_slot, simulate, simulate_frames_with, simulate_hands_with,
+    simulate_samples, simulate_samples_with, simulate_with, slot_side, BareFingersHand,
+    BlockReport, EventReport, HandFrame, HandSource, Progress, Report, RunError, Stop,
 };
 pub use world::{BlockView, Event, EventKind, World, WorldError};

@@ -92,6 +92,15 @@ impl BareFingersHand {
         scene.hand.as_ref().and_then(BareFingersHand::from_script)
     }
 
+    /// The scene's bare check-point left hand, if its `[left_hand]` uses `fingers` (taken as
+    /// given, in the left wrist's frame: nothing is mirrored).
+    pub fn left_of_scene(scene: &Scene) -> Option<BareFingersHand> {
+        scene
+            .left_hand
+            .as_ref()
+            .and_then(BareFingersHand::from_script)
+    }
+
     /// The hand at time t.
     pub fn sample(&self, t: f64) -> HandSample {
         let n = self.keys.len();
@@ -205,11 +214,11 @@ pub struct Report {
 /// Steps `simulate` takes when the command line gives no `--frames`: the scripted hand's
 /// duration plus three seconds to settle (at least three seconds), at the scene's step rate.
 pub fn default_frames(scene: &Scene) -> u64 {
-    let hand_end = scene
-        .hand
-        .as_ref()
-        .and_then(|h| h.keys.last())
-        .map_or(0.0, |k| k.t);
+    let hand_end = [&scene.hand, &scene.left_hand]
+        .into_iter()
+        .flatten()
+        .map(|h| h.end_time())
+        .fold(0.0, f64::max);
     ((hand_end + 3.0) * scene.world.step_hz).ceil() as u64
 }
 
@@ -260,25 +269,62 @@ pub fn simulate(
 pub fn simulate_with(
     scene: &Scene,
     frames: u64,
-    mut hand: Option<&mut dyn HandSource>,
+    hand: Option<&mut dyn HandSource>,
+    progress: &mut Progress<'_>,
+) -> Result<Report, RunError> {
+    simulate_hands_with(scene, frames, [hand, None], progress)
+}
+
+/// [`simulate_with`] of two hands by slot (docs/model.md "Two hands": slot 0 the right, slot 1
+/// the left), each sampled once per step as one hand is: a scene's `[hand]` and `[left_hand]`.
+/// With no left hand it is [`simulate_with`] bit for bit; with one, events name their hands.
+pub fn simulate_hands_with(
+    scene: &Scene,
+    frames: u64,
+    mut hands: [Option<&mut dyn HandSource>; 2],
     progress: &mut Progress<'_>,
 ) -> Result<Report, RunError> {
     let mut world = Model::new(scene)?;
+    let two_handed = hands[1].is_some();
+    if world.kind() == common::config::scene::ModelKind::Precise && two_handed {
+        return Err(RunError::World(two_hands_refused(scene)));
+    }
     let dt = 1.0 / scene.world.step_hz;
     let mut events = Vec::new();
-    if let Some(h) = hand.as_deref_mut() {
-        let first = h.hand_at(0, 0.0);
-        world.set_previous_hand(first.as_ref());
+    for (slot, hand) in hands.iter_mut().enumerate() {
+        if let Some(h) = hand.as_deref_mut() {
+            let first = h.hand_at(0, 0.0);
+            world.set_previous_hand_of(slot, first.as_ref());
+        }
     }
     for n in 1..=frames {
-        let sample = hand
-            .as_deref_mut()
-            .and_then(|h| h.hand_at(n, n as f64 * dt));
-        world.step(sample.as_ref());
-        collect_events(&world, scene, &mut events, false);
+        let t = n as f64 * dt;
+        let mut sample = |slot: usize| {
+            hands[slot].as_deref_mut().and_then(|h| {
+                h.hand_at(n, t).map(|mut h| {
+                    h.side = slot_side(slot).code();
+                    h
+                })
+            })
+        };
+        let (right, left) = (sample(0), sample(1));
+        world.step_hands([right.as_ref(), left.as_ref()]);
+        collect_events(&world, scene, &mut events, two_handed);
         progress(n).map_err(|Stop| RunError::Stopped { steps: n })?;
     }
     Ok(report(&world, scene, frames, events))
+}
+
+/// The precise model's refusal of a second hand.
+fn two_hands_refused(scene: &Scene) -> WorldError {
+    WorldError {
+        file: scene.file.clone(),
+        block: None,
+        problem: "two hands are the paper model's (docs/model.md \"Two hands\"): the precise \
+                  model takes one; give one hand (--hands left or right) or `world.model` = \
+                  \"paper\""
+            .into(),
+    }
 }
 
 /// Runs the scene's world on a sequence of hand samples with their own source times, exactly
@@ -345,14 +391,7 @@ fn simulate_stream(
         .clone()
         .any(|h| common::HandSide::from_code(h.side) == common::HandSide::Left);
     if world.kind() == common::config::scene::ModelKind::Precise && two_handed {
-        return Err(RunError::World(WorldError {
-            file: scene.file.clone(),
-            block: None,
-            problem: "two hands are the paper model's (docs/model.md \"Two hands\"): the precise \
-                      model takes one; give one hand (--hands left or right) or `world.model` = \
-                      \"paper\""
-                .into(),
-        }));
+        return Err(RunError::World(two_hands_refused(scene)));
     }
     let mut events = Vec::new();
     let mut timeline = Timeline::new(scene.world.step_hz);

@@ -188,6 +188,7 @@ fn scene() -> impl Strategy<Value = Scene> {
             },
             blocks,
             hand,
+            left_hand: None,
         },
     )
 }
@@ -287,6 +288,7 @@ fn stacks() -> impl Strategy<Value = Scene> {
                 },
                 blocks,
                 hand,
+                left_hand: None,
             }
         })
 }

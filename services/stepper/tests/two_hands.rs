@@ -376,3 +376,64 @@ fn a_one_hand_world_is_step_with_slot_0_and_names_no_hand() {
         assert!(a.events().iter().all(|e| e.hands == 0));
     }
 }
+
+/// A scene's `[left_hand]` of bare check points: the left hand pinches the cube while the
+/// scene's `[hand]` (the right) stays clear, so the grasp and the release are the left's; a
+/// scene with the same `[hand]` alone is `simulate` of one hand, bit for bit.
+#[test]
+fn a_scene_scripts_the_left_hand_beside_the_right() {
+    let cube = "[effects]\ngravity = false\nfloor = \"none\"\n\
+                [[block]]\nname = \"cube\"\nposition = [0.0, 1.0, 0.0]\nsize = [0.1, 0.1, 0.1]\n";
+    let right = "[hand]\n[[hand.key]]\nt = 0\nwrist = [1.0, 1.0, 0.0]\n\
+                 fingers = [[[0.0, 0.0, -0.01], [0.0, 0.0, 0.01]]]\n";
+    // Open 1 cm outside the z faces, closed 0.5 mm inside them, then open again.
+    let left_key = |t: f64, inset: f64| {
+        let z = 0.05 - inset;
+        format!(
+            "[[left_hand.key]]\nt = {t}\nwrist = [0.0, 1.0, 0.0]\n\
+             fingers = [[[-0.01, 0.0, {}], [0.01, 0.0, {}]], [[-0.01, 0.0, {z}], [0.01, 0.0, {z}]]]\n",
+            -z, -z
+        )
+    };
+    let left = format!(
+        "[left_hand]\n{}{}{}{}",
+        left_key(0.0, -0.01),
+        left_key(0.2, 0.0005),
+        left_key(0.5, 0.0005),
+        left_key(0.7, -0.01)
+    );
+    let two = scene(&format!("{cube}{right}{left}"));
+    assert!(two.left_hand.is_some());
+    let mut r = stepper::BareFingersHand::from_scene(&two).unwrap();
+    let mut l = stepper::BareFingersHand::left_of_scene(&two).unwrap();
+    let report = stepper::simulate_hands_with(
+        &two,
+        stepper::default_frames(&two),
+        [Some(&mut r), Some(&mut l)],
+        &mut |_| Ok(()),
+    )
+    .unwrap_or_else(|e| panic!("{e:?}"));
+    let named: Vec<(EventKind, Option<common::HandSide>)> = report
+        .events
+        .iter()
+        .filter(|e| matches!(e.kind, EventKind::Grasp | EventKind::Release))
+        .map(|e| (e.kind, e.hand))
+        .collect();
+    assert_eq!(
+        named,
+        [
+            (EventKind::Grasp, Some(common::HandSide::Left)),
+            (EventKind::Release, Some(common::HandSide::Left)),
+        ]
+    );
+
+    // The right hand alone: the one-hand `simulate` and the two-hand run with no left agree.
+    let one = scene(&format!("{cube}{right}"));
+    let frames = stepper::default_frames(&one);
+    let mut a = stepper::BareFingersHand::from_scene(&one).unwrap();
+    let mut b = a.clone();
+    let alone = stepper::simulate(&one, frames, Some(&mut a)).unwrap();
+    let slots = stepper::simulate_hands_with(&one, frames, [Some(&mut b), None], &mut |_| Ok(()))
+        .unwrap_or_else(|e| panic!("{e:?}"));
+    assert_eq!(alone.to_json(), slots.to_json());
+}

@@ -56,6 +56,7 @@ fn push_after_sleep() -> Scene {
                 key(4.3, -0.3, 0.4),
             ],
         }),
+        left_hand: None,
     }
 }
 
