@@ -169,17 +169,20 @@ class Joints(_Stamps):
 
 @dataclass(frozen=True)
 class Glove(_Stamps):
-    """Data-glove joint angles, radians, CyberGlove sensor order (``sensor_count`` used)."""
+    """Data-glove joint angles, radians, CyberGlove sensor order (``sensor_count`` used).
+    ``side``: 0 the right hand's glove, 1 the left's (a scene of two scripted hands)."""
 
     sensor_count: U32
+    side: U32
     angles: F64
 
 
 @dataclass(frozen=True)
 class Tracker(_Stamps):
-    """The 6-DoF tracker's wrist pose."""
+    """The 6-DoF tracker's wrist pose. ``side``: 0 the right hand's, 1 the left's."""
 
     station: U32
+    side: U32
     wrist_position: F64
     wrist_rotation: F64
 

@@ -398,14 +398,17 @@ fn glove(samples: &[GloveSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
     let n = samples.len();
     let mut stamps = StampColumns::with_capacity(n);
     let mut count = Vec::with_capacity(n);
+    let mut side = Vec::with_capacity(n);
     let mut angles = Vec::with_capacity(n * MAX_GLOVE_SENSORS);
     for g in samples {
         stamps.push(&g.stamp);
         count.push(g.sensor_count);
+        side.push(g.side);
         angles.extend_from_slice(&g.angles);
     }
     stamps.into_dict(out)?;
     out.set_item("sensor_count", array(py, count, &[n])?)?;
+    out.set_item("side", array(py, side, &[n])?)?;
     out.set_item("angles", array(py, angles, &[n, MAX_GLOVE_SENSORS])?)?;
     Ok(())
 }
@@ -415,14 +418,17 @@ fn tracker(samples: &[TrackerSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
     let n = samples.len();
     let mut stamps = StampColumns::with_capacity(n);
     let mut station = Vec::with_capacity(n);
+    let mut side = Vec::with_capacity(n);
     let (mut wp, mut wr) = (Vec::with_capacity(n * 3), Vec::with_capacity(n * 4));
     for t in samples {
         stamps.push(&t.stamp);
         station.push(t.station);
+        side.push(t.side);
         push_pose(&t.wrist, &mut wp, &mut wr);
     }
     stamps.into_dict(out)?;
     out.set_item("station", array(py, station, &[n])?)?;
+    out.set_item("side", array(py, side, &[n])?)?;
     out.set_item("wrist_position", array(py, wp, &[n, 3])?)?;
     out.set_item("wrist_rotation", array(py, wr, &[n, 4])?)?;
     Ok(())

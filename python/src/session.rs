@@ -501,8 +501,8 @@ impl LiveSample {
                 "position",
                 "rotation",
             ],
-            Held::Glove(_) => &["sensor_count", "angles"],
-            Held::Tracker(_) => &["station", "wrist_position", "wrist_rotation"],
+            Held::Glove(_) => &["sensor_count", "side", "angles"],
+            Held::Tracker(_) => &["station", "side", "wrist_position", "wrist_rotation"],
             Held::Frame(_) => &[
                 "world_seq",
                 "render_ns",
@@ -620,6 +620,7 @@ fn field<'py>(slf: &Bound<'py, LiveSample>, name: &str) -> PyResult<Option<Bound
                 let g = s.payload();
                 match name {
                     "sensor_count" => num(g.sensor_count.into()),
+                    "side" => num(g.side.into()),
                     "angles" => view(slf, g.angles.as_ptr(), &[MAX_GLOVE_SENSORS], &[1]).map(Some),
                     _ => Ok(None),
                 }
@@ -628,6 +629,7 @@ fn field<'py>(slf: &Bound<'py, LiveSample>, name: &str) -> PyResult<Option<Bound
                 let t = s.payload();
                 match name {
                     "station" => num(t.station.into()),
+                    "side" => num(t.side.into()),
                     "wrist_position" => pose(&t.wrist, false).map(Some),
                     "wrist_rotation" => pose(&t.wrist, true).map(Some),
                     _ => Ok(None),
