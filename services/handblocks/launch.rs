@@ -208,8 +208,11 @@ fn hands_line(s: &common::config::Session) -> Option<String> {
     Some(match w.hands {
         HandRules::Tracked => format!(
             "{tracked_source}, under the tracked hand rules (docs/model.md T1-T3: grip margin \
-             {} m, gaps held {} s, throws fitted over {} s)",
-            w.tracked.grip_margin, w.tracked.gap_hold, w.tracked.throw_fit_window
+             {} m held open {} s, gaps held {} s, throws fitted over {} s)",
+            w.tracked.grip_margin,
+            w.tracked.grip_open_time,
+            w.tracked.gap_hold,
+            w.tracked.throw_fit_window
         ),
         HandRules::Paper => format!(
             "{tracked_source}, under the paper's hand rules (R3, R13): a tracker's jitter can \

@@ -116,6 +116,11 @@ pub struct TrackedSettings {
     /// contacts made R3's grasp) opens by this much (metres). Trackers jitter by 2-11 mm (sd);
     /// a grip must open by more than that before it lets go.
     pub grip_margin: f64,
+    /// T1: the grip must be found open at every step for this long (seconds) before it lets
+    /// go. A tracker's noise is new in every sample: one sample's outlier (a point 13 mm off,
+    /// 2.6 sd of 5 mm) can open a grip by the margin for the steps it shapes, two samples in a
+    /// row almost never; a hand that opens stays open. 30 ms is three samples at 90 Hz.
+    pub grip_open_time: f64,
     /// T2: a hand that is not tracked keeps what it holds, unmoved by new contacts, for up to
     /// this long (seconds); then it lets go with no throw.
     pub gap_hold: f64,
@@ -128,6 +133,7 @@ impl Default for TrackedSettings {
     fn default() -> Self {
         TrackedSettings {
             grip_margin: 0.02,
+            grip_open_time: 0.03,
             gap_hold: 0.25,
             throw_fit_window: 0.075,
         }
@@ -409,6 +415,9 @@ fn tracked(r: Option<Reader>) -> Result<TrackedSettings, ConfigError> {
         grip_margin: r
             .f64_in("grip_margin", Some(d.grip_margin), 0.0..=0.2)?
             .unwrap_or(d.grip_margin),
+        grip_open_time: r
+            .f64_in("grip_open_time", Some(d.grip_open_time), 0.0..=1.0)?
+            .unwrap_or(d.grip_open_time),
         gap_hold: r
             .f64_in("gap_hold", Some(d.gap_hold), 0.0..=10.0)?
             .unwrap_or(d.gap_hold),

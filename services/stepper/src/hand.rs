@@ -489,9 +489,14 @@ impl HandContacts {
                     let (inv, at) = (b.rot().conjugate(), b.pos());
                     let poly = &b.poly;
                     let outside = |p: DVec3| poly.max_face_distance(inv * (p - at)).0;
-                    if b.grip
-                        .grip_holds(slot, hand, settings.release_angle, t.grip_margin, outside)
-                    {
+                    let holds = b.grip.grip_holds(
+                        slot,
+                        hand,
+                        settings.release_angle,
+                        t.grip_margin,
+                        outside,
+                    );
+                    if b.grip.still_held(slot, holds, t.grip_open_steps) {
                         counts.grip_held_steps += 1;
                         HandAction::Grasp
                     } else {
@@ -505,7 +510,12 @@ impl HandContacts {
                     if !grasped_here || prev.is_some_and(|p| p.tracked != 0) {
                         b.grip.firm_step = step;
                         // Where R1 found them: at P-.
-                        b.grip.record_grip(slot, contacts, prev.unwrap_or(hand));
+                        b.grip.record_grip(
+                            slot,
+                            contacts,
+                            prev.unwrap_or(hand),
+                            settings.release_angle,
+                        );
                     }
                     paper
                 }
@@ -703,8 +713,9 @@ pub(crate) fn move_by_hand(
                 b.set_position(new_pos);
                 b.set_rotation(new_rot);
                 b.push_grasp_displacement(d);
-                // T3: the path of a block a tracked hand holds (untracked steps are no data).
-                if let Some(step) = path_step {
+                // T3: the path of a block a tracked hand holds (untracked steps are no data,
+                // nor are the steps its grip is found open: the fingers have left it).
+                if let Some(step) = path_step.filter(|_| !b.grip.opening()) {
                     b.grip.push(step, new_pos);
                 }
                 b.v = d;

@@ -38,6 +38,8 @@ use crate::HAND_SLOTS;
 pub(crate) struct TrackedRules {
     /// T1: how far the grip must open to let go, metres.
     pub grip_margin: f64,
+    /// T1: how many steps in a row the grip must be found open to let go (at least 1).
+    pub grip_open_steps: u32,
     /// T2: the most consecutive untracked steps a hand keeps its grasps through.
     pub gap_hold_steps: u64,
     /// T3: the fit's window before the evaluation step, in steps.
@@ -53,6 +55,7 @@ impl TrackedRules {
             HandRules::Paper => None,
             HandRules::Tracked => Some(TrackedRules {
                 grip_margin: t.grip_margin,
+                grip_open_steps: ((t.grip_open_time * step_hz).round() as u32).max(1),
                 gap_hold_steps: (t.gap_hold * step_hz).round() as u64,
                 fit_window_steps: ((t.throw_fit_window * step_hz).round() as u64).max(1),
                 dt: 1.0 / step_hz,
@@ -104,6 +107,8 @@ pub struct GripPath {
     /// opens its own.
     grip: [[GripPoint; MAX_GRIP_POINTS]; HAND_SLOTS],
     grip_len: [usize; HAND_SLOTS],
+    /// Each hand's steps in a row with its grip found open (T1's `grip_open_time`).
+    open_steps: [u32; HAND_SLOTS],
 }
 
 impl GripPath {
@@ -116,39 +121,56 @@ impl GripPath {
             firm_step: 0,
             grip: [[GripPoint::default(); MAX_GRIP_POINTS]; HAND_SLOTS],
             grip_len: [0; HAND_SLOTS],
+            open_steps: [0; HAND_SLOTS],
         }
     }
 
     /// T1: remembers the grip at a firm step: each check point with a contact (its first
     /// contact's pseudo-normal), where `hand` (in slot `slot`) has it (P-, where R1 found the
-    /// contact).
-    pub(crate) fn record_grip(&mut self, slot: usize, contacts: &[Contact], hand: &HandSample) {
-        let (grip, len) = (&mut self.grip[slot], &mut self.grip_len[slot]);
-        *len = 0;
+    /// contact). A firm step whose contacts hold no gripping pair ([`gripping_pairs`]: R3 can
+    /// find its opposed normals on one finger, a tracked finger's points straddling an edge)
+    /// keeps the grip before it: there is nothing in it that could open.
+    pub(crate) fn record_grip(
+        &mut self,
+        slot: usize,
+        contacts: &[Contact],
+        hand: &HandSample,
+        release_angle: f64,
+    ) {
+        let mut grip = [GripPoint::default(); MAX_GRIP_POINTS];
+        let mut len = 0;
         for c in contacts {
-            if *len == MAX_GRIP_POINTS {
+            if len == MAX_GRIP_POINTS {
                 break;
             }
-            if grip[..*len].iter().any(|g| g.point == c.point) {
+            if grip[..len].iter().any(|g| g.point == c.point) {
                 continue;
             }
             if let Some(at) = point_of(hand, c.point) {
-                grip[*len] = GripPoint {
+                grip[len] = GripPoint {
                     point: c.point,
                     at,
                     normal: c.n,
                 };
-                *len += 1;
+                len += 1;
             }
+        }
+        self.open_steps[slot] = 0;
+        let keep_old = self.grip_len[slot] > 0 && !grips(&grip[..len], release_angle);
+        if !keep_old {
+            self.grip[slot] = grip;
+            self.grip_len[slot] = len;
         }
     }
 
-    /// T1: whether the grip still holds in `hand`: some two of its check points whose contacts'
-    /// pseudo-normals opened wider than `release_angle` at the firm step are no more than
-    /// `margin` farther apart now than they were then, and each no farther than twice the margin
-    /// outside the block (`outside(p)`: how far p is outside it, negative inside). The hand's
-    /// own aperture first: a tracker's error in the wrist (which R5 moves the block by) moves
-    /// the block against every finger at once, and would open a grip that did not open; the
+    /// T1: whether the grip still holds in `hand`: its gripping pairs ([`gripping_pairs`]) still
+    /// at the block (each point no farther than twice the margin outside it: `outside(p)`, how
+    /// far p is outside, negative inside) are on average no more than `margin` farther apart
+    /// now than at the firm step. The hand's own aperture, not its points against the block: a
+    /// tracker's error in the wrist (which R5 moves the block by) moves the block against every
+    /// finger at once, and would open a grip that did not open. The mean over the pairs, not
+    /// any one pair: one pair's distance carries both points' noise (5 mm of it per point
+    /// opened a single pair by the margin about once a throw), the mean of many does not. The
     /// distance to the block for a grip whose points cannot open (a block held between the
     /// thumb's base and the knuckles) when the hand leaves it (presses it into the floor).
     pub(crate) fn grip_holds(
@@ -160,31 +182,48 @@ impl GripPath {
         outside: impl Fn(DVec3) -> f64,
     ) -> bool {
         let grip = &self.grip[slot][..self.grip_len[slot]];
-        let opposed = release_angle.cos();
-        for (i, a) in grip.iter().enumerate() {
-            let Some(pa) = point_of(hand, a.point).filter(|&p| outside(p) <= 2.0 * margin) else {
-                continue;
-            };
-            for b in &grip[i + 1..] {
-                if a.normal.dot(b.normal) >= opposed {
-                    continue;
-                }
-                let Some(pb) = point_of(hand, b.point).filter(|&p| outside(p) <= 2.0 * margin)
-                else {
-                    continue;
-                };
-                if (pa - pb).length() <= (a.at - b.at).length() + margin {
-                    return true;
-                }
+        if !grips(grip, release_angle) {
+            return false;
+        }
+        let near = |g: &GripPoint| point_of(hand, g.point).filter(|&p| outside(p) <= 2.0 * margin);
+        let (mut opened, mut n) = (0.0, 0u32);
+        for (a, b) in thumb_pairs(grip) {
+            if let (Some(pa), Some(pb)) = (near(a), near(b)) {
+                opened += (pa - pb).length() - (a.at - b.at).length();
+                n += 1;
             }
         }
+        n > 0 && opened <= margin * f64::from(n)
+    }
+
+    /// T1 at a step R3 does not confirm the grasp: whether the hand in `slot` still holds it.
+    /// It lets go once [`GripPath::grip_holds`] has found the grip open at `open_steps` steps
+    /// in a row.
+    pub(crate) fn still_held(&mut self, slot: usize, grip_holds: bool, open_steps: u32) -> bool {
+        if grip_holds {
+            self.open_steps[slot] = 0;
+            return true;
+        }
+        self.open_steps[slot] = self.open_steps[slot].saturating_add(1);
+        if self.open_steps[slot] < open_steps {
+            return true;
+        }
+        // It lets go: nothing of this hand is opening any more.
+        self.open_steps[slot] = 0;
         false
+    }
+
+    /// Whether a hand's grip is being found open (T1's `grip_open_time` still running): the
+    /// fingers have left the block, so its path while they have is no part of the throw (T3).
+    pub(crate) fn opening(&self) -> bool {
+        self.open_steps.iter().any(|&n| n > 0)
     }
 
     /// A new grasp starts a new path.
     pub(crate) fn clear(&mut self) {
         self.next = 0;
         self.len = 0;
+        self.open_steps = [0; HAND_SLOTS];
     }
 
     /// G at a tracked step of the grasp.
@@ -227,6 +266,25 @@ impl GripPath {
         // Too few tracked points in the window (a gap took them): every point kept.
         fit(from).or_else(|| fit(0))
     }
+}
+
+/// T1's pairs of a grip: each of the thumb's check points (finger 0, in every hand a source
+/// makes) against each other finger's. A hand opens by parting its thumb from its fingers; two
+/// points of one finger never part, nor do two fingers side by side, yet a tracked finger's
+/// noise can oppose their normals (R3 then finds a grasp in them), and a grip measured on such
+/// pairs would never let go.
+fn thumb_pairs(grip: &[GripPoint]) -> impl Iterator<Item = (&GripPoint, &GripPoint)> + '_ {
+    let thumb = |g: &GripPoint| (g.point as usize) < MAX_FINGER_POINTS;
+    grip.iter()
+        .filter(move |a| thumb(a))
+        .flat_map(move |a| grip.iter().filter(move |b| !thumb(b)).map(move |b| (a, b)))
+}
+
+/// Whether a grip grips: some thumb pair ([`thumb_pairs`]) whose contacts' pseudo-normals
+/// opened wider than `release_angle` (R3's own test, on the thumb against a finger).
+fn grips(grip: &[GripPoint], release_angle: f64) -> bool {
+    let opposed = release_angle.cos();
+    thumb_pairs(grip).any(|(a, b)| a.normal.dot(b.normal) < opposed)
 }
 
 /// Check point `point` (`finger * MAX_FINGER_POINTS + index`) of `hand`, when it has it.
@@ -378,6 +436,7 @@ mod tests {
     fn rules(window_steps: u64) -> TrackedRules {
         TrackedRules {
             grip_margin: 0.02,
+            grip_open_steps: 1,
             gap_hold_steps: 30,
             fit_window_steps: window_steps,
             dt: 1.0 / 120.0,
