@@ -285,5 +285,5 @@ def test_a_scene_of_two_scripted_hands_names_them_and_its_dict_is_the_file() -> 
     table = tomllib.loads(scene.read_text())
     assert hb.simulate(table).to_json() == sim.to_json()
     table["world"] = {"model": "precise"}
-    with pytest.raises(ValueError, match="left_hand"):
+    with pytest.raises(hb.SceneError, match="left_hand"):
         hb.simulate(table)
