@@ -71,7 +71,8 @@ pub const FOXGLOVE_CLIENTS: std::ops::RangeInclusive<u64> = 1..=64;
 #[derive(Debug, Clone, PartialEq)]
 pub enum LinkSecurity {
     /// `tls/`: TLS 1.3, encrypted, and both sides authenticated by certificate (mutual TLS):
-    /// each side presents its own certificate and accepts only `peer_certificate`'s.
+    /// each side presents its own certificate and accepts only `peer_certificate`'s. The bridge
+    /// carries it on zenoh's QUIC link (UDP; `bridge::link::zenoh_endpoint`).
     Tls {
         /// This side's certificate and key (`certificate.pem`, `key.pem`): made on first use,
         /// kept 0600 in a 0700 folder, renewed before they expire.
@@ -184,8 +185,8 @@ fn endpoint(r: &Reader, default: Option<&str>) -> Result<String, ConfigError> {
         r.err(
             "endpoint",
             format!(
-                "{text:?} {why}; give tls/HOST:PORT, e.g. \"tls/127.0.0.1:7447\" (TLS and \
-                 TCP are built in)"
+                "{text:?} {why}; give tls/HOST:PORT, e.g. \"tls/127.0.0.1:7447\" (TLS, carried on \
+                 QUIC, and plain TCP are built in)"
             ),
         )
     };

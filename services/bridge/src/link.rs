@@ -133,6 +133,22 @@ pub struct Link {
 /// side presents its issued chain and accepts only certificates the peer's authority issued
 /// (a listener's check of a connecting side uses that authority alone; a connecting side
 /// checks the listener's name too). The latency bench's zenoh rows use it too, plain.
+/// The zenoh endpoint of a session's `tls/HOST:PORT`: `quic/HOST:PORT`, TLS 1.3 with both sides'
+/// certificates as zenoh's `tls/` link, on UDP. zenoh 1.10's `tls/` link reads and writes one
+/// rustls stream from two tasks through an `UnsafeCell` (zenoh #2557; rustls supports no
+/// such use): under traffic both ways (a viewer sending frames back) a bridge aborted in
+/// rustls with a garbage allocation. Its QUIC link keeps rustls inside quinn, which does not
+/// share it. `tcp/` (plain) is taken as it is.
+/// The longest the link waits for its zenoh session to close when the bridge stops.
+const CLOSE_TIMEOUT_MS: u64 = 500;
+
+pub fn zenoh_endpoint(endpoint: &str) -> String {
+    match endpoint.strip_prefix("tls/") {
+        Some(rest) => format!("quic/{rest}"),
+        None => endpoint.to_string(),
+    }
+}
+
 pub fn peer_config(
     endpoint: &str,
     role: LinkRole,
@@ -181,7 +197,7 @@ pub fn peer_config(
         set(&mut c, &format!("{tls}/enable_mtls"), "true")?;
         set(&mut c, &format!("{tls}/verify_name_on_connect"), "true")?;
     }
-    let endpoint = serde_json::to_string(&[endpoint]).map_err(|e| e.to_string())?;
+    let endpoint = serde_json::to_string(&[zenoh_endpoint(endpoint)]).map_err(|e| e.to_string())?;
     match role {
         LinkRole::Listen => {
             set(&mut c, "listen/endpoints", &endpoint)?;
@@ -416,7 +432,20 @@ impl Link {
         if let Some(t) = self.clock_thread.take() {
             let _ = t.join();
         }
-        let _ = self.session.close().wait();
+        // Bounded: a QUIC link's close waits on its peer (6.5 s for one that had gone: a
+        // viewer stopped first), and the bridge's final report waits on this. The process
+        // ends right after; what the close had not done, the end of the process does.
+        let session = self.session;
+        let (done, closed) = crossbeam_channel::bounded::<()>(1);
+        let closing = std::thread::Builder::new()
+            .name("link-close".into())
+            .spawn(move || {
+                let _ = session.close().wait();
+                let _ = done.send(());
+            });
+        if closing.is_ok() {
+            let _ = closed.recv_timeout(Duration::from_millis(CLOSE_TIMEOUT_MS));
+        }
     }
 }
 

@@ -44,6 +44,26 @@ pub fn count(name: &str) {
 
 /// The name of a zenoh event that reports a refusal, or None for any other event.
 pub fn classify(target: &str, message: &str) -> Option<String> {
+    if target.starts_with("zenoh_link_commons::quic") || target.starts_with("zenoh_link_quic") {
+        // A listener's QUIC handshake that failed (a `tls/` endpoint is zenoh's QUIC link):
+        // quinn's error, which zenoh's accept loop says with a hint about open files.
+        let why = message
+            .strip_prefix("Cannot accept QUIC connection:")
+            .or_else(|| {
+                message
+                    .strip_suffix(" Hint: increase the system open file limit.")
+                    .map(|m| m.trim_start_matches("QUIC acceptor failed:"))
+            })?;
+        // quinn says its reason as bytes inside a Debug print: `reason: b"..."`.
+        let why = why
+            .split_once("reason: b\"")
+            .and_then(|(_, r)| r.split_once('"'))
+            .map_or(why, |(r, _)| r);
+        return Some(format!(
+            "a connecting peer's TLS handshake: {}",
+            reason(why)
+        ));
+    }
     if target.starts_with("zenoh_link_tls") {
         // A listener's TLS handshake that failed: tls-listener's error, which zenoh says with
         // a hint about open files (its accept loop cannot tell the two apart).
@@ -89,12 +109,14 @@ fn reason(why: &str) -> String {
     }
 }
 
-/// The subscriber: enabled for zenoh's TLS link and connect events only.
+/// The subscriber: enabled for zenoh's QUIC and TLS links' and its connect events only.
 struct Counter;
 
 fn interesting(m: &Metadata<'_>) -> bool {
     m.is_event()
         && (m.target().starts_with("zenoh_link_tls")
+            || m.target().starts_with("zenoh_link_quic")
+            || m.target().starts_with("zenoh_link_commons::quic")
             || m.target().starts_with("zenoh::net::runtime::orchestrator"))
 }
 
@@ -148,6 +170,25 @@ impl tracing::Subscriber for Counter {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_quic_listeners_refused_handshake_is_named_by_its_reason() {
+        assert_eq!(
+            classify(
+                "zenoh_link_commons::quic::unicast",
+                "QUIC acceptor failed: ConnectionClosed(ConnectionClose { error_code: \
+                 Code::crypto(30), frame_type: None, reason: b\"invalid peer certificate: \
+                 UnknownIssuer\" }) at /x/unicast.rs:686. Hint: increase the system open file \
+                 limit."
+            )
+            .as_deref(),
+            Some("a connecting peer's TLS handshake: invalid peer certificate: UnknownIssuer")
+        );
+        assert_eq!(
+            classify("zenoh_link_commons::quic::unicast", "Ready to accept"),
+            None
+        );
+    }
 
     #[test]
     fn zenoh_refusals_are_named_and_a_peer_not_up_yet_is_not_one() {
