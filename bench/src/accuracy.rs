@@ -697,7 +697,19 @@ fn crossing(values: &[f64], target: f64) -> Option<f64> {
     Some((k - 1) as f64 + f.clamp(0.0, 1.0))
 }
 
-/// The landing of block 0: the first step its lowest vertex is within 1 mm of the floor,
+/// The first step from `from` at which a block whose lowest vertex is at `ys` (one per step
+/// end) has touched the floor: its lowest vertex within 1 mm of it, or the bottom of a hop (a
+/// step lower than both its neighbours: in flight the height is concave, so a low point between
+/// two higher ones is a contact within that step, and a cube that lands and hops may never end
+/// a step within 1 mm of the floor). None: it never touched.
+fn touchdown(ys: &[f64], from: usize) -> Option<usize> {
+    (from..ys.len()).find(|&k| {
+        ys[k] <= 1e-3 || (k > from && k + 1 < ys.len() && ys[k - 1] > ys[k] && ys[k + 1] > ys[k])
+    })
+}
+
+/// The landing of block 0: the first step its lowest vertex is within 1 mm of the floor or
+/// hops off it ([`touchdown`]),
 /// placed within the step by the speed of the step before (so a model is not charged a whole
 /// step for where in its step the floor was crossed). Returns (time in steps, G's horizontal
 /// distance at that time).
@@ -705,7 +717,7 @@ fn landing(trace: &Trace, verts: &[DVec3]) -> Option<(f64, f64)> {
     let ys: Vec<f64> = (0..=trace.steps())
         .map(|k| lowest(verts, trace.at(k, 0)))
         .collect();
-    let k = ys.iter().position(|y| *y <= 1e-3)?;
+    let k = touchdown(&ys, 0)?;
     let horizontal = |k: usize| {
         let p = trace.at(k, 0).0;
         (p.x * p.x + p.z * p.z).sqrt()
@@ -732,14 +744,14 @@ fn landing(trace: &Trace, verts: &[DVec3]) -> Option<(f64, f64)> {
     Some(((k - 1) as f64 + f, x_prev + f * dx))
 }
 
-/// Where block 0 first touches the floor after having been lifted 5 cm clear of it: G at
-/// that step, moved on within the step as in [`landing`].
+/// Where block 0 first touches the floor ([`touchdown`]) after having been lifted 5 cm clear
+/// of it: G at that step, moved on within the step as in [`landing`].
 fn landing_after_lift(trace: &Trace, verts: &[DVec3]) -> Option<DVec3> {
     let ys: Vec<f64> = (0..=trace.steps())
         .map(|k| lowest(verts, trace.at(k, 0)))
         .collect();
     let lifted = ys.iter().position(|y| *y > 0.05)?;
-    let k = lifted + ys[lifted..].iter().position(|y| *y <= 1e-3)?;
+    let k = touchdown(&ys, lifted)?;
     if k < 2 {
         return Some(trace.at(k, 0).0);
     }
@@ -1801,6 +1813,24 @@ fn figure(summary: &[Point], pareto: &[Point]) -> Figure {
 
 #[cfg(test)]
 mod tests {
+
+    /// Issue 42: a cube that lands and hops, never ending a step within 1 mm of the floor, has
+    /// landed at the bottom of its hop; one still in flight has not.
+    #[test]
+    fn a_landing_is_found_inside_the_step_of_a_hop() {
+        // Falling 4 cm a step, the low point 3 mm up between two higher steps, then a hop.
+        let ys = [0.2, 0.16, 0.12, 0.08, 0.04, 0.003, 0.02, 0.03, 0.02, 0.004];
+        assert_eq!(touchdown(&ys, 0), Some(5));
+        // The same, ending a step on the floor: that step.
+        let on = [0.2, 0.12, 0.04, 0.0005, 0.0005];
+        assert_eq!(touchdown(&on, 0), Some(3));
+        // A throw rising then falling, still in the air: never.
+        let flight = [0.1, 0.15, 0.18, 0.19, 0.18, 0.15, 0.1];
+        assert_eq!(touchdown(&flight, 0), None);
+        // After a lift: the start is not a landing.
+        let lift = [0.0005, 0.02, 0.06, 0.09, 0.05, 0.01, 0.012, 0.03];
+        assert_eq!(touchdown(&lift, 3), Some(5));
+    }
     use super::exact::*;
     use super::*;
 

@@ -91,8 +91,12 @@ pub struct Known {
     pub unit: &'static str,
     /// The figure, from the run.
     pub measure: fn(&Outcome) -> f64,
-    /// The band the figure is asserted to lie in (inclusive): outside it, the failure changed
-    /// and the case must be looked at again.
+    /// The figure as `bench stability` measured it when the band was drawn (deterministic: the
+    /// precise model gives it again on every machine).
+    pub measured: f64,
+    /// The band the figure is asserted to lie in (exclusive): half to twice `measured`, cut
+    /// where it would reach the criterion's pass zone. A figure halved or doubled is outside
+    /// it: the failure changed, and the case must be looked at again.
     pub band: (f64, f64),
 }
 
@@ -101,7 +105,7 @@ impl Known {
     pub fn measured(&self, o: &Outcome) -> Result<String, String> {
         let v = (self.measure)(o);
         let text = format!("{} = {} {}", self.figure, fmt_figure(v), self.unit);
-        if v >= self.band.0 && v <= self.band.1 {
+        if v > self.band.0 && v < self.band.1 {
             Ok(text)
         } else {
             Err(format!(
@@ -1353,16 +1357,28 @@ const FAR_DIFFERS: Known = Known {
     figure: "largest final difference from the origin run",
     unit: "m",
     measure: far_difference_m,
-    band: (1e-3, 1.0),
+    measured: 0.0122,
+    band: (0.0061, 0.0244),
 };
 
-const TOWER_FALLS: Known = Known {
+const TOWER_20_FALLS: Known = Known {
     why: "a tall aligned column of cubes buckles: the soft contacts sink each interface and \
           Gauss-Seidel's order leaves a tilt that grows until the column falls (tower-10 stands)",
     figure: "time until a cube is 1 cm sideways or 5 deg off its start",
     unit: "s",
     measure: time_to_fall_s,
-    band: (0.5, 5.0),
+    measured: 1.6417,
+    band: (0.8209, 3.2834),
+};
+
+const TOWER_40_FALLS: Known = Known {
+    why: "a tall aligned column of cubes buckles: the soft contacts sink each interface and \
+          Gauss-Seidel's order leaves a tilt that grows until the column falls (tower-10 stands)",
+    figure: "time until a cube is 1 cm sideways or 5 deg off its start",
+    unit: "s",
+    measure: time_to_fall_s,
+    measured: 0.9417,
+    band: (0.4709, 1.8834),
 };
 
 const HARMONIC_99_FALLS: Known = Known {
@@ -1371,7 +1387,8 @@ const HARMONIC_99_FALLS: Known = Known {
     figure: "time until a cube is 1 cm sideways or 5 deg off its start",
     unit: "s",
     measure: time_to_fall_s,
-    band: (0.0, 2.0),
+    measured: 0.1583,
+    band: (0.0792, 0.3166),
 };
 
 const TOWER_SHIFTS: Known = Known {
@@ -1380,7 +1397,8 @@ const TOWER_SHIFTS: Known = Known {
     figure: "the tower's largest move from its start",
     unit: "mm",
     measure: tower_moved_mm,
-    band: (10.0, 40.0),
+    measured: 18.0556,
+    band: (10.0, 36.1112),
 };
 
 const FALL_STEP_SLIDES_OFF: Known = Known {
@@ -1389,7 +1407,8 @@ const FALL_STEP_SLIDES_OFF: Known = Known {
     figure: "the falling cube's G height at the end (0.015 on the lower cube)",
     unit: "m",
     measure: block_1_ends_at_y,
-    band: (0.0, 0.0149),
+    measured: 0.0050,
+    band: (0.0025, 0.01),
 };
 
 const BULLET_THROUGH_WALL: Known = Known {
@@ -1399,7 +1418,8 @@ const BULLET_THROUGH_WALL: Known = Known {
     figure: "the furthest x the bullet's front reached (the wall's far face is at 1.005)",
     unit: "m",
     measure: bullet_front_x,
-    band: (1.005, 10.0),
+    measured: 1.9002,
+    band: (1.005, 3.8004),
 };
 
 const BULLETS_PASS: Known = Known {
@@ -1410,7 +1430,8 @@ const BULLETS_PASS: Known = Known {
     figure: "the step at which the bullet is past the target",
     unit: "steps",
     measure: step_passed,
-    band: (1.0, 3.0),
+    measured: 1.0,
+    band: (0.5, 2.0),
 };
 
 const JUMP_THROWS: Known = Known {
@@ -1419,7 +1440,8 @@ const JUMP_THROWS: Known = Known {
     figure: "the farthest a cube ends from its start",
     unit: "m",
     measure: farthest_thrown_m,
-    band: (2.0, 1000.0),
+    measured: 173.8275,
+    band: (86.9138, 347.655),
 };
 
 const HEAVY_SINKS: Known = Known {
@@ -1428,15 +1450,16 @@ const HEAVY_SINKS: Known = Known {
     figure: "how far the heavy cube ends below its start",
     unit: "mm",
     measure: block_1_sank_mm,
-    band: (30.0, 70.0),
+    measured: 50.0015,
+    band: (25.0008, 100.003),
 };
 
 /// The suite. The scene's header states the paper model's criterion; the precise model's is
 /// its `Precise` (a `p_` function here).
 pub const CASES: &[Case] = &[
     with!(case!("tower-10", 600, stack_stands), stack true, expect Some(true), P(p_stands)),
-    with!(case!("tower-20", 600, stack_stands), stack true, expect Some(true), Fails(p_stands, &TOWER_FALLS)),
-    with!(case!("tower-40", 600, stack_stands), stack true, expect Some(true), Fails(p_stands, &TOWER_FALLS)),
+    with!(case!("tower-20", 600, stack_stands), stack true, expect Some(true), Fails(p_stands, &TOWER_20_FALLS)),
+    with!(case!("tower-40", 600, stack_stands), stack true, expect Some(true), Fails(p_stands, &TOWER_40_FALLS)),
     with!(case!("staggered", 600, never_moves), stack true, expect Some(true), P(p_stands)),
     with!(case!("harmonic-4-99", 600, never_moves), stack true, expect Some(true), Fails(p_stands, &HARMONIC_99_FALLS)),
     with!(case!("harmonic-4-101", 3000, harmonic_101), stack true, expect Some(false), P(p_falls)),
@@ -1545,3 +1568,42 @@ pub const CASES: &[Case] = &[
     ), stack false, expect None, Fails(p_hand, &JUMP_THROWS)),
     with!(case!("heavy-on-light", 600, heavy_on_light), stack true, expect Some(true), Fails(p_heavy_on_light, &HEAVY_SINKS)),
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Issue 42: a known failure's band catches a change: it holds the figure measured, and a
+    /// figure halved or doubled lies outside it (cut, never widened, at the pass zone).
+    #[test]
+    fn every_known_failure_band_is_within_half_to_twice_its_measured_figure() {
+        let mut seen = 0;
+        for case in CASES {
+            let Precise::KnownFailure(_, k) = case.precise else {
+                continue;
+            };
+            seen += 1;
+            let (lo, hi) = k.band;
+            let m = k.measured;
+            assert!(lo < m && m < hi, "{}: {m} outside ({lo}, {hi})", case.name);
+            assert!(
+                lo >= m / 2.0 - 1e-9 * m,
+                "{}: {lo} below half of {m}",
+                case.name
+            );
+            assert!(
+                hi <= m * 2.0 + 1e-9 * m,
+                "{}: {hi} above twice {m}",
+                case.name
+            );
+            for changed in [m / 2.0, m * 2.0] {
+                assert!(
+                    !(changed > lo && changed < hi),
+                    "{}: {changed} (2x from {m}) inside ({lo}, {hi})",
+                    case.name
+                );
+            }
+        }
+        assert!(seen >= 10, "{seen} known failures");
+    }
+}

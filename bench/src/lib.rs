@@ -22,4 +22,5 @@ pub mod page;
 pub mod plot;
 pub mod stability;
 pub mod stepper;
+pub mod tosses;
 pub mod transport;

@@ -149,6 +149,14 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
             };
             ("hands", handblocks_bench::hands::run(&b).map(drop))
         }
+        BenchKind::Tosses { out, tosses, quick } => {
+            let b = handblocks_bench::tosses::TossesBench {
+                out_dir: out,
+                tosses_dir: traces_dir(tosses),
+                quick,
+            };
+            ("tosses", handblocks_bench::tosses::run(&b).map(drop))
+        }
         BenchKind::Stepper { out, quick } => {
             let b = handblocks_bench::stepper::StepperBench {
                 out_dir: out,

@@ -485,6 +485,25 @@ pub enum BenchKind {
         #[arg(long)]
         quick: bool,
     },
+    /// How far each model is from a real block (issue 42, first part): real tosses of a
+    /// 10.5 cm cube tracked at 148 Hz, each simulated from its first tracked state by the paper
+    /// model and the precise model (at the source's nominal contact values and at its own) and
+    /// scored against the rest of its track: position error in cube edges (in flight and after
+    /// the first impact), rotation error, final position, same face, and the model's own time
+    /// per simulated second. Not yet: a fit of the contact values, MuJoCo and PyBullet.
+    Tosses {
+        /// Where tosses.json, tosses.md and tosses.png go.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+        /// A folder of toss CSVs in the format of ../shared/data/tosses/README.md (a relative
+        /// path not found here is also looked for beside the repository this binary was built
+        /// from).
+        #[arg(long, value_name = "DIR", default_value = "../shared/data/tosses")]
+        tosses: PathBuf,
+        /// The first 40 tosses only (seconds).
+        #[arg(long)]
+        quick: bool,
+    },
     /// What a step costs as the world grows (16 to 4096 blocks: falling, resting, a hand
     /// sweeping a field) under both models, and what each `[effects]` effect costs on and off.
     ///

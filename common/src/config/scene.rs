@@ -163,6 +163,9 @@ pub struct PreciseSettings {
     pub contact_damping: f64,
     /// Coulomb friction coefficient, blocks and floor ("perfect friction" is a high one).
     pub friction: f64,
+    /// Restitution, blocks and floor: 0 (the paper's blocks do not bounce, R8) unless a scene
+    /// asks (`handblocks bench tosses` runs a real acrylic cube's, 0.125 nominal).
+    pub restitution: f64,
     /// Continuous collision detection (no tunnelling, docs/model.md R12's counterpart).
     pub ccd: bool,
     /// Whether still bodies may sleep (rapier: below 0.05 m/s and 0.5 rad/s for 0.5 s). Off by
@@ -184,6 +187,7 @@ impl Default for PreciseSettings {
             contact_hz: None,
             contact_damping: 1.0,
             friction: 2.0,
+            restitution: 0.0,
             ccd: true,
             sleep: false,
             allowed_penetration: 1e-4,
@@ -443,6 +447,9 @@ fn precise(r: Option<Reader>) -> Result<PreciseSettings, ConfigError> {
         friction: r
             .f64_in("friction", Some(d.friction), 0.0..=100.0)?
             .unwrap_or(d.friction),
+        restitution: r
+            .f64_in("restitution", Some(d.restitution), 0.0..=1.0)?
+            .unwrap_or(d.restitution),
         ccd: r.bool("ccd", d.ccd)?,
         sleep: r.bool("sleep", d.sleep)?,
         allowed_penetration: r

@@ -168,7 +168,7 @@ impl PreciseWorld {
             let floor = ColliderBuilder::new(SharedShape::halfspace(Vector::Y))
                 .friction(p.friction)
                 .friction_combine_rule(CoefficientCombineRule::Max)
-                .restitution(0.0)
+                .restitution(p.restitution)
                 .user_data(KIND_FLOOR)
                 .build();
             physics.colliders.insert(floor);
@@ -203,7 +203,7 @@ impl PreciseWorld {
             let collider = builder
                 .friction(p.friction)
                 .friction_combine_rule(CoefficientCombineRule::Max)
-                .restitution(0.0)
+                .restitution(p.restitution)
                 .restitution_combine_rule(CoefficientCombineRule::Min)
                 .user_data(KIND_BLOCK | i as u128)
                 .build();
@@ -494,6 +494,20 @@ impl PreciseWorld {
     }
 
     /// The settings this world runs with.
+    /// Sets block `i`'s linear (m/s) and angular (rad/s, the world's frame) velocity, waking
+    /// it: a scene gives a block's start velocity but no spin (the paper's free motion has
+    /// none), and `handblocks bench tosses` starts a real toss with both.
+    pub fn set_velocity(&mut self, i: usize, linear: DVec3, angular: DVec3) {
+        let Some(b) = self.blocks.get(i) else { return };
+        if !(linear.is_finite() && angular.is_finite()) {
+            return;
+        }
+        if let Some(body) = self.physics.bodies.get_mut(b.body) {
+            body.set_linvel(linear, true);
+            body.set_angvel(angular, true);
+        }
+    }
+
     pub fn settings(&self) -> &PreciseSettings {
         &self.settings
     }
