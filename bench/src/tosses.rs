@@ -636,7 +636,9 @@ pub fn markdown(
          costs (the cube stops where it lands).\n\n",
     );
     s.push_str(&page::figure(
-        "position error against time per simulated second, one point per model and setting",
+        "position error against time per simulated second, one point per model and setting; \
+         and the height of G over time, real and simulated, for the first toss and those at the \
+         median and the p90 of the precise model's error",
         "tosses.png",
     ));
     if !refused.is_empty() {
@@ -648,7 +650,76 @@ pub fn markdown(
     s
 }
 
-pub fn figure(rows: &[Row]) -> Figure {
+/// A toss to draw: its name, the real heights over time, and each contender's.
+pub struct Drawn {
+    pub title: String,
+    pub real: Vec<(f64, f64)>,
+    pub simulated: Vec<(String, Vec<(f64, f64)>)>,
+}
+
+/// The tosses the picture shows: those at the median and the p90 of the first precise
+/// contender's position error, and the first toss; each contender's height of G over time
+/// beside the real one.
+pub fn drawn(rows: &[Row], tosses: &[Toss], floor: f64) -> Vec<Drawn> {
+    let Some(reference) = rows.iter().find(|r| r.contender.precise.is_some()) else {
+        return Vec::new();
+    };
+    let mut by_error: Vec<(f64, usize)> = reference
+        .per_toss
+        .iter()
+        .enumerate()
+        .map(|(i, (_, s))| (s.position_error, i))
+        .filter(|(e, _)| e.is_finite())
+        .collect();
+    by_error.sort_by(|a, b| a.0.total_cmp(&b.0));
+    if by_error.is_empty() {
+        return Vec::new();
+    }
+    let at = |q: f64| by_error[((by_error.len() - 1) as f64 * q).round() as usize];
+    let picks = [
+        (0usize, "the first toss"),
+        (at(0.5).1, "the median toss"),
+        (at(0.9).1, "the p90 toss"),
+    ];
+    let mut out = Vec::new();
+    for (i, why) in picks {
+        let Some(toss) = tosses.get(i) else { continue };
+        let name = toss
+            .file
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let real = toss
+            .samples
+            .iter()
+            .map(|s| (s.t, s.position.y - floor))
+            .collect();
+        let simulated = rows
+            .iter()
+            .filter_map(|r| {
+                let (path, _) = simulate(toss, floor, &r.contender).ok()?;
+                let heights = toss
+                    .samples
+                    .iter()
+                    .zip(&path)
+                    .map(|(s, p)| (s.t, p.0.y - floor))
+                    .collect();
+                Some((
+                    format!("{} ({})", r.contender.name, r.contender.setting),
+                    heights,
+                ))
+            })
+            .collect();
+        out.push(Drawn {
+            title: format!("{name}, {why}: height of G"),
+            real,
+            simulated,
+        });
+    }
+    out
+}
+
+pub fn figure(rows: &[Row], drawn: &[Drawn]) -> Figure {
     let series = rows
         .iter()
         .map(|r| Series {
@@ -660,18 +731,37 @@ pub fn figure(rows: &[Row]) -> Figure {
         })
         .filter(|s| !s.points.is_empty())
         .collect();
-    Figure {
-        panels: vec![Panel {
-            title: "median position error against cost".into(),
-            x: Axis::log("us per simulated second"),
-            y: Axis::log("position error (cube edges)").with_floor(1e-3),
+    let mut panels = vec![Panel {
+        title: "median position error against cost".into(),
+        x: Axis::log("us per simulated second"),
+        y: Axis::log("position error (cube edges)").with_floor(1e-3),
+        series,
+        marked: Vec::new(),
+        join: Join::No,
+    }];
+    for d in drawn {
+        let mut series = vec![Series {
+            label: "real".into(),
+            points: d.real.clone(),
+        }];
+        series.extend(d.simulated.iter().map(|(label, points)| Series {
+            label: label.clone(),
+            points: points.clone(),
+        }));
+        panels.push(Panel {
+            title: d.title.clone(),
+            x: Axis::linear("time (s)"),
+            y: Axis::linear("height of G (m)"),
             series,
             marked: Vec::new(),
-            join: Join::No,
-        }],
-        columns: 1,
-        panel_width: 640,
-        panel_height: 420,
+            join: Join::Curve,
+        });
+    }
+    Figure {
+        panels,
+        columns: 2,
+        panel_width: 520,
+        panel_height: 360,
         column_weights: Vec::new(),
     }
 }
@@ -718,7 +808,7 @@ pub fn run(b: &TossesBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
     )
     .map_err(|e| format!("{}: {e}", md.display()))?;
     let png = b.out_dir.join("tosses.png");
-    figure(&rows).write_png(&png)?;
+    figure(&rows, &drawn(&rows, &tosses, floor)).write_png(&png)?;
     for r in &rows {
         eprintln!(
             "tosses: {} ({}): position error median {:.3} edges, p90 {:.3}; {:.0} us per simulated s",
