@@ -149,10 +149,18 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
             };
             ("hands", handblocks_bench::hands::run(&b).map(drop))
         }
-        BenchKind::Tosses { out, tosses, quick } => {
+        BenchKind::Tosses {
+            out,
+            tosses,
+            fit,
+            quick,
+        } => {
             let b = handblocks_bench::tosses::TossesBench {
                 out_dir: out,
                 tosses_dir: traces_dir(tosses),
+                fit_file: std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                    .join("config/tosses-fit.toml"),
+                fit,
                 quick,
             };
             ("tosses", handblocks_bench::tosses::run(&b).map(drop))

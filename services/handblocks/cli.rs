@@ -490,7 +490,8 @@ pub enum BenchKind {
     /// model and the precise model (at the source's nominal contact values and at its own) and
     /// scored against the rest of its track: position error in cube edges (in flight and after
     /// the first impact), rotation error, final position, same face, and the model's own time
-    /// per simulated second. Not yet: a fit of the contact values, MuJoCo and PyBullet.
+    /// per simulated second; the contact values fitted to a quarter of the tosses. Not yet:
+    /// MuJoCo and PyBullet.
     Tosses {
         /// Where tosses.json, tosses.md and tosses.png go.
         #[arg(long, default_value = "out/bench")]
@@ -500,6 +501,10 @@ pub enum BenchKind {
         /// from).
         #[arg(long, value_name = "DIR", default_value = "../shared/data/tosses")]
         tosses: PathBuf,
+        /// Fit the precise model's friction and restitution again (a grid, scored on every
+        /// fourth toss) and write config/tosses-fit.toml, which every run reads.
+        #[arg(long)]
+        fit: bool,
         /// The first 40 tosses only (seconds).
         #[arg(long)]
         quick: bool,
