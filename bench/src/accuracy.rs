@@ -1386,14 +1386,39 @@ pub struct Verdict {
     /// None where the class has no converged reference (no verdict) or no finite error.
     pub paper: Option<Point>,
     pub precise: Option<Point>,
-    /// Round k: the precise point's time per simulated second over the paper point's.
+    /// Round k: the precise point's time per simulated second over the paper point's (best
+    /// against best: each model at its own best error, not at equal accuracy).
     pub ratios: Vec<f64>,
+    /// At matched error, the paper model's best as the target: the cheapest precise setting at
+    /// least as accurate (None: none is), and round k's time ratio of it over the paper's best.
+    pub precise_at_paper_best: Option<Point>,
+    pub ratios_at_paper_best: Vec<f64>,
+    /// At matched error, the precise model's best as the target: the cheapest paper setting at
+    /// least as accurate (None: none is), and round k's time ratio of the precise best over it.
+    pub paper_at_precise_best: Option<Point>,
+    pub ratios_at_precise_best: Vec<f64>,
 }
 
 impl Verdict {
     pub fn ratio(&self) -> Option<Spread> {
         spread(&self.ratios)
     }
+}
+
+/// The cheapest setting per simulated second of `model` in `class` whose error is at most
+/// `target` (ties in time go to the more accurate).
+fn cheapest_reaching(points: &[Point], class: &str, model: &str, target: f64) -> Option<Point> {
+    let mut ps: Vec<&Point> = points
+        .iter()
+        .filter(|p| p.class == class && p.model == model && p.error.is_finite())
+        .filter(|p| p.error <= target)
+        .collect();
+    ps.sort_by(|a, b| {
+        a.us_per_sim_s
+            .total_cmp(&b.us_per_sim_s)
+            .then(a.error.total_cmp(&b.error))
+    });
+    ps.first().map(|p| (*p).clone())
 }
 
 /// Round by round, `q`'s time per simulated second over `p`'s.
@@ -1418,6 +1443,10 @@ fn verdicts(points: &[Point], unconverged: &[&str]) -> Vec<Verdict> {
                 paper: None,
                 precise: None,
                 ratios: Vec::new(),
+                precise_at_paper_best: None,
+                ratios_at_paper_best: Vec::new(),
+                paper_at_precise_best: None,
+                ratios_at_precise_best: Vec::new(),
             });
             continue;
         }
@@ -1432,6 +1461,21 @@ fn verdicts(points: &[Point], unconverged: &[&str]) -> Vec<Verdict> {
                 (Some(p), Some(q)) => ratio_rounds(p, q),
                 _ => Vec::new(),
             };
+            // Matched error: each model's cheapest setting reaching the other's best.
+            let precise_at_paper_best = p
+                .as_ref()
+                .and_then(|p| cheapest_reaching(points, info.class, "precise", p.error));
+            let ratios_at_paper_best = match (&p, &precise_at_paper_best) {
+                (Some(p), Some(q)) => ratio_rounds(p, q),
+                _ => Vec::new(),
+            };
+            let paper_at_precise_best = q
+                .as_ref()
+                .and_then(|q| cheapest_reaching(points, info.class, paper_model, q.error));
+            let ratios_at_precise_best = match (&paper_at_precise_best, &q) {
+                (Some(p), Some(q)) => ratio_rounds(p, q),
+                _ => Vec::new(),
+            };
             out.push(Verdict {
                 class: info.class,
                 paper_model,
@@ -1439,6 +1483,10 @@ fn verdicts(points: &[Point], unconverged: &[&str]) -> Vec<Verdict> {
                 paper: p,
                 precise: q.clone(),
                 ratios,
+                precise_at_paper_best,
+                ratios_at_paper_best,
+                paper_at_precise_best,
+                ratios_at_precise_best,
             });
         }
     }
@@ -1526,7 +1574,17 @@ fn write_json(
                    "paper": v.paper.as_ref().map(point_json),
                    "precise": v.precise.as_ref().map(point_json),
                    "ratio_precise_over_paper_per_sim_s": spread_json(v.ratio()),
-                   "ratio_rounds": nums(&v.ratios)})
+                   "ratio_best_against_best": spread_json(v.ratio()),
+                   "ratio_rounds": nums(&v.ratios),
+                   "ratio_at_matched_error": {
+                       "at_paper_best": {
+                           "precise": v.precise_at_paper_best.as_ref().map(point_json),
+                           "ratio": spread_json(spread(&v.ratios_at_paper_best)),
+                           "ratio_rounds": nums(&v.ratios_at_paper_best)},
+                       "at_precise_best": {
+                           "paper": v.paper_at_precise_best.as_ref().map(point_json),
+                           "ratio": spread_json(spread(&v.ratios_at_precise_best)),
+                           "ratio_rounds": nums(&v.ratios_at_precise_best)}}})
         })
         .collect();
     let references: Vec<Value> = checks
@@ -1599,8 +1657,8 @@ fn fmt_us(v: f64) -> String {
 /// ratio precise/paper per simulated second, median [min, max] over the rounds.
 pub fn summary_table(verdicts: &[Verdict]) -> String {
     let mut o = String::new();
-    o.push_str("| class | judged against | unit | paper: best error | at | us/step | us/sim s | precise: best error | at | us/step | us/sim s | time per sim s, precise/paper: median [min, max] over rounds |\n");
-    o.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    o.push_str("| class | judged against | unit | paper: best error | at | us/step | us/sim s | precise: best error | at | us/step | us/sim s | time per sim s, precise/paper, best against best: median [min, max] over rounds | at matched error (the paper's best): the cheapest precise setting as accurate, and the ratio |\n");
+    o.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for v in verdicts {
         let info = class_info(v.class);
         let name = if v.paper_model == "paper-R14" {
@@ -1611,7 +1669,7 @@ pub fn summary_table(verdicts: &[Verdict]) -> String {
         if v.against == Against::NoConvergedReference {
             let _ = writeln!(
                 o,
-                "| {name} | {} | {} | no converged reference | - | - | - | no converged reference | - | - | - | - |",
+                "| {name} | {} | {} | no converged reference | - | - | - | no converged reference | - | - | - | - | - |",
                 v.against.label(),
                 info.unit
             );
@@ -1627,14 +1685,26 @@ pub fn summary_table(verdicts: &[Verdict]) -> String {
             ),
             None => "- | - | - | -".into(),
         };
+        let matched = match &v.precise_at_paper_best {
+            Some(q) => format!(
+                "{} ({} {}): {}",
+                q.setting,
+                fmt_err(q.error),
+                info.unit,
+                fmt_spread(spread(&v.ratios_at_paper_best), fmt_ratio, "x")
+            ),
+            None if v.paper.is_some() => "no precise setting as accurate".into(),
+            None => "-".into(),
+        };
         let _ = writeln!(
             o,
-            "| {name} | {} | {} | {} | {} | {} |",
+            "| {name} | {} | {} | {} | {} | {} | {} |",
             v.against.label(),
             info.unit,
             cell(&v.paper),
             cell(&v.precise),
-            fmt_spread(v.ratio(), fmt_ratio, "x")
+            fmt_spread(v.ratio(), fmt_ratio, "x"),
+            matched
         );
     }
     o
