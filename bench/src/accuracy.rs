@@ -17,8 +17,9 @@
 //! comparison of cost (the Pareto front, the cheapest setting reaching the best error, the
 //! ratios) is in time per *simulated second* (time per step x step rate); the time per step
 //! stays a column. Each scene times its settings interleaved: a warm-up round, then
-//! [`ROUNDS`] rounds, each running every setting once in turn, so that a slow spell of this
-//! shared machine falls on both models alike; a ratio between models is taken within each
+//! [`ROUNDS`] rounds, each timing every setting once in turn (the order rotated a setting per
+//! round; a short run repeated within a reading), so that a slow spell of this shared machine
+//! falls on both models alike; a ratio between models is taken within each
 //! round and reported as median [min, max] over the rounds. Neither model is tuned here: each
 //! runs at its own settings, and the errors are what they are.
 //!
@@ -977,16 +978,45 @@ fn time_interleaved(
             })
         })
         .collect();
-    for _ in 0..rounds {
-        for (setting, slot) in settings.iter().zip(out.iter_mut()) {
-            let Ok(timed) = slot else { continue };
-            match run_once(case, *setting) {
-                Ok(t) => timed.rounds_us_per_step.push(t.us_per_step),
-                Err(e) => *slot = Err(e),
+    // Round r starts at setting r (mod n), so that no setting is always timed first (the first
+    // of a round ran 3.7x slower per step than its neighbour on the same falling cube, issue 42).
+    let n = settings.len();
+    for round in 0..rounds {
+        for k in 0..n {
+            let i = (k + round) % n;
+            if out[i].is_err() {
+                continue;
+            }
+            match reading(case, settings[i]) {
+                Ok(us) => {
+                    if let Ok(timed) = &mut out[i] {
+                        timed.rounds_us_per_step.push(us);
+                    }
+                }
+                Err(e) => out[i] = Err(e),
             }
         }
     }
     out
+}
+
+/// A run shorter than this is repeated within one reading (a paper model run is a few
+/// microseconds: one run is mostly the timer and the cache).
+const MIN_READING_NS: u128 = 2_000_000;
+/// The most runs one reading repeats.
+const MAX_READING_RUNS: usize = 200;
+
+/// One timed reading of `setting`: its time per step, the median over as many runs as fill
+/// [`MIN_READING_NS`] (at least one, at most [`MAX_READING_RUNS`]).
+fn reading(case: &Case, setting: Setting) -> Result<f64, String> {
+    let started = std::time::Instant::now();
+    let mut per_step = Vec::new();
+    while per_step.is_empty()
+        || (started.elapsed().as_nanos() < MIN_READING_NS && per_step.len() < MAX_READING_RUNS)
+    {
+        per_step.push(run_once(case, setting)?.us_per_step);
+    }
+    Ok(median(&per_step))
 }
 
 /// The median of the finite values; NaN when there are none (not 0: a time never measured
@@ -1726,8 +1756,10 @@ fn markdown(
          model also substeps, solver iterations and sleeping), each scene judged against its \
          exact answer (or, for the hand scenes, against the precise model at its finest \
          setting). Each scene times its settings interleaved: a warm-up round, then {ROUNDS} \
-         rounds each running every setting once in turn; a time is the median over the rounds, \
-         on this machine, in this run. Settings differ in step rate, so costs are compared per \
+         rounds each timing every setting once in turn, each round starting one setting later \
+         (no setting is always first); a reading repeats a run shorter than 2 ms until it fills \
+         2 ms and takes the median; a time is the median over the rounds, on this machine, in \
+         this run (one run: a run-to-run spread needs the command run again). Settings differ in step rate, so costs are compared per \
          simulated second (us per step x step rate).\n\n\
          How to read it: lower is better on both axes. The summary gives per class each \
          model's best error and the cheapest setting reaching it; its last column divides the \
