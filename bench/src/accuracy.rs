@@ -34,6 +34,8 @@ use std::time::Instant;
 use glam::{DQuat, DVec3};
 use serde_json::{json, Value};
 
+use crate::page::num;
+
 use common::config::scene::{BlockSpec, ModelKind, ShapeSpec, WorldSettings};
 use common::config::Scene;
 use stepper::geometry::Polyhedron;
@@ -1537,14 +1539,6 @@ fn best(points: &[Point], class: &str, model: &str) -> Option<Point> {
             .then(a.us_per_sim_s.total_cmp(&b.us_per_sim_s))
     });
     ps.first().map(|p| (*p).clone())
-}
-
-fn num(v: f64) -> Value {
-    if v.is_finite() {
-        json!(v)
-    } else {
-        Value::Null
-    }
 }
 
 fn nums(v: &[f64]) -> Value {

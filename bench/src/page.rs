@@ -150,6 +150,15 @@ pub fn figure(alt: &str, file: &str) -> String {
     format!("![{alt}]({file})\n\n")
 }
 
+/// A figure in a page's JSON: the number, or null where it is not finite (JSON has no NaN).
+pub fn num(v: f64) -> serde_json::Value {
+    if v.is_finite() {
+        serde_json::json!(v)
+    } else {
+        serde_json::Value::Null
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -15,6 +15,8 @@ use std::time::Instant;
 use crate::hard_cases::{self, Case, Figures, Variant, CASES};
 use serde_json::{json, Value};
 
+use crate::page::num;
+
 use crate::page::{self, Provenance};
 use crate::plot::{Axis, Figure, Join, Panel, Series};
 
@@ -150,14 +152,6 @@ pub fn run(b: &StabilityBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
         b.out_dir.join("stability.json").display()
     );
     Ok(rows)
-}
-
-fn num(v: f64) -> Value {
-    if v.is_finite() {
-        json!(v)
-    } else {
-        Value::Null
-    }
 }
 
 /// The decision beside the case's physical answer. A run that passed its criterion with the

@@ -59,6 +59,8 @@ use common::config::scene::{
 use common::config::Scene;
 use common::{BlockMode, HandSample, MAX_SCENE_BLOCKS};
 use serde_json::{json, Value};
+
+use crate::page::num;
 use stepper::{BareFingersHand, Model};
 
 use crate::page::{self, Provenance};
@@ -1005,14 +1007,6 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
         json_path.display()
     );
     Ok(report)
-}
-
-fn num(v: f64) -> Value {
-    if v.is_finite() {
-        json!(v)
-    } else {
-        Value::Null
-    }
 }
 
 fn to_json(r: &Report) -> Value {

@@ -24,10 +24,13 @@ use std::time::Instant;
 use glam::{DQuat, DVec3};
 use serde_json::{json, Value};
 
+use crate::page::num;
+
 use common::config::scene::{BlockSpec, Effects, PreciseSettings, ShapeSpec, WorldSettings};
 use common::config::Scene;
-use stepper::{Model, PreciseWorld};
+use stepper::Model;
 
+use crate::hands::quantile;
 use crate::page::{self, Provenance};
 use crate::plot::{Axis, Figure, Join, Panel, Series};
 
@@ -109,7 +112,7 @@ pub fn fit(tosses: &[Toss], floor: f64, progress: &mut dyn FnMut(&str)) -> Resul
                 let (path, _) = simulate(t, floor, &c)?;
                 errors.push(score(t, &path).position_error);
             }
-            let e = median(&mut errors);
+            let e = median(&errors);
             if best.is_none_or(|b| e < b.fit_error) {
                 best = Some(Fitted {
                     friction,
@@ -329,32 +332,17 @@ pub fn load_dir(dir: &Path) -> Result<(Vec<Toss>, Vec<String>), String> {
 /// The board's height in the data, measured: the median over the tosses of the last sample's
 /// height less the half-width (a cube at rest lies on a face).
 pub fn floor_offset(tosses: &[Toss]) -> f64 {
-    let mut h: Vec<f64> = tosses
+    let h: Vec<f64> = tosses
         .iter()
         .filter_map(|t| t.samples.last())
         .map(|s| s.position.y - HALF_WIDTH)
         .collect();
-    median(&mut h)
+    median(&h)
 }
 
-fn median(v: &mut Vec<f64>) -> f64 {
+/// The median, NaNs left out ([`quantile`]).
+fn median(v: &[f64]) -> f64 {
     quantile(v, 0.5)
-}
-
-/// The q-quantile, linear between order statistics, NaNs left out; NaN for none.
-fn quantile(v: &mut Vec<f64>, q: f64) -> f64 {
-    v.retain(|x| !x.is_nan());
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    let x = q * (v.len() - 1) as f64;
-    let (i, f) = (x.floor() as usize, x - x.floor());
-    if i + 1 < v.len() {
-        v[i] * (1.0 - f) + v[i + 1] * f
-    } else {
-        v[i]
-    }
 }
 
 /// The cube's corners in its own frame.
@@ -519,42 +507,25 @@ fn simulate(toss: &Toss, floor: f64, c: &Contender) -> Result<(Vec<(DVec3, DQuat
     let steps = toss.samples.len() - 1;
     let mut path = Vec::with_capacity(toss.samples.len());
     let up = DVec3::new(0.0, floor, 0.0);
-    let ns = match &c.precise {
-        None => {
-            // The paper's free motion carries translation only (R7): the toss's spin is lost.
-            let mut model = Model::new(&scene).map_err(|e| e.to_string())?;
-            let pose = |m: &Model| {
-                m.block(0)
-                    .map(|b| (b.position + up, b.rotation))
-                    .unwrap_or((DVec3::NAN, DQuat::IDENTITY))
-            };
-            path.push(pose(&model));
-            let t0 = Instant::now();
-            for _ in 0..steps {
-                model.step(None);
-                path.push(pose(&model));
-            }
-            t0.elapsed().as_nanos() as u64
-        }
-        Some(_) => {
-            let mut world = PreciseWorld::new(&scene).map_err(|e| e.to_string())?;
-            let first = toss.samples[0];
-            // The toss's spin, in the world's frame.
-            world.set_velocity(0, first.velocity, first.rotation * first.spin_body);
-            let pose = |w: &PreciseWorld| {
-                w.block(0)
-                    .map(|b| (b.position + up, b.rotation))
-                    .unwrap_or((DVec3::NAN, DQuat::IDENTITY))
-            };
-            path.push(pose(&world));
-            let t0 = Instant::now();
-            for _ in 0..steps {
-                world.step(None);
-                path.push(pose(&world));
-            }
-            t0.elapsed().as_nanos() as u64
-        }
+    let mut model = Model::new(&scene).map_err(|e| e.to_string())?;
+    if let Model::Precise(world) = &mut model {
+        // The toss's spin, in the world's frame. The paper's free motion carries translation
+        // only (R7): its cube loses the spin.
+        let first = toss.samples[0];
+        world.set_velocity(0, first.velocity, first.rotation * first.spin_body);
+    }
+    let pose = |m: &Model| {
+        m.block(0)
+            .map(|b| (b.position + up, b.rotation))
+            .unwrap_or((DVec3::NAN, DQuat::IDENTITY))
     };
+    path.push(pose(&model));
+    let t0 = Instant::now();
+    for _ in 0..steps {
+        model.step(None);
+        path.push(pose(&model));
+    }
+    let ns = t0.elapsed().as_nanos() as u64;
     Ok((path, ns))
 }
 
@@ -616,19 +587,19 @@ pub struct Row {
 
 impl Row {
     fn stat(&self, get: impl Fn(&TossScore) -> f64, q: f64) -> f64 {
-        let mut v: Vec<f64> = self.per_toss.iter().map(|(_, s)| get(s)).collect();
-        quantile(&mut v, q)
+        let v: Vec<f64> = self.per_toss.iter().map(|(_, s)| get(s)).collect();
+        quantile(&v, q)
     }
     /// The median over the tosses the fit did not use ([`in_fit`]).
     fn held_out_median(&self, get: impl Fn(&TossScore) -> f64) -> f64 {
-        let mut v: Vec<f64> = self
+        let v: Vec<f64> = self
             .per_toss
             .iter()
             .enumerate()
             .filter(|(i, _)| !in_fit(*i))
             .map(|(_, (_, s))| get(s))
             .collect();
-        median(&mut v)
+        median(&v)
     }
     fn same_face_pct(&self) -> f64 {
         let n = self.per_toss.len().max(1) as f64;
@@ -680,18 +651,9 @@ pub fn measure(
         progress(&format!("tosses: round {} of {ROUNDS} done", round + 1));
     }
     for r in &mut rows {
-        let mut v = r.rounds_us_per_sim_s.clone();
-        r.us_per_sim_s = median(&mut v);
+        r.us_per_sim_s = median(&r.rounds_us_per_sim_s);
     }
     Ok(rows)
-}
-
-fn num(v: f64) -> Value {
-    if v.is_finite() {
-        json!(v)
-    } else {
-        Value::Null
-    }
 }
 
 pub fn to_json(

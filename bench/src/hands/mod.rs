@@ -35,6 +35,8 @@ use common::config::Scene;
 use glam::DVec3;
 use serde_json::{json, Value};
 
+use crate::page::num;
+
 use crate::page::{self, Provenance};
 use crate::plot::{Axis, Figure, Join, Panel, Series};
 use throws::{Hold, Level, Outcome, Throw};
@@ -495,14 +497,6 @@ fn fmt(v: f64, digits: usize) -> String {
         format!("{v:.digits$}")
     } else {
         "-".into()
-    }
-}
-
-fn num(v: f64) -> Value {
-    if v.is_finite() {
-        json!(v)
-    } else {
-        Value::Null
     }
 }
 
