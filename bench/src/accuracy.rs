@@ -931,23 +931,48 @@ fn same_but_sleep(a: Setting, b: Setting) -> bool {
     awake(a) == awake(b)
 }
 
-/// The reference setting for the hand scenes, and the one with half its substep.
-fn reference_settings(quick: bool) -> (Setting, Setting) {
+/// The reference setting for the hand scenes.
+fn reference_setting(quick: bool) -> Setting {
     let (hz, sub) = if quick { (240.0, 8) } else { (480.0, 16) };
-    (
-        Setting::Precise {
-            hz,
-            substeps: sub,
-            iterations: 4,
-            sleep: false,
-        },
-        Setting::Precise {
-            hz,
-            substeps: sub / 2,
-            iterations: 4,
-            sleep: false,
-        },
-    )
+    Setting::Precise {
+        hz,
+        substeps: sub,
+        iterations: 4,
+        sleep: false,
+    }
+}
+
+/// The reference with each of the knobs the scored settings vary one notch coarser: half the
+/// step rate, half the substeps, half the solver iterations, sleeping on. How far the judged
+/// answer moves under the worst of them is the reference's own uncertainty (its *change*).
+fn reference_variants(reference: Setting) -> Vec<(&'static str, Setting)> {
+    let Setting::Precise {
+        hz,
+        substeps,
+        iterations,
+        sleep,
+    } = reference
+    else {
+        return Vec::new();
+    };
+    let at = |hz: f64, substeps: u32, iterations: u32, sleep: bool| Setting::Precise {
+        hz,
+        substeps,
+        iterations,
+        sleep,
+    };
+    vec![
+        ("half the rate", at(hz / 2.0, substeps, iterations, sleep)),
+        (
+            "half the substeps",
+            at(hz, (substeps / 2).max(1), iterations, sleep),
+        ),
+        (
+            "half the iterations",
+            at(hz, substeps, (iterations / 2).max(1), sleep),
+        ),
+        ("sleeping on", at(hz, substeps, iterations, true)),
+    ]
 }
 
 /// Timed rounds per scene, after a warm-up round. Each round times every setting once, in
@@ -1058,26 +1083,26 @@ fn spread(values: &[f64]) -> Option<Spread> {
     })
 }
 
-/// The outcome of a hand scene's convergence check (the precise model at its finest setting
-/// against the same with half its substep).
+/// A hand scene's reference and its uncertainty, measured in the run: the precise model at
+/// its finest setting against each of [`reference_variants`].
 #[derive(Debug, Clone)]
 pub struct ReferenceCheck {
     pub class: &'static str,
     pub scene: String,
     pub setting: String,
-    pub half: String,
-    /// How far halving the substep moves the judged answer, m (NaN: a run never landed).
+    /// Per variant: what was coarsened, the setting, and how far the judged answer moved, m
+    /// (NaN: that run never landed).
+    pub changes: Vec<(&'static str, String, f64)>,
+    /// The largest of `changes` (NaN if any is): the reference's change.
     pub change_m: f64,
     /// The block's travel in the reference run (start to the judged answer), m.
     pub travel_m: f64,
-    /// change / travel.
-    pub relative: f64,
-    pub converged: bool,
 }
 
-/// The largest change (relative to the block's travel) a reference may show when its
-/// substep is halved.
-const CONVERGED_BELOW: f64 = 0.10;
+/// A class is judged only where its reference's change is under this share of the smallest
+/// error it judges (the paper model's best): otherwise the reference cannot tell the errors
+/// it would rank apart.
+const JUDGED_BELOW_SHARE: f64 = 1.0 / 3.0;
 
 /// Runs the benchmark and writes its three files; returns the rows.
 pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
@@ -1085,12 +1110,14 @@ pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
         .map_err(|e| format!("{}: cannot create: {e}", b.out_dir.display()))?;
     let cases = cases(b.quick);
     let (paper, precise) = settings(b.quick);
-    let (reference, half) = reference_settings(b.quick);
+    let reference = reference_setting(b.quick);
+    let variants = reference_variants(reference);
     let started = Instant::now();
     let mut notes = Vec::new();
 
-    // The hand scenes' references, and the check that they have converged: a reference that
-    // fails it is not used at all (its scenes' errors are NaN and the class gets no verdict).
+    // The hand scenes' references, each with its change: how far its judged answer moves when
+    // each knob the scored settings vary goes one notch coarser. A class is judged only where
+    // that change is under a third of the smallest error it judges (see `verdicts`).
     let mut references: Vec<Option<DVec3>> = vec![None; cases.len()];
     let mut checks: Vec<ReferenceCheck> = Vec::new();
     for (i, c) in cases.iter().enumerate() {
@@ -1106,30 +1133,36 @@ pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
             }
         };
         let fine = run_once(c, reference)?;
-        let coarse = run_once(c, half)?;
         let start = fine.at(0, 0).0;
-        let (end, other) = (answer(&fine), answer(&coarse));
-        let (change, travel) = match (end, other) {
-            (Some(e), Some(o)) => ((o - e).length(), (e - start).length()),
-            (Some(e), None) => (f64::NAN, (e - start).length()),
-            _ => (f64::NAN, f64::NAN),
+        let end = answer(&fine);
+        let mut changes = Vec::with_capacity(variants.len());
+        for (what, setting) in &variants {
+            let other = run_once(c, *setting)?;
+            let change = match (end, answer(&other)) {
+                (Some(e), Some(o)) => (o - e).length(),
+                _ => f64::NAN,
+            };
+            changes.push((*what, setting.label(), change));
+        }
+        let change = if changes.iter().any(|(_, _, c)| c.is_nan()) {
+            f64::NAN
+        } else {
+            changes.iter().map(|(_, _, c)| *c).fold(0.0, f64::max)
         };
-        let relative = change / travel.max(1e-9);
-        // NaN compares false: a run that never lands fails the check.
-        let converged = relative < CONVERGED_BELOW;
+        let travel = end.map_or(f64::NAN, |e| (e - start).length());
         let line = format!(
-            "{}: reference = precise at {}; with twice its substep ({}) the judged G moves by {} mm, {}% of its {} mm travel: {}",
+            "{} / {}: reference = precise at {}, the judged G {} mm from the start; its change \
+             (the largest move of that G with one knob one notch coarser) {} mm: {}",
             c.class,
+            c.name,
             reference.label(),
-            half.label(),
-            fmt_err(change * 1e3),
-            fmt_err(relative * 100.0),
             fmt_err(travel * 1e3),
-            if converged {
-                "converged (< 10%)"
-            } else {
-                "NOT converged (>= 10%, or a run never landed): no converged reference, no error and no verdict for this class"
-            }
+            fmt_err(change * 1e3),
+            changes
+                .iter()
+                .map(|(what, label, m)| format!("{what} ({label}) {} mm", fmt_err(m * 1e3)))
+                .collect::<Vec<_>>()
+                .join(", ")
         );
         eprintln!("accuracy: {line}");
         notes.push(line);
@@ -1137,21 +1170,15 @@ pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
             class: c.class,
             scene: c.name.clone(),
             setting: reference.label(),
-            half: half.label(),
+            changes,
             change_m: change,
             travel_m: travel,
-            relative,
-            converged,
         });
-        if converged {
+        if change.is_finite() {
             references[i] = end;
         }
     }
-    let unconverged: Vec<&'static str> = checks
-        .iter()
-        .filter(|k| !k.converged)
-        .map(|k| k.class)
-        .collect();
+    let changes = class_changes(&checks);
 
     let mut rows = Vec::new();
     let r14: Vec<Setting> = paper
@@ -1229,9 +1256,12 @@ pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
             started.elapsed().as_secs_f64()
         );
     }
-    let summary = summarise(&rows);
+    let mut summary = summarise(&rows);
+    for p in &mut summary {
+        p.reference_change = change_of(&changes, &p.class);
+    }
     let pareto = pareto_of(&summary);
-    let verdicts = verdicts(&summary, &unconverged);
+    let verdicts = verdicts(&summary, &changes);
     write_json(
         &b.out_dir.join("accuracy.json"),
         &rows,
@@ -1285,6 +1315,53 @@ pub struct Point {
     pub us_per_sim_s: f64,
     /// Round k: the mean over the class's scenes of round k's time per simulated second.
     pub rounds_us_per_sim_s: Vec<f64>,
+    /// The class's reference change in the class's unit (NaN for an exact answer): an error
+    /// at or below it cannot be told from the reference's own uncertainty ("<= change").
+    pub reference_change: f64,
+}
+
+impl Point {
+    /// Whether the error is within the reference's change (never for an exact answer).
+    pub fn within_change(&self) -> bool {
+        self.reference_change.is_finite() && self.error <= self.reference_change
+    }
+    /// The error as a ranking sees it: an error within the reference's change is the change
+    /// (the reference cannot rank errors below it).
+    fn ranked_error(&self) -> f64 {
+        if self.within_change() {
+            self.reference_change
+        } else {
+            self.error
+        }
+    }
+}
+
+/// Per class against a reference, its change in the class's unit (mm): the largest over the
+/// class's scenes (NaN where any scene's reference never landed).
+fn class_changes(checks: &[ReferenceCheck]) -> Vec<(&'static str, f64)> {
+    let mut out: Vec<(&'static str, f64)> = Vec::new();
+    for k in checks {
+        let mm = k.change_m * 1e3;
+        match out.iter_mut().find(|(c, _)| *c == k.class) {
+            Some((_, v)) => {
+                *v = if v.is_nan() || mm.is_nan() {
+                    f64::NAN
+                } else {
+                    v.max(mm)
+                }
+            }
+            None => out.push((k.class, mm)),
+        }
+    }
+    out
+}
+
+/// A class's reference change (NaN: the class has an exact answer, or no reference landed).
+fn change_of(changes: &[(&'static str, f64)], class: &str) -> f64 {
+    changes
+        .iter()
+        .find(|(c, _)| *c == class)
+        .map_or(f64::NAN, |(_, v)| *v)
 }
 
 /// A class's error from its scenes' errors: for decisions the share wrong (the mean), else
@@ -1342,6 +1419,7 @@ fn summarise(rows: &[Row]) -> Vec<Point> {
                 us_per_step: rs.iter().map(|r| r.us_per_step).sum::<f64>() / n,
                 us_per_sim_s,
                 rounds_us_per_sim_s: per_round,
+                reference_change: f64::NAN,
             });
         }
     }
@@ -1359,7 +1437,12 @@ fn pareto_of(points: &[Point]) -> Vec<Point> {
             .iter()
             .filter(|p| p.class == info.class && p.error.is_finite())
             .collect();
-        let xy: Vec<(f64, f64)> = ps.iter().map(|p| (p.us_per_sim_s, p.error)).collect();
+        // Errors within the reference's change are the change: the front does not rank what
+        // the reference cannot tell apart.
+        let xy: Vec<(f64, f64)> = ps
+            .iter()
+            .map(|p| (p.us_per_sim_s, p.ranked_error()))
+            .collect();
         for i in pareto_front(&xy) {
             out.push(ps[i].clone());
         }
@@ -1372,28 +1455,24 @@ fn pareto_of(points: &[Point]) -> Vec<Point> {
 pub enum Against {
     /// An exact answer.
     Exact,
-    /// The precise model at its finest setting, converged: agreement, not accuracy.
+    /// The precise model at its finest setting, its change under a third of the smallest
+    /// error judged: agreement, not accuracy.
     PreciseModel,
-    /// The precise model's reference failed its convergence check: nothing is judged.
+    /// The precise model's reference did not land under one of its variants: no change, so
+    /// nothing is judged.
     NoConvergedReference,
+    /// The reference's change is not under a third of the smallest error judged (the paper
+    /// model's best): the errors are shown, but no verdict and no ratio.
+    ReferenceTooCoarse,
 }
 
 impl Against {
-    fn of(info: &ClassInfo, unconverged: &[&str]) -> Against {
-        if info.exact {
-            Against::Exact
-        } else if unconverged.contains(&info.class) {
-            Against::NoConvergedReference
-        } else {
-            Against::PreciseModel
-        }
-    }
-
     fn label(self) -> &'static str {
         match self {
             Against::Exact => "exact answer",
             Against::PreciseModel => "agreement with the precise model",
             Against::NoConvergedReference => "no converged reference",
+            Against::ReferenceTooCoarse => "reference too coarse to judge",
         }
     }
 
@@ -1402,6 +1481,7 @@ impl Against {
             Against::Exact => "exact",
             Against::PreciseModel => "precise-model",
             Against::NoConvergedReference => "none",
+            Against::ReferenceTooCoarse => "reference-too-coarse",
         }
     }
 }
@@ -1415,6 +1495,10 @@ pub struct Verdict {
     /// "paper" or "paper-R14".
     pub paper_model: &'static str,
     pub against: Against,
+    /// The reference's change in the class's unit (NaN: an exact answer).
+    pub reference_change: f64,
+    /// The smallest error the verdict rests on: the paper model's best (NaN: none).
+    pub smallest_error_judged: f64,
     /// None where the class has no converged reference (no verdict) or no finite error.
     pub paper: Option<Point>,
     pub precise: Option<Point>,
@@ -1463,23 +1547,26 @@ fn ratio_rounds(p: &Point, q: &Point) -> Vec<f64> {
         .collect()
 }
 
-fn verdicts(points: &[Point], unconverged: &[&str]) -> Vec<Verdict> {
+fn verdicts(points: &[Point], changes: &[(&'static str, f64)]) -> Vec<Verdict> {
     let mut out = Vec::new();
     for info in &CLASSES {
-        let against = Against::of(info, unconverged);
-        if against == Against::NoConvergedReference {
-            out.push(Verdict {
-                class: info.class,
-                paper_model: "paper",
-                against,
-                paper: None,
-                precise: None,
-                ratios: Vec::new(),
-                precise_at_paper_best: None,
-                ratios_at_paper_best: Vec::new(),
-                paper_at_precise_best: None,
-                ratios_at_precise_best: Vec::new(),
-            });
+        let change = change_of(changes, info.class);
+        let no_verdict = |against: Against, paper: Option<Point>, precise: Option<Point>| Verdict {
+            class: info.class,
+            paper_model: "paper",
+            against,
+            reference_change: change,
+            smallest_error_judged: paper.as_ref().map_or(f64::NAN, |p| p.error),
+            paper,
+            precise,
+            ratios: Vec::new(),
+            precise_at_paper_best: None,
+            ratios_at_paper_best: Vec::new(),
+            paper_at_precise_best: None,
+            ratios_at_precise_best: Vec::new(),
+        };
+        if !info.exact && change.is_nan() {
+            out.push(no_verdict(Against::NoConvergedReference, None, None));
             continue;
         }
         let q = best(points, info.class, "precise");
@@ -1489,11 +1576,26 @@ fn verdicts(points: &[Point], unconverged: &[&str]) -> Vec<Verdict> {
             if paper_model == "paper-R14" && p.is_none() {
                 continue;
             }
+            let against = if info.exact {
+                Against::Exact
+            } else if p
+                .as_ref()
+                .is_some_and(|p| change < JUDGED_BELOW_SHARE * p.error)
+            {
+                Against::PreciseModel
+            } else {
+                Against::ReferenceTooCoarse
+            };
+            if against == Against::ReferenceTooCoarse {
+                out.push(no_verdict(against, p, q.clone()));
+                continue;
+            }
             let ratios = match (&p, &q) {
                 (Some(p), Some(q)) => ratio_rounds(p, q),
                 _ => Vec::new(),
             };
-            // Matched error: each model's cheapest setting reaching the other's best.
+            // Matched error: each model's cheapest setting reaching the other's best (the
+            // precise best, where it is within the reference's change, is the change).
             let precise_at_paper_best = p
                 .as_ref()
                 .and_then(|p| cheapest_reaching(points, info.class, "precise", p.error));
@@ -1503,7 +1605,7 @@ fn verdicts(points: &[Point], unconverged: &[&str]) -> Vec<Verdict> {
             };
             let paper_at_precise_best = q
                 .as_ref()
-                .and_then(|q| cheapest_reaching(points, info.class, paper_model, q.error));
+                .and_then(|q| cheapest_reaching(points, info.class, paper_model, q.ranked_error()));
             let ratios_at_precise_best = match (&paper_at_precise_best, &q) {
                 (Some(p), Some(q)) => ratio_rounds(p, q),
                 _ => Vec::new(),
@@ -1512,6 +1614,8 @@ fn verdicts(points: &[Point], unconverged: &[&str]) -> Vec<Verdict> {
                 class: info.class,
                 paper_model,
                 against,
+                reference_change: change,
+                smallest_error_judged: p.as_ref().map_or(f64::NAN, |p| p.error),
                 paper: p,
                 precise: q.clone(),
                 ratios,
@@ -1526,16 +1630,18 @@ fn verdicts(points: &[Point], unconverged: &[&str]) -> Vec<Verdict> {
 }
 
 /// Per class and model: the best error, and the cheapest setting per simulated second
-/// reaching it (ties in error go to the cheaper per simulated second). NaN and infinite
-/// errors are never best: None when the model has no finite error in the class.
+/// reaching it (ties in error go to the cheaper per simulated second). An error within the
+/// reference's change ties with the change: the best is then the cheapest setting inside
+/// that band. NaN and infinite errors are never best: None when the model has no finite
+/// error in the class.
 fn best(points: &[Point], class: &str, model: &str) -> Option<Point> {
     let mut ps: Vec<&Point> = points
         .iter()
         .filter(|p| p.class == class && p.model == model && p.error.is_finite())
         .collect();
     ps.sort_by(|a, b| {
-        a.error
-            .total_cmp(&b.error)
+        a.ranked_error()
+            .total_cmp(&b.ranked_error())
             .then(a.us_per_sim_s.total_cmp(&b.us_per_sim_s))
     });
     ps.first().map(|p| (*p).clone())
@@ -1566,6 +1672,8 @@ fn error_json(v: f64) -> Value {
 fn point_json(p: &Point) -> Value {
     json!({"class": p.class, "model": p.model, "setting": p.setting,
            "error": error_json(p.error), "unit": class_info(&p.class).unit,
+           "reference_change": num(p.reference_change),
+           "within_reference_change": p.within_change(),
            "us_per_step": num(p.us_per_step), "us_per_sim_s": num(p.us_per_sim_s),
            "rounds_us_per_sim_s": nums(&p.rounds_us_per_sim_s),
            "us_per_sim_s_spread": spread_json(spread(&p.rounds_us_per_sim_s))})
@@ -1595,6 +1703,8 @@ fn write_json(
         .map(|v| {
             json!({"class": v.class, "paper_model": v.paper_model,
                    "against": v.against.key(), "against_label": v.against.label(),
+                   "reference_change": num(v.reference_change),
+                   "smallest_error_judged": num(v.smallest_error_judged),
                    "paper": v.paper.as_ref().map(point_json),
                    "precise": v.precise.as_ref().map(point_json),
                    "ratio_precise_over_paper_per_sim_s": spread_json(v.ratio()),
@@ -1614,9 +1724,9 @@ fn write_json(
     let references: Vec<Value> = checks
         .iter()
         .map(|k| {
-            json!({"class": k.class, "scene": k.scene, "setting": k.setting, "half": k.half,
-                   "change_m": num(k.change_m), "travel_m": num(k.travel_m),
-                   "relative": num(k.relative), "converged": k.converged})
+            json!({"class": k.class, "scene": k.scene, "setting": k.setting,
+                   "changes": k.changes.iter().map(|(what, setting, m)| json!({"coarser": what, "setting": setting, "change_m": num(*m)})).collect::<Vec<_>>(),
+                   "change_m": num(k.change_m), "travel_m": num(k.travel_m)})
         })
         .collect();
     let doc = json!({"time_axis": "us per simulated second (us per step x step rate)",
@@ -1644,6 +1754,15 @@ fn fmt_err(v: f64) -> String {
         format!("{v:.2}")
     } else {
         format!("{v:.3}")
+    }
+}
+
+/// A point's error for the tables: "<= change" where it is within its reference's change.
+fn fmt_point_err(p: &Point) -> String {
+    if p.within_change() {
+        format!("<= {}", fmt_err(p.reference_change))
+    } else {
+        fmt_err(p.error)
     }
 }
 
@@ -1699,10 +1818,26 @@ pub fn summary_table(verdicts: &[Verdict]) -> String {
             );
             continue;
         }
+        let against = if v.reference_change.is_finite() {
+            format!(
+                "{} (its change {} {}, {} a third of the smallest error judged, {})",
+                v.against.label(),
+                fmt_err(v.reference_change),
+                info.unit,
+                if v.against == Against::ReferenceTooCoarse {
+                    "not under"
+                } else {
+                    "under"
+                },
+                fmt_err(v.smallest_error_judged)
+            )
+        } else {
+            v.against.label().to_string()
+        };
         let cell = |x: &Option<Point>| match x {
             Some(p) => format!(
                 "{} | {} | {} | {}",
-                fmt_err(p.error),
+                fmt_point_err(p),
                 p.setting,
                 fmt_us(p.us_per_step),
                 fmt_us(p.us_per_sim_s)
@@ -1713,17 +1848,18 @@ pub fn summary_table(verdicts: &[Verdict]) -> String {
             Some(q) => format!(
                 "{} ({} {}): {}",
                 q.setting,
-                fmt_err(q.error),
+                fmt_point_err(q),
                 info.unit,
                 fmt_spread(spread(&v.ratios_at_paper_best), fmt_ratio, "x")
             ),
+            None if v.against == Against::ReferenceTooCoarse => "no verdict".into(),
             None if v.paper.is_some() => "no precise setting as accurate".into(),
             None => "-".into(),
         };
         let _ = writeln!(
             o,
             "| {name} | {} | {} | {} | {} | {} | {} |",
-            v.against.label(),
+            against,
             info.unit,
             cell(&v.paper),
             cell(&v.precise),
@@ -1790,13 +1926,18 @@ fn markdown(
         o,
         "\nThe hand scenes have no reference independent of both models: they are judged against the \
          precise model at {} (it has no row of its own in those classes), so their error is agreement \
-         with the precise model, and only where that reference passes its convergence check; a class \
-         whose reference fails it has no error (\"-\") and no verdict. Both models' fingers are the \
-         same there: points for the paper model, {} mm capsules for the precise one. In the \
-         grasp-throw the precise model's contact spring is fixed at {} Hz instead of its default \
-         0.125 / substep dt, which stiffens with every halving of the substep and so changes the \
-         squeezing grasp's grip rather than only its resolution (the reference never converged \
-         with it). Errors are per class the worst over its scenes (decisions: the share wrong); \
+         with the precise model. Each reference carries its uncertainty, measured in this run: its \
+         *change*, the largest move of its judged answer when one knob the scored settings vary \
+         goes one notch coarser (half the rate, half the substeps, half the iterations, sleeping \
+         on; the lines below give each). An error at or below the change reads \"<= change\" (the \
+         reference cannot rank it), and the precise model's best is the cheapest setting inside \
+         that band; a class is judged (a verdict and its ratios) only where the change is under \
+         a third of the smallest error judged, the paper model's best; a reference that never \
+         landed under a variant has no change, no error (\"-\") and no verdict. Both models' \
+         fingers are the same there: points for the paper model, {} mm capsules for the precise \
+         one. In the grasp-throw the precise model's contact spring is fixed at {} Hz instead \
+         of its default 0.125 / substep dt, which stiffens with every halving of the substep \
+         and so would change the squeezing grasp's grip rather than only its resolution. Errors are per class the worst over its scenes (decisions: the share wrong); \
          time is the mean over the class's scenes.",
         reference.label(),
         FINGER_RADIUS * 1e3,
@@ -1817,7 +1958,7 @@ fn markdown(
             p.class,
             p.model,
             p.setting,
-            fmt_err(p.error),
+            fmt_point_err(p),
             class_info(&p.class).unit,
             fmt_us(p.us_per_step),
             fmt_spread(spread(&p.rounds_us_per_sim_s), fmt_us, ""),
@@ -1946,6 +2087,7 @@ mod tests {
             us_per_step,
             us_per_sim_s: us_per_step * hz,
             rounds_us_per_sim_s: vec![us_per_step * hz; 3],
+            reference_change: f64::NAN,
         }
     }
 
@@ -2044,7 +2186,7 @@ mod tests {
         assert_eq!(fmt_err(f64::NAN), "-");
         assert_eq!(error_json(f64::NAN), json!("no reference"));
         // A class whose reference failed its check: no errors, no ratio, said so.
-        let v = verdicts(&summary, &["push"]);
+        let v = verdicts(&summary, &[("push", f64::NAN)]);
         let push: Vec<&Verdict> = v.iter().filter(|v| v.class == "push").collect();
         assert_eq!(push.len(), 1);
         assert_eq!(push[0].against, Against::NoConvergedReference);
@@ -2075,10 +2217,54 @@ mod tests {
         );
         assert!(md.contains("| push | paper | 60 Hz | - | mm |"), "{md}");
         assert!(md.contains("The 1 rows of every scene"), "{md}");
-        // Converged, the same class is labelled agreement, not accuracy.
-        let v = verdicts(&summarise(&[row(2.0)]), &[]);
+        // With a change under a third of the paper's best error, the same class is labelled
+        // agreement, not accuracy.
+        let v = verdicts(&summarise(&[row(2.0)]), &[("push", 0.5)]);
         let push = v.iter().find(|v| v.class == "push").map(|v| v.against);
         assert_eq!(push, Some(Against::PreciseModel));
+        // Not under a third: errors shown, no verdict.
+        let v = verdicts(&summarise(&[row(2.0)]), &[("push", 0.7)]);
+        let push = v.iter().find(|v| v.class == "push");
+        assert_eq!(push.map(|v| v.against), Some(Against::ReferenceTooCoarse));
+        assert!(push.is_some_and(|v| v.ratio().is_none() && v.paper.is_some()));
+    }
+
+    /// Item 3 of issue 42: an error within the reference's change is "<= change", ties with
+    /// the change, and the precise best is the cheapest setting inside that band.
+    #[test]
+    fn errors_within_the_references_change_read_as_the_change_and_the_cheapest_wins() {
+        let point = |model: &str, setting: &str, error: f64, us: f64| Point {
+            class: "push".into(),
+            model: model.into(),
+            setting: setting.into(),
+            error,
+            us_per_step: us / 60.0,
+            us_per_sim_s: us,
+            rounds_us_per_sim_s: vec![us; 3],
+            reference_change: 0.5,
+        };
+        let points = vec![
+            point("paper", "60 Hz", 3.0, 10.0),
+            point("precise", "fine", 0.1, 1000.0),
+            point("precise", "cheap", 0.4, 100.0),
+            point("precise", "coarse", 2.0, 50.0),
+        ];
+        assert_eq!(fmt_point_err(&points[1]), "<= 0.500");
+        assert_eq!(fmt_point_err(&points[3]), "2.00");
+        let q = best(&points, "push", "precise").map(|p| p.setting);
+        assert_eq!(q.as_deref(), Some("cheap"));
+        let v = verdicts(&points, &[("push", 0.5)]);
+        let push = v.iter().find(|v| v.class == "push").unwrap();
+        assert_eq!(push.against, Against::PreciseModel);
+        assert_eq!(
+            push.precise_at_paper_best
+                .as_ref()
+                .map(|p| p.setting.as_str()),
+            Some("coarse")
+        );
+        // 0.1 and 0.4 are one point on the front: the cheaper.
+        let front: Vec<String> = pareto_of(&points).into_iter().map(|p| p.setting).collect();
+        assert!(front.contains(&"cheap".to_string()) && !front.contains(&"fine".to_string()));
     }
 
     /// Not a check: a sweep of the precise model's settings on a hand scene, printing the

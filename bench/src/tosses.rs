@@ -36,6 +36,8 @@ use crate::plot::{Axis, Figure, Join, Panel, Series};
 
 /// The cube's half-width (m), from the data's README (`experiment-source.json`).
 pub const HALF_WIDTH: f64 = 0.0524;
+/// Its mass (kg), uniform density.
+pub const MASS: f64 = 0.37;
 /// Its edge (m): the unit of the position error.
 pub const EDGE: f64 = 2.0 * HALF_WIDTH;
 /// The tracker's rate (Hz): sample k is at k / 148 s.
@@ -58,18 +60,88 @@ pub struct TossesBench {
     /// Fit the contact values again ([`fit`]) and write `fit_file` before the run.
     pub fit: bool,
     pub quick: bool,
+    /// The repository (its `bench/python/toss_engines.py` drives the outside engines; their
+    /// virtual environment is made under its `target/`).
+    pub repo: PathBuf,
+    /// A Python that imports `mujoco` and `pybullet`; None: the bench's own venv
+    /// ([`Outside::prepare`]).
+    pub python: Option<PathBuf>,
 }
 
-/// The precise model's contact values fitted to real tosses ([`fit`]), as frozen in the
-/// repository's `config/tosses-fit.toml`.
+/// An engine nobody here wrote, driven from Python by `bench/python/toss_engines.py`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutsideEngine {
+    MuJoCo,
+    PyBullet,
+}
+
+impl OutsideEngine {
+    pub const ALL: [OutsideEngine; 2] = [OutsideEngine::MuJoCo, OutsideEngine::PyBullet];
+    pub fn name(self) -> &'static str {
+        match self {
+            OutsideEngine::MuJoCo => "mujoco",
+            OutsideEngine::PyBullet => "pybullet",
+        }
+    }
+}
+
+/// Contact values, as every contender takes them: Coulomb friction, restitution, and the
+/// contact's stiffness as the natural frequency of its spring (None: the engine's own rule).
+/// Each engine realises them its own way (`toss_engines.py` says how: MuJoCo's bounce is the
+/// damping ratio of its contact spring, PyBullet's spring is critically damped beside its
+/// restitution; the precise model takes all three as its `[precise]` keys).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Fitted {
+pub struct Contact {
     pub friction: f64,
     pub restitution: f64,
+    pub contact_hz: Option<f64>,
+}
+
+impl Contact {
+    pub const NOMINAL: Contact = Contact {
+        friction: NOMINAL_FRICTION,
+        restitution: NOMINAL_RESTITUTION,
+        contact_hz: None,
+    };
+    fn params(&self) -> Vec<(&'static str, f64)> {
+        let mut p = vec![
+            ("friction", self.friction),
+            ("restitution", self.restitution),
+        ];
+        if let Some(hz) = self.contact_hz {
+            p.push(("contact_hz", hz));
+        }
+        p
+    }
+}
+
+/// One engine's contact values fitted to real tosses ([`fit`]), as frozen in the repository's
+/// `config/tosses-fit.toml`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fitted {
+    pub contact: Contact,
     /// The fit's score: the median position error over the fit's tosses, cube edges.
     pub fit_error: f64,
     /// How many tosses the fit used.
     pub fit_tosses: usize,
+}
+
+/// Every engine's fit; an outside engine's is None where it was never fitted (its Python
+/// could not be made when `--fit` ran).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fits {
+    pub precise: Fitted,
+    pub mujoco: Option<Fitted>,
+    pub pybullet: Option<Fitted>,
+}
+
+impl Fits {
+    fn of(&self, e: OutsideEngine) -> Option<Fitted> {
+        match e {
+            OutsideEngine::MuJoCo => self.mujoco,
+            OutsideEngine::PyBullet => self.pybullet,
+        }
+    }
 }
 
 /// The fit's tosses: every fourth of the folder by name (index 0, 4, 8, ...), so that the
@@ -78,83 +150,125 @@ pub fn in_fit(index: usize) -> bool {
     index.is_multiple_of(4)
 }
 
-/// The grid the fit tries: friction x restitution, the source's nominal values among them.
+/// The grid the fit tries: friction x restitution, the source's nominal values among them;
+/// then the contact's stiffness.
 pub const FIT_FRICTION: [f64; 10] = [0.05, 0.1, 0.15, 0.18, 0.22, 0.3, 0.4, 0.6, 0.8, 1.0];
 pub const FIT_RESTITUTION: [f64; 8] = [0.0, 0.05, 0.1, 0.125, 0.15, 0.2, 0.3, 0.4];
+pub const FIT_CONTACT_HZ: [f64; 5] = [15.0, 30.0, 60.0, 120.0, 240.0];
 
-/// Fits the precise model's friction and restitution to the fit's tosses ([`in_fit`]): every
-/// pair of [`FIT_FRICTION`] x [`FIT_RESTITUTION`] at the model's default substeps, scored by
-/// the median position error over those tosses; the lowest wins (the first on a tie). A grid,
-/// not a descent: the error is not smooth in these values (a cube lands on an edge or a face),
-/// and a grid says what it tried.
-pub fn fit(tosses: &[Toss], floor: f64, progress: &mut dyn FnMut(&str)) -> Result<Fitted, String> {
-    let chosen: Vec<&Toss> = tosses
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| in_fit(*i))
-        .map(|(_, t)| t)
-        .collect();
+/// The procedure, in words, for the fit file, the JSON and the page.
+pub const FIT_PROCEDURE: &str = "every fourth toss by name (the rest held out); for each \
+engine at its default substeps, first every friction x restitution of the grid with the \
+engine's own contact stiffness, then every contact stiffness (a spring's natural frequency) \
+of the grid at that pair; the lowest median position error wins (the first on a tie, the \
+engine's own stiffness first)";
+
+/// Fits one engine's contact values to the fit's tosses ([`in_fit`]), by [`FIT_PROCEDURE`]:
+/// `median_error` runs the engine on them with the values given and returns the median
+/// position error. A grid, not a descent: the error is not smooth in these values (a cube
+/// lands on an edge or a face), and a grid says what it tried.
+pub fn fit(
+    what: &str,
+    fit_tosses: usize,
+    median_error: &mut dyn FnMut(Contact) -> Result<f64, String>,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Fitted, String> {
     let mut best: Option<Fitted> = None;
+    let consider = |contact: Contact, e: f64, best: &mut Option<Fitted>| {
+        if best.is_none_or(|b| e < b.fit_error) {
+            *best = Some(Fitted {
+                contact,
+                fit_error: e,
+                fit_tosses,
+            });
+        }
+    };
     for (k, &friction) in FIT_FRICTION.iter().enumerate() {
         for &restitution in &FIT_RESTITUTION {
-            let c = Contender {
-                name: "precise",
-                setting: String::new(),
-                params: Vec::new(),
-                precise: Some(PreciseSettings {
-                    friction,
-                    restitution,
-                    ..PreciseSettings::default()
-                }),
+            let c = Contact {
+                friction,
+                restitution,
+                contact_hz: None,
             };
-            let mut errors = Vec::with_capacity(chosen.len());
-            for t in &chosen {
-                let (path, _) = simulate(t, floor, &c)?;
-                errors.push(score(t, &path).position_error);
-            }
-            let e = median(&errors);
-            if best.is_none_or(|b| e < b.fit_error) {
-                best = Some(Fitted {
-                    friction,
-                    restitution,
-                    fit_error: e,
-                    fit_tosses: chosen.len(),
-                });
-            }
+            let e = median_error(c)?;
+            consider(c, e, &mut best);
         }
         progress(&format!(
-            "tosses: fit: friction {friction} done ({} of {})",
+            "tosses: fit {what}: friction {friction} done ({} of {})",
             k + 1,
             FIT_FRICTION.len()
         ));
     }
+    let pair = best.ok_or_else(|| "no toss to fit on".to_string())?.contact;
+    for &hz in &FIT_CONTACT_HZ {
+        let c = Contact {
+            contact_hz: Some(hz),
+            ..pair
+        };
+        let e = median_error(c)?;
+        consider(c, e, &mut best);
+    }
+    progress(&format!("tosses: fit {what}: contact stiffness done"));
     best.ok_or_else(|| "no toss to fit on".to_string())
 }
 
-/// Writes the fit to `path`, with how it was made.
-pub fn write_fit(path: &Path, f: &Fitted, tosses_dir: &Path) -> Result<(), String> {
-    let text = format!(
-        "# The precise model's contact values fitted to real cube tosses: written by\n\
-         # `handblocks bench tosses --fit`, read by every run of it. The procedure\n\
-         # (`handblocks_bench::tosses::fit`): every fourth toss of {} by name\n\
-         # ({} tosses; the rest are held out), every friction of {:?}\n\
-         # x every restitution of {:?}, at the precise model's\n\
-         # default substeps; the pair with the lowest median position error wins.\n\
-         [precise]\nfriction = {:?}\nrestitution = {:?}\n\n[fit]\ntosses = {}\nmedian_position_error_edges = {:.4}\n",
+/// `text` as TOML comment lines of at most about 92 characters.
+fn comment(text: &str) -> String {
+    let mut out = String::new();
+    let mut line = String::from("#");
+    for word in text.split_whitespace() {
+        if line.len() + 1 + word.len() > 92 {
+            out.push_str(&line);
+            out.push('\n');
+            line = String::from("#");
+        }
+        line.push(' ');
+        line.push_str(word);
+    }
+    out.push_str(&line);
+    out.push('\n');
+    out
+}
+
+/// Writes the fits to `path`, with how they were made.
+pub fn write_fit(path: &Path, f: &Fits, tosses_dir: &Path) -> Result<(), String> {
+    let mut text = comment(&format!(
+        "Every engine's contact values fitted to real cube tosses: written by `handblocks \
+         bench tosses --fit`, read by every run of it. The procedure \
+         (`handblocks_bench::tosses::fit`), on {}: {FIT_PROCEDURE}. Frictions \
+         {FIT_FRICTION:?}; restitutions {FIT_RESTITUTION:?}; contact stiffness (Hz) \
+         {FIT_CONTACT_HZ:?}; contact_hz = 0: the engine's own.",
         tosses_dir.display(),
-        f.fit_tosses,
-        FIT_FRICTION,
-        FIT_RESTITUTION,
-        f.friction,
-        f.restitution,
-        f.fit_tosses,
-        f.fit_error
-    );
+    ));
+    let _ = write!(text, "\n[fit]\ntosses = {}\n", f.precise.fit_tosses);
+    let engines = [
+        ("precise", Some(f.precise)),
+        ("mujoco", f.mujoco),
+        ("pybullet", f.pybullet),
+    ];
+    for (name, fitted) in engines {
+        let Some(e) = fitted else {
+            let _ = write!(
+                text,
+                "\n# {name}: not fitted (its Python could not be made)\n"
+            );
+            continue;
+        };
+        let _ = write!(
+            text,
+            "\n[{name}]\nfriction = {:?}\nrestitution = {:?}\ncontact_hz = {:?}\n\
+             median_position_error_edges = {:.4}\n",
+            e.contact.friction,
+            e.contact.restitution,
+            e.contact.contact_hz.unwrap_or(0.0),
+            e.fit_error
+        );
+    }
     std::fs::write(path, text).map_err(|e| format!("{}: cannot write the fit: {e}", path.display()))
 }
 
-/// Reads the frozen fit. Errors name the file and the key, and say how to make it.
-pub fn load_fit(path: &Path) -> Result<Fitted, String> {
+/// Reads the frozen fits. Errors name the file and the key, and say how to make it.
+pub fn load_fit(path: &Path) -> Result<Fits, String> {
     let text = std::fs::read_to_string(path).map_err(|e| {
         format!(
             "{}: cannot read the contact fit: {e} (make it with `handblocks bench tosses --fit`)",
@@ -169,7 +283,13 @@ pub fn load_fit(path: &Path) -> Result<Fitted, String> {
             .get(table)
             .and_then(|t| t.get(key))
             .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
-            .ok_or_else(|| format!("{}: `{table}.{key}`: required, a number", path.display()))?;
+            .ok_or_else(|| {
+                format!(
+                    "{}: `{table}.{key}`: required, a number (`handblocks bench tosses --fit` \
+                     writes it)",
+                    path.display()
+                )
+            })?;
         if range.contains(&v) {
             Ok(v)
         } else {
@@ -181,11 +301,30 @@ pub fn load_fit(path: &Path) -> Result<Fitted, String> {
             ))
         }
     };
-    Ok(Fitted {
-        friction: get("precise", "friction", 0.0..=100.0)?,
-        restitution: get("precise", "restitution", 0.0..=1.0)?,
-        fit_error: get("fit", "median_position_error_edges", 0.0..=1e6)?,
-        fit_tosses: get("fit", "tosses", 0.0..=1e9)? as usize,
+    let fit_tosses = get("fit", "tosses", 0.0..=1e9)? as usize;
+    let engine = |name: &str| -> Result<Fitted, String> {
+        let hz = get(name, "contact_hz", 0.0..=1e5)?;
+        Ok(Fitted {
+            contact: Contact {
+                friction: get(name, "friction", 0.0..=100.0)?,
+                restitution: get(name, "restitution", 0.0..=1.0)?,
+                contact_hz: (hz > 0.0).then_some(hz),
+            },
+            fit_error: get(name, "median_position_error_edges", 0.0..=1e6)?,
+            fit_tosses,
+        })
+    };
+    let optional = |name: &str| -> Result<Option<Fitted>, String> {
+        if doc.contains_key(name) {
+            engine(name).map(Some)
+        } else {
+            Ok(None)
+        }
+    };
+    Ok(Fits {
+        precise: engine("precise")?,
+        mujoco: optional("mujoco")?,
+        pybullet: optional("pybullet")?,
     })
 }
 
@@ -400,6 +539,22 @@ fn face_down(rotation: DQuat) -> usize {
         .unwrap_or(0)
 }
 
+/// What runs a contender.
+#[derive(Debug, Clone)]
+pub enum Engine {
+    /// The paper model (its only setting: the tracker's rate; no contact values).
+    Paper,
+    /// The precise model at these settings.
+    Precise(PreciseSettings),
+    /// An outside engine at `substeps` per sample, with these contact values (None: the
+    /// engine's own defaults).
+    Outside {
+        engine: OutsideEngine,
+        substeps: u32,
+        contact: Option<Contact>,
+    },
+}
+
 /// A contender: a model at one setting.
 #[derive(Debug, Clone)]
 pub struct Contender {
@@ -407,67 +562,71 @@ pub struct Contender {
     pub setting: String,
     /// The contact values it runs with, by name (JSON: `params`).
     pub params: Vec<(&'static str, f64)>,
-    /// The precise model's settings; None: the paper model.
-    pub precise: Option<PreciseSettings>,
+    pub engine: Engine,
 }
 
-/// The contenders of this part: the paper model (its only setting: the tracker's rate; it has
-/// no contact values to fit), and the precise model at the source's nominal contact values (its
-/// default substeps, and one substep: cheaper), at the values fitted to real tosses ([`fit`])
-/// and at its own defaults (the paper's "perfect friction", no bounce).
-pub fn contenders(fitted: &Fitted) -> Vec<Contender> {
+/// The precise model with contact values `c` at `substeps`.
+fn precise_with(c: &Contact, substeps: u32) -> PreciseSettings {
+    PreciseSettings {
+        friction: c.friction,
+        restitution: c.restitution,
+        contact_hz: c.contact_hz,
+        substeps,
+        ..PreciseSettings::default()
+    }
+}
+
+/// The contenders: the paper model at the tracker's rate; then every engine with substeps
+/// (the precise model, and each outside engine whose Python is here) at the source's nominal
+/// contact values and at the values fitted to real tosses ([`fit`]), each at the precise
+/// model's default substeps and at one substep (cheaper), and at the engine's own defaults.
+/// Every one samples at the tracker's 148 Hz: the same rates, the same cube.
+pub fn contenders(fits: &Fits, outside: &[OutsideEngine]) -> Vec<Contender> {
     let d = PreciseSettings::default();
-    let fit = PreciseSettings {
-        friction: fitted.friction,
-        restitution: fitted.restitution,
-        ..d
-    };
-    let nominal = PreciseSettings {
-        friction: NOMINAL_FRICTION,
-        restitution: NOMINAL_RESTITUTION,
-        ..d
-    };
-    vec![
-        Contender {
-            name: "paper",
-            setting: format!("{RATE_HZ} Hz"),
-            params: Vec::new(),
-            precise: None,
-        },
-        Contender {
-            name: "precise",
-            setting: format!("{RATE_HZ} Hz x{} sub, nominal contact", nominal.substeps),
-            params: vec![
-                ("friction", nominal.friction),
-                ("restitution", nominal.restitution),
-            ],
-            precise: Some(nominal),
-        },
-        Contender {
-            name: "precise",
-            setting: format!("{RATE_HZ} Hz x1 sub, nominal contact"),
-            params: vec![
-                ("friction", nominal.friction),
-                ("restitution", nominal.restitution),
-            ],
-            precise: Some(PreciseSettings {
-                substeps: 1,
-                ..nominal
-            }),
-        },
-        Contender {
-            name: "precise",
-            setting: format!("{RATE_HZ} Hz x{} sub, fitted contact", fit.substeps),
-            params: vec![("friction", fit.friction), ("restitution", fit.restitution)],
-            precise: Some(fit),
-        },
-        Contender {
-            name: "precise",
-            setting: format!("{RATE_HZ} Hz x{} sub, its own defaults", d.substeps),
-            params: vec![("friction", d.friction), ("restitution", d.restitution)],
-            precise: Some(d),
-        },
-    ]
+    let mut v = vec![Contender {
+        name: "paper",
+        setting: format!("{RATE_HZ} Hz"),
+        params: Vec::new(),
+        engine: Engine::Paper,
+    }];
+    let mut engines: Vec<(&'static str, Option<OutsideEngine>, Option<Fitted>)> =
+        vec![("precise", None, Some(fits.precise))];
+    for &e in outside {
+        engines.push((e.name(), Some(e), fits.of(e)));
+    }
+    for (name, outside, fitted) in engines {
+        let make = |contact: Option<Contact>, substeps: u32, what: &str| {
+            let engine = match outside {
+                None => Engine::Precise(contact.map_or(d, |c| precise_with(&c, substeps))),
+                Some(engine) => Engine::Outside {
+                    engine,
+                    substeps,
+                    contact,
+                },
+            };
+            let params = match (&engine, contact) {
+                (_, Some(c)) => c.params(),
+                (Engine::Precise(p), None) => {
+                    vec![("friction", p.friction), ("restitution", p.restitution)]
+                }
+                _ => Vec::new(),
+            };
+            Contender {
+                name,
+                setting: format!("{RATE_HZ} Hz x{substeps} sub, {what}"),
+                params,
+                engine,
+            }
+        };
+        v.push(make(Some(Contact::NOMINAL), d.substeps, "nominal contact"));
+        v.push(make(Some(Contact::NOMINAL), 1, "nominal contact"));
+        if let Some(f) = fitted {
+            v.push(make(Some(f.contact), d.substeps, "fitted contact"));
+            v.push(make(Some(f.contact), 1, "fitted contact"));
+        }
+        v.push(make(None, d.substeps, "its own defaults"));
+    }
+    v
 }
 
 /// The scene of one toss: the cube where the first sample has it (heights less `floor`), with
@@ -500,10 +659,17 @@ fn toss_scene(toss: &Toss, floor: f64, precise: Option<&PreciseSettings>) -> Sce
     }
 }
 
-/// One contender's path of one toss: the cube's pose at each sample time (the first sample's
-/// as given), and the time the model's own loop took (ns), apart from building the scene.
-fn simulate(toss: &Toss, floor: f64, c: &Contender) -> Result<(Vec<(DVec3, DQuat)>, u64), String> {
-    let scene = toss_scene(toss, floor, c.precise.as_ref());
+/// A path: the cube's pose at each sample time, the first sample's as given.
+pub type Path7 = Vec<(DVec3, DQuat)>;
+
+/// One of our models' path of one toss, and the time the model's own loop took (ns), apart
+/// from building the scene.
+fn simulate(
+    toss: &Toss,
+    floor: f64,
+    precise: Option<&PreciseSettings>,
+) -> Result<(Path7, u64), String> {
+    let scene = toss_scene(toss, floor, precise);
     let steps = toss.samples.len() - 1;
     let mut path = Vec::with_capacity(toss.samples.len());
     let up = DVec3::new(0.0, floor, 0.0);
@@ -527,6 +693,258 @@ fn simulate(toss: &Toss, floor: f64, c: &Contender) -> Result<(Vec<(DVec3, DQuat
     }
     let ns = t0.elapsed().as_nanos() as u64;
     Ok((path, ns))
+}
+
+/// Every toss's path under one contender, and the time its engine's own loop took in all (ns).
+pub fn run_contender(
+    c: &Contender,
+    tosses: &[&Toss],
+    floor: f64,
+    outside: Option<&Outside>,
+) -> Result<(Vec<Path7>, u64), String> {
+    match &c.engine {
+        Engine::Paper | Engine::Precise(_) => {
+            let precise = match &c.engine {
+                Engine::Precise(p) => Some(p),
+                _ => None,
+            };
+            let mut paths = Vec::with_capacity(tosses.len());
+            let mut ns = 0;
+            for t in tosses {
+                let (path, n) = simulate(t, floor, precise)?;
+                paths.push(path);
+                ns += n;
+            }
+            Ok((paths, ns))
+        }
+        Engine::Outside {
+            engine,
+            substeps,
+            contact,
+        } => outside
+            .ok_or_else(|| format!("{}: its Python is not here", engine.name()))?
+            .run(*engine, *substeps, contact.as_ref(), tosses, floor),
+    }
+}
+
+/// The outside engines' driver: a Python with `mujoco` and `pybullet`, and the script.
+#[derive(Debug, Clone)]
+pub struct Outside {
+    pub python: PathBuf,
+    pub script: PathBuf,
+    /// Where a run's job paths go (under the run's `--out`).
+    pub scratch: PathBuf,
+    /// Each engine's version and its binding's floor (ns per call, taken off its time), as
+    /// the script reports them.
+    pub versions: std::cell::RefCell<Vec<(String, String, f64)>>,
+}
+
+/// The engines' versions the bench installs (pinned: a figure names what made it).
+pub const OUTSIDE_PACKAGES: [&str; 2] = ["mujoco==4.0.1", "pybullet==3.2.7"];
+
+impl Outside {
+    /// Finds or makes the Python: `python` if given, else `repo/target/toss-engines` (a venv
+    /// the bench makes and fills from the package index the first time, as tests/run does for
+    /// its tools). Errors say what failed and how to run without it.
+    pub fn prepare(
+        repo: &Path,
+        python: Option<&Path>,
+        scratch: &Path,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Outside, String> {
+        let script = repo.join("bench/python/toss_engines.py");
+        if !script.is_file() {
+            return Err(format!(
+                "{}: the engines' driver is missing",
+                script.display()
+            ));
+        }
+        let imports = |py: &Path| {
+            std::process::Command::new(py)
+                .args(["-c", "import mujoco, pybullet, numpy"])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::null())
+                .status()
+                .is_ok_and(|s| s.success())
+        };
+        let py = match python {
+            Some(p) => {
+                if !imports(p) {
+                    return Err(format!(
+                        "{}: cannot import mujoco, pybullet and numpy (pip install {})",
+                        p.display(),
+                        OUTSIDE_PACKAGES.join(" ")
+                    ));
+                }
+                p.to_path_buf()
+            }
+            None => {
+                let venv = repo.join("target/toss-engines");
+                let py = venv.join("bin/python");
+                if !imports(&py) {
+                    progress(&format!(
+                        "tosses: making {} with {} (once; needs the package index)",
+                        venv.display(),
+                        OUTSIDE_PACKAGES.join(" ")
+                    ));
+                    let _ = std::fs::remove_dir_all(&venv);
+                    let run = |cmd: &mut std::process::Command| {
+                        cmd.stdout(std::process::Stdio::null())
+                            .status()
+                            .map_err(|e| e.to_string())
+                            .and_then(|s| {
+                                if s.success() {
+                                    Ok(())
+                                } else {
+                                    Err(format!("exit {s}"))
+                                }
+                            })
+                    };
+                    run(std::process::Command::new("python3")
+                        .args(["-m", "venv"])
+                        .arg(&venv))
+                    .map_err(|e| format!("python3 -m venv {}: {e}", venv.display()))?;
+                    run(std::process::Command::new(&py)
+                        .args(["-m", "pip", "install", "-q"])
+                        .args(OUTSIDE_PACKAGES))
+                    .map_err(|e| {
+                        format!(
+                            "{}: pip install {}: {e} (needs the package index; or give \
+                             --python PATH, a Python that has them)",
+                            venv.display(),
+                            OUTSIDE_PACKAGES.join(" ")
+                        )
+                    })?;
+                    if !imports(&py) {
+                        return Err(format!(
+                            "{}: made, but it cannot import mujoco, pybullet and numpy",
+                            venv.display()
+                        ));
+                    }
+                }
+                py
+            }
+        };
+        std::fs::create_dir_all(scratch)
+            .map_err(|e| format!("{}: cannot create: {e}", scratch.display()))?;
+        Ok(Outside {
+            python: py,
+            script,
+            scratch: scratch.to_path_buf(),
+            versions: std::cell::RefCell::new(Vec::new()),
+        })
+    }
+
+    /// Runs `tosses` in `engine`; the paths in the world's frame, and the nanoseconds of the
+    /// engine's own loop as the script timed them.
+    pub fn run(
+        &self,
+        engine: OutsideEngine,
+        substeps: u32,
+        contact: Option<&Contact>,
+        tosses: &[&Toss],
+        floor: f64,
+    ) -> Result<(Vec<Path7>, u64), String> {
+        let r = frame();
+        // The world (y up) to the data's frame (z up), the board at z = 0.
+        let to_data = |p: DVec3| DVec3::new(p.x, -p.z, p.y);
+        let paths_file = self.scratch.join(format!(
+            "paths-{}-{}.bin",
+            engine.name(),
+            std::process::id()
+        ));
+        let job = json!({
+            "engine": engine.name(),
+            "rate_hz": RATE_HZ,
+            "substeps": substeps,
+            "half_width": HALF_WIDTH,
+            "mass": MASS,
+            "gravity": 9.81,
+            "params": match contact {
+                None => json!({"own_defaults": true}),
+                Some(c) => json!({"friction": c.friction, "restitution": c.restitution, "contact_hz": c.contact_hz}),
+            },
+            "paths": paths_file,
+            "tosses": tosses.iter().map(|t| {
+                let s = t.samples[0];
+                let q = r.conjugate() * s.rotation * r;
+                json!({
+                    "steps": t.samples.len() - 1,
+                    "position": to_data(s.position - DVec3::new(0.0, floor, 0.0)).to_array(),
+                    "quaternion": [q.w, q.x, q.y, q.z],
+                    "velocity": to_data(s.velocity).to_array(),
+                    "spin_body": (r.conjugate() * s.spin_body).to_array(),
+                })
+            }).collect::<Vec<_>>(),
+        });
+        let what = format!("{} ({})", self.script.display(), engine.name());
+        let mut child = std::process::Command::new(&self.python)
+            .arg(&self.script)
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .map_err(|e| format!("{what}: cannot start {}: {e}", self.python.display()))?;
+        if let Some(mut stdin) = child.stdin.take() {
+            use std::io::Write as _;
+            stdin
+                .write_all(job.to_string().as_bytes())
+                .map_err(|e| format!("{what}: cannot send the job: {e}"))?;
+        }
+        let out = child
+            .wait_with_output()
+            .map_err(|e| format!("{what}: {e}"))?;
+        if !out.status.success() {
+            return Err(format!(
+                "{what}: {}: {}",
+                out.status,
+                String::from_utf8_lossy(&out.stderr).trim()
+            ));
+        }
+        let reply: Value = String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .rev()
+            .find_map(|l| serde_json::from_str(l).ok())
+            .ok_or_else(|| format!("{what}: no JSON reply on its output"))?;
+        let ns = reply["engine_ns"]
+            .as_u64()
+            .ok_or_else(|| format!("{what}: the reply has no engine_ns: {reply}"))?;
+        if let Some(v) = reply["version"].as_str() {
+            let floor = reply["binding_floor_ns"].as_f64().unwrap_or(f64::NAN);
+            let mut versions = self.versions.borrow_mut();
+            if !versions.iter().any(|(e, _, _)| e == engine.name()) {
+                versions.push((engine.name().to_string(), v.to_string(), floor));
+            }
+        }
+        let bytes =
+            std::fs::read(&paths_file).map_err(|e| format!("{}: {e}", paths_file.display()))?;
+        let _ = std::fs::remove_file(&paths_file);
+        let want: usize = tosses.iter().map(|t| t.samples.len() * 7 * 8).sum();
+        if bytes.len() != want {
+            return Err(format!(
+                "{what}: {} bytes of paths, {want} expected",
+                bytes.len()
+            ));
+        }
+        let values: Vec<f64> = bytes
+            .chunks_exact(8)
+            .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
+            .collect();
+        let mut at = 0;
+        let mut paths = Vec::with_capacity(tosses.len());
+        for t in tosses {
+            let mut path = Vec::with_capacity(t.samples.len());
+            for _ in 0..t.samples.len() {
+                let v = &values[at..at + 7];
+                at += 7;
+                let position = DVec3::new(v[0], v[2] + floor, -v[1]);
+                let q = DQuat::from_xyzw(v[4], v[5], v[6], v[3]);
+                path.push((position, (r * q * r.conjugate()).normalize()));
+            }
+            paths.push(path);
+        }
+        Ok((paths, ns))
+    }
 }
 
 /// How one contender did on one toss.
@@ -579,7 +997,9 @@ fn score(toss: &Toss, path: &[(DVec3, DQuat)]) -> TossScore {
 pub struct Row {
     pub contender: Contender,
     pub per_toss: Vec<(PathBuf, TossScore)>,
-    /// Median over the rounds of the model's own time per simulated second, us.
+    /// The first round's paths (every round computes the same: the engines are deterministic).
+    pub paths: Vec<Path7>,
+    /// Median over the rounds of the engine's own time per simulated second, us.
     pub us_per_sim_s: f64,
     /// Each round's figure (the spread).
     pub rounds_us_per_sim_s: Vec<f64>,
@@ -608,15 +1028,15 @@ impl Row {
 }
 
 /// Runs every contender on every toss, ROUNDS times (the order of the contenders rotated each
-/// round, so that none is always timed first), scoring the first round's paths (the models are
-/// deterministic: every round computes the same).
+/// round, so that none is always timed first), scoring the first round's paths.
 pub fn measure(
     tosses: &[Toss],
     floor: f64,
-    fitted: &Fitted,
+    cs: &[Contender],
+    outside: Option<&Outside>,
     progress: &mut dyn FnMut(&str),
 ) -> Result<Vec<Row>, String> {
-    let cs = contenders(fitted);
+    let all: Vec<&Toss> = tosses.iter().collect();
     let sim_s: f64 = tosses
         .iter()
         .map(|t| (t.samples.len() - 1) as f64 / RATE_HZ)
@@ -626,6 +1046,7 @@ pub fn measure(
         .map(|c| Row {
             contender: c.clone(),
             per_toss: Vec::new(),
+            paths: Vec::new(),
             us_per_sim_s: f64::NAN,
             rounds_us_per_sim_s: Vec::new(),
         })
@@ -633,16 +1054,15 @@ pub fn measure(
     for round in 0..ROUNDS {
         for k in 0..cs.len() {
             let i = (k + round) % cs.len();
-            let mut ns = 0u64;
-            for toss in tosses {
-                let (path, t) = simulate(toss, floor, &cs[i])
-                    .map_err(|e| format!("{} ({}): {e}", cs[i].name, cs[i].setting))?;
-                ns += t;
-                if round == 0 {
-                    rows[i]
-                        .per_toss
-                        .push((toss.file.clone(), score(toss, &path)));
-                }
+            let (paths, ns) = run_contender(&cs[i], &all, floor, outside)
+                .map_err(|e| format!("{} ({}): {e}", cs[i].name, cs[i].setting))?;
+            if round == 0 {
+                rows[i].per_toss = tosses
+                    .iter()
+                    .zip(&paths)
+                    .map(|(t, p)| (t.file.clone(), score(t, p)))
+                    .collect();
+                rows[i].paths = paths;
             }
             rows[i]
                 .rounds_us_per_sim_s
@@ -656,22 +1076,93 @@ pub fn measure(
     Ok(rows)
 }
 
-pub fn to_json(
-    rows: &[Row],
-    tosses: usize,
+/// Fits every engine here ([`fit`]) on the fit's tosses, each at the precise model's default
+/// substeps.
+pub fn fit_all(
+    tosses: &[Toss],
     floor: f64,
-    refused: &[String],
-    fitted: &Fitted,
-) -> Value {
+    outside: Option<&Outside>,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Fits, String> {
+    let chosen: Vec<&Toss> = tosses
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| in_fit(*i))
+        .map(|(_, t)| t)
+        .collect();
+    let substeps = PreciseSettings::default().substeps;
+    let mut fit_engine = |name: &'static str, engine: &dyn Fn(Contact) -> Engine| {
+        let mut median_error = |contact: Contact| -> Result<f64, String> {
+            let c = Contender {
+                name,
+                setting: String::new(),
+                params: Vec::new(),
+                engine: engine(contact),
+            };
+            let (paths, _) = run_contender(&c, &chosen, floor, outside)?;
+            let errors: Vec<f64> = chosen
+                .iter()
+                .zip(&paths)
+                .map(|(t, p)| score(t, p).position_error)
+                .collect();
+            Ok(median(&errors))
+        };
+        fit(name, chosen.len(), &mut median_error, progress)
+    };
+    let precise = fit_engine("precise", &|c| Engine::Precise(precise_with(&c, substeps)))?;
+    let mut outside_fit = |e: OutsideEngine| -> Result<Option<Fitted>, String> {
+        if outside.is_none() {
+            return Ok(None);
+        }
+        fit_engine(e.name(), &|c| Engine::Outside {
+            engine: e,
+            substeps,
+            contact: Some(c),
+        })
+        .map(Some)
+    };
+    Ok(Fits {
+        precise,
+        mujoco: outside_fit(OutsideEngine::MuJoCo)?,
+        pybullet: outside_fit(OutsideEngine::PyBullet)?,
+    })
+}
+
+/// What the page and the JSON say beside the rows.
+pub struct RunFacts<'a> {
+    pub tosses: usize,
+    pub floor: f64,
+    pub refused: &'a [String],
+    pub fits: &'a Fits,
+    /// Outside engines left out, and why (their Python could not be made).
+    pub left_out: Option<String>,
+    /// Each outside engine's version and binding floor (ns per call).
+    pub versions: Vec<(String, String, f64)>,
+}
+
+fn fitted_json(f: &Option<Fitted>) -> Value {
+    match f {
+        None => Value::Null,
+        Some(f) => json!({
+            "friction": f.contact.friction,
+            "restitution": f.contact.restitution,
+            "contact_hz": f.contact.contact_hz,
+            "fit_tosses": f.fit_tosses,
+            "fit_median_position_error": num(f.fit_error),
+        }),
+    }
+}
+
+pub fn to_json(rows: &[Row], facts: &RunFacts) -> Value {
     json!({
         "fit": {
-            "friction": fitted.friction,
-            "restitution": fitted.restitution,
-            "fit_tosses": fitted.fit_tosses,
-            "fit_median_position_error": num(fitted.fit_error),
-            "procedure": "every fourth toss by name (the rest held out); a grid of friction x restitution at the precise model's default substeps; the lowest median position error",
+            "procedure": FIT_PROCEDURE,
             "friction_grid": FIT_FRICTION,
             "restitution_grid": FIT_RESTITUTION,
+            "contact_hz_grid": FIT_CONTACT_HZ,
+            "precise": fitted_json(&Some(facts.fits.precise)),
+            "mujoco": fitted_json(&facts.fits.mujoco),
+            "pybullet": fitted_json(&facts.fits.pybullet),
         },
         "engines": rows.iter().map(|r| json!({
             "name": r.contender.name,
@@ -695,67 +1186,169 @@ pub fn to_json(
                 "same_face": s.same_face,
             })).collect::<Vec<_>>(),
         })).collect::<Vec<_>>(),
-        "tosses": tosses,
-        "refused": refused,
-        "floor_offset_m": floor,
+        "goals": goals(rows).iter().map(|g| json!({"goal": g.goal, "met": g.met, "figures": g.figures})).collect::<Vec<_>>(),
+        "tosses": facts.tosses,
+        "refused": facts.refused,
+        "floor_offset_m": facts.floor,
         "rate_hz": RATE_HZ,
-        "cube": {"edge_m": EDGE, "mass_kg": 0.37},
+        "cube": {"edge_m": EDGE, "mass_kg": MASS},
         "nominal": {"friction": NOMINAL_FRICTION, "restitution": NOMINAL_RESTITUTION},
-        "not_yet": ["MuJoCo", "PyBullet"],
+        "outside_versions": facts.versions.iter().map(|(e, v, _)| (e.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
+        "outside_binding_floor_ns": facts.versions.iter().map(|(e, _, f)| (e.clone(), num(*f))).collect::<serde_json::Map<_, _>>(),
+        "outside_left_out": facts.left_out,
     })
 }
 
-const WHAT: &str = "How far each model is from a real block: real tosses of a 10.5 cm acrylic \
-cube tracked at 148 Hz (the ContactNets data, ../shared/data/tosses), each simulated from its \
-first tracked state (position, orientation, velocity and, for the precise model, spin) at the \
-tracker's rate and scored against the rest of its track. **How to read it:** position error is \
-the mean over a toss's samples of the distance between the simulated and the real centre, in \
-cube edges (10.48 cm); rotation error the mean angle between the two orientations; final error \
-where the two cubes end; same face whether they rest on the same face. Median and p90 over the \
-tosses; time is the model's own loop per simulated second (the scene built outside it), the \
-median of interleaved rounds. **Not yet here (issue 42):** MuJoCo and PyBullet: these figures \
-compare our two models with a real cube, not yet with the engines people use.";
+/// One of the issue's goals, judged on this run.
+pub struct Goal {
+    pub goal: &'static str,
+    pub met: bool,
+    pub figures: String,
+}
 
-pub fn markdown(
-    rows: &[Row],
-    tosses: usize,
-    floor: f64,
-    refused: &[String],
-    fitted: &Fitted,
-    p: &Provenance,
-    seconds: f64,
-) -> String {
+/// The issue's two goals, judged on the rows: the precise model's best median error no worse
+/// than the better outside engine's best, at less time per simulated second; the paper model
+/// at least 20x cheaper per simulated second than the cheapest outside engine setting.
+pub fn goals(rows: &[Row]) -> Vec<Goal> {
+    let med = |r: &Row| r.stat(|s| s.position_error, 0.5);
+    let best = |name: &str| {
+        rows.iter()
+            .filter(|r| r.contender.name == name)
+            .min_by(|a, b| med(a).total_cmp(&med(b)))
+    };
+    let outside: Vec<&Row> = rows
+        .iter()
+        .filter(|r| matches!(r.contender.engine, Engine::Outside { .. }))
+        .collect();
+    let mut v = Vec::new();
+    let better_outside = OutsideEngine::ALL
+        .iter()
+        .filter_map(|e| best(e.name()))
+        .min_by(|a, b| med(a).total_cmp(&med(b)));
+    if let (Some(p), Some(o)) = (best("precise"), better_outside) {
+        v.push(Goal {
+            goal: "the precise model's median position error no worse than the better outside engine's, at less time per simulated second",
+            met: med(p) <= med(o) && p.us_per_sim_s < o.us_per_sim_s,
+            figures: format!(
+                "precise ({}) {:.3} edges at {:.0} us per simulated s; {} ({}) {:.3} edges at {:.0} us",
+                p.contender.setting,
+                med(p),
+                p.us_per_sim_s,
+                o.contender.name,
+                o.contender.setting,
+                med(o),
+                o.us_per_sim_s
+            ),
+        });
+    }
+    let cheapest = outside
+        .iter()
+        .min_by(|a, b| a.us_per_sim_s.total_cmp(&b.us_per_sim_s));
+    if let (Some(p), Some(o)) = (best("paper"), cheapest) {
+        let ratio = o.us_per_sim_s / p.us_per_sim_s;
+        v.push(Goal {
+            goal: "the paper model at least 20x cheaper per simulated second than the cheapest outside engine",
+            met: ratio >= 20.0,
+            figures: format!(
+                "{ratio:.1}x: paper {:.0} us per simulated s, {} ({}) {:.0} us; the paper model's median error {:.3} edges",
+                p.us_per_sim_s,
+                o.contender.name,
+                o.contender.setting,
+                o.us_per_sim_s,
+                med(p)
+            ),
+        });
+    }
+    v
+}
+
+const WHAT: &str = "How far each engine is from a real block: real tosses of a 10.5 cm acrylic \
+cube tracked at 148 Hz (the ContactNets data, ../shared/data/tosses), each simulated from its \
+first tracked state (position, orientation, velocity and, for every engine but the paper \
+model, spin) at the tracker's rate and scored against the rest of its track, by the paper \
+model, the precise model (rapier3d), and two engines nobody here wrote, MuJoCo and PyBullet \
+(driven from Python, `bench/python/toss_engines.py`, in a venv the bench makes under target/). \
+**How to read it:** position error is the mean over a toss's samples of the distance between \
+the simulated and the real centre, in cube edges (10.48 cm); rotation error the mean angle \
+between the two orientations; final error where the two cubes end; same face whether they \
+rest on the same face. Median and p90 over the tosses. Time is each engine's own loop per \
+simulated second, the median of interleaved rounds: our models' step loop (the scene built \
+outside it); for MuJoCo and PyBullet one call per sample (`mj_step(nstep)`, `stepSimulation` \
+with `numSubSteps`: the substeps inside the engine), the pose read outside the timed span, \
+less per call the binding's floor measured in the same run (a timed call that does no work), \
+so that Python's share is not counted as the engine's.";
+
+pub fn markdown(rows: &[Row], facts: &RunFacts, p: &Provenance, seconds: f64) -> String {
     let mut s = page::head(
-        "Real cube tosses: how far each model is from a real block",
+        "Real cube tosses: how far each engine is from a real block",
         WHAT,
         p,
     );
     let _ = writeln!(
         s,
-        "{tosses} tosses ({} refused); the board {:.1} mm below the data's z = 0 (measured: the \
-         median last height less the half-width). The run took {seconds:.0} s.\n",
-        refused.len(),
-        -floor * 1e3
+        "{} tosses ({} refused); the board {:.1} mm below the data's z = 0 (measured: the \
+         median last height less the half-width). The run took {seconds:.0} s.{}\n",
+        facts.tosses,
+        facts.refused.len(),
+        -facts.floor * 1e3,
+        if facts.versions.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " Outside engines: {} (the binding's floor, a timed call that does no work, \
+                 taken off each step call).",
+                facts
+                    .versions
+                    .iter()
+                    .map(|(e, v, f)| format!("{e} {v}, floor {f:.0} ns per call"))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            )
+        }
     );
+    if let Some(why) = &facts.left_out {
+        let _ = writeln!(
+            s,
+            "**MuJoCo and PyBullet are not in this run:** {why}. Their rows and the goals that \
+             need them are missing.\n"
+        );
+    }
     let _ = writeln!(
         s,
-        "**The fit** (`config/tosses-fit.toml`, `handblocks bench tosses --fit` makes it again): \
-         friction {} and restitution {} for the precise model, the pair of a grid of {} \
-         frictions ({:?}) x {} restitutions ({:?}) at its default substeps with the lowest \
-         median position error over every fourth toss by name ({} tosses, {:.3} edges); the \
-         column *held out* is the median over the other tosses, which the fit never saw. The \
-         paper model has no contact values to fit.\n",
-        fitted.friction,
-        fitted.restitution,
-        FIT_FRICTION.len(),
-        FIT_FRICTION,
-        FIT_RESTITUTION.len(),
-        FIT_RESTITUTION,
-        fitted.fit_tosses,
-        fitted.fit_error
+        "**The fit** (`config/tosses-fit.toml`; `handblocks bench tosses --fit` makes it \
+         again): {FIT_PROCEDURE}. Frictions {FIT_FRICTION:?}, restitutions \
+         {FIT_RESTITUTION:?}, contact stiffness {FIT_CONTACT_HZ:?} Hz. The column *held out* \
+         is the median over the tosses the fit never saw. The paper model has no contact \
+         values to fit.\n"
     );
+    s.push_str("| engine | friction | restitution | contact stiffness | fit tosses | fit median error (edges) |\n|---|---:|---:|---:|---:|---:|\n");
+    for (name, f) in [
+        ("precise", Some(facts.fits.precise)),
+        ("mujoco", facts.fits.mujoco),
+        ("pybullet", facts.fits.pybullet),
+    ] {
+        match f {
+            Some(f) => {
+                let _ = writeln!(
+                    s,
+                    "| {name} | {} | {} | {} | {} | {:.3} |",
+                    f.contact.friction,
+                    f.contact.restitution,
+                    f.contact
+                        .contact_hz
+                        .map_or("its own".to_string(), |hz| format!("{hz} Hz")),
+                    f.fit_tosses,
+                    f.fit_error
+                );
+            }
+            None => {
+                let _ = writeln!(s, "| {name} | not fitted | | | | |");
+            }
+        }
+    }
+    s.push('\n');
     s.push_str(
-        "| model | setting | position error median / p90 (edges) | held out | in flight | after the first impact | rotation error median / p90 (deg) | final error median / p90 (m) | same face | us per simulated s (rounds) |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| engine | setting | position error median / p90 (edges) | held out | in flight | after the first impact | rotation error median / p90 (deg) | final error median / p90 (m) | same face | us per simulated s (rounds) |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         let pair = |get: fn(&TossScore) -> f64, d: usize| {
@@ -783,20 +1376,34 @@ pub fn markdown(
         );
     }
     s.push('\n');
+    let g = goals(rows);
+    if !g.is_empty() {
+        s.push_str("## The goals (issue 42)\n\n");
+        for g in &g {
+            let _ = writeln!(
+                s,
+                "- **{}:** {}. {}",
+                if g.met { "met" } else { "not met" },
+                g.goal,
+                g.figures
+            );
+        }
+        s.push('\n');
+    }
     s.push_str(
         "The paper model carries no spin and drops its inertia on impact (R7, R8): its flight \
          error is what a spinless ballistic path costs, its error after the first impact what R8 \
          costs (the cube stops where it lands).\n\n",
     );
     s.push_str(&page::figure(
-        "position error against time per simulated second, one point per model and setting; \
-         and the height of G over time, real and simulated, for the first toss and those at the \
-         median and the p90 of the precise model's error",
+        "position error against time per simulated second, one point per engine and setting; \
+         and the height of G over time, real and simulated (each engine's best setting), for \
+         the first toss and those at the median and the p90 of the precise model's error",
         "tosses.png",
     ));
-    if !refused.is_empty() {
+    if !facts.refused.is_empty() {
         s.push_str("\n## Refused files\n\n");
-        for r in refused {
+        for r in facts.refused {
             let _ = writeln!(s, "- {r}");
         }
     }
@@ -810,11 +1417,26 @@ pub struct Drawn {
     pub simulated: Vec<(String, Vec<(f64, f64)>)>,
 }
 
-/// The tosses the picture shows: those at the median and the p90 of the first precise
-/// contender's position error, and the first toss; each contender's height of G over time
-/// beside the real one.
+/// The tosses the picture shows: those at the median and the p90 of the precise model's best
+/// setting's position error, and the first toss; each engine's best setting's height of G over
+/// time beside the real one.
 pub fn drawn(rows: &[Row], tosses: &[Toss], floor: f64) -> Vec<Drawn> {
-    let Some(reference) = rows.iter().find(|r| r.contender.precise.is_some()) else {
+    let med = |r: &Row| r.stat(|s| s.position_error, 0.5);
+    let mut best: Vec<&Row> = Vec::new();
+    for r in rows {
+        match best
+            .iter_mut()
+            .find(|b| b.contender.name == r.contender.name)
+        {
+            Some(b) => {
+                if med(r) < med(b) {
+                    *b = r;
+                }
+            }
+            None => best.push(r),
+        }
+    }
+    let Some(reference) = best.iter().find(|r| r.contender.name == "precise") else {
         return Vec::new();
     };
     let mut by_error: Vec<(f64, usize)> = reference
@@ -847,14 +1469,14 @@ pub fn drawn(rows: &[Row], tosses: &[Toss], floor: f64) -> Vec<Drawn> {
             .iter()
             .map(|s| (s.t, s.position.y - floor))
             .collect();
-        let simulated = rows
+        let simulated = best
             .iter()
             .filter_map(|r| {
-                let (path, _) = simulate(toss, floor, &r.contender).ok()?;
+                let path = r.paths.get(i)?;
                 let heights = toss
                     .samples
                     .iter()
-                    .zip(&path)
+                    .zip(path)
                     .map(|(s, p)| (s.t, p.0.y - floor))
                     .collect();
                 Some((
@@ -913,14 +1535,14 @@ pub fn figure(rows: &[Row], drawn: &[Drawn]) -> Figure {
     Figure {
         panels,
         columns: 2,
-        panel_width: 520,
-        panel_height: 360,
+        panel_width: 560,
+        panel_height: 400,
         column_weights: Vec::new(),
     }
 }
 
-/// The bench: loads the tosses, runs every contender, writes tosses.json, tosses.md and
-/// tosses.png under `out_dir`.
+/// The bench: loads the tosses, makes (or finds) the outside engines' Python, fits when asked,
+/// runs every contender, writes tosses.json, tosses.md and tosses.png under `out_dir`.
 pub fn run(b: &TossesBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
     let started = Instant::now();
     let (mut tosses, refused) = load_dir(&b.tosses_dir)?;
@@ -936,20 +1558,28 @@ pub fn run(b: &TossesBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
         tosses.truncate(QUICK_TOSSES);
     }
     let floor = floor_offset(&tosses);
-    let fitted = if b.fit {
+    std::fs::create_dir_all(&b.out_dir)
+        .map_err(|e| format!("{}: cannot create: {e}", b.out_dir.display()))?;
+    let mut progress = |line: &str| eprintln!("{line}");
+    let (outside, left_out) = match Outside::prepare(
+        &b.repo,
+        b.python.as_deref(),
+        &b.out_dir.join("tosses-scratch"),
+        &mut progress,
+    ) {
+        Ok(o) => (Some(o), None),
+        Err(e) => {
+            eprintln!("tosses: warning: MuJoCo and PyBullet left out: {e}");
+            (None, Some(e))
+        }
+    };
+    let fits = if b.fit {
         if b.quick {
             return Err("--fit fits on every fourth of all the tosses; not with --quick".into());
         }
-        let f = fit(&tosses, floor, &mut |line| eprintln!("{line}"))?;
+        let f = fit_all(&tosses, floor, outside.as_ref(), &mut progress)?;
         write_fit(&b.fit_file, &f, &b.tosses_dir)?;
-        eprintln!(
-            "tosses: fitted friction {}, restitution {} (median error {:.3} edges over {} tosses); wrote {}",
-            f.friction,
-            f.restitution,
-            f.fit_error,
-            f.fit_tosses,
-            b.fit_file.display()
-        );
+        eprintln!("tosses: wrote {}", b.fit_file.display());
         f
     } else {
         load_fit(&b.fit_file)?
@@ -961,24 +1591,38 @@ pub fn run(b: &TossesBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
         refused.len(),
         floor * 1e3
     );
-    let rows = measure(&tosses, floor, &fitted, &mut |line| eprintln!("{line}"))?;
-    std::fs::create_dir_all(&b.out_dir)
-        .map_err(|e| format!("{}: cannot create: {e}", b.out_dir.display()))?;
+    let engines: &[OutsideEngine] = if outside.is_some() {
+        &OutsideEngine::ALL
+    } else {
+        &[]
+    };
+    let cs = contenders(&fits, engines);
+    let rows = measure(&tosses, floor, &cs, outside.as_ref(), &mut progress)?;
+    if let Some(o) = &outside {
+        let _ = std::fs::remove_dir(&o.scratch);
+    }
+    let facts = RunFacts {
+        tosses: tosses.len(),
+        floor,
+        refused: &refused,
+        fits: &fits,
+        left_out,
+        versions: outside
+            .as_ref()
+            .map(|o| o.versions.borrow().clone())
+            .unwrap_or_default(),
+    };
     let p = Provenance::of_this_run(b.quick, &b.out_dir);
     let json_file = b.out_dir.join("tosses.json");
     std::fs::write(
         &json_file,
-        serde_json::to_string_pretty(&to_json(&rows, tosses.len(), floor, &refused, &fitted))?
-            + "\n",
+        serde_json::to_string_pretty(&to_json(&rows, &facts))? + "\n",
     )
     .map_err(|e| format!("{}: {e}", json_file.display()))?;
     let md = b.out_dir.join("tosses.md");
     let seconds = started.elapsed().as_secs_f64();
-    std::fs::write(
-        &md,
-        markdown(&rows, tosses.len(), floor, &refused, &fitted, &p, seconds),
-    )
-    .map_err(|e| format!("{}: {e}", md.display()))?;
+    std::fs::write(&md, markdown(&rows, &facts, &p, seconds))
+        .map_err(|e| format!("{}: {e}", md.display()))?;
     let png = b.out_dir.join("tosses.png");
     figure(&rows, &drawn(&rows, &tosses, floor)).write_png(&png)?;
     for r in &rows {
@@ -989,6 +1633,14 @@ pub fn run(b: &TossesBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
             r.stat(|s| s.position_error, 0.5),
             r.stat(|s| s.position_error, 0.9),
             r.us_per_sim_s
+        );
+    }
+    for g in goals(&rows) {
+        eprintln!(
+            "tosses: goal {}: {} ({})",
+            if g.met { "met" } else { "NOT met" },
+            g.goal,
+            g.figures
         );
     }
     eprintln!(
@@ -1046,10 +1698,20 @@ mod tests {
     fn the_frozen_fit_is_read_and_a_bad_one_names_its_key() {
         let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/tosses-fit.toml");
         let f = load_fit(&repo).unwrap_or_else(|e| panic!("{e}"));
-        assert!(FIT_FRICTION.contains(&f.friction) && FIT_RESTITUTION.contains(&f.restitution));
+        for e in [Some(f.precise), f.mujoco, f.pybullet]
+            .into_iter()
+            .flatten()
+        {
+            assert!(FIT_FRICTION.contains(&e.contact.friction));
+            assert!(FIT_RESTITUTION.contains(&e.contact.restitution));
+            assert!(e
+                .contact
+                .contact_hz
+                .is_none_or(|hz| FIT_CONTACT_HZ.contains(&hz)));
+        }
         let bad = write(
             "fit.toml",
-            "[precise]\nfriction = 0.2\nrestitution = 3\n[fit]\ntosses = 100\n\
+            "[fit]\ntosses = 100\n[precise]\nfriction = 0.2\nrestitution = 3\ncontact_hz = 0\n\
              median_position_error_edges = 0.1\n",
         );
         let e = load_fit(&bad).unwrap_err();
@@ -1062,7 +1724,33 @@ mod tests {
         // Written and read back, the same values.
         let out = write("again.toml", "");
         write_fit(&out, &f, Path::new("tosses")).unwrap();
-        assert_eq!(load_fit(&out).unwrap().friction, f.friction);
+        assert_eq!(load_fit(&out).unwrap(), f);
+    }
+
+    #[test]
+    fn the_fit_tries_the_grid_then_the_stiffness_and_keeps_the_lowest() {
+        // A made-up error surface, lowest at friction 0.3, restitution 0.1, 60 Hz.
+        let mut tried = Vec::new();
+        let mut error = |c: Contact| {
+            tried.push(c);
+            Ok((c.friction - 0.3).abs()
+                + (c.restitution - 0.1).abs()
+                + c.contact_hz.map_or(0.05, |hz| (hz - 60.0).abs() / 1000.0))
+        };
+        let f = fit("test", 7, &mut error, &mut |_| {}).unwrap();
+        assert_eq!(
+            tried.len(),
+            FIT_FRICTION.len() * FIT_RESTITUTION.len() + FIT_CONTACT_HZ.len()
+        );
+        assert_eq!(
+            f.contact,
+            Contact {
+                friction: 0.3,
+                restitution: 0.1,
+                contact_hz: Some(60.0)
+            }
+        );
+        assert_eq!(f.fit_tosses, 7);
     }
 
     #[test]

@@ -154,8 +154,11 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
             tosses,
             fit,
             quick,
+            python,
         } => {
             let b = handblocks_bench::tosses::TossesBench {
+                repo: std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")),
+                python,
                 out_dir: out,
                 tosses_dir: traces_dir(tosses),
                 fit_file: std::path::Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -485,13 +485,13 @@ pub enum BenchKind {
         #[arg(long)]
         quick: bool,
     },
-    /// How far each model is from a real block (issue 42, first part): real tosses of a
-    /// 10.5 cm cube tracked at 148 Hz, each simulated from its first tracked state by the paper
-    /// model and the precise model (at the source's nominal contact values and at its own) and
-    /// scored against the rest of its track: position error in cube edges (in flight and after
-    /// the first impact), rotation error, final position, same face, and the model's own time
-    /// per simulated second; the contact values fitted to a quarter of the tosses. Not yet:
-    /// MuJoCo and PyBullet.
+    /// How far each engine is from a real block: real tosses of a 10.5 cm cube tracked at
+    /// 148 Hz, each simulated from its first tracked state by the paper model, the precise model
+    /// (rapier3d), MuJoCo and PyBullet (at the source's nominal contact values, at values
+    /// fitted to a quarter of the tosses, and at each engine's own), and scored against the rest
+    /// of its track: position error in cube edges (in flight and after the first impact),
+    /// rotation error, final position, same face, and each engine's own time per simulated
+    /// second (MuJoCo and PyBullet from Python, their loops timed apart from the bench's I/O).
     Tosses {
         /// Where tosses.json, tosses.md and tosses.png go.
         #[arg(long, default_value = "out/bench")]
@@ -501,13 +501,19 @@ pub enum BenchKind {
         /// from).
         #[arg(long, value_name = "DIR", default_value = "../shared/data/tosses")]
         tosses: PathBuf,
-        /// Fit the precise model's friction and restitution again (a grid, scored on every
-        /// fourth toss) and write config/tosses-fit.toml, which every run reads.
+        /// Fit every engine's contact values again (friction x restitution, then contact
+        /// stiffness, a grid scored on every fourth toss) and write config/tosses-fit.toml,
+        /// which every run reads.
         #[arg(long)]
         fit: bool,
-        /// The first 40 tosses only (seconds).
+        /// The first 40 tosses only (a minute).
         #[arg(long)]
         quick: bool,
+        /// A Python that imports mujoco and pybullet, for the outside engines. Without it the
+        /// bench makes its own venv under target/toss-engines (once, from the package index);
+        /// where it cannot, the run goes on without them and its page says so.
+        #[arg(long, value_name = "PATH")]
+        python: Option<PathBuf>,
     },
     /// What a step costs as the world grows (16 to 4096 blocks: falling, resting, a hand
     /// sweeping a field) under both models, and what each `[effects]` effect costs on and off.
