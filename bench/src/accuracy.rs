@@ -49,6 +49,119 @@ pub struct AccuracyBench {
     pub out_dir: PathBuf,
     /// A reduced sweep (fewer scenes and settings) that runs in under a minute.
     pub quick: bool,
+    /// Whole runs (every scene, setting and round, from the start): the published ratios are
+    /// the median over them, with their run-to-run spread. At least 1; 3 by default.
+    pub runs: usize,
+}
+
+/// The whole runs a published figure takes the median of, by default.
+pub const DEFAULT_RUNS: usize = 3;
+
+/// One whole run's results.
+struct Whole {
+    rows: Vec<Row>,
+    summary: Vec<Point>,
+    pareto: Vec<Point>,
+    verdicts: Vec<Verdict>,
+    checks: Vec<ReferenceCheck>,
+    notes: Vec<String>,
+    reference: Setting,
+}
+
+/// One verdict's figures across whole runs: each run's median over its rounds.
+#[derive(Debug, Clone, Default)]
+pub struct AcrossRuns {
+    pub best_against_best: Vec<f64>,
+    pub at_paper_best: Vec<f64>,
+    pub at_precise_best: Vec<f64>,
+    /// The settings each run chose (they can differ where two settings cost about the same).
+    pub paper_settings: Vec<String>,
+    pub precise_settings: Vec<String>,
+}
+
+/// Per verdict of the last run (class, paper model), its figures in every run.
+fn across_runs(wholes: &[Whole]) -> Vec<AcrossRuns> {
+    let Some(last) = wholes.last() else {
+        return Vec::new();
+    };
+    last.verdicts
+        .iter()
+        .map(|v| {
+            let mut a = AcrossRuns::default();
+            for w in wholes {
+                let Some(u) = w
+                    .verdicts
+                    .iter()
+                    .find(|u| u.class == v.class && u.paper_model == v.paper_model)
+                else {
+                    continue;
+                };
+                let med = |r: &[f64]| spread(r).map_or(f64::NAN, |s| s.median);
+                a.best_against_best.push(med(&u.ratios));
+                a.at_paper_best.push(med(&u.ratios_at_paper_best));
+                a.at_precise_best.push(med(&u.ratios_at_precise_best));
+                for (list, p) in [
+                    (&mut a.paper_settings, &u.paper),
+                    (&mut a.precise_settings, &u.precise),
+                ] {
+                    if let Some(p) = p {
+                        if !list.contains(&p.setting) {
+                            list.push(p.setting.clone());
+                        }
+                    }
+                }
+            }
+            a
+        })
+        .collect()
+}
+
+/// The published table: per class, each ratio as the median of the runs' medians, [min, max]
+/// over the runs.
+pub fn across_runs_table(verdicts: &[Verdict], across: &[AcrossRuns], runs: usize) -> String {
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "| class | judged against | best against best: precise/paper per simulated s, median of {runs} runs [min, max over runs] | at matched error, the paper's best as target | at matched error, the precise best as target | settings chosen (paper; precise) |"
+    );
+    o.push_str("|---|---|---|---|---|---|\n");
+    for (v, a) in verdicts.iter().zip(across) {
+        let name = if v.paper_model == "paper-R14" {
+            format!("{} (paper with R14)", v.class)
+        } else {
+            v.class.to_string()
+        };
+        let cell = |r: &[f64]| match spread(r) {
+            _ if matches!(
+                v.against,
+                Against::NoConvergedReference | Against::ReferenceTooCoarse
+            ) =>
+            {
+                "no verdict".to_string()
+            }
+            None => "none reaches it".to_string(),
+            s => fmt_spread(s, fmt_ratio, "x"),
+        };
+        let _ = writeln!(
+            o,
+            "| {name} | {} | {} | {} | {} | {}; {} |",
+            v.against.label(),
+            cell(&a.best_against_best),
+            cell(&a.at_paper_best),
+            cell(&a.at_precise_best),
+            if a.paper_settings.is_empty() {
+                "-".to_string()
+            } else {
+                a.paper_settings.join(" / ")
+            },
+            if a.precise_settings.is_empty() {
+                "-".to_string()
+            } else {
+                a.precise_settings.join(" / ")
+            },
+        );
+    }
+    o
 }
 
 /// One model at one setting.
@@ -1108,6 +1221,43 @@ const JUDGED_BELOW_SHARE: f64 = 1.0 / 3.0;
 pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
     std::fs::create_dir_all(&b.out_dir)
         .map_err(|e| format!("{}: cannot create: {e}", b.out_dir.display()))?;
+    let started = Instant::now();
+    let runs = b.runs.max(1);
+    let mut wholes = Vec::with_capacity(runs);
+    for k in 0..runs {
+        eprintln!("accuracy: whole run {} of {runs}", k + 1);
+        wholes.push(whole_run(b)?);
+    }
+    let across = across_runs(&wholes);
+    let Some(w) = wholes.pop() else {
+        return Err("no run".into());
+    };
+    write_json(&b.out_dir.join("accuracy.json"), &w, &across, runs)?;
+    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
+    let md = markdown(&w, &across, runs, &provenance);
+    std::fs::write(b.out_dir.join("accuracy.md"), &md)
+        .map_err(|e| format!("{}: {e}", b.out_dir.join("accuracy.md").display()))?;
+    let png = b.out_dir.join("accuracy.png");
+    let text = figure(&w.summary, &w.pareto).write_png(&png)?;
+    if !text {
+        eprintln!(
+            "accuracy: no TrueType font found (install fonts-dejavu-core or set HB_PLOT_FONT): {} has no labels",
+            png.display()
+        );
+    }
+    println!("{}", across_runs_table(&w.verdicts, &across, runs));
+    println!(
+        "accuracy: {runs} whole runs of {} rows in {:.0} s; wrote {}, accuracy.md, accuracy.png",
+        w.rows.len(),
+        started.elapsed().as_secs_f64(),
+        b.out_dir.join("accuracy.json").display()
+    );
+    Ok(w.rows)
+}
+
+/// One whole run: every scene's references, then every setting on every scene in interleaved
+/// rounds, summarised and judged.
+fn whole_run(b: &AccuracyBench) -> Result<Whole, Box<dyn std::error::Error>> {
     let cases = cases(b.quick);
     let (paper, precise) = settings(b.quick);
     let reference = reference_setting(b.quick);
@@ -1262,42 +1412,15 @@ pub fn run(b: &AccuracyBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
     }
     let pareto = pareto_of(&summary);
     let verdicts = verdicts(&summary, &changes);
-    write_json(
-        &b.out_dir.join("accuracy.json"),
-        &rows,
-        &summary,
-        &pareto,
-        &verdicts,
-        &checks,
-    )?;
-    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
-    let md = markdown(
-        &rows,
-        &summary,
-        &pareto,
-        &verdicts,
-        &notes,
+    Ok(Whole {
+        rows,
+        summary,
+        pareto,
+        verdicts,
+        checks,
+        notes,
         reference,
-        &provenance,
-    );
-    std::fs::write(b.out_dir.join("accuracy.md"), &md)
-        .map_err(|e| format!("{}: {e}", b.out_dir.join("accuracy.md").display()))?;
-    let png = b.out_dir.join("accuracy.png");
-    let text = figure(&summary, &pareto).write_png(&png)?;
-    if !text {
-        eprintln!(
-            "accuracy: no TrueType font found (install fonts-dejavu-core or set HB_PLOT_FONT): {} has no labels",
-            png.display()
-        );
-    }
-    println!("{}", summary_table(&verdicts));
-    println!(
-        "accuracy: {} rows in {:.0} s; wrote {}, accuracy.md, accuracy.png",
-        rows.len(),
-        started.elapsed().as_secs_f64(),
-        b.out_dir.join("accuracy.json").display()
-    );
-    Ok(rows)
+    })
 }
 
 /// A class's figure for one model setting: the worst error over the class's scenes (for
@@ -1681,12 +1804,12 @@ fn point_json(p: &Point) -> Value {
 
 fn write_json(
     path: &Path,
-    rows: &[Row],
-    summary: &[Point],
-    pareto: &[Point],
-    verdicts: &[Verdict],
-    checks: &[ReferenceCheck],
+    w: &Whole,
+    across: &[AcrossRuns],
+    runs: usize,
 ) -> Result<(), Box<dyn std::error::Error>> {
+    let (rows, summary, pareto, verdicts, checks) =
+        (&w.rows, &w.summary, &w.pareto, &w.verdicts, &w.checks);
     let rows: Vec<Value> = rows
         .iter()
         .map(|r| {
@@ -1700,8 +1823,21 @@ fn write_json(
     let pareto: Vec<Value> = pareto.iter().map(point_json).collect();
     let verdicts: Vec<Value> = verdicts
         .iter()
-        .map(|v| {
+        .zip(across.iter().map(Some).chain(std::iter::repeat(None)))
+        .map(|(v, a)| {
+            let over_runs =
+                |r: &[f64]| json!({"spread": spread_json(spread(r)), "per_run": nums(r)});
+            let across_runs = a.map(|a| {
+                json!({
+                "runs": runs,
+                "ratio_best_against_best": over_runs(&a.best_against_best),
+                "ratio_at_paper_best": over_runs(&a.at_paper_best),
+                "ratio_at_precise_best": over_runs(&a.at_precise_best),
+                "paper_settings": a.paper_settings,
+                "precise_settings": a.precise_settings})
+            });
             json!({"class": v.class, "paper_model": v.paper_model,
+                   "across_runs": across_runs,
                    "against": v.against.key(), "against_label": v.against.label(),
                    "reference_change": num(v.reference_change),
                    "smallest_error_judged": num(v.smallest_error_judged),
@@ -1730,6 +1866,8 @@ fn write_json(
         })
         .collect();
     let doc = json!({"time_axis": "us per simulated second (us per step x step rate)",
+                     "runs": runs,
+                     "published": "verdicts[].across_runs: each ratio the median of the whole runs' medians, with min and max over the runs; everything else is the last run's",
                      "rounds": ROUNDS, "finger_radius_m": FINGER_RADIUS,
                      "grasp_throw_contact_hz": GRASP_CONTACT_HZ,
                      "rows": rows, "summary": summary, "pareto": pareto,
@@ -1870,15 +2008,15 @@ pub fn summary_table(verdicts: &[Verdict]) -> String {
     o
 }
 
-fn markdown(
-    rows: &[Row],
-    summary: &[Point],
-    pareto: &[Point],
-    verdicts: &[Verdict],
-    notes: &[String],
-    reference: Setting,
-    provenance: &Provenance,
-) -> String {
+fn markdown(w: &Whole, across: &[AcrossRuns], runs: usize, provenance: &Provenance) -> String {
+    let (rows, summary, pareto, verdicts, notes, reference) = (
+        &w.rows,
+        &w.summary,
+        &w.pareto,
+        &w.verdicts,
+        &w.notes,
+        w.reference,
+    );
     let quick = provenance.quick;
     let what = format!(
         "What accuracy costs in time{}: the paper model and the precise model (rapier3d, \
@@ -1889,7 +2027,9 @@ fn markdown(
          rounds each timing every setting once in turn, each round starting one setting later \
          (no setting is always first); a reading repeats a run shorter than 2 ms until it fills \
          2 ms and takes the median; a time is the median over the rounds, on this machine, in \
-         this run (one run: a run-to-run spread needs the command run again). Settings differ in step rate, so costs are compared per \
+         this run. The published ratios (the first table) are the median over {runs} whole \
+         runs of each run's median, with their run-to-run spread [min, max over the runs]; the \
+         tables after it are the last run's. Settings differ in step rate, so costs are compared per \
          simulated second (us per step x step rate).\n\n\
          How to read it: lower is better on both axes. The summary gives per class each \
          model's best error and the cheapest setting reaching it; its last column divides the \
@@ -1914,8 +2054,17 @@ fn markdown(
         "per class, error against time per simulated second, one colour per model, the Pareto front ringed",
         "accuracy.png",
     ));
+    let _ = writeln!(
+        o,
+        "## The ratios, over {runs} whole runs (the published figures)\n\n\
+         Each whole run measures everything again from the start; a cell is the median of the \
+         runs' medians (each over its rounds), [min, max] over the runs. *Best against best*: \
+         each model at its own best error (not equal accuracy). *At matched error*: the \
+         cheapest setting of one model that reaches the other's best (docs/accuracy-cost.md).\n"
+    );
+    o.push_str(&across_runs_table(verdicts, across, runs));
     o.push_str(
-        "## Summary (per class: each model's best error, the cheapest setting per simulated second reaching it)\n\n",
+        "\n## Summary of the last run (per class: each model's best error, the cheapest setting per simulated second reaching it)\n\n",
     );
     o.push_str(&summary_table(verdicts));
     o.push_str("\n## Classes and references\n\n");
@@ -2200,13 +2349,20 @@ mod tests {
         assert!(!line.contains("| 0 |"), "{line}");
         // Nor in the figure (no panel) or the markdown's tables ("-").
         assert!(figure(&summary, &[]).panels.is_empty());
+        let whole = Whole {
+            rows: vec![row(f64::NAN)],
+            summary: summary.clone(),
+            pareto: Vec::new(),
+            verdicts: v.clone(),
+            checks: Vec::new(),
+            notes: Vec::new(),
+            reference: Setting::Paper { hz: 60.0 },
+        };
+        let across = across_runs(std::slice::from_ref(&whole));
         let md = markdown(
-            &[row(f64::NAN)],
-            &summary,
-            &[],
-            &v,
-            &[],
-            Setting::Paper { hz: 60.0 },
+            &whole,
+            &across,
+            1,
             &Provenance {
                 command: "handblocks bench accuracy --quick".into(),
                 date_utc: "2024-01-01 00:00 UTC".into(),
@@ -2217,6 +2373,8 @@ mod tests {
         );
         assert!(md.contains("| push | paper | 60 Hz | - | mm |"), "{md}");
         assert!(md.contains("The 1 rows of every scene"), "{md}");
+        // The published table says how many whole runs its medians are over.
+        assert!(md.contains("median of 1 runs [min, max over runs]"), "{md}");
         // With a change under a third of the paper's best error, the same class is labelled
         // agreement, not accuracy.
         let v = verdicts(&summarise(&[row(2.0)]), &[("push", 0.5)]);

@@ -120,10 +120,11 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
             };
             (name, latency(part, quick, exe, session, seconds, out))
         }
-        BenchKind::Accuracy { out, quick } => {
+        BenchKind::Accuracy { out, quick, runs } => {
             let b = handblocks_bench::accuracy::AccuracyBench {
                 out_dir: out,
                 quick,
+                runs: usize::try_from(runs).unwrap_or(1),
             };
             ("accuracy", handblocks_bench::accuracy::run(&b).map(drop))
         }

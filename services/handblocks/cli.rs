@@ -454,6 +454,10 @@ pub enum BenchKind {
         /// A reduced sweep (under a minute on 2 cores).
         #[arg(long)]
         quick: bool,
+        /// Whole runs, each measuring everything from the start: every published ratio is the
+        /// median of the runs' medians, with the run-to-run spread beside it.
+        #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=20))]
+        runs: u64,
     },
     /// Every hard case (config/scenes/hard/) under the paper model, R11 only (stacks) and the
     /// precise one, with drift, sink, penetration, decision, time to rest and a state hash.
