@@ -1143,9 +1143,12 @@ fn p_bullet_moving(o: &Outcome) -> Result<String, String> {
     }
 }
 
-/// Far from the origin: the same relative result as the origin run, within 1 mm and 1 mrad
-/// (f64 at 10,000 km: 2e-9 m a unit in the last place; the engine's own contact solve is
-/// not bit-reproducible under translation), and the scene did something.
+/// Far from the origin: the same relative result as the origin run, within 1 mm and 1 mrad,
+/// and the scene did something. The precise model computes in the anchored frame as the paper
+/// model does (docs/model.md R9 Precision), so the engine sees the numbers it sees at the
+/// origin; what is left is the scene's own positions rounded at that distance (2e-9 m at
+/// 10,000 km), which the tipping amplifies (measured: 1.8e-5 m at 10,000 km; before the
+/// anchor, 0.0122 m there, a known failure).
 fn p_far(o: &Outcome) -> Result<String, String> {
     let origin = o.origin.as_ref().ok_or("no origin run")?;
     let mut worst: f64 = 0.0;
@@ -1316,21 +1319,6 @@ fn step_passed(o: &Outcome) -> f64 {
         .map_or(f64::INFINITY, |k| k as f64)
 }
 
-/// The largest difference (m) of a block's final position from the origin run's.
-fn far_difference_m(o: &Outcome) -> f64 {
-    let Some(origin) = &o.origin else {
-        return f64::NAN;
-    };
-    match (o.poses.last(), origin.poses.last()) {
-        (Some(a), Some(b)) => a
-            .iter()
-            .zip(b)
-            .map(|(a, b)| ((a.0 - o.shift) - b.0).length())
-            .fold(f64::NAN, f64::max),
-        _ => f64::NAN,
-    }
-}
-
 /// The farthest (m) a block ends from its start.
 fn farthest_thrown_m(o: &Outcome) -> f64 {
     match (o.poses.first(), o.poses.last()) {
@@ -1350,16 +1338,6 @@ fn block_1_sank_mm(o: &Outcome) -> f64 {
         _ => f64::NAN,
     }
 }
-
-const FAR_DIFFERS: Known = Known {
-    why: "not translation invariant at 10,000 km: f64 positions there are 2e-9 m apart; that \
-          rounding seeds a different contact solve, and tipping amplifies it",
-    figure: "largest final difference from the origin run",
-    unit: "m",
-    measure: far_difference_m,
-    measured: 0.0122,
-    band: (0.0061, 0.0244),
-};
 
 const TOWER_20_FALLS: Known = Known {
     why: "a tall aligned column of cubes buckles: the soft contacts sink each interface and \
@@ -1531,7 +1509,7 @@ pub const CASES: &[Case] = &[
             Glitch::None,
             false
         )
-    }, stack false, expect None, Fails(p_far, &FAR_DIFFERS)),
+    }, stack false, expect None, P(p_far)),
     with!(case!("overlapping-spawn", 10, overlapping_spawn), stack false, expect None, P(p_overlapping_spawn)),
     with!(case!(
         "push-into-wall",
@@ -1604,6 +1582,6 @@ mod tests {
                 );
             }
         }
-        assert!(seen >= 10, "{seen} known failures");
+        assert!(seen >= 9, "{seen} known failures");
     }
 }

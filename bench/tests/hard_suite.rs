@@ -7,7 +7,7 @@
 //! - `precise::*`: the precise model (rapier3d) at its default `[precise]` settings, with a
 //!   criterion fitted to a rigid-body engine (mm, stands/falls, no tunnelling). Where the engine
 //!   fails it (`Precise::KnownFailure`: the tall aligned towers and drop-onto-tower, harmonic at
-//!   99%, the fall step, both bullets, far from the origin, the 1 m hand jump, heavy on light)
+//!   99%, the fall step, both bullets, the 1 m hand jump, heavy on light)
 //!   the test does not hide it: it asserts that the measured behaviour is finite and bounded
 //!   (`hard_cases::bounded`), that the criterion still fails (a failure that starts passing is
 //!   to be promoted), and that the failure's figure, measured by the run

@@ -22,11 +22,13 @@
 //! - `two_hands`: a two-hand world's stage 1, each hand's actions combined block by block;
 //! - [`block_set`]: sets of block indices as bit sets sized for their world (R14's);
 //! - [`precise`]: the precise reference model (rapier3d), beside the paper's;
+//! - [`anchor`]: the frame both models compute in, near the blocks wherever the scene is;
 //! - [`model`]: the one switch between the two that the process and `simulate` hold;
 //! - [`timeline`]: steps on the hand's source time, for the process and `simulate` alike;
 //! - [`simulate`](mod@simulate): `handblocks simulate`, the bare check-point hand;
 //! - [`service`]: the stepper process, a shell of IPC around the above.
 
+pub mod anchor;
 pub mod block_set;
 pub mod body;
 pub mod event;

@@ -9,7 +9,7 @@ mod support;
 use glam::{DQuat, DVec3};
 
 use common::config::Scene;
-use stepper::{simulate, EventKind, Model, Report};
+use stepper::{simulate, BareFingersHand, EventKind, HandSource, Model, Report};
 use support::*;
 
 const G: f64 = 9.81;
@@ -227,6 +227,71 @@ fn precise_world_sample_carries_poses_and_modes() {
     assert_eq!(out.grasped_block, -1);
     assert_eq!(out.blocks[0].mode(), common::BlockMode::Resting);
     assert!((out.blocks[0].pose.position[1] - 0.05).abs() < 1e-3);
+}
+
+/// The precise model computes in the anchored frame (docs/model.md R9 Precision, the paper
+/// model's rule) and gives everything back in the scene's: push.toml moved 99 km along x has
+/// its anchor at the shift; its world sample carries the hand's check points exactly as they
+/// were given, and the cube (`block(i)` the same pose) where the run at the origin has it
+/// plus the shift, within 1e-4 m (its hand's samples are rounded at 99 km: 4.4e-5 m measured,
+/// bench/tests/far_from_origin.rs; 85 mm before the precise model had an anchor). At the
+/// origin the anchor is zero, and nothing is translated.
+#[test]
+fn precise_world_far_from_the_origin_computes_at_its_anchor_and_publishes_the_scene_frame() {
+    let s = precise_file("push");
+    let shift = DVec3::new(99_000.0, 0.0, 0.0);
+    let mut far = s.clone();
+    for b in &mut far.blocks {
+        b.position = (DVec3::from_array(b.position) + shift).to_array();
+    }
+    for k in far.hand.iter_mut().flat_map(|h| h.keys.iter_mut()) {
+        k.wrist = (DVec3::from_array(k.wrist) + shift).to_array();
+    }
+    let anchor = |m: &Model| match m {
+        Model::Precise(w) => w.anchor(),
+        Model::Paper(w) => w.anchor(),
+    };
+    let (mut m0, mut m) = (Model::new(&s).unwrap(), Model::new(&far).unwrap());
+    assert_eq!(anchor(&m0), DVec3::ZERO);
+    assert_eq!(anchor(&m), shift);
+    let (mut hand0, mut hand) = (
+        BareFingersHand::from_scene(&s).unwrap(),
+        BareFingersHand::from_scene(&far).unwrap(),
+    );
+    m0.set_previous_hand(hand0.hand_at(0, 0.0).as_ref());
+    m.set_previous_hand(hand.hand_at(0, 0.0).as_ref());
+    let mut out = common::WorldSample::default();
+    let mut pushed = false;
+    for n in 1..=240 {
+        let t = n as f64 / s.world.step_hz;
+        m0.step(hand0.hand_at(n, t).as_ref());
+        let h = hand.hand_at(n, t).unwrap();
+        m.step(Some(&h));
+        pushed |= m.events().iter().any(|e| e.kind == EventKind::Push);
+        m.write_sample(&mut out);
+        assert_eq!(out.finger_count, h.finger_count);
+        for f in 0..h.finger_count as usize {
+            let k = h.finger_point_count[f] as usize;
+            assert_eq!(
+                out.finger_points[f][..k],
+                h.finger_points[f][..k],
+                "step {n}"
+            );
+        }
+        let (b0, b) = (m0.block(0).unwrap(), m.block(0).unwrap());
+        assert_eq!(
+            b.position.to_array(),
+            out.blocks[0].pose.position,
+            "step {n}"
+        );
+        assert!(
+            (b.position - shift - b0.position).length() < 1e-4,
+            "step {n}: the cube at {} moved back, {} at the origin",
+            b.position - shift,
+            b0.position
+        );
+    }
+    assert!(pushed, "the finger never reached the cube");
 }
 
 fn load_err(text: &str) -> common::config::ConfigError {

@@ -23,6 +23,13 @@
 //! the bodies whose CCD flag changes; the mode derivation skips bodies that slept through the
 //! step (module [`modes`]).
 //!
+//! Like the paper model it computes in its own frame near the blocks (the *anchor*, module
+//! [`crate::anchor`], the same rule): rapier's positions far from the origin round as coarsely
+//! as the scene's coordinates (1.5e-11 m at 99 km), every contact solve there starts from
+//! rounded numbers, and a push 99 km along x ended 85 mm from the run at the origin. Blocks and
+//! the hand enter the engine less the anchor, and poses and check points leave it plus the
+//! anchor; within 32 m of the origin the anchor is zero and not a bit changes.
+//!
 //! No rapier type leaves this module: the rest of the crate sees poses, modes and events
 //! through [`crate::model::Model`].
 
@@ -48,6 +55,7 @@ use common::{
     MAX_FINGER_POINTS,
 };
 
+use crate::anchor::{finger_points_to_scene, local_origin, to_scene, translate_hand};
 use crate::geometry::Polyhedron;
 use crate::world::{BlockView, Event, EventKind, Fingers, WorldError};
 
@@ -99,7 +107,11 @@ pub struct PreciseWorld {
     release_angle: f64,
     steps: u64,
     events: Vec<Event>,
+    /// The hand at the previous step, in the world's frame.
     prev_hand: Option<HandSample>,
+    /// Where the world's frame is in the scene's ([`local_origin`]): rapier's bodies, the
+    /// floor and the hand's colliders live in that frame.
+    anchor: DVec3,
     /// Hand samples refused where they entered (`hand::unusable_because`).
     rejected_hands: u64,
     fingers: Fingers,
@@ -173,6 +185,8 @@ impl PreciseWorld {
                 .build();
             physics.colliders.insert(floor);
         }
+        // The paper model's anchor (on the floor: the floor's half-space stays y = 0).
+        let anchor = local_origin(scene.blocks.iter().map(|b| b.position));
         let mut blocks = Vec::with_capacity(scene.blocks.len());
         let mut block_of_body = Vec::with_capacity(scene.blocks.len());
         for (i, spec) in scene.blocks.iter().enumerate() {
@@ -214,7 +228,7 @@ impl PreciseWorld {
                 DVec3::ZERO
             };
             let mut body = RigidBodyBuilder::dynamic()
-                .translation(DVec3::from_array(spec.position))
+                .translation(DVec3::from_array(spec.position) - anchor)
                 .linvel(velocity)
                 .can_sleep(p.sleep)
                 .build();
@@ -275,6 +289,7 @@ impl PreciseWorld {
             release_angle: w.release_angle,
             steps: 0,
             prev_hand: None,
+            anchor,
             rejected_hands: 0,
             fingers: Fingers {
                 count: 0,
@@ -289,10 +304,27 @@ impl PreciseWorld {
         self.rejected_hands
     }
 
+    /// The world frame's origin in the scene's ([`local_origin`]).
+    pub fn anchor(&self) -> DVec3 {
+        self.anchor
+    }
+
+    /// `hand` in the world's frame: a translated copy when the anchor is not zero, else none
+    /// (the caller uses `hand` itself: not a bit changes near the origin).
+    fn in_world_frame(&self, hand: &HandSample) -> Option<HandSample> {
+        (self.anchor != DVec3::ZERO).then(|| {
+            let mut local = *hand;
+            translate_hand(hand, -self.anchor, &mut local);
+            local
+        })
+    }
+
     /// The hand the first step starts from (see `World::set_previous_hand`): the kinematic
     /// colliders are placed there, so the first step moves them with the hand's own velocity.
     pub fn set_previous_hand(&mut self, hand: Option<&HandSample>) {
-        self.prev_hand = hand.filter(|h| hand::is_usable(h)).copied();
+        self.prev_hand = hand
+            .filter(|h| hand::is_usable(h))
+            .map(|h| self.in_world_frame(h).unwrap_or(*h));
         if let (Some(bodies), Some(h)) = (self.hand.as_mut(), self.prev_hand.as_ref()) {
             bodies.place(&mut self.physics, h);
         }
@@ -305,16 +337,18 @@ impl PreciseWorld {
         self.steps += 1;
         self.events.clear();
         // A hand the rules cannot use is refused where it enters, and the hand holds its last
-        // good pose, as in the paper model.
-        let held = match hand {
+        // good pose (already in the world's frame), as in the paper model. A usable one enters
+        // the world's frame here (translated only when the anchor is not zero).
+        let local = match hand {
             Some(h) if !hand::is_usable(h) => {
                 self.rejected_hands += 1;
                 self.prev_hand
             }
-            _ => None,
+            Some(h) => self.in_world_frame(h),
+            None => None,
         };
-        let hand = if held.is_some() {
-            held.as_ref()
+        let hand = if local.is_some() {
+            local.as_ref()
         } else {
             hand.filter(|h| hand::is_usable(h))
         };
@@ -417,7 +451,7 @@ impl PreciseWorld {
 
     /// The `world` sample's header: steps, block count, the grasped block and the hand's check
     /// points as they are (the engine keeps fingers outside blocks by pushing the blocks, not
-    /// by relocating the fingers). Leaves `stamp` and `hand_seq` alone.
+    /// by relocating the fingers), in the scene's frame. Leaves `stamp` and `hand_seq` alone.
     pub fn write_header(&self, out: &mut WorldHeader) {
         out.step = self.steps;
         out.block_count = self.blocks.len() as u32;
@@ -429,6 +463,7 @@ impl PreciseWorld {
         out.finger_count = self.fingers.count;
         out.finger_point_count = self.fingers.point_count;
         out.finger_points = self.fingers.points;
+        finger_points_to_scene(out, self.anchor);
     }
 
     /// Block `i`'s state in the `world` sample: its body's pose and the mode.
@@ -437,7 +472,7 @@ impl PreciseWorld {
         let body = &self.physics.bodies[b.body];
         BlockState {
             pose: Pose {
-                position: body.translation().to_array(),
+                position: to_scene(body.translation(), self.anchor).to_array(),
                 rotation: body.rotation().to_array(),
             },
             mode: b.mode as u32,
@@ -476,7 +511,7 @@ impl PreciseWorld {
         let b = self.blocks.get(i)?;
         let body = &self.physics.bodies[b.body];
         Some(BlockView {
-            position: body.translation(),
+            position: to_scene(body.translation(), self.anchor),
             rotation: *body.rotation(),
             mode: b.mode,
             v: body.linvel() * self.dt,
@@ -493,7 +528,6 @@ impl PreciseWorld {
         &self.file
     }
 
-    /// The settings this world runs with.
     /// Sets block `i`'s linear (m/s) and angular (rad/s, the world's frame) velocity, waking
     /// it: a scene gives a block's start velocity but no spin (the paper's free motion has
     /// none), and `handblocks bench tosses` starts a real toss with both.
@@ -508,6 +542,7 @@ impl PreciseWorld {
         }
     }
 
+    /// The settings this world runs with.
     pub fn settings(&self) -> &PreciseSettings {
         &self.settings
     }
