@@ -66,6 +66,9 @@ pub struct TossesBench {
     /// A Python that imports `mujoco` and `pybullet`; None: the bench's own venv
     /// ([`Outside::prepare`]).
     pub python: Option<PathBuf>,
+    /// Whole runs of every contender (each [`ROUNDS`] interleaved rounds): a published time is
+    /// the median of the runs' medians, with the run-to-run spread. At least 1.
+    pub runs: usize,
 }
 
 /// An engine nobody here wrote, driven from Python by `bench/python/toss_engines.py`.
@@ -964,7 +967,8 @@ pub struct TossScore {
     pub same_face: bool,
 }
 
-fn score(toss: &Toss, path: &[(DVec3, DQuat)]) -> TossScore {
+/// How `path` (one pose per sample of `toss`) did against the real track.
+pub fn score(toss: &Toss, path: &[(DVec3, DQuat)]) -> TossScore {
     let impact = first_impact(toss).max(1);
     let mut all = (0.0, 0usize);
     let mut flight = (0.0, 0usize);
@@ -999,10 +1003,13 @@ pub struct Row {
     pub per_toss: Vec<(PathBuf, TossScore)>,
     /// The first round's paths (every round computes the same: the engines are deterministic).
     pub paths: Vec<Path7>,
-    /// Median over the rounds of the engine's own time per simulated second, us.
+    /// The engine's own time per simulated second, us: the median over the whole runs of
+    /// each run's median over its rounds.
     pub us_per_sim_s: f64,
-    /// Each round's figure (the spread).
+    /// Each round's figure, the runs one after another.
     pub rounds_us_per_sim_s: Vec<f64>,
+    /// Each whole run's median (the run-to-run spread).
+    pub runs_us_per_sim_s: Vec<f64>,
 }
 
 impl Row {
@@ -1049,6 +1056,7 @@ pub fn measure(
             paths: Vec::new(),
             us_per_sim_s: f64::NAN,
             rounds_us_per_sim_s: Vec::new(),
+            runs_us_per_sim_s: Vec::new(),
         })
         .collect();
     for round in 0..ROUNDS {
@@ -1072,6 +1080,32 @@ pub fn measure(
     }
     for r in &mut rows {
         r.us_per_sim_s = median(&r.rounds_us_per_sim_s);
+        r.runs_us_per_sim_s = vec![r.us_per_sim_s];
+    }
+    Ok(rows)
+}
+
+/// [`measure`] `runs` times over (the paths and scores of the first; they are the same every
+/// run), each row's time the median of the runs' medians.
+pub fn measure_runs(
+    tosses: &[Toss],
+    floor: f64,
+    cs: &[Contender],
+    outside: Option<&Outside>,
+    runs: usize,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<Row>, String> {
+    let mut rows = measure(tosses, floor, cs, outside, progress)?;
+    for k in 1..runs.max(1) {
+        progress(&format!("tosses: whole run {} of {runs}", k + 1));
+        let again = measure(tosses, floor, cs, outside, progress)?;
+        for (r, a) in rows.iter_mut().zip(again) {
+            r.rounds_us_per_sim_s.extend(a.rounds_us_per_sim_s);
+            r.runs_us_per_sim_s.push(a.us_per_sim_s);
+        }
+    }
+    for r in &mut rows {
+        r.us_per_sim_s = median(&r.runs_us_per_sim_s);
     }
     Ok(rows)
 }
@@ -1170,6 +1204,7 @@ pub fn to_json(rows: &[Row], facts: &RunFacts) -> Value {
             "params": r.contender.params.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
             "us_per_sim_s": num(r.us_per_sim_s),
             "us_per_sim_s_rounds": r.rounds_us_per_sim_s.iter().map(|v| num(*v)).collect::<Vec<_>>(),
+            "us_per_sim_s_runs": r.runs_us_per_sim_s.iter().map(|v| num(*v)).collect::<Vec<_>>(),
             "position_error": {"median": num(r.stat(|s| s.position_error, 0.5)), "p90": num(r.stat(|s| s.position_error, 0.9)), "median_held_out": num(r.held_out_median(|s| s.position_error))},
             "position_error_flight": {"median": num(r.stat(|s| s.position_error_flight, 0.5)), "p90": num(r.stat(|s| s.position_error_flight, 0.9))},
             "position_error_after_impact": {"median": num(r.stat(|s| s.position_error_after, 0.5)), "p90": num(r.stat(|s| s.position_error_after, 0.9))},
@@ -1272,7 +1307,9 @@ model, the precise model (rapier3d), and two engines nobody here wrote, MuJoCo a
 the simulated and the real centre, in cube edges (10.48 cm); rotation error the mean angle \
 between the two orientations; final error where the two cubes end; same face whether they \
 rest on the same face. Median and p90 over the tosses. Time is each engine's own loop per \
-simulated second, the median of interleaved rounds: our models' step loop (the scene built \
+simulated second: in each whole run the median of interleaved rounds (every contender once \
+per round, the order rotated), and on the page the median over the whole runs, with their \
+spread [min, max over the runs]; our models' step loop (the scene built \
 outside it); for MuJoCo and PyBullet one call per sample (`mj_step(nstep)`, `stepSimulation` \
 with `numSubSteps`: the substeps inside the engine), the pose read outside the timed span, \
 less per call the binding's floor measured in the same run (a timed call that does no work), \
@@ -1348,20 +1385,25 @@ pub fn markdown(rows: &[Row], facts: &RunFacts, p: &Provenance, seconds: f64) ->
     }
     s.push('\n');
     s.push_str(
-        "| engine | setting | position error median / p90 (edges) | held out | in flight | after the first impact | rotation error median / p90 (deg) | final error median / p90 (m) | same face | us per simulated s (rounds) |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| engine | setting | position error median / p90 (edges) | held out | in flight | after the first impact | rotation error median / p90 (deg) | final error median / p90 (m) | same face | us per simulated s: median of the runs [min, max over runs] |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         let pair = |get: fn(&TossScore) -> f64, d: usize| {
             format!("{:.d$} / {:.d$}", r.stat(get, 0.5), r.stat(get, 0.9), d = d)
         };
-        let rounds: Vec<String> = r
-            .rounds_us_per_sim_s
+        let lo = r
+            .runs_us_per_sim_s
             .iter()
-            .map(|v| format!("{v:.0}"))
-            .collect();
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        let hi = r
+            .runs_us_per_sim_s
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.3} | {} | {} | {} | {} | {:.0} % | {:.0} ({}) |",
+            "| {} | {} | {} | {:.3} | {} | {} | {} | {} | {:.0} % | {:.0} [{lo:.0}, {hi:.0}] |",
             r.contender.name,
             r.contender.setting,
             pair(|t| t.position_error, 3),
@@ -1372,7 +1414,6 @@ pub fn markdown(rows: &[Row], facts: &RunFacts, p: &Provenance, seconds: f64) ->
             pair(|t| t.final_position_error_m, 3),
             r.same_face_pct(),
             r.us_per_sim_s,
-            rounds.join(", ")
         );
     }
     s.push('\n');
@@ -1564,7 +1605,7 @@ pub fn run(b: &TossesBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
     let (outside, left_out) = match Outside::prepare(
         &b.repo,
         b.python.as_deref(),
-        &b.out_dir.join("tosses-scratch"),
+        &std::env::temp_dir().join(format!("hb-tosses-{}", std::process::id())),
         &mut progress,
     ) {
         Ok(o) => (Some(o), None),
@@ -1597,7 +1638,7 @@ pub fn run(b: &TossesBench) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
         &[]
     };
     let cs = contenders(&fits, engines);
-    let rows = measure(&tosses, floor, &cs, outside.as_ref(), &mut progress)?;
+    let rows = measure_runs(&tosses, floor, &cs, outside.as_ref(), b.runs, &mut progress)?;
     if let Some(o) = &outside {
         let _ = std::fs::remove_dir(&o.scratch);
     }

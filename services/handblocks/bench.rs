@@ -156,10 +156,12 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
             fit,
             quick,
             python,
+            runs,
         } => {
             let b = handblocks_bench::tosses::TossesBench {
                 repo: std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")),
                 python,
+                runs: usize::try_from(runs).unwrap_or(1),
                 out_dir: out,
                 tosses_dir: traces_dir(tosses),
                 fit_file: std::path::Path::new(env!("CARGO_MANIFEST_DIR"))

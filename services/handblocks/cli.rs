@@ -518,6 +518,10 @@ pub enum BenchKind {
         /// where it cannot, the run goes on without them and its page says so.
         #[arg(long, value_name = "PATH")]
         python: Option<PathBuf>,
+        /// Whole runs of every engine (each 3 interleaved rounds): a published time is the
+        /// median of the runs' medians, with the run-to-run spread beside it.
+        #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=20))]
+        runs: u64,
     },
     /// What a step costs as the world grows (16 to 4096 blocks: falling, resting, a hand
     /// sweeping a field) under both models, and what each `[effects]` effect costs on and off.
