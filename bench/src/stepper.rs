@@ -71,6 +71,9 @@ pub struct StepperBench {
     pub out_dir: PathBuf,
     /// Sizes up to 64 blocks, 2 timed runs (5 otherwise), 5 ablation runs a side (9).
     pub quick: bool,
+    /// Whole runs of the scaling part (each every size, situation and round from the start):
+    /// a published ratio is the median of the runs' medians, with the run-to-run spread.
+    pub runs: usize,
 }
 
 /// The sizes the scaling part asks for.
@@ -688,6 +691,22 @@ pub fn round_ratios(
     (!ratios.is_empty()).then(|| (ratios.clone(), Spread::of(ratios)))
 }
 
+/// `model`'s ratio to the paper model for one (situation, N) over the whole runs: each run's
+/// median over its rounds ([`round_ratios`]), and their median [min, max over the runs].
+pub fn ratio_across_runs(
+    r: &Report,
+    model: &str,
+    situation: Situation,
+    blocks: usize,
+) -> Option<(Vec<f64>, Spread)> {
+    let per_run: Vec<f64> = r
+        .scaling_runs
+        .iter()
+        .filter_map(|rows| round_ratios(rows, model, situation, blocks).map(|(_, s)| s.median))
+        .collect();
+    (!per_run.is_empty()).then(|| (per_run.clone(), Spread::of(per_run)))
+}
+
 /// The least-squares slope of ln(p50) on ln(N) over the rows of one (model, situation).
 pub fn exponent(rows: &[ScalingRow], model: &str, situation: Situation) -> Option<f64> {
     let pts: Vec<(f64, f64)> = rows
@@ -864,7 +883,10 @@ pub struct Cheap {
 /// What one run of the benchmark measured.
 pub struct Report {
     pub cheap: Cheap,
+    /// The last whole run's scaling rows (the tables' p50s and p99s).
     pub scaling: Vec<ScalingRow>,
+    /// Every whole run's scaling rows, in run order (the published ratios: [`ratio_across_runs`]).
+    pub scaling_runs: Vec<Vec<ScalingRow>>,
     /// Sizes asked for that the world cannot hold yet: (N, why).
     pub not_run: Vec<(usize, String)>,
     pub ablation: Vec<AblationRow>,
@@ -923,10 +945,14 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
             precise: Some(cheap),
         },
     ];
-    let mut scaling = Vec::new();
-    for (k, &s) in Situation::ALL.iter().enumerate() {
-        for r in scaling_rows(&contenders, s, &measured, runs)? {
-            eprintln!(
+    let whole_runs = b.runs.max(1);
+    let mut scaling_runs = Vec::with_capacity(whole_runs);
+    for w in 0..whole_runs {
+        eprintln!("stepper: scaling, whole run {} of {whole_runs}", w + 1);
+        let mut scaling = Vec::new();
+        for (k, &s) in Situation::ALL.iter().enumerate() {
+            for r in scaling_rows(&contenders, s, &measured, runs)? {
+                eprintln!(
                 "stepper: scaling [{}/{}] {} {} x{}: p50 {:.1} us, p99 {:.1} us, {:.1} active ({:.0} s so far)",
                 k + 1,
                 Situation::ALL.len(),
@@ -938,9 +964,12 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
                 r.active,
                 started.elapsed().as_secs_f64()
             );
-            scaling.push(r);
+                scaling.push(r);
+            }
         }
+        scaling_runs.push(scaling);
     }
+    let scaling = scaling_runs.last().cloned().unwrap_or_default();
     for (n, why) in &not_run {
         eprintln!("stepper: scaling x{n}: not run: {why}");
     }
@@ -976,6 +1005,7 @@ pub fn run(b: &StepperBench) -> Result<Report, Box<dyn std::error::Error>> {
     let report = Report {
         cheap: found,
         scaling,
+        scaling_runs,
         not_run,
         ablation,
         clock_us,
@@ -1027,9 +1057,15 @@ fn to_json(r: &Report) -> Value {
         for n in sizes_of(&r.scaling, sit) {
             for m in &NAMES[1..] {
                 if let Some((per_round, s)) = round_ratios(&r.scaling, m, sit, n) {
+                    let across = ratio_across_runs(r, m, sit, n).map(|(per_run, a)| {
+                        json!({"runs": per_run.len(),
+                               "per_run_median": per_run.iter().map(|&v| num(v)).collect::<Vec<_>>(),
+                               "median": num(a.median), "min": num(a.min), "max": num(a.max)})
+                    });
                     ratios.push(json!({"model": m, "over": "paper", "situation": sit.name(),
-                        "blocks": n, "per_round": per_round.iter().map(|&v| num(v)).collect::<Vec<_>>(),
-                        "median": num(s.median), "min": num(s.min), "max": num(s.max)}));
+                        "blocks": n, "across_runs": across,
+                        "last_run": {"per_round": per_round.iter().map(|&v| num(v)).collect::<Vec<_>>(),
+                                     "median": num(s.median), "min": num(s.min), "max": num(s.max)}}));
                 }
             }
         }
@@ -1106,7 +1142,7 @@ fn times(x: f64) -> String {
 /// The scaling table: one line per (situation, N), the contenders side by side.
 pub fn scaling_table(r: &Report) -> String {
     let mut s = String::from(
-        "| situation | blocks | paper: active, p50 / p99 (us) | paper us per active block | precise: active, p50 / p99 | precise-cheap: active, p50 / p99 | precise / paper, per round: median [min, max] | precise-cheap / paper, per round | precise: wrapper p50 (us), share | precise-cheap: wrapper p50, share |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| situation | blocks | paper: active, p50 / p99 (us) | paper us per active block | precise: active, p50 / p99 | precise-cheap: active, p50 / p99 | precise / paper: median of the whole runs [min, max over runs] | precise-cheap / paper: the same | precise: wrapper p50 (us), share | precise-cheap: wrapper p50, share |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for sit in Situation::ALL {
         for n in sizes_of(&r.scaling, sit) {
@@ -1125,7 +1161,7 @@ pub fn scaling_table(r: &Report) -> String {
                 })
             };
             let ratio = |m: &str| {
-                round_ratios(&r.scaling, m, sit, n).map_or("-".to_string(), |(_, s)| {
+                ratio_across_runs(r, m, sit, n).map_or("-".to_string(), |(_, s)| {
                     format!("{} [{}, {}]", times(s.median), times(s.min), times(s.max))
                 })
             };
@@ -1227,7 +1263,7 @@ fn markdown(r: &Report, provenance: &Provenance) -> String {
     let quick = provenance.quick;
     let what = format!(
         "What a step costs as the world grows, under both models in one run ({:.0} s{}): the \
-         paper model and the precise one (rapier3d, the peer), the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed rounds; a ratio to the paper model is taken round by round (each round's p50 over the paper model's p50 of the same round, timed seconds apart), median [min, max] over the rounds; active: blocks not resting, mean per step; wrapper: a precise step less rapier's own `PhysicsPipeline::step` call (timed inside the world), p50 and its share of all the timed steps' time.\n\n\
+         paper model and the precise one (rapier3d, the peer), the precise one at its `[precise]` defaults (the reference: sleeping off) and at its cheapest setting that keeps a settled field still (`precise-cheap`). Scaling: fields of N 4 cm cubes on an 8 cm grid; `falling`: a rain from 0.6-1.2 m, its first 0.5 s (all in the air, then the lowest landing), `resting`: the settled field (timed after 1 s untimed), `hand`: one check point sweeping the middle row; every step timed on its own, p50/p99 over the timed rounds; a ratio to the paper model is taken round by round (each round's p50 over the paper model's p50 of the same round, timed seconds apart), its median over a run's rounds; the scaling part is run {} whole times from the start and the table's ratio is the median of the runs' medians [min, max over the runs] (the run-to-run spread; the p50s and p99s are the last run's); active: blocks not resting, mean per step; wrapper: a precise step less rapier's own `PhysicsPipeline::step` call (timed inside the world), p50 and its share of all the timed steps' time.\n\n\
          How to read it: lower is better; a ratio divides the precise model's time per step by \
          the paper model's in the same round: 16x means the precise step costs 16 times the \
          paper one. The figure draws \
@@ -1238,7 +1274,8 @@ fn markdown(r: &Report, provenance: &Provenance) -> String {
             "; quick run: 16 and 64 blocks, 2 timed rounds"
         } else {
             ", 5 timed rounds after a warm-up; a round goes round the sizes and, within a size, round the contenders (paper, precise, precise-cheap)"
-        }
+        },
+        r.scaling_runs.len()
     );
     let mut s = page::head(
         "Benchmark: a step's cost against the world's size, and each effect's",

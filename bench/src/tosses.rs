@@ -1437,9 +1437,10 @@ pub fn markdown(rows: &[Row], facts: &RunFacts, p: &Provenance, seconds: f64) ->
          costs (the cube stops where it lands).\n\n",
     );
     s.push_str(&page::figure(
-        "position error against time per simulated second, one point per engine and setting; \
-         and the height of G over time, real and simulated (each engine's best setting), for \
-         the first toss and those at the median and the p90 of the precise model's error",
+        "position error against time per simulated second, one colour per engine, one point per \
+         setting (the table names them); and the height of G over time, real and simulated \
+         (each engine at its best setting), for the first toss and those at the median and the \
+         p90 of the precise model's error",
         "tosses.png",
     ));
     if !facts.refused.is_empty() {
@@ -1520,10 +1521,8 @@ pub fn drawn(rows: &[Row], tosses: &[Toss], floor: f64) -> Vec<Drawn> {
                     .zip(path)
                     .map(|(s, p)| (s.t, p.0.y - floor))
                     .collect();
-                Some((
-                    format!("{} ({})", r.contender.name, r.contender.setting),
-                    heights,
-                ))
+                // The engine's name alone: one label, one colour in every panel.
+                Some((r.contender.name.to_string(), heights))
             })
             .collect();
         out.push(Drawn {
@@ -1536,19 +1535,24 @@ pub fn drawn(rows: &[Row], tosses: &[Toss], floor: f64) -> Vec<Drawn> {
 }
 
 pub fn figure(rows: &[Row], drawn: &[Drawn]) -> Figure {
-    let series = rows
-        .iter()
-        .map(|r| Series {
-            label: format!("{} ({})", r.contender.name, r.contender.setting),
-            points: vec![(r.us_per_sim_s, r.stat(|s| s.position_error, 0.5))]
-                .into_iter()
-                .filter(|p| p.0.is_finite() && p.1.is_finite())
-                .collect(),
-        })
-        .filter(|s| !s.points.is_empty())
-        .collect();
+    // One series per engine (its settings as points): four colours, not one per setting, so
+    // that the palette never wraps and each engine reads the same in every panel.
+    let mut series: Vec<Series> = Vec::new();
+    for r in rows {
+        let point = (r.us_per_sim_s, r.stat(|s| s.position_error, 0.5));
+        if !(point.0.is_finite() && point.1.is_finite()) {
+            continue;
+        }
+        match series.iter_mut().find(|s| s.label == r.contender.name) {
+            Some(s) => s.points.push(point),
+            None => series.push(Series {
+                label: r.contender.name.to_string(),
+                points: vec![point],
+            }),
+        }
+    }
     let mut panels = vec![Panel {
-        title: "median position error against cost".into(),
+        title: "median position error against cost, every setting".into(),
         x: Axis::log("us per simulated second"),
         y: Axis::log("position error (cube edges)").with_floor(1e-3),
         series,

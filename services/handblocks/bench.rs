@@ -171,10 +171,11 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
             };
             ("tosses", handblocks_bench::tosses::run(&b).map(drop))
         }
-        BenchKind::Stepper { out, quick } => {
+        BenchKind::Stepper { out, quick, runs } => {
             let b = handblocks_bench::stepper::StepperBench {
                 out_dir: out,
                 quick,
+                runs: usize::try_from(runs).unwrap_or(1),
             };
             ("stepper", handblocks_bench::stepper::run(&b).map(drop))
         }

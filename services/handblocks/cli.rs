@@ -538,6 +538,10 @@ pub enum BenchKind {
         /// 16 and 64 blocks only, 2 timed runs (well under a minute on 2 cores).
         #[arg(long)]
         quick: bool,
+        /// Whole runs of the scaling part, each from the start: every published ratio is the
+        /// median of the runs' medians, with the run-to-run spread beside it.
+        #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=20))]
+        runs: u64,
     },
 }
 
