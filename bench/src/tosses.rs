@@ -1222,6 +1222,7 @@ pub fn to_json(rows: &[Row], facts: &RunFacts) -> Value {
             })).collect::<Vec<_>>(),
         })).collect::<Vec<_>>(),
         "goals": goals(rows).iter().map(|g| json!({"goal": g.goal, "met": g.met, "figures": g.figures})).collect::<Vec<_>>(),
+        "pareto": pareto(rows).iter().map(|r| json!({"name": r.contender.name, "setting": r.contender.setting, "us_per_sim_s": num(r.us_per_sim_s), "position_error_median": num(r.stat(|s| s.position_error, 0.5))})).collect::<Vec<_>>(),
         "tosses": facts.tosses,
         "refused": facts.refused,
         "floor_offset_m": facts.floor,
@@ -1232,6 +1233,21 @@ pub fn to_json(rows: &[Row], facts: &RunFacts) -> Value {
         "outside_binding_floor_ns": facts.versions.iter().map(|(e, _, f)| (e.clone(), num(*f))).collect::<serde_json::Map<_, _>>(),
         "outside_left_out": facts.left_out,
     })
+}
+
+/// The Pareto front across every engine and setting: the rows no other row beats in both
+/// time per simulated second and median position error, cheapest first.
+pub fn pareto(rows: &[Row]) -> Vec<&Row> {
+    let xy: Vec<(f64, f64)> = rows
+        .iter()
+        .map(|r| (r.us_per_sim_s, r.stat(|s| s.position_error, 0.5)))
+        .collect();
+    let mut front: Vec<&Row> = crate::plot::pareto_front(&xy)
+        .into_iter()
+        .map(|i| &rows[i])
+        .collect();
+    front.sort_by(|a, b| a.us_per_sim_s.total_cmp(&b.us_per_sim_s));
+    front
 }
 
 /// One of the issue's goals, judged on this run.
@@ -1417,6 +1433,22 @@ pub fn markdown(rows: &[Row], facts: &RunFacts, p: &Provenance, seconds: f64) ->
         );
     }
     s.push('\n');
+    let _ = writeln!(
+        s,
+        "**The Pareto front per simulated second** (no other engine or setting both cheaper \
+         and more accurate), cheapest first: {}.\n",
+        pareto(rows)
+            .iter()
+            .map(|r| format!(
+                "{} ({}) {:.3} edges at {:.0} us",
+                r.contender.name,
+                r.contender.setting,
+                r.stat(|s| s.position_error, 0.5),
+                r.us_per_sim_s
+            ))
+            .collect::<Vec<_>>()
+            .join("; ")
+    );
     let g = goals(rows);
     if !g.is_empty() {
         s.push_str("## The goals (issue 42)\n\n");
@@ -1551,12 +1583,16 @@ pub fn figure(rows: &[Row], drawn: &[Drawn]) -> Figure {
             }),
         }
     }
+    let marked = pareto(rows)
+        .iter()
+        .map(|r| (r.us_per_sim_s, r.stat(|s| s.position_error, 0.5)))
+        .collect();
     let mut panels = vec![Panel {
-        title: "median position error against cost, every setting".into(),
+        title: "median position error against cost, every setting (Pareto front ringed)".into(),
         x: Axis::log("us per simulated second"),
         y: Axis::log("position error (cube edges)").with_floor(1e-3),
         series,
-        marked: Vec::new(),
+        marked,
         join: Join::No,
     }];
     for d in drawn {
