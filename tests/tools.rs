@@ -98,7 +98,7 @@ fn replay_sessions_hz_and_echo_work_from_another_folder() {
         .current_dir(&dir.0)
         .arg("replay")
         .arg(&trace)
-        .args(["--loop", "--duration", "10", "--quiet", "--no-preview"])
+        .args(["--loop", "--duration", "15", "--quiet", "--no-preview"])
         .args(["--set", "renderer.mode=off"])
         .args(["--set", "budget.origin_to_world_p99_us=1000000"])
         .arg("--report")
@@ -162,6 +162,65 @@ fn replay_sessions_hz_and_echo_work_from_another_folder() {
     assert_eq!(text.matches("---").count(), 2, "{text}");
     assert!(text.contains("finger_count: 5"), "{text}");
     assert!(text.contains("stamp:\n  seq: "), "{text}");
+    // Issue 43: nothing waits in silence. A CARL replay sends joints, not glove (its replay
+    // process holds a glove publisher that never sends): echo says so within a second, naming
+    // what the session does send, and exits 2 (it used to wait for the session's end).
+    let none = run_in(&dir.0, &["echo", "glove", "--session", &id, "-n", "1"]);
+    assert_eq!(none.status.code(), Some(2), "{}", both(&none));
+    let text = both(&none);
+    assert!(
+        text.contains("nothing sends glove")
+            && text.contains("it sends joints, hand, world")
+            && text.contains("--wait"),
+        "{text}"
+    );
+    // The same look at a topic it sends prints at once.
+    let rate = |name: &str, list: &Value| {
+        list.as_array()
+            .and_then(|l| l.iter().find(|t| t["topic"] == name))
+            .and_then(|t| t["rate_hz"].as_f64())
+    };
+    // Asked to wait, hz says it waits, and --seconds ends it on time with no sample.
+    let hz = run_in(
+        &dir.0,
+        &["hz", "glove", "--session", &id, "--seconds", "2", "--wait"],
+    );
+    let text = both(&hz);
+    assert!(hz.status.success(), "{text}");
+    assert!(
+        text.contains("no sample in 1 s; waiting") && text.contains("0 samples"),
+        "{text}"
+    );
+    // `topics`: every recorded topic with its publishers, readers and type (as ros2 -v).
+    let topics = run_in(
+        &dir.0,
+        &["topics", "--session", &id, "--json", "--window", "0.5"],
+    );
+    assert!(topics.status.success(), "{}", both(&topics));
+    let list: Value = serde_json::from_slice(&topics.stdout).expect("topics --json");
+    let entry = |name: &str| {
+        list.as_array()
+            .and_then(|l| l.iter().find(|t| t["topic"] == name))
+            .cloned()
+            .unwrap_or_else(|| panic!("{name} missing: {list}"))
+    };
+    assert!(entry("/joints")["publishers"].as_u64() >= Some(1), "{list}");
+    // Rates read through the look's own inlets: a CARL trace's ~90 a second, no glove.
+    assert!(
+        rate("/joints", &list).is_some_and(|r| r > 10.0 && r < 1000.0),
+        "{list}"
+    );
+    assert_eq!(rate("/glove", &list), Some(0.0), "{list}");
+    assert!(entry("/hand")["readers"].as_u64() >= Some(1), "{list}");
+    assert!(
+        entry("/world")["type"]
+            .as_str()
+            .is_some_and(|t| t.starts_with("handblocks/")),
+        "{list}"
+    );
+    let plain = run_in(&dir.0, &["topics", "--session", &id]);
+    let text = String::from_utf8_lossy(&plain.stdout).into_owned();
+    assert!(text.lines().any(|l| l == "/world"), "{text}");
     let bad = run_in(&dir.0, &["echo", "stars", "--session", &id]);
     assert_eq!(bad.status.code(), Some(2));
     assert!(

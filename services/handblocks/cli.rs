@@ -144,8 +144,12 @@ pub enum Command {
     /// Print a topic's samples on a running session, field by field (as `ros2 topic echo`).
     ///
     /// TOPIC is glove, tracker, joints, hand, world or frame (or /world, ...). The session is
-    /// the only one running, or --session ID (`handblocks sessions` lists them). Ends with the
-    /// session, after --count samples, or on Ctrl-C.
+    /// the only one running, or --session ID (`handblocks sessions` lists them). A topic nobody
+    /// publishes in the session is said at once (`handblocks topics -v` lists who publishes
+    /// what); --wait waits for a publisher instead. Ends with the session, after --count
+    /// samples, or on Ctrl-C.
+    ///
+    /// Example: handblocks echo hand -n 1
     Echo {
         /// The topic.
         topic: String,
@@ -155,12 +159,18 @@ pub enum Command {
         /// Stop after this many samples.
         #[arg(long, short = 'n', value_name = "N")]
         count: Option<u64>,
+        /// Wait for a publisher when nobody publishes the topic yet (default: say so and stop).
+        #[arg(long)]
+        wait: bool,
     },
     /// Print a topic's rate on a running session once a second (as `ros2 topic hz`).
     ///
     /// The rate is over the last --window samples' publish times (the publisher's clock, so
-    /// this terminal's own delays do not show). Ends with the session, after --seconds, or on
-    /// Ctrl-C.
+    /// this terminal's own delays do not show). A topic nobody publishes is said at once
+    /// (--wait waits for a publisher instead). Ends with the session, after --seconds (on
+    /// time, samples or none), or on Ctrl-C.
+    ///
+    /// Example: handblocks hz world --seconds 3
     Hz {
         /// The topic.
         topic: String,
@@ -171,8 +181,30 @@ pub enum Command {
         #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(2..=100_000))]
         window: u64,
         /// Stop after this many seconds.
-        #[arg(long, value_name = "SECONDS")]
-        seconds: Option<f64>,
+        #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+        seconds: Option<Duration>,
+        /// Wait for a publisher when nobody publishes the topic yet (default: say so and stop).
+        #[arg(long)]
+        wait: bool,
+    },
+    /// A running session's topics (as `ros2 topic list`); -v adds each one's publishers,
+    /// readers, rate and sample type.
+    ///
+    /// The rate is measured over --window seconds from the counts the session's publishers
+    /// keep, so looking adds no reader. Example: handblocks topics -v
+    Topics {
+        /// The session's bus id (default: the only one running).
+        #[arg(long, value_name = "ID")]
+        session: Option<String>,
+        /// Publishers, readers, rate and type of every topic.
+        #[arg(long, short = 'v')]
+        verbose: bool,
+        /// Print [{"topic", "type", "publishers", "readers", "rate_hz", "window_s"}].
+        #[arg(long)]
+        json: bool,
+        /// Seconds the rates are measured over (-v and --json).
+        #[arg(long, value_name = "SECONDS", default_value = "1", value_parser = parse_seconds)]
+        window: Duration,
     },
     /// The sessions running on this machine: bus id, age, session file, processes.
     Sessions {

@@ -136,15 +136,30 @@ fn run() -> Result<ExitCode, CliError> {
             topic,
             session,
             count,
-        }) => monitor::echo(&topic, session.as_deref(), count)
+            wait,
+        }) => monitor::echo(&topic, session.as_deref(), count, wait)
             .map_err(|e| error::CliError::Monitor("echo", e))?,
         Some(Command::Hz {
             topic,
             session,
             window,
             seconds,
-        }) => monitor::hz(&topic, session.as_deref(), window as usize, seconds)
-            .map_err(|e| error::CliError::Monitor("hz", e))?,
+            wait,
+        }) => monitor::hz(
+            &topic,
+            session.as_deref(),
+            window as usize,
+            seconds.map(|d| d.as_secs_f64()),
+            wait,
+        )
+        .map_err(|e| error::CliError::Monitor("hz", e))?,
+        Some(Command::Topics {
+            session,
+            verbose,
+            json,
+            window,
+        }) => monitor::topics(session.as_deref(), verbose, json, window.as_secs_f64())
+            .map_err(|e| error::CliError::Monitor("topics", e))?,
         Some(Command::Sessions { json }) => monitor::sessions(json),
         Some(Command::Bench { which }) => bench::run(which)?,
         Some(Command::BenchPeer { bus, rate, count }) => bench::peer(&bus, rate, count)?,

@@ -1,6 +1,8 @@
 //! Looking at a running session from outside, as `ros2 topic` does: `handblocks sessions` (what
-//! runs on this machine), `handblocks echo TOPIC` (its samples, field by field) and
-//! `handblocks hz TOPIC` (its rate).
+//! runs on this machine), `handblocks topics` (its topics, with publishers, readers, rate and
+//! type), `handblocks echo TOPIC` (its samples, field by field) and `handblocks hz TOPIC` (its
+//! rate). None of them waits in silence: a topic nobody publishes is said at once (`--wait`
+//! waits for a publisher, saying so), and `hz --seconds` ends on time with or without samples.
 //!
 //! A session's launcher leaves a card in the session's folder (`BusConfig::write_card`): its
 //! bus id, its world size and whether it is lossless. `echo` and `hz` open that bus as one
@@ -29,6 +31,14 @@ pub enum MonitorError {
     NoTopic(String),
     /// A speed-0 replay would wait for this reader.
     Lossless(String),
+    /// No sample of the topic came within a second (and `--wait` was not given): the topic,
+    /// the session's id, its publishers attached, and the topics that do send.
+    NoPublisher {
+        topic: &'static str,
+        session: String,
+        publishers: usize,
+        sending: Vec<&'static str>,
+    },
     /// The bus could not be opened or read.
     Bus(BusError),
 }
@@ -50,6 +60,30 @@ impl fmt::Display for MonitorError {
                 f,
                 "session {id} is a lossless replay (speed 0): its publishers wait for every \
                  reader, so a look from here would slow it; replay at a speed above 0 to watch it"
+            ),
+            MonitorError::NoPublisher {
+                topic,
+                session,
+                publishers,
+                sending,
+            } => write!(
+                f,
+                "session {session}: {}; it sends {}. `handblocks topics -v --session {session}` \
+                 lists its topics with their rates; --wait waits for {topic}",
+                if *publishers == 0 {
+                    format!("nobody publishes {topic}")
+                } else {
+                    format!(
+                        "nothing sends {topic} (its publisher sent no sample in {} s: a replay \
+                         of a trace without it, or a source that does not make it)",
+                        FIRST_SAMPLE_WITHIN.as_secs()
+                    )
+                },
+                if sending.is_empty() {
+                    "nothing".to_string()
+                } else {
+                    sending.join(", ")
+                }
             ),
             MonitorError::Bus(e) => write!(f, "{e}"),
         }
@@ -191,6 +225,66 @@ impl TopicVisitor for OpenTap<'_> {
     }
 }
 
+/// Opens an inlet of every recorded topic (a short look at all of them: `topics -v`).
+struct OpenAll<'b> {
+    bus: &'b Bus,
+    taps: Vec<(Topic, Box<dyn Tap>)>,
+}
+
+impl TopicVisitor for OpenAll<'_> {
+    type Error = BusError;
+    fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
+        if P::TOPIC.is_recorded() {
+            self.taps.push((P::TOPIC, Box::new(self.bus.inlet::<P>()?)));
+        }
+        Ok(())
+    }
+    fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
+        if P::TOPIC.is_recorded() {
+            self.taps
+                .push((P::TOPIC, Box::new(SliceTap(self.bus.inlet::<P>()?))));
+        }
+        Ok(())
+    }
+}
+
+/// Samples a second of every recorded topic over `window`, read through one inlet each (as
+/// `ros2 topic hz` reads: a reader for the look's length). In topic order.
+fn measure_rates(bus: &Bus, window: Duration) -> Result<Vec<(Topic, f64)>, MonitorError> {
+    let mut open = OpenAll {
+        bus,
+        taps: Vec::new(),
+    };
+    Topic::visit_each(&mut open)?;
+    let mut counts = vec![0u64; open.taps.len()];
+    let mut message = Vec::new();
+    let started = Instant::now();
+    let until = started + window;
+    loop {
+        for ((_, tap), n) in open.taps.iter().zip(counts.iter_mut()) {
+            while tap.next(&mut message)?.is_some() {
+                *n += 1;
+            }
+        }
+        let left = until.saturating_duration_since(Instant::now());
+        if left.is_zero() || common::shutdown::requested() {
+            break;
+        }
+        common::bus::wait_each(
+            open.taps.iter().map(|(_, t)| t.wakeable()),
+            None,
+            left.min(Duration::from_millis(50)),
+        )?;
+    }
+    let secs = started.elapsed().as_secs_f64().max(1e-3);
+    Ok(open
+        .taps
+        .iter()
+        .zip(counts)
+        .map(|((t, _), n)| (*t, n as f64 / secs))
+        .collect())
+}
+
 /// The running session, and an inlet of `topic` on its bus.
 fn tap(
     topic: &str,
@@ -222,6 +316,7 @@ fn next_sample(
     tap: &dyn Tap,
     running: &RunningSession,
     message: &mut Vec<u8>,
+    until: Option<Instant>,
 ) -> Result<Option<(Stamp, u64)>, MonitorError> {
     loop {
         if let Some(taken) = tap.next(message)? {
@@ -230,16 +325,77 @@ fn next_sample(
         if common::shutdown::requested() || !running_still(running) {
             return Ok(None);
         }
-        common::bus::wait_each(
-            std::iter::once(tap.wakeable()),
-            None,
-            Duration::from_millis(200),
-        )?;
+        let mut wait = Duration::from_millis(200);
+        if let Some(until) = until {
+            let left = until.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Ok(None);
+            }
+            wait = wait.min(left);
+        }
+        common::bus::wait_each(std::iter::once(tap.wakeable()), None, wait)?;
     }
 }
 
 fn running_still(running: &RunningSession) -> bool {
     running.is_running()
+}
+
+/// How long `echo` and `hz` wait for a first sample before they say the topic is silent: a
+/// topic of an interactive session sends many a second, so a second without one is a topic
+/// nothing sends (a replay of a trace without it, a source that does not make it).
+const FIRST_SAMPLE_WITHIN: Duration = Duration::from_secs(1);
+
+/// The first sample of `tap` within [`FIRST_SAMPLE_WITHIN`] (or `until`, if sooner); when none
+/// comes, says why at once (no publisher, or a publisher that sends nothing, and the topics
+/// that do send), and refuses unless asked to wait (then says it waits, and goes on).
+#[allow(clippy::too_many_arguments)]
+fn first_sample_or_say_why(
+    tool: &str,
+    bus: &Bus,
+    running: &RunningSession,
+    topic: Topic,
+    tap: &dyn Tap,
+    message: &mut Vec<u8>,
+    wait: bool,
+    until: Option<Instant>,
+) -> Result<Option<(Stamp, u64)>, MonitorError> {
+    let first_by = Instant::now() + FIRST_SAMPLE_WITHIN;
+    let soon = until.map_or(first_by, |u| u.min(first_by));
+    if let Some(sample) = next_sample(tap, running, message, Some(soon))? {
+        return Ok(Some(sample));
+    }
+    if common::shutdown::requested()
+        || !running_still(running)
+        || until.is_some_and(|u| Instant::now() >= u)
+    {
+        return Ok(None);
+    }
+    let publishers = bus.create_services()?.publishers(topic);
+    let sending: Vec<&'static str> = measure_rates(bus, Duration::from_millis(300))?
+        .into_iter()
+        .filter(|(t, rate)| *t != topic && *rate > 0.0)
+        .map(|(t, _)| t.name())
+        .collect();
+    if !wait {
+        return Err(MonitorError::NoPublisher {
+            topic: topic.name(),
+            session: running.bus.id.clone(),
+            publishers,
+            sending,
+        });
+    }
+    eprintln!(
+        "handblocks {tool}: {} in session {}: {}; waiting (--wait; Ctrl-C stops)",
+        topic.name(),
+        running.bus.id,
+        if publishers == 0 {
+            "nobody publishes it yet".to_string()
+        } else {
+            format!("no sample in {} s", FIRST_SAMPLE_WITHIN.as_secs())
+        }
+    );
+    next_sample(tap, running, message, until)
 }
 
 /// Lets go of the session's bus and says how the look ended. When the session has ended
@@ -273,6 +429,7 @@ pub fn echo(
     topic: &str,
     session: Option<&str>,
     count: Option<u64>,
+    wait: bool,
 ) -> Result<ExitCode, MonitorError> {
     common::shutdown::install_signal_handlers();
     RunningSession::quiet_bus_log();
@@ -286,11 +443,29 @@ pub fn echo(
     let mut message = Vec::new();
     let mut text = String::new();
     let mut printed = 0;
+    let first = match first_sample_or_say_why(
+        "echo",
+        &bus,
+        &running,
+        topic,
+        tap.as_ref(),
+        &mut message,
+        wait,
+        None,
+    ) {
+        Ok(first) => first,
+        Err(e) => {
+            let _ = let_go("echo", &running, bus, tap, Ok(()));
+            return Err(e);
+        }
+    };
+    let mut have = first.is_some();
     let mut print_each = || -> Result<(), MonitorError> {
         while count.is_none_or(|n| printed < n) {
-            let Some(_) = next_sample(tap.as_ref(), &running, &mut message)? else {
+            if !have && next_sample(tap.as_ref(), &running, &mut message, None)?.is_none() {
                 break;
-            };
+            }
+            have = false;
             text.clear();
             describe(topic, &message, &mut text);
             println!("{text}---");
@@ -309,11 +484,13 @@ pub fn hz(
     session: Option<&str>,
     window: usize,
     seconds: Option<f64>,
+    wait: bool,
 ) -> Result<ExitCode, MonitorError> {
     common::shutdown::install_signal_handlers();
     RunningSession::quiet_bus_log();
     let (running, bus, tap) = tap(topic, session)?;
     let name = Topic::from_channel(topic).map_or("?", |t| t.channel());
+    let topic = Topic::from_channel(topic).unwrap_or(Topic::World);
     eprintln!(
         "handblocks hz: {name} of session {} (Ctrl-C stops)",
         running.bus.id
@@ -323,15 +500,37 @@ pub fn hz(
         std::collections::VecDeque::with_capacity(window);
     let mut message = Vec::new();
     let started = Instant::now();
+    // --seconds ends the look on time, samples or none (the wait below has this deadline).
+    let until = seconds.map(|s| started + Duration::from_secs_f64(s.clamp(0.0, 1e9)));
     let mut last_print = Instant::now();
     let mut total = 0u64;
     // Each sample's hop, publish -> taken here (a tool's, not a stage's: kept to the end).
     let mut hops = common::latency::new_histogram();
+    let mut first = match first_sample_or_say_why(
+        "hz",
+        &bus,
+        &running,
+        topic,
+        tap.as_ref(),
+        &mut message,
+        wait,
+        until,
+    ) {
+        Ok(first) => first,
+        Err(e) => {
+            let _ = let_go("hz", &running, bus, tap, Ok(()));
+            return Err(e);
+        }
+    };
     let outcome = loop {
         if seconds.is_some_and(|s| started.elapsed().as_secs_f64() >= s) {
             break Ok(());
         }
-        let (stamp, taken) = match next_sample(tap.as_ref(), &running, &mut message) {
+        let next = match first.take() {
+            Some(sample) => Ok(Some(sample)),
+            None => next_sample(tap.as_ref(), &running, &mut message, until),
+        };
+        let (stamp, taken) = match next {
             Ok(Some(sample)) => sample,
             Ok(None) => break Ok(()),
             Err(e) => break Err(e),
@@ -376,6 +575,107 @@ pub fn hz(
         );
     }
     let_go("hz", &running, bus, tap, outcome)
+}
+
+/// One topic of a running session, as `handblocks topics` reports it.
+#[derive(Debug, Clone)]
+pub struct TopicInfo {
+    pub topic: Topic,
+    /// Its sample type (the recordings' schema name).
+    pub type_name: &'static str,
+    pub publishers: usize,
+    /// Readers (subscribers) attached now.
+    pub readers: usize,
+    /// Samples a second over the window, read through an inlet of this look's own (None: not
+    /// measured, or a lossless replay, which would wait for that reader).
+    pub rate_hz: Option<f64>,
+}
+
+/// `handblocks topics`: a running session's topics, as `ros2 topic list` (`-v`: with their
+/// publishers, readers, rate over `window_s` and type; `--json` all of it).
+pub fn topics(
+    session: Option<&str>,
+    verbose: bool,
+    json: bool,
+    window_s: f64,
+) -> Result<ExitCode, MonitorError> {
+    RunningSession::quiet_bus_log();
+    let running = pick(session)?;
+    let bus = Bus::open(&running.bus, "monitor")?;
+    // Counted before the look opens its own inlets, so that they are not among the readers.
+    let services = bus.create_services()?;
+    let attached: Vec<(usize, usize)> = Topic::RECORDED
+        .iter()
+        .map(|&t| (services.publishers(t), services.subscribers(t)))
+        .collect();
+    drop(services);
+    let window = Duration::from_secs_f64(window_s.clamp(0.05, 60.0));
+    // A lossless replay's publishers would wait for these readers: no rates there.
+    let rates = if (verbose || json) && !running.bus.lossless {
+        Some(measure_rates(&bus, window)?)
+    } else {
+        None
+    };
+    let elapsed = window.as_secs_f64();
+    let infos: Vec<TopicInfo> = Topic::RECORDED
+        .iter()
+        .zip(&attached)
+        .map(|(&t, &(publishers, readers))| TopicInfo {
+            topic: t,
+            type_name: recording::sample_type(t).0,
+            publishers,
+            readers,
+            rate_hz: rates
+                .as_ref()
+                .and_then(|r| r.iter().find(|(x, _)| *x == t).map(|(_, hz)| *hz)),
+        })
+        .collect();
+    drop(bus);
+    if !running.is_running() {
+        running.tidy_after_reader();
+    }
+    if json {
+        let list: Vec<serde_json::Value> = infos
+            .iter()
+            .map(|i| {
+                serde_json::json!({"topic": i.topic.channel(), "type": i.type_name,
+                    "publishers": i.publishers, "readers": i.readers,
+                    "rate_hz": i.rate_hz, "window_s": elapsed})
+            })
+            .collect();
+        println!("{}", serde_json::Value::Array(list));
+    } else if verbose {
+        println!(
+            "session {} ({}), rates over {:.1} s:",
+            running.bus.id, running.session_file, elapsed
+        );
+        println!(
+            "{:<10} {:<30} {:>10} {:>8} {:>10}",
+            "topic", "type", "publishers", "readers", "rate (Hz)"
+        );
+        for i in &infos {
+            println!(
+                "{:<10} {:<30} {:>10} {:>8} {:>10}",
+                i.topic.channel(),
+                i.type_name,
+                i.publishers,
+                i.readers,
+                i.rate_hz.map_or("-".to_string(), |r| format!("{r:.1}"))
+            );
+        }
+        if rates.is_none() {
+            println!(
+                "(no rates: session {} is a lossless replay, whose publishers would wait for \
+                 this look's readers)",
+                running.bus.id
+            );
+        }
+    } else {
+        for i in infos.iter().filter(|i| i.publishers > 0 || i.readers > 0) {
+            println!("{}", i.topic.channel());
+        }
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 /// A sample's fields, one per line (`name: value`), nested types indented, from its message
