@@ -461,6 +461,26 @@ fn mistakes_are_refused_before_anything_starts_naming_the_option_or_key() {
     }
 }
 
+/// Issue 43: a negative number of seconds gets the allowed range, not clap's tip to write
+/// `-- -1` (which would make it a positional argument).
+#[test]
+fn a_negative_duration_is_refused_with_the_allowed_range() {
+    for args in [
+        vec!["launch", "--duration", "-1"],
+        vec!["replay", "trace.carl", "--duration", "-1"],
+        vec!["hz", "world", "--seconds", "-2"],
+    ] {
+        let out = Command::new(EXE).args(&args).output().unwrap();
+        let text = both(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {text}");
+        assert!(
+            text.contains("allowed: more than 0 and at most a year of seconds")
+                && !text.contains("-- -"),
+            "{args:?}: {text}"
+        );
+    }
+}
+
 #[test]
 fn a_bus_id_in_use_is_named_as_such() {
     let _one = one_at_a_time();

@@ -181,7 +181,7 @@ pub enum Command {
         #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(2..=100_000))]
         window: u64,
         /// Stop after this many seconds.
-        #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+        #[arg(long, value_name = "SECONDS", value_parser = parse_seconds, allow_negative_numbers = true)]
         seconds: Option<Duration>,
         /// Wait for a publisher when nobody publishes the topic yet (default: say so and stop).
         #[arg(long)]
@@ -203,7 +203,7 @@ pub enum Command {
         #[arg(long)]
         json: bool,
         /// Seconds the rates are measured over (-v and --json).
-        #[arg(long, value_name = "SECONDS", default_value = "1", value_parser = parse_seconds)]
+        #[arg(long, value_name = "SECONDS", default_value = "1", value_parser = parse_seconds, allow_negative_numbers = true)]
         window: Duration,
     },
     /// The sessions running on this machine: bus id, age, session file, processes.
@@ -359,7 +359,7 @@ pub struct LaunchArgs {
     #[arg(long)]
     pub force: bool,
     /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM).
-    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds, allow_negative_numbers = true)]
     pub duration: Option<Duration>,
     /// Also write the report as JSON to this file.
     #[arg(long, value_name = "FILE")]
@@ -406,7 +406,7 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub offset: Option<[f64; 3]>,
     /// Stop after this many seconds (default: when the trace ends).
-    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds, allow_negative_numbers = true)]
     pub duration: Option<Duration>,
     /// Record the replayed session to this MCAP file.
     #[arg(long, value_name = "FILE")]
