@@ -481,6 +481,57 @@ fn a_negative_duration_is_refused_with_the_allowed_range() {
     }
 }
 
+/// Issue 43: a wrong usage says what to do next, before anything starts: a misspelt scene or
+/// session gets the nearest names and `handblocks list`; a folder with nothing to list is an
+/// error, not empty headings; a file that is no trace is refused before the pipeline starts,
+/// its first bytes shown as text.
+#[test]
+fn wrong_usages_say_what_to_do_next_before_anything_starts() {
+    let dir = Scratch::new("wrong-usages");
+    std::fs::create_dir_all(dir.path("empty")).unwrap();
+    let empty = dir.path("empty").display().to_string();
+    let readme = repo().join("README.md").display().to_string();
+    let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
+        (
+            vec!["simulate", "grasp-thrw"],
+            vec![
+                "did you mean `grasp-throw`?",
+                "`handblocks list` lists them",
+            ],
+        ),
+        (
+            vec!["launch", "nosuch.toml"],
+            vec!["nosuch.toml: no such file, and no session or scene of that name"],
+        ),
+        (
+            vec!["list", &empty],
+            vec!["no session (a file with [scene]) and no scene"],
+        ),
+        (
+            vec!["replay", &readme],
+            vec!["neither a recording nor a CARL trace: it starts with \"# ha\""],
+        ),
+    ];
+    for (args, wants) in cases {
+        let started = Instant::now();
+        let out = Command::new(EXE)
+            .current_dir(&dir.0)
+            .args(&args)
+            .output()
+            .unwrap();
+        let text = both(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {text}");
+        for want in wants {
+            assert!(text.contains(want), "{args:?}: no {want:?} in {text}");
+        }
+        // Refused before any process starts (a replay used to start the pipeline first).
+        assert!(
+            !text.contains("renderer:") && started.elapsed() < Duration::from_secs(30),
+            "{args:?} started something: {text}"
+        );
+    }
+}
+
 #[test]
 fn a_bus_id_in_use_is_named_as_such() {
     let _one = one_at_a_time();

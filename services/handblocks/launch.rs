@@ -41,6 +41,11 @@ impl std::error::Error for LaunchCommandError {}
 
 /// Runs the session; 0 when it kept its budget, 1 when it did not or a process failed.
 pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
+    if let Some(why) = crate::locate::missing(&args.session, crate::locate::Kind::Session) {
+        return Err(LaunchCommandError::Session(launcher::LaunchError::Session(
+            common::config::ConfigError::new(&args.session, "", why),
+        )));
+    }
     let exe = std::env::current_exe().map_err(LaunchCommandError::OwnExecutable)?;
     let mut opts = launcher::LaunchOptions {
         // A name (`live`) or a config path is found from any folder.

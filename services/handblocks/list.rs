@@ -12,14 +12,25 @@ use std::process::ExitCode;
 pub enum ListError {
     /// The folder itself cannot be read (unreadable folders below it are skipped).
     Unreadable { dir: PathBuf },
+    /// The folder holds no session and no scene (nothing to list is a mistake, not a list).
+    Empty { dir: PathBuf },
 }
 
 impl fmt::Display for ListError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ListError::Unreadable { dir } => {
-                write!(f, "cannot read the folder {}", dir.display())
-            }
+            ListError::Unreadable { dir } => write!(
+                f,
+                "cannot read the folder {} (give a folder of sessions and scenes; \
+                 `handblocks list` alone lists the configuration's)",
+                dir.display()
+            ),
+            ListError::Empty { dir } => write!(
+                f,
+                "{}: no session (a file with [scene]) and no scene (a file with [[block]] or \
+                 [hand]) in it or below; `handblocks list` alone lists the configuration's",
+                dir.display()
+            ),
         }
     }
 }
@@ -72,6 +83,11 @@ pub fn run(given: &Path) -> Result<ExitCode, ListError> {
         } else if table.contains_key("block") || table.contains_key("hand") {
             scenes.push((f, first));
         }
+    }
+    if sessions.is_empty() && scenes.is_empty() {
+        return Err(ListError::Empty {
+            dir: dir.to_path_buf(),
+        });
     }
     println!("sessions (handblocks launch NAME-OR-FILE, or ./run SESSION):");
     for (f, first) in &sessions {

@@ -142,6 +142,90 @@ pub fn resolve(given: &Path, kind: Kind) -> PathBuf {
         .unwrap_or_else(|| given.to_path_buf())
 }
 
+/// Why `given` names no file, when it names none (None when [`resolve`] finds it): no such
+/// file and no name of its kind, the nearest names of that kind (a "did you mean"), and where
+/// they are listed. The caller puts the file in front.
+pub fn missing(given: &Path, kind: Kind) -> Option<String> {
+    if resolve(given, kind).exists() {
+        return None;
+    }
+    let what = match kind {
+        Kind::Session => "session or scene",
+        Kind::Scene => "scene",
+    };
+    let asked = given
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let mut near: Vec<(usize, String)> = names_of(kind)
+        .into_iter()
+        .map(|n| (edit_distance(&asked, &n.to_lowercase()), n))
+        .filter(|(d, _)| *d <= (asked.chars().count() / 3).max(2))
+        .collect();
+    near.sort();
+    near.dedup_by(|a, b| a.1 == b.1);
+    let mut why = format!("no such file, and no {what} of that name");
+    if !near.is_empty() {
+        why.push_str(&format!(
+            " (did you mean {}?)",
+            near.iter()
+                .take(3)
+                .map(|(_, n)| format!("`{n}`"))
+                .collect::<Vec<_>>()
+                .join(" or ")
+        ));
+    }
+    why.push_str("; `handblocks list` lists them");
+    Some(why)
+}
+
+/// The names (file stems) a bare name of `kind` can mean, from the configuration folder.
+fn names_of(kind: Kind) -> Vec<String> {
+    let Some(root) = config_root() else {
+        return Vec::new();
+    };
+    let folders: &[&str] = match kind {
+        Kind::Session => &["sessions", "devices", "scenes"],
+        Kind::Scene => &["scenes"],
+    };
+    let mut names = Vec::new();
+    for folder in folders {
+        let Ok(entries) = std::fs::read_dir(root.dir.join(folder)) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let path = e.path();
+            if path.extension().is_some_and(|x| x == "toml") {
+                if let Some(stem) = path.file_stem() {
+                    names.push(stem.to_string_lossy().into_owned());
+                }
+            }
+        }
+    }
+    names.sort();
+    names
+}
+
+/// Levenshtein distance between `a` and `b`, by characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let cur = row[j + 1];
+            row[j + 1] = if ca == *cb {
+                prev
+            } else {
+                1 + prev.min(cur).min(row[j])
+            };
+            prev = cur;
+        }
+    }
+    row[b.len()]
+}
+
 /// A folder of configuration (`list`'s): itself when it exists, else `config` or a folder
 /// under it found in the configuration folder.
 pub fn resolve_dir(given: &Path) -> PathBuf {
@@ -157,6 +241,23 @@ pub fn resolve_dir(given: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_misspelt_name_gets_the_nearest_names_and_a_pointer_to_list() {
+        assert_eq!(edit_distance("grasp-thrw", "grasp-throw"), 1);
+        assert_eq!(edit_distance("", "abc"), 3);
+        let why = missing(Path::new("grasp-thrw"), Kind::Scene).unwrap_or_default();
+        assert!(
+            why.contains("did you mean `grasp-throw`") && why.contains("handblocks list"),
+            "{why}"
+        );
+        let why = missing(Path::new("nosuch.toml"), Kind::Session).unwrap_or_default();
+        assert!(
+            why.contains("no session or scene of that name") && !why.contains("did you mean"),
+            "{why}"
+        );
+        assert!(missing(Path::new("grasp-throw"), Kind::Scene).is_none());
+    }
 
     #[test]
     fn the_built_in_copy_holds_the_default_session_and_its_scene() {

@@ -21,12 +21,23 @@ use crate::locate::{self, Kind};
 const CARL_OFFSET: [f64; 3] = [0.0, -1.45, 0.0];
 
 /// The scene and offset for `file`, and where they came from.
-fn scene_for(file: &Path, args: &ReplayArgs) -> Result<(PathBuf, [f64; 3], String), String> {
-    if let Some(scene) = &args.scene {
-        let scene = locate::resolve(scene, Kind::Scene);
-        return Ok((scene, args.offset.unwrap_or_default(), "--scene".into()));
+/// The first bytes of a file as a person reads them: text in quotes where they are printable
+/// ASCII (`"# ha"`), else hex (`89 4d 43 41`).
+fn show_bytes(bytes: &[u8]) -> String {
+    if !bytes.is_empty() && bytes.iter().all(|b| (0x20..0x7f).contains(b)) {
+        format!("{:?}", String::from_utf8_lossy(bytes))
+    } else {
+        bytes
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect::<Vec<_>>()
+            .join(" ")
     }
-    // Its first bytes only, from a regular file (refused before a read could block).
+}
+
+fn scene_for(file: &Path, args: &ReplayArgs) -> Result<(PathBuf, [f64; 3], String), String> {
+    // Its first bytes only, from a regular file (refused before a read could block), and
+    // refused here, before any process starts, when it is neither kind of trace.
     let head = {
         use std::io::Read as _;
         let mut head = Vec::with_capacity(8);
@@ -35,7 +46,20 @@ fn scene_for(file: &Path, args: &ReplayArgs) -> Result<(PathBuf, [f64; 3], Strin
             .map_err(|e| format!("{}: cannot read the trace: {e}", file.display()))?;
         head
     };
-    if recording::Recording::is_mcap(&head) {
+    let is_mcap = recording::Recording::is_mcap(&head);
+    if !is_mcap && !head.starts_with(b"CARL") {
+        return Err(format!(
+            "{}: neither a recording nor a CARL trace: it starts with {} (a recording starts \
+             with MCAP's magic, 89 4d 43 41 50; a CARL trace with \"CARL\")",
+            file.display(),
+            show_bytes(&head[..head.len().min(4)])
+        ));
+    }
+    if let Some(scene) = &args.scene {
+        let scene = locate::resolve(scene, Kind::Scene);
+        return Ok((scene, args.offset.unwrap_or_default(), "--scene".into()));
+    }
+    if is_mcap {
         let rec = recording::Recording::open_topics(file, &[]).map_err(|e| format!("{e}"))?;
         return match rec.metadata.get("scene").map(PathBuf::from) {
             Some(scene) if scene.is_file() => Ok((

@@ -27,6 +27,13 @@ pub struct SimulateArgs {
 pub use simulation::SimulateError;
 
 pub fn run(args: SimulateArgs) -> Result<ExitCode, SimulateError> {
+    if let Some(why) = crate::locate::missing(&args.scene, crate::locate::Kind::Scene) {
+        return Err(SimulateError::Scene(common::config::ConfigError::new(
+            &args.scene,
+            "",
+            why,
+        )));
+    }
     let file = crate::locate::resolve(&args.scene, crate::locate::Kind::Scene);
     let scene = Scene::load_with(&file, &args.overrides).map_err(SimulateError::Scene)?;
     let settings = simulation::SimulateSettings {

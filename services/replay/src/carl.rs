@@ -181,7 +181,18 @@ impl<'a> Reader<'a> {
         if magic != MAGIC {
             return Err(r.fail((
                 0,
-                format!("not a CARL file: it starts with {magic:02x?}, not \"CARL\""),
+                format!(
+                    "not a CARL file: it starts with {}, not \"CARL\"",
+                    if magic.iter().all(|b| (0x20..0x7f).contains(b)) {
+                        format!("{:?}", String::from_utf8_lossy(magic))
+                    } else {
+                        magic
+                            .iter()
+                            .map(|b| format!("{b:02x}"))
+                            .collect::<Vec<_>>()
+                            .join(" ")
+                    }
+                ),
             )));
         }
         let version = r.c.u32("the header").map_err(|e| r.fail(e))?;
