@@ -491,7 +491,11 @@ fn wrong_usages_say_what_to_do_next_before_anything_starts() {
     std::fs::create_dir_all(dir.path("empty")).unwrap();
     let empty = dir.path("empty").display().to_string();
     let readme = repo().join("README.md").display().to_string();
-    let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
+    let carl = repo()
+        .join("../shared/data/carl/example_push_0.carl")
+        .display()
+        .to_string();
+    let mut cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
         (
             vec!["simulate", "grasp-thrw"],
             vec![
@@ -512,6 +516,12 @@ fn wrong_usages_say_what_to_do_next_before_anything_starts() {
             vec!["neither a recording nor a CARL trace: it starts with \"# ha\""],
         ),
     ];
+    if std::path::Path::new(&carl).is_file() {
+        cases.push((
+            vec!["replay", &carl, "--topics", "glove"],
+            vec!["it holds only joints of the source topics, so --topics glove would play nothing"],
+        ));
+    }
     for (args, wants) in cases {
         let started = Instant::now();
         let out = Command::new(EXE)

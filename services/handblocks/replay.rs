@@ -130,6 +130,33 @@ fn scene_for(file: &Path, args: &ReplayArgs) -> Result<(PathBuf, [f64; 3], Strin
     ))
 }
 
+/// The source topics (glove, tracker, joints) a trace holds: a CARL trace holds joints; a
+/// recording, the ones it has messages of.
+fn held_topics(file: &Path) -> Result<Vec<&'static str>, String> {
+    let head = {
+        use std::io::Read as _;
+        let mut head = Vec::with_capacity(8);
+        common::config::open_regular(file)
+            .and_then(|f| f.take(8).read_to_end(&mut head).map_err(|e| e.to_string()))
+            .map_err(|e| format!("{}: cannot read the trace: {e}", file.display()))?;
+        head
+    };
+    if !recording::Recording::is_mcap(&head) {
+        return Ok(vec![common::Topic::Joints.name()]);
+    }
+    let rec = recording::Recording::open_topics(file, &[]).map_err(|e| format!("{e}"))?;
+    let stats = rec.stats();
+    Ok([
+        common::Topic::Glove,
+        common::Topic::Tracker,
+        common::Topic::Joints,
+    ]
+    .into_iter()
+    .filter(|&t| stats[t as usize].messages > 0)
+    .map(|t| t.name())
+    .collect())
+}
+
 fn toml_path(p: &Path) -> String {
     let abs = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
     toml::Value::String(abs.display().to_string()).to_string()
@@ -159,6 +186,31 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode, crate::error::CliError> {
         Ok(_) => {}
     }
     let (scene, offset, why) = scene_for(&file, &args).map_err(refuse)?;
+    // --topics that the trace does not hold would play nothing: said now, by name, rather
+    // than as a session whose source delivered no sample.
+    let asked: Vec<String> = args
+        .topics
+        .iter()
+        .flat_map(|t| t.split(','))
+        .map(|t| t.trim().trim_start_matches('/').to_string())
+        .filter(|t| !t.is_empty())
+        .collect();
+    if !asked.is_empty() {
+        let held = held_topics(&file).map_err(refuse)?;
+        if !asked.iter().any(|t| held.contains(&t.as_str())) {
+            return Err(refuse(format!(
+                "{}: it holds only {} of the source topics, so --topics {} would play nothing \
+                 (leave --topics out to play all it holds)",
+                args.file.display(),
+                if held.is_empty() {
+                    "none".to_string()
+                } else {
+                    held.join(", ")
+                },
+                asked.join(",")
+            )));
+        }
+    }
     let topics: Vec<String> = args
         .topics
         .iter()
