@@ -724,6 +724,17 @@ fn bad_webxr_settings_and_emulate_usage_name_what_is_wrong() {
     };
     emulate(&["headset"], "the page's URL");
     emulate(&["headset", "https://127.0.0.1:1/?token=x"], "--trace FILE");
+    // Issue 43: --spectator with --trace was played as a spectator, the trace dropped unsaid.
+    emulate(
+        &[
+            "headset",
+            "https://127.0.0.1:1/?token=x",
+            "--spectator",
+            "--trace",
+            "x.carl",
+        ],
+        "--spectator plays no trace",
+    );
     emulate(&["glove"], "--link PATH");
 }
 

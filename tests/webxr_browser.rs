@@ -108,12 +108,8 @@ fn emulate(port: u16, args: &[&str]) -> serde_json::Value {
         "emulate headset: {stdout}\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let line = stdout
-        .lines()
-        .rev()
-        .find(|l| l.starts_with('{'))
-        .unwrap_or("{}");
-    serde_json::from_str(line).unwrap_or_else(|e| panic!("{e}: {stdout}"))
+    // One JSON value, indented over many lines for a person (issue 43).
+    serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}"))
 }
 
 /// The world that answers frame `k` of the session (0: the first frame published): the last

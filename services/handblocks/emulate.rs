@@ -115,7 +115,8 @@ pub struct Headset {
 
 /// Plays a trace through a webxr session's page in headless Chromium (or, `--spectator`,
 /// opens it as a spectator), through the browser driver `webxr::driver::HEADSET_JS` run by
-/// Node.js; prints the driver's summary (JSON) on stdout.
+/// Node.js; prints the driver's summary (JSON, indented for a person; still one JSON value
+/// for a program) on stdout.
 pub fn headset(h: Headset) -> Result<ExitCode, EmulateError> {
     let url = h.url.ok_or_else(|| {
         EmulateError::Usage(
@@ -123,6 +124,13 @@ pub fn headset(h: Headset) -> Result<ExitCode, EmulateError> {
                 .into(),
         )
     })?;
+    if let (true, Some(trace)) = (h.spectator, &h.trace) {
+        return Err(EmulateError::Usage(format!(
+            "--spectator plays no trace: it opens the page as a spectator; give --spectator or \
+             --trace {} (which plays it through the headset), not both",
+            trace.display()
+        )));
+    }
     let work = std::env::temp_dir().join(format!("handblocks-headset-{}", std::process::id()));
     std::fs::create_dir_all(&work)
         .map_err(|e| EmulateError::Tool(format!("{}: {e}", work.display())))?;
@@ -186,7 +194,14 @@ pub fn headset(h: Headset) -> Result<ExitCode, EmulateError> {
             ))
         })?;
     let _ = std::fs::remove_dir_all(&work);
-    print!("{}", String::from_utf8_lossy(&out.stdout));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    match serde_json::from_str::<serde_json::Value>(stdout.trim()) {
+        Ok(summary) => println!(
+            "{}",
+            serde_json::to_string_pretty(&summary).unwrap_or_else(|_| stdout.trim().to_string())
+        ),
+        Err(_) => print!("{stdout}"),
+    }
     if !out.status.success() {
         return Err(EmulateError::Driver(format!(
             "the browser's driver failed ({}); what it said is above",
