@@ -239,6 +239,37 @@ fn replay_sessions_hz_and_echo_work_from_another_folder() {
     assert_eq!(out.status.code(), Some(2), "{}", both(&out));
 }
 
+/// Issue 43: a path given with --set starts where the user stands, as on any command line
+/// (it used to start at the session file's folder, config/sessions/).
+#[test]
+fn a_set_path_starts_at_the_current_folder() {
+    let trace = repo().join("../shared/data/carl/example_push_0.carl");
+    if !trace.is_file() {
+        eprintln!("skipped: {} is not there", trace.display());
+        return;
+    }
+    let dir = Scratch::new("set-path");
+    std::fs::copy(&trace, dir.path("my.carl")).unwrap();
+    let out = run_in(
+        &dir.0,
+        &[
+            "launch",
+            "replay-carl-push",
+            "--set",
+            "source.file=my.carl",
+            "--set",
+            "renderer.mode=off",
+            "--duration",
+            "1",
+            "--quiet",
+            "--no-preview",
+        ],
+    );
+    let text = both(&out);
+    assert!(out.status.success(), "{text}");
+    assert!(!text.contains("config/sessions/my.carl"), "{text}");
+}
+
 /// Runs `handblocks ARGS` with `TMPDIR` set (where it looks for session folders besides
 /// /tmp) and its address space capped at 2 GiB (a card read without bound, a link to
 /// /dev/zero, then fails at once instead of taking the machine's memory), for at most

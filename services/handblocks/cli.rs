@@ -343,8 +343,9 @@ pub struct LaunchArgs {
     #[arg(default_value = "config/sessions/live.toml")]
     pub session: PathBuf,
     /// Override a key of the session file, e.g. --set renderer.mode=off, --set
-    /// budget.max_dropped=0, --set source.file=/data/carl/example_push_0.carl (paths, as in
-    /// the file, start at the session file's folder), or of its scene with `scene.`, e.g. --set
+    /// budget.max_dropped=0, --set source.file=my.carl (a path given here starts at the
+    /// current folder, as on any command line; in the file, at the file's folder), or of its
+    /// scene with `scene.`, e.g. --set
     /// scene.world.hands=tracked (docs/model.md T1-T3 for a tracked hand). Checked as the
     /// files' keys are. Repeatable.
     #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_override)]
@@ -594,8 +595,35 @@ fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
     Ok(v)
 }
 
+/// Session keys whose values are paths. In a file they start at the file's folder; given with
+/// --set they start where the user stands, as every other path on a command line does, so
+/// `--set source.file=my.carl` is the my.carl of the current folder (issue 43).
+const PATH_KEYS: [&str; 10] = [
+    "scene",
+    "hand_model",
+    "source.file",
+    "source.certificate_dir",
+    "source.key_dir",
+    "source.peer_certificate",
+    "source.glove.calibration",
+    "recorder.file",
+    "remote.key_dir",
+    "remote.peer_certificate",
+];
+
 fn parse_override(s: &str) -> Result<common::config::session::Override, String> {
-    common::config::session::Override::parse(s)
+    let mut o = common::config::session::Override::parse(s)?;
+    if PATH_KEYS.contains(&o.key.as_str()) {
+        if let toml::Value::String(p) = &o.value {
+            let path = std::path::Path::new(p);
+            if path.is_relative() {
+                let abs = std::path::absolute(path)
+                    .map_err(|e| format!("{}: {p}: cannot make it absolute: {e}", o.key))?;
+                o.value = toml::Value::String(abs.display().to_string());
+            }
+        }
+    }
+    Ok(o)
 }
 
 fn parse_seconds(s: &str) -> Result<Duration, String> {
