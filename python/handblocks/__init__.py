@@ -22,7 +22,18 @@ from __future__ import annotations
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import (
+    Any,
+    Dict,
+    Iterator,
+    List,
+    Mapping,
+    NamedTuple,
+    Optional,
+    Sequence,
+    Tuple,
+    Union,
+)
 
 import numpy as np
 import numpy.typing as npt
@@ -46,8 +57,11 @@ MODE_NAMES: Tuple[str, ...] = tuple(_native.MODE_NAMES)
 JOINT_NAMES: Tuple[str, ...] = tuple(_native.JOINT_NAMES)
 #: The topics a session publishes and a recording holds.
 TOPICS: Tuple[str, ...] = tuple(_native.TOPICS)
+#: This package's version (the handblocks workspace's).
+__version__: str = _native.__version__
 
 __all__ = [
+    "Counts",
     "Recording",
     "World",
     "Hand",
@@ -447,9 +461,19 @@ class Subscription:
     def __iter__(self) -> Iterator[Sample]:
         return iter(self._native)
 
-    def counts(self) -> Tuple[int, int]:
-        """Samples received, and samples missed (overwritten before this reader took them)."""
-        return self._native.counts()
+    def counts(self) -> "Counts":
+        """Samples received, and samples missed (overwritten before this reader took them):
+        ``counts().received``, ``counts().missed`` (a tuple too: ``received, missed = ...``)."""
+        return Counts(*self._native.counts())
+
+
+class Counts(NamedTuple):
+    """A reader's counts (``Subscription.counts()``)."""
+
+    #: Samples this reader received.
+    received: int
+    #: Samples it missed: the publisher overwrote them before this reader took them.
+    missed: int
 
 
 class Session:

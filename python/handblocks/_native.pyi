@@ -5,6 +5,7 @@ from typing import Any, Dict, Iterator, List, Optional, Tuple, Union
 import numpy as np
 import numpy.typing as npt
 
+__version__: str
 MODE_NAMES: List[str]
 JOINT_NAMES: List[str]
 TOPICS: List[str]

@@ -80,6 +80,8 @@ fn monotonic_ns() -> u64 {
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    // The package's version is the workspace's: `handblocks.__version__`.
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("HandblocksError", py.get_type::<HandblocksError>())?;
     m.add("RecordingError", py.get_type::<RecordingError>())?;
     m.add("SceneError", py.get_type::<SceneError>())?;

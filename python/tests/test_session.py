@@ -82,6 +82,9 @@ def test_a_live_session_read_from_python_is_what_it_recorded(tmp_path: Path) -> 
         fields = w.fields()
         seen[w.seq] = (fields["position"].copy(), fields["mode"].copy(), w.time_ns, fields["step"])
     received, missed = worlds.counts()
+    # Named too (issue 43): no unlabelled tuple.
+    assert worlds.counts()._fields == ("received", "missed")
+    assert worlds.counts().received >= received
     # The first sample is still alive here, and so still readable.
     assert first is not None and np.isfinite(first.position).all()
     del first, w, fields, worlds, session

@@ -287,3 +287,9 @@ def test_a_scene_of_two_scripted_hands_names_them_and_its_dict_is_the_file() -> 
     table["world"] = {"model": "precise"}
     with pytest.raises(hb.SceneError, match="left_hand"):
         hb.simulate(table)
+
+
+def test_the_package_has_the_version_of_the_command() -> None:
+    """Issue 43: ``handblocks.__version__``, the workspace's, as ``handblocks --version``."""
+    out = handblocks("--version").stdout
+    assert hb.__version__ and hb.__version__ in out, (hb.__version__, out)
