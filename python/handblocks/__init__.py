@@ -352,6 +352,13 @@ class Simulation:
     refused_hands: int
     #: What the run said on the way (why this many steps, a trace's warnings).
     notes: List[str]
+    #: With ``trajectory=True``: ``(steps, blocks, 3)`` every block's G after every step,
+    #: ``(steps, blocks, 4)`` its quaternion, ``(steps, blocks)`` its mode, and ``time``
+    #: ``(steps,)`` seconds of world time (step k ends at (k + 1) / step rate). None otherwise.
+    path_position: Optional[F64] = None
+    path_rotation: Optional[F64] = None
+    path_mode: Optional[U32] = None
+    time: Optional[F64] = None
     _json: str = field(repr=False, default="")
     _text: str = field(repr=False, default="")
 
@@ -376,6 +383,7 @@ def simulate(
     frames: Optional[int] = None,
     hand_offset: Sequence[float] = (0.0, 0.0, 0.0),
     hands: str = "right",
+    trajectory: bool = False,
 ) -> Simulation:
     """Runs a scene's block world to its end in this process, deterministically: what
     ``handblocks simulate SCENE [--hand TRACE] [--model M] [--frames N] --json`` prints.
@@ -389,6 +397,8 @@ def simulate(
     ``"precise"``, or None for the scene's ``[world] model``.
     ``frames``: steps in all, 0 to ``MAX_FRAMES`` (ten million: a day of world time at the
     default 120 steps a second); None: the hand's end plus time to settle.
+    ``trajectory``: keep every block's pose and mode after every step, as arrays to plot
+    (``path_position``, ``path_rotation``, ``path_mode``, ``time``; 64 bytes a block a step).
 
     The run lets other Python threads go on, and Ctrl-C stops it (``KeyboardInterrupt``,
     looked for every 50 ms).
@@ -415,7 +425,16 @@ def simulate(
     offset = tuple(float(x) for x in hand_offset)
     if len(offset) != 3:
         raise ValueError(f"hand_offset: 3 numbers (metres), not {len(offset)}")
-    d = _native.simulate(scene, hand, model, frames, offset, str(hands))
+    d = _native.simulate(scene, hand, model, frames, offset, str(hands), bool(trajectory))
+    path = {}
+    if "path_position" in d:
+        steps = d["path_mode"].shape[0]
+        path = dict(
+            path_position=d["path_position"],
+            path_rotation=d["path_rotation"],
+            path_mode=d["path_mode"],
+            time=(np.arange(steps, dtype=np.float64) + 1.0) / d["step_hz"],
+        )
     return Simulation(
         frames=d["frames"],
         names=d["names"],
@@ -426,6 +445,7 @@ def simulate(
         clock_jumps=d["clock_jumps"],
         refused_hands=d["refused_hands"],
         notes=d["notes"],
+        **path,
         _json=d["json"],
         _text=d["text"],
     )

@@ -27,6 +27,7 @@ def simulate(
     frames: Optional[int] = None,
     hand_offset: Tuple[float, float, float] = (0.0, 0.0, 0.0),
     hands: str = "right",
+    trajectory: bool = False,
 ) -> Dict[str, Any]: ...
 
 class NativeRecording:

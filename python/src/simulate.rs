@@ -43,7 +43,8 @@ pub const MAX_DICT_DEPTH: usize = 64;
 /// Runs a scene (a file, a bare name found in the configuration folder, or a dict of the
 /// scene file's tables) and returns the report as a dict (see python/handblocks).
 #[pyfunction]
-#[pyo3(signature = (scene, hand=None, model=None, frames=None, hand_offset=(0.0, 0.0, 0.0), hands="right"))]
+#[pyo3(signature = (scene, hand=None, model=None, frames=None, hand_offset=(0.0, 0.0, 0.0), hands="right", trajectory=false))]
+#[allow(clippy::too_many_arguments)]
 pub fn simulate<'py>(
     py: Python<'py>,
     scene: &Bound<'py, PyAny>,
@@ -52,6 +53,7 @@ pub fn simulate<'py>(
     frames: Option<&Bound<'py, PyAny>>,
     hand_offset: (f64, f64, f64),
     hands: &str,
+    trajectory: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let Some(hands) = common::HandsUsed::parse(hands) else {
         return Err(PyValueError::new_err(format!(
@@ -83,9 +85,24 @@ pub fn simulate<'py>(
     // `SIGNAL_CHECK_EVERY` for a moment to run the signal handlers: Ctrl-C's
     // KeyboardInterrupt stops the run and is raised here.
     let mut interrupted: Option<PyErr> = None;
+    // `trajectory`: every block's pose and mode after every step (the path to plot).
+    let mut path_position: Vec<f64> = Vec::new();
+    let mut path_rotation: Vec<f64> = Vec::new();
+    let mut path_mode: Vec<u32> = Vec::new();
+    let mut path_steps = 0usize;
     let ran = py.detach(|| {
         let mut last_check = Instant::now();
-        simulation::run_with_progress(&scene, &settings, &mut |_| {
+        simulation::run_with_progress(&scene, &settings, &mut |_, world| {
+            if trajectory {
+                path_steps += 1;
+                for i in 0..world.block_count() {
+                    if let Some(b) = world.block(i) {
+                        path_position.extend(b.position.to_array());
+                        path_rotation.extend(b.rotation.to_array());
+                        path_mode.push(b.mode as u32);
+                    }
+                }
+            }
             if last_check.elapsed() < SIGNAL_CHECK_EVERY {
                 return Ok(());
             }
@@ -151,6 +168,15 @@ pub fn simulate<'py>(
     out.set_item("events", events)?;
     out.set_item("clock_jumps", report.clock_jumps)?;
     out.set_item("refused_hands", report.refused_hands)?;
+    if trajectory && path_steps > 0 {
+        // Blocks never come or go in a run: each step wrote all of them.
+        let n = b.max(1);
+        let steps = path_mode.len() / n;
+        out.set_item("path_position", array(py, path_position, &[steps, b, 3])?)?;
+        out.set_item("path_rotation", array(py, path_rotation, &[steps, b, 4])?)?;
+        out.set_item("path_mode", array(py, path_mode, &[steps, b])?)?;
+        out.set_item("step_hz", scene.world.step_hz)?;
+    }
     out.set_item("json", report.to_json())?;
     out.set_item("text", report.to_text())?;
     out.set_item("notes", notes.lines)?;

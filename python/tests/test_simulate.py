@@ -293,3 +293,20 @@ def test_the_package_has_the_version_of_the_command() -> None:
     """Issue 43: ``handblocks.__version__``, the workspace's, as ``handblocks --version``."""
     out = handblocks("--version").stdout
     assert hb.__version__ and hb.__version__ in out, (hb.__version__, out)
+
+
+def test_a_trajectory_holds_every_step_and_ends_where_the_run_ends() -> None:
+    """Issue 43: ``simulate(..., trajectory=True)`` gives per-step arrays to plot; their last
+    step is the final state, and without it the run is the same and has none."""
+    plain = hb.simulate("tip", frames=240)
+    s = hb.simulate("tip", frames=240, trajectory=True)
+    blocks = len(s.names)
+    assert s.path_position.shape == (240, blocks, 3)
+    assert s.path_rotation.shape == (240, blocks, 4)
+    assert s.path_mode.shape == (240, blocks)
+    assert s.time.shape == (240,) and s.time[-1] == pytest.approx(240 / 120.0)
+    np.testing.assert_array_equal(s.path_position[-1], s.position)
+    np.testing.assert_array_equal(s.path_rotation[-1], s.rotation)
+    np.testing.assert_array_equal(s.path_mode[-1], s.mode)
+    assert s.to_json() == plain.to_json()
+    assert plain.path_position is None and plain.time is None

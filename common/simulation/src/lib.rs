@@ -80,7 +80,7 @@ pub struct Notes {
 
 /// Runs `scene` (already loaded) under `settings`; the report and what it noted.
 pub fn run(scene: &Scene, settings: &SimulateSettings) -> Result<(Report, Notes), SimulateError> {
-    run_with_progress(scene, settings, &mut |_| Ok(()))
+    run_with_progress(scene, settings, &mut |_, _| Ok(()))
 }
 
 /// [`run`], calling `progress` with the steps taken after every step; when it answers
@@ -272,13 +272,13 @@ mod tests {
             ..SimulateSettings::default()
         };
         let mut seen = Vec::new();
-        run_with_progress(&scene, &settings, &mut |n| {
+        run_with_progress(&scene, &settings, &mut |n, _| {
             seen.push(n);
             Ok(())
         })
         .expect("the scene runs");
         assert_eq!(seen, (1..=500).collect::<Vec<u64>>());
-        let stopped = run_with_progress(&scene, &settings, &mut |n| {
+        let stopped = run_with_progress(&scene, &settings, &mut |n, _| {
             if n == 123 {
                 Err(Stop)
             } else {
@@ -305,7 +305,7 @@ mod tests {
                 ..SimulateSettings::default()
             };
             let mut last = 0;
-            let stopped = run_with_progress(&scene, &settings, &mut |n| {
+            let stopped = run_with_progress(&scene, &settings, &mut |n, _| {
                 assert_eq!(n, last + 1, "one call a step");
                 last = n;
                 if n >= stop_at {

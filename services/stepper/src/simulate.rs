@@ -226,9 +226,10 @@ pub fn default_frames(scene: &Scene) -> u64 {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Stop;
 
-/// Called after every step of a run with the steps taken so far (a caller that checks for
-/// Ctrl-C, or shows progress); [`Stop`] ends the run there.
-pub type Progress<'a> = dyn FnMut(u64) -> Result<(), Stop> + 'a;
+/// Called after every step of a run with the steps taken so far and the world after it (a
+/// caller that checks for Ctrl-C, shows progress, or keeps the blocks' path); [`Stop`] ends
+/// the run there.
+pub type Progress<'a> = dyn FnMut(u64, &Model) -> Result<(), Stop> + 'a;
 
 /// Why a run with a progress hook gave no report.
 #[derive(Debug)]
@@ -262,7 +263,7 @@ pub fn simulate(
     frames: u64,
     hand: Option<&mut dyn HandSource>,
 ) -> Result<Report, WorldError> {
-    simulate_with(scene, frames, hand, &mut |_| Ok(())).map_err(never_stopped)
+    simulate_with(scene, frames, hand, &mut |_, _| Ok(())).map_err(never_stopped)
 }
 
 /// [`simulate`], calling `progress` after every step.
@@ -310,7 +311,7 @@ pub fn simulate_hands_with(
         let (right, left) = (sample(0), sample(1));
         world.step_hands([right.as_ref(), left.as_ref()]);
         collect_events(&world, scene, &mut events, two_handed);
-        progress(n).map_err(|Stop| RunError::Stopped { steps: n })?;
+        progress(n, &world).map_err(|Stop| RunError::Stopped { steps: n })?;
     }
     Ok(report(&world, scene, frames, events))
 }
@@ -337,7 +338,7 @@ pub fn simulate_samples(
     hands: &[HandSample],
     frames: Option<u64>,
 ) -> Result<Report, WorldError> {
-    simulate_samples_with(scene, hands, frames, &mut |_| Ok(())).map_err(never_stopped)
+    simulate_samples_with(scene, hands, frames, &mut |_, _| Ok(())).map_err(never_stopped)
 }
 
 /// [`simulate_samples`], calling `progress` after every step. The samples are a stream of
@@ -410,7 +411,7 @@ fn simulate_stream(
             if world.steps() < limit && stopped.get().is_none() {
                 world.step_hands(h);
                 collect_events(&world, scene, &mut events, two_handed);
-                if progress(world.steps()).is_err() {
+                if progress(world.steps(), &world).is_err() {
                     stopped.set(Some(world.steps()));
                 }
             }
@@ -432,7 +433,7 @@ fn simulate_stream(
         world.step_hands([last[0].as_ref(), last[1].as_ref()]);
         collect_events(&world, scene, &mut events, two_handed);
         let n = world.steps();
-        progress(n).map_err(|Stop| RunError::Stopped { steps: n })?;
+        progress(n, &world).map_err(|Stop| RunError::Stopped { steps: n })?;
     }
     let steps = world.steps();
     let mut out = report(&world, scene, steps, events);

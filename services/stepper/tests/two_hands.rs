@@ -411,7 +411,7 @@ fn a_scene_scripts_the_left_hand_beside_the_right() {
         &two,
         stepper::default_frames(&two),
         [Some(&mut r), Some(&mut l)],
-        &mut |_| Ok(()),
+        &mut |_, _| Ok(()),
     )
     .unwrap_or_else(|e| panic!("{e:?}"));
     let named: Vec<(EventKind, Option<common::HandSide>)> = report
@@ -434,7 +434,8 @@ fn a_scene_scripts_the_left_hand_beside_the_right() {
     let mut a = stepper::BareFingersHand::from_scene(&one).unwrap();
     let mut b = a.clone();
     let alone = stepper::simulate(&one, frames, Some(&mut a)).unwrap();
-    let slots = stepper::simulate_hands_with(&one, frames, [Some(&mut b), None], &mut |_| Ok(()))
-        .unwrap_or_else(|e| panic!("{e:?}"));
+    let slots =
+        stepper::simulate_hands_with(&one, frames, [Some(&mut b), None], &mut |_, _| Ok(()))
+            .unwrap_or_else(|e| panic!("{e:?}"));
     assert_eq!(alone.to_json(), slots.to_json());
 }
