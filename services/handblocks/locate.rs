@@ -142,11 +142,13 @@ pub fn resolve(given: &Path, kind: Kind) -> PathBuf {
         .unwrap_or_else(|| given.to_path_buf())
 }
 
-/// Why `given` names no file, when it names none (None when [`resolve`] finds it): no such
-/// file and no name of its kind, the nearest names of that kind (a "did you mean"), and where
+/// Why a bare name names no file, when it names none (None when [`resolve`] finds it, or
+/// `given` is a path): no such file and no name of its kind, the nearest names of that kind (a "did you mean"), and where
 /// they are listed. The caller puts the file in front.
 pub fn missing(given: &Path, kind: Kind) -> Option<String> {
-    if resolve(given, kind).exists() {
+    // A path (`/data/s.toml`, `config/x.toml`) is the loader's to refuse ("cannot read the
+    // file"); only a bare name can be a misspelt name.
+    if given.components().count() != 1 || resolve(given, kind).exists() {
         return None;
     }
     let what = match kind {
