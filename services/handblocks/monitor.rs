@@ -398,6 +398,40 @@ fn first_sample_or_say_why(
     next_sample(tap, running, message, until)
 }
 
+/// A look's bus and inlet, handed back with its first sample (its stamp, when it was taken).
+type KeptLook = (Bus, Box<dyn Tap>, Option<(Stamp, u64)>);
+
+/// [`first_sample_or_say_why`] for a look that owns its bus and inlet: handed back with the
+/// first sample, or let go of (nothing of the look left) when the topic is refused.
+#[allow(clippy::too_many_arguments)]
+fn first_or_let_go(
+    tool: &str,
+    running: &RunningSession,
+    bus: Bus,
+    tap: Box<dyn Tap>,
+    topic: Topic,
+    message: &mut Vec<u8>,
+    wait: bool,
+    until: Option<Instant>,
+) -> Result<KeptLook, MonitorError> {
+    match first_sample_or_say_why(
+        tool,
+        &bus,
+        running,
+        topic,
+        tap.as_ref(),
+        message,
+        wait,
+        until,
+    ) {
+        Ok(first) => Ok((bus, tap, first)),
+        Err(e) => {
+            let _ = let_go(tool, running, bus, tap, Ok(()));
+            Err(e)
+        }
+    }
+}
+
 /// Lets go of the session's bus and says how the look ended. When the session has ended
 /// (its launcher stopped it, or is gone), one line says so, an error its bus gave as it went
 /// is part of that end rather than a failure, and whatever this tool's node left of the
@@ -443,22 +477,8 @@ pub fn echo(
     let mut message = Vec::new();
     let mut text = String::new();
     let mut printed = 0;
-    let first = match first_sample_or_say_why(
-        "echo",
-        &bus,
-        &running,
-        topic,
-        tap.as_ref(),
-        &mut message,
-        wait,
-        None,
-    ) {
-        Ok(first) => first,
-        Err(e) => {
-            let _ = let_go("echo", &running, bus, tap, Ok(()));
-            return Err(e);
-        }
-    };
+    let (bus, tap, first) =
+        first_or_let_go("echo", &running, bus, tap, topic, &mut message, wait, None)?;
     let mut have = first.is_some();
     let mut print_each = || -> Result<(), MonitorError> {
         while count.is_none_or(|n| printed < n) {
@@ -506,22 +526,8 @@ pub fn hz(
     let mut total = 0u64;
     // Each sample's hop, publish -> taken here (a tool's, not a stage's: kept to the end).
     let mut hops = common::latency::new_histogram();
-    let mut first = match first_sample_or_say_why(
-        "hz",
-        &bus,
-        &running,
-        topic,
-        tap.as_ref(),
-        &mut message,
-        wait,
-        until,
-    ) {
-        Ok(first) => first,
-        Err(e) => {
-            let _ = let_go("hz", &running, bus, tap, Ok(()));
-            return Err(e);
-        }
-    };
+    let (bus, tap, mut first) =
+        first_or_let_go("hz", &running, bus, tap, topic, &mut message, wait, until)?;
     let outcome = loop {
         if seconds.is_some_and(|s| started.elapsed().as_secs_f64() >= s) {
             break Ok(());

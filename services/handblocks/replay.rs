@@ -20,39 +20,31 @@ use crate::locate::{self, Kind};
 /// The offset the CARL sessions use: the recorded hands are held ~1.5 m up.
 const CARL_OFFSET: [f64; 3] = [0.0, -1.45, 0.0];
 
-/// The scene and offset for `file`, and where they came from.
-/// The first bytes of a file as a person reads them: text in quotes where they are printable
-/// ASCII (`"# ha"`), else hex (`89 4d 43 41`).
-fn show_bytes(bytes: &[u8]) -> String {
-    if !bytes.is_empty() && bytes.iter().all(|b| (0x20..0x7f).contains(b)) {
-        format!("{:?}", String::from_utf8_lossy(bytes))
-    } else {
-        bytes
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect::<Vec<_>>()
-            .join(" ")
-    }
+/// A trace's first bytes, from a regular file only (refused before a read could block): enough
+/// to tell a recording (MCAP's magic) from a CARL trace.
+fn trace_head(file: &Path) -> Result<Vec<u8>, String> {
+    use std::io::Read as _;
+    let mut head = Vec::with_capacity(8);
+    common::config::open_regular(file)
+        .and_then(|f| f.take(8).read_to_end(&mut head).map_err(|e| e.to_string()))
+        .map_err(|e| format!("{}: cannot read the trace: {e}", file.display()))?;
+    Ok(head)
 }
 
-fn scene_for(file: &Path, args: &ReplayArgs) -> Result<(PathBuf, [f64; 3], String), String> {
-    // Its first bytes only, from a regular file (refused before a read could block), and
-    // refused here, before any process starts, when it is neither kind of trace.
-    let head = {
-        use std::io::Read as _;
-        let mut head = Vec::with_capacity(8);
-        common::config::open_regular(file)
-            .and_then(|f| f.take(8).read_to_end(&mut head).map_err(|e| e.to_string()))
-            .map_err(|e| format!("{}: cannot read the trace: {e}", file.display()))?;
-        head
-    };
-    let is_mcap = recording::Recording::is_mcap(&head);
+/// The scene and offset for `file` (its first bytes `head`), and where they came from.
+fn scene_for(
+    file: &Path,
+    head: &[u8],
+    args: &ReplayArgs,
+) -> Result<(PathBuf, [f64; 3], String), String> {
+    // Refused here, before any process starts, when it is neither kind of trace.
+    let is_mcap = recording::Recording::is_mcap(head);
     if !is_mcap && !head.starts_with(b"CARL") {
         return Err(format!(
             "{}: neither a recording nor a CARL trace: it starts with {} (a recording starts \
              with MCAP's magic, 89 4d 43 41 50; a CARL trace with \"CARL\")",
             file.display(),
-            show_bytes(&head[..head.len().min(4)])
+            replay::carl::show_bytes(&head[..head.len().min(4)])
         ));
     }
     if let Some(scene) = &args.scene {
@@ -132,16 +124,8 @@ fn scene_for(file: &Path, args: &ReplayArgs) -> Result<(PathBuf, [f64; 3], Strin
 
 /// The source topics (glove, tracker, joints) a trace holds: a CARL trace holds joints; a
 /// recording, the ones it has messages of.
-fn held_topics(file: &Path) -> Result<Vec<&'static str>, String> {
-    let head = {
-        use std::io::Read as _;
-        let mut head = Vec::with_capacity(8);
-        common::config::open_regular(file)
-            .and_then(|f| f.take(8).read_to_end(&mut head).map_err(|e| e.to_string()))
-            .map_err(|e| format!("{}: cannot read the trace: {e}", file.display()))?;
-        head
-    };
-    if !recording::Recording::is_mcap(&head) {
+fn held_topics(file: &Path, head: &[u8]) -> Result<Vec<&'static str>, String> {
+    if !recording::Recording::is_mcap(head) {
         return Ok(vec![common::Topic::Joints.name()]);
     }
     let rec = recording::Recording::open_topics(file, &[]).map_err(|e| format!("{e}"))?;
@@ -185,7 +169,8 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode, crate::error::CliError> {
         }
         Ok(_) => {}
     }
-    let (scene, offset, why) = scene_for(&file, &args).map_err(refuse)?;
+    let head = trace_head(&file).map_err(refuse)?;
+    let (scene, offset, why) = scene_for(&file, &head, &args).map_err(refuse)?;
     // --topics that the trace does not hold would play nothing: said now, by name, rather
     // than as a session whose source delivered no sample.
     let asked: Vec<String> = args
@@ -196,7 +181,7 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode, crate::error::CliError> {
         .filter(|t| !t.is_empty())
         .collect();
     if !asked.is_empty() {
-        let held = held_topics(&file).map_err(refuse)?;
+        let held = held_topics(&file, &head).map_err(refuse)?;
         if !asked.iter().any(|t| held.contains(&t.as_str())) {
             return Err(refuse(format!(
                 "{}: it holds only {} of the source topics, so --topics {} would play nothing \
@@ -211,13 +196,9 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode, crate::error::CliError> {
             )));
         }
     }
-    let topics: Vec<String> = args
-        .topics
+    let topics: Vec<String> = asked
         .iter()
-        .flat_map(|t| t.split(','))
-        .map(|t| t.trim().trim_start_matches('/'))
-        .filter(|t| !t.is_empty())
-        .map(|t| toml::Value::String(t.to_string()).to_string())
+        .map(|t| toml::Value::String(t.clone()).to_string())
         .collect();
     let mut text = format!(
         "# Written by `handblocks replay {}`: the trace in place of the devices.\n\

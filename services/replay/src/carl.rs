@@ -14,6 +14,20 @@ use std::path::{Path, PathBuf};
 
 use common::{HandSide, JointsSample, Pose, Stamp, OPENXR_JOINTS};
 
+/// A file's first bytes as a person reads them: text in quotes where they are printable ASCII
+/// (`"# ha"`), else hex (`89 4d 43 41`). Error messages that say what a file starts with use it.
+pub fn show_bytes(bytes: &[u8]) -> String {
+    if !bytes.is_empty() && bytes.iter().all(|b| (0x20..0x7f).contains(b)) {
+        format!("{:?}", String::from_utf8_lossy(bytes))
+    } else {
+        bytes
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+}
+
 const MAGIC: &[u8; 4] = b"CARL";
 const POSE_BYTES: usize = 7 * 4;
 const JOINTS_BYTES: usize = OPENXR_JOINTS * POSE_BYTES;
@@ -183,15 +197,7 @@ impl<'a> Reader<'a> {
                 0,
                 format!(
                     "not a CARL file: it starts with {}, not \"CARL\"",
-                    if magic.iter().all(|b| (0x20..0x7f).contains(b)) {
-                        format!("{:?}", String::from_utf8_lossy(magic))
-                    } else {
-                        magic
-                            .iter()
-                            .map(|b| format!("{b:02x}"))
-                            .collect::<Vec<_>>()
-                            .join(" ")
-                    }
+                    show_bytes(magic)
                 ),
             )));
         }
