@@ -231,7 +231,7 @@ fn a_replay_session_ends_when_its_trace_ends() {
     // No --duration: it must end by itself (the push trace is 2.4 s long).
     let mut child = Command::new(EXE)
         .current_dir(repo())
-        .args(["launch", "--bus-id", &id])
+        .args(["launch", "--events", "--bus-id", &id])
         .arg(&session)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
@@ -251,7 +251,7 @@ fn a_replay_session_ends_when_its_trace_ends() {
     assert!(text.contains("the trace ended after"), "{text}");
     assert!(
         text.contains("push     cube"),
-        "the push is in the outcome:\n{text}"
+        "the push is in the outcome --events prints:\n{text}"
     );
     assert_nothing_left(&id);
 }

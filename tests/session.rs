@@ -638,6 +638,15 @@ fn a_live_session_of_1024_blocks_carries_every_block_exactly_as_simulate() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // Issue 43: the report a person reads counts the field, not lists it: a thousand poses and
+    // two thousand events no longer bury the table and the verdict.
+    let printed = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        printed.contains("blocks (1024): ") && printed.contains("each block's pose: --blocks"),
+        "{printed}"
+    );
+    assert!(printed.lines().count() < 80, "{printed}");
+    assert!(printed.contains("\nbudget: ok\n"), "{printed}");
     let rec = Recording::open(&log).unwrap();
     let worlds: Vec<WorldSample> = rec.worlds().collect();
     assert!(worlds.len() >= 200, "{} worlds", worlds.len());

@@ -6,6 +6,7 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
+BUILT_FROM: str
 MODE_NAMES: List[str]
 JOINT_NAMES: List[str]
 TOPICS: List[str]

@@ -82,6 +82,14 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     // The package's version is the workspace's: `handblocks.__version__`.
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // The checkout this package was built from: the console command `handblocks` runs the
+    // program that checkout built (`handblocks._cli`), where nothing else names one.
+    m.add(
+        "BUILT_FROM",
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .map_or_else(String::new, |p| p.display().to_string()),
+    )?;
     m.add("HandblocksError", py.get_type::<HandblocksError>())?;
     m.add("RecordingError", py.get_type::<RecordingError>())?;
     m.add("SceneError", py.get_type::<SceneError>())?;

@@ -102,8 +102,8 @@ pub enum Command {
     Simulate {
         /// The scene file (docs/design.md, "Effects"; the rules: docs/model.md).
         scene: PathBuf,
-        /// Steps to run (default: the hand's last key plus 3 s).
-        #[arg(long, value_name = "N")]
+        /// Steps to run, 0 to 10,000,000 (default: the hand's last key plus 3 s).
+        #[arg(long, value_name = "N", value_parser = parse_steps, allow_negative_numbers = true)]
         frames: Option<u64>,
         /// Override the scene's [world] model.
         #[arg(long, value_parser = ["paper", "precise"])]
@@ -156,8 +156,8 @@ pub enum Command {
         /// The session's bus id (default: the only one running).
         #[arg(long, value_name = "ID")]
         session: Option<String>,
-        /// Stop after this many samples.
-        #[arg(long, short = 'n', value_name = "N")]
+        /// Stop after this many samples (1 or more; default: until Ctrl-C).
+        #[arg(long, short = 'n', value_name = "N", value_parser = parse_count, allow_negative_numbers = true)]
         count: Option<u64>,
         /// Wait for a publisher when nobody publishes the topic yet (default: say so and stop).
         #[arg(long)]
@@ -294,6 +294,11 @@ pub enum Command {
         #[arg(default_value = "config")]
         dir: PathBuf,
     },
+    /// The configuration files' keys: `config keys [--markdown|--json]` (docs/config.md).
+    Config {
+        #[command(subcommand)]
+        what: crate::config_keys::ConfigCommand,
+    },
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
     ///
     /// For bash: handblocks completions bash > ~/.local/share/bash-completion/completions/handblocks
@@ -378,6 +383,22 @@ pub struct LaunchArgs {
     /// list it with `handblocks inspect FILE`, replay it with `[source] kind = "replay"`.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
+    #[command(flatten)]
+    pub world: WorldPrint,
+}
+
+/// How much of what the world came to a session prints at its end. By default a summary:
+/// the blocks counted by mode (each block only in a scene of at most
+/// `world_summary::BLOCKS_LISTED` blocks), the events counted by kind, and the grasps, releases and
+/// topples: a thousand blocks' poses and their events would bury the verdict.
+#[derive(clap::Args, Default, Clone, Copy)]
+pub struct WorldPrint {
+    /// Print every block's final pose and mode (as `simulate` prints them).
+    #[arg(long)]
+    pub blocks: bool,
+    /// Print every event with its step (as `simulate` prints them).
+    #[arg(long)]
+    pub events: bool,
 }
 
 /// What `handblocks replay` was given.
@@ -387,7 +408,7 @@ pub struct ReplayArgs {
     pub file: PathBuf,
     /// 1 = recorded timing, 0.5 = half speed, 0 = as fast as the pipeline takes it (losing
     /// nothing).
-    #[arg(long, default_value_t = 1.0, value_parser = parse_speed)]
+    #[arg(long, default_value_t = 1.0, value_parser = parse_speed, allow_negative_numbers = true)]
     pub speed: f64,
     /// Play it again and again until stopped.
     #[arg(long = "loop")]
@@ -427,6 +448,8 @@ pub struct ReplayArgs {
     /// No progress lines while running.
     #[arg(long)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub world: WorldPrint,
 }
 
 fn parse_speed(s: &str) -> Result<f64, String> {
@@ -624,6 +647,22 @@ fn parse_override(s: &str) -> Result<common::config::session::Override, String> 
         }
     }
     Ok(o)
+}
+
+/// `simulate --frames`: the steps to run. The bound is what a run can finish: ten million
+/// steps of 120 Hz are 23 hours of world time.
+fn parse_steps(s: &str) -> Result<u64, String> {
+    s.parse::<u64>()
+        .ok()
+        .filter(|n| *n <= 10_000_000)
+        .ok_or_else(|| format!("{s}: allowed: a whole number of steps, 0 to 10000000"))
+}
+
+/// `echo -n`: how many samples to print before stopping.
+fn parse_count(s: &str) -> Result<u64, String> {
+    s.parse::<u64>().ok().filter(|n| *n >= 1).ok_or_else(|| {
+        format!("{s}: allowed: a whole number of samples, 1 or more (leave -n out to print until Ctrl-C)")
+    })
 }
 
 fn parse_seconds(s: &str) -> Result<Duration, String> {

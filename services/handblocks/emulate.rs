@@ -72,6 +72,18 @@ pub fn run(
     if let Some(r) = rate.filter(|r| !(r.is_finite() && *r > 0.0 && *r <= 10_000.0)) {
         return Err(EmulateError::Rate(r));
     }
+    // The link is made in an existing folder: say so before the device starts.
+    if let Some(dir) = link
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty() && !d.is_dir())
+    {
+        return Err(EmulateError::Usage(format!(
+            "--link {}: the folder {} does not exist; give a path in an existing folder (e.g. \
+             /tmp/{device})",
+            link.display(),
+            dir.display()
+        )));
+    }
     shutdown::install_signal_handlers();
     eprintln!(
         "handblocks emulate: a {device} at {} (Ctrl-C stops it)",

@@ -31,6 +31,8 @@ pub enum CliError {
     Replay(String),
     /// `echo`, `hz`: no session to look at, or its bus cannot be read.
     Monitor(&'static str, MonitorError),
+    /// A command refused what it was given before doing anything, saying what to do instead.
+    Refused(&'static str, String),
 }
 
 impl CliError {
@@ -50,6 +52,7 @@ impl fmt::Display for CliError {
             CliError::Service(e) => write!(f, "handblocks {}: {e}", e.service()),
             CliError::Replay(e) => write!(f, "handblocks replay: {e}"),
             CliError::Monitor(command, e) => write!(f, "handblocks {command}: {e}"),
+            CliError::Refused(command, why) => write!(f, "handblocks {command}: {why}"),
             CliError::Bench(e) => match e.command() {
                 Some(command) => write!(f, "handblocks {command}: {e}"),
                 None => write!(f, "handblocks: {e}"),

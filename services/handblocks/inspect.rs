@@ -63,6 +63,29 @@ const MAX_SEGMENTS: u32 = 1000;
 
 /// Lists the recording; 0 when it is intact, 1 when it is damaged (what could be read is
 /// listed), an error when it cannot be read at all.
+/// Why `path` is plainly not a recording to inspect, with what to do instead: None when it may
+/// be one (the reader then says what is wrong inside it).
+pub fn refuse(path: &Path) -> Option<String> {
+    if std::fs::symlink_metadata(path).is_err() {
+        return Some(format!(
+            "{}: no such file; inspect reads an MCAP recording, which `handblocks launch \
+             --record FILE` (or a session's [recorder] file) writes",
+            path.display()
+        ));
+    }
+    let mut head = [0u8; 4];
+    let n = std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
+        .ok()?;
+    (&head[..n] == b"CARL").then(|| {
+        format!(
+            "{}: a CARL trace, not an MCAP recording: `handblocks replay {0}` plays it, and \
+             Python's `handblocks.Recording(\"{0}\")` reads its joints as arrays",
+            path.display()
+        )
+    })
+}
+
 pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
     // Counts and gaps come from every message; no sample needs to stay in memory.
     // A session whose recorder was restarted went on in NAME.1.mcap, ...: what no segment

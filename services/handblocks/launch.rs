@@ -1,6 +1,6 @@
 //! `handblocks launch SESSION` (and the bare `handblocks`): runs a session through the
-//! launcher, then prints what the world came to, the latency table, the preview's path and
-//! the budget's verdict.
+//! launcher, then prints a summary of what the world came to (`world_summary`; all of it with
+//! `--blocks`/`--events`), the latency table, the preview's path and the budget's verdict.
 
 use std::fmt;
 use std::path::Path;
@@ -41,7 +41,9 @@ impl std::error::Error for LaunchCommandError {}
 
 /// Runs the session; 0 when it kept its budget, 1 when it did not or a process failed.
 pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
-    if let Some(why) = crate::locate::missing(&args.session, crate::locate::Kind::Session) {
+    if let Some(why) = crate::locate::missing(&args.session, crate::locate::Kind::Session)
+        .or_else(|| crate::locate::wrong_kind(&args.session, crate::locate::Kind::Session))
+    {
         return Err(LaunchCommandError::Session(launcher::LaunchError::Session(
             common::config::ConfigError::new(&args.session, "", why),
         )));
@@ -88,10 +90,13 @@ pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
     }
     let outcome = launcher::launch(&opts).map_err(LaunchCommandError::Run)?;
     if let Some(world) = &outcome.world {
-        println!("what the world came to (as simulate prints it): {world}");
+        print!(
+            "{}",
+            crate::world_summary::summary(world, outcome.report.meta.world.as_ref(), args.world)
+        );
         println!(
             "(a session steps its world for as long as it runs, {} steps a second; `handblocks \
-             simulate` steps the scene's hand plus 3 s, so their counts differ)",
+             simulate` steps the scene's hand plus 3 s, so their counts differ)\n",
             s.scene.world.step_hz
         );
     }

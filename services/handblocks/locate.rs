@@ -181,6 +181,78 @@ pub fn missing(given: &Path, kind: Kind) -> Option<String> {
     Some(why)
 }
 
+/// Why `given` (found by [`resolve`]) is not a file of `kind` though it exists, when it is
+/// plainly something else, with the command that takes it: a folder (`handblocks list DIR`),
+/// a recorded hand (`replay`, or `simulate --hand`), a session given to `simulate`. None when
+/// it may be one (the loader then checks every key).
+pub fn wrong_kind(given: &Path, kind: Kind) -> Option<String> {
+    let file = resolve(given, kind);
+    let shown = file.display();
+    if file.is_dir() {
+        return Some(format!(
+            "a folder, not a {} file: `handblocks list {shown}` lists the sessions and scenes in \
+             it",
+            match kind {
+                Kind::Session => "session",
+                Kind::Scene => "scene",
+            }
+        ));
+    }
+    let mut head = [0u8; 8];
+    let n = std::fs::File::open(&file)
+        .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
+        .ok()?;
+    let trace = if head[..n].starts_with(b"CARL") {
+        Some("a CARL trace")
+    } else if head[..n].starts_with(b"\x89MCAP") {
+        Some("an MCAP recording")
+    } else {
+        None
+    };
+    if let Some(trace) = trace {
+        return Some(match kind {
+            Kind::Session => format!(
+                "{trace} (a recorded hand), not a session: play it with `handblocks replay \
+                 {shown}`"
+            ),
+            Kind::Scene => format!(
+                "{trace} (a recorded hand), not a scene: let it drive a scene's hand with \
+                 `handblocks simulate SCENE --hand {shown}` (the carl-* scenes are made for CARL \
+                 traces), or play it live with `handblocks replay {shown}`"
+            ),
+        });
+    }
+    if kind == Kind::Scene {
+        // A session names its scene; a scene has blocks.
+        let table = std::fs::read_to_string(&file)
+            .ok()?
+            .parse::<toml::Table>()
+            .ok()?;
+        if let (Some(scene), false) = (table.get("scene"), table.contains_key("block")) {
+            // Named from the session's folder, as the session reads it; shown as a name
+            // when it is one of the configuration's scenes.
+            let named = Path::new(scene.as_str().unwrap_or("SCENE"));
+            let path = file.parent().unwrap_or(Path::new("")).join(named);
+            let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
+            let scene = match stem {
+                Some(stem)
+                    if path.canonicalize().ok().is_some_and(|p| {
+                        resolve(Path::new(&stem), Kind::Scene).canonicalize().ok() == Some(p)
+                    }) =>
+                {
+                    stem
+                }
+                _ => path.display().to_string(),
+            };
+            return Some(format!(
+                "a session file, not a scene: simulate its scene with `handblocks simulate \
+                 {scene}`, or run the session with `handblocks launch {shown}`"
+            ));
+        }
+    }
+    None
+}
+
 /// The names (file stems) a bare name of `kind` can mean, from the configuration folder.
 fn names_of(kind: Kind) -> Vec<String> {
     let Some(root) = config_root() else {

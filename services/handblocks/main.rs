@@ -11,6 +11,7 @@
 mod bench;
 mod cli;
 mod completions;
+mod config_keys;
 mod emulate;
 mod error;
 mod inspect;
@@ -21,6 +22,7 @@ mod monitor;
 mod replay;
 mod service;
 mod simulate;
+mod world_summary;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -77,6 +79,7 @@ fn run() -> Result<ExitCode, CliError> {
         })?,
         Some(Command::Launch(args)) => launch::run(args)?,
         Some(Command::List { dir }) => list::run(&dir)?,
+        Some(Command::Config { what }) => config_keys::run(what),
         Some(Command::Completions { shell }) => completions::run(shell),
         Some(Command::Simulate {
             scene,
@@ -100,6 +103,10 @@ fn run() -> Result<ExitCode, CliError> {
             json,
             overrides,
         })?,
+        Some(Command::Inspect { recording, .. }) if inspect::refuse(&recording).is_some() => {
+            let why = inspect::refuse(&recording).unwrap_or_default();
+            return Err(error::CliError::Refused("inspect", why));
+        }
         Some(Command::Inspect {
             recording,
             samples: Some(topic),

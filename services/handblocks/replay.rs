@@ -257,6 +257,7 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode, crate::error::CliError> {
         quiet: args.quiet,
         frames_dir: None,
         record: args.record,
+        world: args.world,
     });
     let _ = std::fs::remove_dir_all(&dir);
     launched.map_err(|e: LaunchCommandError| e.into())

@@ -27,7 +27,9 @@ pub struct SimulateArgs {
 pub use simulation::SimulateError;
 
 pub fn run(args: SimulateArgs) -> Result<ExitCode, SimulateError> {
-    if let Some(why) = crate::locate::missing(&args.scene, crate::locate::Kind::Scene) {
+    if let Some(why) = crate::locate::missing(&args.scene, crate::locate::Kind::Scene)
+        .or_else(|| crate::locate::wrong_kind(&args.scene, crate::locate::Kind::Scene))
+    {
         return Err(SimulateError::Scene(common::config::ConfigError::new(
             &args.scene,
             "",

@@ -15,6 +15,7 @@ use std::time::Duration;
 
 use toml::{Table, Value};
 
+use super::catalog::{self, list, num, FileKind, Spec};
 use super::ConfigError;
 use crate::{monotonic_ns, Pose};
 
@@ -145,6 +146,14 @@ impl Format {
     /// The names a session file uses.
     pub const NAMES: [&'static str; 2] = ["ascii", "binary"];
 
+    /// Its name in a session file.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Ascii => "ascii",
+            Format::Binary => "binary",
+        }
+    }
+
     /// `"ascii"` or `"binary"`.
     pub fn from_name(name: &str) -> Option<Format> {
         match name {
@@ -158,6 +167,14 @@ impl Format {
 impl Units {
     /// The names a session file uses.
     pub const NAMES: [&'static str; 4] = ["cm", "centimetres", "in", "inches"];
+
+    /// Its (short) name in a session file.
+    pub fn name(self) -> &'static str {
+        match self {
+            Units::Centimetres => "cm",
+            Units::Inches => "in",
+        }
+    }
 
     /// `"cm"`/`"centimetres"` or `"in"`/`"inches"`.
     pub fn from_name(name: &str) -> Option<Units> {
@@ -188,6 +205,14 @@ pub enum Orientation {
 impl Orientation {
     /// The names a session file uses.
     pub const NAMES: [&'static str; 2] = ["quaternion", "euler"];
+
+    /// Its name in a session file.
+    pub fn name(self) -> &'static str {
+        match self {
+            Orientation::Quaternion => "quaternion",
+            Orientation::Euler => "euler",
+        }
+    }
 
     pub fn from_name(name: &str) -> Option<Orientation> {
         match name {
@@ -262,13 +287,21 @@ impl<'a> Keys<'a> {
         }
     }
 
-    fn err(&self, key: &str, problem: impl Into<String>) -> ConfigError {
-        let path = if self.prefix.is_empty() {
+    fn path(&self, key: &str) -> String {
+        if self.prefix.is_empty() {
             key.to_string()
         } else {
             format!("{}.{key}", self.prefix)
-        };
-        ConfigError::new(self.file, path, problem)
+        }
+    }
+
+    fn err(&self, key: &str, problem: impl Into<String>) -> ConfigError {
+        ConfigError::new(self.file, self.path(key), problem)
+    }
+
+    /// Tells the key catalog (when one is being made) what this getter checks of `key`.
+    fn note(&self, key: &str, spec: impl FnOnce() -> Spec) {
+        catalog::note(FileKind::Devices, || self.path(key), spec);
     }
 
     fn get(&mut self, key: &'static str) -> Option<&'a Value> {
@@ -276,7 +309,18 @@ impl<'a> Keys<'a> {
         self.table.get(key)
     }
 
+    /// The raw value; `spec` says, for the key catalog, what the caller accepts.
+    fn raw(&mut self, key: &'static str, spec: impl FnOnce() -> Spec) -> Option<&'a Value> {
+        self.note(key, spec);
+        self.get(key)
+    }
+
     fn string(&mut self, key: &'static str) -> Result<Option<&'a str>, ConfigError> {
+        self.note(key, || Spec::of("string"));
+        self.string_value(key)
+    }
+
+    fn string_value(&mut self, key: &'static str) -> Result<Option<&'a str>, ConfigError> {
         match self.get(key) {
             None => Ok(None),
             Some(Value::String(s)) => Ok(Some(s)),
@@ -284,21 +328,33 @@ impl<'a> Keys<'a> {
         }
     }
 
+    /// One of `names`, parsed; None when absent, and the caller keeps `default` (its name,
+    /// for the key catalog).
     fn choice<T>(
         &mut self,
         key: &'static str,
         names: &[&str],
+        default: &str,
         parse: impl Fn(&str) -> Option<T>,
     ) -> Result<Option<T>, ConfigError> {
-        let Some(s) = self.string(key)? else {
+        let quoted = || -> Vec<String> { names.iter().map(|n| format!("\"{n}\"")).collect() };
+        self.note(key, || Spec {
+            allowed: quoted().join(", "),
+            default: Some(format!("\"{default}\"")),
+            ..Spec::of("string")
+        });
+        let Some(s) = self.string_value(key)? else {
             return Ok(None);
         };
         parse(s).map(Some).ok_or_else(|| {
-            let quoted: Vec<String> = names.iter().map(|n| format!("\"{n}\"")).collect();
-            self.err(key, format!("\"{s}\" is not one of {}", quoted.join(", ")))
+            self.err(
+                key,
+                format!("\"{s}\" is not one of {}", quoted().join(", ")),
+            )
         })
     }
 
+    /// A number in `lo..=hi` (its getter notes it for the key catalog).
     fn number(&mut self, key: &'static str, lo: f64, hi: f64) -> Result<Option<f64>, ConfigError> {
         let v = match self.get(key) {
             None => return Ok(None),
@@ -312,7 +368,20 @@ impl<'a> Keys<'a> {
         Ok(Some(v))
     }
 
-    fn integer(&mut self, key: &'static str, lo: i64, hi: i64) -> Result<Option<i64>, ConfigError> {
+    /// A whole number in `lo..=hi`; None when absent, and the caller keeps `default` (for the
+    /// key catalog).
+    fn integer(
+        &mut self,
+        key: &'static str,
+        lo: i64,
+        hi: i64,
+        default: i64,
+    ) -> Result<Option<i64>, ConfigError> {
+        self.note(key, || Spec {
+            allowed: format!("{lo} to {hi}"),
+            default: Some(default.to_string()),
+            ..Spec::of("whole number")
+        });
         match self.get(key) {
             None => Ok(None),
             Some(Value::Integer(i)) if (lo..=hi).contains(i) => Ok(Some(*i)),
@@ -323,7 +392,17 @@ impl<'a> Keys<'a> {
         }
     }
 
-    fn millis(&mut self, key: &'static str) -> Result<Option<Duration>, ConfigError> {
+    /// Milliseconds, 10 to 60000; None when absent, and the caller keeps `default`.
+    fn millis(
+        &mut self,
+        key: &'static str,
+        default: Duration,
+    ) -> Result<Option<Duration>, ConfigError> {
+        self.note(key, || Spec {
+            allowed: "10 to 60000".into(),
+            default: Some(num(default.as_secs_f64() * 1000.0)),
+            ..Spec::of("number (milliseconds)")
+        });
         Ok(self
             .number(key, 10.0, 60_000.0)?
             .map(|ms| Duration::from_secs_f64(ms / 1000.0)))
@@ -350,6 +429,17 @@ impl<'a> Keys<'a> {
 
     /// `{ position = [x, y, z], rotation = [x, y, z, w] }`, both optional.
     fn pose(&mut self, key: &'static str) -> Result<Option<Pose>, ConfigError> {
+        self.note(key, || Spec::of("table { position, rotation }"));
+        self.note(&format!("{key}.position"), || Spec {
+            allowed: "each -100 to 100".into(),
+            default: Some(list(&Pose::IDENTITY.position)),
+            ..Spec::of("list of 3 numbers")
+        });
+        self.note(&format!("{key}.rotation"), || Spec {
+            allowed: "a unit quaternion [x, y, z, w]".into(),
+            default: Some(list(&Pose::IDENTITY.rotation)),
+            ..Spec::of("list of 4 numbers")
+        });
         let Some(v) = self.get(key) else {
             return Ok(None);
         };
@@ -402,7 +492,7 @@ impl<'a> Keys<'a> {
             )
         })?;
         let mut link = LinkSettings::new(port);
-        if let Some(b) = self.integer("baud", 300, 4_000_000)? {
+        if let Some(b) = self.integer("baud", 300, 4_000_000, link.baud.into())? {
             link.baud = b as u32;
         }
         Ok(link)
@@ -411,10 +501,10 @@ impl<'a> Keys<'a> {
     /// `answer_ms` and `silence_ms`: how long the device may take to answer, and to send the
     /// next record, before the driver reports it.
     fn timeouts(&mut self, link: &mut LinkSettings) -> Result<(), ConfigError> {
-        if let Some(d) = self.millis("answer_ms")? {
+        if let Some(d) = self.millis("answer_ms", link.answer_timeout)? {
             link.answer_timeout = d;
         }
-        if let Some(d) = self.millis("silence_ms")? {
+        if let Some(d) = self.millis("silence_ms", link.silence_timeout)? {
             link.silence_timeout = d;
         }
         Ok(())
@@ -429,11 +519,16 @@ impl<'a> Keys<'a> {
         default_hz: f64,
         own_rate: &str,
     ) -> Result<Option<f64>, ConfigError> {
-        let polled = self.choice("mode", &[own_mode, "polled"], |s| match s {
+        let polled = self.choice("mode", &[own_mode, "polled"], own_mode, |s| match s {
             "polled" => Some(true),
             s if s == own_mode => Some(false),
             _ => None,
         })?;
+        self.note("rate_hz", || Spec {
+            allowed: "1 to 1000, only with mode = \"polled\"".into(),
+            default: Some(num(default_hz)),
+            ..Spec::of("number")
+        });
         let rate = self.number("rate_hz", 1.0, 1000.0)?;
         match (polled, rate) {
             (Some(true), r) => Ok(Some(r.unwrap_or(default_hz))),
@@ -463,8 +558,7 @@ impl<'a> Keys<'a> {
 /// The glove table (`prefix` is its dotted key, e.g. `source.glove`, for messages). A
 /// relative `calibration` path is resolved against `dir` (the session file's folder).
 ///
-/// Keys: `port` (required), `baud`, `sensors` (18 | 22), `calibration`, `mode`
-/// ("streamed" | "polled"), `rate_hz` (polled), `answer_ms`, `silence_ms`.
+/// Its keys, their defaults and ranges: docs/config.md ("Device tables of a session").
 pub fn glove_config(
     file: &Path,
     prefix: &str,
@@ -478,7 +572,10 @@ pub fn glove_config(
         epoch_ns,
         ..GloveConfig::new("")
     };
-    match k.get("sensors") {
+    match k.raw("sensors", || Spec {
+        allowed: "18 or 22".into(),
+        ..Spec::of("whole number")
+    }) {
         None => {}
         Some(Value::Integer(n)) if *n == 18 || *n == 22 => cfg.sensors = Some(*n as u32),
         Some(v) => return Err(k.err("sensors", format!("{v}: a CyberGlove has 18 or 22 sensors"))),
@@ -496,10 +593,7 @@ pub fn glove_config(
 
 /// The tracker table (`prefix` e.g. `source.tracker`).
 ///
-/// Keys: `port` (required), `baud`, `format` ("binary" | "ascii"), `units` ("cm" | "in"),
-/// `orientation` ("quaternion" | "euler"), `mode` ("continuous" | "polled"), `rate_hz`
-/// (polled), `station` (1..=4), `to_world` and `wrist_offset` (`{ position, rotation }`),
-/// `answer_ms`, `silence_ms`.
+/// Its keys, their defaults and ranges: docs/config.md ("Device tables of a session").
 pub fn tracker_config(
     file: &Path,
     prefix: &str,
@@ -512,19 +606,29 @@ pub fn tracker_config(
         epoch_ns,
         ..TrackerConfig::new("")
     };
-    if let Some(f) = k.choice("format", &Format::NAMES, Format::from_name)? {
+    if let Some(f) = k.choice(
+        "format",
+        &Format::NAMES,
+        cfg.format.name(),
+        Format::from_name,
+    )? {
         cfg.format = f;
     }
-    if let Some(u) = k.choice("units", &Units::NAMES, Units::from_name)? {
+    if let Some(u) = k.choice("units", &Units::NAMES, cfg.units.name(), Units::from_name)? {
         cfg.units = u;
     }
-    if let Some(o) = k.choice("orientation", &Orientation::NAMES, Orientation::from_name)? {
+    if let Some(o) = k.choice(
+        "orientation",
+        &Orientation::NAMES,
+        cfg.orientation.name(),
+        Orientation::from_name,
+    )? {
         cfg.orientation = o;
     }
     if let Some(rate_hz) = k.poll_rate("continuous", 60.0, "continuous output")? {
         cfg.mode = TrackerMode::Polled { rate_hz };
     }
-    if let Some(s) = k.integer("station", 1, 4)? {
+    if let Some(s) = k.integer("station", 1, 4, cfg.station.into())? {
         cfg.station = s as u8;
     }
     if let Some(p) = k.pose("to_world")? {

@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::catalog::FileKind;
 use super::reader::{parse_file, Reader};
 use super::ConfigError;
 
@@ -64,7 +65,7 @@ impl HandModelSpec {
     /// Reads and checks a hand model file; absent keys keep the default hand's values.
     pub fn load(file: &Path) -> Result<HandModelSpec, ConfigError> {
         let table = parse_file(file)?;
-        let r = Reader::new(file, "", &table);
+        let r = Reader::root(file, FileKind::HandModel, &table);
         let mut m = HandModelSpec {
             file: Some(file.to_path_buf()),
             ..HandModelSpec::default()
@@ -79,8 +80,8 @@ impl HandModelSpec {
             p.finish()?;
         }
         if let Some(t) = r.table("thumb")? {
-            m.thumb_base = t.array::<3>("base", OFFSET)?.unwrap_or(m.thumb_base);
-            m.thumb_bones = t.array::<3>("bones", BONE)?.unwrap_or(m.thumb_bones);
+            m.thumb_base = t.array_or::<3>("base", OFFSET, m.thumb_base)?;
+            m.thumb_bones = t.array_or::<3>("bones", BONE, m.thumb_bones)?;
             m.thumb_radius = t
                 .f64_in("radius", Some(m.thumb_radius), RADIUS)?
                 .unwrap_or(m.thumb_radius);
@@ -92,8 +93,8 @@ impl HandModelSpec {
         {
             if let Some(f) = r.table(key)? {
                 let spec = &mut m.fingers[i];
-                spec.knuckle = f.array::<3>("knuckle", OFFSET)?.unwrap_or(spec.knuckle);
-                spec.bones = f.array::<3>("bones", BONE)?.unwrap_or(spec.bones);
+                spec.knuckle = f.array_or::<3>("knuckle", OFFSET, spec.knuckle)?;
+                spec.bones = f.array_or::<3>("bones", BONE, spec.bones)?;
                 spec.radius = f
                     .f64_in("radius", Some(spec.radius), RADIUS)?
                     .unwrap_or(spec.radius);

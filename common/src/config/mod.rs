@@ -4,10 +4,12 @@
 //! allowed, so a user can fix the file without reading code. Unknown keys are errors: a typo
 //! must not silently fall back to a default.
 
+pub mod catalog;
 pub mod colors;
 pub mod devices;
 pub mod graph;
 pub mod hand;
+mod key_docs;
 mod reader;
 pub mod remote;
 pub mod scene;

@@ -7,11 +7,14 @@ use std::path::Path;
 
 use toml::{Table, Value};
 
+use super::catalog::{self, num, FileKind, Spec};
 use super::ConfigError;
 
 pub(crate) struct Reader<'a> {
     pub file: &'a Path,
     pub path: String,
+    /// Which kind of file it reads, for the key catalog ([`catalog`]).
+    kind: FileKind,
     table: &'a Table,
     known: RefCell<Vec<&'static str>>,
 }
@@ -29,13 +32,24 @@ pub(crate) fn parse_file(file: &Path) -> Result<Table, ConfigError> {
 }
 
 impl<'a> Reader<'a> {
-    pub fn new(file: &'a Path, path: impl Into<String>, table: &'a Table) -> Self {
+    /// The reader of a whole file of `kind`.
+    pub fn root(file: &'a Path, kind: FileKind, table: &'a Table) -> Self {
+        Reader::new(file, kind, String::new(), table)
+    }
+
+    fn new(file: &'a Path, kind: FileKind, path: String, table: &'a Table) -> Self {
         Reader {
             file,
-            path: path.into(),
+            path,
+            kind,
             table,
             known: RefCell::new(Vec::new()),
         }
+    }
+
+    /// Tells the key catalog (when one is being made) what this getter checks of `key`.
+    fn note(&self, key: &str, spec: impl FnOnce() -> Spec) {
+        catalog::note(self.kind, || self.key(key), spec);
     }
 
     pub fn key(&self, key: &str) -> String {
@@ -78,24 +92,29 @@ impl<'a> Reader<'a> {
     }
 
     pub fn table(&self, key: &'static str) -> Result<Option<Reader<'a>>, ConfigError> {
+        self.note(key, || Spec::of("table"));
         match self.get(key) {
             None => Ok(None),
-            Some(Value::Table(t)) => Ok(Some(Reader::new(self.file, self.key(key), t))),
+            Some(Value::Table(t)) => Ok(Some(Reader::new(self.file, self.kind, self.key(key), t))),
             Some(v) => Err(self.err(key, format!("expected a table, found {}", v.type_str()))),
         }
     }
 
     /// An array of tables (`[[key]]`).
     pub fn tables(&self, key: &'static str) -> Result<Vec<Reader<'a>>, ConfigError> {
+        self.note(key, || Spec::of("array of tables"));
         match self.get(key) {
             None => Ok(Vec::new()),
             Some(Value::Array(items)) => items
                 .iter()
                 .enumerate()
                 .map(|(i, v)| match v {
-                    Value::Table(t) => {
-                        Ok(Reader::new(self.file, format!("{}[{i}]", self.key(key)), t))
-                    }
+                    Value::Table(t) => Ok(Reader::new(
+                        self.file,
+                        self.kind,
+                        format!("{}[{i}]", self.key(key)),
+                        t,
+                    )),
                     v => Err(self.err(
                         key,
                         format!("expected tables ([[{key}]]), found {}", v.type_str()),
@@ -110,6 +129,22 @@ impl<'a> Reader<'a> {
     }
 
     pub fn string(&self, key: &'static str) -> Result<Option<String>, ConfigError> {
+        self.note(key, || Spec::of("string"));
+        self.string_value(key)
+    }
+
+    /// A string, or `default` when absent.
+    pub fn string_or(&self, key: &'static str, default: &str) -> Result<String, ConfigError> {
+        self.note(key, || Spec {
+            default: Some(format!("{default:?}")),
+            ..Spec::of("string")
+        });
+        Ok(self
+            .string_value(key)?
+            .unwrap_or_else(|| default.to_string()))
+    }
+
+    fn string_value(&self, key: &'static str) -> Result<Option<String>, ConfigError> {
         match self.get(key) {
             None => Ok(None),
             Some(Value::String(s)) => Ok(Some(s.clone())),
@@ -123,7 +158,12 @@ impl<'a> Reader<'a> {
         key: &'static str,
         allowed: &[&'static str],
     ) -> Result<&'static str, ConfigError> {
-        match self.string(key)? {
+        self.note(key, || Spec {
+            allowed: quoted(allowed),
+            default: allowed.first().map(|a| format!("{a:?}")),
+            ..Spec::of("string")
+        });
+        match self.string_value(key)? {
             None => Ok(allowed[0]),
             Some(s) => allowed.iter().copied().find(|a| *a == s).ok_or_else(|| {
                 self.err(
@@ -135,6 +175,10 @@ impl<'a> Reader<'a> {
     }
 
     pub fn bool(&self, key: &'static str, default: bool) -> Result<bool, ConfigError> {
+        self.note(key, || Spec {
+            default: Some(default.to_string()),
+            ..Spec::of("true or false")
+        });
         match self.get(key) {
             None => Ok(default),
             Some(Value::Boolean(b)) => Ok(*b),
@@ -160,6 +204,20 @@ impl<'a> Reader<'a> {
         default: Option<f64>,
         range: RangeInclusive<f64>,
     ) -> Result<Option<f64>, ConfigError> {
+        self.note(key, || Spec {
+            allowed: span(&range),
+            default: default.map(num),
+            ..Spec::of("number")
+        });
+        self.f64_value(key, default, range)
+    }
+
+    fn f64_value(
+        &self,
+        key: &'static str,
+        default: Option<f64>,
+        range: RangeInclusive<f64>,
+    ) -> Result<Option<f64>, ConfigError> {
         match self.get(key) {
             None => Ok(default),
             Some(v) => {
@@ -175,12 +233,31 @@ impl<'a> Reader<'a> {
         key: &'static str,
         range: RangeInclusive<f64>,
     ) -> Result<f64, ConfigError> {
-        self.f64_in(key, None, range)?
+        self.note(key, || Spec {
+            allowed: span(&range),
+            default: Some("required".into()),
+            ..Spec::of("number")
+        });
+        self.f64_value(key, None, range)?
             .ok_or_else(|| self.err(key, "required; add it to the table"))
     }
 
     /// A whole number in `range`, or `default` when absent.
     pub fn u64_in(
+        &self,
+        key: &'static str,
+        default: u64,
+        range: RangeInclusive<u64>,
+    ) -> Result<u64, ConfigError> {
+        self.note(key, || Spec {
+            allowed: format!("{} to {}", range.start(), range.end()),
+            default: Some(default.to_string()),
+            ..Spec::of("whole number")
+        });
+        self.u64_value(key, default, range)
+    }
+
+    fn u64_value(
         &self,
         key: &'static str,
         default: u64,
@@ -204,8 +281,45 @@ impl<'a> Reader<'a> {
         }
     }
 
+    /// A whole number in `range`, or None when absent.
+    pub fn u64_opt(
+        &self,
+        key: &'static str,
+        range: RangeInclusive<u64>,
+    ) -> Result<Option<u64>, ConfigError> {
+        self.note(key, || Spec {
+            allowed: format!("{} to {}", range.start(), range.end()),
+            ..Spec::of("whole number")
+        });
+        if self.has(key) {
+            self.u64_value(key, 0, range).map(Some)
+        } else {
+            Ok(None)
+        }
+    }
+
     /// A list of `N` finite numbers, each in `range`.
     pub fn array<const N: usize>(
+        &self,
+        key: &'static str,
+        range: RangeInclusive<f64>,
+    ) -> Result<Option<[f64; N]>, ConfigError> {
+        self.note(key, || array_spec::<N>(&range, None));
+        self.array_value(key, range)
+    }
+
+    /// [`Reader::array`], or `default` when absent.
+    pub fn array_or<const N: usize>(
+        &self,
+        key: &'static str,
+        range: RangeInclusive<f64>,
+        default: [f64; N],
+    ) -> Result<[f64; N], ConfigError> {
+        self.note(key, || array_spec::<N>(&range, Some(&default)));
+        Ok(self.array_value(key, range)?.unwrap_or(default))
+    }
+
+    fn array_value<const N: usize>(
         &self,
         key: &'static str,
         range: RangeInclusive<f64>,
@@ -224,6 +338,10 @@ impl<'a> Reader<'a> {
         key: &'static str,
         range: RangeInclusive<f64>,
     ) -> Result<Option<Vec<f64>>, ConfigError> {
+        self.note(key, || Spec {
+            allowed: format!("each {}", span(&range)),
+            ..Spec::of("list of numbers")
+        });
         match self.get(key) {
             None => Ok(None),
             Some(Value::Array(items)) => items
@@ -243,9 +361,24 @@ impl<'a> Reader<'a> {
         }
     }
 
-    /// The raw value, for shapes the reader has no getter for.
-    pub fn raw(&self, key: &'static str) -> Option<&'a Value> {
+    /// The raw value, for shapes the reader has no getter for; `spec` says, for the key
+    /// catalog, what the caller accepts.
+    pub fn raw(&self, key: &'static str, spec: impl FnOnce() -> Spec) -> Option<&'a Value> {
+        self.note(key, spec);
         self.get(key)
+    }
+}
+
+/// `lo to hi`, as the errors say it.
+pub(crate) fn span(range: &RangeInclusive<f64>) -> String {
+    format!("{} to {}", range.start(), range.end())
+}
+
+fn array_spec<const N: usize>(range: &RangeInclusive<f64>, default: Option<&[f64; N]>) -> Spec {
+    Spec {
+        ty: format!("list of {N} numbers"),
+        allowed: format!("each {}", span(range)),
+        default: default.map(|d| catalog::list(d)),
     }
 }
 

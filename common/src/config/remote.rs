@@ -34,6 +34,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::catalog::Spec;
 use super::reader::{quoted, Reader};
 use super::ConfigError;
 use crate::topic::Topic;
@@ -242,7 +243,11 @@ fn security(r: &Reader, endpoint: &str, dir: &Path) -> Result<LinkSecurity, Conf
     let allow_plain = r.bool("allow_plain", false)?;
     let key_dir = r.string("key_dir")?.map(|d| dir.join(d));
     let peer_certificate = r.string("peer_certificate")?.map(|f| dir.join(f));
-    let names = match r.raw("names") {
+    let names = match r.raw("names", || Spec {
+        allowed: "host names or addresses: letters, digits, '.', '-', ':'".into(),
+        default: Some("[]".into()),
+        ..Spec::of("list of strings")
+    }) {
         None => Vec::new(),
         Some(toml::Value::Array(items)) => {
             let mut out = Vec::new();
@@ -319,9 +324,7 @@ fn security(r: &Reader, endpoint: &str, dir: &Path) -> Result<LinkSecurity, Conf
 
 /// A zenoh key prefix: chunks of letters, digits, `_`, `-` and `.`, joined by `/`.
 fn key(r: &Reader) -> Result<String, ConfigError> {
-    let Some(k) = r.string("key")? else {
-        return Ok(DEFAULT_KEY.to_string());
-    };
+    let k = r.string_or("key", DEFAULT_KEY)?;
     let ok = !k.is_empty()
         && k.split('/').all(|chunk| {
             !chunk.is_empty()
@@ -348,7 +351,14 @@ pub(super) fn topics(
     default: &[Topic],
 ) -> Result<Vec<Topic>, ConfigError> {
     let allowed: Vec<&str> = Topic::RECORDED.iter().map(|t| t.name()).collect();
-    let Some(v) = r.raw(name) else {
+    let Some(v) = r.raw(name, || Spec {
+        allowed: format!("each one of {}, none twice", quoted(&allowed)),
+        default: Some(format!(
+            "[{}]",
+            quoted(&default.iter().map(|t| t.name()).collect::<Vec<_>>())
+        )),
+        ..Spec::of("list of topic names")
+    }) else {
         return Ok(default.to_vec());
     };
     let toml::Value::Array(items) = v else {

@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 
 use toml::Value;
 
-use super::reader::{parse_file, vector, Reader};
+use super::catalog::{FileKind, Spec};
+use super::reader::{parse_file, span, vector, Reader};
 use super::session::Override;
 use super::ConfigError;
 use crate::samples::{MAX_FINGERS, MAX_FINGER_POINTS, MAX_SCENE_BLOCKS};
@@ -33,6 +34,9 @@ pub struct Scene {
     /// same way (both bare or both through the hand model), and only in the paper model.
     pub left_hand: Option<HandScript>,
 }
+
+/// R3's grasp angle in the paper, degrees (`[world] grasp_angle`'s default).
+pub const GRASP_ANGLE_DEG: f64 = 120.0;
 
 /// `[world]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -79,8 +83,8 @@ impl Default for WorldSettings {
             contact_eps: 1e-4,
             hull_eps: 1e-6,
             angle_eps: 1e-9,
-            grasp_angle: 120f64.to_radians(),
-            release_angle: 120f64.to_radians(),
+            grasp_angle: GRASP_ANGLE_DEG.to_radians(),
+            release_angle: GRASP_ANGLE_DEG.to_radians(),
             throw_window: 1,
             precise: PreciseSettings::default(),
             hands: HandRules::Paper,
@@ -333,7 +337,7 @@ impl Scene {
     /// Checks a scene already parsed as TOML (Python's `handblocks.simulate` given a dict):
     /// `file` names it in errors, and relative paths in it are taken from its folder.
     pub fn from_table(file: &Path, table: &toml::Table) -> Result<Scene, ConfigError> {
-        let root = Reader::new(file, "", table);
+        let root = Reader::root(file, FileKind::Scene, table);
         let (blocks, block_colors) = blocks(&root)?;
         let scene = Scene {
             file: file.to_path_buf(),
@@ -366,10 +370,11 @@ fn world(r: Option<Reader>) -> Result<WorldSettings, ConfigError> {
     let d = WorldSettings::default();
     let Some(r) = r else { return Ok(d) };
     let grasp_deg = r
-        .f64_in("grasp_angle", Some(d.grasp_angle.to_degrees()), 0.0..=180.0)?
-        .unwrap_or(120.0);
+        .f64_in("grasp_angle", Some(GRASP_ANGLE_DEG), 0.0..=180.0)?
+        .unwrap_or(GRASP_ANGLE_DEG);
+    // Its default is grasp_angle's value: given after the getter, which notes no default.
     let release_deg = r
-        .f64_in("release_angle", Some(grasp_deg), 0.0..=180.0)?
+        .f64_in("release_angle", None, 0.0..=180.0)?
         .unwrap_or(grasp_deg);
     if release_deg > grasp_deg {
         return Err(r.err(
@@ -498,9 +503,8 @@ fn effects(r: Option<Reader>) -> Result<Effects, ConfigError> {
 }
 
 fn unit_quaternion(r: &Reader, key: &'static str) -> Result<[f64; 4], ConfigError> {
-    let Some(q) = r.array::<4>(key, -2.0..=2.0)? else {
-        return Ok([0.0, 0.0, 0.0, 1.0]);
-    };
+    const IDENTITY: [f64; 4] = [0.0, 0.0, 0.0, 1.0];
+    let q = r.array_or::<4>(key, -2.0..=2.0, IDENTITY)?;
     let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
     if (norm - 1.0).abs() > 1e-3 {
         return Err(r.err(
@@ -547,7 +551,7 @@ fn blocks(root: &Reader) -> Result<(Vec<BlockSpec>, Vec<Option<[f32; 3]>>), Conf
         }
         let shape_kind = r.choice("shape", &["box", "wedge", "tetra", "hull"])?;
         let size = || -> Result<[f64; 3], ConfigError> {
-            Ok(r.array::<3>("size", 1e-4..=1e3)?.unwrap_or([0.1, 0.1, 0.1]))
+            r.array_or::<3>("size", 1e-4..=1e3, [0.1, 0.1, 0.1])
         };
         let shape = match shape_kind {
             "wedge" => ShapeSpec::Wedge { size: size()? },
@@ -569,23 +573,19 @@ fn blocks(root: &Reader) -> Result<(Vec<BlockSpec>, Vec<Option<[f32; 3]>>), Conf
             )
         })?;
         let rotation = unit_quaternion(&r, "rotation")?;
-        let velocity = r
-            .array::<3>("velocity", -1.0e4..=1.0e4)?
-            .unwrap_or([0.0; 3]);
+        let velocity = r.array_or::<3>("velocity", -1.0e4..=1.0e4, [0.0; 3])?;
         // sRGB components, as a colour picker gives them (0.8, not 204).
         let color = r
             .array::<3>("color", 0.0..=1.0)?
             .map(|c| c.map(|v| v as f32));
-        let count = r.array::<3>("count", 1.0..=MAX_SCENE_BLOCKS as f64)?;
-        if let Some(c) = count {
-            if c.iter().any(|v| v.fract() != 0.0) {
-                return Err(r.err(
-                    "count",
-                    format!("{c:?}: copies along x, y and z must be whole numbers"),
-                ));
-            }
+        let count = r.array_or::<3>("count", 1.0..=MAX_SCENE_BLOCKS as f64, [1.0; 3])?;
+        if count.iter().any(|v| v.fract() != 0.0) {
+            return Err(r.err(
+                "count",
+                format!("{count:?}: copies along x, y and z must be whole numbers"),
+            ));
         }
-        let count = count.map_or([1usize; 3], |c| c.map(|v| v as usize));
+        let count = count.map(|v| v as usize);
         let copies = count.iter().product::<usize>();
         let spacing = r.array::<3>("spacing", 0.0..=1e3)?;
         let spacing = match (spacing, copies) {
@@ -641,8 +641,21 @@ fn blocks(root: &Reader) -> Result<(Vec<BlockSpec>, Vec<Option<[f32; 3]>>), Conf
     Ok((out, colors))
 }
 
+/// A hull's vertex coordinates, metres in the block's frame.
+const VERTEX_RANGE: std::ops::RangeInclusive<f64> = -1e3..=1e3;
+/// How many vertices a hull takes.
+const HULL_VERTICES: std::ops::RangeInclusive<usize> = 4..=256;
+
 fn hull_vertices(r: &Reader) -> Result<Vec<[f64; 3]>, ConfigError> {
-    let Some(v) = r.raw("vertices") else {
+    let Some(v) = r.raw("vertices", || Spec {
+        allowed: format!(
+            "{} to {} points, each coordinate {}",
+            HULL_VERTICES.start(),
+            HULL_VERTICES.end(),
+            span(&VERTEX_RANGE)
+        ),
+        ..Spec::of("list of [x, y, z] points")
+    }) else {
         return Err(r.err(
             "vertices",
             "required for shape = \"hull\": [[x, y, z], ...] in the block's frame",
@@ -654,7 +667,7 @@ fn hull_vertices(r: &Reader) -> Result<Vec<[f64; 3]>, ConfigError> {
             format!("expected a list of [x, y, z], found {}", v.type_str()),
         ));
     };
-    if items.len() < 4 || items.len() > 256 {
+    if !HULL_VERTICES.contains(&items.len()) {
         return Err(r.err(
             "vertices",
             format!(
@@ -667,7 +680,7 @@ fn hull_vertices(r: &Reader) -> Result<Vec<[f64; 3]>, ConfigError> {
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            vector::<3>(p, &(-1e3..=1e3)).map_err(|e| r.err("vertices", format!("vertex {i}: {e}")))
+            vector::<3>(p, &VERTEX_RANGE).map_err(|e| r.err("vertices", format!("vertex {i}: {e}")))
         })
         .collect()
 }
@@ -792,9 +805,18 @@ fn hand(r: Reader, name: &str) -> Result<HandScript, ConfigError> {
     Ok(HandScript { keys: out })
 }
 
+/// A bare finger point's coordinates, metres in the wrist's frame.
+const FINGER_POINT_RANGE: std::ops::RangeInclusive<f64> = -10.0..=10.0;
+
 fn fingers(k: &Reader) -> Result<Vec<Vec<[f64; 3]>>, ConfigError> {
     let bad = |p: String| k.err("fingers", p);
-    let Some(Value::Array(list)) = k.raw("fingers") else {
+    let Some(Value::Array(list)) = k.raw("fingers", || Spec {
+        allowed: format!(
+            "1 to {MAX_FINGERS} fingers of 1 to {MAX_FINGER_POINTS} points, each coordinate {}",
+            span(&FINGER_POINT_RANGE)
+        ),
+        ..Spec::of("list of fingers, each a list of [x, y, z] points")
+    }) else {
         return Err(bad(
             "expected a list of fingers, each a list of [x, y, z] points".into(),
         ));
@@ -823,7 +845,7 @@ fn fingers(k: &Reader) -> Result<Vec<Vec<[f64; 3]>>, ConfigError> {
                 .iter()
                 .enumerate()
                 .map(|(i, p)| {
-                    vector::<3>(p, &(-10.0..=10.0))
+                    vector::<3>(p, &FINGER_POINT_RANGE)
                         .map_err(|e| bad(format!("finger {f} point {i}: {e}")))
                 })
                 .collect()

@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::catalog::{FileKind, Spec};
 use super::devices::{self, GloveConfig, TrackerConfig};
 use super::hand::HandModelSpec;
 use super::reader::{parse_file, Reader};
@@ -476,7 +477,7 @@ impl Session {
         table: &toml::Table,
         scene_overrides: &[Override],
     ) -> Result<Session, ConfigError> {
-        let r = Reader::new(file, "", table);
+        let r = Reader::root(file, FileKind::Session, table);
         let dir = file.parent().unwrap_or(Path::new("."));
         let scene_name = r
             .string("scene")?
@@ -584,8 +585,7 @@ fn pipeline(r: Option<Reader>) -> Result<WaitStrategy, ConfigError> {
     Ok(wait)
 }
 
-/// An open hand at rest beside the scene's blocks (40 cm past their +x side, 30 cm above the
-/// highest), where it touches none of them.
+/// `[supervise]`: restarting a process that dies mid-session ([`Supervise`]).
 fn supervise(r: Option<Reader>) -> Result<Supervise, ConfigError> {
     let d = Supervise::default();
     let Some(r) = r else {
@@ -613,6 +613,8 @@ fn supervise(r: Option<Reader>) -> Result<Supervise, ConfigError> {
     Ok(s)
 }
 
+/// An open hand at rest beside the scene's blocks (40 cm past their +x side, 30 cm above the
+/// highest), where it touches none of them.
 pub fn hand_at_rest(scene: &Scene) -> HandScript {
     let mut x_max: f64 = 0.0;
     let mut y_max: f64 = 0.0;
@@ -654,7 +656,10 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
         }
         "devices" => {
             let table = |key: &'static str| -> Result<&toml::Table, ConfigError> {
-                match r.raw(key) {
+                match r.raw(key, || Spec {
+                    default: Some("required".into()),
+                    ..Spec::of("table")
+                }) {
                     Some(toml::Value::Table(t)) => Ok(t),
                     Some(v) => Err(r.err(key, format!("expected a table, found {}", v.type_str()))),
                     None => Err(r.err(
@@ -691,7 +696,7 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
             Source::Replay {
                 file: dir.join(f),
                 speed: r.f64_in("speed", Some(1.0), 0.0..=1000.0)?.unwrap_or(1.0),
-                offset: r.array::<3>("offset", -1.0e5..=1.0e5)?.unwrap_or([0.0; 3]),
+                offset: r.array_or::<3>("offset", -1.0e5..=1.0e5, [0.0; 3])?,
                 looped: r.bool("loop", false)?,
                 topics: {
                     let sources = [
@@ -731,7 +736,10 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
 fn external_command(r: &Reader) -> Result<Vec<String>, ConfigError> {
     const WHAT: &str = "required for kind = \"external\": the program that publishes the \
                         joints and its arguments, e.g. [\"python3\", \"my_tracker.py\"]";
-    let command: Vec<String> = match r.raw("command") {
+    let command: Vec<String> = match r.raw("command", || Spec {
+        default: Some("required".into()),
+        ..Spec::of("list of strings, or one string (split at spaces)")
+    }) {
         None => return Err(r.err("command", WHAT)),
         Some(toml::Value::String(s)) => s.split_whitespace().map(str::to_string).collect(),
         Some(toml::Value::Array(items)) => items
@@ -791,7 +799,7 @@ fn webxr_source(r: &Reader, dir: &Path) -> Result<WebxrSource, ConfigError> {
         certificate_dir: r.string("certificate_dir")?.map(|d| dir.join(d)),
         hand: crate::HandsUsed::parse(r.choice("hand", &["right", "left", "both"])?)
             .unwrap_or_default(),
-        offset: r.array::<3>("offset", -1.0e5..=1.0e5)?.unwrap_or([0.0; 3]),
+        offset: r.array_or::<3>("offset", -1.0e5..=1.0e5, [0.0; 3])?,
         token,
     })
 }
@@ -821,8 +829,8 @@ fn renderer(r: Option<Reader>) -> Result<RendererSettings, ConfigError> {
             .f64_in("screen_width_m", Some(d.screen_width_m), 0.01..=100.0)?
             .unwrap_or(d.screen_width_m),
         auto_camera: !r.has("eye") && !r.has("target"),
-        eye: r.array::<3>("eye", place.clone())?.unwrap_or(d.eye),
-        target: r.array::<3>("target", place)?.unwrap_or(d.target),
+        eye: r.array_or::<3>("eye", place.clone(), d.eye)?,
+        target: r.array_or::<3>("target", place, d.target)?,
         shadows: r.bool("shadows", d.shadows)?,
         frames_every: r.u64_in("frames_every", 1, 1..=1_000_000)? as u32,
         own_cpus: r.bool("own_cpus", d.own_cpus)?,
@@ -865,11 +873,7 @@ fn budget(r: Option<Reader>) -> Result<Budget, ConfigError> {
         origin_to_world_p99_us: r.f64_in("origin_to_world_p99_us", None, 0.0..=1e9)?,
         hop_p99_us: r.f64_in("hop_p99_us", None, 0.0..=1e9)?,
         origin_to_photon_p99_ms: r.f64_in("origin_to_photon_p99_ms", None, 0.0..=1e6)?,
-        max_dropped: if r.has("max_dropped") {
-            Some(r.u64_in("max_dropped", 0, 0..=u64::MAX >> 1)?)
-        } else {
-            None
-        },
+        max_dropped: r.u64_opt("max_dropped", 0..=u64::MAX >> 1)?,
         source_silence_ms: r
             .f64_in("source_silence_ms", Some(d.source_silence_ms), 1.0..=1e9)?
             .unwrap_or(d.source_silence_ms),

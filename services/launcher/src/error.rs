@@ -44,6 +44,8 @@ pub enum LaunchError {
     },
     /// An output (`what`: "the recording", "--report", "the preview") names a folder.
     OutputIsFolder { what: &'static str, path: PathBuf },
+    /// An output that is a folder (`--frames-dir`) names something that is not one.
+    OutputIsNotFolder { what: &'static str, path: PathBuf },
     /// The folder for an output cannot be created.
     OutputFolder {
         what: &'static str,
@@ -163,6 +165,12 @@ impl fmt::Display for LaunchError {
             LaunchError::OutputIsFolder { what, path } => write!(
                 f,
                 "{what}: {} is a folder; give a file name",
+                path.display()
+            ),
+            LaunchError::OutputIsNotFolder { what, path } => write!(
+                f,
+                "{what}: {} exists and is not a folder; give a folder (made when missing), e.g. \
+                 out/frames",
                 path.display()
             ),
             LaunchError::OutputFolder {

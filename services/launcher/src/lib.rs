@@ -22,6 +22,7 @@
 //! /dev/shm outside their folders).
 
 mod error;
+pub mod machine;
 mod outputs;
 pub mod placement;
 mod process;
@@ -157,6 +158,12 @@ pub fn preflight(opts: &LaunchOptions, session: &Session) -> Result<(), LaunchEr
         check_writable("--report", report)?;
     }
     if let Some(dir) = &opts.frames_dir {
+        if dir.exists() && !dir.is_dir() {
+            return Err(LaunchError::OutputIsNotFolder {
+                what: "--frames-dir",
+                path: dir.clone(),
+            });
+        }
         if let Some(frame) = frames_in(dir).first().filter(|_| !opts.force) {
             return Err(LaunchError::OutputExists {
                 what: "--frames-dir",
@@ -275,6 +282,8 @@ fn run_session(
     bus_config: &BusConfig,
 ) -> Result<Report, LaunchError> {
     let started_at = SystemTime::now();
+    // What the machine does besides the session, read before and after it (machine.rs).
+    let cpu_before = machine::CpuReading::now();
     // 2. The services, and the launcher's own inlet of every stage's latency reports.
     let bus = Bus::open(bus_config, "launcher")?;
     let services = bus.create_services()?;
@@ -304,6 +313,10 @@ fn run_session(
         restarts,
     } = supervision.finish();
     drop(procs);
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let machine_load = cpu_before
+        .zip(machine::CpuReading::now())
+        .map(|(before, after)| before.load_until(&after, cpus));
     drop(latency);
     drop(services);
     drop(bus);
@@ -335,7 +348,8 @@ fn run_session(
             .to_string(),
         source: session.source.kind(),
         version: opts.version.clone(),
-        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        cpus,
+        machine_load,
         placement: placement.describe(),
         started: started_at,
         seconds: facts.seconds,

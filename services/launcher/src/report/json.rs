@@ -74,6 +74,14 @@ impl<'a> ReportJson<'a> {
             failures: &report.failures,
             machine: MachineJson {
                 cpus: m.cpus,
+                load: m.machine_load.map(|l| LoadJson {
+                    looked_loaded: l.looked_loaded(),
+                    others_cpu_s: l.others_cpu_s,
+                    others_fraction: l.others_fraction(),
+                    seconds: l.seconds,
+                    session_cpu_s: l.session_cpu_s,
+                    steal_s: l.steal_s,
+                }),
                 placement: &m.placement,
             },
             renderer: RendererJson {
@@ -146,7 +154,23 @@ impl DeviceJson {
 #[derive(Serialize)]
 struct MachineJson<'a> {
     cpus: usize,
+    /// What other processes did with the machine while the session ran (null where
+    /// `/proc/stat` could not be read).
+    load: Option<LoadJson>,
     placement: &'a Option<String>,
+}
+
+/// `crate::machine::MachineLoad`, with its verdict.
+#[derive(Serialize)]
+struct LoadJson {
+    /// Others took more than `machine::LOADED_FRACTION` of the CPUs' time.
+    looked_loaded: bool,
+    others_cpu_s: f64,
+    /// (others_cpu_s + steal_s) / (seconds x cpus).
+    others_fraction: f64,
+    seconds: f64,
+    session_cpu_s: f64,
+    steal_s: f64,
 }
 
 #[derive(Serialize)]

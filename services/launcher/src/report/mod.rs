@@ -26,7 +26,7 @@ use hdrhistogram::Histogram;
 use serde_json::Value;
 
 pub use json::rfc3339;
-pub use table::TERMS;
+pub use table::{terms_of, TERMS};
 
 /// What the launcher heard from one stage.
 pub struct StageReport {
@@ -236,6 +236,9 @@ pub struct Meta {
     pub source: &'static str,
     pub version: String,
     pub cpus: usize,
+    /// What other processes did with the machine while the session ran, where it could be
+    /// read (`crate::machine`).
+    pub machine_load: Option<crate::machine::MachineLoad>,
     /// How the processes were placed on the CPUs, when they were.
     pub placement: Option<String>,
     pub started: std::time::SystemTime,
@@ -260,6 +263,7 @@ impl Default for Meta {
             source: "",
             version: String::new(),
             cpus: 0,
+            machine_load: None,
             placement: None,
             started: std::time::UNIX_EPOCH,
             seconds: 0.0,

@@ -20,10 +20,30 @@ received     per topic, the fewest samples any reader of it received; dropped = 
              (sequence gaps, or published but not received by the end; a source that reads
              a topic back, as a replay or a headset reads the world, counts its gaps only)";
 
+/// The entries of [`TERMS`] whose names are in `used`, in TERMS's order: a report explains
+/// the terms it prints and no others (a glove session has no `sent->drawn`).
+pub fn terms_of(used: &[&str]) -> String {
+    let mut out = String::new();
+    let mut keep = false;
+    for line in TERMS.lines() {
+        if !line.starts_with(' ') {
+            let name = line.split("  ").next().unwrap_or("").trim_end();
+            keep = used.contains(&name);
+        }
+        if keep {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
 impl Report {
     /// The percentile table and topic flow, for a terminal.
     pub fn table(&self) -> String {
         let mut out = String::new();
+        // The terms the table uses, explained under it (and no others).
+        let mut used: Vec<&'static str> = vec!["received"];
         out.push_str(&format!(
             "{:<12} {:<11} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9}   (microseconds)\n",
             "stage", "latency", "count", "p50", "p90", "p99", "p99.9", "max"
@@ -42,6 +62,9 @@ impl Report {
                     Metric::Photon => "origin->px",
                     Metric::Page => "page js",
                 };
+                if !used.contains(&name) {
+                    used.push(name);
+                }
                 out.push_str(&format!(
                     "{:<12} {:<11} {:>8} {:>9.1} {:>9.1} {:>9.1} {:>9.1} {:>9.1}\n",
                     s.stage.name(),
@@ -88,9 +111,14 @@ impl Report {
         }
         if !unread.is_empty() {
             out.push_str(&format!(
-                "no reader: no process of this session reads {} (renderer and recorder off), \
-                 so none was received and none lost\n",
-                unread.join(", ")
+                "no reader: no process of this session subscribes to {} (no recorder{}), so \
+                 none was received and none lost\n",
+                unread.join(", "),
+                if unread.contains(&"world") {
+                    ", renderer or bridge"
+                } else {
+                    ""
+                }
             ));
         }
         if !not_final.is_empty() {
@@ -151,8 +179,7 @@ impl Report {
             }
         }
         out.push('\n');
-        out.push_str(TERMS);
-        out.push('\n');
+        out.push_str(&terms_of(&used));
         if let Some(fps) = self.frame_rate() {
             let over = self.world_seconds(self.meta.seconds);
             out.push_str(&format!(
@@ -225,8 +252,36 @@ impl Report {
             for v in &self.violations {
                 out.push_str(&format!("  {v}\n"));
             }
+            out.push_str(&self.what_to_try());
         }
         out
+    }
+
+    /// Under a broken budget: whether the machine looked loaded while the session ran (the
+    /// verdict may then be the machine's, not the pipeline's), and what to try.
+    fn what_to_try(&self) -> String {
+        let Some(load) = &self.meta.machine_load else {
+            return "  the machine's load could not be read (/proc/stat): run it again on an idle \
+                    machine before blaming the pipeline\n"
+                .to_string();
+        };
+        if load.looked_loaded() {
+            format!(
+                "  the machine looked loaded: {}. The verdict may be the machine's, not the \
+                 pipeline's: run it again when the machine is idle (`top` shows what runs), or \
+                 for longer (--duration 10), or compare stage against stage with `handblocks \
+                 bench latency`, which measures a peer in the same run\n",
+                load.describe()
+            )
+        } else {
+            format!(
+                "  the machine looked quiet ({}), so the session itself missed its budget: the \
+                 stage rows above show where the time went (docs/latency.md says what each \
+                 costs); a lighter scene, the paper model, or a looser [budget] in the session \
+                 file are the levers\n",
+                load.describe()
+            )
+        }
     }
 
     /// One line on the bridge: what crossed the link and the clock it was stamped by.

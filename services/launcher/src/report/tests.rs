@@ -312,3 +312,68 @@ fn a_loss_every_reader_saw_is_counted_once() {
     assert_eq!(world.gaps(), 28, "{world:?}");
     assert_eq!(world.dropped(), 0, "{world:?}");
 }
+
+#[test]
+fn the_table_explains_only_the_terms_it_prints() {
+    let r = judged(700, 1200, 10, &Budget::default());
+    let table = r.table();
+    for printed in ["origin->out", "origin->px", "received"] {
+        assert!(
+            table.lines().any(|l| l.starts_with(printed)),
+            "{printed} is not explained:\n{table}"
+        );
+    }
+    // A glove session has no headset page: its terms are not explained.
+    for absent in ["sent->drawn", "page js", "hop  ", "process  "] {
+        assert!(
+            !table.lines().any(|l| l.starts_with(absent)),
+            "{absent} explained but not printed:\n{table}"
+        );
+    }
+    assert_eq!(terms_of(&[]), "");
+    assert!(terms_of(&["page js"]).starts_with("page js      the webxr source only"));
+}
+
+#[test]
+fn a_broken_budget_says_whether_the_machine_looked_loaded_and_what_to_try() {
+    let b = Budget::default();
+    let mut r = judged(450, 1200, 10, &b);
+    assert!(!r.ok());
+    let loaded = crate::machine::MachineLoad {
+        cpus: 2,
+        seconds: 10.0,
+        others_cpu_s: 9.0,
+        steal_s: 0.0,
+        session_cpu_s: 8.0,
+    };
+    r.meta.machine_load = Some(loaded);
+    let table = r.table();
+    assert!(
+        table.contains(
+            "the machine looked loaded: other processes used 0.90 of this machine's 2 CPU(s)"
+        ),
+        "{table}"
+    );
+    assert!(
+        table.contains("run it again when the machine is idle"),
+        "{table}"
+    );
+    r.meta.machine_load = Some(crate::machine::MachineLoad {
+        others_cpu_s: 0.2,
+        ..loaded
+    });
+    let table = r.table();
+    assert!(table.contains("the machine looked quiet"), "{table}");
+    assert!(
+        table.contains("the session itself missed its budget"),
+        "{table}"
+    );
+    // A kept budget needs no advice.
+    let mut ok = judged(700, 1200, 10, &b);
+    ok.meta.machine_load = Some(loaded);
+    assert!(!ok.table().contains("looked loaded"));
+    // The JSON carries the load and its verdict.
+    let json = ok.json();
+    assert_eq!(json["machine"]["load"]["looked_loaded"], true);
+    assert_eq!(json["machine"]["load"]["others_cpu_s"], 9.0);
+}
