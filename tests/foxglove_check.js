@@ -8,7 +8,9 @@
 //   NODE_PATH=target/foxglove-node/node_modules node tests/foxglove_check.js ws://127.0.0.1:8765
 //
 // Prints one JSON line: {"subprotocol", "channels": [{topic, encoding, schemaName}], "world":
-// {...decoded...}, "scene": {...decoded...}} once it has a world and a scene, or {"error"}.
+// {...decoded...}, "scene": {...decoded...}, "tf": {...decoded...}, "tfLogTime"} once it has a
+// world, and a hand's frames (`/tf`, foxglove.FrameTransforms) with the scene sent just before
+// them (the view sends the two together, so they show the same hand), or {"error"}.
 "use strict";
 const { FoxgloveClient } = require("@foxglove/ws-protocol");
 const WebSocket = require("ws");
@@ -19,7 +21,7 @@ const descriptor = require("protobufjs/ext/descriptor");
 
 const url = process.argv[2];
 const offer = process.argv[3] || FoxgloveClient.SUPPORTED_SUBPROTOCOL;
-const out = { subprotocol: null, channels: [], world: null, scene: null };
+const out = { subprotocol: null, channels: [], world: null, scene: null, tf: null };
 const done = (extra) => {
   console.log(JSON.stringify({ ...out, ...extra }));
   process.exit(extra && extra.error ? 1 : 0);
@@ -48,23 +50,31 @@ client.on("advertise", (channels) => {
       const type = protobuf.Root.fromDescriptor(set).lookupType(ch.schemaName);
       decode = (bytes) => type.toObject(type.decode(bytes), { defaults: true, longs: Number });
     }
-    if (decode && (ch.topic === "/world" || ch.topic === "/scene")) {
+    if (decode && ["/world", "/scene", "/tf"].includes(ch.topic)) {
       decoders.set(client.subscribe(ch.id), { topic: ch.topic, decode });
     }
   }
 });
+const drawsHand = (scene) => scene.entities.some((e) => e.id === "hand" && e.lines.some((l) => l.points.length > 0));
+let lastScene = null;
 const plain = (v) => JSON.parse(JSON.stringify(v, (_k, x) => (typeof x === "bigint" ? Number(x) : ArrayBuffer.isView(x) ? Array.from(x) : x)));
-client.on("message", ({ subscriptionId, data }) => {
+client.on("message", ({ subscriptionId, timestamp, data }) => {
   const d = decoders.get(subscriptionId);
   if (!d) return;
   const bytes = new Uint8Array(data.buffer, data.byteOffset, data.byteLength);
   try {
     const msg = plain(d.decode(bytes));
     if (d.topic === "/world" && !out.world) out.world = msg;
-    // A scene with the hand drawn (the first may come before any hand sample).
-    if (d.topic === "/scene" && msg.entities.some((e) => e.id === "hand" && e.lines.some((l) => l.points.length > 0))) out.scene = msg;
+    // A scene with the hand drawn (the first may come before any hand sample), and the hand's
+    // frames sent right after it.
+    if (d.topic === "/scene") lastScene = msg;
+    if (d.topic === "/tf" && !out.tf && msg.transforms.length > 0 && lastScene && drawsHand(lastScene)) {
+      out.tf = msg;
+      out.tfLogTime = String(timestamp); // nanoseconds, exact (a Number would round them)
+      out.scene = lastScene;
+    }
   } catch (e) {
     done({ error: `cannot decode ${d.topic}: ${e}` });
   }
-  if (out.world && out.scene) done();
+  if (out.world && out.scene && out.tf) done();
 });

@@ -1,9 +1,10 @@
 """Reads a handblocks recording with the MCAP project's reference Python reader (`mcap`) and
 decodes every message with its ROS 2 CDR decoder (`mcap-ros2-support`, as Foxglove decodes
 them), knowing nothing of handblocks but the file; the `/scene` channel (foxglove.SceneUpdate,
-what Foxglove's 3D panel draws) with its protobuf decoder (`mcap-protobuf-support`). Prints
-JSON: per topic the schema, encodings, message count and every message's seq; the last world
-sample's step and block poses; and the last scene's world seq, entities, labels and poses.
+what Foxglove's 3D panel draws) and `/tf` (foxglove.FrameTransforms, the hand's frames) with
+its protobuf decoder (`mcap-protobuf-support`). Prints JSON: per topic the schema, encodings,
+message count and every message's seq; the last world sample's step and block poses; the last
+scene's world seq, entities, labels and poses; and the last /tf's log time and transforms.
 Used by tests/recording.rs to show that recordings open in the standard tools."""
 import json
 import sys
@@ -29,10 +30,15 @@ with open(sys.argv[1], "rb") as f:
         }
     last_world = None
     last_scene = None
+    last_tf = None
     for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
         if channel.topic == "/scene":
             topics[channel.topic]["seqs"].append(message.sequence)
             last_scene = (message.sequence, decoded)
+            continue
+        if channel.topic == "/tf":
+            topics[channel.topic]["seqs"].append(message.sequence)
+            last_tf = (message.sequence, message.log_time, decoded)
             continue
         topics[channel.topic]["seqs"].append(decoded.stamp.seq)
         if channel.topic == "/world":
@@ -63,5 +69,23 @@ with open(sys.argv[1], "rb") as f:
                 for e in update.entities
             ],
         }
+    tf = None
+    if last_tf is not None:
+        seq, log_time, message = last_tf
+        tf = {
+            "world_seq": seq,
+            "log_time": log_time,
+            "transforms": [
+                {
+                    "parent": t.parent_frame_id,
+                    "child": t.child_frame_id,
+                    "stamp": t.timestamp.seconds * 1_000_000_000 + t.timestamp.nanos,
+                    "translation": [t.translation.x, t.translation.y, t.translation.z],
+                    "rotation": [t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w],
+                }
+                for t in message.transforms
+            ],
+        }
     print(json.dumps({"profile": header.profile, "chunks": len(summary.chunk_indexes),
-                      "topics": topics, "last_world": world, "last_scene": scene}))
+                      "topics": topics, "last_world": world, "last_scene": scene,
+                      "last_tf": tf}))

@@ -560,4 +560,40 @@ fn recordings_open_in_the_standard_mcap_reader() {
             .collect();
         assert_eq!(drawn, scene_view::z_up(b.pose.position).to_vec(), "z-up");
     }
+    // The hand's frames beside the scenes (foxglove.FrameTransforms), decoded the same way:
+    // world -> hand (a recorded hand's wrist, z-up) -> each finger's joints, stamped with
+    // their message's log time.
+    let tf = &v["topics"][recording::TF_CHANNEL];
+    assert_eq!(tf["schema"], "foxglove.FrameTransforms");
+    assert_eq!(tf["message_encoding"], "protobuf");
+    let frames = tf["seqs"].as_array().unwrap().len();
+    assert!(
+        frames > 0 && frames <= scenes,
+        "{frames} /tf, {scenes} scenes"
+    );
+    assert_eq!(ours.transform_messages, frames as u64);
+    let last_tf = &v["last_tf"];
+    let transforms = last_tf["transforms"].as_array().unwrap();
+    // The scripted hand goes through the kinematics: a thumb of 3 joints, 4 fingers of 4.
+    assert_eq!(transforms.len(), 1 + 3 + 4 * 4);
+    assert_eq!(transforms[0]["parent"], "world");
+    assert_eq!(transforms[0]["child"], "hand");
+    assert_eq!(transforms[1]["parent"], "hand");
+    assert_eq!(transforms[1]["child"], "hand/thumb_mcp");
+    assert_eq!(transforms[19]["parent"], "hand/little_dip");
+    assert_eq!(transforms[19]["child"], "hand/little_tip");
+    for t in transforms {
+        assert_eq!(t["stamp"], last_tf["log_time"], "{t}");
+    }
+    let wrist: Vec<f64> = transforms[0]["translation"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert!(
+        ours.samples::<HandSample>(Topic::Hand)
+            .any(|h| scene_view::z_up(h.wrist.position).to_vec() == wrist),
+        "the root frame is a recorded wrist, z-up: {wrist:?}"
+    );
 }

@@ -613,9 +613,10 @@ fn a_foxglove_client_subscribes_and_decodes_a_world() {
 
 /// The stock Foxglove client: npm `@foxglove/ws-protocol` 0.8 (what Lichtblick and Foxglove
 /// Studio builds before the SDK speak), offering `foxglove.websocket.v1`, connects to the live
-/// view, and decodes a world with the Foxglove app's ROS 2 CDR decoder and a scene update with
-/// protobufjs from the advertised schemas (tests/foxglove_check.js). Only topics that carry
-/// samples are offered: a scripted session has no `/joints`.
+/// view, and decodes a world with the Foxglove app's ROS 2 CDR decoder, and a scene update and
+/// the hand's frames (`/tf`) with protobufjs from the advertised schemas
+/// (tests/foxglove_check.js). Only topics that carry samples are offered: a scripted session
+/// has no `/joints`.
 #[test]
 fn the_stock_foxglove_client_connects_and_decodes_a_world_and_a_scene() {
     // tests/run installs the npm packages into target/foxglove-node and names them here.
@@ -710,6 +711,104 @@ fn the_stock_foxglove_client_connects_and_decodes_a_world_and_a_scene() {
     let hand = entities.last().unwrap();
     assert_eq!(hand["id"], "hand");
     assert_eq!(hand["lines"].as_array().unwrap().len(), 5);
+
+    // The hand's frames: world -> hand (the wrist) -> each finger's joints, knuckle to tip,
+    // z-up. Composed down the tree from `world`, each joint lands on the point of the finger
+    // line the scene sent with them; each transform is stamped with its message's log time.
+    let tf_channel = channel("/tf").expect("/tf advertised");
+    assert_eq!(tf_channel["schemaName"], "foxglove.FrameTransforms");
+    assert_eq!(tf_channel["encoding"], "protobuf");
+    let transforms = v["tf"]["transforms"].as_array().unwrap();
+    // The scripted hand goes through the kinematics: a thumb of 3 joints, 4 fingers of 4.
+    assert_eq!(transforms.len(), 1 + 3 + 4 * 4, "{}", v["tf"]);
+    let log_ns: u64 = v["tfLogTime"].as_str().unwrap().parse().unwrap();
+    let num = |x: &Value| x.as_f64().unwrap();
+    let mut frames: Vec<(String, [f64; 3], [f64; 4])> = Vec::new();
+    for t in transforms {
+        let (parent, child) = (
+            t["parentFrameId"].as_str().unwrap(),
+            t["childFrameId"].as_str().unwrap(),
+        );
+        let stamp = &t["timestamp"];
+        assert_eq!(
+            stamp["seconds"].as_u64().unwrap() * 1_000_000_000 + stamp["nanos"].as_u64().unwrap(),
+            log_ns,
+            "{child}: stamped with its message's log time"
+        );
+        let tr = &t["translation"];
+        let q = &t["rotation"];
+        let local = [num(&tr["x"]), num(&tr["y"]), num(&tr["z"])];
+        let rotation = [num(&q["x"]), num(&q["y"]), num(&q["z"]), num(&q["w"])];
+        let norm = rotation.iter().map(|c| c * c).sum::<f64>().sqrt();
+        assert!(
+            (norm - 1.0).abs() < 1e-9,
+            "{child}: a unit rotation, {rotation:?}"
+        );
+        let (at, turn) = if parent == scene_view::FRAME_ID {
+            ([0.0; 3], [0.0, 0.0, 0.0, 1.0])
+        } else {
+            let p = frames
+                .iter()
+                .find(|f| f.0 == parent)
+                .unwrap_or_else(|| panic!("{child}'s parent {parent} comes before it"));
+            // A joint is a bone's length or less from its parent.
+            let bone = local.iter().map(|c| c * c).sum::<f64>().sqrt();
+            assert!(bone < 0.15, "{child}: {bone} m from {parent}");
+            (p.1, p.2)
+        };
+        let moved = quat_rotate(turn, local);
+        frames.push((
+            child.to_string(),
+            [at[0] + moved[0], at[1] + moved[1], at[2] + moved[2]],
+            quat_mul(turn, rotation),
+        ));
+    }
+    assert_eq!(transforms[0]["parentFrameId"], "world");
+    assert_eq!(transforms[0]["childFrameId"], "hand");
+    // The wrist: above the floor (z-up), within a metre of the scene's origin.
+    let wrist = frames[0].1;
+    assert!(
+        wrist[2] > 0.0 && wrist.iter().all(|c| c.abs() < 1.0),
+        "{wrist:?}"
+    );
+    let lines = hand["lines"].as_array().unwrap();
+    for (f, line) in lines.iter().enumerate() {
+        let points = line["points"].as_array().unwrap();
+        assert_eq!(points.len(), if f == 0 { 3 } else { 4 }, "finger {f}");
+        for (k, p) in points.iter().enumerate() {
+            let id = scene_view::joint_frame("hand", f, k, points.len());
+            let at = frames
+                .iter()
+                .find(|fr| fr.0 == id)
+                .unwrap_or_else(|| panic!("no frame {id}"))
+                .1;
+            let drawn = [num(&p["x"]), num(&p["y"]), num(&p["z"])];
+            let off = (0..3).map(|i| (at[i] - drawn[i]).abs()).fold(0.0, f64::max);
+            assert!(off < 1e-9, "{id} at {at:?}, the scene's point at {drawn:?}");
+        }
+    }
+    assert_eq!(scene_view::joint_frame("hand", 1, 3, 4), "hand/index_tip");
+}
+
+/// The Hamilton product `a b` of quaternions `[x, y, z, w]`.
+fn quat_mul(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+    let [ax, ay, az, aw] = a;
+    let [bx, by, bz, bw] = b;
+    [
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ]
+}
+
+/// `v` turned by the unit quaternion `q`.
+fn quat_rotate(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
+    let [x, y, z, _] = quat_mul(
+        quat_mul(q, [v[0], v[1], v[2], 0.0]),
+        [-q[0], -q[1], -q[2], q[3]],
+    );
+    [x, y, z]
 }
 
 /// Bad link settings are refused before anything starts, naming the file, key and form.

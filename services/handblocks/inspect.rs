@@ -157,6 +157,7 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                 "damage": summary.damage,
                 "foreign_messages": summary.foreign_messages,
                 "scene_messages": summary.scene_messages,
+                "transform_messages": summary.transform_messages,
                 "refused_messages": summary.refused_messages,
                 "first_refused": summary.first_refused,
                 "topics": topics,
@@ -206,6 +207,14 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                  drawn from the world and hand above)",
                 recording::SCENE_CHANNEL,
                 summary.scene_messages
+            );
+        }
+        if summary.transform_messages > 0 {
+            println!(
+                "{:<8} {:>9}  the hand's joints as a frame tree for Foxglove's 3D panel \
+                 (foxglove.FrameTransforms, docs/foxglove.md)",
+                recording::TF_CHANNEL,
+                summary.transform_messages
             );
         }
         if summary.foreign_messages > 0 {

@@ -59,5 +59,10 @@ use common::topic::Topic;
 /// Foxglove's 3D panel as the live view does; the live view sends it under the same name.
 pub const SCENE_CHANNEL: &str = "/scene";
 
+/// The channel of the hand's frames beside the scene (`foxglove.FrameTransforms`, protobuf:
+/// `world` -> the wrist -> each finger's joints, written with each `/scene` message and stamped
+/// as it is), so that the 3D panel shows the hand's joints as a frame tree, live and recorded.
+pub const TF_CHANNEL: &str = "/tf";
+
 /// The topics a recording holds (the latency reports go into the session report instead).
 pub const RECORDED_TOPICS: [Topic; Topic::RECORDED.len()] = Topic::RECORDED;

@@ -63,6 +63,9 @@ pub struct Recording {
     /// Messages of the scene view ([`crate::SCENE_CHANNEL`], the 3D panel's drawing of the
     /// samples): ours, but derived from the topics, so no sample is read from them.
     pub scene_messages: u64,
+    /// Messages of the hand's frames ([`crate::TF_CHANNEL`], written with the scene view's):
+    /// ours, derived from the topics too.
+    pub transform_messages: u64,
     /// Where reading stopped early, if it did: everything before it is in `messages`.
     pub damage: Option<RecordingError>,
     /// True when the file ended with its summary and footer (it was closed properly).
@@ -123,6 +126,7 @@ impl Recording {
             refused_messages: 0,
             first_refused: None,
             scene_messages: 0,
+            transform_messages: 0,
             damage: None,
             complete: false,
             metadata: Default::default(),
@@ -132,6 +136,7 @@ impl Recording {
         let mut reader = Reader {
             channels: Vec::new(),
             scene_channels: Vec::new(),
+            tf_channels: Vec::new(),
             schemas: Vec::new(),
             kept: topics,
             last_seq: [None; Topic::ALL.len()],

@@ -52,6 +52,8 @@ pub struct RecordingSummary {
     pub foreign_messages: u64,
     /// Messages of the scene view (`/scene`, for Foxglove's 3D panel).
     pub scene_messages: u64,
+    /// Messages of the hand's frames (`/tf`, for Foxglove's 3D panel).
+    pub transform_messages: u64,
     /// Messages whose count fields their arrays cannot hold: skipped, and the first's reason.
     pub refused_messages: u64,
     pub first_refused: Option<String>,
@@ -110,6 +112,7 @@ impl Recording {
             damage: self.damage.as_ref().map(|d| d.to_string()),
             foreign_messages: self.foreign_messages,
             scene_messages: self.scene_messages,
+            transform_messages: self.transform_messages,
             refused_messages: self.refused_messages,
             first_refused: self.first_refused.clone(),
         }
@@ -153,6 +156,54 @@ mod tests {
         assert_eq!(
             summary.span_unix_ns,
             Some((1_000_000_000 + offset, 2_000_000_000 + offset))
+        );
+        let _ = std::fs::remove_file(&path);
+    }
+
+    /// The scene view's channels (`/scene`, `/tf`) are ours: counted apart, never foreign,
+    /// and no sample is read from them.
+    #[test]
+    fn the_scene_and_the_hands_frames_are_counted_apart() {
+        let path = scratch("view-channels");
+        let mut w = RecordingWriter::create(&path).unwrap();
+        let scene = w
+            .add_channel(
+                crate::SCENE_CHANNEL,
+                ("foxglove.SceneUpdate", "protobuf", b""),
+                "protobuf",
+            )
+            .unwrap();
+        let tf = w
+            .add_channel(
+                crate::TF_CHANNEL,
+                ("foxglove.FrameTransforms", "protobuf", b""),
+                "protobuf",
+            )
+            .unwrap();
+        let other = w
+            .add_channel("/theirs", ("theirs", "protobuf", b""), "protobuf")
+            .unwrap();
+        for k in 0..3u64 {
+            let g = glove(k, 1_000_000_000 + k * 10_000_000);
+            w.write(Topic::Glove, &g).unwrap();
+            w.write_encoded(scene, &g.stamp, b"scene").unwrap();
+            w.write_encoded(tf, &g.stamp, b"tf").unwrap();
+        }
+        w.write_encoded(tf, &glove(3, 1_100_000_000).stamp, b"tf")
+            .unwrap();
+        w.write_encoded(other, &glove(3, 1_100_000_000).stamp, b"x")
+            .unwrap();
+        w.finish().unwrap();
+        let rec = Recording::open(&path).unwrap();
+        let summary = rec.summary();
+        assert_eq!(rec.messages.len(), 3);
+        assert_eq!(
+            (
+                summary.scene_messages,
+                summary.transform_messages,
+                summary.foreign_messages
+            ),
+            (3, 4, 1)
         );
         let _ = std::fs::remove_file(&path);
     }

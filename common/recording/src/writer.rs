@@ -176,6 +176,12 @@ impl RecordingWriter {
         &self.message
     }
 
+    /// What moves a stamp's CLOCK_MONOTONIC times to Unix time in this file: a message's log
+    /// time is its stamp's `publish_ns` plus this (kept in the `handblocks` metadata record).
+    pub fn unix_offset_ns(&self) -> u64 {
+        self.unix_offset_ns
+    }
+
     /// Samples written so far (the messages of [`Self::write_encoded`] not counted).
     pub fn messages(&self) -> u64 {
         self.messages
@@ -223,7 +229,8 @@ impl RecordingWriter {
     }
 
     /// Declares a channel beside the topics' own, for messages encoded elsewhere (the scene
-    /// view's [`crate::SCENE_CHANNEL`]); [`Self::write_encoded`] writes on it.
+    /// view's [`crate::SCENE_CHANNEL`] and [`crate::TF_CHANNEL`]); [`Self::write_encoded`]
+    /// writes on it.
     pub fn add_channel(
         &mut self,
         channel: &str,

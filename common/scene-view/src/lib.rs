@@ -16,6 +16,11 @@
 //! transform to have arrived first, which a panel opened half-way through a recording would lack.
 //! The sample topics (`/world`, `/hand`, ...) keep handblocks' own y-up numbers.
 //!
+//! **The hand's frames.** Beside the drawing, the view keeps the hand as a tree of frames,
+//! `world` -> `hand` (the wrist) -> each finger's joints, a `foxglove.FrameTransforms` sent on
+//! [`TF_CHANNEL`] (`/tf`) with each scene ([`HandFrames`], the `frames` module): the 3D panel
+//! shows every joint's axes, and a panel may follow the hand. The scene does not depend on it.
+//!
 //! **Cost.** The update is built once ([`SceneView::new`]) and then rewritten in place: a new
 //! world changes poses and, when a mode changes, a label; a new hand refills the finger and palm
 //! point lists, whose capacity stays. After the first updates nothing is allocated.
@@ -32,6 +37,11 @@ use foxglove::schemas::{
 };
 use foxglove::Encode as _;
 use glam::{DQuat, DVec3};
+
+mod frames;
+pub use frames::{
+    hand_frame, joint_frame, HandFrames, FINGER_JOINTS, FINGER_NAMES, TF_CHANNEL, THUMB_JOINTS,
+};
 
 /// The channel (topic) name, live and recorded.
 pub const CHANNEL: &str = "/scene";
@@ -92,6 +102,8 @@ pub struct SceneView {
     hand: Option<HandSample>,
     /// A two-hand session's newest left hand, drawn as `hand` is.
     left: Option<HandSample>,
+    /// The drawn hands as frames (`/tf`), rewritten with each drawing.
+    frames: HandFrames,
 }
 
 /// Entity 0 is the floor, 1..=n the blocks, n + 1 the hand, n + 2 the left hand (once there is
@@ -265,12 +277,23 @@ impl SceneView {
             palm_triangles: Vec::new(),
             hand: None,
             left: None,
+            frames: HandFrames::default(),
         })
     }
 
     /// The update as it stands.
     pub fn update(&self) -> &SceneUpdate {
         &self.update
+    }
+
+    /// The hands drawn so far as frames (`/tf`): empty before the first hand is drawn.
+    pub fn frames(&self) -> &HandFrames {
+        &self.frames
+    }
+
+    /// [`SceneView::frames`], to stamp them ([`HandFrames::stamp`]) before they are sent.
+    pub fn frames_mut(&mut self) -> &mut HandFrames {
+        &mut self.frames
     }
 
     /// Block `i`'s state: its pose, and its label when its mode changed. Blocks beyond the
@@ -308,6 +331,7 @@ impl SceneView {
         let right = 1 + self.labels.len();
         if let Some(hand) = self.hand.take() {
             self.draw_hand(right, &hand);
+            self.frames.set_hand(&hand);
         }
         if let Some(left) = self.left.take() {
             if self.update.entities.len() == right + 1 {
@@ -315,6 +339,7 @@ impl SceneView {
                 self.update.entities.push(hand_entity(LEFT_HAND_ID));
             }
             self.draw_hand(right + 1, &left);
+            self.frames.set_hand(&left);
         }
     }
 

@@ -353,7 +353,7 @@ pub(crate) const DOCS: &[Doc] = &[
     session(
         "recorder.scene_hz",
         "",
-        "How often, at most, the `/scene` channel (Foxglove's 3D panel) is written; 0: never.",
+        "How often, at most, the `/scene` and `/tf` channels (Foxglove's 3D panel: the scene, the hand's frame tree) are written; 0: never.",
     ),
     session(
         "budget",

@@ -294,8 +294,9 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), BridgeError> {
             .map_err(BridgeError::Viewer)?;
             eprintln!(
                 "handblocks bridge: Foxglove view on ws://{host}:{} (in Foxglove or \
-                 Lichtblick: Open connection -> Foxglove WebSocket; the 3D panel on /scene, \
-                 z-up; topics {} as they carry samples)",
+                 Lichtblick: Open connection -> Foxglove WebSocket, then import \
+                 config/foxglove/handblocks-layout.json; the 3D panel on /scene and /tf, z-up; \
+                 topics {} as they carry samples)",
                 v.port,
                 served
                     .iter()

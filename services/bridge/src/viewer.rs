@@ -4,12 +4,15 @@
 //! `cdr` messages of `ros2msg` schemas, `recording::layout`), so a layout made on a recording
 //! shows the live session unchanged; plus `/scene`, the blocks, the floor and the hand (a
 //! two-hand session's left hand its own entity, `scene_view::LEFT_HAND_ID`) as a
-//! `foxglove.SceneUpdate` in Foxglove's z-up frame (`scene_view`), which recordings carry too.
+//! `foxglove.SceneUpdate` in Foxglove's z-up frame (`scene_view`), and `/tf`, the hand as a
+//! tree of frames (`world` -> `hand` -> each finger's joints, `foxglove.FrameTransforms`,
+//! `scene_view::HandFrames`), both of which recordings carry too.
 //!
 //! A topic's channel is declared when its first sample arrives, so a client is never offered a
 //! topic this session does not carry. Nothing is encoded for a channel no client subscribes
 //! to (`has_sinks`), so a view nobody opened costs the bridge a check per sample. The scene
-//! goes out at most 60 times a second.
+//! and the hand's frames go out at most 60 times a second, together (the frames stamped with
+//! the time they are sent, which is their message's log time).
 //!
 //! What a client may cost is bounded: the gate caps the clients (`[viewer] foxglove_clients`)
 //! and closes one that stops taking bytes; the server queues at most [`BACKLOG_BYTES`] of
@@ -21,7 +24,7 @@ use std::sync::Arc;
 use common::config::Scene;
 use common::samples::{BlockState, HandSample, WorldHeader};
 use common::Topic;
-use foxglove::schemas::SceneUpdate;
+use foxglove::schemas::{FrameTransforms, SceneUpdate};
 use foxglove::{
     Channel, ChannelBuilder, RawChannel, Schema, WebSocketServer, WebSocketServerHandle,
 };
@@ -78,6 +81,8 @@ pub struct Viewer {
     served: Vec<Topic>,
     channels: [Option<Arc<RawChannel>>; Topic::ALL.len()],
     scene: Channel<SceneUpdate>,
+    /// The hand's frames (`/tf`), sent with the scene.
+    tf: Channel<FrameTransforms>,
     view: SceneView,
     last_scene_ns: u64,
     /// The port clients connect to (the gate's).
@@ -109,6 +114,9 @@ impl Viewer {
         let scene_channel = ChannelBuilder::new(scene_view::CHANNEL)
             .context(&context)
             .build::<SceneUpdate>();
+        let tf_channel = ChannelBuilder::new(scene_view::TF_CHANNEL)
+            .context(&context)
+            .build::<FrameTransforms>();
         let view = SceneView::new(scene).map_err(|e| ViewerError(e.to_string()))?;
         // The server itself listens on a loopback port only the gate reaches.
         let server = WebSocketServer::new()
@@ -133,6 +141,7 @@ impl Viewer {
             served: topics.to_vec(),
             channels: std::array::from_fn(|_| None),
             scene: scene_channel,
+            tf: tf_channel,
             view,
             last_scene_ns: 0,
             port,
@@ -169,15 +178,14 @@ impl Viewer {
     }
 
     /// One message of `topic` (a recording's bytes): sent on its channel, and the hand and the
-    /// world feed the scene.
+    /// world feed the scene and the hand's frames.
     pub fn observe(&mut self, topic: Topic, message: &[u8], now_ns: u64) {
         self.log(topic, message);
         match topic {
             Topic::Hand => scene_hand(&mut self.view, message),
             Topic::World => {
-                if !self.scene.has_sinks()
-                    || now_ns.saturating_sub(self.last_scene_ns) < SCENE_PERIOD_NS
-                {
+                let (scene, tf) = (self.scene.has_sinks(), self.tf.has_sinks());
+                if !(scene || tf) || now_ns.saturating_sub(self.last_scene_ns) < SCENE_PERIOD_NS {
                     return;
                 }
                 if let Ok((_, body)) = recording::decode_slice::<WorldHeader>(topic, message) {
@@ -188,7 +196,14 @@ impl Viewer {
                     self.view.set_world(body.len() / size, |i| unsafe {
                         std::ptr::read_unaligned(body[i * size..].as_ptr() as *const BlockState)
                     });
-                    self.scene.log(self.view.update());
+                    if scene {
+                        self.scene.log(self.view.update());
+                    }
+                    if tf && !self.view.frames().is_empty() {
+                        let unix_ns = unix_now_ns();
+                        self.view.frames_mut().stamp(unix_ns);
+                        self.tf.log_with_time(self.view.frames().message(), unix_ns);
+                    }
                 }
             }
             _ => {}
@@ -204,6 +219,14 @@ impl Viewer {
             let _ = s.stop();
         }
     }
+}
+
+/// Now, in nanoseconds since the Unix epoch (the live view's log times); 0 on a clock set
+/// before 1970.
+fn unix_now_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
 }
 
 /// A `hand` message (a recording's bytes) into the scene. Both hands of a two-hand session

@@ -9,7 +9,9 @@
 //!
 //! Beside the topics it writes `/scene` (`scene_view`: the blocks, the floor and the hand in
 //! Foxglove's z-up frame, at most `[recorder] scene_hz` times a second, stamped as the world it
-//! shows), so a recording opens in Foxglove's 3D panel as the live view does.
+//! shows), so a recording opens in Foxglove's 3D panel as the live view does; and with each
+//! scene `/tf`, the hand's frames (`scene_view::HandFrames`: `world` -> the wrist -> each
+//! finger's joints), stamped with that scene's log time.
 
 use std::time::Duration;
 
@@ -48,11 +50,14 @@ struct Log {
     scene: Option<SceneTrack>,
 }
 
-/// The `/scene` channel: the view, rewritten in place, and its encoded bytes.
+/// The `/scene` channel and the `/tf` channel beside it: the view, rewritten in place, and
+/// their encoded bytes.
 struct SceneTrack {
     channel_id: u16,
+    tf_channel_id: u16,
     view: SceneView,
     encoded: Vec<u8>,
+    tf_encoded: Vec<u8>,
     period_ns: u64,
     /// When the next scene is due (publish time of the world that brings it).
     next_ns: Option<u64>,
@@ -97,6 +102,17 @@ impl Log {
                     track.view.encode_into(&mut track.encoded);
                     self.writer
                         .write_encoded(track.channel_id, stamp, &track.encoded)?;
+                    // The hand's frames, once there is a hand, stamped with the message's log
+                    // time (the scene's).
+                    if !track.view.frames().is_empty() {
+                        let log_ns = stamp
+                            .publish_ns
+                            .saturating_add(self.writer.unix_offset_ns());
+                        track.view.frames_mut().stamp(log_ns);
+                        track.view.frames().encode_into(&mut track.tf_encoded);
+                        self.writer
+                            .write_encoded(track.tf_channel_id, stamp, &track.tf_encoded)?;
+                    }
                 }
             }
             _ => {}
@@ -298,10 +314,20 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), RecorderError> {
                         &SceneView::message_encoding(),
                     )
                     .map_err(RecorderError::Create)?;
+                let (name, encoding, data) = scene_view::HandFrames::schema();
+                let tf_channel_id = writer
+                    .add_channel(
+                        recording::TF_CHANNEL,
+                        (&name, &encoding, &data),
+                        &SceneView::message_encoding(),
+                    )
+                    .map_err(RecorderError::Create)?;
                 Some(SceneTrack {
                     channel_id,
+                    tf_channel_id,
                     view: SceneView::new(&session.scene).map_err(RecorderError::Scene)?,
                     encoded: Vec::new(),
+                    tf_encoded: Vec::new(),
                     period_ns,
                     next_ns: None,
                 })

@@ -11,7 +11,7 @@ use super::{RecordedMessage, Recording, MAX_CHUNK_BYTES};
 use crate::codec::{
     sample_type, slice_message_bytes, widen_legacy_hand, CDR_LE_HEADER, MESSAGE_ENCODING, WIDENED,
 };
-use crate::{RECORDED_TOPICS, SCENE_CHANNEL};
+use crate::{RECORDED_TOPICS, SCENE_CHANNEL, TF_CHANNEL};
 
 const OP_SCHEMA: u8 = 0x03;
 const OP_CHANNEL: u8 = 0x04;
@@ -175,6 +175,8 @@ pub(super) struct Reader<'t> {
     pub(super) channels: Vec<(u16, Option<Topic>)>,
     /// The channels of the scene view ([`SCENE_CHANNEL`]): ours, but not a topic.
     pub(super) scene_channels: Vec<u16>,
+    /// The channels of the hand's frames ([`TF_CHANNEL`]): ours, but not a topic.
+    pub(super) tf_channels: Vec<u16>,
     /// (schema id, schema name)
     pub(super) schemas: Vec<(u16, String)>,
     /// The topics whose messages are kept.
@@ -284,6 +286,10 @@ impl Reader<'_> {
                 if c.topic == SCENE_CHANNEL {
                     self.scene_channels.push(c.id);
                 }
+                self.tf_channels.retain(|id| *id != c.id);
+                if c.topic == TF_CHANNEL {
+                    self.tf_channels.push(c.id);
+                }
                 if let (Some(t), Some(schema)) = (topic, schema) {
                     let (expected, _) = sample_type(t);
                     if schema != expected {
@@ -310,6 +316,10 @@ impl Reader<'_> {
                 let Some(topic) = topic else {
                     if self.scene_channels.contains(&header.channel_id) {
                         rec.scene_messages += 1;
+                        return Ok(());
+                    }
+                    if self.tf_channels.contains(&header.channel_id) {
+                        rec.transform_messages += 1;
                         return Ok(());
                     }
                     rec.foreign_messages += 1;
