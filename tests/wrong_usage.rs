@@ -114,9 +114,9 @@ wrong_usage! {
     /// Already good, kept: a bare misspelt scene name.
     a_misspelt_scene_is_suggested:
         ["simulate", "grasp-thro"] => ["did you mean `grasp-throw`?", "`handblocks list` lists them"];
-    /// Already good, kept: an unknown key lists the allowed ones and says it came from --set.
+    /// Before: "`world.stephz`: unknown key; allowed here: ..." (the nearest not named).
     an_unknown_set_key_lists_the_allowed_keys:
-        ["simulate", "grasp-throw", "--set", "world.stephz=120"] => ["`world.stephz`: unknown key; allowed here:", "step_hz", "(given with --set)"];
+        ["simulate", "grasp-throw", "--set", "world.stephz=120"] => ["`world.stephz`: unknown key (did you mean `step_hz`?); allowed here:", "(given with --set)"];
     /// Already good, kept: an out-of-range key gives its range.
     an_out_of_range_set_value_gives_the_range:
         ["simulate", "grasp-throw", "--set", "world.step_hz=0"] => ["`world.step_hz`: 0 is out of range; allowed: 1 to 100000"];

@@ -161,8 +161,8 @@ pub fn missing(given: &Path, kind: Kind) -> Option<String> {
         .unwrap_or_default();
     let mut near: Vec<(usize, String)> = names_of(kind)
         .into_iter()
-        .map(|n| (edit_distance(&asked, &n.to_lowercase()), n))
-        .filter(|(d, _)| *d <= (asked.chars().count() / 3).max(2))
+        .filter(|n| common::config::near_enough(&asked, &n.to_lowercase()))
+        .map(|n| (common::config::edit_distance(&asked, &n.to_lowercase()), n))
         .collect();
     near.sort();
     near.dedup_by(|a, b| a.1 == b.1);
@@ -280,26 +280,6 @@ fn names_of(kind: Kind) -> Vec<String> {
     names
 }
 
-/// Levenshtein distance between `a` and `b`, by characters.
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut prev = row[0];
-        row[0] = i + 1;
-        for (j, cb) in b.iter().enumerate() {
-            let cur = row[j + 1];
-            row[j + 1] = if ca == *cb {
-                prev
-            } else {
-                1 + prev.min(cur).min(row[j])
-            };
-            prev = cur;
-        }
-    }
-    row[b.len()]
-}
-
 /// A folder of configuration (`list`'s): itself when it exists, else `config` or a folder
 /// under it found in the configuration folder.
 pub fn resolve_dir(given: &Path) -> PathBuf {
@@ -318,8 +298,11 @@ mod tests {
 
     #[test]
     fn a_misspelt_name_gets_the_nearest_names_and_a_pointer_to_list() {
-        assert_eq!(edit_distance("grasp-thrw", "grasp-throw"), 1);
-        assert_eq!(edit_distance("", "abc"), 3);
+        assert_eq!(
+            common::config::edit_distance("grasp-thrw", "grasp-throw"),
+            1
+        );
+        assert_eq!(common::config::edit_distance("", "abc"), 3);
         let why = missing(Path::new("grasp-thrw"), Kind::Scene).unwrap_or_default();
         assert!(
             why.contains("did you mean `grasp-throw`") && why.contains("handblocks list"),

@@ -178,3 +178,30 @@ pub fn read_bounded_text(file: &Path, max_bytes: u64) -> Result<String, String> 
         )
     })
 }
+
+/// The number of one-character edits (insert, delete, replace) from `a` to `b`: how a
+/// misspelt name finds the one meant (an unknown key's "did you mean", a scene's name).
+pub fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let cur = row[j + 1];
+            row[j + 1] = if ca == *cb {
+                prev
+            } else {
+                1 + prev.min(cur).min(row[j])
+            };
+            prev = cur;
+        }
+    }
+    row[b.len()]
+}
+
+/// Whether `asked` is near enough `name` to be a misspelling of it: at most a third of its
+/// characters wrong, and at least 2 allowed.
+pub fn near_enough(asked: &str, name: &str) -> bool {
+    edit_distance(asked, name) <= (asked.chars().count() / 3).max(2)
+}

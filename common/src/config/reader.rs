@@ -82,9 +82,15 @@ impl<'a> Reader<'a> {
                 let mut allowed: Vec<&str> = known.clone();
                 allowed.sort();
                 allowed.dedup();
+                // The nearest allowed key, when one is near enough to be what was meant.
+                let meant = allowed
+                    .iter()
+                    .filter(|k| super::near_enough(key, k))
+                    .min_by_key(|k| super::edit_distance(key, k))
+                    .map_or(String::new(), |k| format!(" (did you mean `{k}`?)"));
                 return Err(self.err(
                     key,
-                    format!("unknown key; allowed here: {}", allowed.join(", ")),
+                    format!("unknown key{meant}; allowed here: {}", allowed.join(", ")),
                 ));
             }
         }
