@@ -111,6 +111,13 @@ wrong_usage! {
     /// Before: "unexpected argument '-3' found; ... use '-- -3'".
     echo_a_negative_count_gives_the_allowed_range:
         ["echo", "world", "-n", "-3"] => ["1 or more"];
+    /// Before: "/tmp/.../nosuch.toml: cannot read the file: No such file or directory" (not
+    /// which key named it, nor that --set gave it).
+    a_missing_scene_names_the_key_that_named_it:
+        ["launch", "live", "--set", "scene=nosuch.toml"] => ["`scene`: ", "nosuch.toml: no such scene file", "(given with --set)", "`handblocks list`"];
+    /// Before: the replay's own temporary session named, and "/tmp/nosuch: no such file".
+    a_replays_misspelt_scene_is_suggested:
+        ["replay", "push.carl", "--scene", "carl-psh"] => ["--scene carl-psh: no such file, and no scene of that name (did you mean `carl-push`?)"];
     /// Already good, kept: a bare misspelt scene name.
     a_misspelt_scene_is_suggested:
         ["simulate", "grasp-thro"] => ["did you mean `grasp-throw`?", "`handblocks list` lists them"];

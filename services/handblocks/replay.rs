@@ -48,6 +48,11 @@ fn scene_for(
         ));
     }
     if let Some(scene) = &args.scene {
+        if let Some(why) =
+            locate::missing(scene, Kind::Scene).or_else(|| locate::wrong_kind(scene, Kind::Scene))
+        {
+            return Err(format!("--scene {}: {why}", scene.display()));
+        }
         let scene = locate::resolve(scene, Kind::Scene);
         return Ok((scene, args.offset.unwrap_or_default(), "--scene".into()));
     }

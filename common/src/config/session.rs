@@ -483,6 +483,18 @@ impl Session {
             .string("scene")?
             .ok_or_else(|| r.err("scene", "required: the scene file, relative to this file"))?;
         let scene_file = dir.join(&scene_name);
+        if std::fs::symlink_metadata(&scene_file).is_err() {
+            // Named here, with the session's key: the scene loader would name only the
+            // missing file, not where it was asked for.
+            return Err(r.err(
+                "scene",
+                format!(
+                    "{}: no such scene file (in the file: relative to its folder; with --set: \
+                     to the current folder); `handblocks list` lists the scenes",
+                    scene_file.display()
+                ),
+            ));
+        }
         let mut scene = Scene::load_with(&scene_file, scene_overrides)?;
         let (source, remote_source) = source(r.table("source")?, dir)?;
         let link = match (remote_source, r.table("remote")?) {
@@ -1041,7 +1053,15 @@ mod tests {
 
         let f = write(&d, "s3.toml", "scene = \"missing.toml\"\n");
         let e = Session::load(&f).unwrap_err();
-        assert_eq!(e.file, d.join("missing.toml"));
+        // The session's key, and the scene file it names.
+        assert_eq!((e.file.as_path(), e.key.as_str()), (f.as_path(), "scene"));
+        assert!(
+            e.problem.contains(&format!(
+                "{}: no such scene file",
+                d.join("missing.toml").display()
+            )),
+            "{e}"
+        );
 
         let f = write(&d, "s4.toml", "scene = \"scene.toml\"\n[budget\n");
         let e = Session::load(&f).unwrap_err();
