@@ -287,7 +287,21 @@ fn the_held_block_is_drawn_with_the_hand_that_holds_it(summary: &serde_json::Val
     // Before (the world's pose, printed above) is a figure of the machine's speed, not checked.
 }
 
-/// A browser without WebXR is a spectator: the page draws the session's blocks.
+/// Pixels of the spectator's hand: skin (red over green over blue, warm but not saturated:
+/// not the red cube, not the floor's blue-grey, not the old orange dots).
+fn skin_pixels(png: &Path) -> usize {
+    let img = renderer::png::read_png(png).unwrap();
+    img.rgba
+        .chunks_exact(4)
+        .filter(|p| {
+            let (r, g, b) = (i32::from(p[0]), i32::from(p[1]), i32::from(p[2]));
+            r > g && g > b && r - b > 30 && 10 * g > 6 * r && 10 * b > 4 * r
+        })
+        .count()
+}
+
+/// A browser without WebXR is a spectator: the page draws the session's blocks, and the hand
+/// as a hand (bones, joints and palm in skin colour, issue 43), with the session's time.
 #[test]
 fn the_spectator_page_draws_the_blocks() {
     if let Some(why) = skipped() {
@@ -324,4 +338,10 @@ fn the_spectator_page_draws_the_blocks() {
     if let Ok(keep) = std::env::var("HB_KEEP_SCREENSHOT") {
         std::fs::copy(&png, keep).unwrap();
     }
+    // The hand: the lift trace's hand is by the cube from its first frames on.
+    let skin = skin_pixels(&png);
+    assert!(skin > 300, "{skin} pixels of the hand; {summary}");
+    // The session's time (its steps from its first hand sample), not a clock's reading.
+    let t = summary["lastWorldTime"].as_f64().unwrap_or(f64::NAN);
+    assert!((0.0..120.0).contains(&t), "{summary}");
 }

@@ -121,8 +121,8 @@ pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {
     })
 }
 
-/// `preview: out/live-preview.png (animated PNG, 36 frames, 640 x 360, 412 KB; open it in a
-/// web browser)`.
+/// `preview: out/live-preview.png (animated PNG, 36 frames over 2.4 s, 640 x 360, 412 KB; open
+/// it in a web browser)`.
 fn preview_line(path: &Path) -> String {
     animation_line(
         path,
@@ -142,9 +142,10 @@ fn animation_line(
     let size = std::fs::metadata(path).map_or(0, |m| m.len());
     match info {
         Some(d) => format!(
-            "preview: {} ({kind}, {} frames, {} x {}, {:.0} KB; {open_with})",
+            "preview: {} ({kind}, {} frames over {:.1} s, {} x {}, {:.0} KB; {open_with})",
             path.display(),
             d.frames,
+            d.duration_ms as f64 / 1000.0,
             d.width,
             d.height,
             size as f64 / 1024.0
@@ -183,8 +184,8 @@ fn recording_line(path: &Path) -> String {
     )
 }
 
-/// `preview: out/live-preview.gif (GIF, 36 frames, 640 x 360, 300 KB; any image viewer)`: the
-/// same animation for viewers and chats that do not play animated PNGs.
+/// `preview: out/live-preview.gif (GIF, 36 frames over 2.4 s, 640 x 360, 300 KB; any image
+/// viewer)`: the same animation for viewers and chats that do not play animated PNGs.
 fn gif_line(path: &Path) -> String {
     animation_line(
         path,

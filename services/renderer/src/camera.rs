@@ -365,14 +365,7 @@ pub fn frame_spheres(
     width: u32,
     height: u32,
 ) -> Option<CameraSettings> {
-    let pts: Vec<Interest> = spheres
-        .iter()
-        .filter(|(p, r)| p.is_finite() && r.is_finite())
-        .map(|(p, r)| Interest {
-            centre: *p,
-            radius: r.max(0.0),
-        })
-        .collect();
+    let pts: Vec<Interest> = interests(spheres).collect();
     if pts.is_empty() {
         return None;
     }
@@ -404,11 +397,26 @@ pub fn frame_spheres(
 /// For a direction of view: the nearest eye distance at which every sphere is inside both
 /// fields with the margin, and the target it looks at.
 fn fit(pts: &[Interest], forward: DVec3, tan_h: f64, tan_v: f64) -> (f64, DVec3) {
-    let axes = Viewer::new(&CameraSettings {
+    let axes = axes_of(forward);
+    let target = centre(pts, &axes);
+    (
+        distance(pts.iter().copied(), target, &axes, (tan_h, tan_v), 0.3),
+        target,
+    )
+}
+
+/// The viewer's axes for a direction of view (from the origin).
+fn axes_of(forward: DVec3) -> Viewer {
+    Viewer::new(&CameraSettings {
         eye: [0.0, 0.0, 0.0],
         target: forward.to_array(),
         ..CameraSettings::default()
-    });
+    })
+}
+
+/// The point to look at so that the spheres' extent across the view (along right and up) is
+/// centred in it.
+fn centre(pts: &[Interest], axes: &Viewer) -> DVec3 {
     let (lo, hi) = pts.iter().fold(
         (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
         |(lo, hi), p| {
@@ -429,16 +437,70 @@ fn fit(pts: &[Interest], forward: DVec3, tan_h: f64, tan_v: f64) -> (f64, DVec3)
         u_lo = u_lo.min(u - p.radius);
         u_hi = u_hi.max(u + p.radius);
     }
-    let target = mid + axes.right * ((r_lo + r_hi) * 0.5) + axes.up * ((u_lo + u_hi) * 0.5);
+    mid + axes.right * ((r_lo + r_hi) * 0.5) + axes.up * ((u_lo + u_hi) * 0.5)
+}
+
+/// The nearest eye distance from `target` (back along the view) at which every sphere is
+/// inside both fields (half-tangents `tan_h`, `tan_v`) with the margin; at least `least`.
+fn distance(
+    pts: impl IntoIterator<Item = Interest>,
+    target: DVec3,
+    axes: &Viewer,
+    (tan_h, tan_v): (f64, f64),
+    least: f64,
+) -> f64 {
     let k = 1.0 - MARGIN;
-    let mut d: f64 = 0.3;
+    let mut d = least;
     for p in pts {
         let q = p.centre - target;
         let (r, u, f) = (q.dot(axes.right), q.dot(axes.up), q.dot(axes.forward));
         d = d.max((r.abs() + p.radius) / (tan_h * k) - f + p.radius);
         d = d.max((u.abs() + p.radius) / (tan_v * k) - f + p.radius);
     }
-    (d, target)
+    d
+}
+
+/// The finite spheres of `spheres`, as the fitting takes them.
+fn interests(spheres: &[(DVec3, f64)]) -> impl Iterator<Item = Interest> + '_ {
+    spheres
+        .iter()
+        .filter(|(p, r)| p.is_finite() && r.is_finite())
+        .map(|(p, r)| Interest {
+            centre: *p,
+            radius: r.max(0.0),
+        })
+}
+
+/// The point a camera looking along `forward` looks at to centre these spheres (centre,
+/// radius) in its view: the middle of their extent across the view. None when there is no
+/// finite sphere. With [`distance_along`], the preview's camera of one moment
+/// (`preview.rs`).
+pub fn centre_along(spheres: &[(DVec3, f64)], forward: DVec3) -> Option<DVec3> {
+    let pts: Vec<Interest> = interests(spheres).collect();
+    (!pts.is_empty()).then(|| centre(&pts, &axes_of(forward)))
+}
+
+/// How far back from `target` along `forward` a mono camera with `c`'s screen (its field) must
+/// be for every sphere to be inside its `width` x `height` view, the margin kept free, and the
+/// view at least `min_view_m` wide at the target. Allocates nothing.
+pub fn distance_along(
+    spheres: &[(DVec3, f64)],
+    target: DVec3,
+    forward: DVec3,
+    c: &CameraSettings,
+    (width, height): (u32, u32),
+    min_view_m: f64,
+) -> f64 {
+    let tan_h = c.screen_width_m * 0.5 / c.screen_distance_m;
+    let tan_v = tan_h * height as f64 / width.max(1) as f64;
+    let least = (0.5 * min_view_m / tan_h).max(0.3);
+    distance(
+        interests(spheres),
+        target,
+        &axes_of(forward),
+        (tan_h, tan_v),
+        least,
+    )
 }
 
 /// The radius of the sphere around G that holds the block.

@@ -236,7 +236,7 @@ impl Task for RendererStage {
                 }
             }
             if let Some(p) = &mut self.preview {
-                p.after_frame(done, view, hand, left);
+                p.after_frame(view, hand, left);
             }
             self.frame_no += 1;
         }

@@ -48,6 +48,34 @@
     'pinky-finger-phalanx-distal', 'pinky-finger-tip',
   ];
   const JOINT_COUNT = 25, JOINT_FLOATS = 8, HAND_BYTES = JOINT_COUNT * JOINT_FLOATS * 4;
+  // A hand as drawn: bones (prisms) along each finger from the wrist, a sphere at each joint,
+  // and the palm, a fan of triangles from the wrist. WebXR's joints (XR hands) by index:
+  // each finger from the wrist to its tip, and the palm's outline (wrist, the thumb's base
+  // knuckle, the four knuckles).
+  const XR_CHAINS = [[0, 1, 2, 3, 4], [0, 5, 6, 7, 8, 9], [0, 10, 11, 12, 13, 14],
+    [0, 15, 16, 17, 18, 19], [0, 20, 21, 22, 23, 24]];
+  const XR_PALM = [0, 2, 6, 11, 16, 21];
+  // The same without the wrist, and without the metacarpals, for a runtime that leaves them
+  // unset (an emulated headset playing a CARL trace, whose wrist and metacarpal joints are
+  // the identity): the fingers from their metacarpals, the palm a fan from the middle one's
+  // base; or from their knuckles, the palm across the knuckles and the thumb's.
+  const XR_CHAINS_NO_WRIST = [[1, 2, 3, 4], [5, 6, 7, 8, 9], [10, 11, 12, 13, 14],
+    [15, 16, 17, 18, 19], [20, 21, 22, 23, 24]];
+  const XR_PALM_NO_WRIST = [10, 1, 2, 6, 11, 16, 21, 20];
+  const XR_CHAINS_KNUCKLES = [[2, 3, 4], [6, 7, 8, 9], [11, 12, 13, 14], [16, 17, 18, 19],
+    [21, 22, 23, 24]];
+  const XR_PALM_KNUCKLES = [2, 6, 11, 16, 21];
+  // A joint farther than this from the middle finger's knuckle (11) is not where the hand is
+  // (metres): it is left out.
+  const XR_HAND_REACH = 0.25;
+  const PALM_MAX_CORNERS = 8;
+  const PALM_FLOATS = (PALM_MAX_CORNERS - 2) * 3 * 6;
+  // The world's fingers as the stepper drew them (a spectator's hand): radii, metres (the world
+  // carries none; the hand model's are about these), and the colour of skin.
+  const WORLD_BONE_R = 0.008, WORLD_JOINT_R = 0.0085;
+  const SKIN = [0.90, 0.70, 0.56];
+  // The headset's own hands (XR): as before, blue, the left a little lighter.
+  const RIGHT_HAND = [0.35, 0.8, 0.95], LEFT_HAND = [0.55, 0.8, 0.95];
 
   // ---------------------------------------------------------------- DOM
   const $ = (id) => document.getElementById(id);
@@ -222,17 +250,66 @@
     gl.bufferData(gl.ARRAY_BUFFER, floats, gl.DYNAMIC_DRAW);
     d.count = count;
   }
+  // A dynamic buffer of lit triangles (position, normal) of at most `floats` floats, made once.
+  function makeLitDynamic(floats) {
+    const vao = gl.createVertexArray();
+    gl.bindVertexArray(vao);
+    const buf = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+    gl.bufferData(gl.ARRAY_BUFFER, floats * 4, gl.DYNAMIC_DRAW);
+    gl.enableVertexAttribArray(0);
+    gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 24, 0);
+    gl.enableVertexAttribArray(1);
+    gl.vertexAttribPointer(1, 3, gl.FLOAT, false, 24, 12);
+    gl.bindVertexArray(null);
+    return { vao, buf, count: 0 };
+  }
 
-  const CUBE_V = [-1, -1, -1, 1, -1, -1, 1, 1, -1, -1, 1, -1, -1, -1, 1, 1, -1, 1, 1, 1, 1, -1, 1, 1];
-  const CUBE_I = [0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 3, 6, 2, 3, 7, 6, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5];
 
-  let cubeMesh = null, floorMesh = null, gridLines = null, pointsBuf = null, fingerLines = null;
+  // A bone: a unit prism of `sides` faces along +y, from y = 0 to 1, radius 1 (stretched
+  // between two joints by boneMatrix).
+  function prism(sides) {
+    const v = [], idx = [];
+    for (let k = 0; k < sides; k++) {
+      const a = 2 * Math.PI * k / sides;
+      v.push(Math.cos(a), 0, Math.sin(a), Math.cos(a), 1, Math.sin(a));
+    }
+    for (let k = 0; k < sides; k++) {
+      const a = 2 * k, b = 2 * ((k + 1) % sides);
+      idx.push(a, a + 1, b, b, a + 1, b + 1);   // wound outwards (the lit shader's normals)
+      if (k > 0 && k + 1 < sides) idx.push(0, a, b, 1, b + 1, a + 1);
+    }
+    return [v, idx];
+  }
+  // A joint: a unit sphere of `seg` x `rings` facets.
+  function sphere(seg, rings) {
+    const v = [], idx = [];
+    for (let r = 0; r <= rings; r++) {
+      const th = Math.PI * r / rings;
+      for (let k = 0; k < seg; k++) {
+        const ph = 2 * Math.PI * k / seg;
+        v.push(Math.sin(th) * Math.cos(ph), Math.cos(th), Math.sin(th) * Math.sin(ph));
+      }
+    }
+    for (let r = 0; r < rings; r++) {
+      for (let k = 0; k < seg; k++) {
+        const a = r * seg + k, b = r * seg + (k + 1) % seg;
+        idx.push(a, b, a + seg, b, b + seg, a + seg);
+      }
+    }
+    return [v, idx];
+  }
+
+  let floorMesh = null, gridLines = null, pointsBuf = null, fingerLines = null;
+  let boneMesh = null, jointMesh = null, palmBuf = null;
   let gridFloorY = null;
   if (gl) {
-    cubeMesh = makeMesh(CUBE_V, CUBE_I);
+    boneMesh = makeMesh(...prism(8));
+    jointMesh = makeMesh(...sphere(12, 8));
     gridLines = makeDynamic();
     pointsBuf = makeDynamic();
     fingerLines = makeDynamic();
+    palmBuf = makeLitDynamic(PALM_FLOATS);
   }
   function buildFloor(floorY) {
     if (!gl || gridFloorY === floorY) return;
@@ -782,22 +859,24 @@
         gl.drawArrays(gl.TRIANGLES, 0, b.mesh.count);
       }
     }
-    // local hands (XR only): a cube per joint, half-size = radius
+    // local hands (XR only), from this frame's joints: bones, joints (their radii) and palm
     if (opts.hands) {
       gl.uniformMatrix4fv(litProg.u.u_viewProj, false, viewProj);
-      gl.bindVertexArray(cubeMesh.vao);
-      for (const h of opts.hands) {
+      for (let k = 0; k < opts.hands.length; k++) {
+        const h = opts.hands[k];
         if (!h.present) continue;
-        gl.uniform3f(litProg.u.u_color, h.left ? 0.55 : 0.35, 0.8, 0.95);
-        const j = h.joints;
-        for (let i = 0; i < JOINT_COUNT; i++) {
-          const o = i * 8;
-          const r = j[o + 7] > 0 ? j[o + 7] : 0.008;
-          M.fromRTS(tmpModel, j[o + 3], j[o + 4], j[o + 5], j[o + 6], j[o], j[o + 1], j[o + 2], r);
-          gl.uniformMatrix4fv(litProg.u.u_model, false, tmpModel);
-          gl.drawArrays(gl.TRIANGLES, 0, cubeMesh.count);
-        }
+        const j = h.joints, color = h.left ? LEFT_HAND : RIGHT_HAND;
+        const near = xrJointNear;
+        if (near(j, 0) && near(j, 10)) drawHand(j, JOINT_FLOATS, XR_CHAINS, XR_PALM, 0.008, 0.008, color);
+        else if (near(j, 10)) drawHand(j, JOINT_FLOATS, XR_CHAINS_NO_WRIST, XR_PALM_NO_WRIST, 0.008, 0.008, color);
+        else drawHand(j, JOINT_FLOATS, XR_CHAINS_KNUCKLES, XR_PALM_KNUCKLES, 0.008, 0.008, color);
       }
+    }
+    // the world's hand (a spectator's view): the stepper's fingers as a hand
+    HB.handBones = 0;
+    if (opts.worldHand && worldHand.ready) {
+      gl.uniformMatrix4fv(litProg.u.u_viewProj, false, worldViewProj);
+      HB.handBones = drawHand(worldHand.pts, 3, worldHand.chains, worldHand.palm, WORLD_BONE_R, WORLD_JOINT_R, SKIN);
     }
     // grid and finger points
     gl.useProgram(flatProg.p);
@@ -807,7 +886,7 @@
       gl.bindVertexArray(gridLines.vao);
       gl.drawArrays(gl.LINES, 0, gridLines.count);
     }
-    if (pointsBuf.count) {
+    if (pointsBuf.count && !(opts.worldHand && worldHand.ready)) {
       gl.uniform4f(flatProg.u.u_color, FINGER_COLOR[0], FINGER_COLOR[1], FINGER_COLOR[2], FINGER_COLOR[3]);
       gl.uniform1f(flatProg.u.u_pointSize, opts.pointSize || 6);
       gl.bindVertexArray(pointsBuf.vao);
@@ -818,6 +897,155 @@
       }
     }
     gl.bindVertexArray(null);
+  }
+
+  // ---------------------------------------------------------------- hands drawn as hands
+  const boneModel = M.create(), palmData = new Float32Array(PALM_FLOATS);
+  const identity = M.create();
+
+  // out = the bone from a to b of radius r: the unit prism's x and z scaled by r, its y
+  // along b - a. False for a bone of no length.
+  function boneMatrix(out, ax, ay, az, bx, by, bz, r) {
+    const dx = bx - ax, dy = by - ay, dz = bz - az;
+    const len = Math.hypot(dx, dy, dz);
+    if (!(len > 1e-6)) return false;
+    const yx = dx / len, yy = dy / len, yz = dz / len;
+    // x: across the bone (any direction not along it), z = x cross y
+    const px = Math.abs(yz) > 0.9 ? 1 : 0, pz = 1 - px;
+    let xx = -pz * yy, xy = pz * yx - px * yz, xz = px * yy;
+    const xl = Math.hypot(xx, xy, xz);
+    xx /= xl; xy /= xl; xz /= xl;
+    const zx = xy * yz - xz * yy, zy = xz * yx - xx * yz, zz = xx * yy - xy * yx;
+    out[0] = xx * r; out[1] = xy * r; out[2] = xz * r; out[3] = 0;
+    out[4] = dx; out[5] = dy; out[6] = dz; out[7] = 0;
+    out[8] = zx * r; out[9] = zy * r; out[10] = zz * r; out[11] = 0;
+    out[12] = ax; out[13] = ay; out[14] = az; out[15] = 1;
+    return true;
+  }
+
+  // Draws a hand with the lit program (its viewProj set): points `pts` (x y z at `stride`
+  // floats apart; the radius at offset 7 when `stride` is 8, else `boneR` and `jointR`),
+  // bones along `chains` (lists of point indices), the palm a fan over `palm` (indices, the
+  // first the wrist). Returns the bones drawn. Allocates nothing.
+  // Whether WebXR joint i of `j` is where the hand is (near its middle knuckle).
+  function xrJointNear(j, i) {
+    const a = i * JOINT_FLOATS, k = 11 * JOINT_FLOATS;
+    return Math.hypot(j[a] - j[k], j[a + 1] - j[k + 1], j[a + 2] - j[k + 2]) < XR_HAND_REACH;
+  }
+  function jointRadius(pts, stride, i, fallback) {
+    return stride === 8 && pts[i * 8 + 7] > 0 ? pts[i * 8 + 7] : fallback;
+  }
+  function drawHand(pts, stride, chains, palm, boneR, jointR, color) {
+    gl.uniform3f(litProg.u.u_color, color[0], color[1], color[2]);
+    let bones = 0;
+    gl.bindVertexArray(boneMesh.vao);
+    for (let c = 0; c < chains.length; c++) {
+      const chain = chains[c];
+      for (let k = 0; k + 1 < chain.length; k++) {
+        const a = chain[k] * stride, b = chain[k + 1] * stride;
+        // the finer of the two joints' radii, a little less: the joints stand out
+        const r = 0.8 * Math.min(jointRadius(pts, stride, chain[k], boneR / 0.8),
+          jointRadius(pts, stride, chain[k + 1], boneR / 0.8));
+        if (!boneMatrix(boneModel, pts[a], pts[a + 1], pts[a + 2], pts[b], pts[b + 1], pts[b + 2], r)) continue;
+        gl.uniformMatrix4fv(litProg.u.u_model, false, boneModel);
+        gl.drawArrays(gl.TRIANGLES, 0, boneMesh.count);
+        bones++;
+      }
+    }
+    gl.bindVertexArray(jointMesh.vao);
+    for (let c = 0; c < chains.length; c++) {
+      const chain = chains[c];
+      // a joint the chains share (the wrist) once
+      for (let k = c > 0 && chain[0] === chains[0][0] ? 1 : 0; k < chain.length; k++) {
+        const i = chain[k], o = i * stride;
+        M.fromRTS(boneModel, 0, 0, 0, 1, pts[o], pts[o + 1], pts[o + 2], jointRadius(pts, stride, i, jointR));
+        gl.uniformMatrix4fv(litProg.u.u_model, false, boneModel);
+        gl.drawArrays(gl.TRIANGLES, 0, jointMesh.count);
+      }
+    }
+    // the palm: triangles (wrist, corner k, corner k + 1), each lit from above
+    const n = Math.min(palm.length, PALM_MAX_CORNERS);
+    let f = 0;
+    const w = palm[0] * stride;
+    for (let k = 1; k + 1 < n; k++) {
+      const a = palm[k] * stride, b = palm[k + 1] * stride;
+      const ux = pts[a] - pts[w], uy = pts[a + 1] - pts[w + 1], uz = pts[a + 2] - pts[w + 2];
+      const vx = pts[b] - pts[w], vy = pts[b + 1] - pts[w + 1], vz = pts[b + 2] - pts[w + 2];
+      let nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
+      const l = (ny < 0 ? -1 : 1) * (Math.hypot(nx, ny, nz) || 1);
+      nx /= l; ny /= l; nz /= l;
+      for (let v = 0; v < 3; v++) {
+        const q = v === 0 ? w : v === 1 ? a : b;
+        palmData[f++] = pts[q]; palmData[f++] = pts[q + 1]; palmData[f++] = pts[q + 2];
+        palmData[f++] = nx; palmData[f++] = ny; palmData[f++] = nz;
+      }
+    }
+    if (f > 0) {
+      gl.bindBuffer(gl.ARRAY_BUFFER, palmBuf.buf);
+      gl.bufferSubData(gl.ARRAY_BUFFER, 0, palmData, 0, f);
+      gl.uniformMatrix4fv(litProg.u.u_model, false, identity);
+      gl.uniform3f(litProg.u.u_color, color[0] * 0.92, color[1] * 0.92, color[2] * 0.92);
+      gl.bindVertexArray(palmBuf.vao);
+      gl.drawArrays(gl.TRIANGLES, 0, f / 6);
+    }
+    return bones;
+  }
+
+  // The world's fingers as a hand. The world carries the check points as the stepper drew
+  // them (docs/model.md R5: moved onto a grasped block's surface), per finger knuckle to tip,
+  // without their counts; the joints model (a headset's, a CARL trace's) has 19: the thumb's
+  // 3, then 4 for each finger. The wrist is not among them: it is put behind the middle
+  // knuckle, away from the fingers, by the palm's length (1.55 times the knuckles' span), in
+  // the direction of the thumb's base knuckle across the knuckles' line.
+  const worldHand = {
+    points: -1,             // the layout below is for this many points (-1: none yet)
+    chains: null, palm: null, wrist: 0,
+    pts: new Float32Array(3 * 64),
+    ready: false,           // pts holds the newest world's hand
+  };
+  function worldLayout(points) {
+    if (worldHand.points === points) return worldHand.chains !== null;
+    worldHand.points = points;
+    worldHand.chains = null;
+    const counts = points === 19 ? [3, 4, 4, 4, 4] : points > 0 && points % 5 === 0 && points <= 25
+      ? [points / 5, points / 5, points / 5, points / 5, points / 5] : null;
+    if (!counts) return false;
+    const wrist = points, starts = [];
+    let at = 0;
+    worldHand.chains = counts.map((c) => {
+      starts.push(at);
+      const chain = [wrist];
+      for (let k = 0; k < c; k++) chain.push(at + k);
+      at += c;
+      return chain;
+    });
+    worldHand.palm = [wrist, starts[0], starts[1], starts[2], starts[3], starts[4]];
+    worldHand.wrist = wrist;
+    return true;
+  }
+  function prepareWorldHand() {
+    worldHand.ready = false;
+    if (!world || !worldLayout(world.points)) return;
+    const p = worldHand.pts, f = world.fingers, n = world.points;
+    if (3 * (n + 1) > p.length) return;
+    for (let i = 0; i < 3 * n; i++) p[i] = f[i];
+    // the palm's outline: the wrist, the thumb's base knuckle, then index ... pinky knuckles
+    const pal = worldHand.palm;
+    const t = pal[1] * 3, ix = pal[2] * 3, mx = pal[3] * 3, px = pal[5] * 3;
+    // across the knuckles, and the thumb's base knuckle's offset from the middle one square
+    // to that line: the way to the wrist
+    let ax = p[ix] - p[px], ay = p[ix + 1] - p[px + 1], az = p[ix + 2] - p[px + 2];
+    const span = Math.hypot(ax, ay, az) || 1;
+    ax /= span; ay /= span; az /= span;
+    let bx = p[t] - p[mx], by = p[t + 1] - p[mx + 1], bz = p[t + 2] - p[mx + 2];
+    const along = bx * ax + by * ay + bz * az;
+    bx -= along * ax; by -= along * ay; bz -= along * az;
+    const bl = Math.hypot(bx, by, bz);
+    if (!(bl > 1e-6)) return;
+    const len = Math.min(0.12, Math.max(0.06, 1.55 * span));
+    const w = worldHand.wrist * 3;
+    p[w] = p[mx] + bx / bl * len; p[w + 1] = p[mx + 1] + by / bl * len; p[w + 2] = p[mx + 2] + bz / bl * len;
+    worldHand.ready = true;
   }
 
   // Upload the newest world's finger points (points, and short crosses so they read at any size).
@@ -833,10 +1061,11 @@
       o += 18;
     }
     fillDynamic(fingerLines, cross, world.points * 6);
+    prepareWorldHand();
   }
 
   // ---------------------------------------------------------------- spectator view
-  const orbit = { yaw: 0.35, pitch: 0.42, dist: 1.2, target: [0, 0.9, -0.4], autoTarget: true, dragging: false, lx: 0, ly: 0 };
+  const orbit = { yaw: 0.35, pitch: 0.42, dist: 0.6, target: [0, 0.9, -0.4], autoTarget: true, aimedAt: null, dragging: false, lx: 0, ly: 0 };
   canvas.addEventListener('pointerdown', (e) => {
     orbit.dragging = true; orbit.lx = e.clientX; orbit.ly = e.clientY;
     canvas.setPointerCapture(e.pointerId);
@@ -864,16 +1093,26 @@
     if (canvas.width !== w || canvas.height !== h) { canvas.width = w; canvas.height = h; }
   }
 
+  // `12.35 s`, or `2:05.40` (2 min 5.40 s) from a minute on.
+  function sessionTime(seconds) {
+    if (!Number.isFinite(seconds)) return '-';
+    if (seconds < 60) return seconds.toFixed(2) + ' s';
+    const m = Math.floor(seconds / 60), rest = seconds - 60 * m;
+    return `${m}:${rest < 10 ? '0' : ''}${rest.toFixed(2)}`;
+  }
+
   function updateOverlay(now) {
     if (now - worldRateStart >= 1000) {
       worldsPerSecond = worldsThisSecond * 1000 / (now - worldRateStart);
       worldsThisSecond = 0;
       worldRateStart = now;
     }
-    const t = world ? world.time.toFixed(3) + ' s' : '-';
+    // The session's time: the world's steps over its rate, which count from the session's
+    // first hand sample (world time 0, docs/model.md "Conventions"), not a clock's reading.
+    const t = world ? sessionTime(world.time) : '- (no hand yet)';
     const g = world && world.grasped >= 0 && scene && scene.blocks[world.grasped] ? ', grasped: ' + scene.blocks[world.grasped].name : '';
     const rate = worldsPerSecond === null ? '-' : worldsPerSecond.toFixed(1);
-    worldLine.textContent = `World time: ${t}, ${rate} worlds/s${g}`;
+    worldLine.textContent = `Session time: ${t}, ${rate} worlds/s${g}`;
   }
 
   function spectatorFrame() {
@@ -883,11 +1122,22 @@
     updateOverlay(now);
     if (!gl) { noteWorldDrawn(now); return; }
     resizeCanvas();
-    if (orbit.autoTarget && world && scene && world.count > 0) {
-      let x = 0, y = 0, z = 0;
-      for (let i = 0; i < world.count; i++) { x += world.blocks[i * 8]; y += world.blocks[i * 8 + 1]; z += world.blocks[i * 8 + 2]; }
-      orbit.target = [x / world.count, y / world.count, z / world.count];
-      orbit.autoTarget = false;
+    if (orbit.autoTarget && world && world !== orbit.aimedAt && scene && world.count + world.points > 0) {
+      orbit.aimedAt = world;
+      // Aim at the middle of the blocks and the hand, near enough that both fill the view;
+      // once a hand is seen the user's orbit is left alone.
+      let lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+      const take = (a, o) => {
+        for (let k = 0; k < 3; k++) { lo[k] = Math.min(lo[k], a[o + k]); hi[k] = Math.max(hi[k], a[o + k]); }
+      };
+      for (let i = 0; i < world.count; i++) take(world.blocks, i * 8);
+      for (let i = 0; i < world.points; i++) take(world.fingers, i * 3);
+      if (lo.every(Number.isFinite) && hi.every(Number.isFinite)) {
+        orbit.target = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])];
+        const extent = 0.5 * Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) + 0.12;
+        orbit.dist = Math.min(3, Math.max(0.45, extent / 0.4));
+      }
+      if (world.points > 0) orbit.autoTarget = false;
     }
     const cp = Math.cos(orbit.pitch), tg = orbit.target;
     const eye = [tg[0] + orbit.dist * cp * Math.sin(orbit.yaw), tg[1] + orbit.dist * Math.sin(orbit.pitch),
@@ -900,7 +1150,7 @@
     gl.clearColor(0.13, 0.14, 0.17, 1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
     uploadWorldPoints();
-    drawScene(specViewProj, { pointSize: 7 });
+    drawScene(specViewProj, { pointSize: 7, worldHand: true });
     noteWorldDrawn(performance.now());
   }
 
