@@ -520,22 +520,30 @@ fn a_foxglove_client_subscribes_and_decodes_a_world() {
     let session = repo().join("config/sessions/live.toml");
     let child = launch_with_view(&session, &id, port, &rep, "8");
 
-    let deadline = Instant::now() + Duration::from_secs(4);
-    let mut socket = loop {
-        let mut req = format!("ws://127.0.0.1:{port}")
-            .into_client_request()
-            .unwrap();
-        req.headers_mut()
-            .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
-        match tungstenite::connect(req) {
-            Ok((s, _)) => break s,
-            Err(e) if Instant::now() < deadline => {
-                let _ = e;
-                std::thread::sleep(Duration::from_millis(50));
+    let connect = || {
+        let deadline = Instant::now() + Duration::from_secs(4);
+        loop {
+            let mut req = format!("ws://127.0.0.1:{port}")
+                .into_client_request()
+                .unwrap();
+            req.headers_mut()
+                .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+            match tungstenite::connect(req) {
+                Ok((s, _)) => break s,
+                Err(e) if Instant::now() < deadline => {
+                    let _ = e;
+                    std::thread::sleep(Duration::from_millis(50));
+                }
+                Err(e) => panic!("no Foxglove server on port {port}: {e}"),
             }
-            Err(e) => panic!("no Foxglove server on port {port}: {e}"),
         }
     };
+    let mut socket = connect();
+    // Once in a full parallel run on a loaded 2-core machine (issue 43's stop), the first
+    // connection was reset before any world came, with nothing said by the session; it did not
+    // happen in the next runs. One reconnection is allowed, and said, so that the decode is
+    // still tested and a second reset still fails.
+    let mut reconnected = false;
     let mut world_channel = None;
     let mut scene_schema = None;
     let mut world: Option<WorldSample> = None;
@@ -544,6 +552,12 @@ fn a_foxglove_client_subscribes_and_decodes_a_world() {
     while world.is_none() && Instant::now() < until {
         let message = match socket.read() {
             Ok(m) => m,
+            Err(e) if !reconnected && Instant::now() < until => {
+                eprintln!("the view's connection ended ({e}); connecting again, once");
+                reconnected = true;
+                socket = connect();
+                continue;
+            }
             Err(e) => {
                 // Say what the session said: the server went away under the client.
                 let _ = child.kill();
