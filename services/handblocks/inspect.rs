@@ -73,6 +73,10 @@ pub fn refuse(path: &Path) -> Option<String> {
             path.display()
         ));
     }
+    // Only a regular file is read here: opening a FIFO would block (the reader refuses it).
+    if !path.is_file() {
+        return None;
+    }
     let mut head = [0u8; 4];
     let n = std::fs::File::open(path)
         .and_then(|mut f| std::io::Read::read(&mut f, &mut head))

@@ -198,6 +198,10 @@ pub fn wrong_kind(given: &Path, kind: Kind) -> Option<String> {
             }
         ));
     }
+    // Only a regular file is read here: opening a FIFO would block (the loader refuses it).
+    if !file.is_file() {
+        return None;
+    }
     let mut head = [0u8; 8];
     let n = std::fs::File::open(&file)
         .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
