@@ -103,18 +103,19 @@ fn run() -> Result<ExitCode, CliError> {
             json,
             overrides,
         })?,
-        Some(Command::Inspect { recording, .. }) if inspect::refuse(&recording).is_some() => {
-            let why = inspect::refuse(&recording).unwrap_or_default();
-            return Err(error::CliError::Refused("inspect", why));
-        }
         Some(Command::Inspect {
             recording,
-            samples: Some(topic),
-            ..
-        }) => inspect::samples(&recording, &topic)?,
-        Some(Command::Inspect {
-            recording, json, ..
-        }) => inspect::run(&recording, json)?,
+            json,
+            samples,
+        }) => {
+            if let Some(why) = inspect::refuse(&recording) {
+                return Err(error::CliError::Refused("inspect", why));
+            }
+            match samples {
+                Some(topic) => inspect::samples(&recording, &topic)?,
+                None => inspect::run(&recording, json)?,
+            }
+        }
         Some(Command::Service {
             name,
             session,
