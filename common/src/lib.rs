@@ -15,6 +15,7 @@ pub mod node;
 pub mod output;
 pub mod samples;
 pub mod shutdown;
+pub mod stage;
 pub mod stamp;
 pub mod topic;
 
