@@ -105,21 +105,19 @@ impl Page {
     fn pump(&mut self) {
         loop {
             match self.socket.read() {
-                Ok(Message::Text(t)) => {
-                    let v: serde_json::Value = serde_json::from_str(&t).unwrap();
-                    match v["op"].as_str() {
-                        Some("scene") => self.scene = Some(v),
-                        Some("ready") => self.ready = true,
-                        other => panic!("unexpected text {other:?}"),
+                Ok(Message::Text(t)) => match page::decode_text(&t) {
+                    Ok(page::Text::Scene(_)) => {
+                        self.scene = Some(serde_json::from_str(&t).unwrap())
                     }
-                }
+                    Ok(page::Text::Ready(_)) => self.ready = true,
+                    Err(e) => panic!("unexpected text {t:?}: {e}"),
+                },
                 Ok(Message::Binary(b)) => match page::kind_of(&b).unwrap() {
                     page::KIND_PING => {
-                        let seq = u32::from_le_bytes(b[8..12].try_into().unwrap());
-                        let server_ms = f64::from_le_bytes(b[16..24].try_into().unwrap());
+                        let ping = page::decode_ping(&b).unwrap();
                         let pong = page::Pong {
-                            seq,
-                            server_ms,
+                            seq: ping.seq,
+                            server_ms: ping.server_ms,
                             page_ms: self.now_ms(),
                         };
                         page::encode_pong(&pong, &mut self.out);
@@ -127,7 +125,7 @@ impl Page {
                     }
                     page::KIND_WORLD => {
                         self.worlds += 1;
-                        let seq = u32::from_le_bytes(b[8..12].try_into().unwrap());
+                        let seq = page::decode_world(&b).unwrap().page_seq;
                         if let Some(&(_, at)) = self.sent_at.iter().rev().find(|(s, _)| *s == seq) {
                             let rt = self.now_ms() - at;
                             self.round_trips_ms.push(rt);
@@ -189,10 +187,10 @@ fn headset_samples(trace: &Path) -> Vec<(u64, bool, HandJoints)> {
     joints
         .iter()
         .map(|j| {
-            let mut hand = HandJoints::default();
-            hand.poses[0] = j.wrist;
-            hand.poses[1..].copy_from_slice(&j.joints[2..]);
-            hand.radii = [0.01; WEBXR_JOINTS];
+            let hand = HandJoints {
+                poses: webxr_wire::from_joints(j),
+                radii: [0.01; WEBXR_JOINTS],
+            };
             (j.stamp.source_time_ns, j.tracked != 0, hand)
         })
         .collect()
@@ -230,12 +228,9 @@ fn headset_samples_both(trace: &Path) -> Vec<(u64, [Option<HandJoints>; 2])> {
         hand_of(common::HandSide::Right),
     );
     let webxr = |j: &common::JointsSample| {
-        (j.tracked != 0).then(|| {
-            let mut hand = HandJoints::default();
-            hand.poses[0] = j.wrist;
-            hand.poses[1..].copy_from_slice(&j.joints[2..]);
-            hand.radii = [0.01; WEBXR_JOINTS];
-            hand
+        (j.tracked != 0).then(|| HandJoints {
+            poses: webxr_wire::from_joints(j),
+            radii: [0.01; WEBXR_JOINTS],
         })
     };
     left.iter()

@@ -345,3 +345,201 @@ fn the_spectator_page_draws_the_blocks() {
     let t = summary["lastWorldTime"].as_f64().unwrap_or(f64::NAN);
     assert!((0.0..120.0).contains(&t), "{summary}");
 }
+
+/// The page's protocol declared once (issue 44): every message passes through the page's own
+/// decoders and encoders (app.js's `window.handblocks.wire`) in Chromium, and what they read
+/// and write is what webxr-wire declares. The page is sent the scene and `ready` (text), a
+/// world and a ping (bytes), each as webxr-wire writes it, with a value in every field that no
+/// default could give; it reads each back into webxr-wire's terms. It writes hands frames
+/// (both hands, one, none), statistics (with a round trip and without) and the ping's answer,
+/// which webxr-wire's decoders must read back as the values they were made of. No server, no
+/// session: a second or two of Chromium.
+#[test]
+fn the_pages_own_decoders_and_encoders_speak_the_protocol_as_declared() {
+    use webxr_wire::page::{self, Hands, Ready, Scene, SceneBlock, SceneOp, World};
+    use webxr_wire::{HandsFrame, WEBXR_JOINTS};
+    if let Some(why) = skipped() {
+        eprintln!("skipped: {why}");
+        return;
+    }
+    let _one = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = Scratch::new("webxr-page-check");
+    let scene = Scene {
+        blocks: vec![
+            SceneBlock {
+                color: [0.8f32, 0.25, 0.1].map(f64::from),
+                indices: vec![0, 1, 2, 0, 2, 3],
+                name: "cube".into(),
+                vertices: vec![
+                    -0.02, 0.0, 0.02, 0.02, 0.0, 0.02, 0.02, 0.0, -0.02, -0.02, 0.0, -0.02,
+                ],
+            },
+            SceneBlock {
+                color: [0.1, 0.5, 0.9],
+                indices: vec![0, 1, 2],
+                name: "wedge".into(),
+                vertices: vec![0.0, 0.1, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.1],
+            },
+        ],
+        floor_y: 0.25,
+        hand: Hands::Both,
+        offset: [0.125, -0.92, 0.5],
+        op: SceneOp::Scene,
+        session: "config/sessions/webxr.toml".into(),
+        step_hz: 90.0,
+    };
+    let ready = Ready::new(123_456.789, 1.25);
+    // A world of two blocks (the second grasped by the left hand) and three finger points.
+    let mut blocks = [common::BlockState {
+        pose: common::Pose {
+            position: [0.5, 0.25, -0.125],
+            rotation: [0.0, 0.6, 0.0, 0.8],
+        },
+        mode: 2,
+        held_by: 0,
+    }; 2];
+    blocks[1].pose.position = [-0.25, 1.5, 0.75];
+    blocks[1].mode = common::BlockMode::Grasped as u32;
+    blocks[1].held_by = 0b10;
+    let mut header = common::WorldHeader {
+        block_count: 2,
+        grasped_block: 1,
+        finger_count: 2,
+        ..Default::default()
+    };
+    header.finger_point_count[0] = 2;
+    header.finger_point_count[1] = 1;
+    header.finger_points[0][0] = [0.5, 1.0, 1.5];
+    header.finger_points[0][1] = [0.25, 0.5, 0.75];
+    header.finger_points[1][0] = [-1.0, 2.0, -3.0];
+    let view = common::WorldView {
+        header: &header,
+        blocks: &blocks,
+    };
+    let mut world = Vec::new();
+    page::encode_world(77, 12.5, &view, &mut world);
+    let mut ping = Vec::new();
+    page::encode_ping(9, 5_000.125, &mut ping);
+    // Hands frames: both hands, the right alone, none; every value an f32, as sent.
+    let frame = |seq: u32, present: [bool; 2]| {
+        let mut f = HandsFrame {
+            seq,
+            frame_time_ms: 1_000.0 + f64::from(seq) / 8.0,
+            present,
+            ..HandsFrame::default()
+        };
+        for (h, hand) in f.hands.iter_mut().enumerate() {
+            for j in 0..WEBXR_JOINTS {
+                let s = (j + 25 * h) as f64 / 64.0;
+                hand.poses[j] = common::Pose {
+                    position: [s, 1.0 + s, -s / 2.0],
+                    rotation: [0.125, 0.0, 0.5, 0.75],
+                };
+                hand.radii[j] = 0.0078125;
+            }
+        }
+        f
+    };
+    let frames = [
+        frame(1, [true, true]),
+        frame(2, [false, true]),
+        frame(3, [false, false]),
+    ];
+    let joints_of = |f: &HandsFrame| -> Vec<Vec<f64>> {
+        f.hands
+            .iter()
+            .map(|hand| {
+                (0..WEBXR_JOINTS)
+                    .flat_map(|j| {
+                        let p = hand.poses[j];
+                        p.position
+                            .into_iter()
+                            .chain(p.rotation)
+                            .chain([hand.radii[j]])
+                    })
+                    .collect()
+            })
+            .collect()
+    };
+    let stats = [
+        page::FrameStats {
+            seq: 4,
+            js_ms: 1.5,
+            round_trip_ms: Some(40.25),
+        },
+        page::FrameStats {
+            seq: 5,
+            js_ms: 0.75,
+            round_trip_ms: None,
+        },
+    ];
+    let messages = serde_json::json!({
+        "scene": scene.encode(),
+        "ready": ready.encode(),
+        "world": world,
+        "ping": ping,
+        "arrived": 2_500.5,
+        "hands": frames.iter().map(|f| serde_json::json!({
+            "seq": f.seq,
+            "frameTime": f.frame_time_ms,
+            "mask": u8::from(f.present[0]) | (u8::from(f.present[1]) << 1),
+            "joints": joints_of(f),
+        })).collect::<Vec<_>>(),
+        "stats": stats.iter().map(|s| serde_json::json!({
+            "seq": s.seq,
+            "jsMs": s.js_ms,
+            "roundTripMs": s.round_trip_ms.unwrap_or(-1.0),
+        })).collect::<Vec<_>>(),
+    });
+    let file = dir.path("messages.json");
+    std::fs::write(&file, messages.to_string()).unwrap();
+    let node_path = std::env::var("HB_WEBXR_NODE_PATH").unwrap();
+    let out = Command::new(std::env::var("HB_NODE").unwrap_or_else(|_| "node".into()))
+        .arg(repo().join("tests/webxr_page_check.js"))
+        .arg(repo().join("services/webxr/page"))
+        .arg(&file)
+        .env("NODE_PATH", node_path)
+        .output()
+        .expect("run node");
+    let text = String::from_utf8_lossy(&out.stdout);
+    let v: serde_json::Value = serde_json::from_str(text.trim())
+        .unwrap_or_else(|e| panic!("{e}: {text}\n{}", String::from_utf8_lossy(&out.stderr)));
+    assert!(out.status.success() && v["error"].is_null(), "{v}");
+    assert!(v["pageErrors"].is_null(), "{v}");
+    // What the page read.
+    let read: Scene = serde_json::from_value(v["scene"].clone()).unwrap();
+    assert_eq!(read, scene, "the scene as the page reads it");
+    let read: Ready = serde_json::from_value(v["ready"].clone()).unwrap();
+    assert_eq!(read, ready, "ready as the page reads it");
+    let read: World = serde_json::from_value(v["world"].clone()).unwrap();
+    assert_eq!(read, page::decode_world(&world).unwrap(), "the world");
+    assert_eq!(read.blocks[1].held_by, 0b10);
+    assert_eq!(read.finger_points[2], [-1.0, 2.0, -3.0]);
+    assert!(
+        v["unknownOp"].is_null(),
+        "an op it does not know is passed over"
+    );
+    // What the page wrote.
+    let bytes = |v: &serde_json::Value| -> Vec<u8> { serde_json::from_value(v.clone()).unwrap() };
+    assert_eq!(
+        page::decode_pong(&bytes(&v["pong"])),
+        Ok(page::Pong {
+            seq: 9,
+            server_ms: 5_000.125,
+            page_ms: 2_500.5
+        })
+    );
+    for (f, sent) in frames.iter().zip(v["hands"].as_array().unwrap()) {
+        let mut back = HandsFrame::default();
+        webxr_wire::decode_into(&bytes(sent), &mut back).unwrap();
+        for h in 0..2 {
+            if !f.present[h] {
+                back.hands[h] = f.hands[h];
+            }
+        }
+        assert_eq!(&back, f, "hands frame {}", f.seq);
+    }
+    for (s, sent) in stats.iter().zip(v["stats"].as_array().unwrap()) {
+        assert_eq!(page::decode_stats(&bytes(sent)).as_ref(), Ok(s));
+    }
+}

@@ -43,13 +43,66 @@
 //! # }
 //! ```
 
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use crate::bus::{Bus, BusError, WaitStrategy, Waiter};
+use crate::config::session::recording_segment;
+use crate::config::Session;
 use crate::latency::{LatencyRecorder, Reporter};
 use crate::samples::{TopicCounter, MAX_TOPIC_COUNTERS};
+use crate::stage::OnRestart;
 use crate::stamp::{monotonic_ns, Stamp};
 use crate::topic::{topics, Stage};
+
+/// What the launcher hands a stage's process besides its session and its bus (the command
+/// line of `handblocks service NAME`): one type for every stage, so that every service crate's
+/// entry has one signature ([`Process::run`]) and `handblocks service` starts any of them
+/// alike.
+#[derive(Debug, Clone, Default)]
+pub struct Launch {
+    /// `--frames-dir`: where the renderer writes its frames.
+    pub frames_dir: Option<PathBuf>,
+    /// `--preview`: where the renderer writes its preview.
+    pub preview: Option<PathBuf>,
+    /// `--outcome-dir`: where the stepper writes the session's outcome.
+    pub outcome_dir: Option<PathBuf>,
+    /// Which restart of this process this is (0: its first start).
+    pub restart: u32,
+}
+
+impl Launch {
+    /// Where `stage`, in this start of its process, writes the output the session gives it at
+    /// `path`, so that a restart never overwrites what the dead process wrote: its stage
+    /// table's [`Stage::on_restart`] says how ([`restart_output`]).
+    pub fn output_of(&self, stage: Stage, path: &Path) -> PathBuf {
+        restart_output(stage, path, self.restart)
+    }
+}
+
+/// Where `stage`'s `restart`-th process writes the output its session puts at `path` (the
+/// launcher reads it there too): the same path, the next segment of a recording, or a folder
+/// of its own beside the dead one's.
+pub fn restart_output(stage: Stage, path: &Path, restart: u32) -> PathBuf {
+    match stage.on_restart() {
+        _ if restart == 0 => path.to_path_buf(),
+        OnRestart::Resume => path.to_path_buf(),
+        OnRestart::NextSegment => recording_segment(path, restart),
+        OnRestart::OwnFolder => path.join(format!("restart-{restart}")),
+    }
+}
+
+/// A stage's process, as `handblocks service NAME` runs it: every service crate has one, with
+/// this one signature (as a task of copper has `new(config)`), so that the list of processes in
+/// `handblocks service` is one line per crate and nothing else matches on a stage to start it.
+pub trait Process {
+    /// The row of the stage table this process is.
+    const STAGE: Stage;
+    /// What the process fails with, its crate's own error.
+    type Error: std::error::Error + Send + Sync + 'static;
+    /// Runs the stage until it is asked to stop.
+    fn run(session: &Session, bus: &Bus, launch: &Launch) -> Result<(), Self::Error>;
+}
 
 /// How long a stage with nothing to do sleeps before it looks for a stop request again.
 pub const IDLE_WAIT: Duration = Duration::from_millis(50);

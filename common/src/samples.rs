@@ -82,6 +82,55 @@ impl Default for Pose {
     }
 }
 
+/// The farthest a hand's joint may be from the origin, metres: a room, generously. Farther is
+/// a unit or frame mistake (millimetres given as metres), not a hand.
+pub const MAX_JOINT_DISTANCE_M: f64 = 100.0;
+/// The norms a joint's quaternion may have. The hand model normalises what it uses, so a
+/// rotation is taken as given near 1; far from it (a zero-filled joint) it is no rotation.
+pub const JOINT_ROTATION_NORMS: std::ops::RangeInclusive<f64> = 0.5..=2.0;
+
+/// Why a pose is no joint of a hand ([`first_joint_fault`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum JointFault {
+    /// A position or rotation value is NaN or infinite.
+    NonFinite,
+    /// Farther than [`MAX_JOINT_DISTANCE_M`] from the origin.
+    TooFar { metres: f64 },
+    /// A quaternion whose norm is outside [`JOINT_ROTATION_NORMS`].
+    NoRotation { norm: f64 },
+}
+
+impl Pose {
+    /// Why this pose cannot be a hand's joint, if it cannot: the one check every source of
+    /// `joints` makes (a headset's page, an external program, a replayed recording), so that
+    /// no source lets through what another would refuse.
+    pub fn joint_fault(&self) -> Option<JointFault> {
+        if !self.is_finite() {
+            return Some(JointFault::NonFinite);
+        }
+        let metres = self.position.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if metres > MAX_JOINT_DISTANCE_M {
+            return Some(JointFault::TooFar { metres });
+        }
+        let norm = self.rotation.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if !JOINT_ROTATION_NORMS.contains(&norm) {
+            return Some(JointFault::NoRotation { norm });
+        }
+        None
+    }
+}
+
+/// The first of `poses` that cannot be a hand's joint ([`Pose::joint_fault`]): its index
+/// among them and why.
+pub fn first_joint_fault<'a>(
+    poses: impl IntoIterator<Item = &'a Pose>,
+) -> Option<(usize, JointFault)> {
+    poses
+        .into_iter()
+        .enumerate()
+        .find_map(|(i, p)| p.joint_fault().map(|f| (i, f)))
+}
+
 /// `glove`: one reading of the data glove, calibrated to radians.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
@@ -452,7 +501,7 @@ impl BlockMode {
         BlockMode::ALL.get(v as usize).copied()
     }
 
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             BlockMode::Free => "free",
             BlockMode::Resting => "resting",
@@ -690,7 +739,7 @@ pub struct TopicCounter {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
 #[type_name("handblocks::DeviceCounters")]
 pub struct DeviceCounters {
-    /// 0: none, 1: the glove, 2: the tracker, 3: a headset's page (webxr: samples = hands
+    /// A [`DeviceKind`]: 0: none, 1: the glove, 2: the tracker, 3: a headset's page (webxr: samples = hands
     /// frames published, rejected_records = messages refused, other_station_records = frames
     /// of a page that was not driving the hand, link_losses = sockets lost, reconnects = pages
     /// that drove the hand after the first, device_errors = tracking gaps longer than the hold),
@@ -714,16 +763,67 @@ pub struct DeviceCounters {
     pub device_errors: u64,
 }
 
+/// The devices a stage counts, as [`DeviceCounters::device`] numbers them (0: an empty slot).
+/// Which stage counts which is a column of the stage table ([`crate::Stage::devices`]).
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DeviceKind {
+    /// A CyberGlove on a serial port.
+    Glove = 1,
+    /// A FASTRAK on a serial port.
+    Tracker = 2,
+    /// A headset's page (the webxr stage).
+    Headset = 3,
+    /// An external source's program.
+    External = 4,
+}
+
+impl DeviceKind {
+    pub const ALL: [DeviceKind; 4] = [
+        DeviceKind::Glove,
+        DeviceKind::Tracker,
+        DeviceKind::Headset,
+        DeviceKind::External,
+    ];
+
+    /// The device's name for reports (and its refusals file's).
+    pub const fn name(self) -> &'static str {
+        match self {
+            DeviceKind::Glove => "glove",
+            DeviceKind::Tracker => "tracker",
+            DeviceKind::Headset => "headset",
+            DeviceKind::External => "external",
+        }
+    }
+
+    /// True for a device whose stage writes its refusals by kind (a page's or a program's
+    /// messages are refused for many reasons; a serial device's records for one).
+    pub const fn writes_refusals_by_kind(self) -> bool {
+        matches!(self, DeviceKind::Headset | DeviceKind::External)
+    }
+
+    pub fn from_u32(v: u32) -> Option<DeviceKind> {
+        DeviceKind::ALL.into_iter().find(|d| *d as u32 == v)
+    }
+
+    /// Empty counters of this device, to count into.
+    pub fn counters(self) -> DeviceCounters {
+        DeviceCounters {
+            device: self as u32,
+            ..DeviceCounters::default()
+        }
+    }
+}
+
 impl DeviceCounters {
+    /// The device, or `None` for an empty slot (or a number no version of ours wrote).
+    pub fn kind(&self) -> Option<DeviceKind> {
+        DeviceKind::from_u32(self.device)
+    }
+
     /// The device's name for reports.
     pub fn name(&self) -> Option<&'static str> {
-        match self.device {
-            1 => Some("glove"),
-            2 => Some("tracker"),
-            3 => Some("headset"),
-            4 => Some("external"),
-            _ => None,
-        }
+        self.kind().map(DeviceKind::name)
     }
 }
 
@@ -778,6 +878,39 @@ impl Default for LatencySample {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_joint_is_finite_within_a_room_and_a_rotation() {
+        let at = |position, rotation| Pose { position, rotation };
+        let q = [0.0, 0.0, 0.0, 1.0];
+        assert_eq!(Pose::IDENTITY.joint_fault(), None);
+        assert_eq!(
+            at([99.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.9]).joint_fault(),
+            None
+        );
+        assert_eq!(
+            at([0.0, f64::NAN, 0.0], q).joint_fault(),
+            Some(JointFault::NonFinite)
+        );
+        assert_eq!(
+            at([0.0, 1e3, 0.0], q).joint_fault(),
+            Some(JointFault::TooFar { metres: 1e3 })
+        );
+        assert_eq!(
+            at([0.0; 3], [0.0; 4]).joint_fault(),
+            Some(JointFault::NoRotation { norm: 0.0 })
+        );
+        let hand = [
+            Pose::IDENTITY,
+            at([0.0; 3], [0.0; 4]),
+            at([1e3, 0.0, 0.0], q),
+        ];
+        assert_eq!(
+            first_joint_fault(&hand),
+            Some((1, JointFault::NoRotation { norm: 0.0 }))
+        );
+        assert_eq!(first_joint_fault(&hand[..1]), None);
+    }
 
     /// Issue 40: a hand from the zenoh link with `finger_point_count[0] = 6` (or a palm of 17
     /// vertices) panicked `finger`/`palm` in every viewer. They clamp to the arrays now, and

@@ -66,6 +66,13 @@ pub fn request() {
     STOP.store(true, Ordering::SeqCst);
 }
 
+/// Says the launcher has what it needs from this process (as the end of its pipe does): a
+/// final report waits no more. For a process that is its own launcher (common/examples/stage.rs),
+/// where no one else reads the report.
+pub fn release() {
+    RELEASED.store(true, Ordering::SeqCst);
+}
+
 /// Waits until the launcher releases this process, at most `limit`. Returns false on timeout.
 pub fn wait_for_release(limit: Duration) -> bool {
     let start = Instant::now();

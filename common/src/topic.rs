@@ -7,12 +7,22 @@
 //! its topic's and a wrong pairing does not compile), the services the launcher creates, the
 //! subscribers it waits for before starting the source ([`Topic::readers`]; the bridge, a
 //! reader of every topic in the table, counted on those its session names), the
-//! source's topics ([`Stage::recorded_outputs`]), and the recording's channels
-//! ([`Topic::RECORDED`]: the topics the recorder reads).
+//! source's topics ([`Stage::recorded_outputs`]), the recording's channels
+//! ([`Topic::RECORDED`]: the topics the recorder reads), each sample's field list
+//! ([`Topic::schema`]: the recording's schema, what `handblocks echo` prints, Python's arrays)
+//! and the run-time inlet (the bus's `AnyInlet`, generated per topic through `each_topic!`:
+//! a reader of a topic named at run time, which receives its samples as [`SampleView`]s).
 
 use crate::samples::*;
 pub use crate::stage::{Role, Stage};
 use crate::stamp::{Stamp, Stamped};
+
+pub mod fields;
+mod view;
+
+use fields::{meaning, message_type, message_types};
+pub use fields::{Base, Elements, Field, FieldValue, Meaning, Message, Scalar, Schema};
+pub use view::SampleView;
 
 /// Any topic at the type level, fixed-size or slice: a marker type of [`topics`] names its
 /// [`Topic`] and how one of its samples lies in shared memory, as iceoryx2's ports see it (a
@@ -104,6 +114,15 @@ macro_rules! topic_kind {
     (element) => {
         None
     };
+    (elements $name:ident $elem:ident) => {
+        Some(fields::Elements {
+            name: stringify!($name),
+            schema: <$elem as fields::Message>::SCHEMA,
+        })
+    };
+    (elements) => {
+        None
+    };
 }
 
 /// True when `stage` is one of `stages` (a `const` `contains`).
@@ -119,19 +138,21 @@ const fn contains(stages: &[Stage], stage: Stage) -> bool {
 }
 
 /// Declares the [`Topic`] enum, its per-topic facts, the marker types of [`topics`] and their
-/// [`TopicSpec`], and the [`Stamped`] access of each sample type, from one row per topic.
+/// [`TopicSpec`], the [`Stamped`] access and the field list ([`Message`]) of each sample type,
+/// and [`each_topic`], from one row per topic.
 macro_rules! topic_table {
     (
         $(#[$enum_doc:meta])*
         pub enum Topic {
             $(
                 $(#[$doc:meta])*
-                $topic:ident: $sample:ident $([$elem:ident])? {
+                $topic:ident: $sample:ident $([$elements:ident: $elem:ident])? {
                     name: $name:literal,
                     buffer: $buffer:expr,
                     max_publishers: $max_publishers:expr,
                     publishers: [$($publisher:ident),* $(,)?],
-                    readers: [$($reader:ident),* $(,)?] $(,)?
+                    readers: [$($reader:ident),* $(,)?],
+                    fields: [$($field:ident $(($($meaning:tt)*))?),* $(,)?] $(,)?
                 }
             ),* $(,)?
         }
@@ -225,7 +246,36 @@ macro_rules! topic_table {
                 $(topic_kind!(visit visitor, $topic $(, $elem)?);)*
                 Ok(())
             }
+
+            /// The topic's field list: its sample type's (of a slice topic, its header's,
+            /// with the elements' as [`Schema::elements`]), named [`Topic::schema_name`].
+            pub const fn schema(self) -> &'static Schema {
+                match self {
+                    $(Topic::$topic => <$sample as Message>::SCHEMA,)*
+                }
+            }
         }
+
+        /// Calls macro `m` with the name of every topic of the table, in table order
+        /// (`m! { Glove Tracker ... }`), so that a layer above this one generates code per
+        /// topic from the table without naming a topic: the bus's run-time inlet, `AnyInlet`,
+        /// a variant per topic.
+        macro_rules! each_topic {
+            ($m:ident) => {
+                $m! { $($topic)* }
+            };
+        }
+        pub(crate) use each_topic;
+
+        // Each sample type's field list; a slice topic's names its elements.
+        $(
+            message_type!(
+                $sample,
+                concat!("handblocks/msg/", stringify!($topic), "Sample"),
+                topic_kind!(elements $($elements $elem)?),
+                [$($field $(($($meaning)*))?),*]
+            );
+        )*
 
         /// The marker type of each topic, for the bus's typed ports: `bus.outlet::<topics::Hand>()`
         /// is an outlet of `HandSample`s on `hand`; `bus.slice_outlet::<topics::World>()` one
@@ -268,12 +318,14 @@ topic_table! {
     /// the newest world state, so its frames need less.
     ///
     /// To add a topic: (1) its sample type in `samples.rs` (`#[repr(C)]`, starting with its
-    /// `stamp`); (2) its row here; (3) the sample's fields in `recording::fields` (the schema a
-    /// recording carries), if a stage records it. Then the stages in its row open their ports,
-    /// `bus.outlet::<topics::New>()` / `bus.inlet::<topics::New>()`; the services, the
-    /// launcher's wait for readers, the recording's channels and the recorder's inlets follow
-    /// from the row. A row `Name: Header[Element]` is a slice topic (a header and a run of
-    /// elements whose length the publisher picks, sized from the scene): its outlet is
+    /// `stamp`); (2) its row here, with the sample's fields in memory order (`fields`: a field
+    /// may say what its numbers mean, `(flag)`, `(length)`, `(names LIST)`; a type nested in
+    /// it is declared once below, `message_types!`). Then the stages in its row open their
+    /// ports, `bus.outlet::<topics::New>()` / `bus.inlet::<topics::New>()`; the services, the
+    /// launcher's wait for readers, the recording's channels and schema, the recorder's and
+    /// the bridge's inlets, `handblocks echo` and Python's arrays follow from the row. A row
+    /// `Name: Header[elements: Element]` is a slice topic (a header and a run of elements
+    /// whose length the publisher picks, sized from the scene): its outlet is
     /// `bus.slice_outlet` (its inlet `bus.inlet`, as any) and the recording writes it with
     /// `write_slice`.
     pub enum Topic {
@@ -284,6 +336,7 @@ topic_table! {
             max_publishers: 3,
             publishers: [Acquisition, Replay, Bridge],
             readers: [Kinematics, Recorder, Bridge],
+            fields: [stamp, sensor_count, side, angles],
         },
         /// The wrist pose from the 6-DoF tracker.
         Tracker: TrackerSample {
@@ -292,6 +345,7 @@ topic_table! {
             max_publishers: 3,
             publishers: [Acquisition, Replay, Bridge],
             readers: [Kinematics, Recorder, Bridge],
+            fields: [stamp, station, side, wrist],
         },
         /// Whole-hand joint poses (an OpenXR hand): replayed from a recording or a CARL file,
         /// or a headset's hand tracking (WebXR).
@@ -301,6 +355,7 @@ topic_table! {
             max_publishers: 4,
             publishers: [Replay, Bridge, Webxr, External],
             readers: [Kinematics, Recorder, Bridge],
+            fields: [stamp, tracked (flag), side, wrist, joints],
         },
         /// The hand model: finger check points and the palm, as the stepper reads them.
         Hand: HandSample {
@@ -309,15 +364,38 @@ topic_table! {
             max_publishers: 2,
             publishers: [Kinematics, Bridge],
             readers: [Stepper, Renderer, Recorder, Bridge],
+            fields: [
+                stamp,
+                wrist,
+                tracked (flag),
+                finger_count,
+                finger_point_count,
+                palm_vertex_count,
+                finger_points,
+                finger_radius,
+                palm_vertices,
+                side,
+                _reserved,
+            ],
         },
         /// The blocks' states after each step (the replay reads it to pace itself): a header
         /// and one block state per block of the scene.
-        World: WorldHeader[BlockState] {
+        World: WorldHeader[blocks: BlockState] {
             name: "world",
             buffer: 1024,
             max_publishers: 2,
             publishers: [Stepper, Bridge],
             readers: [Renderer, Replay, Recorder, Bridge, Webxr],
+            fields: [
+                stamp,
+                step,
+                hand_seq,
+                block_count (length),
+                grasped_block,
+                finger_count,
+                finger_point_count,
+                finger_points,
+            ],
         },
         /// One drawn frame's timing.
         Frame: FrameSample {
@@ -326,6 +404,7 @@ topic_table! {
             max_publishers: 2,
             publishers: [Renderer, Bridge],
             readers: [Recorder, Bridge],
+            fields: [stamp, world_seq, render_ns, origin_to_photon_ns, skipped_worlds],
         },
         /// Each stage's latency report, about once a second; the launcher (no stage) reads
         /// them, and a recording does not keep them (they go into the session report).
@@ -335,8 +414,51 @@ topic_table! {
             max_publishers: 9,
             publishers: [Acquisition, Replay, Kinematics, Stepper, Renderer, Recorder, Bridge, Webxr, External],
             readers: [],
+            fields: [
+                stamp,
+                stage,
+                final_report,
+                silence_ns,
+                first_output_ns,
+                last_output_ns,
+                counters,
+                devices,
+                histograms,
+            ],
         },
     }
+}
+
+/// The block modes' names, by the value a `mode` holds ([`BlockMode::name`]).
+const BLOCK_MODE_NAMES: [&str; BlockMode::ALL.len()] = {
+    let mut names = [""; BlockMode::ALL.len()];
+    let mut i = 0;
+    while i < names.len() {
+        // Names by value: the modes are numbered 0, 1, ... in ALL's order.
+        assert!(BlockMode::ALL[i] as usize == i);
+        names[i] = BlockMode::ALL[i].name();
+        i += 1;
+    }
+    names
+};
+
+message_types! {
+    Stamp: "handblocks/Stamp" [seq, source_time_ns, origin_ns, publish_ns],
+    Pose: "handblocks/Pose" [position, rotation],
+    BlockState: "handblocks/BlockState" [pose, mode (names BLOCK_MODE_NAMES), held_by],
+    TopicCounter: "handblocks/TopicCounter" [topic, role, count, gaps, last_seq],
+    DeviceCounters: "handblocks/DeviceCounters" [
+        device,
+        _reserved,
+        samples,
+        garbage_bytes,
+        rejected_records,
+        other_station_records,
+        link_losses,
+        reconnects,
+        device_errors,
+    ],
+    EncodedHistogram: "handblocks/EncodedHistogram" [len, _reserved, bytes],
 }
 
 impl Topic {

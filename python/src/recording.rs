@@ -1,5 +1,7 @@
 //! `handblocks.Recording`: one of our MCAP recordings (every topic) or a CARL trace (its
 //! joints) read into numpy arrays, one row per sample, with the samples' stamps as columns.
+//! The columns are made from each topic's field list (`crate::arrays::columns`), whatever
+//! the topic.
 //!
 //! The file is read by the project's own readers (`recording::Recording`, `replay::CarlTrace`),
 //! so a damaged file reads exactly as `handblocks inspect` and a replay read it: what comes
@@ -12,15 +14,12 @@ use std::path::{Path, PathBuf};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use common::samples::{
-    FrameSample, GloveSample, HandSample, JointsSample, Pose, TrackerSample, MAX_FINGERS,
-    MAX_FINGER_POINTS, MAX_GLOVE_SENSORS, MAX_PALM_VERTICES, OPENXR_JOINTS,
-};
+use common::samples::JointsSample;
+use common::topic::SampleView;
 use common::Topic;
 use recording::Recording;
 use replay::CarlTrace;
 
-use crate::arrays::{array, StampColumns};
 use crate::RecordingError;
 
 /// What was read: a recording of ours, or a CARL trace's joints.
@@ -153,30 +152,32 @@ impl NativeRecording {
     fn arrays<'py>(&self, py: Python<'py>, topic: &str) -> PyResult<Bound<'py, PyDict>> {
         let topic = crate::recorded_topic(topic)?;
         let out = PyDict::new(py);
-        match (&self.data, topic) {
-            (Data::Mcap(r), Topic::World) => world(r, &out)?,
-            (Data::Mcap(r), Topic::Hand) => {
-                hand(&r.samples(Topic::Hand).collect::<Vec<_>>(), &out)?
+        match &self.data {
+            Data::Mcap(r) => {
+                let samples: Vec<SampleView<'_>> = r.views(topic).collect();
+                crate::arrays::columns(topic, &samples, &out)?;
             }
-            (Data::Mcap(r), Topic::Joints) => {
-                joints(&r.samples(Topic::Joints).collect::<Vec<_>>(), &out)?
+            // A CARL trace holds joints only: every other topic has no rows.
+            Data::Carl { joints, .. } => {
+                let messages: Vec<Vec<u8>> = match topic {
+                    Topic::Joints => joints
+                        .iter()
+                        .map(|j| {
+                            let mut m = Vec::new();
+                            recording::encode_sample(j, &mut m);
+                            m
+                        })
+                        .collect(),
+                    _ => Vec::new(),
+                };
+                let samples: Vec<SampleView<'_>> = messages
+                    .iter()
+                    .filter_map(|m| {
+                        SampleView::new(topic, m.get(recording::CDR_LE_HEADER.len()..)?, &[])
+                    })
+                    .collect();
+                crate::arrays::columns(topic, &samples, &out)?;
             }
-            (Data::Mcap(r), Topic::Glove) => {
-                glove(&r.samples(Topic::Glove).collect::<Vec<_>>(), &out)?
-            }
-            (Data::Mcap(r), Topic::Tracker) => {
-                tracker(&r.samples(Topic::Tracker).collect::<Vec<_>>(), &out)?
-            }
-            (Data::Mcap(r), Topic::Frame) => {
-                frame(&r.samples(Topic::Frame).collect::<Vec<_>>(), &out)?
-            }
-            (Data::Carl { joints: j, .. }, Topic::Joints) => joints(j, &out)?,
-            (Data::Carl { .. }, Topic::World) => world_rows(Vec::new(), 0, &out)?,
-            (Data::Carl { .. }, Topic::Hand) => hand(&[], &out)?,
-            (Data::Carl { .. }, Topic::Glove) => glove(&[], &out)?,
-            (Data::Carl { .. }, Topic::Tracker) => tracker(&[], &out)?,
-            (Data::Carl { .. }, _) => frame(&[], &out)?,
-            (Data::Mcap(_), Topic::Latency) => {}
         }
         Ok(out)
     }
@@ -214,247 +215,4 @@ fn read(path: &Path) -> PyResult<Data> {
         damage: carl.damage.as_ref().map(|d| d.to_string()),
         seconds: carl.duration(),
     })
-}
-
-/// The fingers' check points of a world (as stepped) or a hand: `finger_count (n,)`,
-/// `finger_point_count (n, 5)`, `finger_points (n, 5, 5, 3)`.
-struct FingerColumns {
-    count: Vec<u32>,
-    point_count: Vec<u32>,
-    points: Vec<f64>,
-}
-
-impl FingerColumns {
-    fn with_capacity(n: usize) -> FingerColumns {
-        FingerColumns {
-            count: Vec::with_capacity(n),
-            point_count: Vec::with_capacity(n * MAX_FINGERS),
-            points: Vec::with_capacity(n * MAX_FINGERS * MAX_FINGER_POINTS * 3),
-        }
-    }
-
-    fn push(
-        &mut self,
-        count: u32,
-        point_count: &[u32; MAX_FINGERS],
-        points: &[[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS],
-    ) {
-        self.count.push(count);
-        self.point_count.extend_from_slice(point_count);
-        self.points
-            .extend(points.iter().flatten().flatten().copied());
-    }
-
-    fn into_dict(self, out: &Bound<'_, PyDict>) -> PyResult<()> {
-        let py = out.py();
-        let n = self.count.len();
-        out.set_item("finger_count", array(py, self.count, &[n])?)?;
-        out.set_item(
-            "finger_point_count",
-            array(py, self.point_count, &[n, MAX_FINGERS])?,
-        )?;
-        out.set_item(
-            "finger_points",
-            array(py, self.points, &[n, MAX_FINGERS, MAX_FINGER_POINTS, 3])?,
-        )?;
-        Ok(())
-    }
-}
-
-fn push_pose(p: &Pose, position: &mut Vec<f64>, rotation: &mut Vec<f64>) {
-    position.extend_from_slice(&p.position);
-    rotation.extend_from_slice(&p.rotation);
-}
-
-fn world(r: &Recording, out: &Bound<'_, PyDict>) -> PyResult<()> {
-    let worlds: Vec<common::WorldSample> = r.worlds().collect();
-    let blocks = worlds.iter().map(|w| w.blocks.len()).max().unwrap_or(0);
-    world_rows(worlds, blocks, out)
-}
-
-/// The world's columns; a sample with fewer blocks than `blocks` (a recording edited by
-/// hand) is padded with NaN poses and mode 0.
-fn world_rows(
-    worlds: Vec<common::WorldSample>,
-    blocks: usize,
-    out: &Bound<'_, PyDict>,
-) -> PyResult<()> {
-    let py = out.py();
-    let n = worlds.len();
-    let mut stamps = StampColumns::with_capacity(n);
-    let (mut step, mut hand_seq, mut grasped) = (
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-    );
-    let mut position = Vec::with_capacity(n * blocks * 3);
-    let mut rotation = Vec::with_capacity(n * blocks * 4);
-    let mut mode = Vec::with_capacity(n * blocks);
-    let mut fingers = FingerColumns::with_capacity(n);
-    for w in &worlds {
-        let h = &w.header;
-        stamps.push(&h.stamp);
-        step.push(h.step);
-        hand_seq.push(h.hand_seq);
-        grasped.push(h.grasped_block);
-        for b in 0..blocks {
-            match w.blocks.get(b) {
-                Some(s) => {
-                    push_pose(&s.pose, &mut position, &mut rotation);
-                    mode.push(s.mode);
-                }
-                None => {
-                    position.extend_from_slice(&[f64::NAN; 3]);
-                    rotation.extend_from_slice(&[f64::NAN; 4]);
-                    mode.push(0);
-                }
-            }
-        }
-        fingers.push(h.finger_count, &h.finger_point_count, &h.finger_points);
-    }
-    stamps.into_dict(out)?;
-    out.set_item("step", array(py, step, &[n])?)?;
-    out.set_item("hand_seq", array(py, hand_seq, &[n])?)?;
-    out.set_item("grasped_block", array(py, grasped, &[n])?)?;
-    out.set_item("position", array(py, position, &[n, blocks, 3])?)?;
-    out.set_item("rotation", array(py, rotation, &[n, blocks, 4])?)?;
-    out.set_item("mode", array(py, mode, &[n, blocks])?)?;
-    fingers.into_dict(out)
-}
-
-fn hand(samples: &[HandSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
-    let py = out.py();
-    let n = samples.len();
-    let mut stamps = StampColumns::with_capacity(n);
-    let (mut wp, mut wr) = (Vec::with_capacity(n * 3), Vec::with_capacity(n * 4));
-    let mut tracked = Vec::with_capacity(n);
-    let mut side = Vec::with_capacity(n);
-    let mut fingers = FingerColumns::with_capacity(n);
-    let mut finger_radius = Vec::with_capacity(n * MAX_FINGERS);
-    let mut palm_count = Vec::with_capacity(n);
-    let mut palm = Vec::with_capacity(n * MAX_PALM_VERTICES * 3);
-    for h in samples {
-        stamps.push(&h.stamp);
-        push_pose(&h.wrist, &mut wp, &mut wr);
-        tracked.push(h.tracked != 0);
-        side.push(h.side);
-        fingers.push(h.finger_count, &h.finger_point_count, &h.finger_points);
-        finger_radius.extend_from_slice(&h.finger_radius);
-        palm_count.push(h.palm_vertex_count);
-        for v in &h.palm_vertices {
-            palm.extend_from_slice(v);
-        }
-    }
-    stamps.into_dict(out)?;
-    out.set_item("tracked", array(py, tracked, &[n])?)?;
-    out.set_item("side", array(py, side, &[n])?)?;
-    out.set_item("wrist_position", array(py, wp, &[n, 3])?)?;
-    out.set_item("wrist_rotation", array(py, wr, &[n, 4])?)?;
-    fingers.into_dict(out)?;
-    out.set_item(
-        "finger_radius",
-        array(py, finger_radius, &[n, MAX_FINGERS])?,
-    )?;
-    out.set_item("palm_vertex_count", array(py, palm_count, &[n])?)?;
-    out.set_item(
-        "palm_vertices",
-        array(py, palm, &[n, MAX_PALM_VERTICES, 3])?,
-    )?;
-    Ok(())
-}
-
-fn joints(samples: &[JointsSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
-    let py = out.py();
-    let n = samples.len();
-    let mut stamps = StampColumns::with_capacity(n);
-    let (mut wp, mut wr) = (Vec::with_capacity(n * 3), Vec::with_capacity(n * 4));
-    let (mut jp, mut jr) = (
-        Vec::with_capacity(n * OPENXR_JOINTS * 3),
-        Vec::with_capacity(n * OPENXR_JOINTS * 4),
-    );
-    let mut tracked = Vec::with_capacity(n);
-    let mut side = Vec::with_capacity(n);
-    for j in samples {
-        stamps.push(&j.stamp);
-        tracked.push(j.tracked != 0);
-        side.push(j.side);
-        push_pose(&j.wrist, &mut wp, &mut wr);
-        for p in &j.joints {
-            push_pose(p, &mut jp, &mut jr);
-        }
-    }
-    stamps.into_dict(out)?;
-    out.set_item("tracked", array(py, tracked, &[n])?)?;
-    out.set_item("side", array(py, side, &[n])?)?;
-    out.set_item("wrist_position", array(py, wp, &[n, 3])?)?;
-    out.set_item("wrist_rotation", array(py, wr, &[n, 4])?)?;
-    out.set_item("position", array(py, jp, &[n, OPENXR_JOINTS, 3])?)?;
-    out.set_item("rotation", array(py, jr, &[n, OPENXR_JOINTS, 4])?)?;
-    Ok(())
-}
-
-fn glove(samples: &[GloveSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
-    let py = out.py();
-    let n = samples.len();
-    let mut stamps = StampColumns::with_capacity(n);
-    let mut count = Vec::with_capacity(n);
-    let mut side = Vec::with_capacity(n);
-    let mut angles = Vec::with_capacity(n * MAX_GLOVE_SENSORS);
-    for g in samples {
-        stamps.push(&g.stamp);
-        count.push(g.sensor_count);
-        side.push(g.side);
-        angles.extend_from_slice(&g.angles);
-    }
-    stamps.into_dict(out)?;
-    out.set_item("sensor_count", array(py, count, &[n])?)?;
-    out.set_item("side", array(py, side, &[n])?)?;
-    out.set_item("angles", array(py, angles, &[n, MAX_GLOVE_SENSORS])?)?;
-    Ok(())
-}
-
-fn tracker(samples: &[TrackerSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
-    let py = out.py();
-    let n = samples.len();
-    let mut stamps = StampColumns::with_capacity(n);
-    let mut station = Vec::with_capacity(n);
-    let mut side = Vec::with_capacity(n);
-    let (mut wp, mut wr) = (Vec::with_capacity(n * 3), Vec::with_capacity(n * 4));
-    for t in samples {
-        stamps.push(&t.stamp);
-        station.push(t.station);
-        side.push(t.side);
-        push_pose(&t.wrist, &mut wp, &mut wr);
-    }
-    stamps.into_dict(out)?;
-    out.set_item("station", array(py, station, &[n])?)?;
-    out.set_item("side", array(py, side, &[n])?)?;
-    out.set_item("wrist_position", array(py, wp, &[n, 3])?)?;
-    out.set_item("wrist_rotation", array(py, wr, &[n, 4])?)?;
-    Ok(())
-}
-
-fn frame(samples: &[FrameSample], out: &Bound<'_, PyDict>) -> PyResult<()> {
-    let py = out.py();
-    let n = samples.len();
-    let mut stamps = StampColumns::with_capacity(n);
-    let (mut world_seq, mut render_ns, mut photon_ns, mut skipped) = (
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-    );
-    for f in samples {
-        stamps.push(&f.stamp);
-        world_seq.push(f.world_seq);
-        render_ns.push(f.render_ns);
-        photon_ns.push(f.origin_to_photon_ns);
-        skipped.push(f.skipped_worlds);
-    }
-    stamps.into_dict(out)?;
-    out.set_item("world_seq", array(py, world_seq, &[n])?)?;
-    out.set_item("render_ns", array(py, render_ns, &[n])?)?;
-    out.set_item("origin_to_photon_ns", array(py, photon_ns, &[n])?)?;
-    out.set_item("skipped_worlds", array(py, skipped, &[n])?)?;
-    Ok(())
 }

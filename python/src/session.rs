@@ -6,6 +6,10 @@
 //! A live session's publishers overwrite a reader's oldest unread sample rather than wait for
 //! it, so a slow Python loop costs the pipeline nothing (it loses samples, counted as gaps); a
 //! lossless session (a speed-0 replay) would wait for every reader, so it is refused.
+//!
+//! A subscription is the bus's run-time inlet (`AnyInlet`), whatever the topic, and a
+//! sample's fields are its topic's field list as Python names them (`crate::arrays::leaves`),
+//! so a topic added to the table is read here with no code of its own.
 
 use std::rc::Rc;
 use std::time::{Duration, Instant};
@@ -14,13 +18,11 @@ use numpy::{Element, PyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use common::bus::{Bus, BusError, Inlet, Received, RunningSession, Wakeable};
-use common::samples::{
-    BlockState, Pose, MAX_FINGERS, MAX_FINGER_POINTS, MAX_GLOVE_SENSORS, MAX_PALM_VERTICES,
-    OPENXR_JOINTS,
-};
-use common::{topics, Stamp, Topic};
+use common::bus::{AnyInlet, AnySample, Bus, BusError, RunningSession};
+use common::topic::{Meaning, Scalar};
+use common::{Stamp, Topic};
 
+use crate::arrays::{leaves, Leaf};
 use crate::SessionError;
 
 fn bus_err(e: BusError) -> PyErr {
@@ -146,15 +148,7 @@ impl NativeSession {
                 self.running.bus.id
             )));
         }
-        let bus = &self.bus;
-        let inlet = match t {
-            Topic::Glove => AnyInlet::Glove(bus.inlet().map_err(bus_err)?),
-            Topic::Tracker => AnyInlet::Tracker(bus.inlet().map_err(bus_err)?),
-            Topic::Joints => AnyInlet::Joints(bus.inlet().map_err(bus_err)?),
-            Topic::Hand => AnyInlet::Hand(bus.inlet().map_err(bus_err)?),
-            Topic::World => AnyInlet::World(bus.inlet().map_err(bus_err)?),
-            _ => AnyInlet::Frame(bus.inlet().map_err(bus_err)?),
-        };
+        let inlet = self.bus.any_inlet(t).map_err(bus_err)?;
         Ok(Subscription {
             _bus: Rc::clone(&self.bus),
             running: self.running.clone(),
@@ -176,50 +170,6 @@ impl NativeSession {
                 "session {} has ended (`handblocks sessions` lists those that run)",
                 self.running.bus.id
             )))
-        }
-    }
-}
-
-enum AnyInlet {
-    Glove(Inlet<topics::Glove>),
-    Tracker(Inlet<topics::Tracker>),
-    Joints(Inlet<topics::Joints>),
-    Hand(Inlet<topics::Hand>),
-    World(Inlet<topics::World>),
-    Frame(Inlet<topics::Frame>),
-}
-
-impl AnyInlet {
-    fn wakeable(&self) -> &dyn Wakeable {
-        match self {
-            AnyInlet::Glove(i) => i,
-            AnyInlet::Tracker(i) => i,
-            AnyInlet::Joints(i) => i,
-            AnyInlet::Hand(i) => i,
-            AnyInlet::World(i) => i,
-            AnyInlet::Frame(i) => i,
-        }
-    }
-
-    fn receive(&self) -> Result<Option<Held>, BusError> {
-        Ok(match self {
-            AnyInlet::Glove(i) => i.receive()?.map(Held::Glove),
-            AnyInlet::Tracker(i) => i.receive()?.map(Held::Tracker),
-            AnyInlet::Joints(i) => i.receive()?.map(Held::Joints),
-            AnyInlet::Hand(i) => i.receive()?.map(Held::Hand),
-            AnyInlet::World(i) => i.receive()?.map(Held::World),
-            AnyInlet::Frame(i) => i.receive()?.map(Held::Frame),
-        })
-    }
-
-    fn counter(&self) -> common::TopicCounter {
-        match self {
-            AnyInlet::Glove(i) => i.counter(),
-            AnyInlet::Tracker(i) => i.counter(),
-            AnyInlet::Joints(i) => i.counter(),
-            AnyInlet::Hand(i) => i.counter(),
-            AnyInlet::World(i) => i.counter(),
-            AnyInlet::Frame(i) => i.counter(),
         }
     }
 }
@@ -291,10 +241,10 @@ impl Subscription {
             };
             // Asleep with the interpreter's lock released: the program's other threads (a
             // GUI, a plot) run meanwhile.
-            let fd = common::bus::wake_fd(self.inlet.wakeable());
+            let fd = common::bus::wake_fd(&self.inlet);
             py.detach(|| common::bus::wait_fd(fd, wait))
                 .map_err(bus_err)?;
-            common::bus::take_wake_ups(self.inlet.wakeable());
+            common::bus::take_wake_ups(&self.inlet);
         }
     }
 
@@ -314,21 +264,12 @@ impl Subscription {
     }
 }
 
-/// A sample held in the publisher's shared memory.
-enum Held {
-    Glove(Received<topics::Glove>),
-    Tracker(Received<topics::Tracker>),
-    Joints(Received<topics::Joints>),
-    Hand(Received<topics::Hand>),
-    World(Received<topics::World>),
-    Frame(Received<topics::Frame>),
-}
-
 /// One sample as it lies in shared memory: its stamp as attributes, its fields as read-only
 /// numpy views of that memory (`fields()`, or by name: `sample.position`).
 #[pyclass(module = "handblocks._native", unsendable)]
 pub struct LiveSample {
-    held: Held,
+    /// Held in the publisher's shared memory.
+    held: AnySample,
     /// CLOCK_MONOTONIC when this reader took it.
     #[pyo3(get)]
     received_ns: u64,
@@ -336,15 +277,7 @@ pub struct LiveSample {
 
 impl LiveSample {
     fn stamp(&self) -> &Stamp {
-        use common::bus::Stamped as _;
-        match &self.held {
-            Held::Glove(s) => s.payload().stamp(),
-            Held::Tracker(s) => s.payload().stamp(),
-            Held::Joints(s) => s.payload().stamp(),
-            Held::Hand(s) => s.payload().stamp(),
-            Held::World(s) => s.user_header().stamp(),
-            Held::Frame(s) => s.payload().stamp(),
-        }
+        self.held.stamp()
     }
 }
 
@@ -371,20 +304,11 @@ unsafe fn view<'py, T: Element>(
     Ok(array.into_any())
 }
 
-const F64S_PER_POSE: usize = std::mem::size_of::<Pose>() / 8;
-
 #[pymethods]
 impl LiveSample {
     #[getter]
     fn topic(&self) -> &'static str {
-        match &self.held {
-            Held::Glove(_) => "glove",
-            Held::Tracker(_) => "tracker",
-            Held::Joints(_) => "joints",
-            Held::Hand(_) => "hand",
-            Held::World(_) => "world",
-            Held::Frame(_) => "frame",
-        }
+        self.held.topic().name()
     }
 
     #[getter]
@@ -456,10 +380,9 @@ impl LiveSample {
     /// views of the shared memory (valid while this sample or a view of it is alive).
     fn fields<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
         let out = PyDict::new(slf.py());
-        for name in slf.borrow().field_names() {
-            if let Some(v) = field(slf, name)? {
-                out.set_item(*name, v)?;
-            }
+        let topic = slf.borrow().held.topic();
+        for leaf in leaves(topic) {
+            out.set_item(&leaf.name, value(slf, leaf)?)?;
         }
         Ok(out)
     }
@@ -467,49 +390,11 @@ impl LiveSample {
 
 impl LiveSample {
     /// The fields of this sample's topic, as [`field`] makes them.
-    fn field_names(&self) -> &'static [&'static str] {
-        match &self.held {
-            Held::World(_) => &[
-                "step",
-                "hand_seq",
-                "grasped_block",
-                "block_count",
-                "finger_count",
-                "position",
-                "rotation",
-                "mode",
-                "finger_point_count",
-                "finger_points",
-            ],
-            Held::Hand(_) => &[
-                "tracked",
-                "side",
-                "finger_count",
-                "palm_vertex_count",
-                "wrist_position",
-                "wrist_rotation",
-                "finger_point_count",
-                "finger_points",
-                "finger_radius",
-                "palm_vertices",
-            ],
-            Held::Joints(_) => &[
-                "tracked",
-                "side",
-                "wrist_position",
-                "wrist_rotation",
-                "position",
-                "rotation",
-            ],
-            Held::Glove(_) => &["sensor_count", "side", "angles"],
-            Held::Tracker(_) => &["station", "side", "wrist_position", "wrist_rotation"],
-            Held::Frame(_) => &[
-                "world_seq",
-                "render_ns",
-                "origin_to_photon_ns",
-                "skipped_worlds",
-            ],
-        }
+    fn field_names(&self) -> Vec<&'static str> {
+        leaves(self.held.topic())
+            .iter()
+            .map(|l| l.name.as_str())
+            .collect()
     }
 }
 
@@ -517,134 +402,80 @@ impl LiveSample {
 /// as a Python number, an array as a read-only view of the shared memory. Only the field asked
 /// for is made, so `sample.position` costs one view.
 fn field<'py>(slf: &Bound<'py, LiveSample>, name: &str) -> PyResult<Option<Bound<'py, PyAny>>> {
+    let topic = slf.borrow().held.topic();
+    match leaves(topic).iter().find(|l| l.name == name) {
+        Some(leaf) => value(slf, leaf).map(Some),
+        None => Ok(None),
+    }
+}
+
+/// The value of `leaf` in the sample `slf` holds: one number as a Python number (a flag as a
+/// bool), an array as a read-only numpy view of the shared memory (a slice topic's element
+/// leaves with the elements as their first axis).
+fn value<'py>(slf: &Bound<'py, LiveSample>, leaf: &Leaf) -> PyResult<Bound<'py, PyAny>> {
     let py = slf.py();
     let this = slf.borrow();
-    let num = |v: u64| Ok(Some(v.into_pyobject(py)?.into_any()));
-    let int = |v: i64| Ok(Some(v.into_pyobject(py)?.into_any()));
-    let flag = |v: u32| {
-        Ok(Some(
-            pyo3::types::PyBool::new(py, v != 0).to_owned().into_any(),
-        ))
+    let sample = this.held.view();
+    let (bytes, mut shape, mut strides) = if leaf.per_element {
+        let each = sample.topic().element_size().unwrap_or(0);
+        (sample.elements(), vec![sample.len()], vec![each])
+    } else {
+        (sample.sample(), Vec::new(), Vec::new())
     };
-    // SAFETY (every `view` below): each pointer, shape and stride lies within the sample
-    // `slf` holds, which the view keeps alive.
+    shape.extend_from_slice(&leaf.shape);
+    strides.extend_from_slice(&leaf.strides);
+    let size = leaf.scalar.size();
+    if shape.is_empty() {
+        let mut b = [0u8; 8];
+        let n = size.min(8);
+        if let Some(v) = bytes.get(leaf.offset..leaf.offset + n) {
+            b[..n].copy_from_slice(v);
+        }
+        let w = [b[0], b[1], b[2], b[3]];
+        return Ok(match (leaf.scalar, leaf.meaning) {
+            (_, Meaning::Flag) => pyo3::types::PyBool::new(py, b.iter().any(|x| *x != 0))
+                .to_owned()
+                .into_any(),
+            (Scalar::Float64, _) => f64::from_le_bytes(b).into_pyobject(py)?.into_any(),
+            (Scalar::Uint64, _) => u64::from_le_bytes(b).into_pyobject(py)?.into_any(),
+            (Scalar::Int64, _) => i64::from_le_bytes(b).into_pyobject(py)?.into_any(),
+            (Scalar::Uint32, _) => u32::from_le_bytes(w).into_pyobject(py)?.into_any(),
+            (Scalar::Int32, _) => i32::from_le_bytes(w).into_pyobject(py)?.into_any(),
+            (Scalar::Uint8, _) => b[0].into_pyobject(py)?.into_any(),
+        });
+    }
+    // The last byte the view reaches must lie within the sample's memory.
+    let reach = leaf.offset
+        + shape
+            .iter()
+            .zip(&strides)
+            .map(|(n, step)| n.saturating_sub(1) * step)
+            .sum::<usize>()
+        + size;
+    let empty = shape.contains(&0);
+    if !empty && reach > bytes.len() {
+        return Err(SessionError::new_err(format!(
+            "the {} field {} lies past its sample's {} bytes",
+            sample.topic().name(),
+            leaf.name,
+            bytes.len()
+        )));
+    }
+    // In elements of the leaf's type: every field lies at a multiple of its size.
+    let steps: Vec<usize> = strides.iter().map(|s| s / size).collect();
+    let base = bytes.as_ptr().wrapping_add(leaf.offset);
+    // SAFETY: `base` with `shape` and `steps` stays within the sample's bytes (checked above;
+    // an empty view reads nothing), which `slf` holds in shared memory for as long as the
+    // view, which keeps `slf` alive, lives; every field is aligned to its type's size in a
+    // sample the bus aligned for its type.
     unsafe {
-        let pose = |p: &Pose, rotation: bool| {
-            if rotation {
-                view(slf, p.rotation.as_ptr(), &[4], &[1])
-            } else {
-                view(slf, p.position.as_ptr(), &[3], &[1])
-            }
-        };
-        let fingers = |points: &[[[f64; 3]; MAX_FINGER_POINTS]; MAX_FINGERS]| {
-            view(
-                slf,
-                points.as_ptr() as *const f64,
-                &[MAX_FINGERS, MAX_FINGER_POINTS, 3],
-                &[MAX_FINGER_POINTS * 3, 3, 1],
-            )
-        };
-        match &this.held {
-            Held::World(s) => {
-                let h = s.user_header();
-                let blocks: &[BlockState] = s.payload();
-                let per_block = std::mem::size_of::<BlockState>() / 8;
-                let base = blocks.as_ptr() as *const f64;
-                let n = blocks.len();
-                match name {
-                    "step" => num(h.step),
-                    "hand_seq" => num(h.hand_seq),
-                    "grasped_block" => int(h.grasped_block.into()),
-                    "block_count" => num(h.block_count.into()),
-                    "finger_count" => num(h.finger_count.into()),
-                    "position" => view(slf, base, &[n, 3], &[per_block, 1]).map(Some),
-                    "rotation" => view(slf, base.add(3), &[n, 4], &[per_block, 1]).map(Some),
-                    "mode" => view(
-                        slf,
-                        base.add(F64S_PER_POSE) as *const u32,
-                        &[n],
-                        &[per_block * 2],
-                    )
-                    .map(Some),
-                    "finger_point_count" => {
-                        view(slf, h.finger_point_count.as_ptr(), &[MAX_FINGERS], &[1]).map(Some)
-                    }
-                    "finger_points" => fingers(&h.finger_points).map(Some),
-                    _ => Ok(None),
-                }
-            }
-            Held::Hand(s) => {
-                let h = s.payload();
-                match name {
-                    "tracked" => flag(h.tracked),
-                    "side" => num(h.side.into()),
-                    "finger_count" => num(h.finger_count.into()),
-                    "palm_vertex_count" => num(h.palm_vertex_count.into()),
-                    "wrist_position" => pose(&h.wrist, false).map(Some),
-                    "wrist_rotation" => pose(&h.wrist, true).map(Some),
-                    "finger_point_count" => {
-                        view(slf, h.finger_point_count.as_ptr(), &[MAX_FINGERS], &[1]).map(Some)
-                    }
-                    "finger_points" => fingers(&h.finger_points).map(Some),
-                    "finger_radius" => {
-                        view(slf, h.finger_radius.as_ptr(), &[MAX_FINGERS], &[1]).map(Some)
-                    }
-                    "palm_vertices" => view(
-                        slf,
-                        h.palm_vertices.as_ptr() as *const f64,
-                        &[MAX_PALM_VERTICES, 3],
-                        &[3, 1],
-                    )
-                    .map(Some),
-                    _ => Ok(None),
-                }
-            }
-            Held::Joints(s) => {
-                let j = s.payload();
-                let base = j.joints.as_ptr() as *const f64;
-                match name {
-                    "tracked" => flag(j.tracked),
-                    "side" => num(j.side.into()),
-                    "wrist_position" => pose(&j.wrist, false).map(Some),
-                    "wrist_rotation" => pose(&j.wrist, true).map(Some),
-                    "position" => {
-                        view(slf, base, &[OPENXR_JOINTS, 3], &[F64S_PER_POSE, 1]).map(Some)
-                    }
-                    "rotation" => {
-                        view(slf, base.add(3), &[OPENXR_JOINTS, 4], &[F64S_PER_POSE, 1]).map(Some)
-                    }
-                    _ => Ok(None),
-                }
-            }
-            Held::Glove(s) => {
-                let g = s.payload();
-                match name {
-                    "sensor_count" => num(g.sensor_count.into()),
-                    "side" => num(g.side.into()),
-                    "angles" => view(slf, g.angles.as_ptr(), &[MAX_GLOVE_SENSORS], &[1]).map(Some),
-                    _ => Ok(None),
-                }
-            }
-            Held::Tracker(s) => {
-                let t = s.payload();
-                match name {
-                    "station" => num(t.station.into()),
-                    "side" => num(t.side.into()),
-                    "wrist_position" => pose(&t.wrist, false).map(Some),
-                    "wrist_rotation" => pose(&t.wrist, true).map(Some),
-                    _ => Ok(None),
-                }
-            }
-            Held::Frame(s) => {
-                let f = s.payload();
-                match name {
-                    "world_seq" => num(f.world_seq),
-                    "render_ns" => num(f.render_ns),
-                    "origin_to_photon_ns" => num(f.origin_to_photon_ns),
-                    "skipped_worlds" => num(f.skipped_worlds),
-                    _ => Ok(None),
-                }
-            }
+        match leaf.scalar {
+            Scalar::Float64 => view(slf, base as *const f64, &shape, &steps),
+            Scalar::Uint64 => view(slf, base as *const u64, &shape, &steps),
+            Scalar::Int64 => view(slf, base as *const i64, &shape, &steps),
+            Scalar::Uint32 => view(slf, base as *const u32, &shape, &steps),
+            Scalar::Int32 => view(slf, base as *const i32, &shape, &steps),
+            Scalar::Uint8 => view(slf, base, &shape, &steps),
         }
     }
 }

@@ -3,8 +3,9 @@
 //! bus id in `HANDBLOCKS_BUS`; the program publishes OpenXR hand joints with their time, and
 //! this module makes each one a `joints` sample exactly as a replay or a headset does: stamped
 //! (`seq`, the program's `time_ns` as source time, `origin_ns` = now, `publish_ns`), checked
-//! (finite, within [`MAX_POSITION_M`] of the origin, quaternions of norm 0.5 to 2, time
-//! increasing, at most [`MAX_RATE_HZ`] a second), counted (published and refused, in the
+//! (each joint as every source's are, [`common::Pose::joint_fault`]: finite, within
+//! [`MAX_JOINT_DISTANCE_M`] of the origin, quaternions of norm 0.5 to 2; time increasing, at
+//! most [`MAX_RATE_HZ`] a second), counted (published and refused, in the
 //! session's report under the device `external`, the refusals by kind in `refused`), and
 //! reported on `latency` like any stage, so the launcher judges it.
 //!
@@ -23,16 +24,14 @@ use pyo3::types::PyDict;
 
 use common::bus::{Bus, Outlet, RunningSession};
 use common::latency::Reporter;
-use common::samples::{DeviceCounters, JointsSample, Pose, OPENXR_JOINTS};
+use common::samples::{
+    first_joint_fault, DeviceCounters, JointFault, JointsSample, Pose, MAX_JOINT_DISTANCE_M,
+    OPENXR_JOINTS,
+};
 use common::{shutdown, topics, Stage, Stamp};
 
 use crate::SourceError;
 
-/// The farthest a joint may be from the origin, metres: as far as a headset's page may send
-/// (`webxr_wire::MAX_POSITION_M`); farther is a unit or frame mistake, not a hand.
-pub const MAX_POSITION_M: f64 = 100.0;
-/// A joint's quaternion norm must lie in this range (it is normalised by the hand model).
-pub const QUATERNION_NORM: std::ops::RangeInclusive<f64> = 0.5..=2.0;
 /// The joint OpenXR names the wrist: its pose is the sample's `wrist`.
 const WRIST: usize = 1;
 /// How often `session_running` looks at the session's card (a directory walk).
@@ -131,7 +130,7 @@ impl NativeSource {
     fn devices(&self) -> [DeviceCounters; 2] {
         [
             DeviceCounters {
-                device: 4,
+                device: common::samples::DeviceKind::External as u32,
                 samples: self.published,
                 rejected_records: self.refused.iter().sum(),
                 ..DeviceCounters::default()
@@ -166,41 +165,39 @@ impl NativeSource {
         position: &[f64],
         rotation: &[f64],
     ) -> Option<(usize, String)> {
-        if let Some(j) = position
-            .chunks_exact(3)
-            .zip(rotation.chunks_exact(4))
-            .position(|(p, q)| !p.iter().chain(q).all(|x| x.is_finite()))
+        // On the stack: nothing is allocated per sample.
+        let mut poses = [Pose::IDENTITY; OPENXR_JOINTS + 1];
+        for (pose, (p, q)) in poses
+            .iter_mut()
+            .zip(position.chunks_exact(3).zip(rotation.chunks_exact(4)))
         {
-            return Some((
-                0,
-                format!("{}: a position or rotation is not finite", joint(j)),
-            ));
+            pose.position.copy_from_slice(p);
+            pose.rotation.copy_from_slice(q);
         }
-        for (j, p) in position.chunks_exact(3).enumerate() {
-            let metres = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-            if metres > MAX_POSITION_M {
-                return Some((
+        let checked = (position.len() / 3).min(poses.len());
+        if let Some((j, fault)) = first_joint_fault(&poses[..checked]) {
+            return Some(match fault {
+                JointFault::NonFinite => (
+                    0,
+                    format!("{}: a position or rotation is not finite", joint(j)),
+                ),
+                JointFault::TooFar { metres } => (
                     1,
                     format!(
-                        "{}: {metres} m from the origin (at most {MAX_POSITION_M}; positions \
-                         are metres)",
+                        "{}: {metres} m from the origin (at most {MAX_JOINT_DISTANCE_M}; \
+                         positions are metres)",
                         joint(j)
                     ),
-                ));
-            }
-        }
-        for (j, q) in rotation.chunks_exact(4).enumerate() {
-            let norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-            if !QUATERNION_NORM.contains(&norm) {
-                return Some((
+                ),
+                JointFault::NoRotation { norm } => (
                     2,
                     format!(
                         "{}: a rotation of norm {norm} (a quaternion [x, y, z, w] of norm 0.5 \
                          to 2)",
                         joint(j)
                     ),
-                ));
-            }
+                ),
+            });
         }
         if let Some(last) = self.last_time_ns[slot] {
             if time_ns <= last {

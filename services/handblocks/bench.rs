@@ -1,22 +1,24 @@
 //! `handblocks bench latency|accuracy|stability|stepper|hands` (the benchmarks are the bench crate's), and
 //! the hidden `bench-peer`, the publishing half of the latency benchmark's peer.
 
-use std::fmt;
 use std::process::ExitCode;
 
 use crate::cli::{BenchKind, LatencyPart};
 
 /// Why a benchmark could not run. One that ran exits 0: its figures are its verdict.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum BenchError {
     /// The latency benchmark starts this executable as the session's services.
+    #[error("cannot find my own executable: {0}")]
     OwnExecutable(std::io::Error),
     /// The benchmark itself failed; `name` is `latency`, `accuracy`, `stability`, `stepper` or `hands`.
+    #[error("{error}")]
     Run {
         name: &'static str,
         error: Box<dyn std::error::Error>,
     },
     /// `bench-peer` could not publish.
+    #[error(transparent)]
     Peer(Box<dyn std::error::Error>),
 }
 
@@ -30,18 +32,6 @@ impl BenchError {
         }
     }
 }
-
-impl fmt::Display for BenchError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            BenchError::OwnExecutable(e) => write!(f, "cannot find my own executable: {e}"),
-            BenchError::Run { error, .. } => write!(f, "{error}"),
-            BenchError::Peer(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for BenchError {}
 
 /// `bench latency PART`: each part writes its own files and its key of `latency.json`; `all`
 /// runs transport, pipeline and load in turn (with `--quick`, the pipeline for 2 s).

@@ -224,46 +224,10 @@ pub enum Command {
     /// session's [source.glove] or [source.tracker] `port` names exactly as it would name
     /// /dev/ttyUSB0. See config/devices/emulated-session.toml. Ctrl-C stops it.
     ///
-    /// headset URL --trace FILE: opens a webxr session's page (the URL it printed) in headless
-    /// Chromium with IWER (Meta's WebXR emulation runtime: an emulated Quest with hand
-    /// tracking) as its XR runtime, enters VR, and plays the trace's hand (a CARL file, or one
-    /// of our recordings' joints) through the page's WebXR calls, one trace sample per XR frame
-    /// in the sample's own time. Needs Chromium and Node.js with playwright-core and iwer
-    /// (tests/run installs them: scripts/webxr-tools.sh). Prints what the page measured.
-    Emulate {
-        /// glove, tracker or headset.
-        #[arg(value_parser = ["glove", "tracker", "headset"])]
-        device: String,
-        /// headset: the page's URL, as the session printed it (with its token).
-        url: Option<String>,
-        /// glove, tracker: where the device appears.
-        #[arg(long, value_name = "PATH")]
-        link: Option<PathBuf>,
-        /// headset: the hand to play (a CARL file, or a recording with `joints`).
-        #[arg(long, value_name = "FILE")]
-        trace: Option<PathBuf>,
-        /// headset: which of the page's hands plays the trace: right or left (the trace's hand,
-        /// a CARL file's right), or both (a CARL file's right and left hands, or a two-hand
-        /// recording's; both of a sample in one XR frame).
-        #[arg(long, visible_alias = "hands", default_value = "right", value_parser = ["right", "left", "both"])]
-        hand: String,
-        /// headset: a screenshot of the page when done (PNG).
-        #[arg(long, value_name = "PNG")]
-        screenshot: Option<PathBuf>,
-        /// headset: open the page as a spectator (no XR), wait for a drawn world, screenshot.
-        #[arg(long)]
-        spectator: bool,
-        /// Glove sensors (18 or 22).
-        #[arg(long, default_value = "22", value_parser = clap::value_parser!(u8).range(18..=22))]
-        sensors: u8,
-        /// Records per second (glove default 100, tracker default 120).
-        #[arg(long, value_name = "HZ")]
-        rate: Option<f64>,
-        /// A fault to inject, KIND@RECORD[:ARG]: garbage@100, truncate@200:5, corrupt@300:7,
-        /// silence@400:1500 (ms, or `forever`), unplug@500:1000. Repeatable.
-        #[arg(long = "fault", value_name = "SPEC")]
-        faults: Vec<String>,
-    },
+    /// headset URL --trace FILE: plays a trace's hand through a webxr session's page in
+    /// headless Chromium (see `handblocks emulate headset --help`).
+    #[command(subcommand)]
+    Emulate(EmulateDevice),
     /// The publishing half of the latency benchmark's peer (started by `bench latency`).
     #[command(hide = true)]
     BenchPeer {
@@ -675,4 +639,66 @@ fn parse_seconds(s: &str) -> Result<Duration, String> {
         ));
     }
     Ok(Duration::from_secs_f64(v))
+}
+
+/// `handblocks emulate DEVICE`: each device with only the options it takes.
+#[derive(Subcommand)]
+pub enum EmulateDevice {
+    /// A CyberGlove on a pseudo-terminal at --link.
+    Glove {
+        #[command(flatten)]
+        serial: EmulatedSerial,
+        /// Glove sensors (18 or 22).
+        #[arg(long, default_value = "22", value_parser = clap::value_parser!(u8).range(18..=22))]
+        sensors: u8,
+    },
+    /// A FASTRAK on a pseudo-terminal at --link.
+    Tracker {
+        #[command(flatten)]
+        serial: EmulatedSerial,
+    },
+    /// A headset in headless Chromium, playing a trace's hand through a webxr session's page.
+    ///
+    /// Opens the page (the URL the session printed) with IWER (Meta's WebXR emulation
+    /// runtime: an emulated Quest with hand tracking) as its XR runtime, enters VR, and plays
+    /// the trace's hand (a CARL file, or one of our recordings' joints) through the page's
+    /// WebXR calls, one trace sample per XR frame in the sample's own time. Needs Chromium and
+    /// Node.js with playwright-core and iwer (tests/run installs them:
+    /// scripts/webxr-tools.sh). Prints what the page measured.
+    Headset {
+        // url, --trace and --link are checked by `emulate` itself, whose messages say what each
+        // is for and give an example; clap's would only name them.
+        /// The page's URL, as the session printed it (with its token).
+        url: Option<String>,
+        /// The hand to play (a CARL file, or a recording with `joints`); needed unless
+        /// --spectator.
+        #[arg(long, value_name = "FILE")]
+        trace: Option<PathBuf>,
+        /// Which of the page's hands plays the trace: right or left (the trace's hand, a CARL
+        /// file's right), or both (a CARL file's right and left hands, or a two-hand
+        /// recording's; both of a sample in one XR frame).
+        #[arg(long, visible_alias = "hands", default_value = "right", value_parser = ["right", "left", "both"])]
+        hand: String,
+        /// A screenshot of the page when done (PNG).
+        #[arg(long, value_name = "PNG")]
+        screenshot: Option<PathBuf>,
+        /// Open the page as a spectator (no XR, no trace), wait for a drawn world, screenshot.
+        #[arg(long)]
+        spectator: bool,
+    },
+}
+
+/// What an emulated serial device (glove or tracker) takes.
+#[derive(clap::Args)]
+pub struct EmulatedSerial {
+    /// Where the device appears: a symbolic link to its pty, in an existing folder (needed).
+    #[arg(long, value_name = "PATH")]
+    pub link: Option<PathBuf>,
+    /// Records per second (glove default 100, tracker default 120).
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<f64>,
+    /// A fault to inject, KIND@RECORD[:ARG]: garbage@100, truncate@200:5, corrupt@300:7,
+    /// silence@400:1500 (ms, or `forever`), unplug@500:1000. Repeatable.
+    #[arg(long = "fault", value_name = "SPEC")]
+    pub faults: Vec<String>,
 }

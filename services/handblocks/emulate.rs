@@ -9,6 +9,7 @@ use std::process::ExitCode;
 
 use acquisition::emulator::{glove, tracker, Fault};
 use common::shutdown;
+use webxr_wire::playback;
 
 /// Why the emulated device did not run.
 #[derive(Debug)]
@@ -236,13 +237,13 @@ fn webxr_node_modules() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from("target/webxr-node/node_modules"))
 }
 
-/// The trace's joints as the driver plays them: u32 count, then per sample one record per hand
-/// played (`hands`: one, or both, the right then the left), each f64 time (ms from the first
-/// sample, so that the page's time maps back to the trace's nanoseconds exactly), u8 tracked,
-/// 3 zero bytes, and WebXR's 25 joints of 7 f32 (position, orientation): the trace's wrist
-/// pose, then OpenXR's joints after palm and wrist. One hand is the trace's (a CARL file's
-/// right); both are a CARL file's two hands, or a recording's `joints` of either side, paired
-/// by source time (a hand a sample lacks is written untracked). Returns the sample count.
+/// The trace's joints as the driver plays them ([`webxr_wire::playback`]): per sample one
+/// record per hand played (`hands`: one, or both, the right then the left), its time in ms
+/// from the first sample (so that the page's time maps back to the trace's nanoseconds
+/// exactly) and WebXR's joints ([`webxr_wire::from_joints`]). One hand is the trace's (a CARL
+/// file's right); both are a CARL file's two hands, or a recording's `joints` of either side,
+/// paired by source time (a hand a sample lacks is written untracked). Returns the sample
+/// count.
 fn write_headset_samples(
     trace: &Path,
     file: &Path,
@@ -311,29 +312,22 @@ fn write_headset_samples(
         .map(|j| j.stamp.source_time_ns)
         .min()
         .unwrap_or(0);
-    let mut bytes = Vec::with_capacity(4 + frames.len() * played * (12 + 25 * 28));
-    bytes.extend_from_slice(&(frames.len() as u32).to_le_bytes());
-    for f in &frames {
-        let time_ns = f.iter().flatten().map(|j| j.stamp.source_time_ns).min();
-        let ms = time_ns.unwrap_or(t0).saturating_sub(t0) as f64 / 1e6;
-        for hand in &f[..played] {
-            bytes.extend_from_slice(&ms.to_le_bytes());
-            let tracked = hand.is_some_and(|j| j.tracked != 0);
-            bytes.extend_from_slice(&[u8::from(tracked), 0, 0, 0]);
-            let pose = |k: usize| match hand {
-                Some(j) if k == 0 => j.wrist,
-                Some(j) => j.joints[k + 1],
-                None => common::Pose::IDENTITY,
-            };
-            // WebXR's 25 joints: OpenXR's after the palm.
-            for k in 0..common::samples::OPENXR_JOINTS - 1 {
-                let p = pose(k);
-                for v in p.position.iter().chain(&p.rotation) {
-                    bytes.extend_from_slice(&(*v as f32).to_le_bytes());
-                }
-            }
-        }
-    }
+    let records: Vec<[playback::Record; 2]> = frames
+        .iter()
+        .map(|f| {
+            let time_ns = f.iter().flatten().map(|j| j.stamp.source_time_ns).min();
+            let time_ms = time_ns.unwrap_or(t0).saturating_sub(t0) as f64 / 1e6;
+            f.map(|hand| playback::Record {
+                time_ms,
+                tracked: hand.is_some_and(|j| j.tracked != 0),
+                poses: hand.map_or([common::Pose::IDENTITY; webxr_wire::WEBXR_JOINTS], |j| {
+                    webxr_wire::from_joints(j)
+                }),
+            })
+        })
+        .collect();
+    let mut bytes = Vec::with_capacity(4 + frames.len() * played * playback::RECORD_BYTES);
+    playback::encode(records.iter().map(|r| &r[..played]), &mut bytes);
     std::fs::write(file, &bytes)
         .map_err(|e| EmulateError::Trace(format!("{}: {e}", file.display())))?;
     Ok(frames.len())

@@ -2,7 +2,6 @@
 //! launcher, then prints a summary of what the world came to (`world_summary`; all of it with
 //! `--blocks`/`--events`), the latency table, the preview's path and the budget's verdict.
 
-use std::fmt;
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -11,33 +10,21 @@ use common::config::session::RenderMode;
 use crate::cli::{LaunchArgs, VERSION};
 
 /// Why a session did not run, or ran but its report could not be written.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum LaunchCommandError {
     /// The services are this executable started again: it must know where it is.
+    #[error("cannot find my own executable to start the services: {0}")]
     OwnExecutable(std::io::Error),
     /// The session file, its overrides or its recording settings were refused.
+    #[error(transparent)]
     Session(launcher::LaunchError),
     /// The launcher could not start or supervise the processes.
+    #[error(transparent)]
     Run(launcher::LaunchError),
     /// `--report FILE` could not be written (the session itself ran).
+    #[error(transparent)]
     Report(launcher::LaunchError),
 }
-
-impl fmt::Display for LaunchCommandError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            LaunchCommandError::OwnExecutable(e) => write!(
-                f,
-                "cannot find my own executable to start the services: {e}"
-            ),
-            LaunchCommandError::Session(e)
-            | LaunchCommandError::Run(e)
-            | LaunchCommandError::Report(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for LaunchCommandError {}
 
 /// Runs the session; 0 when it kept its budget, 1 when it did not or a process failed.
 pub fn run(args: LaunchArgs) -> Result<ExitCode, LaunchCommandError> {

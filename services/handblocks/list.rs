@@ -3,39 +3,27 @@
 //! opening comment, told apart by their keys (a session names a `scene`; a scene has blocks or
 //! a hand).
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Why there is nothing to list.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum ListError {
     /// The folder itself cannot be read (unreadable folders below it are skipped).
+    #[error(
+        "cannot read the folder {} (give a folder of sessions and scenes; `handblocks list` \
+         alone lists the configuration's)",
+        dir.display()
+    )]
     Unreadable { dir: PathBuf },
     /// The folder holds no session and no scene (nothing to list is a mistake, not a list).
+    #[error(
+        "{}: no session (a file with [scene]) and no scene (a file with [[block]] or [hand]) in \
+         it or below; `handblocks list` alone lists the configuration's",
+        dir.display()
+    )]
     Empty { dir: PathBuf },
 }
-
-impl fmt::Display for ListError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ListError::Unreadable { dir } => write!(
-                f,
-                "cannot read the folder {} (give a folder of sessions and scenes; \
-                 `handblocks list` alone lists the configuration's)",
-                dir.display()
-            ),
-            ListError::Empty { dir } => write!(
-                f,
-                "{}: no session (a file with [scene]) and no scene (a file with [[block]] or \
-                 [hand]) in it or below; `handblocks list` alone lists the configuration's",
-                dir.display()
-            ),
-        }
-    }
-}
-
-impl std::error::Error for ListError {}
 
 /// `handblocks list`: scenes and sessions with their first comment line.
 pub fn run(given: &Path) -> Result<ExitCode, ListError> {

@@ -29,7 +29,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
-use cli::{Cli, Command};
+use cli::{Cli, Command, EmulateDevice};
 use error::CliError;
 
 fn main() -> ExitCode {
@@ -178,31 +178,36 @@ fn run() -> Result<ExitCode, CliError> {
             rate,
             count,
         }) => bench::transport_peer(&transport, endpoint, bytes, rate, count)?,
-        Some(Command::Emulate {
-            device,
-            url,
-            link,
-            trace,
-            hand,
-            screenshot,
-            spectator,
-            sensors,
-            rate,
-            faults,
-        }) => {
-            if device == "headset" {
-                emulate::headset(emulate::Headset {
-                    url,
-                    trace,
-                    // clap allows only right, left and both.
-                    hand: common::HandsUsed::parse(&hand).unwrap_or_default(),
-                    screenshot,
-                    spectator,
-                })?
-            } else {
-                emulate::run(&device, link.as_deref(), sensors, rate, &faults)?
-            }
-        }
+        Some(Command::Emulate(device)) => match device {
+            EmulateDevice::Glove { serial, sensors } => emulate::run(
+                "glove",
+                serial.link.as_deref(),
+                sensors,
+                serial.rate,
+                &serial.faults,
+            )?,
+            EmulateDevice::Tracker { serial } => emulate::run(
+                "tracker",
+                serial.link.as_deref(),
+                22,
+                serial.rate,
+                &serial.faults,
+            )?,
+            EmulateDevice::Headset {
+                url,
+                trace,
+                hand,
+                screenshot,
+                spectator,
+            } => emulate::headset(emulate::Headset {
+                url,
+                trace,
+                // clap allows only right, left and both.
+                hand: common::HandsUsed::parse(&hand).unwrap_or_default(),
+                screenshot,
+                spectator,
+            })?,
+        },
     };
     Ok(code)
 }

@@ -11,16 +11,18 @@
 //! session (a speed-0 replay) would wait for every reader, so it is refused.
 //!
 //! Samples are printed from the very bytes a recording holds, by the schema every recording
-//! carries (`recording::fields`: each field's name, type, offset and size), so every topic
-//! prints without code of its own.
+//! carries (the topic table's field lists: each field's name, type, offset and size), walked
+//! once by `recording::walk` for the text and for the JSON, so every topic prints without code
+//! of its own; a topic's inlet is the run-time one (`AnyInlet`), whichever the topic.
 
 use std::fmt;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use common::bus::{Bus, BusConfig, BusError, Inlet, RunningSession, Wakeable};
-use common::topic::{SliceTopicSpec, TopicSpec, TopicVisitor};
-use common::{BlockMode, Stamp, Topic};
+use common::bus::{AnyInlet, Bus, BusConfig, BusError, RunningSession, Wakeable};
+use common::topic::{Field, Meaning};
+use common::{Stamp, Topic};
+use recording::{Group, MessageVisitor, Value, Values};
 
 /// Why a look at a running session failed.
 #[derive(Debug)]
@@ -164,105 +166,34 @@ fn pick(id: Option<&str>) -> Result<RunningSession, MonitorError> {
         .map_err(|why| MonitorError::NoSession(why.replace("by its id", "with --session ID")))
 }
 
-/// One topic's inlet, whatever its sample type: the next sample as a recording's bytes.
-trait Tap {
-    fn wakeable(&self) -> &dyn Wakeable;
-    /// The next sample's message (CDR header and bytes) into `out`, its stamp, and when it
-    /// was taken (CLOCK_MONOTONIC, before it was copied out).
-    fn next(&self, out: &mut Vec<u8>) -> Result<Option<(Stamp, u64)>, BusError>;
-}
+/// One topic's inlet, whatever its topic: the next sample as a recording's bytes.
+type Tap = AnyInlet;
 
-impl<P: TopicSpec> Tap for Inlet<P> {
-    fn wakeable(&self) -> &dyn Wakeable {
-        self
-    }
-    fn next(&self, out: &mut Vec<u8>) -> Result<Option<(Stamp, u64)>, BusError> {
-        use common::bus::Stamped as _;
-        Ok(self.receive()?.map(|s| {
-            let taken = common::monotonic_ns();
-            recording::encode_sample(s.payload(), out);
-            (*s.payload().stamp(), taken)
-        }))
-    }
-}
-
-struct SliceTap<P: SliceTopicSpec>(Inlet<P>);
-
-impl<P: SliceTopicSpec> Tap for SliceTap<P> {
-    fn wakeable(&self) -> &dyn Wakeable {
-        &self.0
-    }
-    fn next(&self, out: &mut Vec<u8>) -> Result<Option<(Stamp, u64)>, BusError> {
-        use common::bus::Stamped as _;
-        Ok(self.0.receive()?.map(|s| {
-            let taken = common::monotonic_ns();
-            recording::encode_slice(P::TOPIC, s.user_header(), s.payload(), out);
-            (*s.user_header().stamp(), taken)
-        }))
-    }
-}
-
-/// Opens the inlet of one topic.
-struct OpenTap<'b> {
-    bus: &'b Bus,
-    topic: Topic,
-    tap: Option<Box<dyn Tap>>,
-}
-
-impl TopicVisitor for OpenTap<'_> {
-    type Error = BusError;
-    fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
-        if P::TOPIC == self.topic {
-            self.tap = Some(Box::new(self.bus.inlet::<P>()?));
-        }
-        Ok(())
-    }
-    fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
-        if P::TOPIC == self.topic {
-            self.tap = Some(Box::new(SliceTap(self.bus.inlet::<P>()?)));
-        }
-        Ok(())
-    }
-}
-
-/// Opens an inlet of every recorded topic (a short look at all of them: `topics -v`).
-struct OpenAll<'b> {
-    bus: &'b Bus,
-    taps: Vec<(Topic, Box<dyn Tap>)>,
-}
-
-impl TopicVisitor for OpenAll<'_> {
-    type Error = BusError;
-    fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
-        if P::TOPIC.is_recorded() {
-            self.taps.push((P::TOPIC, Box::new(self.bus.inlet::<P>()?)));
-        }
-        Ok(())
-    }
-    fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
-        if P::TOPIC.is_recorded() {
-            self.taps
-                .push((P::TOPIC, Box::new(SliceTap(self.bus.inlet::<P>()?))));
-        }
-        Ok(())
-    }
+/// The next sample of `tap`: its message (CDR header and bytes) into `out`, its stamp, and
+/// when it was taken (CLOCK_MONOTONIC, before it was copied out).
+fn take(tap: &Tap, out: &mut Vec<u8>) -> Result<Option<(Stamp, u64)>, BusError> {
+    Ok(tap.receive()?.map(|s| {
+        let taken = common::monotonic_ns();
+        recording::encode_view(&s.view(), out);
+        (*s.stamp(), taken)
+    }))
 }
 
 /// Samples a second of every recorded topic over `window`, read through one inlet each (as
 /// `ros2 topic hz` reads: a reader for the look's length). In topic order.
 fn measure_rates(bus: &Bus, window: Duration) -> Result<Vec<(Topic, f64)>, MonitorError> {
-    let mut open = OpenAll {
-        bus,
-        taps: Vec::new(),
-    };
-    Topic::visit_each(&mut open)?;
-    let mut counts = vec![0u64; open.taps.len()];
+    // An inlet of every recorded topic (a short look at all of them: `topics -v`).
+    let taps = Topic::RECORDED
+        .into_iter()
+        .map(|t| bus.any_inlet(t))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut counts = vec![0u64; taps.len()];
     let mut message = Vec::new();
     let started = Instant::now();
     let until = started + window;
     loop {
-        for ((_, tap), n) in open.taps.iter().zip(counts.iter_mut()) {
-            while tap.next(&mut message)?.is_some() {
+        for (tap, n) in taps.iter().zip(counts.iter_mut()) {
+            while take(tap, &mut message)?.is_some() {
                 *n += 1;
             }
         }
@@ -271,25 +202,21 @@ fn measure_rates(bus: &Bus, window: Duration) -> Result<Vec<(Topic, f64)>, Monit
             break;
         }
         common::bus::wait_each(
-            open.taps.iter().map(|(_, t)| t.wakeable()),
+            taps.iter().map(|t| t as &dyn Wakeable),
             None,
             left.min(Duration::from_millis(50)),
         )?;
     }
     let secs = started.elapsed().as_secs_f64().max(1e-3);
-    Ok(open
-        .taps
+    Ok(taps
         .iter()
         .zip(counts)
-        .map(|((t, _), n)| (*t, n as f64 / secs))
+        .map(|(t, n)| (t.topic(), n as f64 / secs))
         .collect())
 }
 
 /// The running session, and an inlet of `topic` on its bus.
-fn tap(
-    topic: &str,
-    session: Option<&str>,
-) -> Result<(RunningSession, Bus, Box<dyn Tap>), MonitorError> {
+fn tap(topic: &str, session: Option<&str>) -> Result<(RunningSession, Bus, Tap), MonitorError> {
     let topic = Topic::from_channel(topic)
         .filter(|t| t.is_recorded())
         .ok_or_else(|| MonitorError::NoTopic(topic.to_string()))?;
@@ -298,28 +225,20 @@ fn tap(
         return Err(MonitorError::Lossless(running.bus.id.clone()));
     }
     let bus = Bus::open(&running.bus, "monitor")?;
-    let mut open = OpenTap {
-        bus: &bus,
-        topic,
-        tap: None,
-    };
-    Topic::visit_each(&mut open)?;
-    let tap = open
-        .tap
-        .ok_or_else(|| MonitorError::NoTopic(topic.name().to_string()))?;
+    let tap = bus.any_inlet(topic)?;
     Ok((running, bus, tap))
 }
 
 /// Waits for the next sample of `tap` until the session ends (its launcher gone) or
 /// `until` passes.
 fn next_sample(
-    tap: &dyn Tap,
+    tap: &Tap,
     running: &RunningSession,
     message: &mut Vec<u8>,
     until: Option<Instant>,
 ) -> Result<Option<(Stamp, u64)>, MonitorError> {
     loop {
-        if let Some(taken) = tap.next(message)? {
+        if let Some(taken) = take(tap, message)? {
             return Ok(Some(taken));
         }
         if common::shutdown::requested() || !running_still(running) {
@@ -333,7 +252,7 @@ fn next_sample(
             }
             wait = wait.min(left);
         }
-        common::bus::wait_each(std::iter::once(tap.wakeable()), None, wait)?;
+        common::bus::wait_each(std::iter::once(tap as &dyn Wakeable), None, wait)?;
     }
 }
 
@@ -355,7 +274,7 @@ fn first_sample_or_say_why(
     bus: &Bus,
     running: &RunningSession,
     topic: Topic,
-    tap: &dyn Tap,
+    tap: &Tap,
     message: &mut Vec<u8>,
     wait: bool,
     until: Option<Instant>,
@@ -399,7 +318,7 @@ fn first_sample_or_say_why(
 }
 
 /// A look's bus and inlet, handed back with its first sample (its stamp, when it was taken).
-type KeptLook = (Bus, Box<dyn Tap>, Option<(Stamp, u64)>);
+type KeptLook = (Bus, Tap, Option<(Stamp, u64)>);
 
 /// [`first_sample_or_say_why`] for a look that owns its bus and inlet: handed back with the
 /// first sample, or let go of (nothing of the look left) when the topic is refused.
@@ -408,22 +327,13 @@ fn first_or_let_go(
     tool: &str,
     running: &RunningSession,
     bus: Bus,
-    tap: Box<dyn Tap>,
+    tap: Tap,
     topic: Topic,
     message: &mut Vec<u8>,
     wait: bool,
     until: Option<Instant>,
 ) -> Result<KeptLook, MonitorError> {
-    match first_sample_or_say_why(
-        tool,
-        &bus,
-        running,
-        topic,
-        tap.as_ref(),
-        message,
-        wait,
-        until,
-    ) {
+    match first_sample_or_say_why(tool, &bus, running, topic, &tap, message, wait, until) {
         Ok(first) => Ok((bus, tap, first)),
         Err(e) => {
             let _ = let_go(tool, running, bus, tap, Ok(()));
@@ -442,7 +352,7 @@ fn let_go(
     tool: &str,
     running: &RunningSession,
     bus: Bus,
-    tap: Box<dyn Tap>,
+    tap: Tap,
     outcome: Result<(), MonitorError>,
 ) -> Result<ExitCode, MonitorError> {
     drop(tap);
@@ -482,7 +392,7 @@ pub fn echo(
     let mut have = first.is_some();
     let mut print_each = || -> Result<(), MonitorError> {
         while count.is_none_or(|n| printed < n) {
-            if !have && next_sample(tap.as_ref(), &running, &mut message, None)?.is_none() {
+            if !have && next_sample(&tap, &running, &mut message, None)?.is_none() {
                 break;
             }
             have = false;
@@ -534,7 +444,7 @@ pub fn hz(
         }
         let next = match first.take() {
             Some(sample) => Ok(Some(sample)),
-            None => next_sample(tap.as_ref(), &running, &mut message, until),
+            None => next_sample(&tap, &running, &mut message, until),
         };
         let (stamp, taken) = match next {
             Ok(Some(sample)) => sample,
@@ -685,173 +595,160 @@ pub fn topics(
 }
 
 /// A sample's fields, one per line (`name: value`), nested types indented, from its message
-/// (the CDR header, then the bytes) by its schema's field list.
+/// (the CDR header, then the bytes) by its schema's field list ([`recording::walk`]).
 pub fn describe(topic: Topic, message: &[u8], out: &mut String) {
-    let body = message.get(recording::CDR_LE_HEADER.len()..).unwrap_or(&[]);
-    let (name, size) = recording::sample_type(topic);
-    describe_struct(name, body, 0, out);
-    if topic.element_size().is_some() {
-        let count = body
-            .get(size..size + 4)
-            .map_or(0, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
-        let at = recording::slice_elements_offset(topic);
-        let element = topic.element_size().unwrap_or(0);
-        out.push_str("blocks:\n");
-        for i in 0..count {
-            let Some(bytes) = body.get(at + i * element..at + (i + 1) * element) else {
-                break;
-            };
-            out.push_str(&format!("- # [{i}]\n"));
-            describe_struct("handblocks/BlockState", bytes, 1, out);
-        }
-    }
+    recording::walk(topic, message, &mut Text { out, depth: 0 });
 }
 
 /// A sample's fields as JSON (`inspect --samples`), from its message by its schema's field
-/// list, as [`describe`] prints them: nested messages as objects, arrays as lists, a slice
-/// topic's elements under `blocks`. Numbers print in Rust's shortest round-trip form, so a
-/// reader that parses them gets the recorded doubles exactly.
+/// list ([`recording::walk`]), as [`describe`] prints them: nested messages as objects, arrays
+/// as lists, a slice topic's elements under their name (`blocks`). Numbers print in Rust's
+/// shortest round-trip form, so a reader that parses them gets the recorded doubles exactly.
 pub fn to_json(topic: Topic, message: &[u8]) -> serde_json::Value {
-    let body = message.get(recording::CDR_LE_HEADER.len()..).unwrap_or(&[]);
-    let (name, size) = recording::sample_type(topic);
-    let mut value = struct_json(name, body);
-    if let (Some(element), serde_json::Value::Object(map)) = (topic.element_size(), &mut value) {
-        let count = body
-            .get(size..size + 4)
-            .map_or(0, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
-        let at = recording::slice_elements_offset(topic);
-        let blocks: Vec<serde_json::Value> = (0..count)
-            .map_while(|i| body.get(at + i * element..at + (i + 1) * element))
-            .map(|bytes| struct_json("handblocks/BlockState", bytes))
-            .collect();
-        map.insert("blocks".into(), blocks.into());
-    }
-    value
-}
-
-fn struct_json(name: &str, bytes: &[u8]) -> serde_json::Value {
-    let mut map = serde_json::Map::new();
-    for f in recording::fields(name)
-        .into_iter()
-        .flatten()
-        .filter(|f| f.name != "reserved")
-    {
-        let (base, count, listed) = match f.ty.split_once('[') {
-            Some((b, n)) => (
-                b,
-                n.trim_end_matches(']').parse::<usize>().unwrap_or(1),
-                true,
-            ),
-            None => (f.ty, 1, false),
-        };
-        let Some(field) = bytes.get(f.offset..f.offset + f.size) else {
-            continue;
-        };
-        let each = f.size / count.max(1);
-        let values: Vec<serde_json::Value> = field
-            .chunks_exact(each.max(1))
-            .map(|c| {
-                if recording::fields(base).is_some() {
-                    struct_json(base, c)
-                } else {
-                    scalar_json(base, c)
-                }
-            })
-            .collect();
-        let value = if listed {
-            values.into()
-        } else {
-            values.into_iter().next().unwrap_or_default()
-        };
-        map.insert(f.name.to_string(), value);
-    }
-    map.into()
-}
-
-fn scalar_json(ty: &str, b: &[u8]) -> serde_json::Value {
-    let mut a = [0u8; 8];
-    a[..b.len().min(8)].copy_from_slice(&b[..b.len().min(8)]);
-    let w = [a[0], a[1], a[2], a[3]];
-    match ty {
-        "float64" => f64::from_le_bytes(a).into(),
-        "uint64" => u64::from_le_bytes(a).into(),
-        "int64" => i64::from_le_bytes(a).into(),
-        "uint32" => u32::from_le_bytes(w).into(),
-        "int32" => i32::from_le_bytes(w).into(),
-        _ => b.iter().map(|x| u64::from(*x)).collect::<Vec<_>>().into(),
-    }
-}
-
-fn describe_struct(name: &str, bytes: &[u8], depth: usize, out: &mut String) {
-    let Some(fields) = recording::fields(name) else {
-        return;
+    let mut json = Json {
+        open: vec![Open::Object(serde_json::Map::new())],
     };
-    let pad = "  ".repeat(depth);
-    for f in fields.iter().filter(|f| f.name != "reserved") {
-        let (base, count) = match f.ty.split_once('[') {
-            Some((b, n)) => (b, n.trim_end_matches(']').parse::<usize>().unwrap_or(1)),
-            None => (f.ty, 1),
+    recording::walk(topic, message, &mut json);
+    match json.open.pop() {
+        Some(Open::Object(map)) => map.into(),
+        _ => serde_json::Value::Null,
+    }
+}
+
+/// [`describe`]'s visitor: a line per field of numbers, `name:` (or `name[i]:`) above each
+/// nested message's fields, `- # [i]` above each element's.
+struct Text<'o> {
+    out: &'o mut String,
+    depth: usize,
+}
+
+impl Text<'_> {
+    fn pad(&mut self) {
+        for _ in 0..self.depth {
+            self.out.push_str("  ");
+        }
+    }
+}
+
+impl MessageVisitor for Text<'_> {
+    fn values(&mut self, field: &Field, values: Values<'_>) {
+        let first = values.clone().next();
+        let shown: Vec<String> = values.map(|v| v.to_string()).collect();
+        let value = if field.count() > 1 {
+            format!("[{}]", shown.join(", "))
+        } else {
+            shown.into_iter().next().unwrap_or_default()
         };
-        let Some(field) = bytes.get(f.offset..f.offset + f.size) else {
-            continue;
-        };
-        if recording::fields(base).is_some() {
-            let each = f.size / count.max(1);
-            for i in 0..count {
-                if count > 1 {
-                    out.push_str(&format!("{pad}{}[{i}]:\n", f.name));
-                } else {
-                    out.push_str(&format!("{pad}{}:\n", f.name));
-                }
-                describe_struct(base, &field[i * each..(i + 1) * each], depth + 1, out);
+        self.pad();
+        self.out.push_str(&format!("{}: {value}", field.name));
+        // An enumeration's value with its name (`mode: 4 (grasped)`).
+        if let Meaning::Names(names) = field.meaning {
+            let name = first
+                .and_then(Value::as_index)
+                .and_then(|v| names.get(usize::try_from(v).ok()?))
+                .unwrap_or(&"?");
+            self.out.push_str(&format!(" ({name})"));
+        }
+        self.out.push('\n');
+    }
+
+    fn begin(&mut self, group: Group<'_>) {
+        if let Group::Elements { name, .. } = group {
+            self.pad();
+            self.out.push_str(&format!("{name}:\n"));
+        }
+    }
+
+    fn item(&mut self, group: Group<'_>, index: usize) {
+        self.pad();
+        match group {
+            Group::Field(f) if f.count() > 1 => {
+                self.out.push_str(&format!("{}[{index}]:\n", f.name));
             }
-            continue;
+            Group::Field(f) => self.out.push_str(&format!("{}:\n", f.name)),
+            Group::Elements { .. } => self.out.push_str(&format!("- # [{index}]\n")),
         }
-        let each = f.size / count.max(1);
-        let values: Vec<String> = field
-            .chunks_exact(each.max(1))
-            .map(|c| scalar(base, c))
-            .collect();
-        let value = if count > 1 {
-            format!("[{}]", values.join(", "))
-        } else {
-            values.into_iter().next().unwrap_or_default()
-        };
-        if f.name == "mode" {
-            let mode = u32::from_le_bytes(field[..4].try_into().unwrap_or([0; 4]));
-            let name = BlockMode::from_u32(mode).map_or("?", |m| m.name());
-            out.push_str(&format!("{pad}mode: {value} ({name})\n"));
-        } else {
-            out.push_str(&format!("{pad}{}: {value}\n", f.name));
+        self.depth += 1;
+    }
+
+    fn end_item(&mut self, _: Group<'_>) {
+        self.depth = self.depth.saturating_sub(1);
+    }
+}
+
+/// What [`to_json`]'s visitor is filling: the object of the message being walked, or the
+/// list of an array field's (or the elements') messages.
+enum Open {
+    Object(serde_json::Map<String, serde_json::Value>),
+    List(Vec<serde_json::Value>),
+}
+
+/// [`to_json`]'s visitor: an object per message, a list per array.
+struct Json {
+    open: Vec<Open>,
+}
+
+impl Json {
+    /// Puts `value` where the walk is: into the list being filled, or under `name` into the
+    /// object.
+    fn put(&mut self, name: &str, value: serde_json::Value) {
+        match self.open.last_mut() {
+            Some(Open::List(list)) => list.push(value),
+            Some(Open::Object(map)) => {
+                map.insert(name.to_string(), value);
+            }
+            None => {}
         }
     }
 }
 
-fn scalar(ty: &str, b: &[u8]) -> String {
-    let arr = |n: usize| -> [u8; 8] {
-        let mut a = [0u8; 8];
-        a[..n.min(b.len())].copy_from_slice(&b[..n.min(b.len())]);
-        a
-    };
-    match ty {
-        "float64" => format!("{}", f64::from_le_bytes(arr(8))),
-        "uint64" => format!("{}", u64::from_le_bytes(arr(8))),
-        "int64" => format!("{}", i64::from_le_bytes(arr(8))),
-        "uint32" => format!(
-            "{}",
-            u32::from_le_bytes(arr(4)[..4].try_into().unwrap_or([0; 4]))
-        ),
-        "int32" => format!(
-            "{}",
-            i32::from_le_bytes(arr(4)[..4].try_into().unwrap_or([0; 4]))
-        ),
-        _ => format!("{b:02x?}"),
+impl MessageVisitor for Json {
+    fn values(&mut self, field: &Field, values: Values<'_>) {
+        let mut values = values.map(|v| match v {
+            Value::F64(v) => serde_json::Value::from(v),
+            Value::U64(v) => v.into(),
+            Value::I64(v) => v.into(),
+            Value::U32(v) => v.into(),
+            Value::I32(v) => v.into(),
+            Value::U8(v) => v.into(),
+        });
+        let value = if field.dims.is_empty() {
+            values.next().unwrap_or_default()
+        } else {
+            values.collect::<Vec<_>>().into()
+        };
+        self.put(field.name, value);
+    }
+
+    fn begin(&mut self, group: Group<'_>) {
+        if group.is_list() {
+            self.open.push(Open::List(Vec::new()));
+        }
+    }
+
+    fn item(&mut self, _: Group<'_>, _: usize) {
+        self.open.push(Open::Object(serde_json::Map::new()));
+    }
+
+    fn end_item(&mut self, group: Group<'_>) {
+        if let Some(Open::Object(map)) = self.open.pop() {
+            self.put(group.name(), map.into());
+        }
+    }
+
+    fn end(&mut self, group: Group<'_>) {
+        if group.is_list() {
+            if let Some(Open::List(list)) = self.open.pop() {
+                self.put(group.name(), list.into());
+            }
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use common::BlockMode;
 
     #[test]
     fn a_world_prints_its_fields_and_each_block_with_its_mode() {

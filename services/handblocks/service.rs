@@ -1,12 +1,13 @@
 //! `handblocks service NAME --session FILE --bus ID` (hidden): one process of a session, as
-//! the launcher starts it. The process itself is its crate's `service::run`.
+//! the launcher starts it. The process itself is its crate's [`Process`], listed once here.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use common::bus::{Bus, BusConfig, BusError};
-use common::config::session::{recording_segment, Override, RestartPolicy};
+use common::config::session::{Override, RestartPolicy};
 use common::config::Session;
+use common::node::{Launch, Process};
 use common::{shutdown, Stage};
 
 /// What the launcher passes a service besides its name, session and bus.
@@ -40,36 +41,61 @@ fn stage_names() -> String {
     names.join(", ")
 }
 
-/// What failed in a stage's process: setting it up (its session, its bus), or the stage's own
-/// work, each stage with its crate's error type.
-#[derive(Debug, thiserror::Error)]
-pub enum StageError {
-    #[error("{0}")]
-    Session(#[source] common::config::ConfigError),
-    #[error("{0}")]
-    Bus(#[source] BusError),
-    #[error("{0}")]
-    Acquisition(#[source] acquisition::service::AcquisitionError),
-    #[error("{0}")]
-    Kinematics(#[source] BusError),
-    #[error("{0}")]
-    Stepper(#[source] stepper::service::StepperError),
-    #[error("{0}")]
-    Renderer(#[source] renderer::RenderError),
-    #[error("{0}")]
-    Recorder(#[source] recorder::service::RecorderError),
-    #[error("{0}")]
-    Replay(#[source] replay::service::ReplayError),
-    #[error("{0}")]
-    Bridge(#[source] bridge::service::BridgeError),
-    #[error("{0}")]
-    Webxr(#[source] webxr::WebxrError),
-    /// `service external`: that stage is the user's own program.
-    #[error(
-        "the external source is a program of yours (Python's handblocks.Source), which the \
-         launcher starts from [source] command; it is not a handblocks service"
-    )]
-    External,
+/// The processes `handblocks service` runs, one line per service crate: each crate's
+/// [`Process`] names its row of the stage table and has the one entry signature, so this list
+/// is all that ties a stage to its crate. It generates [`StageError`] (a variant per crate,
+/// holding that crate's own error) and the dispatch from a stage to its process.
+macro_rules! processes {
+    ($($variant:ident: $process:ty),* $(,)?) => {
+        /// What failed in a stage's process: setting it up (its session, its bus), or the
+        /// stage's own work, each stage with its crate's error type.
+        #[derive(Debug, thiserror::Error)]
+        pub enum StageError {
+            #[error(transparent)]
+            Session(common::config::ConfigError),
+            #[error(transparent)]
+            Bus(BusError),
+            $(
+                #[error(transparent)]
+                $variant(<$process as Process>::Error),
+            )*
+            /// A stage no crate of this binary runs: the launcher starts a program of the
+            /// user's as it (`[source] command`).
+            #[error(
+                "the {} stage is a program of yours (Python's handblocks.Source), which the \
+                 launcher starts from [source] command; it is not a handblocks service",
+                .0.name()
+            )]
+            NoProcess(Stage),
+        }
+
+        /// Runs `stage`'s process.
+        fn run_process(
+            stage: Stage,
+            session: &Session,
+            bus: &Bus,
+            launch: &Launch,
+        ) -> Result<(), StageError> {
+            $(
+                if stage == <$process as Process>::STAGE {
+                    return <$process as Process>::run(session, bus, launch)
+                        .map_err(StageError::$variant);
+                }
+            )*
+            Err(StageError::NoProcess(stage))
+        }
+    };
+}
+
+processes! {
+    Acquisition: acquisition::Process,
+    Replay: replay::Process,
+    Kinematics: kinematics::Process,
+    Stepper: stepper::Process,
+    Renderer: renderer::Process,
+    Recorder: recorder::Process,
+    Bridge: bridge::Process,
+    Webxr: webxr::Process,
 }
 
 impl ServiceError {
@@ -118,51 +144,17 @@ fn run_stage(
     if args.record.is_some() {
         session.recorder.file = args.record;
     }
-    if stage == Stage::Recorder {
-        // A restarted recorder writes the next segment, leaving the dead one's file whole.
-        session.recorder.file = session
-            .recorder
-            .file
-            .map(|f| recording_segment(&f, args.restart));
-    }
     // Every process of a session opens the bus as the session says (world sizes, loss).
     let config = BusConfig::for_session_of(bus_id, &session).map_err(StageError::Bus)?;
     let mut bus = Bus::for_stage(&config, stage).map_err(StageError::Bus)?;
     if session.supervise.restart == RestartPolicy::OnFailure {
         bus = bus.supervised(args.restart);
     }
-    match stage {
-        Stage::Acquisition => {
-            acquisition::service::run(&session, &bus).map_err(StageError::Acquisition)
-        }
-        Stage::Kinematics => {
-            kinematics::service::run(&session, &bus).map_err(StageError::Kinematics)
-        }
-        Stage::Stepper => {
-            stepper::service::run_with_outcome(&session, &bus, args.outcome_dir.as_deref())
-                .map_err(StageError::Stepper)
-        }
-        Stage::Renderer => renderer::service::run_with_preview(
-            &session,
-            &bus,
-            renderer::RenderSettings::from_session_framed(&session.renderer, &session.scene),
-            // A restarted renderer writes its frames beside the dead one's, in a folder of
-            // its own (numbering starts again), so that none of them is overwritten.
-            args.frames_dir.map(|dir| renderer::FramesRequest {
-                dir: if args.restart > 0 {
-                    dir.join(format!("restart-{}", args.restart))
-                } else {
-                    dir
-                },
-                every_nth: session.renderer.frames_every,
-            }),
-            args.preview,
-        )
-        .map_err(StageError::Renderer),
-        Stage::Recorder => recorder::service::run(&session, &bus).map_err(StageError::Recorder),
-        Stage::Replay => replay::service::run(&session, &bus).map_err(StageError::Replay),
-        Stage::Bridge => bridge::service::run(&session, &bus).map_err(StageError::Bridge),
-        Stage::Webxr => webxr::run(&session, &bus).map_err(StageError::Webxr),
-        Stage::External => Err(StageError::External),
-    }
+    let launch = Launch {
+        frames_dir: args.frames_dir,
+        preview: args.preview,
+        outcome_dir: args.outcome_dir,
+        restart: args.restart,
+    };
+    run_process(stage, &session, &bus, &launch)
 }

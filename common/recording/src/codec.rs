@@ -8,7 +8,7 @@ use std::mem::{size_of, size_of_val};
 
 use common::bus::Stamped;
 use common::stamp::Stamp;
-use common::topic::Topic;
+use common::topic::{SampleView, Topic};
 use common::Counted;
 
 /// Message encoding of every channel: CDR (little-endian), which for our layouts is the 4-byte
@@ -44,9 +44,7 @@ pub fn encode_sample<T: Stamped>(sample: &T, out: &mut Vec<u8>) {
     // (explicit `_reserved` fields fill it; `layout` lists them), so all bytes are initialised.
     let bytes =
         unsafe { std::slice::from_raw_parts(sample as *const T as *const u8, size_of::<T>()) };
-    out.clear();
-    out.extend_from_slice(&CDR_LE_HEADER);
-    out.extend_from_slice(bytes);
+    encode_parts(bytes, None, out);
 }
 
 /// A slice topic's message: the CDR header, `header`'s bytes, then `elements` as a CDR
@@ -64,13 +62,47 @@ pub fn encode_slice<H: Stamped, E: Copy>(
     let body = unsafe {
         std::slice::from_raw_parts(elements.as_ptr() as *const u8, size_of_val(elements))
     };
+    let sequence = Sequence {
+        count: elements.len(),
+        at: slice_elements_offset(topic),
+        body,
+    };
+    encode_parts(head, Some(sequence), out);
+}
+
+/// A sample of any topic's message, from its bytes (an inlet's of a topic chosen at run time,
+/// `common::bus::AnyInlet`): what [`encode_sample`] or [`encode_slice`] makes of the same
+/// sample, into `out` (cleared first; no allocation once `out` has grown to the size).
+pub fn encode_view(view: &SampleView<'_>, out: &mut Vec<u8>) {
+    let topic = view.topic();
+    let sequence = topic.element_size().map(|_| Sequence {
+        count: view.len(),
+        at: slice_elements_offset(topic),
+        body: view.elements(),
+    });
+    encode_parts(view.sample(), sequence, out);
+}
+
+/// A slice topic's elements as the CDR sequence after its header: `count` of them, starting
+/// `at` bytes into the message's body.
+struct Sequence<'a> {
+    count: usize,
+    at: usize,
+    body: &'a [u8],
+}
+
+/// The CDR header, `head` (a sample, or a slice topic's header), then the sequence if any:
+/// its count, the padding that aligns its elements, its elements.
+fn encode_parts(head: &[u8], sequence: Option<Sequence<'_>>, out: &mut Vec<u8>) {
     out.clear();
     out.extend_from_slice(&CDR_LE_HEADER);
     out.extend_from_slice(head);
-    out.extend_from_slice(&(elements.len() as u32).to_le_bytes());
-    let pad = slice_elements_offset(topic) - size_of::<H>() - 4;
-    out.extend_from_slice(&[0u8; 8][..pad]);
-    out.extend_from_slice(body);
+    if let Some(s) = sequence {
+        out.extend_from_slice(&(s.count as u32).to_le_bytes());
+        let pad = s.at.saturating_sub(head.len() + 4).min(8);
+        out.extend_from_slice(&[0u8; 8][..pad]);
+        out.extend_from_slice(s.body);
+    }
 }
 
 /// Why a message is not a sample of its topic (bytes from another machine, a damaged file).
@@ -279,6 +311,37 @@ mod tests {
         message[120..124].copy_from_slice(&17u32.to_le_bytes());
         let e = decode_sample::<HandSample>(Topic::Hand, &message).unwrap_err();
         assert!(e.to_string().contains("palm_vertex_count is 17"), "{e}");
+    }
+
+    /// A sample's bytes make the message its typed value makes: a recording written from a
+    /// run-time inlet is the one written from a typed one, byte for byte.
+    #[test]
+    fn a_view_encodes_as_its_typed_sample() {
+        let mut world = WorldSample::with_blocks(3);
+        world.header.step = 9;
+        world.blocks[1].mode = 4;
+        let (mut typed, mut viewed) = (Vec::new(), Vec::new());
+        encode_slice(Topic::World, &world.header, &world.blocks, &mut typed);
+        let view = SampleView::new(
+            Topic::World,
+            &typed[4..4 + Topic::World.sample_size()],
+            &typed[4 + slice_elements_offset(Topic::World)..],
+        )
+        .unwrap();
+        assert_eq!(view.len(), 3);
+        encode_view(&view, &mut viewed);
+        assert_eq!(typed, viewed);
+        let hand = HandSample {
+            finger_count: 2,
+            ..HandSample::default()
+        };
+        encode_sample(&hand, &mut typed);
+        let view = SampleView::new(Topic::Hand, &typed[4..], &[]).unwrap();
+        assert_eq!(view.stamp(), hand.stamp);
+        encode_view(&view, &mut viewed);
+        assert_eq!(typed, viewed);
+        assert!(SampleView::new(Topic::Hand, &typed[5..], &[]).is_none());
+        assert!(SampleView::new(Topic::World, &typed[..32], &[1]).is_none());
     }
 
     #[test]

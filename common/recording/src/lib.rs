@@ -24,7 +24,8 @@
 //!   [`Recording::open`] reads up to its last complete chunk.
 //!
 //! The crate holds one concept a file: `codec` the messages' bytes, `schema` the message
-//! definitions, `writer` and `reader` the file (`error` what goes wrong with it), `summary` its
+//! definitions (from the topic table's field lists), `walk` a message's fields in order for
+//! whatever shows them, `writer` and `reader` the file (`error` what goes wrong with it), `summary` its
 //! figures and `segments` a recording continued over restarts of its recorder. Everything is
 //! used from the crate's root.
 //!
@@ -38,18 +39,20 @@ mod segments;
 mod summary;
 #[cfg(test)]
 mod test_support;
+mod walk;
 mod writer;
 
 pub use codec::{
-    check_message_counts, decode_sample, decode_slice, encode_sample, encode_slice, message_stamp,
-    sample_type, slice_elements_offset, slice_message_bytes, MessageError, CDR_LE_HEADER,
-    MESSAGE_ENCODING,
+    check_message_counts, decode_sample, decode_slice, encode_sample, encode_slice, encode_view,
+    message_stamp, sample_type, slice_elements_offset, slice_message_bytes, MessageError,
+    CDR_LE_HEADER, MESSAGE_ENCODING,
 };
 pub use error::RecordingError;
 pub use reader::{RecordedMessage, Recording, TopicStats, MAX_CHUNK_BYTES, MAX_RECORDING_BYTES};
-pub use schema::{fields, layout, Field, SCHEMA_ENCODING};
+pub use schema::{fields, layout, schema, Field, SCHEMA_ENCODING};
 pub use segments::{segment_gaps, SegmentChain, SegmentGap};
 pub use summary::{RecordingSummary, TopicSummary};
+pub use walk::{walk, Group, MessageVisitor, Value, Values};
 pub use writer::{RecordingWriter, CHUNK_BYTES, CHUNK_SPAN_NS, PROFILE};
 
 use common::topic::Topic;

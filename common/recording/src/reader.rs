@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use common::bus::Stamped;
 use common::samples::{BlockState, WorldHeader, WorldSample};
-use common::topic::Topic;
+use common::topic::{SampleView, Topic};
 
 use crate::codec::slice_elements_offset;
 use crate::{RecordingError, RECORDED_TOPICS};
@@ -241,6 +241,28 @@ impl Recording {
             .map(|b| unsafe { std::ptr::read_unaligned(b.as_ptr() as *const BlockState) })
             .collect();
         Some(WorldSample { header, blocks })
+    }
+
+    /// The message's sample as bytes, for a reader of any topic (by its field list): the
+    /// sample (a slice topic's header) and its elements.
+    pub fn view(&self, m: &RecordedMessage) -> Option<SampleView<'_>> {
+        let bytes = self.data.get(m.start..m.start + m.len)?;
+        match m.topic.element_size() {
+            None => SampleView::new(m.topic, bytes, &[]),
+            Some(_) => SampleView::new(
+                m.topic,
+                bytes.get(..m.topic.sample_size())?,
+                bytes.get(slice_elements_offset(m.topic)..)?,
+            ),
+        }
+    }
+
+    /// The samples of one topic as bytes ([`Recording::view`]), in file order.
+    pub fn views(&self, topic: Topic) -> impl Iterator<Item = SampleView<'_>> + '_ {
+        self.messages
+            .iter()
+            .filter(move |m| m.topic == topic)
+            .filter_map(|m| self.view(m))
     }
 
     /// The `world` samples, in file order.

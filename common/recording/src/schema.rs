@@ -3,135 +3,45 @@
 //! recorded bytes without knowing handblocks, and anyone can read them without a CDR library.
 
 use std::fmt::Write as _;
-use std::mem::{offset_of, size_of};
 
-use common::samples::{
-    BlockMode, BlockState, FrameSample, GloveSample, HandSample, JointsSample, Pose, TrackerSample,
-    WorldHeader,
-};
-use common::stamp::Stamp;
-use common::topic::Topic;
+use common::topic::{Meaning, Schema, Topic};
 
-use crate::codec::{sample_type, slice_elements_offset};
+use crate::codec::slice_elements_offset;
+
+pub use common::topic::Field;
 
 /// Schema encoding: ROS 2 message definitions, as [`layout`] writes them.
 pub const SCHEMA_ENCODING: &str = "ros2msg";
 
-/// One field of a sample layout: where it is and what it holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Field {
-    pub name: &'static str,
-    /// The ROS 2 field type: `float64[75]`, or a nested message such as `handblocks/Pose`.
-    /// Multi-dimensional arrays are flattened (row-major, as in memory).
-    pub ty: &'static str,
-    pub offset: usize,
-    pub size: usize,
-}
-
-fn field_size<T, F>(_: fn(&T) -> &F) -> usize {
-    size_of::<F>()
-}
-
-macro_rules! fields {
-    ($t:ty { $($f:ident : $ty:literal),* $(,)? }) => {
-        vec![$(Field {
-            name: stringify!($f).trim_start_matches('_'),
-            ty: $ty,
-            offset: offset_of!($t, $f),
-            size: field_size::<$t, _>(|s| &s.$f),
-        }),*]
-    };
-}
-
-/// The fields of a struct the samples are built from, in memory order.
+/// The fields of a struct the samples are built from, in memory order, by its schema name
+/// (`handblocks/msg/HandSample`, or a nested `handblocks/Pose`): the topic table's field
+/// lists ([`Topic::schema`]).
 pub fn fields(struct_name: &str) -> Option<Vec<Field>> {
-    Some(match struct_name {
-        "handblocks/Stamp" => fields!(Stamp {
-            seq: "uint64",
-            source_time_ns: "uint64",
-            origin_ns: "uint64",
-            publish_ns: "uint64",
-        }),
-        "handblocks/Pose" => fields!(Pose {
-            position: "float64[3]",
-            rotation: "float64[4]",
-        }),
-        "handblocks/BlockState" => fields!(BlockState {
-            pose: "handblocks/Pose",
-            mode: "uint32",
-            held_by: "uint32",
-        }),
-        "handblocks/msg/GloveSample" => fields!(GloveSample {
-            stamp: "handblocks/Stamp",
-            sensor_count: "uint32",
-            side: "uint32",
-            angles: "float64[22]",
-        }),
-        "handblocks/msg/TrackerSample" => fields!(TrackerSample {
-            stamp: "handblocks/Stamp",
-            station: "uint32",
-            side: "uint32",
-            wrist: "handblocks/Pose",
-        }),
-        "handblocks/msg/JointsSample" => fields!(JointsSample {
-            stamp: "handblocks/Stamp",
-            tracked: "uint32",
-            side: "uint32",
-            wrist: "handblocks/Pose",
-            joints: "handblocks/Pose[26]",
-        }),
-        "handblocks/msg/HandSample" => fields!(HandSample {
-            stamp: "handblocks/Stamp",
-            wrist: "handblocks/Pose",
-            tracked: "uint32",
-            finger_count: "uint32",
-            finger_point_count: "uint32[5]",
-            palm_vertex_count: "uint32",
-            finger_points: "float64[75]",
-            finger_radius: "float64[5]",
-            palm_vertices: "float64[48]",
-            side: "uint32",
-            _reserved: "uint32",
-        }),
-        // The header; `layout` adds the `blocks` sequence that follows it.
-        "handblocks/msg/WorldSample" => fields!(WorldHeader {
-            stamp: "handblocks/Stamp",
-            step: "uint64",
-            hand_seq: "uint64",
-            block_count: "uint32",
-            grasped_block: "int32",
-            finger_count: "uint32",
-            finger_point_count: "uint32[5]",
-            finger_points: "float64[75]",
-        }),
-        "handblocks/msg/FrameSample" => fields!(FrameSample {
-            stamp: "handblocks/Stamp",
-            world_seq: "uint64",
-            render_ns: "uint64",
-            origin_to_photon_ns: "uint64",
-            skipped_worlds: "uint64",
-        }),
-        _ => return None,
-    })
+    schema(struct_name).map(|s| s.fields.to_vec())
+}
+
+/// The schema named `struct_name`: a topic's sample type or a type nested in one.
+pub fn schema(struct_name: &str) -> Option<&'static Schema> {
+    Topic::ALL.iter().find_map(|t| t.schema().find(struct_name))
 }
 
 /// The schema of a topic: a ROS 2 message definition of its sample type, then (after the
 /// `====` separators of the format) each nested message it uses. Each field's comment gives its
 /// byte offset and size within the sample, so the bytes can be read without a CDR library too.
 pub fn layout(topic: Topic) -> String {
-    let (name, size) = sample_type(topic);
+    let top = topic.schema();
     let mut out = String::new();
-    let mut pending = vec![(name, size)];
+    let mut pending = vec![top];
     let mut done: Vec<&str> = Vec::new();
-    while let Some((name, size)) = pending.pop() {
+    while let Some(schema) = pending.pop() {
+        let (name, size) = (schema.name, schema.size);
         if done.contains(&name) {
             continue;
         }
-        let Some(fs) = fields(name) else { continue };
         if done.is_empty() {
-            let what = match topic.element_size() {
+            let what = match top.elements {
                 None => format!("{size} bytes"),
-                Some(_) => format!("a {size}-byte header and a sequence of blocks"),
+                Some(e) => format!("a {size}-byte header and a sequence of {}", e.name),
             };
             let _ = writeln!(
                 out,
@@ -145,45 +55,42 @@ pub fn layout(topic: Topic) -> String {
             let _ = writeln!(out, "# {size} bytes");
         }
         done.push(name);
-        for f in &fs {
+        for f in schema.fields {
             let _ = writeln!(
                 out,
                 "{} {}  # @{}, {} bytes",
                 f.ty, f.name, f.offset, f.size
             );
-            // The mode as an enum: ROS 2 constants of the field's type, which Foxglove and
-            // the ROS 2 tools show by name beside the value.
-            if name == "handblocks/BlockState" && f.name == "mode" {
-                for mode in BlockMode::ALL {
+            // An enumeration's names: ROS 2 constants of the field's type, which Foxglove
+            // and the ROS 2 tools show by name beside the value.
+            if let Meaning::Names(names) = f.meaning {
+                let base = f.ty.split('[').next().unwrap_or(f.ty);
+                for (value, each) in names.iter().enumerate() {
                     let _ = writeln!(
                         out,
-                        "uint32 MODE_{}={}  # mode: {}",
-                        mode.name().to_ascii_uppercase(),
-                        mode as u32,
-                        mode.name()
+                        "{base} {}_{}={value}  # {}: {each}",
+                        f.name.to_ascii_uppercase(),
+                        each.to_ascii_uppercase(),
+                        f.name
                     );
                 }
             }
-            let base = f.ty.split('[').next().unwrap_or(f.ty);
-            let nested = match base {
-                "handblocks/Stamp" => Some(size_of::<Stamp>()),
-                "handblocks/Pose" => Some(size_of::<Pose>()),
-                "handblocks/BlockState" => Some(size_of::<BlockState>()),
-                _ => None,
-            };
-            if let Some(s) = nested {
-                pending.insert(0, (base, s));
+            if let Some(nested) = f.message() {
+                pending.insert(0, nested);
             }
         }
         // A slice topic's elements follow its header as a CDR sequence.
-        if done.len() == 1 && topic.element_size().is_some() {
+        if let (1, Some(e)) = (done.len(), schema.elements) {
             let _ = writeln!(
                 out,
-                "handblocks/BlockState[] blocks  # count: uint32 @{size}; blocks @{}, {} bytes each",
+                "{}[] {}  # count: uint32 @{size}; {} @{}, {} bytes each",
+                e.schema.name,
+                e.name,
+                e.name,
                 slice_elements_offset(topic),
-                size_of::<BlockState>()
+                e.schema.size
             );
-            pending.insert(0, ("handblocks/BlockState", size_of::<BlockState>()));
+            pending.insert(0, e.schema);
         }
     }
     out
@@ -192,7 +99,11 @@ pub fn layout(topic: Topic) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::codec::sample_type;
     use crate::RECORDED_TOPICS;
+    use common::samples::{BlockState, Pose};
+    use common::stamp::Stamp;
+    use std::mem::size_of;
 
     /// Every layout lists every byte of its struct once, in order: no field forgotten, no gap.
     #[test]

@@ -10,10 +10,11 @@ use std::path::{Path, PathBuf};
 use common::bus::Stamped;
 use common::samples::MAX_SCENE_BLOCKS;
 use common::stamp::Stamp;
-use common::topic::Topic;
+use common::topic::{SampleView, Topic};
 
 use crate::codec::{
-    encode_sample, encode_slice, sample_type, slice_message_bytes, CDR_LE_HEADER, MESSAGE_ENCODING,
+    encode_sample, encode_slice, encode_view, sample_type, slice_message_bytes, CDR_LE_HEADER,
+    MESSAGE_ENCODING,
 };
 use crate::schema::{layout, SCHEMA_ENCODING};
 use crate::{RecordingError, RECORDED_TOPICS};
@@ -225,6 +226,24 @@ impl RecordingWriter {
         let channel_id = self.channel_ids[topic as usize];
         let stamp = *header.stamp();
         encode_slice(topic, header, elements, &mut self.message);
+        self.write_message(&stamp, channel_id)
+    }
+
+    /// Writes one sample of any recorded topic from its bytes (what a run-time inlet,
+    /// `common::bus::AnyInlet`, receives): the message [`Self::write`] or
+    /// [`Self::write_slice`] writes of the same sample. Allocates nothing for up to
+    /// [`MAX_SCENE_BLOCKS`] elements.
+    pub fn write_view(&mut self, view: &SampleView<'_>) -> Result<(), RecordingError> {
+        let topic = view.topic();
+        if !topic.is_recorded() {
+            return Err(RecordingError::Write {
+                path: self.path.clone(),
+                error: format!("a recording has no channel for `{}`", topic.name()),
+            });
+        }
+        let channel_id = self.channel_ids[topic as usize];
+        let stamp = view.stamp();
+        encode_view(view, &mut self.message);
         self.write_message(&stamp, channel_id)
     }
 

@@ -14,10 +14,15 @@
 //!   ([`crate::topic`]) with its sizing before any process attaches; every later open must
 //!   agree.
 //!
+//! * [`Bus::any_inlet`] gives an [`AnyInlet`]: an inlet of a topic chosen at run time (a
+//!   variant per topic of the table), whose samples are received as bytes
+//!   ([`crate::topic::SampleView`]), for the readers of many topics or of one named by the
+//!   user (the recorder, the bridge, `handblocks echo`, Python).
+//!
 //! By concept: `folder` (a session's /dev/shm prefix and private folder, and sweeping what a
 //! dead session left), this module (the node, the services, opening ports), `ports` (what an
-//! outlet and an inlet do per sample) and `wait` (sleeping on inlets, polling, the adaptive
-//! waiter).
+//! outlet and an inlet do per sample), `any` (the run-time inlet) and `wait` (sleeping on
+//! inlets, polling, the adaptive waiter).
 
 use std::cell::Cell;
 use std::fmt;
@@ -38,10 +43,12 @@ pub use crate::stamp::Stamped;
 use crate::stamp::{monotonic_ns, Stamp};
 use crate::topic::{SliceTopicSpec, Stage, Topic, TopicLayout, TopicSpec, TopicVisitor};
 
+mod any;
 mod folder;
 mod ports;
 mod wait;
 
+pub use any::{AnyInlet, AnySample};
 use folder::*;
 pub use folder::{BusConfig, RunningSession};
 use ports::*;

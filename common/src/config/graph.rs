@@ -23,18 +23,16 @@ impl Session {
     pub fn graph(&self) -> Graph {
         // A remote-fed session (a viewer) has no pipeline of its own: the bridge is its source.
         let remote_fed = matches!(self.source, Source::Remote);
-        let (source, source_outputs) = match self.source {
-            Source::Replay { .. } => (Stage::Replay, Stage::Replay.recorded_outputs().collect()),
-            Source::Webxr(_) => (Stage::Webxr, Stage::Webxr.recorded_outputs().collect()),
-            Source::External { .. } => (
-                Stage::External,
-                Stage::External.recorded_outputs().collect(),
-            ),
-            Source::Remote => (Stage::Bridge, self.bridge.outputs()),
-            _ => (
-                Stage::Acquisition,
-                Stage::Acquisition.recorded_outputs().collect(),
-            ),
+        // The stage whose row in the stage table names this `[source] kind`
+        // ([`Stage::selected_by`]); a session's kind is always one of them (the table test).
+        let source = Stage::ALL
+            .into_iter()
+            .find(|s| s.selected_by().contains(&self.source.kind()))
+            .unwrap_or(Stage::Acquisition);
+        let source_outputs = if remote_fed {
+            self.bridge.outputs()
+        } else {
+            source.recorded_outputs().collect()
         };
         let bridge_publishes = self.bridge.is_on() && !self.bridge.outputs().is_empty();
         let runs = |stage: Stage| match stage {
@@ -44,7 +42,8 @@ impl Session {
             // cores the pipeline needs, and a session pays only for what it asks for.
             Stage::Recorder => self.recorder.file.is_some(),
             Stage::Bridge => self.bridge.is_on() && !remote_fed,
-            Stage::Acquisition | Stage::Replay | Stage::Webxr | Stage::External => false,
+            // A source runs only as the session's source (the filter below).
+            _ => false,
         };
         let mut readers: Vec<Stage> = Stage::ALL
             .into_iter()
@@ -69,6 +68,28 @@ impl Session {
             source,
             source_outputs,
             readers,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each `[source] kind` starts exactly one stage, the one whose row names it.
+    #[test]
+    fn every_source_kind_selects_one_stage() {
+        for kind in Source::KINDS {
+            let rows: Vec<Stage> = Stage::ALL
+                .into_iter()
+                .filter(|s| s.selected_by().contains(&kind))
+                .collect();
+            assert_eq!(rows.len(), 1, "{kind}: {rows:?}");
+        }
+        for stage in Stage::ALL {
+            for kind in stage.selected_by() {
+                assert!(Source::KINDS.contains(kind), "{stage:?}: {kind}");
+            }
         }
     }
 }

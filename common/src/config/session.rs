@@ -161,6 +161,12 @@ pub struct WebxrSource {
 }
 
 impl Source {
+    /// Every `[source] kind`, as a session names it; each is a column value of exactly one
+    /// row of the stage table ([`crate::Stage::selected_by`]), the stage it starts.
+    pub const KINDS: [&'static str; 6] = [
+        "scripted", "devices", "replay", "remote", "webxr", "external",
+    ];
+
     pub fn kind(&self) -> &'static str {
         match self {
             Source::Scripted { .. } => "scripted",
@@ -652,12 +658,7 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
         return Ok((Source::Scripted { rate_hz: 120.0 }, None));
     };
     let mut link = None;
-    let s = match r.choice(
-        "kind",
-        &[
-            "scripted", "devices", "replay", "remote", "webxr", "external",
-        ],
-    )? {
+    let s = match r.choice("kind", &Source::KINDS)? {
         "external" => Source::External {
             command: external_command(&r)?,
         },

@@ -2,10 +2,11 @@
 //! frame, and the one mapping of its joints to the joints the pipeline takes.
 //!
 //! **Why binary, and this layout.** A frame goes out 60 to 90 times a second from a headset's
-//! JavaScript, which fills both hands' joints with two calls (`XRFrame.fillPoses`,
-//! `fillJointRadii`) into typed arrays: a little-endian frame of fixed-size parts is a
-//! `DataView` write away there and a bounds-checked read here, with nothing to parse. Every
-//! length is implied by the header, so a message is either exactly right or refused.
+//! JavaScript, which reads each joint with `XRFrame.getJointPose` (its position, orientation
+//! and radius as the runtime gives them, with no matrix in between) into a typed array: a
+//! little-endian frame of fixed-size parts is a `DataView` write away there and a
+//! bounds-checked read here, with nothing to parse. Every length is implied by the header, so
+//! a message is either exactly right or refused.
 //!
 //! ```text
 //! offset  size  field
@@ -23,25 +24,31 @@
 //! ```
 //!
 //! **What is refused**, each with a named [`WireError`] (the socket is outside input): a wrong
-//! length, magic, kind or reserved field; a hand mask beyond the two hands; a non-finite number;
-//! a position farther than [`MAX_POSITION_M`] from the origin; an orientation that is no
-//! rotation (norm outside 0.5 to 2; within it, it is passed on as sent, each f32 exactly, as a
-//! CARL trace's are, and the hand model normalises what it uses); a radius outside 0 to
+//! length, magic, kind or reserved field; a hand mask beyond the two hands; a joint that
+//! fails the check every source of joints makes ([`common::Pose::joint_fault`]: a non-finite
+//! number, a position farther than [`MAX_POSITION_M`] from the origin, an orientation that is
+//! no rotation; within it, an orientation is passed on as sent, each f32 exactly, as a CARL
+//! trace's are, and the hand model normalises what it uses); a radius outside 0 to
 //! [`MAX_RADIUS_M`]. Order, replays and floods are the session's to judge (by `seq` and time),
 //! not the decoder's.
 //!
 //! **The other messages** of the page's socket share the first eight bytes (magic, kind, three
 //! zero bytes) and a u32 at 8; each has a fixed length ([`page`]): the page's frame statistics
 //! (kind 2) and its answer to a clock ping (kind 4) come in; the world (kind 3) and the ping
-//! (kind 5) go out.
+//! (kind 5) go out. Two go out as text (JSON, [`page::Text`]): the scene, first, and `ready`
+//! once the page's clock is known. [`page`] declares them all; the page's script
+//! (services/webxr/page/app.js) is checked against it by tests/webxr_browser.rs, which passes
+//! every message through the page's own decoders and encoders in Chromium. The emulated
+//! headset's playback file, WebXR's joints again, is [`playback`].
 //!
 //! **Joints.** WebXR's hand has 25 joints; OpenXR's (`XR_EXT_hand_tracking`, which CARL traces
 //! and the `joints` topic carry) has the same 25 after a `palm` joint. [`to_joints`] derives the
 //! palm as OpenXR defines it: at the middle of the middle finger's metacarpal (halfway from its
 //! metacarpal joint to its proximal phalanx joint), oriented as that metacarpal. From there the
-//! hand takes the very path a CARL replay does (kinematics' joints model).
+//! hand takes the very path a CARL replay does (kinematics' joints model). [`from_joints`] is
+//! its inverse, for what plays a recorded hand as a headset's (the emulated headset, tests).
 
-use common::samples::{JointsSample, Pose, OPENXR_JOINTS};
+use common::samples::{JointFault, JointsSample, Pose, OPENXR_JOINTS};
 
 /// The message's first four bytes.
 pub const MAGIC: [u8; 4] = *b"HBX1";
@@ -57,8 +64,9 @@ pub const HEADER_BYTES: usize = 24;
 pub const HAND_BYTES: usize = WEBXR_JOINTS * VALUES_PER_JOINT * 4;
 /// The longest message: both hands.
 pub const MAX_MESSAGE_BYTES: usize = HEADER_BYTES + 2 * HAND_BYTES;
-/// The farthest a joint may be from the origin, metres (a room, generously).
-pub const MAX_POSITION_M: f32 = 100.0;
+/// The farthest a joint may be from the origin, metres: the bound every source of joints
+/// holds to.
+pub use common::samples::MAX_JOINT_DISTANCE_M as MAX_POSITION_M;
 /// The largest joint radius, metres (a joint is a centimetre or two).
 pub const MAX_RADIUS_M: f32 = 0.1;
 
@@ -130,13 +138,13 @@ pub enum WireError {
     Position {
         hand: Handedness,
         joint: usize,
-        metres: f32,
+        metres: f64,
     },
     /// An orientation whose norm is far from 1: no rotation.
     Orientation {
         hand: Handedness,
         joint: usize,
-        norm: f32,
+        norm: f64,
     },
     /// A radius outside 0 to [`MAX_RADIUS_M`].
     Radius {
@@ -213,6 +221,7 @@ fn f32_at(bytes: &[u8], at: usize) -> f32 {
 }
 
 pub mod page;
+pub mod playback;
 
 /// Decodes `bytes` into `out` (left as it was when refused). Allocates nothing.
 pub fn decode_into(bytes: &[u8], out: &mut HandsFrame) -> Result<(), WireError> {
@@ -263,20 +272,26 @@ pub fn decode_into(bytes: &[u8], out: &mut HandsFrame) -> Result<(), WireError> 
         for joint in 0..WEBXR_JOINTS {
             let v: [f32; VALUES_PER_JOINT] = std::array::from_fn(|k| f32_at(bytes, at + 4 * k));
             at += 4 * VALUES_PER_JOINT;
-            if v.iter().any(|x| !x.is_finite()) {
+            let pose = Pose {
+                position: [v[0], v[1], v[2]].map(f64::from),
+                rotation: [v[3], v[4], v[5], v[6]].map(f64::from),
+            };
+            match pose.joint_fault() {
+                None => {}
+                Some(JointFault::NonFinite) => return Err(WireError::NonFinite { hand, joint }),
+                Some(JointFault::TooFar { metres }) => {
+                    return Err(WireError::Position {
+                        hand,
+                        joint,
+                        metres,
+                    })
+                }
+                Some(JointFault::NoRotation { norm }) => {
+                    return Err(WireError::Orientation { hand, joint, norm })
+                }
+            }
+            if !v[7].is_finite() {
                 return Err(WireError::NonFinite { hand, joint });
-            }
-            let metres = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            if metres > MAX_POSITION_M {
-                return Err(WireError::Position {
-                    hand,
-                    joint,
-                    metres,
-                });
-            }
-            let norm = (v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]).sqrt();
-            if !(0.5..=2.0).contains(&norm) {
-                return Err(WireError::Orientation { hand, joint, norm });
             }
             if !(0.0..=MAX_RADIUS_M).contains(&v[7]) {
                 return Err(WireError::Radius {
@@ -285,10 +300,7 @@ pub fn decode_into(bytes: &[u8], out: &mut HandsFrame) -> Result<(), WireError> 
                     metres: v[7],
                 });
             }
-            joints.poses[joint] = Pose {
-                position: [v[0], v[1], v[2]].map(f64::from),
-                rotation: [v[3], v[4], v[5], v[6]].map(f64::from),
-            };
+            joints.poses[joint] = pose;
             joints.radii[joint] = f64::from(v[7]);
         }
     }
@@ -350,6 +362,17 @@ pub fn to_joints(hand: &HandJoints, out: &mut JointsSample) {
     out.joints[1..].copy_from_slice(&hand.poses);
     out.wrist = hand.poses[0];
     out.tracked = 1;
+}
+
+/// The inverse of [`to_joints`]: a `joints` sample's hand as WebXR's 25 joints, the sample's
+/// `wrist` first, then OpenXR's joints after its palm and wrist (the palm is derived, so it is
+/// dropped). The wrist comes from `wrist`, not from OpenXR's wrist joint, because CARL's traces
+/// hold identity poses in their palm and wrist joints and the wrist's pose beside them.
+pub fn from_joints(joints: &JointsSample) -> [Pose; WEBXR_JOINTS] {
+    std::array::from_fn(|k| match k {
+        0 => joints.wrist,
+        _ => joints.joints[k + 1],
+    })
 }
 
 #[cfg(test)]
@@ -468,6 +491,30 @@ mod tests {
         assert_eq!(j.joints[25], f.hands[1].poses[24], "the pinky tip last");
         assert_eq!(j.wrist, f.hands[1].poses[0]);
         assert_eq!(j.tracked, 1);
+    }
+
+    #[test]
+    fn from_joints_undoes_to_joints_and_to_joints_undoes_it_on_a_sample_it_made() {
+        let mut hand = frame().hands[1];
+        for (j, p) in hand.poses.iter_mut().enumerate() {
+            let a = 0.05 * j as f64;
+            p.rotation = [a.sin(), 0.0, 0.0, a.cos()];
+        }
+        let mut joints = JointsSample::default();
+        to_joints(&hand, &mut joints);
+        assert_eq!(from_joints(&joints), hand.poses);
+        let mut again = JointsSample::default();
+        to_joints(
+            &HandJoints {
+                poses: from_joints(&joints),
+                radii: hand.radii,
+            },
+            &mut again,
+        );
+        assert_eq!(again, joints);
+        // A CARL sample: the wrist beside an identity wrist joint; the page's first is it.
+        joints.joints[1] = Pose::IDENTITY;
+        assert_eq!(from_joints(&joints)[0], hand.poses[0]);
     }
 
     proptest::proptest! {

@@ -1,6 +1,7 @@
 //! The page's socket besides the hands frame: what else the page sends (its frame statistics,
-//! its answer to a clock ping) and what it is sent (the world, the ping). Every message starts
-//! with [`MAGIC`] and a kind byte, then three zero bytes and a u32; each kind has one length.
+//! its answer to a clock ping) and what it is sent (the scene and `ready` as text, the world,
+//! the ping). Every binary message starts with [`MAGIC`] and a kind byte, then three zero bytes
+//! and a u32; each kind has one length.
 //!
 //! ```text
 //! kind 2, stats (page -> us), 32 bytes: u32 seq of the hands frame reported; f64 its frame
@@ -18,8 +19,15 @@
 //! ```
 //! Statistics are bounded: a JavaScript time of 0 to 10 s, a round trip of -1 (none) or 0 to
 //! 60 s; clock times finite and non-negative.
+//!
+//! **Text** ([`Text`], JSON objects told apart by their `op`): the [`Scene`], sent first on
+//! every socket (the blocks' hulls, names and colours, the floor, the session's hands and
+//! offset), and [`Ready`], once the page's clock is known (the page sends hands only after
+//! it). Their keys go out in the order their fields are declared, which is the order the
+//! first server wrote them in, so the bytes did not change when they became types.
 
 use common::{WorldView, MAX_FINGERS, MAX_FINGER_POINTS};
+use serde::{Deserialize, Serialize};
 
 use crate::{WireError, MAGIC};
 
@@ -51,6 +59,14 @@ pub struct FrameStats {
     pub js_ms: f64,
     /// None when no world answered a frame since the last statistics.
     pub round_trip_ms: Option<f64>,
+}
+
+/// A clock ping.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ping {
+    pub seq: u32,
+    /// The server's CLOCK_MONOTONIC when it sent the ping, ms (the pong echoes it).
+    pub server_ms: f64,
 }
 
 /// The page's answer to a ping.
@@ -132,6 +148,15 @@ pub fn decode_stats(bytes: &[u8]) -> Result<FrameStats, WireError> {
     })
 }
 
+/// Decodes a ping (kind 5).
+pub fn decode_ping(bytes: &[u8]) -> Result<Ping, WireError> {
+    fixed(bytes, KIND_PING, PING_BYTES)?;
+    Ok(Ping {
+        seq: u32_at(bytes, 8),
+        server_ms: within("server_ms", f64_at(bytes, 16), 0.0..=f64::MAX)?,
+    })
+}
+
 /// Decodes the page's answer to a ping (kind 4).
 pub fn decode_pong(bytes: &[u8]) -> Result<Pong, WireError> {
     fixed(bytes, KIND_PONG, STATS_BYTES)?;
@@ -199,6 +224,227 @@ pub fn encode_world(page_seq: u32, world_time_s: f64, world: &WorldView<'_>, out
     }
 }
 
+/// A world message (kind 3) as the page reads it: what [`encode_world`] wrote, each number
+/// as it travelled.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct World {
+    /// The seq of the page's hands frame this world answers ([`NO_FRAME`]: none of its own).
+    pub page_seq: u32,
+    /// The world's time, seconds (its step count times its step).
+    pub time_s: f64,
+    /// The grasped block (-1: none; with two grasped, the first).
+    pub grasped: i32,
+    pub blocks: Vec<WorldBlock>,
+    /// Every finger's points as drawn, one finger after another.
+    pub finger_points: Vec<[f32; 3]>,
+}
+
+/// One block of a [`World`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WorldBlock {
+    pub position: [f32; 3],
+    /// A unit quaternion `[x, y, z, w]`.
+    pub rotation: [f32; 4],
+    /// `common::BlockMode`.
+    pub mode: u16,
+    /// `BlockState::held_by`: bit 0 the right hand (or a one-hand session's only hand), bit 1
+    /// the left.
+    pub held_by: u16,
+}
+
+fn f32_at(bytes: &[u8], at: usize) -> f32 {
+    let mut b = [0u8; 4];
+    b.copy_from_slice(&bytes[at..at + 4]);
+    f32::from_le_bytes(b)
+}
+
+fn u16_at(bytes: &[u8], at: usize) -> u16 {
+    u16::from_le_bytes([bytes[at], bytes[at + 1]])
+}
+
+/// Decodes a world message (kind 3): its length must be the one its counts imply.
+pub fn decode_world(bytes: &[u8]) -> Result<World, WireError> {
+    let k = kind_of(bytes)?;
+    if k != KIND_WORLD {
+        return Err(WireError::Kind(k));
+    }
+    if bytes.len() < WORLD_HEADER_BYTES {
+        return Err(WireError::Length {
+            expected: WORLD_HEADER_BYTES,
+            got: bytes.len(),
+        });
+    }
+    if bytes[5..8] != [0, 0, 0] {
+        return Err(WireError::Reserved);
+    }
+    let blocks = u32_at(bytes, 12) as usize;
+    let points = u32_at(bytes, 28) as usize;
+    let expected = blocks
+        .checked_mul(WORLD_BLOCK_BYTES)
+        .zip(points.checked_mul(WORLD_POINT_BYTES))
+        .and_then(|(b, p)| (WORLD_HEADER_BYTES + b).checked_add(p));
+    if expected != Some(bytes.len()) {
+        return Err(WireError::Length {
+            expected: expected.unwrap_or(usize::MAX),
+            got: bytes.len(),
+        });
+    }
+    let block = |i: usize| {
+        let at = WORLD_HEADER_BYTES + i * WORLD_BLOCK_BYTES;
+        WorldBlock {
+            position: std::array::from_fn(|k| f32_at(bytes, at + 4 * k)),
+            rotation: std::array::from_fn(|k| f32_at(bytes, at + 12 + 4 * k)),
+            mode: u16_at(bytes, at + 28),
+            held_by: u16_at(bytes, at + 30),
+        }
+    };
+    let first_point = WORLD_HEADER_BYTES + blocks * WORLD_BLOCK_BYTES;
+    let point = |i: usize| {
+        let at = first_point + i * WORLD_POINT_BYTES;
+        std::array::from_fn(|k| f32_at(bytes, at + 4 * k))
+    };
+    Ok(World {
+        page_seq: u32_at(bytes, 8),
+        time_s: f64_at(bytes, 16),
+        grasped: u32_at(bytes, 24) as i32,
+        blocks: (0..blocks).map(block).collect(),
+        finger_points: (0..points).map(point).collect(),
+    })
+}
+
+/// The hands a session takes from the page, as the scene names them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Hands {
+    Right,
+    Left,
+    Both,
+}
+
+impl From<common::HandsUsed> for Hands {
+    fn from(hands: common::HandsUsed) -> Hands {
+        match hands {
+            common::HandsUsed::One(common::HandSide::Right) => Hands::Right,
+            common::HandsUsed::One(common::HandSide::Left) => Hands::Left,
+            common::HandsUsed::Both => Hands::Both,
+        }
+    }
+}
+
+/// The `op` of a [`Scene`]: a field of its own, so that it goes out where the first server
+/// put it (keys in alphabetical order), not first as a serde tag would.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum SceneOp {
+    #[default]
+    #[serde(rename = "scene")]
+    Scene,
+}
+
+/// The `op` of a [`Ready`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum ReadyOp {
+    #[default]
+    #[serde(rename = "ready")]
+    Ready,
+}
+
+/// The scene as the page draws it, sent first on every socket.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scene {
+    pub blocks: Vec<SceneBlock>,
+    /// The floor's height, metres (the world's y).
+    pub floor_y: f64,
+    /// The hands the session takes: the page draws the world's hand slots with them.
+    pub hand: Hands,
+    /// What the session adds to the tracked hand's positions (metres): the page moves the
+    /// world back by as much in the headset, so the blocks lie where the hand is.
+    pub offset: [f64; 3],
+    pub op: SceneOp,
+    /// The session's file, for the page to show.
+    pub session: String,
+    pub step_hz: f64,
+}
+
+/// One block of a [`Scene`]: its hull in its own frame (about its centre of gravity, as the
+/// world's poses place it), its name and colour.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SceneBlock {
+    /// Linear RGB, 0 to 1 (the scene's f32 colours, each as the f64 it is).
+    pub color: [f64; 3],
+    /// Three per triangle, into `vertices`.
+    pub indices: Vec<u32>,
+    pub name: String,
+    /// x y z per vertex, metres.
+    pub vertices: Vec<f64>,
+}
+
+/// The page's clock is known: it may send hands. The offset and round trip are the ping's
+/// with the shortest round trip so far, for the page to show.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Ready {
+    pub op: ReadyOp,
+    /// Add to the page's clock (ms) for this machine's CLOCK_MONOTONIC (ms).
+    pub offset_ms: f64,
+    pub round_trip_ms: f64,
+}
+
+/// A text message to the page.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Text {
+    Scene(Scene),
+    Ready(Ready),
+}
+
+/// Why a text message was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum TextError {
+    #[error("not a message of the page's: {0}")]
+    Json(#[from] serde_json::Error),
+    #[error("unknown op {0:?} (allowed: scene, ready)")]
+    Op(String),
+}
+
+/// Its JSON: a structure of numbers and strings, which always serialises.
+fn json<T: Serialize>(message: &T) -> String {
+    serde_json::to_string(message).expect("a message of numbers and strings serialises")
+}
+
+impl Scene {
+    /// The scene's JSON, as the page is sent it.
+    pub fn encode(&self) -> String {
+        json(self)
+    }
+}
+
+impl Ready {
+    pub fn new(offset_ms: f64, round_trip_ms: f64) -> Ready {
+        Ready {
+            op: ReadyOp::Ready,
+            offset_ms,
+            round_trip_ms,
+        }
+    }
+
+    /// `ready`'s JSON, as the page is sent it.
+    pub fn encode(&self) -> String {
+        json(self)
+    }
+}
+
+/// Decodes a text message by its `op`.
+pub fn decode_text(text: &str) -> Result<Text, TextError> {
+    #[derive(Deserialize)]
+    struct Op {
+        op: String,
+    }
+    let Op { op } = serde_json::from_str(text)?;
+    match op.as_str() {
+        "scene" => Ok(Text::Scene(serde_json::from_str(text)?)),
+        "ready" => Ok(Text::Ready(serde_json::from_str(text)?)),
+        _ => Err(TextError::Op(op)),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -235,6 +481,16 @@ mod tests {
         encode_pong(&p, &mut b);
         assert_eq!(decode_pong(&b), Ok(p));
         assert_eq!(decode_stats(&b).unwrap_err().kind(), "kind");
+        let mut ping = Vec::new();
+        encode_ping(3, 10.0, &mut ping);
+        assert_eq!(
+            decode_ping(&ping),
+            Ok(Ping {
+                seq: 3,
+                server_ms: 10.0
+            })
+        );
+        assert_eq!(decode_ping(&b).unwrap_err().kind(), "kind");
         b.push(0);
         assert_eq!(decode_pong(&b).unwrap_err().kind(), "length");
         b.pop();
@@ -294,5 +550,76 @@ mod tests {
         let cap = b.capacity();
         encode_world(8, 1.5, &world, &mut b);
         assert_eq!(b.capacity(), cap, "a kept buffer is not grown again");
+        let back = decode_world(&b).unwrap();
+        assert_eq!((back.page_seq, back.time_s, back.grasped), (8, 1.5, 1));
+        assert_eq!(back.blocks.len(), 2);
+        assert_eq!(back.blocks[1].position, [1.0, 2.0, 3.0]);
+        assert_eq!(back.blocks[1].rotation, [0.0, 0.0, 0.0, 1.0]);
+        assert_eq!(
+            (back.blocks[1].mode, back.blocks[1].held_by),
+            (grasped.into(), 2)
+        );
+        assert_eq!(back.finger_points.len(), 3);
+        b.pop();
+        assert_eq!(decode_world(&b).unwrap_err().kind(), "length");
+        b[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert_eq!(decode_world(&b).unwrap_err().kind(), "length");
+    }
+
+    fn scene() -> Scene {
+        Scene {
+            blocks: vec![SceneBlock {
+                color: [0.8f32, 0.2, 0.1].map(f64::from),
+                indices: vec![0, 1, 2],
+                name: "cube".into(),
+                vertices: vec![0.0, 0.5, -0.25, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+            }],
+            floor_y: 0.0,
+            hand: Hands::Both,
+            offset: [0.0, -0.92, 0.0],
+            op: SceneOp::Scene,
+            session: "config/sessions/webxr.toml".into(),
+            step_hz: 120.0,
+        }
+    }
+
+    #[test]
+    fn the_text_messages_go_out_as_the_first_server_wrote_them_and_read_back() {
+        // The scene was a `json!` value (keys sorted; its f32 colours as f64), `ready` a
+        // `format!` (op first).
+        let s = scene();
+        let colour: [f32; 3] = [0.8, 0.2, 0.1];
+        let was = serde_json::json!({
+            "op": "scene",
+            "session": s.session,
+            "hand": "both",
+            "floor_y": 0.0,
+            "step_hz": s.step_hz,
+            "offset": s.offset,
+            "blocks": [{
+                "name": "cube",
+                "color": colour,
+                "vertices": s.blocks[0].vertices,
+                "indices": s.blocks[0].indices,
+            }],
+        })
+        .to_string();
+        assert_eq!(s.encode(), was);
+        let r = Ready::new(4000.125, 1.5);
+        assert_eq!(
+            r.encode(),
+            r#"{"op":"ready","offset_ms":4000.125,"round_trip_ms":1.5}"#
+        );
+        assert_eq!(decode_text(&s.encode()).unwrap(), Text::Scene(s));
+        assert_eq!(decode_text(&r.encode()).unwrap(), Text::Ready(r));
+        assert!(matches!(
+            decode_text(r#"{"op":"error","message":"x"}"#),
+            Err(TextError::Op(op)) if op == "error"
+        ));
+        assert!(matches!(
+            decode_text(r#"{"op":"ready"}"#),
+            Err(TextError::Json(_))
+        ));
+        assert!(matches!(decode_text("[]"), Err(TextError::Json(_))));
     }
 }

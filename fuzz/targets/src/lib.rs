@@ -943,7 +943,7 @@ pub fn webxr(data: &[u8]) {
         for p in joints.joints.iter().chain([&joints.wrist]) {
             assert!(p.is_finite(), "{p:?}");
             let r = p.position.iter().map(|x| x * x).sum::<f64>().sqrt();
-            assert!(r <= f64::from(MAX_POSITION_M) + 1e-3, "{r} m");
+            assert!(r <= MAX_POSITION_M + 1e-3, "{r} m");
             let n = p.rotation.iter().map(|x| x * x).sum::<f64>().sqrt();
             assert!(
                 (0.5 - 1e-6..=2.0 + 1e-6).contains(&n),

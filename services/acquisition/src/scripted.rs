@@ -20,25 +20,15 @@ pub struct HandTarget {
 }
 
 /// Why a scene's hand cannot be scripted as a glove and tracker.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ScriptError {
     /// The keys give bare check points, which no glove can report.
+    #[error(
+        "the scene's [hand] keys give bare `fingers` check points, which no glove can report; \
+         run such a scene with `handblocks simulate`, or give the keys `grip` or `angles`"
+    )]
     BareFingers,
 }
-
-impl std::fmt::Display for ScriptError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ScriptError::BareFingers => write!(
-                f,
-                "the scene's [hand] keys give bare `fingers` check points, which no glove can report; \
-                 run such a scene with `handblocks simulate`, or give the keys `grip` or `angles`"
-            ),
-        }
-    }
-}
-
-impl std::error::Error for ScriptError {}
 
 /// Glove angles of a closed fist, 22-sensor order: grip g gives g times these.
 pub fn fist_angles() -> [f64; MAX_GLOVE_SENSORS] {

@@ -8,6 +8,7 @@ use common::config::session::Source;
 use common::config::Session;
 use common::latency::{LatencyRecorder, Reporter};
 use common::node::{self, Counters, Pass, Task};
+use common::samples::DeviceKind;
 use common::stamp::sleep_until_ns;
 use common::{monotonic_ns, shutdown, topics, Stage, Stamp};
 
@@ -136,8 +137,8 @@ impl Task for Devices {
             return Err(e);
         }
         reporter.set_devices([
-            stats.glove.device_counters(1),
-            stats.tracker.device_counters(2),
+            stats.glove.device_counters(DeviceKind::Glove),
+            stats.tracker.device_counters(DeviceKind::Tracker),
         ]);
         if stats.dropped > 0 {
             eprintln!("handblocks acquisition: {} device samples arrived faster than they could be published and were dropped", stats.dropped);

@@ -18,7 +18,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use common::bus::{
-    wait_each, Bus, BusError, Inlet, Outlet, Stamped, WaitStrategy, Waiter, Wakeable,
+    wait_each, AnyInlet, Bus, BusError, Outlet, Stamped, WaitStrategy, Waiter, Wakeable,
 };
 use common::config::session::{LinkRole, Source};
 use common::config::Session;
@@ -97,49 +97,17 @@ impl Out {
     }
 }
 
-/// One topic the bridge reads from the bus, whatever its sample type.
-trait Input {
-    fn wakeable(&self) -> &dyn Wakeable;
-    fn drain(&self, out: &mut Out, r: &mut LatencyRecorder) -> Result<(), BusError>;
-    fn counter(&self) -> TopicCounter;
-}
-
-impl<P: TopicSpec> Input for Inlet<P> {
-    fn wakeable(&self) -> &dyn Wakeable {
-        self
+/// Sends out every sample waiting in `inlet` (one of the topics the bridge reads,
+/// whichever): its message made from the sample's bytes in the publisher's memory, into the
+/// one buffer `out` keeps.
+fn drain(inlet: &AnyInlet, out: &mut Out, r: &mut LatencyRecorder) -> Result<(), BusError> {
+    while let Some(s) = inlet.receive()? {
+        let received = monotonic_ns();
+        let view = s.view();
+        recording::encode_view(&view, &mut out.message);
+        out.send(r, view.topic(), received, s.stamp());
     }
-    fn drain(&self, out: &mut Out, r: &mut LatencyRecorder) -> Result<(), BusError> {
-        while let Some(s) = self.receive()? {
-            let received = monotonic_ns();
-            recording::encode_sample(s.payload(), &mut out.message);
-            out.send(r, P::TOPIC, received, s.stamp());
-        }
-        Ok(())
-    }
-    fn counter(&self) -> TopicCounter {
-        Inlet::counter(self)
-    }
-}
-
-/// A slice topic's inlet, as an [`Input`] (a type of its own: one generic impl for [`Inlet`]
-/// cannot tell how to encode each kind of sample).
-struct SliceInput<P: SliceTopicSpec>(Inlet<P>);
-
-impl<P: SliceTopicSpec> Input for SliceInput<P> {
-    fn wakeable(&self) -> &dyn Wakeable {
-        &self.0
-    }
-    fn drain(&self, out: &mut Out, r: &mut LatencyRecorder) -> Result<(), BusError> {
-        while let Some(s) = self.0.receive()? {
-            let received = monotonic_ns();
-            recording::encode_slice(P::TOPIC, s.user_header(), s.payload(), &mut out.message);
-            out.send(r, P::TOPIC, received, s.user_header().stamp());
-        }
-        Ok(())
-    }
-    fn counter(&self) -> TopicCounter {
-        self.0.counter()
-    }
+    Ok(())
 }
 
 /// One topic the bridge publishes on the bus, taken in from the link.
@@ -214,34 +182,25 @@ impl<P: SliceTopicSpec> Output for SliceOutput<P> {
     }
 }
 
-/// Opens an inlet on each topic of `inputs` and an outlet on each of `outputs`.
-struct OpenPorts<'b> {
+/// Opens an outlet on each topic of `outputs`.
+struct OpenOutputs<'b> {
     bus: &'b Bus,
-    inputs: Vec<Topic>,
     outputs: Vec<Topic>,
     world_elements: usize,
-    opened_in: Vec<Box<dyn Input>>,
-    opened_out: Vec<Box<dyn Output>>,
+    opened: Vec<Box<dyn Output>>,
 }
 
-impl TopicVisitor for OpenPorts<'_> {
+impl TopicVisitor for OpenOutputs<'_> {
     type Error = BusError;
     fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
-        if self.inputs.contains(&P::TOPIC) {
-            self.opened_in.push(Box::new(self.bus.inlet::<P>()?));
-        }
         if self.outputs.contains(&P::TOPIC) {
-            self.opened_out.push(Box::new(self.bus.outlet::<P>()?));
+            self.opened.push(Box::new(self.bus.outlet::<P>()?));
         }
         Ok(())
     }
     fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
-        if self.inputs.contains(&P::TOPIC) {
-            self.opened_in
-                .push(Box::new(SliceInput(self.bus.inlet::<P>()?)));
-        }
         if self.outputs.contains(&P::TOPIC) {
-            self.opened_out.push(Box::new(SliceOutput {
+            self.opened.push(Box::new(SliceOutput {
                 outlet: self.bus.slice_outlet::<P>()?,
                 elements: self.world_elements,
             }));
@@ -308,20 +267,20 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), BridgeError> {
         }
         None => None,
     };
-    let mut ports = OpenPorts {
+    // An inlet on each topic it reads, in table order.
+    let ins = Topic::ALL
+        .into_iter()
+        .filter(|t| inputs.contains(t))
+        .map(|t| bus.any_inlet(t))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut outputs = OpenOutputs {
         bus,
-        inputs,
         outputs,
         world_elements: session.scene.blocks.len(),
-        opened_in: Vec::new(),
-        opened_out: Vec::new(),
+        opened: Vec::new(),
     };
-    Topic::visit_each(&mut ports)?;
-    let OpenPorts {
-        opened_in: ins,
-        opened_out: outs,
-        ..
-    } = ports;
+    Topic::visit_each(&mut outputs)?;
+    let outs = outputs.opened;
     // A session that expects a viewer: the launcher starts the source once this stage
     // reports (its latency publisher, made in `node::run`), as it does once every local reader
     // is attached; so wait here until the viewer takes every topic sent (issue 40).
@@ -379,7 +338,8 @@ struct BridgeStage<'s> {
     session: &'s Session,
     /// `bridge.json` in the session folder.
     summary_file: PathBuf,
-    ins: Vec<Box<dyn Input>>,
+    /// One per topic it reads, in table order.
+    ins: Vec<AnyInlet>,
     outs: Vec<Box<dyn Output>>,
     out: Out,
     /// The link's descriptor that says samples were taken in (when any topic is).
@@ -405,12 +365,13 @@ impl Task for BridgeStage<'_> {
             std::thread::sleep(timeout);
             return Ok(());
         }
-        wait_each(self.ins.iter().map(|i| i.wakeable()), self.wake_fd, timeout)
+        let wakeables = self.ins.iter().map(|i| i as &dyn Wakeable);
+        wait_each(wakeables, self.wake_fd, timeout)
     }
 
     fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
         for i in &self.ins {
-            i.drain(&mut self.out, pass.recorder)?;
+            drain(i, &mut self.out, pass.recorder)?;
         }
         take_in(
             &mut self.out,
@@ -424,7 +385,7 @@ impl Task for BridgeStage<'_> {
     fn counters(&self) -> Counters {
         self.ins
             .iter()
-            .map(|i| i.counter())
+            .map(AnyInlet::counter)
             .chain(self.outs.iter().map(|o| o.counter()))
             .collect()
     }

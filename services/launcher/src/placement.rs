@@ -14,6 +14,7 @@
 //! renderer yields to it. `[renderer] own_cpus = false` turns it off. Without a renderer
 //! nothing is pinned.
 
+use common::stage::Cores;
 use common::Stage;
 
 /// The CPU sets of the two groups; `None` when nothing is pinned.
@@ -81,17 +82,10 @@ impl Placement {
     /// The CPU set of a stage's process, if it is pinned.
     pub fn cpus_of(&self, stage: Stage) -> Option<libc::cpu_set_t> {
         let (pipeline, consumers) = self.sets?;
-        Some(match stage {
-            // The bridge is a consumer too: what it sends is off the pipeline's path. A user's
-            // program (an external source: a webcam tracker runs a neural network per frame)
-            // is of unknown weight: beside the renderer (SCHED_IDLE, so it yields to it), not
-            // on the cores the stepper needs.
-            Stage::Renderer | Stage::Recorder | Stage::Bridge | Stage::External => consumers,
-            Stage::Acquisition
-            | Stage::Replay
-            | Stage::Webxr
-            | Stage::Kinematics
-            | Stage::Stepper => pipeline,
+        // The stage table says which share each stage is on ([`Stage::cores`]).
+        Some(match stage.cores() {
+            Cores::Consumers => consumers,
+            Cores::Pipeline => pipeline,
         })
     }
 

@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 
 use std::os::unix::process::CommandExt;
 
+use common::stage::Priority;
 use common::Stage;
 
 /// The nice value of the renderer and recorder processes (the pipeline's own run at 0).
@@ -96,12 +97,13 @@ impl ServiceProcess {
         // The renderer runs SCHED_IDLE: any pipeline stage that wakes takes the core at once,
         // and the renderer still gets every cycle the pipeline leaves. The recorder, light and
         // latency-free, runs at a lower nice value.
-        if matches!(stage, Stage::Renderer | Stage::Recorder) {
+        // The stage table says which ([`Stage::priority`]).
+        if stage.priority() != Priority::Normal {
             // SAFETY: setpriority/sched_setscheduler on our own child's pid with a valid param;
             // an unprivileged process may lower its own priority; failure only leaves the default.
             unsafe {
                 libc::setpriority(libc::PRIO_PROCESS, child.id() as libc::id_t, CONSUMER_NICE);
-                if stage == Stage::Renderer {
+                if stage.priority() == Priority::Idle {
                     let param = libc::sched_param { sched_priority: 0 };
                     libc::sched_setscheduler(child.id() as libc::pid_t, libc::SCHED_IDLE, &param);
                 }

@@ -11,8 +11,10 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use common::bus::{Bus, BusConfig, Inlet};
-use common::config::session::{recording_segment, RestartPolicy};
+use common::config::session::RestartPolicy;
 use common::config::Session;
+use common::node::restart_output;
+use common::stage::OnRestart;
 use common::{shutdown, topics, Stage, Topic};
 
 use crate::error::describe_exit;
@@ -25,9 +27,6 @@ use crate::LaunchOptions;
 
 /// How long a stopping process may take to send its final report.
 const FINAL_REPORT_TIMEOUT: Duration = Duration::from_secs(5);
-/// How long the renderer may take to exit after its final report: it draws its preview again
-/// with the preview's own camera and encodes it then (seconds on a loaded machine).
-const RENDERER_EXIT_WAIT: Duration = Duration::from_secs(60);
 /// A stage that has reported and then says nothing for this long is stopped (SIGSTOP) or hung:
 /// every stage reports about once a second, idle or not.
 const STALLED_AFTER: Duration = Duration::from_secs(3);
@@ -264,12 +263,12 @@ impl<'a> Supervision<'a> {
             }
             let n = done + 1;
             let wait = policy.backoff(n);
-            let segment = (stage == Stage::Recorder)
+            let segment = (stage.on_restart() == OnRestart::NextSegment)
                 .then(|| {
                     self.restarting
                         .recording
                         .as_ref()
-                        .map(|f| recording_segment(f, n).display().to_string())
+                        .map(|f| restart_output(stage, f, n).display().to_string())
                 })
                 .flatten();
             let at_s = self.restarting.started.elapsed().as_secs_f64();
@@ -408,13 +407,9 @@ impl<'a> Supervision<'a> {
             if let Some(r) = self.reports.get_mut(&p.stage) {
                 r.cpu_s = cpu;
             }
-            // The renderer draws and encodes its preview after its final report.
-            let exit_wait = if p.stage == Stage::Renderer {
-                RENDERER_EXIT_WAIT
-            } else {
-                Duration::from_secs(5)
-            };
-            let status = p.release_and_reap(exit_wait);
+            // What it still does after its final report (the renderer draws and encodes its
+            // preview) is the stage table's ([`Stage::exit_wait`]).
+            let status = p.release_and_reap(p.stage.exit_wait());
             if !has_final(&self.reports, p.stage) {
                 self.failures.push(format!(
                     "the {} process sent no final report ({})",
@@ -456,13 +451,16 @@ fn collect(latency: &Inlet<topics::Latency>, reports: &mut BTreeMap<Stage, Stage
 fn count_recording_losses(recording: &Path, restarts: &mut [Restart]) {
     let last = restarts
         .iter()
-        .filter(|r| r.stage == Stage::Recorder)
+        .filter(|r| r.stage.on_restart() == OnRestart::NextSegment)
         .map(|r| r.n)
         .max();
     let Some(last) = last else { return };
     match recording::SegmentChain::open(recording, last + 1) {
         Ok(chain) => {
-            for r in restarts.iter_mut().filter(|r| r.stage == Stage::Recorder) {
+            for r in restarts
+                .iter_mut()
+                .filter(|r| r.stage.on_restart() == OnRestart::NextSegment)
+            {
                 r.missing_from_recording = chain
                     .gaps
                     .get(r.n as usize - 1)
@@ -476,7 +474,10 @@ fn count_recording_losses(recording: &Path, restarts: &mut [Restart]) {
             }
         }
         Err(e) => {
-            for r in restarts.iter_mut().filter(|r| r.stage == Stage::Recorder) {
+            for r in restarts
+                .iter_mut()
+                .filter(|r| r.stage.on_restart() == OnRestart::NextSegment)
+            {
                 r.segment_error = Some(e.to_string());
             }
         }

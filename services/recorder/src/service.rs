@@ -15,14 +15,11 @@
 
 use std::time::Duration;
 
-use common::bus::{
-    wait_each, Bus, BusError, Inlet, Stamped, WaitStrategy, Waiter, Wakeable, MAX_WAIT,
-};
+use common::bus::{wait_each, AnyInlet, Bus, BusError, WaitStrategy, Waiter, Wakeable, MAX_WAIT};
 use common::config::Session;
 use common::latency::{LatencyRecorder, Reporter};
 use common::node::{self, Counters, Pass, Task};
-use common::topic::{SliceTopicSpec, TopicSpec, TopicVisitor};
-use common::{monotonic_ns, Stage, Topic, TopicCounter};
+use common::{monotonic_ns, Stage, Topic};
 
 use common::samples::{BlockState, HandSample, WorldHeader};
 use recording::{RecordingError, RecordingWriter};
@@ -124,67 +121,21 @@ impl Log {
 // One `wait_any` sleeps on every recorded topic.
 const _: () = assert!(Topic::RECORDED.len() <= MAX_WAIT);
 
-/// One recorded topic's inlet, whatever its sample type: the recorder holds one per topic the
-/// table names it a reader of, in table order.
-trait Channel {
-    fn wakeable(&self) -> &dyn Wakeable;
-    /// Writes every sample waiting into `log` and records its latency.
-    fn drain(
-        &self,
-        log: &mut Option<Log>,
-        recorder: &mut LatencyRecorder,
-    ) -> Result<(), RecorderError>;
-    fn counter(&self) -> TopicCounter;
-}
-
-impl<P: TopicSpec> Channel for Inlet<P> {
-    fn wakeable(&self) -> &dyn Wakeable {
-        self
+/// Writes every sample waiting in `inlet` (one of the recorded topics', whichever) into `log`
+/// and records its latency: the sample's bytes are copied from the publisher's memory into the
+/// open chunk, nothing else.
+fn drain(
+    inlet: &AnyInlet,
+    log: &mut Option<Log>,
+    recorder: &mut LatencyRecorder,
+) -> Result<(), RecorderError> {
+    while let Some(s) = inlet.receive()? {
+        let view = s.view();
+        record_one(view.topic(), s.stamp(), log, recorder, |log| {
+            log.write_view(&view)
+        })?;
     }
-
-    fn drain(
-        &self,
-        log: &mut Option<Log>,
-        recorder: &mut LatencyRecorder,
-    ) -> Result<(), RecorderError> {
-        while let Some(s) = self.receive()? {
-            record_one(P::TOPIC, s.stamp(), log, recorder, |log| {
-                log.write(P::TOPIC, s.payload())
-            })?;
-        }
-        Ok(())
-    }
-
-    fn counter(&self) -> TopicCounter {
-        Inlet::counter(self)
-    }
-}
-
-/// A slice topic's inlet, as a [`Channel`] (a type of its own: one generic impl for
-/// [`Inlet`] cannot tell how to write each kind of sample).
-struct SliceChannel<P: SliceTopicSpec>(Inlet<P>);
-
-impl<P: SliceTopicSpec> Channel for SliceChannel<P> {
-    fn wakeable(&self) -> &dyn Wakeable {
-        &self.0
-    }
-
-    fn drain(
-        &self,
-        log: &mut Option<Log>,
-        recorder: &mut LatencyRecorder,
-    ) -> Result<(), RecorderError> {
-        while let Some(s) = self.0.receive()? {
-            record_one(P::TOPIC, s.user_header().stamp(), log, recorder, |log| {
-                log.write_slice(P::TOPIC, s.user_header(), s.payload())
-            })?;
-        }
-        Ok(())
-    }
-
-    fn counter(&self) -> TopicCounter {
-        self.0.counter()
-    }
+    Ok(())
 }
 
 /// One received sample: its hop, `write` into the recording (when there is one), and the
@@ -211,32 +162,10 @@ fn record_one(
     Ok(())
 }
 
-/// Opens an inlet on every topic the recorder reads.
-struct OpenChannels<'b> {
-    bus: &'b Bus,
-    channels: Vec<Box<dyn Channel>>,
-}
-
-impl TopicVisitor for OpenChannels<'_> {
-    type Error = BusError;
-    fn visit<P: TopicSpec>(&mut self) -> Result<(), BusError> {
-        if P::TOPIC.is_recorded() {
-            self.channels.push(Box::new(self.bus.inlet::<P>()?));
-        }
-        Ok(())
-    }
-    fn visit_slice<P: SliceTopicSpec>(&mut self) -> Result<(), BusError> {
-        if P::TOPIC.is_recorded() {
-            self.channels
-                .push(Box::new(SliceChannel(self.bus.inlet::<P>()?)));
-        }
-        Ok(())
-    }
-}
-
 /// The recorder stage: an inlet per recorded topic and the recording.
 struct Recorder {
-    channels: Vec<Box<dyn Channel>>,
+    /// One per recorded topic, in table order.
+    inlets: Vec<AnyInlet>,
     log: Option<Log>,
 }
 
@@ -244,13 +173,13 @@ impl Task for Recorder {
     type Error = RecorderError;
 
     fn wait(&mut self, _: &mut Waiter, timeout: Duration) -> Result<(), RecorderError> {
-        let wakeables = self.channels.iter().map(|c| c.wakeable());
+        let wakeables = self.inlets.iter().map(|i| i as &dyn Wakeable);
         Ok(wait_each(wakeables, None, timeout)?)
     }
 
     fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), RecorderError> {
-        for channel in &self.channels {
-            channel.drain(&mut self.log, pass.recorder)?;
+        for inlet in &self.inlets {
+            drain(inlet, &mut self.log, pass.recorder)?;
         }
         if let Some(log) = &mut self.log {
             log.writer.close_chunk_if_due(monotonic_ns())?;
@@ -259,7 +188,7 @@ impl Task for Recorder {
     }
 
     fn counters(&self) -> Counters {
-        self.channels.iter().map(|c| c.counter()).collect()
+        self.inlets.iter().map(AnyInlet::counter).collect()
     }
 
     fn stop(&mut self, _: &mut Reporter) -> Result<(), RecorderError> {
@@ -338,15 +267,12 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), RecorderError> {
         }
         None => None,
     };
-    let mut open = OpenChannels {
-        bus,
-        channels: Vec::with_capacity(Topic::RECORDED.len()),
-    };
-    Topic::visit_each(&mut open)?;
-    let mut recorder = Recorder {
-        channels: open.channels,
-        log,
-    };
+    // An inlet on every topic the recorder reads (the table names it their reader).
+    let inlets = Topic::RECORDED
+        .into_iter()
+        .map(|t| bus.any_inlet(t))
+        .collect::<Result<_, _>>()?;
+    let mut recorder = Recorder { inlets, log };
     // The recorder sleeps on all its inlets at once (`wait_any`), not by the session's
     // strategy: what it writes is not on the latency path.
     node::run(Stage::Recorder, bus, WaitStrategy::Event, &mut recorder)

@@ -474,7 +474,7 @@ fn interests(spheres: &[(DVec3, f64)]) -> impl Iterator<Item = Interest> + '_ {
 /// The point a camera looking along `forward` looks at to centre these spheres (centre,
 /// radius) in its view: the middle of their extent across the view. None when there is no
 /// finite sphere. With [`distance_along`], the preview's camera of one moment
-/// (`preview.rs`).
+/// (`preview/framing.rs`).
 pub fn centre_along(spheres: &[(DVec3, f64)], forward: DVec3) -> Option<DVec3> {
     let pts: Vec<Interest> = interests(spheres).collect();
     (!pts.is_empty()).then(|| centre(&pts, &axes_of(forward)))

@@ -35,3 +35,29 @@ pub use error::RenderError;
 pub use image::Image;
 pub use renderer::{FrameTimes, Renderer};
 pub use settings::{FramesRequest, OutputMode, RenderSettings};
+
+/// The renderer's process (the stereo view), as `handblocks service renderer` runs it: its
+/// frames into `--frames-dir` (a restarted renderer into a folder of its own there, numbering
+/// again, so that none of the dead one's is overwritten) and its preview into `--preview`.
+pub struct Process;
+
+impl common::node::Process for Process {
+    const STAGE: common::Stage = common::Stage::Renderer;
+    type Error = RenderError;
+    fn run(
+        session: &common::config::Session,
+        bus: &common::bus::Bus,
+        launch: &common::node::Launch,
+    ) -> Result<(), Self::Error> {
+        service::run_with_preview(
+            session,
+            bus,
+            RenderSettings::from_session_framed(&session.renderer, &session.scene),
+            launch.frames_dir.as_ref().map(|dir| FramesRequest {
+                dir: launch.output_of(common::Stage::Renderer, dir),
+                every_nth: session.renderer.frames_every,
+            }),
+            launch.preview.clone(),
+        )
+    }
+}

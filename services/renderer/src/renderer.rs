@@ -643,7 +643,7 @@ impl Renderer {
     /// block live (the static layer, drawn for the session's camera, is left alone), and waits
     /// for the GPU; read it with [`Self::read_back_left_eye_into`]. The next [`Self::render`]
     /// draws the session's view again. For the preview, which frames the whole session's
-    /// action once the session is over (`preview.rs`).
+    /// action once the session is over (module `preview`).
     pub fn render_preview(
         &mut self,
         world: WorldView<'_>,

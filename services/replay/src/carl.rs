@@ -420,8 +420,10 @@ impl CarlTrace {
                 wrist: shift(s.wrist),
                 joints: s.joints.map(shift),
             };
-            if !j.wrist.is_finite() || j.joints.iter().any(|p| !p.is_finite()) {
-                // Never let NaN into the pipeline: hold the previous hand, marked lost.
+            if common::first_joint_fault(std::iter::once(&j.wrist).chain(&j.joints)).is_some() {
+                // Never let what is no hand into the pipeline (NaN, a joint beyond any room,
+                // a rotation that is none: every source's check): hold the previous hand,
+                // marked lost.
                 match out.last() {
                     Some(prev) => {
                         j.wrist = prev.wrist;
@@ -716,6 +718,27 @@ mod tests {
                 if !w[1].tracked {
                     assert_eq!(w[1].wrist, w[0].wrist, "{name}");
                     assert_eq!(w[1].joints, w[0].joints, "{name}");
+                }
+            }
+        }
+    }
+
+    /// Every joint of every example, either hand, offset as the CARL sessions do, passes the
+    /// joint check every source makes: a replay holds no sample of them.
+    #[test]
+    fn every_joint_of_every_recording_is_a_joint() {
+        for name in [
+            "example_push_0.carl",
+            "example_pull_0.carl",
+            "example_lift_0.carl",
+            "example_settle_0.carl",
+        ] {
+            for side in [HandSide::Left, HandSide::Right] {
+                let t = CarlTrace::load_hand(&data(name), side).unwrap();
+                for s in &t.samples {
+                    let fault =
+                        common::first_joint_fault(std::iter::once(&s.wrist).chain(&s.joints));
+                    assert_eq!(fault, None, "{name} {side:?} at {} s", s.time);
                 }
             }
         }

@@ -3,14 +3,18 @@
 //!
 //! The file's first bytes decide which reader runs. Whatever the kind, the samples come out
 //! ready to publish: recorded source times (from 0 for CARL), poses moved by the offset, and
-//! never a NaN: a sample that is not finite or claims an impossible count holds the previous
+//! never a NaN: a sample that is not finite or claims an impossible count, or joints that fail
+//! the check every source of joints makes ([`common::Pose::joint_fault`]), holds the previous
 //! good one (a hand sample also marked lost), with a warning that names file and offset.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use common::stamp::MAX_SOURCE_GAP_NS;
-use common::{GloveSample, JointsSample, Pose, Stage, Topic, TrackerSample, MAX_GLOVE_SENSORS};
+use common::{
+    GloveSample, JointFault, JointsSample, Pose, Stage, Topic, TrackerSample, MAX_GLOVE_SENSORS,
+    MAX_JOINT_DISTANCE_M,
+};
 use recording::Recording;
 
 use crate::carl::CarlTrace;
@@ -276,14 +280,24 @@ impl HandTrace {
                     };
                     j.wrist = shift(j.wrist, offset);
                     j.joints = j.joints.map(|p| shift(p, offset));
-                    if !j.wrist.is_finite() || j.joints.iter().any(|p| !p.is_finite()) {
-                        warn(
-                            &mut trace,
-                            m.topic,
-                            j.stamp.seq,
-                            at,
-                            "has a pose that is not finite",
-                        );
+                    // The check every source of joints makes (a headset's page, a program).
+                    let poses = std::iter::once(&j.wrist).chain(&j.joints);
+                    if let Some((k, fault)) = common::first_joint_fault(poses) {
+                        let joint = match k {
+                            0 => "the wrist".to_string(),
+                            k => format!("joint {}", k - 1),
+                        };
+                        let what = match fault {
+                            JointFault::NonFinite => "has a pose that is not finite".to_string(),
+                            JointFault::TooFar { metres } => format!(
+                                "has {joint} {metres} m from the origin (at most \
+                                 {MAX_JOINT_DISTANCE_M})"
+                            ),
+                            JointFault::NoRotation { norm } => format!(
+                                "has {joint} rotated by a quaternion of norm {norm}, no rotation"
+                            ),
+                        };
+                        warn(&mut trace, m.topic, j.stamp.seq, at, &what);
                         let prev = last_joints.unwrap_or(JointsSample {
                             wrist: Pose::IDENTITY,
                             joints: [Pose::IDENTITY; common::OPENXR_JOINTS],

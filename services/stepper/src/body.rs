@@ -106,7 +106,7 @@ pub struct Block {
     /// moved is judged again in the next step").
     pub stirred: bool,
 
-    // ---- line 1: the box (read by every query that meets this block), stage 5's flags ----
+    // ---- line 1: the box (read by every query that meets this block), stage 6's flags ----
     /// The box of `rel` (world axes, relative to G): the broad phase's exact "cannot meet"
     /// test before a GJK query (`interference::boxes_apart`).
     pub rel_lo: DVec3,
@@ -116,11 +116,11 @@ pub struct Block {
     /// (its rotated vertices bound nothing), and then the stages that read the box take their
     /// slow, exact path instead.
     pub box_exact: bool,
-    /// Whether `action` is not `HandAction::None`: stage 0 and stage 5 read this flag, not the
+    /// Whether `action` is not `HandAction::None`: stage 0 and stage 6 read this flag, not the
     /// action (on a later line), which only the hand's stages need.
     acted: bool,
     /// Whether the rotation changed this step: `start_rot` holds the one it started with.
-    /// Stage 0 clears it rather than copying the rotation, and stage 5 compares rotations only
+    /// Stage 0 clears it rather than copying the rotation, and stage 6 compares rotations only
     /// when it is set.
     turned: bool,
     /// Whether `floor` holds a vertex: free motion and the floor stage read this, and a block
@@ -135,8 +135,8 @@ pub struct Block {
     shifted: bool,
 
     // ---- line 2: the start of a block that moved, the rotation ----
-    // A falling block's step does not read this line: free motion tells stage 5 where the
-    // block started (`translate_unrecorded`), and stage 5 publishes the rotation only when it
+    // A falling block's step does not read this line: free motion tells stage 6 where the
+    // block started (`translate_unrecorded`), and stage 6 publishes the rotation only when it
     // changed (`rotated`).
     /// Where G was at the step's start; meaningful while `shifted` is set.
     start_pos: DVec3,
@@ -272,7 +272,7 @@ impl Block {
         }
     }
 
-    /// Whether G is not where it started the step (stage 5's "moved": R14 judges again what
+    /// Whether G is not where it started the step (stage 6's "moved": R14 judges again what
     /// touches it). A position holding a NaN never equals itself, as when this compared the
     /// position with a copy taken at the step's start.
     #[inline]
@@ -284,7 +284,7 @@ impl Block {
         }
     }
 
-    /// Whether the rotation was set this step (it may be the one it started with): stage 5
+    /// Whether the rotation was set this step (it may be the one it started with): stage 6
     /// publishes it only then.
     #[inline]
     pub fn rotated(&self) -> bool {
@@ -306,7 +306,7 @@ impl Block {
     }
 
     /// Free motion's move of G by `d`, without keeping the start: returns where the block
-    /// started the step, and the caller either ends the block's step with it (stage 5 is told
+    /// started the step, and the caller either ends the block's step with it (stage 6 is told
     /// it: a block free motion leaves flying, `World::step`) or hands it to
     /// [`Block::record_start`] before anything else reads or moves the block. So a falling
     /// block's step never writes the line the start is on.
@@ -340,7 +340,7 @@ impl Block {
         }
     }
 
-    /// Whether the rotation is not the one the step started with (stage 5's "turned": R14
+    /// Whether the rotation is not the one the step started with (stage 6's "turned": R14
     /// judges again what touches it). A rotation holding a NaN never equals itself, as when
     /// this compared the rotation with a copy taken at the step's start.
     #[inline]
@@ -405,7 +405,7 @@ impl Block {
     }
 
     /// Stage 0: the block starts the step where it is, with nothing done to it yet. Done by the
-    /// last step's stage 5 in its pass (and by `World::new` before the first step), not by a
+    /// last step's stage 6 in its pass (and by `World::new` before the first step), not by a
     /// pass of its own: a pass over the active set is a pass over memory (in a rain of 4096
     /// blocks, ~27,000 cache misses a step, callgrind). Writes lines 0 and 1 only: the action
     /// only when there was one; the start position and rotation not at all (`shifted` and
@@ -483,7 +483,7 @@ mod tests {
     use super::*;
 
     /// The cache lines of a block are what `Block`'s comment says they are: a falling block's
-    /// step reads lines 0 and 1 in every pass, 2 in stage 5, 3 where free motion writes R7's
+    /// step reads lines 0 and 1 in every pass, 2 in stage 6, 3 where free motion writes R7's
     /// d; everything else lies after them. A field added in the wrong place fails here, not as a
     /// slower rain nobody measures.
     #[test]

@@ -1,7 +1,7 @@
 //! The floor (paper 3.2): R8 impact and R9 stability, evaluated relative to G (vertices as
 //! rotation * body vertex, G' - G = t * Gm) so that far from the origin nothing changes.
 //!
-//! Stage 4 of `World::step` is `Floor::land_block`, with its own hull buffers; R9's [`stability`]
+//! Stage 5 of `World::step` is `Floor::land_block`, with its own hull buffers; R9's [`stability`]
 //! and its hull cases are shared with R14 (`support`).
 
 use std::f64::consts::TAU;
@@ -267,7 +267,7 @@ pub(crate) fn leave_the_floor(b: &mut Block) {
     }
 }
 
-/// Stage 4 (R8, R9) with its own scratch: the 2-D hull buffers of R9 and, for R14, a block's
+/// Stage 5 (R8, R9) with its own scratch: the 2-D hull buffers of R9 and, for R14, a block's
 /// vertices at the pose an R9 turn started from (preallocated for the scene's largest hull, so
 /// that a step does not allocate).
 #[derive(Debug)]
@@ -286,11 +286,11 @@ impl Floor {
         }
     }
 
-    /// Stage 4 for block i (R8 then R9), if it moved or is in floor contact and not resting;
+    /// Stage 5 for block i (R8 then R9), if it moved or is in floor contact and not resting;
     /// R8's impact goes to `events`. Called by the step's last pass, block by block in the
-    /// active set's order, just before stage 5 settles the same block (`World::step`): a
+    /// active set's order, just before stage 6 settles the same block (`World::step`): a
     /// block's floor stage reads of the others only their poses (R14's check of a turn against
-    /// its neighbours), which stage 5 does not change, so doing the two stages block by block
+    /// its neighbours), which stage 6 does not change, so doing the two stages block by block
     /// is doing them one after the other, in one pass over memory instead of two.
     pub(crate) fn land_block(
         &mut self,

@@ -445,7 +445,7 @@ impl HandContacts {
         // The grid's blocks within the box's half diagonal (and eps) of its centre: every block
         // `near` accepts (a superset; `near` decides). In no order: each block's action is its
         // own, and the first entries are minima. The grid sees every block where the last step
-        // left it (its stage 5), and nothing has moved since.
+        // left it (its stage 6), and nothing has moved since.
         let candidates: &[u32] = grid.near_any_order(
             blocks,
             (lo + hi) * 0.5,

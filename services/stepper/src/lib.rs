@@ -63,3 +63,19 @@ pub use simulate::{
     BlockReport, EventReport, HandFrame, HandSource, Progress, Report, RunError, Stop,
 };
 pub use world::{BlockView, Event, EventKind, World, WorldError};
+
+/// The stepper's process (the block world), as `handblocks service stepper` runs it: it writes
+/// the session's outcome into `--outcome-dir` when it stops.
+pub struct Process;
+
+impl common::node::Process for Process {
+    const STAGE: common::Stage = common::Stage::Stepper;
+    type Error = service::StepperError;
+    fn run(
+        session: &common::config::Session,
+        bus: &common::bus::Bus,
+        launch: &common::node::Launch,
+    ) -> Result<(), Self::Error> {
+        service::run_with_outcome(session, bus, launch.outcome_dir.as_deref())
+    }
+}

@@ -59,14 +59,14 @@ pub fn push_one_point(
     Some(PushOutcome { t, r, theta, axis })
 }
 
-/// Stage 3 for block i: R7 (with R12) if the hand did not move it and it is not grasped,
+/// Stage 4 for block i: R7 (with R12) if the hand did not move it and it is not grasped,
 /// resting, tipping or in floor contact (the floor stage moves those), unless R11 holds it.
 /// A block released this step (R13) waits for the next. When it moved it (`Moved::Free`):
 /// where the block started the step, which the caller must record (`Block::record_start`)
 /// unless it ends the block's step with it.
 ///
 /// Called block by block in the active set's order (`World::step`); the grid must see every
-/// block where it is (the last step's stage 5 left it so, and `BlockGrid::sync` after the
+/// block where it is (the last step's stage 6 left it so, and `BlockGrid::sync` after the
 /// hand's and R14's moves), and each move here tells it.
 #[inline]
 pub(crate) fn move_freely(
@@ -87,7 +87,7 @@ pub(crate) fn move_freely(
             return None;
         }
     }
-    // R14 decided it in stage 3a, or holds it asleep (supported, untouched).
+    // R14 decided it in stage 3, or holds it asleep (supported, untouched).
     if passes.supported {
         let b = &blocks[i];
         if b.judged || b.mode == BlockMode::Supported {

@@ -72,7 +72,7 @@ pub(crate) struct SupportEdge {
     end: usize,
 }
 
-/// Stage 3a (R14) with its own scratch, preallocated in `World::new` so that a step does not
+/// Stage 3 (R14) with its own scratch, preallocated in `World::new` so that a step does not
 /// allocate.
 #[derive(Debug)]
 pub(crate) struct Support {
@@ -162,8 +162,8 @@ fn near(a: &Block, b: &Block, margin: f64) -> bool {
 }
 
 impl Support {
-    /// Stage 3a (R14): finds supporters, judges bottom up, holds or tips each block with its
-    /// load. Blocks it decides are marked `judged`; stages 3b (R7) and 4 (R8, R9) leave them.
+    /// Stage 3 (R14): finds supporters, judges bottom up, holds or tips each block with its
+    /// load. Blocks it decides are marked `judged`; stages 4 (R7) and 5 (R8, R9) leave them.
     pub(crate) fn judge_stacks(
         &mut self,
         blocks: &mut [Block],

@@ -1,13 +1,14 @@
 //! The world and its step, in docs/model.md's "Order of one step".
 //!
-//! [`World::step`] reads as that order: each stage is a function or a stage struct's method,
-//! named for its rules, in its own module (`hand` R1-R6 and R13's release, `interference` R10,
-//! `support` R14, `motion` R7 with R11-R12, `floor` R8-R9), and is handed exactly what it reads
-//! and writes: the blocks, the hand now and before, the scene's settings, its own scratch, the
-//! step's events. So the step shows its data flow, and no stage module needs the world (as
-//! rapier's pipeline hands each stage the sets it touches). The passes a scene does not enable
-//! (docs/design.md "Effects") are decided once in [`World::new`] and cost one branch per step;
-//! resting blocks that nothing touches are skipped.
+//! [`World::step`] reads as that order, stages 1-6 between the step's start (0) and end (7): each
+//! stage is a function of the child module `step`, named for what it does, calling the rules'
+//! functions and stage structs' methods in their own modules (`hand` R1-R6 and R13's release,
+//! `interference` R10, `support` R14, `motion` R7 with R11-R12, `floor` R8-R9), and is handed
+//! exactly what it reads and writes: the blocks, the hand now and before, the scene's
+//! settings, its own scratch, the step's events. So the step shows its data flow, and no stage
+//! needs the world (as rapier's pipeline hands each stage the sets it touches). The passes a
+//! scene does not enable (docs/design.md "Effects") are decided once in [`World::new`] and cost
+//! one branch per step; resting blocks that nothing touches are skipped.
 
 use std::fmt;
 use std::path::PathBuf;
@@ -22,25 +23,23 @@ use common::{BlockMode, BlockState, HandSample, Pose, WorldHeader, WorldSample, 
 use crate::anchor::{finger_points_to_scene, to_scene, translate_hand};
 pub use crate::anchor::{local_origin, ANCHOR_GRID_M, ANCHOR_NEAR_M};
 use crate::block_set::BlockSet;
-use crate::body::{Block, Moved};
+use crate::body::Block;
 use crate::event::StepEvents;
 pub use crate::event::{Event, EventKind};
-use crate::floor::{in_the_air, leave_the_floor, Floor};
+use crate::floor::Floor;
 use crate::geometry::{sat_depth, Polyhedron};
 use crate::grid::BlockGrid;
 // The check points as drawn are the hand's (R5 relocates them); the precise model fills the same.
 pub(crate) use crate::hand::Fingers;
-use crate::hand::{
-    check_point_box, end_grasps, hand_reach, is_usable, move_by_hand, HandContacts, Letting,
-    EMPTY_BOX,
-};
+use crate::hand::{check_point_box, is_usable, HandContacts, EMPTY_BOX};
 use crate::interference::Carry;
-use crate::motion::move_freely;
 use crate::settings::{Passes, Settings};
 use crate::support::Support;
-use crate::tracked::{hold_grasps, GripPath, TrackedCounts, TrackedRules};
+use crate::tracked::{GripPath, TrackedCounts, TrackedRules};
 use crate::two_hands::TwoHands;
 use crate::HAND_SLOTS;
+
+mod step;
 
 /// What is wrong with a scene for the model: names the file, the block (when one is at fault)
 /// and the problem.
@@ -97,20 +96,20 @@ pub struct World {
     /// Free motion's broad phase (R7 with R11, R12).
     grid: BlockGrid,
     /// The blocks a step must look at: every block not at rest, and any at rest that a stage
-    /// touched. A block outside it rests, untouched, with its step scratch as stage 0 would
-    /// set it, so no stage has anything to do with it ("resting blocks that nothing touches
-    /// cost nothing"); it joins again when the hand, a carry or R14 touches it.
+    /// touched. A block outside it rests, untouched, with its step scratch as stage 0 finds
+    /// it (`Block::begin_step`), so no stage has anything to do with it ("resting blocks that
+    /// nothing touches cost nothing"); it joins again when the hand, a carry or R14 touches it.
     active: BlockSet,
-    /// Stage 5's blocks that leave `active`.
+    /// Stage 6's blocks that leave `active`.
     quiet: BlockSet,
     /// The blocks that free motion left in the air, with no mode change: their floor stage and
-    /// stage 5 are done in free motion's pass (`World::step`, stage 3), and the last pass skips
+    /// stage 6 are done in free motion's pass (`World::step`, stage 4), and the last pass skips
     /// them.
     flown: BlockSet,
-    /// Stage 5's events of the step, appended to `events` after the floor stage's.
+    /// Stage 6's events of the step, appended to `events` after the floor stage's.
     settled: StepEvents,
     /// Each block's `world` sample entry (pose of G, mode) as the last step left it, side by
-    /// side: stage 5 rewrites the active blocks' entries (a block outside `active` did not
+    /// side: stage 6 rewrites the active blocks' entries (a block outside `active` did not
     /// change). Publishing a world then reads 64 contiguous bytes a block instead of
     /// gathering from every block's large state: a live stepper that sleeps between samples
     /// steps with cold caches, and the gather was the larger part of its time at 1024 blocks.
@@ -304,7 +303,7 @@ impl World {
         // first impact then).
         let mut active = BlockSet::new(n);
         (0..n).for_each(|i| active.insert(i));
-        // Stage 0 for the first step (the last step's stage 5 does it for the others).
+        // Stage 0 for the first step (the last step's stage 6 does it for the others).
         blocks.iter_mut().for_each(Block::begin_step);
         let states = blocks.iter().map(|b| state_of(b, anchor)).collect();
         Ok(World {
@@ -326,7 +325,7 @@ impl World {
             active,
             quiet: BlockSet::new(n),
             flown: BlockSet::new(n),
-            // Stage 5 reports at most a release and a mode change a block.
+            // Stage 6 reports at most a release and a mode change a block.
             settled: StepEvents::with_capacity(2 * n + 16),
             states,
             support: Support::new(
@@ -388,12 +387,13 @@ impl World {
     /// Exactly one fixed step with each hand's pose at this step, by hand slot
     /// ([`HAND_SLOTS`]: slot 0 the right, slot 1 the left). Until slot 1 is first given a hand
     /// this is the one-hand step, bit for bit; from then on each hand's actions are decided
-    /// apart and combined block by block (docs/model.md "Two hands"). docs/model.md "Order of
-    /// one step", each stage handed what it reads and writes:
+    /// apart and combined block by block (docs/model.md "Two hands"). It reads as docs/model.md's
+    /// "Order of one step": each stage a function of module `step`, handed what it reads and
+    /// writes; the passes the scene does not enable are skipped here, in the open.
     pub fn step_hands(&mut self, hands: [Option<&HandSample>; HAND_SLOTS]) {
         self.steps += 1;
         self.two_handed |= hands[1].is_some();
-        let two = self.two_handed;
+        let (steps, two) = (self.steps, self.two_handed);
         let World {
             settings,
             passes,
@@ -421,220 +421,84 @@ impl World {
             ..
         } = self;
         let anchor = *anchor;
-        let mut now: [Option<&HandSample>; HAND_SLOTS] = [None; HAND_SLOTS];
-        for ((slot, local), hand) in hand_local.iter_mut().enumerate().zip(hands) {
-            let refused = hand.is_some_and(|h| !is_usable(h));
-            *rejected_hands += u64::from(refused);
-            now[slot] = if refused {
-                // Refused where it enters: the hand holds its last good pose (already in this
-                // frame), so a glitch of one sample neither drops what the hand grasps nor moves
-                // it; a hand that was absent stays absent.
-                match prev_hand[slot].as_ref() {
-                    Some(last_good) => {
-                        *local = *last_good;
-                        Some(&*local)
-                    }
-                    None => None,
-                }
-            } else {
-                World::hand_in_world_frame(anchor, hand, local)
-            };
-        }
+        // 0. The step's start: the hands enter the world's frame (a hand the rules cannot use
+        //    holds its last good pose), the step's events and scratch begin.
+        let now = step::take_hands(hands, anchor, prev_hand, hand_local, rejected_hands);
         let prev = [prev_hand[0].as_ref(), prev_hand[1].as_ref()];
-        // 0. Every block starts the step where it is, with nothing done to it yet: the last
-        //    step's stage 5 left it so (`Block::begin_step`, in the same pass), and nothing changes a
-        //    block between steps.
-        events.begin(self.steps);
-        events.name_hands = two;
-        settled.name_hands = two;
-        for (f, hand) in fingers.iter_mut().zip(now) {
-            f.copy_from(hand);
-        }
+        step::start_step(steps, two, events, settled, quiet, flown, fingers, now);
         // Whether a stage moved blocks without telling the grid (the hand's, R14's) since the
-        // last step's stage 5 brought it up to date: free motion then syncs it first.
+        // last step's stage 6 brought it up to date: free motion then syncs it first.
         let mut grid_behind = false;
         if passes.hand {
-            let mut gaps = [None; HAND_SLOTS];
-            let mut acted = false;
-            for slot in 0..if two { HAND_SLOTS } else { 1 } {
-                let (hand, prev) = (now[slot], prev[slot]);
-                // T2 (tracked hands): a hand that is not tracked touches nothing new and keeps
-                // what it holds, for up to gap_hold; then it lets go with no throw.
-                let gap = match settings.tracked {
-                    Some(t) if hand.is_none_or(|h| h.tracked == 0) => {
-                        untracked_steps[slot] += 1;
-                        Some(untracked_steps[slot] <= t.gap_hold_steps)
-                    }
-                    _ => {
-                        untracked_steps[slot] = 0;
-                        None
-                    }
-                };
-                gaps[slot] = gap;
-                // 1. Hand contacts (R1-R3) for every block near the hand: each block's hand
-                //    action; then R13 ends the grasps they no longer confirm.
-                acted |= match (hand, gap) {
-                    (_, Some(hold)) => {
-                        prev_hand_box[slot] = hand.map_or(EMPTY_BOX, check_point_box);
-                        hold && hold_grasps(
-                            blocks,
-                            active,
-                            slot,
-                            untracked_steps[slot] == 1,
-                            tracked_counts,
-                        )
-                    }
-                    (Some(h), None) => {
-                        let (now_box, before) = (check_point_box(h), prev_hand_box[slot]);
-                        prev_hand_box[slot] = now_box;
-                        match hand_reach(
-                            blocks,
-                            grid,
-                            now_box,
-                            before,
-                            settings.contact_eps + settings.tracked.map_or(0.0, |t| t.grip_margin),
-                        ) {
-                            Some(reach) => hand_contacts.decide_actions(
-                                blocks,
-                                active,
-                                grid,
-                                slot,
-                                h,
-                                prev,
-                                reach,
-                                settings,
-                                passes.grasp,
-                                self.steps,
-                                tracked_counts,
-                            ),
-                            None => false,
-                        }
-                    }
-                    (None, None) => false,
-                };
-                // Two hands: this hand's actions are kept apart until both are decided.
-                if two {
-                    two_hands.keep(slot, blocks, active);
-                }
-            }
-            if two {
-                acted = two_hands.combine(blocks, settings, events);
-            }
-            // R5 grasps only with hand = "grasp": without it no block is ever grasped, and R13
-            // has nothing to end (no pass over the active set: ~16 instructions a block).
-            if passes.grasp {
-                let letting_of = |held_by: u8| match settings.tracked {
-                    None => Letting::Throw,
-                    // T2: a drop when every hand that held it was lost for too long.
-                    Some(_)
-                        if (0..HAND_SLOTS)
-                            .filter(|k| held_by & (1 << k) != 0)
-                            .all(|k| gaps[k] == Some(false))
-                            && held_by != 0 =>
-                    {
-                        Letting::Drop
-                    }
-                    Some(rules) => Letting::FittedThrow {
-                        now: self.steps,
-                        rules,
-                    },
-                };
-                end_grasps(blocks, active, settings.inertia, letting_of, tracked_counts);
-            }
-            // 2. Hand-driven motion (R5, R4, R6), then carry (R10) from the blocks it moved. A
-            //    hand that acts on nothing (far from every block, or no hand) moves nothing and
-            //    carries nothing: neither stage runs, not even a pass over the active set.
-            //    T3 keeps the path of what a tracked hand holds.
-            let tracked_now = (0..HAND_SLOTS).any(|k| now[k].is_some() && gaps[k].is_none());
-            let path_step = (settings.tracked.is_some() && tracked_now).then_some(self.steps);
-            let moved = acted
-                && now.iter().any(Option::is_some)
-                && move_by_hand(blocks, active, now, prev, settings, fingers, path_step, two);
-            if passes.carry && moved {
-                carry.carry(blocks, active, grid, settings.hull_eps);
-            }
-            grid_behind |= moved;
+            // 1. Hand contacts (R1-R3; T1-T2 under tracked hands; H1-H2 with two) for every
+            //    block near a hand, then R13 ends the grasps they no longer confirm.
+            let (acted, gaps) = step::decide_hand_actions(
+                blocks,
+                active,
+                grid,
+                hand_contacts,
+                two_hands,
+                events,
+                prev_hand_box,
+                untracked_steps,
+                tracked_counts,
+                now,
+                prev,
+                settings,
+                passes,
+                steps,
+                two,
+            );
+            // 2. Hand-driven motion (R5, R4, R6), then carry (R10) from the blocks it moved.
+            grid_behind |= step::move_with_hands(
+                blocks, active, grid, carry, fingers, now, prev, gaps, acted, settings, passes,
+                steps, two,
+            );
         }
-        // 3a. Supported stacking (R14, when the scene asks for it): blocks on blocks are judged
-        //     bottom up, held or tipped with their load.
+        // 3. Supported stacking (R14, when the scene asks for it): blocks on blocks are judged
+        //    bottom up, held or tipped with their load.
         if passes.supported {
             support.judge_stacks(blocks, active, settings, passes);
             grid_behind = true;
         }
-        quiet.clear();
-        flown.clear();
-        settled.begin(self.steps);
-        // 3. Free motion (R7, with R12) for the rest, except blocks held by R11 or R14. Without
-        //    gravity and inertia nothing moves freely, and R11 has nothing to hold. The grid
-        //    must see the hand's and R14's moves first.
+        // 4. Free motion (R7, with R12) for the rest, except blocks held by R11 or R14; none
+        //    without gravity and inertia.
         if passes.free_motion {
-            if grid_behind {
-                grid.sync(blocks, active);
-                grid_behind = false;
-            }
-            for i in active.iter() {
-                let Some(start) = move_freely(blocks, i, grid, settings, passes) else {
-                    continue;
-                };
-                // A block it left in the air (most of a rain) has its floor stage and stage 5
-                // now, while its lines are in the cache, instead of in the last pass: both
-                // read and write this block only (`leave_the_floor`, `finish_block`), and no
-                // later block's free motion reads what they change (it reads poses and boxes,
-                // which they leave). Only when stage 5 reports nothing, so that `settled`
-                // lists its events in block order.
-                let b = &mut blocks[i];
-                if (!passes.floor || in_the_air(b, settings.contact_eps))
-                    && b.mode == b.mode_before
-                    && !b.released
-                {
-                    if passes.floor {
-                        leave_the_floor(b);
-                    }
-                    finish_block(i, b, Some(start), quiet, grid, settled, states, anchor);
-                    flown.insert(i);
-                } else {
-                    b.record_start(start);
-                }
-            }
-        }
-        // 4. Floor (R8, R9) for every block that moved or is in floor contact, not resting;
-        // 5. releases (R13) take effect for the next step; modes and events are settled, and
-        //    this hand is the next step's previous one. Both in one pass, block by block (a
-        //    block's floor stage reads of the others only their poses, which stage 5 leaves;
-        //    `Floor::land_block`): stage 5's events wait in `settled` so that the list reads
-        //    as the two stages one after the other (every impact, then the rest). The blocks
-        //    free motion left flying had both already.
-        // R14's check of an R9 turn asks the grid for the turning block's neighbours: it must
-        // see every block where it is (stage 5 tells it of each block the floor stage moved,
-        // before the next block's turn is checked).
-        if passes.supported && passes.floor && grid_behind {
-            grid.sync(blocks, active);
-        }
-        for i in active.iter_except(flown) {
-            if passes.floor {
-                floor.land_block(blocks, grid, i, settings, passes, events);
-            }
-            finish_block(
-                i,
-                &mut blocks[i],
-                None,
-                quiet,
+            step::move_free_blocks(
+                blocks,
+                active,
                 grid,
+                grid_behind,
+                quiet,
+                flown,
                 settled,
                 states,
+                settings,
+                passes,
                 anchor,
             );
+            grid_behind = false;
         }
-        active.difference_with(quiet);
-        events.append(settled);
-        for slot in 0..HAND_SLOTS {
-            prev_hand[slot] = now[slot].copied();
-            if now[slot].is_none() {
-                // With a hand, stage 1 kept its box for the next step (and without the hand's
-                // stages nothing reads it).
-                prev_hand_box[slot] = EMPTY_BOX;
-            }
-        }
+        // 5. Floor (R8, R9) for every block that moved or is in floor contact, not resting;
+        // 6. releases (R13) take effect for the next step, modes and events are settled: both
+        //    in one pass, block by block.
+        step::land_and_settle(
+            blocks,
+            active,
+            grid,
+            grid_behind,
+            floor,
+            quiet,
+            flown,
+            events,
+            settled,
+            states,
+            settings,
+            passes,
+            anchor,
+        );
+        // 7. This step's hands are the next step's previous ones.
+        step::keep_hands(prev_hand, prev_hand_box, now);
     }
 
     /// Sets the hand the next step takes as its previous one (P-, W-) without stepping: a
@@ -749,69 +613,6 @@ fn state_of(b: &Block, anchor: DVec3) -> BlockState {
         mode: b.mode as u32,
         held_by: u32::from(b.held_by),
     }
-}
-
-/// Stage 5 for block i: the step's release (R13) and mode change as events, and whether R14
-/// judges what touches it again in the next step (it moved or changed mode). A block that
-/// rests and that nothing moved, turned, released or acted on this step goes into `quiet`, to
-/// leave `active`: until a stage touches it, no step looks at it. It ends with its scratch as
-/// the next step's stage 0 sets it (`Block::begin_step`). `start`: where the block started
-/// the step, when free motion moved it and did not record it (`Block::translate_unrecorded`).
-#[allow(clippy::too_many_arguments)]
-fn finish_block(
-    i: usize,
-    b: &mut Block,
-    start: Option<DVec3>,
-    quiet: &mut BlockSet,
-    grid: &mut BlockGrid,
-    events: &mut StepEvents,
-    states: &mut [BlockState],
-    anchor: DVec3,
-) {
-    // The entry's rotation changes only when the block's did (a block's line 2, read only
-    // then: a falling block's step does not fetch it).
-    let state = &mut states[i];
-    state.pose.position = to_scene(b.pos(), anchor).to_array();
-    if b.rotated() {
-        state.pose.rotation = b.rot().to_array();
-    }
-    state.mode = b.mode as u32;
-    state.held_by = u32::from(b.held_by);
-    // The grid sees every block where this step left it (the floor stage's moves, the
-    // hand's): the next step's stages query it without a pass of their own to sync it.
-    grid.stands_at(i, b.pos());
-    // R14 judges again what touches a block that moved or changed mode.
-    let shifted = match start {
-        Some(start) => b.pos() != start,
-        None => b.shifted_this_step(),
-    };
-    b.stirred = shifted || b.turned_this_step() || b.mode != b.mode_before;
-    if b.released {
-        events.emit_by(EventKind::Release, i, b.released_by);
-    }
-    if b.mode_before != b.mode {
-        if let Some(k) = EventKind::on_entering(b.mode) {
-            let hands = match k {
-                EventKind::Grasp => b.held_by,
-                EventKind::Push => b.acting_hands,
-                _ => 0,
-            };
-            events.emit_by(k, i, hands);
-        }
-    }
-    if b.mode == BlockMode::Resting
-        && !b.stirred
-        && !b.released
-        && b.moved == Moved::No
-        && !b.acted()
-    {
-        // What R14's first pass would do to it in every later step while it sleeps
-        // outside the active set (`Support::judge_with` skips it).
-        b.judged = false;
-        quiet.insert(i);
-    }
-    // The next step's stage 0, for the blocks that stay active and those that sleep.
-    b.begin_step();
 }
 
 /// A read-only view of one block's state.

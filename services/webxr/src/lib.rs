@@ -12,9 +12,13 @@
 //! - [`server`]: HTTPS/WSS (or plain HTTP for `http://localhost`), the token, the socket per
 //!   page, the clock offset per page; on tokio's threads, handing decoded messages to the stage
 //!   through a bounded queue and an eventfd.
-//! - [`service`]: the stage's [`common::node::Task`]: which page drives the hand, its frames'
-//!   order and time (the page's clock mapped to this machine's), the joints published, the
-//!   worlds sent back, the page's own timing recorded into the report.
+//! - [`service`]: the stage's [`common::node::Task`]: the joints published, the worlds sent
+//!   back, the page's own timing recorded into the report.
+//! - [`driving`]: which page drives the hand, its frames' order and time (the page's clock
+//!   mapped to this machine's, held), and the gaps: pure, without sockets or the bus.
+//! - [`scene`]: the scene message, made of the session's (the page's protocol itself is
+//!   `webxr_wire::page`).
+//! - [`console`]: what the terminal and the session's report are told.
 //! - [`certificate`]: the self-signed certificate made on first use and kept for the next,
 //!   its files the shared `keyfile` crate's (0600, no links followed, 0700 folders, renewed
 //!   before it expires), as the zenoh link's keys are.
@@ -23,9 +27,27 @@
 
 pub mod address;
 pub mod certificate;
+pub mod console;
 pub mod driver;
+pub mod driving;
 pub mod page;
+pub mod scene;
 pub mod server;
 pub mod service;
 
 pub use service::{run, WebxrError};
+
+/// The webxr stage's process (a headset's page), as `handblocks service webxr` runs it.
+pub struct Process;
+
+impl common::node::Process for Process {
+    const STAGE: common::Stage = common::Stage::Webxr;
+    type Error = WebxrError;
+    fn run(
+        session: &common::config::Session,
+        bus: &common::bus::Bus,
+        _launch: &common::node::Launch,
+    ) -> Result<(), Self::Error> {
+        service::run(session, bus)
+    }
+}

@@ -1,11 +1,13 @@
 //! The page's server: HTTPS (or plain HTTP for `http://localhost`) and one WebSocket per page,
-//! on tokio's threads beside the synchronous stage loop.
+//! on the shared HTTP front's tokio threads ([`http_front`]) beside the synchronous stage loop.
 //!
-//! Routes: `GET /?token=T` the page (403 without the session's token), `GET /app.js` its
-//! script, `GET /ws?token=T` the socket (a wrong token is accepted as a WebSocket and closed at
-//! once with code 4001 and a reason the page shows, since a browser cannot read an HTTP
-//! refusal of a WebSocket). Anything else is 404; a request head over 8 KiB, or not complete
-//! in 10 s, is dropped.
+//! Routes: `GET /?token=T` the page (403 without the session's token), `GET /app.js` and
+//! `GET /gl.js` its scripts, `GET /ws?token=T` the socket (a wrong token is accepted as a
+//! WebSocket and closed at once with code 4001 and a reason the page shows, since a browser
+//! cannot read an HTTP refusal of a WebSocket). Another method is 405, another path 404. The
+//! front reads each request: one not complete in 10 s (the TLS handshake included) is answered
+//! 408 where it can be and closed, one over 8 KiB is answered 431, one that is not HTTP 400;
+//! each counted `request`.
 //!
 //! Per socket: the scene (text, once), a clock ping every 100 ms for the first second and every
 //! second after, and the newest world whenever there is one (a slow page skips worlds, never
@@ -34,16 +36,18 @@ use bytes::Bytes;
 use common::bus::Wake;
 use common::monotonic_ns;
 use futures_util::{SinkExt, StreamExt};
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use http_front::http::{header, HeaderValue, Method, Response, StatusCode};
+use http_front::{FrontBuilder, Handler, OpenError, Opened, Reading, StartError};
+use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::sync::watch;
 use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
-use tokio_tungstenite::tungstenite::protocol::{CloseFrame, Role, WebSocketConfig};
+use tokio_tungstenite::tungstenite::protocol::{CloseFrame, WebSocketConfig};
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::WebSocketStream;
 use webxr_wire::page::{self, FrameStats};
 use webxr_wire::{HandsFrame, KIND_HANDS};
 
-use crate::page::{APP_JS, INDEX_HTML};
+use crate::page::{APP_JS, GL_JS, INDEX_HTML};
 
 /// The largest message a page may send (a hands frame is 1624 bytes).
 pub const MAX_MESSAGE_BYTES: usize = 4096;
@@ -71,6 +75,7 @@ pub const MAX_AHEAD_OF_CLOCK_MS: f64 = 5000.0;
 const INBOUND_QUEUE: usize = 256;
 /// The longest request head read.
 const MAX_HEAD_BYTES: usize = 8192;
+/// How long a connection may take to finish its TLS handshake and send its request head.
 const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
 /// The close code a page with a wrong token is given.
 pub const CLOSE_WRONG_TOKEN: u16 = 4001;
@@ -184,7 +189,7 @@ pub enum ServerError {
 
 /// The running server; dropped, it stops (sockets closed, threads joined).
 pub struct Server {
-    runtime: Option<tokio::runtime::Runtime>,
+    front: http_front::Front,
     pub inbound: crossbeam_channel::Receiver<Inbound>,
     wake: Arc<Wake>,
     world: watch::Sender<Bytes>,
@@ -193,11 +198,10 @@ pub struct Server {
     pub local_addr: SocketAddr,
 }
 
-/// What every connection's task shares.
+/// What every connection's task shares: the front's [`Handler`].
 struct Shared {
     token: String,
     scene_json: String,
-    tls: Option<tokio_rustls::TlsAcceptor>,
     inbound: crossbeam_channel::Sender<Inbound>,
     wake: Arc<Wake>,
     tally: Arc<Tally>,
@@ -210,45 +214,39 @@ impl Server {
     /// Binds `listen` now (so a port in use fails the process before the session counts on
     /// it) and serves on two tokio threads.
     pub fn start(settings: ServerSettings) -> Result<Server, ServerError> {
-        let listener =
-            std::net::TcpListener::bind(settings.listen).map_err(|source| ServerError::Listen {
-                listen: settings.listen,
-                source,
-            })?;
-        listener
-            .set_nonblocking(true)
-            .map_err(ServerError::Runtime)?;
-        let local_addr = listener.local_addr().map_err(ServerError::Runtime)?;
-        let runtime = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(2)
-            .thread_name("webxr-server")
-            .enable_io()
-            .enable_time()
-            .build()
-            .map_err(ServerError::Runtime)?;
         let (tx, inbound) = crossbeam_channel::bounded(INBOUND_QUEUE);
         let wake = Arc::new(Wake::new().map_err(ServerError::Runtime)?);
         let tally = Arc::new(Tally::default());
         let (world, world_rx) = watch::channel(Bytes::new());
         let (stop, stop_rx) = watch::channel(false);
-        let shared = Arc::new(Shared {
+        let shared = Shared {
             token: settings.token,
             scene_json: settings.scene_json,
-            tls: settings.tls.map(tokio_rustls::TlsAcceptor::from),
             inbound: tx,
             wake: wake.clone(),
             tally: tally.clone(),
             world: world_rx,
             stop: stop_rx,
             next_page: AtomicU64::new(1),
-        });
-        let listener = {
-            let _guard = runtime.enter();
-            tokio::net::TcpListener::from_std(listener).map_err(ServerError::Runtime)?
         };
-        runtime.spawn(accept_loop(listener, shared));
+        let reading = Reading::default()
+            .head_timeout(HEAD_TIMEOUT)
+            .max_head_bytes(MAX_HEAD_BYTES);
+        let front = FrontBuilder::new("webxr-server")
+            .threads(2)
+            .reading(reading)
+            .tls(settings.tls)
+            .start(settings.listen, shared)
+            .map_err(|e| match e {
+                StartError::Listen(source) => ServerError::Listen {
+                    listen: settings.listen,
+                    source,
+                },
+                StartError::Runtime(e) => ServerError::Runtime(e),
+            })?;
+        let local_addr = front.local_addr();
         Ok(Server {
-            runtime: Some(runtime),
+            front,
             inbound,
             wake,
             world,
@@ -277,9 +275,7 @@ impl Server {
     /// Closes every socket and stops the server's threads.
     pub fn stop(&mut self) {
         let _ = self.stop.send(true);
-        if let Some(rt) = self.runtime.take() {
-            rt.shutdown_timeout(Duration::from_secs(2));
-        }
+        self.front.stop();
     }
 }
 
@@ -289,76 +285,17 @@ impl Drop for Server {
     }
 }
 
-async fn accept_loop(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
-    let mut stop = shared.stop.clone();
-    loop {
-        tokio::select! {
-            accepted = listener.accept() => {
-                let Ok((stream, _peer)) = accepted else {
-                    // Out of descriptors, say: wait a little rather than spin.
-                    tokio::time::sleep(Duration::from_millis(50)).await;
-                    continue;
-                };
-                let _ = stream.set_nodelay(true);
-                let shared = shared.clone();
-                tokio::spawn(async move {
-                    match shared.tls.clone() {
-                        Some(acceptor) => {
-                            let tls = tokio::time::timeout(HEAD_TIMEOUT, acceptor.accept(stream)).await;
-                            match tls {
-                                Ok(Ok(s)) => connection(s, &shared).await,
-                                // A browser that does not trust the certificate yet closes the
-                                // handshake; it is asked to accept it and comes back.
-                                _ => shared.tally.refuse("request"),
-                            }
-                        }
-                        None => connection(stream, &shared).await,
-                    }
-                });
-            }
-            _ = stop.changed() => return,
-        }
+impl Handler for Shared {
+    async fn serve(&self, opened: Opened) {
+        route(opened, self).await
     }
-}
 
-/// A request's first line and the headers that matter here.
-#[derive(Debug, Default, PartialEq)]
-struct Request {
-    method: String,
-    path: String,
-    token: Option<String>,
-    upgrade: bool,
-    key: Option<String>,
-}
-
-fn parse_head(head: &str) -> Option<Request> {
-    let mut lines = head.split("\r\n");
-    let mut first = lines.next()?.split(' ');
-    let method = first.next()?.to_string();
-    let target = first.next()?;
-    let (path, query) = target.split_once('?').unwrap_or((target, ""));
-    let token = query
-        .split('&')
-        .find_map(|kv| kv.strip_prefix("token="))
-        .map(str::to_string);
-    let mut r = Request {
-        method,
-        path: path.to_string(),
-        token,
-        ..Request::default()
-    };
-    for line in lines {
-        let Some((name, value)) = line.split_once(':') else {
-            continue;
-        };
-        let value = value.trim();
-        if name.eq_ignore_ascii_case("upgrade") {
-            r.upgrade = value.eq_ignore_ascii_case("websocket");
-        } else if name.eq_ignore_ascii_case("sec-websocket-key") {
-            r.key = Some(value.to_string());
-        }
+    fn unopened(&self, why: &OpenError) -> Option<Response<String>> {
+        // Every connection that gave no request counts, a TLS handshake refused included (a
+        // browser that does not trust the certificate yet closes it, asks, and comes back).
+        self.tally.refuse("request");
+        why.answer()
     }
-    Some(r)
 }
 
 /// Constant-time comparison of the token (its length is not secret).
@@ -372,131 +309,74 @@ fn token_ok(given: Option<&str>, token: &str) -> bool {
     })
 }
 
-async fn read_head<S: AsyncRead + Unpin>(stream: &mut S) -> Option<String> {
-    let mut buf = Vec::with_capacity(1024);
-    let mut chunk = [0u8; 1024];
-    let read = async {
-        loop {
-            let n = stream.read(&mut chunk).await.ok()?;
-            if n == 0 {
-                return None;
-            }
-            buf.extend_from_slice(&chunk[..n]);
-            if let Some(end) = buf.windows(4).position(|w| w == b"\r\n\r\n") {
-                return String::from_utf8(buf[..end].to_vec()).ok();
-            }
-            if buf.len() > MAX_HEAD_BYTES {
-                return None;
-            }
-        }
-    };
-    tokio::time::timeout(HEAD_TIMEOUT, read)
-        .await
-        .ok()
-        .flatten()
-}
-
-async fn respond<S: AsyncWrite + Unpin>(stream: &mut S, status: &str, kind: &str, body: &[u8]) {
-    let head = format!(
-        "HTTP/1.1 {status}\r\nContent-Type: {kind}\r\nContent-Length: {}\r\n\
-         Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: close\r\n\r\n",
-        body.len()
+/// An answer of ours: `body` as `kind`, never cached (a new session serves a new page).
+fn reply(status: StatusCode, kind: &'static str, body: &'static str) -> Response<&'static str> {
+    let mut response = Response::new(body);
+    *response.status_mut() = status;
+    let headers = response.headers_mut();
+    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(kind));
+    headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    headers.insert(
+        header::X_CONTENT_TYPE_OPTIONS,
+        HeaderValue::from_static("nosniff"),
     );
-    let _ = stream.write_all(head.as_bytes()).await;
-    let _ = stream.write_all(body).await;
-    let _ = stream.shutdown().await;
+    response
 }
 
 const NO_TOKEN: &str =
     "This page needs the session's token: open the URL that `handblocks launch` \
 printed (it ends in ?token=...), or scan its QR code.\n";
 
-async fn connection<S: AsyncRead + AsyncWrite + Unpin + Send>(mut stream: S, shared: &Shared) {
-    let Some(head) = read_head(&mut stream).await else {
+const PLAIN: &str = "text/plain";
+const JS: &str = "text/javascript; charset=utf-8";
+
+async fn route(opened: Opened, shared: &Shared) {
+    let request = &opened.request;
+    if request.method != Method::GET {
         shared.tally.refuse("request");
-        return;
-    };
-    let Some(req) = parse_head(&head) else {
-        shared.tally.refuse("request");
-        respond(
-            &mut stream,
-            "400 Bad Request",
-            "text/plain",
-            b"bad request\n",
-        )
-        .await;
-        return;
-    };
-    if req.method != "GET" {
-        shared.tally.refuse("request");
-        respond(
-            &mut stream,
-            "405 Method Not Allowed",
-            "text/plain",
-            b"GET only\n",
-        )
-        .await;
-        return;
+        let refusal = reply(StatusCode::METHOD_NOT_ALLOWED, PLAIN, "GET only\n");
+        return opened.answer(refusal).await;
     }
-    match req.path.as_str() {
-        "/ws" if req.upgrade => socket(stream, req, shared).await,
+    let token = token_ok(
+        http_front::query_value(&request.uri, "token"),
+        &shared.token,
+    );
+    let answer = match request.uri.path() {
+        "/ws" if http_front::is_websocket(request) => return socket(opened, token, shared).await,
+        "/" | "/index.html" if token => {
+            reply(StatusCode::OK, "text/html; charset=utf-8", INDEX_HTML)
+        }
         "/" | "/index.html" => {
-            if token_ok(req.token.as_deref(), &shared.token) {
-                let html = "text/html; charset=utf-8";
-                respond(&mut stream, "200 OK", html, INDEX_HTML.as_bytes()).await;
-            } else {
-                shared.tally.refuse("token");
-                respond(
-                    &mut stream,
-                    "403 Forbidden",
-                    "text/plain",
-                    NO_TOKEN.as_bytes(),
-                )
-                .await;
-            }
+            shared.tally.refuse("token");
+            reply(StatusCode::FORBIDDEN, PLAIN, NO_TOKEN)
         }
-        "/app.js" => {
-            let js = "text/javascript; charset=utf-8";
-            respond(&mut stream, "200 OK", js, APP_JS.as_bytes()).await;
-        }
-        _ => respond(&mut stream, "404 Not Found", "text/plain", b"not found\n").await,
-    }
+        "/app.js" => reply(StatusCode::OK, JS, APP_JS),
+        "/gl.js" => reply(StatusCode::OK, JS, GL_JS),
+        _ => reply(StatusCode::NOT_FOUND, PLAIN, "not found\n"),
+    };
+    opened.answer(answer).await
 }
 
-/// The WebSocket handshake's answer, then the page's socket until it closes or we stop.
-async fn socket<S: AsyncRead + AsyncWrite + Unpin + Send>(
-    mut stream: S,
-    req: Request,
-    shared: &Shared,
-) {
-    let Some(key) = req.key.as_deref() else {
+/// The WebSocket handshake's answer, then the page's socket until it closes or we stop;
+/// `token`: whether the request named the session's.
+async fn socket(opened: Opened, token: bool, shared: &Shared) {
+    let Some(key) = opened.request.headers.get(header::SEC_WEBSOCKET_KEY) else {
         shared.tally.refuse("request");
-        respond(
-            &mut stream,
-            "400 Bad Request",
-            "text/plain",
-            b"no Sec-WebSocket-Key\n",
-        )
-        .await;
-        return;
+        let refusal = reply(StatusCode::BAD_REQUEST, PLAIN, "no Sec-WebSocket-Key\n");
+        return opened.answer(refusal).await;
     };
-    let accept = tokio_tungstenite::tungstenite::handshake::derive_accept_key(key.as_bytes());
-    let head = format!(
-        "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
-         Sec-WebSocket-Accept: {accept}\r\n\r\n"
-    );
-    if stream.write_all(head.as_bytes()).await.is_err() {
-        return;
-    }
+    let accept = http_front::switching_protocols(key);
     let config = WebSocketConfig::default()
         .max_message_size(Some(MAX_MESSAGE_BYTES))
         .max_frame_size(Some(MAX_MESSAGE_BYTES));
-    let mut ws = WebSocketStream::from_raw_socket(stream, Role::Server, Some(config)).await;
+    let Ok(mut ws) = opened.into_websocket(accept, Some(config)).await else {
+        return;
+    };
     let refuse = |code: u16, reason: &'static str| CloseFrame {
         code: CloseCode::from(code),
         reason: reason.into(),
     };
-    if !token_ok(req.token.as_deref(), &shared.token) {
+    if !token {
         shared.tally.refuse("token");
         let why = "wrong token: open the URL the session printed";
         let _ = ws.close(Some(refuse(CLOSE_WRONG_TOKEN, why))).await;
@@ -670,11 +550,11 @@ async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
                                 }
                                 if !ready && clock.pongs >= PONGS_BEFORE_READY {
                                     ready = true;
-                                    let text = format!(
-                                        "{{\"op\":\"ready\",\"offset_ms\":{},\"round_trip_ms\":{}}}",
+                                    let text = page::Ready::new(
                                         offset_ns as f64 / 1e6,
-                                        round_trip_ns as f64 / 1e6
-                                    );
+                                        round_trip_ns as f64 / 1e6,
+                                    )
+                                    .encode();
                                     if !send_within(ws, Message::text(text), tally).await {
                                         return;
                                     }
@@ -732,16 +612,40 @@ async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
 mod tests {
     use super::*;
 
+    /// `head` read by the front as the server reads it: the request, or none.
+    fn read(head: &str) -> Option<http_front::http::request::Parts> {
+        use tokio::io::AsyncWriteExt;
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("a runtime");
+        runtime.block_on(async {
+            let (mut client, server) = tokio::io::duplex(8192);
+            client.write_all(head.as_bytes()).await.ok()?;
+            // The client has sent all it will.
+            drop(client);
+            let reading = Reading::default().head_timeout(Duration::from_secs(2));
+            let opened = http_front::open(Box::new(server), &reading).await;
+            opened.ok().map(|o| o.request)
+        })
+    }
+
     #[test]
     fn a_request_head_gives_its_path_token_and_upgrade() {
-        let r = parse_head(
-            "GET /ws?token=abc&x=1 HTTP/1.1\r\nHost: h\r\nUpgrade: WebSocket\r\nSec-WebSocket-Key: k==",
+        let r = read(
+            "GET /ws?token=abc&x=1 HTTP/1.1\r\nHost: h\r\nUpgrade: WebSocket\r\nSec-WebSocket-Key: k==\r\n\r\n",
         )
         .unwrap();
-        assert_eq!((r.path.as_str(), r.token.as_deref()), ("/ws", Some("abc")));
-        assert!(r.upgrade);
-        assert_eq!(r.key.as_deref(), Some("k=="));
-        assert!(parse_head("").is_none());
+        let token = http_front::query_value(&r.uri, "token");
+        assert_eq!((r.uri.path(), token), ("/ws", Some("abc")));
+        assert!(http_front::is_websocket(&r));
+        assert_eq!(
+            r.headers
+                .get(header::SEC_WEBSOCKET_KEY)
+                .map(|k| k.as_bytes()),
+            Some(&b"k=="[..])
+        );
+        assert!(read("").is_none());
         assert!(token_ok(Some("abcdef"), "abcdef"));
         assert!(!token_ok(Some("abcdeg"), "abcdef"));
         assert!(!token_ok(Some("abc"), "abcdef"));

@@ -40,10 +40,10 @@ pub struct LinkStats {
 }
 
 impl LinkStats {
-    /// The counters as the session report carries them (`device`: 1 glove, 2 tracker).
-    pub fn device_counters(&self, device: u32) -> common::DeviceCounters {
+    /// The counters as the session report carries them, as `device`'s.
+    pub fn device_counters(&self, device: common::samples::DeviceKind) -> common::DeviceCounters {
         common::DeviceCounters {
-            device,
+            device: device as u32,
             _reserved: 0,
             samples: self.samples,
             garbage_bytes: self.garbage_bytes,

@@ -17,8 +17,8 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// The devices whose stages write their refusals by kind ([`common::DeviceCounters::name`]).
-pub const DEVICES_WITH_KINDS: [&str; 2] = ["headset", "external"];
+use common::samples::DeviceKind;
+
 /// The most bytes a refusals file may hold.
 pub const MAX_REFUSALS_BYTES: u64 = 64 << 10;
 /// The most kinds one file may name.
@@ -39,7 +39,11 @@ pub fn refusals_file(root: &Path, name: &str) -> PathBuf {
 /// is said on stderr and left out.
 pub fn read_refusals(root: &Path) -> Refusals {
     let mut out = Refusals::new();
-    for name in DEVICES_WITH_KINDS {
+    // The devices whose stages write their refusals by kind.
+    let with_kinds = DeviceKind::ALL
+        .into_iter()
+        .filter(|d| d.writes_refusals_by_kind());
+    for name in with_kinds.map(DeviceKind::name) {
         let file = refusals_file(root, name);
         if std::fs::symlink_metadata(&file).is_err() {
             continue;

@@ -58,8 +58,7 @@ impl Report {
                     Metric::Hop => "hop",
                     Metric::Process => "process",
                     Metric::Origin => "origin->out",
-                    Metric::Photon if s.stage == common::Stage::Webxr => "sent->drawn",
-                    Metric::Photon => "origin->px",
+                    Metric::Photon => s.stage.photon_label(),
                     Metric::Page => "page js",
                 };
                 if !used.contains(&name) {
@@ -143,7 +142,9 @@ impl Report {
                 "errors"
             ));
             let serial = devices.iter().any(|d| d.device != 3);
-            let headset = devices.iter().any(|d| d.device == 3);
+            let headset = devices
+                .iter()
+                .any(|d| d.kind() == Some(common::samples::DeviceKind::Headset));
             for d in devices {
                 out.push_str(&format!(
                     "{:<8} {:>9} {:>8} {:>8} {:>8} {:>7} {:>10} {:>7}\n",
