@@ -236,6 +236,13 @@ stage_table! {
             cores: Consumers, priority: Normal, on_restart: Resume, exit_wait_s: 5,
             devices: [External], photon_label: "origin->px",
         },
+        /// A flat hand held still (`services/null`), for tests and for measuring a pipeline
+        /// whose hand never moves.
+        Null = 9 {
+            name: "null", role: Source, selected_by: ["null"],
+            cores: Pipeline, priority: Normal, on_restart: Resume, exit_wait_s: 5,
+            devices: [], photon_label: "origin->px",
+        },
     }
 }
 

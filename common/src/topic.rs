@@ -333,8 +333,8 @@ topic_table! {
         Glove: GloveSample {
             name: "glove",
             buffer: 1024,
-            max_publishers: 3,
-            publishers: [Acquisition, Replay, Bridge],
+            max_publishers: 4,
+            publishers: [Acquisition, Replay, Bridge, Null],
             readers: [Kinematics, Recorder, Bridge],
             fields: [stamp, sensor_count, side, angles],
         },
@@ -342,8 +342,8 @@ topic_table! {
         Tracker: TrackerSample {
             name: "tracker",
             buffer: 1024,
-            max_publishers: 3,
-            publishers: [Acquisition, Replay, Bridge],
+            max_publishers: 4,
+            publishers: [Acquisition, Replay, Bridge, Null],
             readers: [Kinematics, Recorder, Bridge],
             fields: [stamp, station, side, wrist],
         },
@@ -411,8 +411,8 @@ topic_table! {
         Latency: LatencySample {
             name: "latency",
             buffer: 32,
-            max_publishers: 9,
-            publishers: [Acquisition, Replay, Kinematics, Stepper, Renderer, Recorder, Bridge, Webxr, External],
+            max_publishers: 10,
+            publishers: [Acquisition, Replay, Kinematics, Stepper, Renderer, Recorder, Bridge, Webxr, External, Null],
             readers: [],
             fields: [
                 stamp,

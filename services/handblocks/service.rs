@@ -96,6 +96,7 @@ processes! {
     Recorder: recorder::Process,
     Bridge: bridge::Process,
     Webxr: webxr::Process,
+    Null: null_source::Process,
 }
 
 impl ServiceError {

@@ -71,13 +71,13 @@ pub(crate) const DOCS: &[Doc] = &[
         "",
         "The source: the scene's `[hand]` (scripted), a glove and tracker (devices), a \
          recording or CARL trace (replay), another machine's session (remote), a headset's \
-         browser (webxr), or a program of yours (external); the keys below name the kind \
-         that takes them.",
+         browser (webxr), a program of yours (external), or a flat hand held still for tests \
+         (null); the keys below name the kind that takes them.",
     ),
     session(
         "source.rate_hz",
         "",
-        "scripted: samples per second of the scripted glove and tracker.",
+        "scripted, null: samples per second of the scripted (or still) glove and tracker.",
     ),
     session(
         "source.glove",

@@ -131,6 +131,10 @@ pub enum Source {
         /// runs in, with `HANDBLOCKS_BUS` (this session's bus id) in its environment.
         command: Vec<String>,
     },
+    /// A flat right hand held still, a glove and a tracker sample at each of `rate_hz`'s
+    /// deadlines (the null source, `services/null`): for tests and for measuring a pipeline
+    /// whose hand never moves.
+    Null { rate_hz: f64 },
 }
 
 /// `[source] kind = "webxr"`: where the page is served and which hand drives the model.
@@ -163,8 +167,8 @@ pub struct WebxrSource {
 impl Source {
     /// Every `[source] kind`, as a session names it; each is a column value of exactly one
     /// row of the stage table ([`crate::Stage::selected_by`]), the stage it starts.
-    pub const KINDS: [&'static str; 6] = [
-        "scripted", "devices", "replay", "remote", "webxr", "external",
+    pub const KINDS: [&'static str; 7] = [
+        "scripted", "devices", "replay", "remote", "webxr", "external", "null",
     ];
 
     pub fn kind(&self) -> &'static str {
@@ -175,6 +179,7 @@ impl Source {
             Source::Remote => "remote",
             Source::Webxr(_) => "webxr",
             Source::External { .. } => "external",
+            Source::Null { .. } => "null",
         }
     }
 }
@@ -734,6 +739,11 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
                     .unwrap_or_default(),
             }
         }
+        "null" => Source::Null {
+            rate_hz: r
+                .f64_in("rate_hz", Some(120.0), 1.0..=10_000.0)?
+                .unwrap_or(120.0),
+        },
         _ => Source::Scripted {
             rate_hz: r
                 .f64_in("rate_hz", Some(120.0), 1.0..=10_000.0)?
