@@ -104,6 +104,36 @@ pub trait Process {
     fn run(session: &Session, bus: &Bus, launch: &Launch) -> Result<(), Self::Error>;
 }
 
+/// Declares a service crate's [`Process`] for a stage that takes nothing of [`Launch`]: its
+/// process is `run(session, bus)`. A stage that does (the stepper's outcome folder, the
+/// renderer's frames and preview, the recorder's segments) writes its `impl` out.
+///
+/// ```ignore
+/// common::process!(
+///     /// The kinematics stage's process, as `handblocks service kinematics` runs it.
+///     Kinematics, common::bus::BusError, service::run
+/// );
+/// ```
+#[macro_export]
+macro_rules! process {
+    ($(#[$doc:meta])* $stage:ident, $error:ty, $run:path) => {
+        $(#[$doc])*
+        pub struct Process;
+
+        impl $crate::node::Process for Process {
+            const STAGE: $crate::Stage = $crate::Stage::$stage;
+            type Error = $error;
+            fn run(
+                session: &$crate::config::Session,
+                bus: &$crate::bus::Bus,
+                _launch: &$crate::node::Launch,
+            ) -> Result<(), $error> {
+                $run(session, bus)
+            }
+        }
+    };
+}
+
 /// How long a stage with nothing to do sleeps before it looks for a stop request again.
 pub const IDLE_WAIT: Duration = Duration::from_millis(50);
 

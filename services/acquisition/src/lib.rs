@@ -11,17 +11,10 @@ pub mod service;
 
 pub use scripted::{HandTarget, ScriptedHand};
 
-/// The acquisition stage's process (the glove and tracker, or the scene's scripted hand), as `handblocks service acquisition` runs it.
-pub struct Process;
-
-impl common::node::Process for Process {
-    const STAGE: common::Stage = common::Stage::Acquisition;
-    type Error = service::AcquisitionError;
-    fn run(
-        session: &common::config::Session,
-        bus: &common::bus::Bus,
-        _launch: &common::node::Launch,
-    ) -> Result<(), Self::Error> {
-        service::run(session, bus)
-    }
-}
+common::process!(
+    /// The acquisition stage's process (the glove and tracker, or the scene's scripted hand), as
+    /// `handblocks service acquisition` runs it.
+    Acquisition,
+    service::AcquisitionError,
+    service::run
+);

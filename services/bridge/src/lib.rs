@@ -22,17 +22,10 @@ pub mod refusals;
 pub mod service;
 pub mod viewer;
 
-/// The bridge stage's process (the link to other machines and the live Foxglove view), as `handblocks service bridge` runs it.
-pub struct Process;
-
-impl common::node::Process for Process {
-    const STAGE: common::Stage = common::Stage::Bridge;
-    type Error = service::BridgeError;
-    fn run(
-        session: &common::config::Session,
-        bus: &common::bus::Bus,
-        _launch: &common::node::Launch,
-    ) -> Result<(), Self::Error> {
-        service::run(session, bus)
-    }
-}
+common::process!(
+    /// The bridge stage's process (the link to other machines and the live Foxglove view), as
+    /// `handblocks service bridge` runs it.
+    Bridge,
+    service::BridgeError,
+    service::run
+);

@@ -11,17 +11,9 @@ pub mod trace;
 pub use carl::{CarlError, CarlTrace};
 pub use trace::{HandTrace, SourceSample, TraceKind};
 
-/// The replay stage's process (a recorded hand), as `handblocks service replay` runs it.
-pub struct Process;
-
-impl common::node::Process for Process {
-    const STAGE: common::Stage = common::Stage::Replay;
-    type Error = service::ReplayError;
-    fn run(
-        session: &common::config::Session,
-        bus: &common::bus::Bus,
-        _launch: &common::node::Launch,
-    ) -> Result<(), Self::Error> {
-        service::run(session, bus)
-    }
-}
+common::process!(
+    /// The replay stage's process (a recorded hand), as `handblocks service replay` runs it.
+    Replay,
+    service::ReplayError,
+    service::run
+);

@@ -37,17 +37,9 @@ pub mod service;
 
 pub use service::{run, WebxrError};
 
-/// The webxr stage's process (a headset's page), as `handblocks service webxr` runs it.
-pub struct Process;
-
-impl common::node::Process for Process {
-    const STAGE: common::Stage = common::Stage::Webxr;
-    type Error = WebxrError;
-    fn run(
-        session: &common::config::Session,
-        bus: &common::bus::Bus,
-        _launch: &common::node::Launch,
-    ) -> Result<(), Self::Error> {
-        service::run(session, bus)
-    }
-}
+common::process!(
+    /// The webxr stage's process (a headset's page), as `handblocks service webxr` runs it.
+    Webxr,
+    WebxrError,
+    service::run
+);
