@@ -466,3 +466,99 @@ fn echo_and_hz_say_when_the_session_ended_and_leave_nothing() {
     }
     assert_nothing_left(&id);
 }
+
+/// `inspect FILE --world-hashes`: a line `STEP HASH` per recorded world, in file order, the
+/// same on every run (two participants' recordings of a shared session are `diff`ed), each
+/// hash the world's [`common::world_hash`]; a recording without worlds is refused, naming it.
+#[test]
+fn inspect_lists_a_hash_per_recorded_world_and_refuses_a_file_without_worlds() {
+    let dir = Scratch::new("tools-hashes");
+    let file = dir.path("hashes.mcap");
+    let id = format!("th{}", std::process::id());
+    let out = Command::new(EXE)
+        .current_dir(repo())
+        .args(["launch", "--quiet", "--no-preview", "--duration", "2"])
+        .args(["--bus-id", &id])
+        .args(["--set", "renderer.mode=off"])
+        .args(["--set", "budget.origin_to_world_p99_us=1000000"])
+        .arg("--record")
+        .arg(&file)
+        .output()
+        .expect("run handblocks launch");
+    assert_nothing_left(&id);
+    assert!(out.status.success(), "{}", both(&out));
+
+    let hashes = || run_in(&dir.0, &["inspect", "hashes.mcap", "--world-hashes"]);
+    let out = hashes();
+    assert!(out.status.success(), "{}", both(&out));
+    assert!(out.stderr.is_empty(), "{}", both(&out));
+    let text = String::from_utf8(out.stdout.clone()).unwrap();
+    let worlds: Vec<common::WorldSample> = recording::Recording::open(&file)
+        .unwrap()
+        .worlds()
+        .collect();
+    assert!(worlds.len() > 10, "{} worlds", worlds.len());
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), worlds.len(), "{text}");
+    let mut last_step = None;
+    for (line, w) in lines.iter().zip(&worlds) {
+        let (step, hash) = line.split_once(' ').expect("STEP HASH");
+        let step: u64 = step.parse().expect("a step");
+        assert!(last_step < Some(step), "steps not increasing at {line}");
+        last_step = Some(step);
+        assert_eq!(hash.len(), 16, "{line}");
+        assert!(
+            hash.bytes().all(|c| matches!(c, b'0'..=b'9' | b'a'..=b'f')),
+            "{line}"
+        );
+        assert_eq!(step, w.step);
+        assert_eq!(
+            u64::from_str_radix(hash, 16).unwrap(),
+            common::world_hash::of_view(&w.view())
+        );
+    }
+    // The blocks moved (the scripted hand grasps and throws one): the hashes are not all one.
+    let distinct: std::collections::BTreeSet<&str> =
+        lines.iter().map(|l| l.split_once(' ').unwrap().1).collect();
+    assert!(distinct.len() > 1, "{text}");
+    // Twice, the same bytes.
+    assert_eq!(hashes().stdout, out.stdout);
+
+    // With the table's --json or another listing: refused by name.
+    for other in [&["--json"][..], &["--samples", "world"]] {
+        let mut args = vec!["inspect", "hashes.mcap", "--world-hashes"];
+        args.extend(other);
+        let out = run_in(&dir.0, &args);
+        assert_eq!(out.status.code(), Some(2), "{}", both(&out));
+        assert!(
+            String::from_utf8_lossy(&out.stderr).contains("cannot be used with"),
+            "{}",
+            both(&out)
+        );
+    }
+
+    // A recording of a glove alone: no worlds to hash.
+    let gloves = dir.path("gloves.mcap");
+    let mut w = recording::RecordingWriter::create(&gloves).unwrap();
+    for k in 0..10u64 {
+        let g = common::GloveSample {
+            stamp: common::Stamp {
+                seq: k,
+                source_time_ns: k * 8_333_333,
+                origin_ns: 1_000 + k * 8_333_333,
+                publish_ns: 2_000 + k * 8_333_333,
+            },
+            ..Default::default()
+        };
+        w.write(common::Topic::Glove, &g).unwrap();
+    }
+    w.finish().unwrap();
+    let out = run_in(&dir.0, &["inspect", "gloves.mcap", "--world-hashes"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{}", both(&out));
+    assert!(out.stdout.is_empty(), "{}", both(&out));
+    assert!(
+        err.contains("gloves.mcap: holds no world samples") && err.contains("glove 10"),
+        "{err}"
+    );
+}

@@ -18,6 +18,7 @@ pub mod shutdown;
 pub mod stage;
 pub mod stamp;
 pub mod topic;
+pub mod world_hash;
 
 pub use samples::*;
 pub use stamp::{monotonic_ns, Stamp};

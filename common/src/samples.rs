@@ -307,13 +307,34 @@ pub struct HandSample {
     /// the left of a two-hand session (docs/model.md "Two hands"). Last, so that a hand
     /// recorded before it had this field reads as the right ([`HandSample::LEGACY_SIZE`]).
     pub side: u32,
-    pub _reserved: u32,
+    /// Whose hand, in a shared session (docs/sessions.md "Shared sessions"): the participant's
+    /// number, 0 to [`MAX_PARTICIPANTS`] - 1, given by the host that orders the participants'
+    /// hands; 0 in any other session (where it was padding, so a recording made before it
+    /// reads as participant 0).
+    pub participant: u32,
 }
+
+/// The most people one shared world holds: each brings up to two hands, so a world has
+/// `2 * MAX_PARTICIPANTS` hand slots ([`HandSample::slot`]).
+pub const MAX_PARTICIPANTS: usize = 4;
+
+/// Hand slots of a world: each participant's right (or only) hand and left hand.
+pub const HAND_SLOTS: usize = 2 * MAX_PARTICIPANTS;
 
 impl HandSample {
     /// The size of a `hand` sample before it had `side`: a recording made then holds hands of
     /// this size, which read as the right hand (the fields after it zero).
     pub const LEGACY_SIZE: usize = std::mem::offset_of!(HandSample, side);
+
+    /// The world's hand slot of this hand: `2 * participant` for the right (or a one-hand
+    /// source's only) hand, one more for the left; None for a participant number out of range
+    /// (outside input: the stepper refuses such a hand and counts it).
+    pub fn slot(&self) -> Option<usize> {
+        let participant = usize::try_from(self.participant)
+            .ok()
+            .filter(|&p| p < MAX_PARTICIPANTS)?;
+        Some(2 * participant + usize::from(HandSide::from_code(self.side) == HandSide::Left))
+    }
 }
 
 impl Default for HandSample {
@@ -329,7 +350,7 @@ impl Default for HandSample {
             finger_radius: [0.0; MAX_FINGERS],
             palm_vertices: [[0.0; 3]; MAX_PALM_VERTICES],
             side: 0,
-            _reserved: 0,
+            participant: 0,
         }
     }
 }

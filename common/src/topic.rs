@@ -375,7 +375,7 @@ topic_table! {
                 finger_radius,
                 palm_vertices,
                 side,
-                _reserved,
+                participant,
             ],
         },
         /// The blocks' states after each step (the replay reads it to pace itself): a header

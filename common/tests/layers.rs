@@ -7,9 +7,19 @@ use std::collections::BTreeSet;
 use std::path::Path;
 
 /// The modules of `common/src`, lowest layer first. A module may import those before it.
-const LAYERS: [&str; 11] = [
-    "stamp", "samples", "glove", "stage", "topic", "config", "output", "shutdown", "bus",
-    "latency", "node",
+const LAYERS: [&str; 12] = [
+    "stamp",
+    "samples",
+    "world_hash",
+    "glove",
+    "stage",
+    "topic",
+    "config",
+    "output",
+    "shutdown",
+    "bus",
+    "latency",
+    "node",
 ];
 
 /// Every `crate::MODULE` a source file names outside its comments.

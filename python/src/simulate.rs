@@ -163,6 +163,7 @@ pub fn simulate<'py>(
         d.set_item("kind", e.kind.name())?;
         d.set_item("block", &e.block)?;
         d.set_item("hand", e.hand.map(|h| h.name()))?;
+        d.set_item("participant", e.participant)?;
         events.append(d)?;
     }
     out.set_item("events", events)?;

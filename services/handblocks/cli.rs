@@ -89,10 +89,9 @@ pub enum Command {
         /// "topics": [{"topic", "messages", "gaps", "seconds", "rate_hz", "schema", "bytes"}]}.
         #[arg(long)]
         json: bool,
-        /// Print every sample of TOPIC instead (glove, tracker, joints, hand, world, frame):
-        /// one JSON object a line, field by field as the recording's schema names them.
-        #[arg(long, value_name = "TOPIC", conflicts_with = "json")]
-        samples: Option<String>,
+        // A line per sample instead of the table: `--samples TOPIC` or `--world-hashes`.
+        #[command(flatten)]
+        samples: Option<InspectLines>,
     },
     /// Run a scene's block world alone, in one process, deterministically.
     ///
@@ -305,6 +304,23 @@ pub enum Command {
 // What `handblocks launch` was given (the bare `handblocks` is `launch` with the defaults but
 // the live session file). A plain comment: a doc comment here would replace the subcommand's
 // own help, which the `Launch` variant above holds.
+/// What `inspect` prints instead of its table, one line per sample: one of these at most, and
+/// neither with `--json`.
+#[derive(clap::Args, Debug, Clone)]
+#[group(multiple = false)]
+pub struct InspectLines {
+    /// Print every sample of TOPIC instead (glove, tracker, joints, hand, world, frame):
+    /// one JSON object a line, field by field as the recording's schema names them.
+    #[arg(long, value_name = "TOPIC", conflicts_with = "json")]
+    pub samples: Option<String>,
+    /// Print `STEP HASH` for each world sample instead, in recording order (HASH: 16 hex
+    /// digits of the step, the grasp and every block's pose bit for bit, mode and hands; not
+    /// the stamps), so that two participants' recordings of a shared session can be compared
+    /// line by line (`diff`): the first differing line is the first step they disagree on.
+    #[arg(long, conflicts_with = "json")]
+    pub world_hashes: bool,
+}
+
 #[derive(clap::Args, Default)]
 pub struct LaunchArgs {
     /// The session file (which scene, which source, renderer, recorder, budget), or a scene

@@ -1,4 +1,5 @@
-//! `handblocks inspect RECORDING`: a recording's topics, as text or `--json`. The figures are
+//! `handblocks inspect RECORDING`: a recording's topics, as text or `--json` (or a line per
+//! sample: `--samples TOPIC`, `--world-hashes`). The figures are
 //! [`Recording::summary`]'s; this module only lays them out.
 
 use std::path::Path;
@@ -7,10 +8,100 @@ use std::time::{Duration, UNIX_EPOCH};
 
 use recording::{Recording, RecordingError, SegmentChain};
 
+use crate::cli::InspectLines;
+
+/// `inspect FILE --samples TOPIC` or `inspect FILE --world-hashes`: a line per sample instead
+/// of the table.
+pub fn samples(path: &Path, lines: &InspectLines) -> Result<ExitCode, RecordingError> {
+    match (&lines.samples, lines.world_hashes) {
+        (Some(topic), _) => topic_samples(path, topic),
+        (None, true) => world_hashes(path),
+        (None, false) => run(path, false),
+    }
+}
+
+/// `inspect FILE --world-hashes`: `STEP HASH` for each world sample, in file order, and
+/// nothing else on stdout, so that two participants' recordings of one shared session can be
+/// `diff`ed (HASH: [`common::world_hash`], 16 lowercase hex digits). A file without worlds is
+/// refused (exit 2), naming it; a damaged one lists the worlds before the damage (exit 1).
+pub fn world_hashes(path: &Path) -> Result<ExitCode, RecordingError> {
+    use common::Topic;
+    use std::io::Write as _;
+    let rec = Recording::open_topics(path, &[Topic::World])?;
+    if !rec.messages.iter().any(|m| m.topic == Topic::World) {
+        let stats = rec.stats();
+        let held: Vec<String> = Topic::RECORDED
+            .iter()
+            .filter(|t| stats[**t as usize].messages > 0)
+            .map(|t| format!("{} {}", t.name(), stats[*t as usize].messages))
+            .collect();
+        let holds = if held.is_empty() {
+            "no samples of any topic".to_string()
+        } else {
+            format!("samples of {} only", held.join(", "))
+        };
+        let why = match (&rec.damage, rec.refused_messages) {
+            (Some(d), _) => format!(" (read up to the damage: {d})"),
+            (None, n) if n > 0 => format!(
+                " ({n} messages were skipped: their counts do not fit their arrays, the first {})",
+                rec.first_refused.as_deref().unwrap_or("")
+            ),
+            _ => String::new(),
+        };
+        eprintln!(
+            "handblocks inspect: {}: holds no world samples, so it has no world hashes: it holds \
+             {holds}{why}; --world-hashes reads a recording of a session's `world` topic \
+             (`handblocks launch --record FILE`)",
+            path.display()
+        );
+        return Ok(ExitCode::from(2));
+    }
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    let written = rec
+        .messages
+        .iter()
+        .filter_map(|m| rec.world(m))
+        .try_for_each(|w| {
+            let hash = common::world_hash::of_view(&w.view());
+            writeln!(out, "{} {hash:016x}", w.step)
+        })
+        .and_then(|()| out.flush());
+    if let Err(e) = written {
+        eprintln!("handblocks inspect: writing the world hashes: {e}");
+        return Ok(ExitCode::from(1));
+    }
+    // What a line-by-line comparison would silently miss goes to stderr.
+    if rec.refused_messages > 0 {
+        eprintln!(
+            "handblocks inspect: {} messages were skipped, their worlds not listed: their \
+             counts do not fit their arrays (the first {})",
+            rec.refused_messages,
+            rec.first_refused.as_deref().unwrap_or("")
+        );
+    }
+    let next = common::config::session::recording_segment(path, 1);
+    if std::fs::symlink_metadata(&next).is_ok() {
+        eprintln!(
+            "handblocks inspect: the recorder was restarted and the recording goes on in {} \
+             (and any later segments): these are {}'s worlds only",
+            next.display(),
+            path.display()
+        );
+    }
+    if let Some(d) = &rec.damage {
+        eprintln!("handblocks inspect: damage: {d}");
+    }
+    Ok(if rec.complete && rec.damage.is_none() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
 /// `inspect FILE --samples TOPIC`: every sample of one topic, one JSON object a line, in file
 /// order, field by field as the recording's schema names them (what Python's
 /// `handblocks.Recording` arrays hold, from the reader every tool here uses).
-pub fn samples(path: &Path, topic: &str) -> Result<ExitCode, RecordingError> {
+fn topic_samples(path: &Path, topic: &str) -> Result<ExitCode, RecordingError> {
     use common::samples::{FrameSample, GloveSample, HandSample, JointsSample, TrackerSample};
     use common::Topic;
     let Some(topic) = Topic::from_channel(topic).filter(|t| t.is_recorded()) else {

@@ -106,13 +106,13 @@ fn run() -> Result<ExitCode, CliError> {
         Some(Command::Inspect {
             recording,
             json,
-            samples,
+            samples: lines,
         }) => {
             if let Some(why) = inspect::refuse(&recording) {
                 return Err(error::CliError::Refused("inspect", why));
             }
-            match samples {
-                Some(topic) => inspect::samples(&recording, &topic)?,
+            match lines {
+                Some(lines) => inspect::samples(&recording, &lines)?,
                 None => inspect::run(&recording, json)?,
             }
         }

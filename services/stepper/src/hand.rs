@@ -682,7 +682,12 @@ pub(crate) fn move_by_hand(
                 // positions, the rotation halfway), so neither hand's tracking error flings it
                 // and a hand letting go of a two-hand grasp leaves it moving with the other.
                 let holders = if two_handed { b.acting_hands } else { 1 };
+                // The mean over the hands that grasp it (people sharing a world hold a block
+                // together the same way): positions summed from the first, rotations summed on
+                // the first's side, so that one hand's motion is its own bit for bit and two
+                // hands' are the middle and `halfway`, as before shared worlds.
                 let mut moved_to: Option<(DVec3, DQuat)> = None;
+                let mut holding = 0u32;
                 for (slot, motion) in grasp_motion.iter_mut().enumerate() {
                     if holders & (1 << slot) == 0 {
                         continue;
@@ -694,11 +699,18 @@ pub(crate) fn move_by_hand(
                     };
                     let pos = w_pos + dq * (b.pos() - wm_pos);
                     let rot = (dq * b.rot()).normalize();
+                    holding += 1;
                     moved_to = Some(match moved_to {
                         None => (pos, rot),
-                        Some((p0, r0)) => ((p0 + pos) * 0.5, halfway(r0, rot)),
+                        Some((p0, r0)) => {
+                            (p0 + pos, r0 + if r0.dot(rot) < 0.0 { -rot } else { rot })
+                        }
                     });
                 }
+                let moved_to = moved_to.map(|(p, r)| match holding {
+                    1 => (p, r),
+                    n => (p * (1.0 / f64::from(n)), r.normalize()),
+                });
                 if b.mode_before != BlockMode::Grasped {
                     b.grasp_history_len = 0;
                     b.grip.clear();
@@ -755,13 +767,6 @@ pub(crate) fn move_by_hand(
         }
     }
     any_moved
-}
-
-/// The rotation halfway between unit quaternions `a` and `b` (the shorter way): the mean of
-/// two hands' rotations of a block they both hold.
-fn halfway(a: DQuat, b: DQuat) -> DQuat {
-    let b = if a.dot(b) < 0.0 { -b } else { b };
-    (a + b).normalize()
 }
 
 /// R5: check points that end inside a grasped block are moved to its surface (nearest point),

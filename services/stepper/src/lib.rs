@@ -50,9 +50,11 @@ pub mod tracked;
 mod two_hands;
 pub mod world;
 
-/// The hands a world takes in one step: a headset tracks two. Slot 0 is a one-hand world's
-/// only hand and a two-hand world's right; slot 1 is the left (docs/model.md "Two hands").
-pub const HAND_SLOTS: usize = 2;
+/// The hands a world takes in one step ([`common::HandSample::slot`]): a headset tracks two,
+/// and a shared world holds up to [`common::MAX_PARTICIPANTS`] people. Slot 0 is a one-hand
+/// world's only hand and a two-hand world's right; slot 1 is the left (docs/model.md "Two
+/// hands"); slots 2k and 2k+1 are participant k's right and left.
+pub use common::HAND_SLOTS;
 
 pub use model::Model;
 pub use motion::{push_one_point, PushOutcome};

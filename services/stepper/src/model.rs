@@ -78,10 +78,10 @@ impl Model {
     /// One step with each hand by slot ([`crate::HAND_SLOTS`]; [`World::step_hands`]). The
     /// precise model takes the first hand only: two hands are the paper model's, and
     /// `simulate` and the stepper refuse the precise model with two before they start.
-    pub fn step_hands(&mut self, hands: [Option<&HandSample>; crate::HAND_SLOTS]) {
+    pub fn step_hands<const N: usize>(&mut self, hands: [Option<&HandSample>; N]) {
         match self {
             Model::Paper(w) => w.step_hands(hands),
-            Model::Precise(w) => w.step(hands[0]),
+            Model::Precise(w) => w.step(hands.first().copied().flatten()),
         }
     }
 

@@ -296,7 +296,7 @@ impl Stepping {
                 }
             }
         }
-        timeline.advance_hands([frame[0].as_ref(), frame[1].as_ref()], |h| {
+        timeline.advance_hands(frame.each_ref().map(Option::as_ref), |h| {
             world.step_hands(h);
             for e in world.events() {
                 if events.len() < OUTCOME_EVENTS {

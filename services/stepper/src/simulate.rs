@@ -172,12 +172,16 @@ pub struct EventReport {
     pub block: String,
     /// The hand a grasp, release or push is by, in a two-hand world (`"hand"` in the JSON).
     pub hand: Option<common::HandSide>,
+    /// Whose hand, in a shared world ([`common::HandSample::participant`]; `"participant"` in
+    /// the JSON, which names it only when it is not 0).
+    pub participant: u32,
 }
 
 /// The side of the hand in slot `slot` of a two-hand world ([`crate::HAND_SLOTS`]): slot 0 is
-/// the right, slot 1 the left.
+/// the right, slot 1 the left (and so on for each participant of a shared world: even slots
+/// are right hands).
 pub fn slot_side(slot: usize) -> common::HandSide {
-    if slot == 0 {
+    if slot.is_multiple_of(2) {
         common::HandSide::Right
     } else {
         common::HandSide::Left
@@ -407,7 +411,7 @@ fn simulate_stream(
                 }
             }
         }
-        timeline.advance_hands([frame[0].as_ref(), frame[1].as_ref()], |h| {
+        timeline.advance_hands(frame.each_ref().map(Option::as_ref), |h| {
             if world.steps() < limit && stopped.get().is_none() {
                 world.step_hands(h);
                 collect_events(&world, scene, &mut events, two_handed);
@@ -430,7 +434,7 @@ fn simulate_stream(
     let last = *assembled.last_good();
     let end = frames.unwrap_or(world.steps() + (2.0 * scene.world.step_hz) as u64);
     while world.steps() < end {
-        world.step_hands([last[0].as_ref(), last[1].as_ref()]);
+        world.step_hands(last.each_ref().map(Option::as_ref));
         collect_events(&world, scene, &mut events, two_handed);
         let n = world.steps();
         progress(n, &world).map_err(|Stop| RunError::Stopped { steps: n })?;
@@ -463,6 +467,7 @@ fn push_event(e: &crate::world::Event, scene: &Scene, two: bool, out: &mut Vec<E
                 kind: e.kind,
                 block: block.clone(),
                 hand: Some(slot_side(slot)),
+                participant: (slot / 2) as u32,
             });
         }
     } else {
@@ -471,6 +476,7 @@ fn push_event(e: &crate::world::Event, scene: &Scene, two: bool, out: &mut Vec<E
             kind: e.kind,
             block,
             hand: None,
+            participant: 0,
         });
     }
 }
@@ -575,6 +581,9 @@ impl Report {
             if let Some(hand) = e.hand {
                 let _ = write!(o, ", \"hand\": {}", json_str(hand.name()));
             }
+            if e.participant != 0 {
+                let _ = write!(o, ", \"participant\": {}", e.participant);
+            }
             o.push('}');
         }
         o.push(']');
@@ -667,13 +676,16 @@ impl Report {
                     && self.events[j].kind == e.kind
                     && self.events[j].block == e.block
                     && self.events[j].hand == e.hand
+                    && self.events[j].participant == e.participant
                     && self.events[j].step == self.events[j - 1].step + 1
                 {
                     j += 1;
                 }
-                let by = e
-                    .hand
-                    .map_or(String::new(), |h| format!(" ({} hand)", h.name()));
+                let by = match (e.hand, e.participant) {
+                    (None, _) => String::new(),
+                    (Some(h), 0) => format!(" ({} hand)", h.name()),
+                    (Some(h), p) => format!(" (participant {p}'s {} hand)", h.name()),
+                };
                 if j - i > 1 {
                     let _ = writeln!(
                         o,

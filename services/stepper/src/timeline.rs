@@ -5,7 +5,7 @@
 //! process, [`crate::service`]) or replayed ([`crate::simulate_samples`]): both advance this
 //! one timeline.
 
-use common::HandSample;
+use common::{HandSample, HAND_SLOTS};
 use glam::{DQuat, DVec3};
 
 /// The longest stretch of source time one hand sample may bring in steps
@@ -22,11 +22,11 @@ pub struct Timeline {
     /// Source time of the first hand sample: world time 0.
     origin_ns: Option<u64>,
     /// Each hand's last sample, by hand slot.
-    previous: [Option<HandSample>; 2],
+    previous: [Option<HandSample>; HAND_SLOTS],
     /// The last frame's source time.
     last_ns: Option<u64>,
     steps_taken: u64,
-    scratch: [HandSample; 2],
+    scratch: [HandSample; HAND_SLOTS],
     /// Discontinuities of the source's clock so far (see [`MAX_CATCH_UP_NS`]).
     jumps: u64,
     /// Steps taken before the last discontinuity: world time since `origin_ns` counts from
@@ -39,10 +39,10 @@ impl Timeline {
         Timeline {
             step_hz,
             origin_ns: None,
-            previous: [None, None],
+            previous: [None; HAND_SLOTS],
             last_ns: None,
             steps_taken: 0,
-            scratch: [HandSample::default(); 2],
+            scratch: [HandSample::default(); HAND_SLOTS],
             jumps: 0,
             base_steps: 0,
         }
@@ -85,18 +85,22 @@ impl Timeline {
 
     /// Takes the steps `hand` brings, calling `step` with the hand at each step's time.
     pub fn advance(&mut self, hand: &HandSample, mut step: impl FnMut(Option<&HandSample>)) {
-        self.advance_hands([Some(hand), None], |[first, _]| step(first));
+        let mut hands = [None; HAND_SLOTS];
+        hands[0] = Some(hand);
+        self.advance_hands(hands, |h| step(h[0]));
     }
 
-    /// Takes the steps one frame of two hands brings (by hand slot, `crate::HAND_SLOTS`; a
+    /// Takes the steps one frame of hands brings (by hand slot, `crate::HAND_SLOTS`; a
     /// hand the frame lacks is None), calling `step` with each hand at each step's time: the
     /// frame's time is its newest hand's, and each hand is interpolated between its own
     /// previous sample and this one (a hand the last frame lacked is taken as it is). A
     /// source that tracks two hands sends both in every frame, a lost one with `tracked = 0`.
-    pub fn advance_hands(
+    ///
+    /// `N` slots given (at most [`HAND_SLOTS`] read): a source of one person's hands gives two.
+    pub fn advance_hands<const N: usize>(
         &mut self,
-        hands: [Option<&HandSample>; 2],
-        mut step: impl FnMut([Option<&HandSample>; 2]),
+        hands: [Option<&HandSample>; N],
+        mut step: impl FnMut([Option<&HandSample>; N]),
     ) {
         let Some(now) = hands.iter().flatten().map(|h| h.stamp.source_time_ns).max() else {
             return;
@@ -107,7 +111,7 @@ impl Timeline {
                 // step, taken with this hand as it is (no interpolation across the jump).
                 self.origin_ns = Some(now.saturating_sub(self.step_time_ns(1)));
                 self.base_steps = self.steps_taken;
-                self.previous = [None, None];
+                self.previous = [None; HAND_SLOTS];
                 self.jumps += 1;
             }
         }
@@ -116,14 +120,17 @@ impl Timeline {
         while self.steps_taken < due {
             let k = self.steps_taken + 1;
             let t_ns = origin.saturating_add(self.step_time_ns(k - self.base_steps));
-            let [first, second] = &mut self.scratch;
-            step([
-                hand_at(t_ns, hands[0], &self.previous[0], first),
-                hand_at(t_ns, hands[1], &self.previous[1], second),
-            ]);
+            let mut at_step = [None; N];
+            for (k, scratch) in self.scratch.iter_mut().enumerate().take(N) {
+                at_step[k] = hand_at(t_ns, hands[k], &self.previous[k], scratch);
+            }
+            step(at_step);
             self.steps_taken = k;
         }
-        self.previous = hands.map(|h| h.copied());
+        self.previous = [None; HAND_SLOTS];
+        for (previous, hand) in self.previous.iter_mut().zip(hands) {
+            *previous = hand.copied();
+        }
         self.last_ns = Some(now);
     }
 }
@@ -162,9 +169,10 @@ pub fn interpolate(a: &HandSample, b: &HandSample, s: f64, out: &mut HandSample)
     }
 }
 
-/// One frame of a source of two hands: each hand by slot (`crate::HAND_SLOTS`; slot 0 the
-/// right or a one-hand source's only hand, slot 1 the left), None for a hand it lacks.
-pub type HandFrame = [Option<HandSample>; 2];
+/// One frame of hands: each hand by slot (`crate::HAND_SLOTS`, [`HandSample::slot`]; slot 0
+/// the right or a one-hand source's only hand, slot 1 the left, then each participant's of a
+/// shared world), None for a hand it lacks.
+pub type HandFrame = [Option<HandSample>; HAND_SLOTS];
 
 /// Makes a stream of hand samples (one per hand per source frame, each marked with its side,
 /// [`HandSample::side`]) into frames of both hands, for [`Timeline::advance_hands`]: the
@@ -182,10 +190,12 @@ pub type HandFrame = [Option<HandSample>; 2];
 #[derive(Debug, Clone, Default)]
 pub struct HandFrames {
     pending: HandFrame,
-    refused: [bool; 2],
+    refused: [bool; HAND_SLOTS],
     pending_ns: Option<u64>,
     last_good: HandFrame,
-    two_handed: bool,
+    /// The slots a hand has been seen in (bit k: slot k): a frame is complete when it holds
+    /// each of them and slot 0's.
+    seen: u32,
     /// Hands refused so far, and the first one's seq and why.
     pub refused_hands: u64,
     pub first_refused: Option<(u64, &'static str)>,
@@ -196,13 +206,14 @@ impl HandFrames {
         HandFrames::default()
     }
 
-    /// Whether a left hand has been seen: from then on a frame waits for both.
+    /// Whether a hand other than slot 0's (a left hand, another participant's) has been seen:
+    /// from then on a frame waits for every slot seen.
     pub fn two_handed(&self) -> bool {
-        self.two_handed
+        self.seen & !1 != 0
     }
 
-    /// Whether a frame is being gathered (its right came, its left not yet): the world does
-    /// not answer it until it is complete.
+    /// Whether a frame is being gathered (its right came, its left not yet; in a shared world,
+    /// not yet every participant's): the world does not answer it until it is complete.
     pub fn waiting(&self) -> bool {
         self.pending_ns.is_some()
     }
@@ -214,9 +225,16 @@ impl HandFrames {
     }
 
     /// Takes one hand sample; calls `frame` with each frame it completes (none, one or two).
+    /// A hand of a participant out of range ([`HandSample::slot`]) is refused and counted, and
+    /// touches no frame.
     pub fn push(&mut self, hand: &HandSample, mut frame: impl FnMut(&HandFrame)) {
-        let slot = usize::from(common::HandSide::from_code(hand.side) == common::HandSide::Left);
-        self.two_handed |= slot == 1;
+        let Some(slot) = hand.slot() else {
+            self.refused_hands += 1;
+            self.first_refused
+                .get_or_insert((hand.stamp.seq, "its participant number is out of range"));
+            return;
+        };
+        self.seen |= 1 << slot;
         let t = hand.stamp.source_time_ns;
         if self.pending[slot].is_some()
             || self.refused[slot]
@@ -234,7 +252,8 @@ impl HandFrames {
             None => self.pending[slot] = Some(*hand),
         }
         let has = |k: usize| self.pending[k].is_some() || self.refused[k];
-        if has(0) && (!self.two_handed || has(1)) {
+        let required = self.seen | 1;
+        if (0..HAND_SLOTS).all(|k| required & (1 << k) == 0 || has(k)) {
             self.flush(&mut frame);
         }
     }
@@ -245,7 +264,7 @@ impl HandFrames {
             return;
         };
         if self.pending.iter().any(Option::is_some) {
-            for k in 0..2 {
+            for k in 0..HAND_SLOTS {
                 if self.refused[k] && self.pending[k].is_none() {
                     self.pending[k] = self.last_good[k].map(|mut held| {
                         held.stamp.source_time_ns = t;
@@ -254,14 +273,14 @@ impl HandFrames {
                 }
             }
             frame(&self.pending);
-            for k in 0..2 {
+            for k in 0..HAND_SLOTS {
                 if self.pending[k].is_some() {
                     self.last_good[k] = self.pending[k];
                 }
             }
         }
-        self.pending = [None, None];
-        self.refused = [false, false];
+        self.pending = [None; HAND_SLOTS];
+        self.refused = [false; HAND_SLOTS];
     }
 }
 
@@ -371,6 +390,47 @@ mod tests {
         tl.advance(&hand_at(0, 0.0), |_| n += 1);
         tl.advance(&hand_at(MAX_CATCH_UP_NS, 0.0), |_| n += 1);
         assert_eq!((n, tl.jumps()), (1200, 0));
+    }
+
+    #[test]
+    fn a_shared_frame_waits_for_every_participants_hands_and_refuses_a_number_out_of_range() {
+        let person = |t: u64, participant: u32, side: u32| {
+            let mut h = hand_at(t, f64::from(participant));
+            h.participant = participant;
+            h.side = side;
+            h.finger_count = 1;
+            h.finger_point_count[0] = 1;
+            h
+        };
+        let mut frames = HandFrames::new();
+        let mut given = Vec::new();
+        // Participant 0's right and participant 2's left at t = 0 (a first frame: each
+        // participant's hands seen so far), then the same at t = 10 ms.
+        for t in [0, 10_000_000] {
+            frames.push(&person(t, 0, 0), |f| given.push(*f));
+            frames.push(&person(t, 2, 1), |f| given.push(*f));
+        }
+        // The first frame is given out on its own (only slot 0 was known), the second hand of
+        // t = 0 when t = 10 ms begins; from then on a frame waits for both.
+        assert_eq!(given.len(), 3);
+        let last = given[2];
+        assert!(
+            last[0].is_some() && last[5].is_some(),
+            "slots 0 and 5 in one frame"
+        );
+        assert_eq!(last[5].map(|h| h.stamp.source_time_ns), Some(10_000_000));
+        assert!(frames.two_handed());
+        // A participant number past MAX_PARTICIPANTS is refused and counted; the frame it
+        // would have joined is not held up.
+        let before = frames.refused_hands;
+        frames.push(
+            &person(20_000_000, common::MAX_PARTICIPANTS as u32, 0),
+            |f| given.push(*f),
+        );
+        assert_eq!(frames.refused_hands, before + 1);
+        assert!(frames
+            .first_refused
+            .is_some_and(|(_, why)| why.contains("participant")));
     }
 
     #[test]

@@ -103,10 +103,10 @@ pub struct GripPath {
     len: usize,
     /// The last step at which R3 (not T1) found the grasp, by either hand.
     pub firm_step: u64,
-    /// Each hand's grip (by hand slot, `crate::HAND_SLOTS`): in a two-hand grasp each hand
-    /// opens its own.
-    grip: [[GripPoint; MAX_GRIP_POINTS]; HAND_SLOTS],
-    grip_len: [usize; HAND_SLOTS],
+    /// Each hand's grip and its length (by hand slot, `crate::HAND_SLOTS`): in a two-hand
+    /// grasp each hand opens its own. Allocated with the path, only under tracked rules (the
+    /// only rules that read it): 7 KiB a block that a paper world does not carry.
+    grip: Vec<([GripPoint; MAX_GRIP_POINTS], usize)>,
     /// Each hand's steps in a row with its grip found open (T1's `grip_open_time`).
     open_steps: [u32; HAND_SLOTS],
 }
@@ -119,8 +119,11 @@ impl GripPath {
             next: 0,
             len: 0,
             firm_step: 0,
-            grip: [[GripPoint::default(); MAX_GRIP_POINTS]; HAND_SLOTS],
-            grip_len: [0; HAND_SLOTS],
+            grip: if capacity == 0 {
+                Vec::new()
+            } else {
+                vec![([GripPoint::default(); MAX_GRIP_POINTS], 0); HAND_SLOTS]
+            },
             open_steps: [0; HAND_SLOTS],
         }
     }
@@ -156,10 +159,13 @@ impl GripPath {
             }
         }
         self.open_steps[slot] = 0;
-        let keep_old = self.grip_len[slot] > 0 && !grips(&grip[..len], release_angle);
+        let Some((kept, kept_len)) = self.grip.get_mut(slot) else {
+            return;
+        };
+        let keep_old = *kept_len > 0 && !grips(&grip[..len], release_angle);
         if !keep_old {
-            self.grip[slot] = grip;
-            self.grip_len[slot] = len;
+            *kept = grip;
+            *kept_len = len;
         }
     }
 
@@ -181,7 +187,10 @@ impl GripPath {
         margin: f64,
         outside: impl Fn(DVec3) -> f64,
     ) -> bool {
-        let grip = &self.grip[slot][..self.grip_len[slot]];
+        let Some((grip, len)) = self.grip.get(slot) else {
+            return false;
+        };
+        let grip = &grip[..*len];
         if !grips(grip, release_angle) {
             return false;
         }

@@ -1,9 +1,11 @@
-//! Stage 1 of a two-hand world (docs/model.md "Two hands"): each hand's R1-R3 (and T1-T2) are
+//! Stage 1 of a world of several hands (docs/model.md "Two hands"; a shared world's hands are
+//! combined the same way, whoever's they are): each hand's R1-R3 (and T1-T2) are
 //! decided as a one-hand world decides them, apart, then combined block by block into the one
 //! action stage 2 applies:
 //!
 //! * both hands grasp: a two-hand grasp, moved by the mean of the two wrists' motions
-//!   (`hand::move_by_hand`);
+//!   (`hand::move_by_hand`); several people's hands that grasp one block hold it together,
+//!   moved by the mean of all their wrists' motions (no hand has authority over another's);
 //! * one hand grasps: that hand's grasp, whatever the other does to the block (a hand pushing
 //!   a block the other holds does not tear it from the grip);
 //! * both push (R4 or R6): R6's rule across the hands, the mean of their translations;
@@ -36,7 +38,7 @@ pub(crate) struct TwoHands {
 impl TwoHands {
     pub(crate) fn new(blocks: usize) -> TwoHands {
         TwoHands {
-            actions: [Vec::with_capacity(blocks), Vec::with_capacity(blocks)],
+            actions: std::array::from_fn(|_| Vec::with_capacity(blocks)),
         }
     }
 
@@ -55,7 +57,7 @@ impl TwoHands {
         }
     }
 
-    /// Combines the two hands' kept actions into each block's action (the module's rules) and
+    /// Combines the hands' kept actions into each block's action (the module's rules) and
     /// the hands acting on it (`Block::acting_hands`); reports hands joining or leaving a grasp
     /// that goes on. Whether any block has an action.
     pub(crate) fn combine(
@@ -64,32 +66,24 @@ impl TwoHands {
         settings: &Settings,
         events: &mut StepEvents,
     ) -> bool {
-        let [first, second] = &self.actions;
-        let (mut a, mut b) = (first.iter().peekable(), second.iter().peekable());
+        // Each slot's list is in block order: walk them together, one cursor per slot.
+        let mut next = [0usize; HAND_SLOTS];
         let mut acted = false;
-        loop {
-            // The next block either hand acts on, in block order, and each hand's action on it.
-            let (i, x, y) = match (a.peek(), b.peek()) {
-                (None, None) => break,
-                (Some(&&(i, x)), Some(&&(j, _))) if i < j => {
-                    a.next();
-                    (i, x, HandAction::None)
+        // The next block any hand acts on, in block order, and each hand's action on it.
+        while let Some(i) = (0..HAND_SLOTS)
+            .filter_map(|k| self.actions[k].get(next[k]).map(|&(i, _)| i))
+            .min()
+        {
+            let mut by_slot = [HandAction::None; HAND_SLOTS];
+            for k in 0..HAND_SLOTS {
+                if let Some(&(j, action)) = self.actions[k].get(next[k]) {
+                    if j == i {
+                        by_slot[k] = action;
+                        next[k] += 1;
+                    }
                 }
-                (Some(&&(i, x)), Some(&&(j, y))) if i == j => {
-                    a.next();
-                    b.next();
-                    (i, x, y)
-                }
-                (_, Some(&&(j, y))) => {
-                    b.next();
-                    (j, HandAction::None, y)
-                }
-                (Some(&&(i, x)), None) => {
-                    a.next();
-                    (i, x, HandAction::None)
-                }
-            };
-            let (action, hands) = combined(x, y, settings);
+            }
+            let (action, hands) = combined(&by_slot, settings);
             let block = &mut blocks[i as usize];
             if block.mode == BlockMode::Grasped && action == HandAction::Grasp {
                 // A grasp that goes on: a hand joining it, or letting go of it.
@@ -109,31 +103,45 @@ impl TwoHands {
     }
 }
 
-/// The block's action from the first hand's `x` and the second's `y`, and the hands it is by.
-fn combined(x: HandAction, y: HandAction, settings: &Settings) -> (HandAction, u8) {
-    use HandAction::{Grasp, None};
-    match (x, y) {
-        (Grasp, Grasp) => (Grasp, 0b11),
-        (Grasp, _) => (Grasp, 0b01),
-        (_, Grasp) => (Grasp, 0b10),
-        (x, None) => (x, u8::from(x != None)),
-        (None, y) => (y, 0b10),
-        // Two pushes: R6 across the hands, the mean of their translations (those that move it).
-        (x, y) => {
-            let t = |a: HandAction| match a {
-                HandAction::Push { c, b } => {
-                    push_one_point(c, b, DVec3::ZERO, settings.hull_eps, settings.contact_eps)
-                        .map(|p| p.t)
-                }
-                HandAction::Translate(t) => Some(t),
-                _ => Option::None,
-            };
-            match (t(x), t(y)) {
-                (Some(p), Some(q)) => (HandAction::Translate((p + q) * 0.5), 0b11),
-                (Some(p), Option::None) => (HandAction::Translate(p), 0b01),
-                (Option::None, Some(q)) => (HandAction::Translate(q), 0b10),
-                (Option::None, Option::None) => (None, 0),
-            }
+/// The block's action from each hand's (by slot), and the hands it is by (bit k: slot k).
+/// Any grasp wins, by every hand that grasps (two people grasping one block hold it
+/// together, as one person's two hands do); a hand acting alone keeps its action; two or
+/// more pushes are R6 across the hands, the mean of their translations (those that move it).
+fn combined(by_slot: &[HandAction; HAND_SLOTS], settings: &Settings) -> (HandAction, u8) {
+    let bit = |k: usize| 1u8 << k;
+    let grasping = (0..HAND_SLOTS)
+        .filter(|&k| by_slot[k] == HandAction::Grasp)
+        .fold(0u8, |mask, k| mask | bit(k));
+    if grasping != 0 {
+        return (HandAction::Grasp, grasping);
+    }
+    let acting = (0..HAND_SLOTS)
+        .filter(|&k| by_slot[k] != HandAction::None)
+        .fold(0u8, |mask, k| mask | bit(k));
+    if acting.count_ones() == 1 {
+        let k = acting.trailing_zeros() as usize;
+        return (by_slot[k], acting);
+    }
+    let translation = |a: HandAction| match a {
+        HandAction::Push { c, b } => {
+            push_one_point(c, b, DVec3::ZERO, settings.hull_eps, settings.contact_eps).map(|p| p.t)
         }
+        HandAction::Translate(t) => Some(t),
+        _ => None,
+    };
+    // Summed from the first translation, not from zero, so that one hand's is its own bit
+    // for bit (a -0.0 stays -0.0) and two hands' is (p + q) * 0.5 as it always was.
+    let (mut sum, mut moving, mut n) = (None::<DVec3>, 0u8, 0u32);
+    for (k, &action) in by_slot.iter().enumerate() {
+        if let Some(t) = translation(action) {
+            sum = Some(sum.map_or(t, |s| s + t));
+            moving |= bit(k);
+            n += 1;
+        }
+    }
+    match sum {
+        None => (HandAction::None, 0),
+        Some(t) if n == 1 => (HandAction::Translate(t), moving),
+        Some(t) => (HandAction::Translate(t * (1.0 / f64::from(n))), moving),
     }
 }

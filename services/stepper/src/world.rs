@@ -85,7 +85,9 @@ pub struct World {
     /// Whether a second hand has taken part (a step given slot 1's hand): from then on every
     /// step decides each hand's actions apart and combines them (`TwoHands`); before it, a
     /// step is the one-hand step exactly.
-    two_handed: bool,
+    /// The hand slots given a hand so far (bit k: slot k; slot 0 always): the slots a step
+    /// decides, so that a world of one or two hands costs what it did before shared worlds.
+    slots_seen: u8,
     two_hands: TwoHands,
     // ---- the stages that keep scratch, each its own, preallocated so that a step does not
     // allocate ----
@@ -316,7 +318,7 @@ impl World {
             prev_hand: [None; HAND_SLOTS],
             prev_hand_box: [EMPTY_BOX; HAND_SLOTS],
             fingers: [Fingers::NONE; HAND_SLOTS],
-            two_handed: false,
+            slots_seen: 1,
             two_hands: TwoHands::new(n),
             hand_contacts: HandContacts::new(),
             carry: Carry::new(n),
@@ -381,19 +383,28 @@ impl World {
     /// refused and counted, and the hand holds its last good pose. The one hand is slot 0's
     /// ([`World::step_hands`]).
     pub fn step(&mut self, hand: Option<&HandSample>) {
-        self.step_hands([hand, None]);
+        self.step_hands([hand]);
     }
 
     /// Exactly one fixed step with each hand's pose at this step, by hand slot
-    /// ([`HAND_SLOTS`]: slot 0 the right, slot 1 the left). Until slot 1 is first given a hand
-    /// this is the one-hand step, bit for bit; from then on each hand's actions are decided
-    /// apart and combined block by block (docs/model.md "Two hands"). It reads as docs/model.md's
-    /// "Order of one step": each stage a function of module `step`, handed what it reads and
-    /// writes; the passes the scene does not enable are skipped here, in the open.
-    pub fn step_hands(&mut self, hands: [Option<&HandSample>; HAND_SLOTS]) {
+    /// ([`HAND_SLOTS`]: slot 0 the right, slot 1 the left, then each participant's of a shared
+    /// world; `N` slots given, the rest None, at most [`HAND_SLOTS`] read). Until another slot
+    /// than 0 is first given a hand this is the one-hand step, bit for bit; from then on each
+    /// hand's actions are decided apart and combined block by block (docs/model.md "Two
+    /// hands"). It reads as docs/model.md's "Order of one step": each stage a function of
+    /// module `step`, handed what it reads and writes; the passes the scene does not enable
+    /// are skipped here, in the open.
+    pub fn step_hands<const N: usize>(&mut self, given: [Option<&HandSample>; N]) {
+        let mut hands = [None; HAND_SLOTS];
+        for (slot, hand) in hands.iter_mut().zip(given) {
+            *slot = hand;
+        }
         self.steps += 1;
-        self.two_handed |= hands[1].is_some();
-        let (steps, two) = (self.steps, self.two_handed);
+        for (k, hand) in hands.iter().enumerate() {
+            self.slots_seen |= u8::from(hand.is_some()) << k;
+        }
+        let (steps, seen) = (self.steps, self.slots_seen);
+        let two = seen > 1;
         let World {
             settings,
             passes,
@@ -424,7 +435,7 @@ impl World {
         // 0. The step's start: the hands enter the world's frame (a hand the rules cannot use
         //    holds its last good pose), the step's events and scratch begin.
         let now = step::take_hands(hands, anchor, prev_hand, hand_local, rejected_hands);
-        let prev = [prev_hand[0].as_ref(), prev_hand[1].as_ref()];
+        let prev = prev_hand.each_ref().map(Option::as_ref);
         step::start_step(steps, two, events, settled, quiet, flown, fingers, now);
         // Whether a stage moved blocks without telling the grid (the hand's, R14's) since the
         // last step's stage 6 brought it up to date: free motion then syncs it first.
@@ -447,7 +458,7 @@ impl World {
                 settings,
                 passes,
                 steps,
-                two,
+                seen,
             );
             // 2. Hand-driven motion (R5, R4, R6), then carry (R10) from the blocks it moved.
             grid_behind |= step::move_with_hands(

@@ -115,11 +115,12 @@ pub(super) fn decide_hand_actions(
     settings: &Settings,
     passes: &Passes,
     steps: u64,
-    two: bool,
+    seen: u8,
 ) -> (bool, [Option<bool>; HAND_SLOTS]) {
+    let two = seen > 1;
     let mut gaps = [None; HAND_SLOTS];
     let mut acted = false;
-    for slot in 0..if two { HAND_SLOTS } else { 1 } {
+    for slot in (0..HAND_SLOTS).filter(|k| seen & (1 << k) != 0) {
         let (hand, prev) = (now[slot], prev[slot]);
         // T2 (tracked hands): a hand that is not tracked touches nothing new and keeps
         // what it holds, for up to gap_hold; then it lets go with no throw.
