@@ -9,6 +9,7 @@
 //!   suite (`tests/hard_suite.rs`, `tests/far_from_origin.rs`, `tests/r14.rs`).
 //! * [`stability`]: every hard case under both models, with its figures.
 //! * [`stepper`]: a step's cost against the world's size, and each effect's cost on and off.
+//! * [`netem`]: a userspace UDP proxy that delays and drops, for shared worlds under a bad network.
 //! * [`plot`]: the figures (plotters into a PNG), shared by the reports.
 //! * [`page`]: the head of each report's markdown page (what, how to read it, where from).
 
@@ -18,6 +19,7 @@ pub mod hard_cases;
 pub mod hgrm;
 pub mod latency;
 pub mod load;
+pub mod netem;
 pub mod page;
 pub mod plot;
 pub mod stability;

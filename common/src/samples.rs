@@ -321,6 +321,17 @@ pub const MAX_PARTICIPANTS: usize = 4;
 /// Hand slots of a world: each participant's right (or only) hand and left hand.
 pub const HAND_SLOTS: usize = 2 * MAX_PARTICIPANTS;
 
+/// How far from the scene's origin a hand's check points and wrist may be, in x, y and z:
+/// 1000 km. A scene lies within 100 km of its origin (the loader's range); a sample beyond
+/// this is a device's or a file's garbage, and its coordinates (a joint at 1e20 m in a trace)
+/// overflowed the broad phase's cell arithmetic and hung the step.
+pub const HAND_RANGE_M: f64 = 1e6;
+
+/// The thickest finger a sample may give (its colliders' radius under the precise model): a
+/// metre, twenty times a hand model's largest (`config/hands`: up to 5 cm). Beyond it, or
+/// negative, or NaN, the sample is garbage.
+pub const MAX_FINGER_RADIUS_M: f64 = 1.0;
+
 impl HandSample {
     /// The size of a `hand` sample before it had `side`: a recording made then holds hands of
     /// this size, which read as the right hand (the fields after it zero).
@@ -334,6 +345,53 @@ impl HandSample {
             .ok()
             .filter(|&p| p < MAX_PARTICIPANTS)?;
         Some(2 * participant + usize::from(HandSide::from_code(self.side) == HandSide::Left))
+    }
+
+    /// Why the models cannot use a hand sample (None: they can): counts out of range, a used value
+    /// not finite (a device glitch), a point (check point, wrist, palm vertex) beyond
+    /// [`HAND_RANGE_M`], or a finger radius outside 0..=[`MAX_FINGER_RADIUS_M`]. The stepper refuses
+    /// such a sample where it enters, names the first and counts them; the hand holds its last
+    /// good pose.
+    pub fn unusable_because(&self) -> Option<&'static str> {
+        let h = self;
+        let far = |p: &[f64; 3]| p.iter().any(|c| c.abs() > HAND_RANGE_M);
+        if h.finger_count as usize > MAX_FINGERS {
+            return Some("more fingers than a hand sample holds");
+        }
+        if !h.wrist.is_finite() {
+            return Some("its wrist pose is not finite");
+        }
+        if far(&h.wrist.position) {
+            return Some("its wrist is farther than 1000 km from the origin");
+        }
+        for f in 0..h.finger_count as usize {
+            let n = h.finger_point_count[f] as usize;
+            if n > MAX_FINGER_POINTS {
+                return Some("more points on a finger than a hand sample holds");
+            }
+            let points = &h.finger_points[f][..n];
+            if !points.iter().flatten().all(|v| v.is_finite()) {
+                return Some("a check point is not finite");
+            }
+            if points.iter().any(far) {
+                return Some("a check point is farther than 1000 km from the origin");
+            }
+            let r = h.finger_radius[f];
+            if !(0.0..=MAX_FINGER_RADIUS_M).contains(&r) {
+                return Some("a finger's radius is not between 0 and 1 m");
+            }
+        }
+        if h.palm_vertex_count as usize > MAX_PALM_VERTICES {
+            return Some("more palm vertices than a hand sample holds");
+        }
+        let palm = &h.palm_vertices[..h.palm_vertex_count as usize];
+        if !palm.iter().flatten().all(|v| v.is_finite()) {
+            return Some("a palm vertex is not finite");
+        }
+        if palm.iter().any(far) {
+            return Some("a palm vertex is farther than 1000 km from the origin");
+        }
+        None
     }
 }
 

@@ -214,7 +214,7 @@ stage_table! {
         /// table, but it opens ports only on the topics its session names
         /// ([`crate::config::session::Bridge`]). What it sends is off the pipeline's path.
         Bridge = 6 {
-            name: "bridge", role: Bridge, selected_by: ["remote"],
+            name: "bridge", role: Bridge, selected_by: ["remote", "shared"],
             cores: Consumers, priority: Normal, on_restart: Resume, exit_wait_s: 5,
             devices: [], photon_label: "origin->px",
         },

@@ -195,6 +195,7 @@ fn hands_line(s: &common::config::Session) -> Option<String> {
         }
         Source::Webxr(_) => "a headset's tracked hand",
         Source::External { .. } => "an external tracker's hand (or two)",
+        Source::Shared => "several people's hands, each from their own machine (docs/sessions.md \"Shared sessions\")",
         Source::Replay {
             hands: HandsUsed::Both,
             ..

@@ -212,7 +212,7 @@ pub struct Key {
 /// The files the catalog loads: between them they take every branch a key hangs on. Each is
 /// (file name, text); sessions name `scene.toml` and `hand.toml`, and the scenes are loaded on
 /// their own too.
-pub(crate) const INPUTS: [(&str, &str); 9] = [
+pub(crate) const INPUTS: [(&str, &str); 11] = [
     (
         "scene.toml",
         "[world]\n[tracked]\n[precise]\n[effects]\n\
@@ -257,6 +257,14 @@ pub(crate) const INPUTS: [(&str, &str); 9] = [
     (
         "external.session.toml",
         "scene = \"scene.toml\"\n[source]\nkind = \"external\"\ncommand = [\"a\"]\n",
+    ),
+    (
+        "shared-host.session.toml",
+        "scene = \"scene.toml\"\n[source]\nkind = \"shared\"\n[shared]\n",
+    ),
+    (
+        "shared-join.session.toml",
+        "scene = \"scene.toml\"\n[shared]\nhost = \"tls/127.0.0.1:7460\"\n",
     ),
 ];
 
@@ -591,6 +599,7 @@ mod tests {
             ("scene.rs", include_str!("scene.rs")),
             ("hand.rs", include_str!("hand.rs")),
             ("remote.rs", include_str!("remote.rs")),
+            ("shared.rs", include_str!("shared.rs")),
             ("devices.rs", include_str!("devices.rs")),
         ];
         let mut seen = 0;

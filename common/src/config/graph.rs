@@ -23,20 +23,26 @@ impl Session {
     pub fn graph(&self) -> Graph {
         // A remote-fed session (a viewer) has no pipeline of its own: the bridge is its source.
         let remote_fed = matches!(self.source, Source::Remote);
+        // A shared world's host takes its hands from the participants (the bridge is its
+        // source, and they arrive as hands: no kinematics); a participant takes the host's
+        // world (no stepper of its own).
+        let shared_host = matches!(self.source, Source::Shared);
+        let shared_join = self.bridge.shared.as_ref().is_some_and(|s| !s.is_host());
         // The stage whose row in the stage table names this `[source] kind`
         // ([`Stage::selected_by`]); a session's kind is always one of them (the table test).
         let source = Stage::ALL
             .into_iter()
             .find(|s| s.selected_by().contains(&self.source.kind()))
             .unwrap_or(Stage::Acquisition);
-        let source_outputs = if remote_fed {
+        let source_outputs = if remote_fed || shared_host {
             self.bridge.outputs()
         } else {
             source.recorded_outputs().collect()
         };
         let bridge_publishes = self.bridge.is_on() && !self.bridge.outputs().is_empty();
         let runs = |stage: Stage| match stage {
-            Stage::Kinematics | Stage::Stepper => !remote_fed,
+            Stage::Kinematics => !remote_fed && !shared_host,
+            Stage::Stepper => !remote_fed && !shared_join,
             Stage::Renderer => self.renderer.mode != RenderMode::Off,
             // Only when recording: a reader of every topic costs a wake-up per sample on
             // cores the pipeline needs, and a session pays only for what it asks for.

@@ -71,8 +71,9 @@ pub(crate) const DOCS: &[Doc] = &[
         "",
         "The source: the scene's `[hand]` (scripted), a glove and tracker (devices), a \
          recording or CARL trace (replay), another machine's session (remote), a headset's \
-         browser (webxr), a program of yours (external), or a flat hand held still for tests \
-         (null); the keys below name the kind that takes them.",
+         browser (webxr), a program of yours (external), a flat hand held still for tests \
+         (null), or the participants of a shared world this session hosts (shared, with \
+         `[shared]`); the keys below name the kind that takes them.",
     ),
     session(
         "source.rate_hz",
@@ -266,6 +267,71 @@ pub(crate) const DOCS: &[Doc] = &[
         "",
         "Start the source only once a viewer takes every topic sent, waiting up to this many \
          seconds; 0: do not wait.",
+    ),
+    session(
+        "shared",
+        "",
+        "This session's side of a shared world (docs/sessions.md \"Shared sessions\"): the \
+         host's (`[source] kind = \"shared\"`) or a participant's (any other source).",
+    ),
+    session(
+        "shared.listen",
+        "`tls/0.0.0.0:7460` (every interface)",
+        "host: where participants connect, `tls/HOST:PORT` (`tcp/` only with `allow_plain`).",
+    ),
+    session(
+        "shared.host",
+        "required to join",
+        "participant: the host's address, `tls/HOST:PORT` (`handblocks launch shared-host` \
+         prints it).",
+    ),
+    session(
+        "shared.allow_plain",
+        "",
+        "Allow a plain `tcp/` endpoint: in clear; only the token keeps others out.",
+    ),
+    session(
+        "shared.key_dir",
+        "`$XDG_DATA_HOME/handblocks/link` (or `~/.local/share/handblocks/link`)",
+        "This side's link certificate and key, made on first use.",
+    ),
+    session(
+        "shared.peer_certificate",
+        "this side's own certificate",
+        "The only peer certificate trusted: the other side's.",
+    ),
+    session(
+        "shared.names",
+        "",
+        "host: names participants may use for it, put in its certificate besides localhost, \
+         its addresses and the endpoint's host.",
+    ),
+    session(
+        "shared.key",
+        "",
+        "The zenoh key prefix; the host and its participants must use the same.",
+    ),
+    session(
+        "shared.token",
+        "host: a new random one each session, printed; participant: required to join",
+        "What a participant gives to join (at least 16 characters of A-Za-z0-9-_).",
+    ),
+    session(
+        "shared.name",
+        "",
+        "participant: how the host's report names it (1 to 32 characters of A-Za-z0-9-_.).",
+    ),
+    session(
+        "shared.drop_after_s",
+        "",
+        "host: a participant none of whose hands came for this long is named and dropped; its \
+         hands let go.",
+    ),
+    session(
+        "shared.hold_ms",
+        "",
+        "host: a participant none of whose hands came for this long has them sent as lost \
+         (tracked = 0), holding what they hold.",
     ),
     session("viewer", "", "A live Foxglove view of the session."),
     session(

@@ -14,6 +14,7 @@ mod reader;
 pub mod remote;
 pub mod scene;
 pub mod session;
+pub mod shared;
 
 use std::fmt;
 use std::io::Read as _;

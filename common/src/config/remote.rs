@@ -118,6 +118,8 @@ pub const MAX_WAIT_FOR_VIEWER_S: u64 = 600;
 #[derive(Debug, Clone, PartialEq)]
 pub struct BridgeSettings {
     pub link: Option<RemoteLink>,
+    /// `[shared]`: this session's side of a shared world (docs/sessions.md "Shared sessions").
+    pub shared: Option<super::shared::SharedLink>,
     /// `[viewer] foxglove`: host and port of the Foxglove WebSocket server.
     pub foxglove: Option<(String, u16)>,
     /// `[viewer] foxglove_clients`: the most Foxglove clients served at once.
@@ -128,6 +130,7 @@ impl Default for BridgeSettings {
     fn default() -> Self {
         BridgeSettings {
             link: None,
+            shared: None,
             foxglove: None,
             foxglove_clients: DEFAULT_FOXGLOVE_CLIENTS,
         }
@@ -137,7 +140,7 @@ impl Default for BridgeSettings {
 impl BridgeSettings {
     /// True when the session runs a bridge process.
     pub fn is_on(&self) -> bool {
-        self.link.is_some() || self.foxglove.is_some()
+        self.link.is_some() || self.foxglove.is_some() || self.shared.is_some()
     }
 
     /// The topics the bridge reads from the session's bus: those it sends out, and, for a
@@ -149,6 +152,12 @@ impl BridgeSettings {
             .as_ref()
             .map(|l| l.publish.clone())
             .unwrap_or_default();
+        // A shared session's host sends the world it steps; a participant sends its hands.
+        match &self.shared {
+            Some(s) if s.is_host() => v.push(Topic::World),
+            Some(_) => v.push(Topic::Hand),
+            None => {}
+        }
         if self.foxglove.is_some() && local {
             for t in Topic::RECORDED {
                 if !v.contains(&t) {
@@ -162,29 +171,46 @@ impl BridgeSettings {
 
     /// The topics the bridge publishes on the session's bus (taken in from the link).
     pub fn outputs(&self) -> Vec<Topic> {
-        self.link
+        let mut v: Vec<Topic> = self
+            .link
             .as_ref()
             .map(|l| l.subscribe.clone())
-            .unwrap_or_default()
+            .unwrap_or_default();
+        // The host publishes every participant's hands, ordered; a participant the host's world.
+        match &self.shared {
+            Some(s) if s.is_host() => v.push(Topic::Hand),
+            Some(_) => v.push(Topic::World),
+            None => {}
+        }
+        v
     }
 }
 
 /// Where a zenoh endpoint is checked: `tls/HOST:PORT` or `tcp/HOST:PORT`, HOST not empty,
 /// PORT 1-65535.
 fn endpoint(r: &Reader, default: Option<&str>) -> Result<String, ConfigError> {
-    let text = match (r.string("endpoint")?, default) {
+    endpoint_at(r, "endpoint", default)
+}
+
+/// [`endpoint`] under another key (`[shared]`'s `listen` and `host`).
+pub(super) fn endpoint_at(
+    r: &Reader,
+    key: &'static str,
+    default: Option<&str>,
+) -> Result<String, ConfigError> {
+    let text = match (r.string(key)?, default) {
         (Some(s), _) => s,
         (None, Some(d)) => d.to_string(),
         (None, None) => {
             return Err(r.err(
-                "endpoint",
+                key,
                 "required: the zenoh endpoint, tls/HOST:PORT (e.g. \"tls/127.0.0.1:7447\")",
             ))
         }
     };
     let bad = |why: &str| {
         r.err(
-            "endpoint",
+            key,
             format!(
                 "{text:?} {why}; give tls/HOST:PORT, e.g. \"tls/127.0.0.1:7447\" (TLS, carried on \
                  QUIC, and plain TCP are built in)"
@@ -240,6 +266,16 @@ pub fn default_key_dir() -> PathBuf {
 /// `key_dir`, `peer_certificate` and `names`; `tcp/` only with `allow_plain = true` (it
 /// crosses a network in clear and lets any peer join), and then none of the TLS keys.
 fn security(r: &Reader, endpoint: &str, dir: &Path) -> Result<LinkSecurity, ConfigError> {
+    security_at(r, "endpoint", endpoint, dir)
+}
+
+/// [`security`] of the endpoint under `endpoint_key`.
+pub(super) fn security_at(
+    r: &Reader,
+    endpoint_key: &'static str,
+    endpoint: &str,
+    dir: &Path,
+) -> Result<LinkSecurity, ConfigError> {
     let allow_plain = r.bool("allow_plain", false)?;
     let key_dir = r.string("key_dir")?.map(|d| dir.join(d));
     let peer_certificate = r.string("peer_certificate")?.map(|f| dir.join(f));
@@ -284,7 +320,7 @@ fn security(r: &Reader, endpoint: &str, dir: &Path) -> Result<LinkSecurity, Conf
     if endpoint.starts_with("tcp/") {
         if !allow_plain {
             return Err(r.err(
-                "endpoint",
+                endpoint_key,
                 format!(
                     "{endpoint:?} is plain TCP: every hand and world crosses the network in \
                      clear and any peer that reaches the port may read or inject them. Use \
@@ -324,7 +360,12 @@ fn security(r: &Reader, endpoint: &str, dir: &Path) -> Result<LinkSecurity, Conf
 
 /// A zenoh key prefix: chunks of letters, digits, `_`, `-` and `.`, joined by `/`.
 fn key(r: &Reader) -> Result<String, ConfigError> {
-    let k = r.string_or("key", DEFAULT_KEY)?;
+    key_or(r, DEFAULT_KEY)
+}
+
+/// [`key`] with another default.
+pub(super) fn key_or(r: &Reader, default: &str) -> Result<String, ConfigError> {
+    let k = r.string_or("key", default)?;
     let ok = !k.is_empty()
         && k.split('/').all(|chunk| {
             !chunk.is_empty()

@@ -135,6 +135,10 @@ pub enum Source {
     /// deadlines (the null source, `services/null`): for tests and for measuring a pipeline
     /// whose hand never moves.
     Null { rate_hz: f64 },
+    /// The host of a shared world: its hands are the participants', each from their own
+    /// machine, ordered on this machine's clock by the bridge (`[shared]`,
+    /// [`super::shared`]).
+    Shared,
 }
 
 /// `[source] kind = "webxr"`: where the page is served and which hand drives the model.
@@ -167,8 +171,8 @@ pub struct WebxrSource {
 impl Source {
     /// Every `[source] kind`, as a session names it; each is a column value of exactly one
     /// row of the stage table ([`crate::Stage::selected_by`]), the stage it starts.
-    pub const KINDS: [&'static str; 7] = [
-        "scripted", "devices", "replay", "remote", "webxr", "external", "null",
+    pub const KINDS: [&'static str; 8] = [
+        "scripted", "devices", "replay", "remote", "webxr", "external", "null", "shared",
     ];
 
     pub fn kind(&self) -> &'static str {
@@ -180,6 +184,7 @@ impl Source {
             Source::Webxr(_) => "webxr",
             Source::External { .. } => "external",
             Source::Null { .. } => "null",
+            Source::Shared => "shared",
         }
     }
 }
@@ -525,8 +530,50 @@ impl Session {
             Some(t) => super::remote::viewer_table(t)?,
             None => (None, super::remote::DEFAULT_FOXGLOVE_CLIENTS),
         };
+        let shared_host = matches!(source, Source::Shared);
+        let shared = match r.table("shared")? {
+            Some(t) => Some(super::shared::shared_table(t, shared_host, dir)?),
+            None if shared_host => {
+                return Err(r.err(
+                    "shared",
+                    "required with [source] kind = \"shared\": the host's side of the shared \
+                     world (listen, token; docs/sessions.md \"Shared sessions\")",
+                ))
+            }
+            None => None,
+        };
+        if shared.is_some() {
+            let clash = if link.is_some() {
+                Some(if matches!(source, Source::Remote) {
+                    "source"
+                } else {
+                    "remote"
+                })
+            } else if foxglove.is_some() {
+                Some("viewer")
+            } else {
+                None
+            };
+            if let Some(key) = clash {
+                return Err(r.err(
+                    key,
+                    "not in a shared session yet: its bridge carries the shared world's link \
+                     (remove the table, or [shared])",
+                ));
+            }
+            if scene.world.model == super::scene::ModelKind::Precise {
+                return Err(ConfigError::new(
+                    file,
+                    "shared",
+                    "a shared world holds several people's hands, which the paper model takes \
+                     (docs/model.md \"Two hands\"); the scene's [world] model is \"precise\", \
+                     which takes one hand: --set scene.world.model=paper",
+                ));
+            }
+        }
         let bridge = BridgeSettings {
             link,
+            shared,
             foxglove,
             foxglove_clients,
         };
@@ -744,6 +791,7 @@ fn source(r: Option<Reader>, dir: &Path) -> Result<(Source, Option<RemoteLink>),
                 .f64_in("rate_hz", Some(120.0), 1.0..=10_000.0)?
                 .unwrap_or(120.0),
         },
+        "shared" => Source::Shared,
         _ => Source::Scripted {
             rate_hz: r
                 .f64_in("rate_hz", Some(120.0), 1.0..=10_000.0)?

@@ -20,6 +20,7 @@ pub mod identity;
 pub mod link;
 pub mod refusals;
 pub mod service;
+pub mod shared;
 pub mod viewer;
 
 common::process!(

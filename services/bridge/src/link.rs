@@ -432,20 +432,24 @@ impl Link {
         if let Some(t) = self.clock_thread.take() {
             let _ = t.join();
         }
-        // Bounded: a QUIC link's close waits on its peer (6.5 s for one that had gone: a
-        // viewer stopped first), and the bridge's final report waits on this. The process
-        // ends right after; what the close had not done, the end of the process does.
-        let session = self.session;
-        let (done, closed) = crossbeam_channel::bounded::<()>(1);
-        let closing = std::thread::Builder::new()
-            .name("link-close".into())
-            .spawn(move || {
-                let _ = session.close().wait();
-                let _ = done.send(());
-            });
-        if closing.is_ok() {
-            let _ = closed.recv_timeout(Duration::from_millis(CLOSE_TIMEOUT_MS));
-        }
+        close_bounded(self.session);
+    }
+}
+
+/// Closes a zenoh session, waiting at most [`CLOSE_TIMEOUT_MS`]: a QUIC link's close waits on
+/// its peer (6.5 s for one that had gone: a viewer stopped first), and the bridge's final
+/// report waits on this. The process ends right after; what the close had not done, the end
+/// of the process does.
+pub fn close_bounded(session: zenoh::Session) {
+    let (done, closed) = crossbeam_channel::bounded::<()>(1);
+    let closing = std::thread::Builder::new()
+        .name("link-close".into())
+        .spawn(move || {
+            let _ = session.close().wait();
+            let _ = done.send(());
+        });
+    if closing.is_ok() {
+        let _ = closed.recv_timeout(Duration::from_millis(CLOSE_TIMEOUT_MS));
     }
 }
 

@@ -43,6 +43,9 @@ pub enum BridgeError {
     /// The Foxglove view could not be started.
     #[error("{0}")]
     Viewer(#[source] ViewerError),
+    /// A shared world's link (`[shared]`) could not be opened or joined.
+    #[error(transparent)]
+    Shared(#[from] crate::shared::SharedError),
 }
 /// While samples wait for the first clock estimate, the loop looks again this often.
 const CLOCK_WAIT: Duration = Duration::from_millis(5);
@@ -212,6 +215,11 @@ impl TopicVisitor for OpenOutputs<'_> {
 /// Runs until asked to stop.
 pub fn run(session: &Session, bus: &Bus) -> Result<(), BridgeError> {
     let settings = &session.bridge;
+    // A shared world's link is this process's one job (the loader refuses [remote] and
+    // [viewer] beside it).
+    if let Some(shared) = &settings.shared {
+        return crate::shared::run(session, bus, shared);
+    }
     let remote_fed = matches!(session.source, Source::Remote);
     let inputs = session.bridge_inputs();
     let outputs = settings.outputs();

@@ -14,7 +14,7 @@
 
 use glam::{DQuat, DVec3};
 
-use common::{BlockMode, HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS, MAX_PALM_VERTICES};
+use common::{BlockMode, HandSample, Pose, MAX_FINGERS, MAX_FINGER_POINTS};
 
 use crate::block_set::BlockSet;
 use crate::body::{Block, HandAction, Moved};
@@ -82,62 +82,15 @@ impl Fingers {
     }
 }
 
-/// How far from the scene's origin a hand's check points and wrist may be, in x, y and z:
-/// 1000 km. A scene lies within 100 km of its origin (the loader's range); a sample beyond
-/// this is a device's or a file's garbage, and its coordinates (a joint at 1e20 m in a trace)
-/// overflowed the broad phase's cell arithmetic and hung the step.
-pub const HAND_RANGE_M: f64 = 1e6;
+pub use common::samples::{HAND_RANGE_M, MAX_FINGER_RADIUS_M};
 
-/// Why the models cannot use a hand sample (None: they can): counts out of range, a used value
-/// not finite (a device glitch), a point (check point, wrist, palm vertex) beyond
-/// [`HAND_RANGE_M`], or a finger radius outside 0..=[`MAX_FINGER_RADIUS_M`]. The stepper refuses
+/// Why the models cannot use a hand sample (None: they can): [`HandSample::unusable_because`],
+/// the contract's one check, which a shared world's host applies too. The stepper refuses
 /// such a sample where it enters, names the first and counts them; the hand holds its last
 /// good pose.
 pub fn unusable_because(h: &HandSample) -> Option<&'static str> {
-    let far = |p: &[f64; 3]| p.iter().any(|c| c.abs() > HAND_RANGE_M);
-    if h.finger_count as usize > MAX_FINGERS {
-        return Some("more fingers than a hand sample holds");
-    }
-    if !h.wrist.is_finite() {
-        return Some("its wrist pose is not finite");
-    }
-    if far(&h.wrist.position) {
-        return Some("its wrist is farther than 1000 km from the origin");
-    }
-    for f in 0..h.finger_count as usize {
-        let n = h.finger_point_count[f] as usize;
-        if n > MAX_FINGER_POINTS {
-            return Some("more points on a finger than a hand sample holds");
-        }
-        let points = &h.finger_points[f][..n];
-        if !points.iter().flatten().all(|v| v.is_finite()) {
-            return Some("a check point is not finite");
-        }
-        if points.iter().any(far) {
-            return Some("a check point is farther than 1000 km from the origin");
-        }
-        let r = h.finger_radius[f];
-        if !(0.0..=MAX_FINGER_RADIUS_M).contains(&r) {
-            return Some("a finger's radius is not between 0 and 1 m");
-        }
-    }
-    if h.palm_vertex_count as usize > MAX_PALM_VERTICES {
-        return Some("more palm vertices than a hand sample holds");
-    }
-    let palm = &h.palm_vertices[..h.palm_vertex_count as usize];
-    if !palm.iter().flatten().all(|v| v.is_finite()) {
-        return Some("a palm vertex is not finite");
-    }
-    if palm.iter().any(far) {
-        return Some("a palm vertex is farther than 1000 km from the origin");
-    }
-    None
+    h.unusable_because()
 }
-
-/// The thickest finger a sample may give (its colliders' radius under the precise model): a
-/// metre, twenty times a hand model's largest (`config/hands`: up to 5 cm). Beyond it, or
-/// negative, or NaN, the sample is garbage.
-pub const MAX_FINGER_RADIUS_M: f64 = 1.0;
 
 /// A hand sample the rules can use ([`unusable_because`] finds nothing).
 pub fn is_usable(h: &HandSample) -> bool {

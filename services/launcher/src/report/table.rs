@@ -337,6 +337,75 @@ impl Report {
         if let Some(port) = b.get("foxglove").and_then(|f| f.get("port")) {
             parts.push(format!("Foxglove view served on port {port}"));
         }
+        if let Some(s) = b.get("shared") {
+            parts.push(shared_line(s));
+        }
         (!parts.is_empty()).then(|| parts.join("; "))
+    }
+}
+
+/// The shared world's part of the bridge line: the host names each participant and what it
+/// sent; a participant its number, its hand -> world and the worlds it took in.
+fn shared_line(s: &serde_json::Value) -> String {
+    let us = |v: &serde_json::Value| v.as_f64().map_or("-".into(), |x| format!("{x:.0}"));
+    if s["role"] == "host" {
+        let people: Vec<String> = s["participants"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .map(|p| {
+                        format!(
+                            "{} {} ({} hands{}{})",
+                            p["participant"],
+                            p["name"].as_str().unwrap_or("?"),
+                            p["hands_taken"],
+                            match p["hands_lost"].as_u64() {
+                                Some(n) if n > 0 => format!(", {n} lost"),
+                                _ => String::new(),
+                            },
+                            if p["drops"].as_u64().unwrap_or(0) > 0 {
+                                format!(", dropped {} time(s)", p["drops"])
+                            } else {
+                                String::new()
+                            }
+                        )
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let refused: u64 = s["refused"]
+            .as_object()
+            .map_or(0, |m| m.values().filter_map(|v| v.as_u64()).sum());
+        format!(
+            "shared world hosted on {}: {} frame(s), {} world(s) sent to each; participants: {}{}",
+            s["endpoint"].as_str().unwrap_or("?"),
+            s["frames"],
+            s["worlds_sent"],
+            if people.is_empty() {
+                "none joined".to_string()
+            } else {
+                people.join(", ")
+            },
+            if refused > 0 {
+                format!("; refused {refused} (by name in the report's bridge.shared.refused)")
+            } else {
+                String::new()
+            }
+        )
+    } else {
+        let h = &s["hand_to_world_us"];
+        format!(
+            "joined the shared world on {} as participant {} ({}) in {:.2} s: {} hands sent, {} \
+             worlds taken in ({} lost); this participant's hand -> world p50 {} us, p99 {} us",
+            s["endpoint"].as_str().unwrap_or("?"),
+            s["participant"],
+            s["name"].as_str().unwrap_or("?"),
+            s["join_s"].as_f64().unwrap_or(0.0),
+            s["hands_sent"],
+            s["worlds_taken_in"],
+            s["worlds_lost"],
+            us(&h["p50"]),
+            us(&h["p99"]),
+        )
     }
 }

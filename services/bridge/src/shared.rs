@@ -1,0 +1,1115 @@
+//! A shared world's link (`[shared]`, issue 45): several people, each with their own source of
+//! hands on their own machine, in one block world.
+//!
+//! **One authoritative world.** The host's stepper steps the only world; its bridge (this
+//! module, [`Host`]) is that session's source: it takes every participant's hands over zenoh
+//! and, on the host's own clock at the scene's step rate, publishes one frame of them on the
+//! host's bus (each hand marked with its participant's number, `HandSample::participant`),
+//! then sends every world the stepper makes to every participant. A participant's bridge
+//! ([`Join`]) sends its session's hands and publishes the host's worlds on its own bus, bit for
+//! bit, for its renderer and recorder. Why not replicated steppers in lockstep: the world is
+//! bit-deterministic, so lockstep would also agree, but each step would wait for the slowest
+//! participant's input (a 2 s stall stops everyone), and a late joiner would need the world's
+//! whole state, which the paper model keeps in many stages; the host's world sample *is* the
+//! state a participant shows. What it costs is measured, not assumed: a participant's hand ->
+//! world is its link's round trip plus the host's wait for the next tick (the report's
+//! `shared.hand_to_world_us`), and the host sends each participant every world (bytes per
+//! second in `bridge.json`).
+//!
+//! **Keys** (prefix `KEY`, `[shared] key`): `KEY/join` (a query: token and name in, the
+//! participant's number and a secret out), `KEY/hand/SECRET` (a participant's hands; the
+//! secret is known only to the host and that participant, so nobody else can put hands under
+//! its number), `KEY/world` (the host's worlds, with an attachment naming, per participant,
+//! the seq of its newest hand the world's frame held: the participant's own hand -> world
+//! latency on its own clock, no clock estimate needed).
+//!
+//! **Never waiting on anyone.** The host's frames go out on its clock whatever arrives: a
+//! participant whose hands stop coming has them sent as lost (`tracked = 0`, holding what they
+//! hold, T2) after `hold_ms`, and after `drop_after_s` is named and dropped: its hands are sent
+//! empty (no check points, so they let go, as a lost hand does) until it sends again.
+//!
+//! **Refused and counted by name** (`bridge.json`, `shared.refused`): a join with a wrong
+//! token or into a full world; hands under a key no participant was given; hands that are not
+//! hand samples, or name another participant's number, or a side neither right nor left;
+//! hands the world cannot use (NaN, out of range); a seq not after the last (a duplicate or
+//! reordered sample); a source time ahead of the host's clock by more than a second since the
+//! participant's first hand (a future stamp); more than `FLOOD_PER_S` hands a second.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use common::bus::{wait_each, AnyInlet, Bus, BusError, Inlet, Outlet, WaitStrategy, Waiter, Wake};
+use common::config::session::LinkRole;
+use common::config::shared::{SharedLink, SharedRole};
+use common::config::Session;
+use common::latency::{Metric, Reporter};
+use common::node::{self, Counters, Pass, Task};
+use common::{monotonic_ns, topics, HandSample, HandSide, Stage, Stamp, Topic, MAX_PARTICIPANTS};
+use zenoh::Wait;
+
+use crate::identity::Identity;
+use crate::link::{declare_sender, peer_config};
+use crate::service::BridgeError;
+
+/// Hands a participant may send a second (both hands of a 120 Hz source are 240): past it the
+/// rest of that second's are refused as a flood.
+pub const FLOOD_PER_S: u32 = 1000;
+/// How far a participant's source time may run ahead of the host's clock since its first hand.
+const FUTURE_SLACK_NS: u64 = 1_000_000_000;
+/// Hands and worlds taken off the link and not yet handled: two seconds of four participants'
+/// two 120 Hz hands.
+const QUEUE: usize = 4096;
+/// How often a participant asks to join until the host answers.
+const JOIN_RETRY: Duration = Duration::from_millis(500);
+/// A participant's own hands kept to read its hand -> world latency off the world's
+/// attachment (seconds of them at 120 Hz).
+const SENT_RING: usize = 1024;
+
+/// Why a shared link's process stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum SharedError {
+    #[error("cannot open the shared world's zenoh link on {endpoint}: {reason}")]
+    Open { endpoint: String, reason: String },
+    #[error("the host of the shared world refused to let this session join: {0}")]
+    Refused(String),
+    #[error("cannot make the shared link's wake-up descriptor: {0}")]
+    Wake(std::io::Error),
+    #[error("cannot make the shared world's token: {0}")]
+    Token(std::io::Error),
+}
+
+/// Runs this session's side of a shared world.
+pub fn run(session: &Session, bus: &Bus, link: &SharedLink) -> Result<(), BridgeError> {
+    let identity = Identity::load(&link.security, &link.endpoint)
+        .map_err(|e| BridgeError::Link(crate::link::LinkError::Identity(e)))?;
+    let role = if link.is_host() {
+        LinkRole::Listen
+    } else {
+        LinkRole::Connect
+    };
+    let open_err = |reason: String| {
+        BridgeError::Shared(SharedError::Open {
+            endpoint: link.endpoint.clone(),
+            reason,
+        })
+    };
+    let config = peer_config(&link.endpoint, role, identity.as_ref()).map_err(open_err)?;
+    let zenoh = zenoh::open(config)
+        .wait()
+        .map_err(|e| open_err(e.to_string()))?;
+    let protection = match &identity {
+        Some(id) => id.describe(),
+        None => {
+            "plain TCP (allow_plain = true): in clear; only the token keeps others out".to_string()
+        }
+    };
+    eprintln!("handblocks bridge: the shared world's link: {protection}");
+    let summary_file = bus.session_folder().join("bridge.json");
+    match &link.role {
+        SharedRole::Host {
+            drop_after_s,
+            hold_ms,
+        } => {
+            let token = match &link.token {
+                Some(t) => t.clone(),
+                None => random_token().map_err(|e| BridgeError::Shared(SharedError::Token(e)))?,
+            };
+            let mut host = Host::open(
+                session,
+                bus,
+                zenoh,
+                link,
+                token,
+                protection,
+                (*drop_after_s * 1e9) as u64,
+                hold_ms * 1_000_000,
+                summary_file,
+            )?;
+            Ok(node::run(
+                Stage::Bridge,
+                bus,
+                WaitStrategy::Event,
+                &mut host,
+            )?)
+        }
+        SharedRole::Join { name } => {
+            let mut join = Join::open(session, bus, zenoh, link, name, protection, summary_file)?;
+            Ok(node::run(
+                Stage::Bridge,
+                bus,
+                WaitStrategy::Event,
+                &mut join,
+            )?)
+        }
+    }
+}
+
+/// A new token: 24 characters of `A-Za-z0-9-_` (144 bits) from the system's random source.
+fn random_token() -> std::io::Result<String> {
+    use std::io::Read;
+    let mut bytes = [0u8; 18];
+    std::fs::File::open("/dev/urandom")?.read_exact(&mut bytes)?;
+    use base64::Engine as _;
+    Ok(base64::engine::general_purpose::URL_SAFE_NO_PAD.encode(bytes))
+}
+
+/// A participant's secret key segment: 32 hex digits.
+fn secret_text(secret: u128) -> String {
+    format!("{secret:032x}")
+}
+
+fn random_secret() -> std::io::Result<u128> {
+    use std::io::Read;
+    let mut bytes = [0u8; 16];
+    std::fs::File::open("/dev/urandom")?.read_exact(&mut bytes)?;
+    Ok(u128::from_le_bytes(bytes))
+}
+
+/// Compares two tokens in time that does not depend on where they differ.
+fn same_token(given: &str, token: &str) -> bool {
+    given.len() == token.len()
+        && given
+            .bytes()
+            .zip(token.bytes())
+            .fold(0u8, |acc, (a, b)| acc | (a ^ b))
+            == 0
+}
+
+/// The address a participant on another machine reaches a host listening on `endpoint` by:
+/// the endpoint itself, or, for one on every interface (`0.0.0.0`, `[::]`), this machine's
+/// address on its default route (none: loopback).
+fn join_address(endpoint: &str) -> String {
+    let host = common::config::remote::endpoint_host(endpoint);
+    if host != "0.0.0.0" && host != "::" {
+        return endpoint.to_string();
+    }
+    let local = std::net::UdpSocket::bind("0.0.0.0:0")
+        .and_then(|s| s.connect("192.0.2.1:9").map(|()| s))
+        .and_then(|s| s.local_addr())
+        .map(|a| a.ip().to_string())
+        .unwrap_or_else(|_| "127.0.0.1".into());
+    let (scheme, rest) = endpoint.split_once('/').unwrap_or(("tls", endpoint));
+    let port = rest.rsplit_once(':').map_or("7460", |(_, p)| p);
+    format!("{scheme}/{local}:{port}")
+}
+
+// ---------------------------------------------------------------------------------------------
+// The host.
+
+/// A join the queryable granted, for the loop.
+struct Joined {
+    participant: usize,
+    name: String,
+    secret: u128,
+}
+
+/// Who may join, shared by the join queryable (another thread, rare) and the loop.
+struct Roster {
+    token: String,
+    /// By participant number: its name.
+    names: Vec<String>,
+    refused_wrong_token: u64,
+    refused_full: u64,
+    joined: crossbeam_channel::Sender<Joined>,
+}
+
+/// One hand taken off the link: the secret of the key it came under, its bytes, when.
+struct HandIn {
+    secret: Option<u128>,
+    arrived_ns: u64,
+    bytes: zenoh::bytes::ZBytes,
+}
+
+/// What the host knows of one participant.
+#[derive(Default)]
+struct Participant {
+    name: String,
+    secret: u128,
+    /// Each side's newest hand (0 the right, 1 the left), when it arrived, and its seq.
+    latest: [Option<(HandSample, u64)>; 2],
+    /// The newest seq taken (either side), and the source time and host time of its first.
+    last_seq: [Option<u64>; 2],
+    first: Option<(u64, u64)>,
+    taken: u64,
+    /// Seqs skipped (hands the link lost), and hands refused, by name.
+    lost: u64,
+    refused: BTreeMap<&'static str, u64>,
+    flood_window_ns: u64,
+    flood_count: u32,
+    /// Joined this many times (a rejoin after a drop keeps the number).
+    joins: u64,
+    /// Dropped (silent for `drop_after_s`) and not back yet; and how often.
+    dropped: bool,
+    drops: u64,
+    /// When the host last heard from it.
+    last_heard_ns: u64,
+    /// Bytes of its hands taken.
+    bytes_in: u64,
+    /// Each side's seq the last frame sent (a hand sent again is held, not new).
+    framed: [Option<u64>; 2],
+}
+
+impl Participant {
+    fn refuse(&mut self, why: &'static str) {
+        *self.refused.entry(why).or_default() += 1;
+    }
+}
+
+/// The host's side: the participants' hands in, ordered frames out on the bus, worlds out.
+struct Host<'s> {
+    session: &'s Session,
+    zenoh: zenoh::Session,
+    roster: Arc<Mutex<Roster>>,
+    joined: crossbeam_channel::Receiver<Joined>,
+    hands: crossbeam_channel::Receiver<HandIn>,
+    queue_full: Arc<AtomicU64>,
+    wake: Arc<Wake>,
+    _join_queryable: zenoh::query::Queryable<()>,
+    _hand_subscriber: zenoh::pubsub::Subscriber<()>,
+    world_sender: zenoh::pubsub::Publisher<'static>,
+    world_in: AnyInlet,
+    hand_out: Outlet<topics::Hand>,
+    participants: Vec<Participant>,
+    /// Hands under a key no participant was given.
+    unknown_key: u64,
+    period_ns: u64,
+    next_tick_ns: u64,
+    frames: u64,
+    hold_ns: u64,
+    drop_ns: u64,
+    message: Vec<u8>,
+    attachment: [u8; 8 * MAX_PARTICIPANTS],
+    /// Per participant, the seq of its newest hand the last frame held (the attachment).
+    frame_seqs: [u64; MAX_PARTICIPANTS],
+    worlds_sent: u64,
+    world_bytes_sent: u64,
+    started_ns: u64,
+    endpoint: String,
+    key: String,
+    protection: String,
+    summary_file: PathBuf,
+}
+
+impl<'s> Host<'s> {
+    #[allow(clippy::too_many_arguments)]
+    fn open(
+        session: &'s Session,
+        bus: &Bus,
+        zenoh: zenoh::Session,
+        link: &SharedLink,
+        token: String,
+        protection: String,
+        drop_ns: u64,
+        hold_ns: u64,
+        summary_file: PathBuf,
+    ) -> Result<Host<'s>, BridgeError> {
+        let declare_err = |key: &str, e: zenoh::Error| {
+            BridgeError::Link(crate::link::LinkError::Declare {
+                key: key.to_string(),
+                reason: e.to_string(),
+            })
+        };
+        let (joined_tx, joined) = crossbeam_channel::bounded(4 * MAX_PARTICIPANTS);
+        let roster = Arc::new(Mutex::new(Roster {
+            token: token.clone(),
+            names: Vec::new(),
+            refused_wrong_token: 0,
+            refused_full: 0,
+            joined: joined_tx,
+        }));
+        let wake = Arc::new(Wake::new().map_err(|e| BridgeError::Shared(SharedError::Wake(e)))?);
+        let join_key = format!("{}/join", link.key);
+        let answering = roster.clone();
+        let join_wake = wake.clone();
+        let join_queryable = zenoh
+            .declare_queryable(join_key.clone())
+            .callback(move |query| {
+                let asked = query
+                    .payload()
+                    .map(|p| p.to_bytes().into_owned())
+                    .unwrap_or_default();
+                let answer = answer_join(&answering, &asked);
+                join_wake.wake();
+                let _ = query.reply(query.key_expr().clone(), answer).wait();
+            })
+            .wait()
+            .map_err(|e| declare_err(&join_key, e))?;
+        let (hand_tx, hands) = crossbeam_channel::bounded(QUEUE);
+        let queue_full = Arc::new(AtomicU64::new(0));
+        let hand_key = format!("{}/hand/*", link.key);
+        let (full, hand_wake) = (queue_full.clone(), wake.clone());
+        let prefix_len = link.key.len() + "/hand/".len();
+        let hand_subscriber = zenoh
+            .declare_subscriber(hand_key.clone())
+            .callback(move |sample| {
+                let key = sample.key_expr().as_str();
+                let secret = key
+                    .get(prefix_len..)
+                    .filter(|s| s.len() == 32)
+                    .and_then(|s| u128::from_str_radix(s, 16).ok());
+                let item = HandIn {
+                    secret,
+                    arrived_ns: monotonic_ns(),
+                    bytes: sample.payload().clone(),
+                };
+                match hand_tx.try_send(item) {
+                    Ok(()) => hand_wake.wake(),
+                    Err(_) => {
+                        full.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            })
+            .wait()
+            .map_err(|e| declare_err(&hand_key, e))?;
+        let world_key = format!("{}/world", link.key);
+        let world_sender =
+            declare_sender(&zenoh, world_key.clone()).map_err(|e| declare_err(&world_key, e))?;
+        let period_ns = (1e9 / session.scene.world.step_hz).round().max(1.0) as u64;
+        let join = join_address(&link.endpoint);
+        eprintln!(
+            "handblocks bridge: hosting a shared world on {} (key {}); each participant joins \
+             with its own hands (any --set source... of theirs):\n  handblocks launch \
+             shared-join --set shared.host={join} --set shared.token={token}",
+            link.endpoint, link.key
+        );
+        Ok(Host {
+            session,
+            zenoh,
+            roster,
+            joined,
+            hands,
+            queue_full,
+            wake,
+            _join_queryable: join_queryable,
+            _hand_subscriber: hand_subscriber,
+            world_sender,
+            world_in: bus.any_inlet(Topic::World)?,
+            hand_out: bus.outlet::<topics::Hand>()?,
+            participants: Vec::new(),
+            unknown_key: 0,
+            period_ns,
+            next_tick_ns: 0,
+            frames: 0,
+            hold_ns,
+            drop_ns,
+            message: Vec::new(),
+            attachment: [0; 8 * MAX_PARTICIPANTS],
+            frame_seqs: [0; MAX_PARTICIPANTS],
+            worlds_sent: 0,
+            world_bytes_sent: 0,
+            started_ns: monotonic_ns(),
+            endpoint: link.endpoint.clone(),
+            key: link.key.clone(),
+            protection,
+            summary_file,
+        })
+    }
+
+    /// Takes the joins the queryable granted.
+    fn take_joins(&mut self) {
+        while let Ok(j) = self.joined.try_recv() {
+            if self.participants.len() <= j.participant {
+                self.participants
+                    .resize_with(j.participant + 1, Participant::default);
+            }
+            let p = &mut self.participants[j.participant];
+            p.name = j.name;
+            p.secret = j.secret;
+            p.joins += 1;
+            p.last_seq = [None; 2];
+            p.framed = [None; 2];
+            self.frame_seqs[j.participant] = 0;
+            p.first = None;
+            p.last_heard_ns = monotonic_ns();
+            eprintln!(
+                "handblocks bridge: {} joined the shared world as participant {}",
+                p.name, j.participant
+            );
+        }
+    }
+
+    /// Checks and keeps each hand the link brought (the newest of each side is what the next
+    /// frame sends).
+    fn take_hands(&mut self) {
+        while let Ok(item) = self.hands.try_recv() {
+            let Some(k) = item.secret.and_then(|s| {
+                self.participants
+                    .iter()
+                    .position(|p| p.secret == s && p.joins > 0)
+            }) else {
+                self.unknown_key += 1;
+                continue;
+            };
+            let bytes = item.bytes.to_bytes();
+            let p = &mut self.participants[k];
+            p.bytes_in += bytes.len() as u64;
+            let hand: HandSample = match recording::decode_sample(Topic::Hand, &bytes) {
+                Ok(h) => h,
+                Err(_) => {
+                    p.refuse("not a hand sample");
+                    continue;
+                }
+            };
+            let now = item.arrived_ns;
+            if now.saturating_sub(p.flood_window_ns) >= 1_000_000_000 {
+                p.flood_window_ns = now;
+                p.flood_count = 0;
+            }
+            p.flood_count += 1;
+            if p.flood_count > FLOOD_PER_S {
+                p.refuse("a flood (more hands a second than FLOOD_PER_S)");
+                continue;
+            }
+            if hand.participant as usize != k {
+                p.refuse("another participant's number");
+                continue;
+            }
+            if hand.side > 1 {
+                p.refuse("a side neither right nor left");
+                continue;
+            }
+            if hand.unusable_because().is_some() {
+                p.refuse("a hand the world cannot use (not finite, or out of range)");
+                continue;
+            }
+            let side = usize::from(HandSide::from_code(hand.side) == HandSide::Left);
+            let seq = hand.stamp.seq;
+            match p.last_seq[side] {
+                Some(last) if seq <= last => {
+                    p.refuse("a seq not after the last (duplicate or reordered)");
+                    continue;
+                }
+                Some(last) => p.lost += seq - last - 1,
+                None => {}
+            }
+            let (first_source, first_host) =
+                *p.first.get_or_insert((hand.stamp.source_time_ns, now));
+            let ahead = hand
+                .stamp
+                .source_time_ns
+                .saturating_sub(first_source)
+                .saturating_sub(now.saturating_sub(first_host));
+            if ahead > FUTURE_SLACK_NS {
+                p.refuse("a source time ahead of the host's clock (a future stamp)");
+                continue;
+            }
+            p.last_seq[side] = Some(seq);
+            p.latest[side] = Some((hand, now));
+            p.last_heard_ns = now;
+            p.taken += 1;
+            if p.dropped {
+                p.dropped = false;
+                eprintln!(
+                    "handblocks bridge: participant {k} ({}) is back: its hands drive again",
+                    p.name
+                );
+            }
+        }
+    }
+
+    /// Sends every world the stepper made to the participants, each with the frame's seqs.
+    fn send_worlds(&mut self) -> Result<(), BusError> {
+        while let Some(s) = self.world_in.receive()? {
+            let view = s.view();
+            recording::encode_view(&view, &mut self.message);
+            for (k, seq) in self.frame_seqs.iter().enumerate() {
+                self.attachment[8 * k..8 * k + 8].copy_from_slice(&seq.to_le_bytes());
+            }
+            if self
+                .world_sender
+                .put(self.message.as_slice())
+                .attachment(&self.attachment[..])
+                .wait()
+                .is_ok()
+            {
+                self.worlds_sent += 1;
+                self.world_bytes_sent += self.message.len() as u64;
+            }
+        }
+        Ok(())
+    }
+
+    /// One frame at tick `tick_ns`: each participant's newest hands, participant 0's right
+    /// always (the stepper's frame waits for slot 0), held as lost after `hold_ns`, empty
+    /// after `drop_ns`.
+    fn send_frame(&mut self, tick_ns: u64, pass: &mut Pass<'_>) -> Result<(), BusError> {
+        if self.participants.iter().all(|p| p.taken == 0) {
+            return Ok(());
+        }
+        for k in 0..self.participants.len() {
+            let silent_ns = tick_ns.saturating_sub(self.participants[k].last_heard_ns);
+            if silent_ns > self.drop_ns
+                && !self.participants[k].dropped
+                && self.participants[k].taken > 0
+            {
+                let p = &mut self.participants[k];
+                p.dropped = true;
+                p.drops += 1;
+                eprintln!(
+                    "handblocks bridge: participant {k} ({}) sent nothing for {:.1} s: \
+                     dropped; its hands let go (it may send again, or join again)",
+                    p.name,
+                    silent_ns as f64 / 1e9
+                );
+            }
+            for side in 0..2 {
+                let p = &self.participants[k];
+                let Some((newest, arrived_ns)) = p.latest[side] else {
+                    if k == 0 && side == 0 {
+                        // Slot 0 in every frame: an empty right hand of participant 0.
+                        let empty = HandSample {
+                            stamp: Stamp::at_origin(0, tick_ns),
+                            ..HandSample::default()
+                        };
+                        self.publish_hand(empty, 0, 0, tick_ns, tick_ns, pass)?;
+                    }
+                    continue;
+                };
+                let mut hand = newest;
+                let age = tick_ns.saturating_sub(arrived_ns);
+                // A hand that came since the last frame counts from its arrival; one held
+                // (nothing new came) is this frame's own, from the tick.
+                let fresh = p.framed[side] != Some(newest.stamp.seq);
+                let origin = if fresh { arrived_ns } else { tick_ns };
+                if p.dropped {
+                    hand.finger_count = 0;
+                    hand.palm_vertex_count = 0;
+                    hand.tracked = 0;
+                } else if age > self.hold_ns {
+                    hand.tracked = 0;
+                }
+                self.participants[k].framed[side] = Some(newest.stamp.seq);
+                self.frame_seqs[k] = self.frame_seqs[k].max(newest.stamp.seq);
+                self.publish_hand(hand, k, side, tick_ns, origin, pass)?;
+            }
+        }
+        self.frames += 1;
+        Ok(())
+    }
+
+    fn publish_hand(
+        &mut self,
+        mut hand: HandSample,
+        participant: usize,
+        side: usize,
+        tick_ns: u64,
+        arrived_ns: u64,
+        pass: &mut Pass<'_>,
+    ) -> Result<(), BusError> {
+        hand.participant = participant as u32;
+        hand.side = side as u32;
+        hand.stamp.source_time_ns = tick_ns;
+        // The host's own latency counts from the hand's arrival here; a participant's hand ->
+        // world, from its own origin, is measured on its side.
+        hand.stamp.origin_ns = arrived_ns;
+        let sent = self.hand_out.publish(&hand)?;
+        let ns = sent.publish_ns.saturating_sub(sent.origin_ns);
+        pass.recorder.record(Metric::Process, ns);
+        pass.recorder.record(Metric::Origin, ns);
+        // The host waits for its first participant: its silence counts from its first frame.
+        pass.recorder.delivered_after_waiting(sent.publish_ns);
+        Ok(())
+    }
+
+    fn summary(&self) -> serde_json::Value {
+        use serde_json::json;
+        let roster = self
+            .roster
+            .lock()
+            .map(|r| (r.refused_wrong_token, r.refused_full));
+        let (wrong_token, full) = roster.unwrap_or((0, 0));
+        let seconds = (monotonic_ns().saturating_sub(self.started_ns) as f64 / 1e9).max(1e-9);
+        let mut refused = BTreeMap::new();
+        if wrong_token > 0 {
+            refused.insert("a join with a wrong token".to_string(), wrong_token);
+        }
+        if full > 0 {
+            refused.insert("a join into a full world".to_string(), full);
+        }
+        if self.unknown_key > 0 {
+            refused.insert(
+                "hands under a key no participant was given (not joined, or another session's)"
+                    .to_string(),
+                self.unknown_key,
+            );
+        }
+        let participants: Vec<_> = self
+            .participants
+            .iter()
+            .enumerate()
+            .map(|(k, p)| {
+                for (why, n) in &p.refused {
+                    *refused.entry(format!("{}: {why}", p.name)).or_default() += n;
+                }
+                json!({
+                    "participant": k,
+                    "name": p.name,
+                    "joins": p.joins,
+                    "hands_taken": p.taken,
+                    "hands_lost": p.lost,
+                    "refused": p.refused,
+                    "dropped": p.dropped,
+                    "drops": p.drops,
+                    "bytes_in_per_s": p.bytes_in as f64 / seconds,
+                })
+            })
+            .collect();
+        json!({
+            "shared": {
+                "role": "host",
+                "endpoint": self.endpoint,
+                "key": self.key,
+                "protection": self.protection,
+                "design": "one authoritative world: the host orders every participant's hands \
+                           on its clock at the scene's step rate and sends each its worlds",
+                "step_hz": self.session.scene.world.step_hz,
+                "frames": self.frames,
+                "participants": participants,
+                "worlds_sent": self.worlds_sent,
+                "world_bytes_out_per_s_per_participant": self.world_bytes_sent as f64 / seconds,
+                "queue_full": self.queue_full.load(Ordering::Relaxed),
+                "refused": refused,
+            }
+        })
+    }
+}
+
+/// The join queryable's answer to `asked` (`{"token": ..., "name": ...}`): the participant's
+/// number and secret, or why not.
+fn answer_join(roster: &Mutex<Roster>, asked: &[u8]) -> Vec<u8> {
+    use serde_json::json;
+    let refusal = |why: &str| json!({ "refused": why }).to_string().into_bytes();
+    let Ok(asked) = serde_json::from_slice::<serde_json::Value>(asked) else {
+        return refusal("the join was not JSON with a token and a name");
+    };
+    let (Some(token), Some(name)) = (asked["token"].as_str(), asked["name"].as_str()) else {
+        return refusal("the join holds no token or no name");
+    };
+    let Ok(mut r) = roster.lock() else {
+        return refusal("the host is stopping");
+    };
+    if !same_token(token, &r.token) {
+        r.refused_wrong_token += 1;
+        return refusal("a wrong token (the host printed the command that joins it)");
+    }
+    let name: String = name
+        .chars()
+        .filter(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+        .take(32)
+        .collect();
+    // A name seen before takes its number back (a participant that dropped and joins again).
+    let participant = match r.names.iter().position(|n| *n == name) {
+        Some(k) => k,
+        None if r.names.len() < MAX_PARTICIPANTS => {
+            r.names.push(name.clone());
+            r.names.len() - 1
+        }
+        None => {
+            r.refused_full += 1;
+            return refusal(&format!(
+                "the world is full ({MAX_PARTICIPANTS} participants; handblocks holds up to \
+                 MAX_PARTICIPANTS people's hands)"
+            ));
+        }
+    };
+    let Ok(secret) = random_secret() else {
+        return refusal("the host could not make a secret");
+    };
+    if r.joined
+        .try_send(Joined {
+            participant,
+            name,
+            secret,
+        })
+        .is_err()
+    {
+        return refusal("the host is busy taking other joins; try again");
+    }
+    json!({ "participant": participant, "secret": secret_text(secret) })
+        .to_string()
+        .into_bytes()
+}
+
+impl Task for Host<'_> {
+    type Error = BusError;
+
+    fn wait(&mut self, _: &mut Waiter, _: Duration) -> Result<(), BusError> {
+        let now = monotonic_ns();
+        let timeout = Duration::from_nanos(self.next_tick_ns.saturating_sub(now).max(1_000))
+            .min(node::IDLE_WAIT);
+        let inlets = std::iter::once(&self.world_in as &dyn common::bus::Wakeable);
+        wait_each(inlets, Some(self.wake.fd()), timeout)
+    }
+
+    fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
+        self.wake.clear();
+        self.take_joins();
+        self.take_hands();
+        let now = monotonic_ns();
+        if self.next_tick_ns == 0 {
+            self.next_tick_ns = now;
+        }
+        if now >= self.next_tick_ns {
+            // One frame per tick due; a host that fell behind by more than one tick skips to
+            // now (the world's time follows the host's clock, never a backlog).
+            let tick = self.next_tick_ns;
+            self.send_frame(tick, pass)?;
+            self.next_tick_ns = tick + self.period_ns;
+            if now >= self.next_tick_ns + self.period_ns {
+                self.next_tick_ns = now + self.period_ns;
+            }
+        }
+        self.send_worlds()
+    }
+
+    fn counters(&self) -> Counters {
+        [self.world_in.counter(), self.hand_out.counter()]
+            .into_iter()
+            .collect()
+    }
+
+    fn stop(&mut self, _: &mut Reporter) -> Result<(), BusError> {
+        write_summary(&self.summary_file, self.summary());
+        crate::link::close_bounded(self.zenoh.clone());
+        Ok(())
+    }
+}
+
+fn write_summary(file: &std::path::Path, summary: serde_json::Value) {
+    if let Err(e) = std::fs::write(file, summary.to_string()) {
+        eprintln!("handblocks bridge: cannot write {}: {e}", file.display());
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// A participant.
+
+/// One world taken off the link, and the attachment's seq of this participant's newest hand.
+struct WorldIn {
+    arrived_ns: u64,
+    acked_seq: Option<u64>,
+    bytes: zenoh::bytes::ZBytes,
+}
+
+/// A participant's side: its hands out, the host's worlds in.
+struct Join {
+    zenoh: zenoh::Session,
+    participant: usize,
+    name: String,
+    hand_in: Inlet<topics::Hand>,
+    hand_sender: zenoh::pubsub::Publisher<'static>,
+    _world_subscriber: zenoh::pubsub::Subscriber<()>,
+    worlds: crossbeam_channel::Receiver<WorldIn>,
+    world_out: Outlet<topics::World>,
+    elements: usize,
+    wake: Arc<Wake>,
+    queue_full: Arc<AtomicU64>,
+    message: Vec<u8>,
+    /// (seq, origin_ns) of the hands sent, by seq modulo the ring.
+    sent: Box<[(u64, u64); SENT_RING]>,
+    hands_sent: u64,
+    hand_bytes_sent: u64,
+    worlds_taken: u64,
+    worlds_malformed: u64,
+    last_world_seq: Option<u64>,
+    worlds_lost: u64,
+    hand_to_world: hdrhistogram::Histogram<u64>,
+    first_world_ns: Option<u64>,
+    joined_ns: u64,
+    started_ns: u64,
+    endpoint: String,
+    key: String,
+    protection: String,
+    summary_file: PathBuf,
+}
+
+impl Join {
+    fn open(
+        session: &Session,
+        bus: &Bus,
+        zenoh: zenoh::Session,
+        link: &SharedLink,
+        name: &str,
+        protection: String,
+        summary_file: PathBuf,
+    ) -> Result<Join, BridgeError> {
+        let declare_err = |key: &str, e: zenoh::Error| {
+            BridgeError::Link(crate::link::LinkError::Declare {
+                key: key.to_string(),
+                reason: e.to_string(),
+            })
+        };
+        let wake = Arc::new(Wake::new().map_err(|e| BridgeError::Shared(SharedError::Wake(e)))?);
+        let queue_full = Arc::new(AtomicU64::new(0));
+        // Subscribe to the worlds first: the first world after the join is then not missed.
+        let (world_tx, worlds) = crossbeam_channel::bounded(QUEUE);
+        let world_key = format!("{}/world", link.key);
+        let (full, world_wake) = (queue_full.clone(), wake.clone());
+        let participant_slot = Arc::new(AtomicU64::new(u64::MAX));
+        let slot = participant_slot.clone();
+        let world_subscriber = zenoh
+            .declare_subscriber(world_key.clone())
+            .callback(move |sample| {
+                let k = slot.load(Ordering::Relaxed) as usize;
+                let acked_seq = sample.attachment().and_then(|a| {
+                    let a = a.to_bytes();
+                    a.get(8 * k..8 * k + 8)
+                        .and_then(|b| b.try_into().ok())
+                        .map(u64::from_le_bytes)
+                });
+                let item = WorldIn {
+                    arrived_ns: monotonic_ns(),
+                    acked_seq,
+                    bytes: sample.payload().clone(),
+                };
+                match world_tx.try_send(item) {
+                    Ok(()) => world_wake.wake(),
+                    Err(_) => {
+                        full.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            })
+            .wait()
+            .map_err(|e| declare_err(&world_key, e))?;
+        let Some(token) = link.token.clone() else {
+            return Err(BridgeError::Shared(SharedError::Refused(
+                "this session names no token: give the one the host printed, --set \
+                 shared.token=TOKEN (handblocks launch shared-host prints the whole command)"
+                    .into(),
+            )));
+        };
+        let started_ns = monotonic_ns();
+        let (participant, secret) = join(&zenoh, &link.key, &token, name, &link.endpoint)?;
+        participant_slot.store(participant as u64, Ordering::Relaxed);
+        let joined_ns = monotonic_ns();
+        eprintln!(
+            "handblocks bridge: joined the shared world on {} as participant {participant} \
+             ({name}) after {:.2} s",
+            link.endpoint,
+            (joined_ns - started_ns) as f64 / 1e9
+        );
+        let hand_key = format!("{}/hand/{secret}", link.key);
+        let hand_sender =
+            declare_sender(&zenoh, hand_key.clone()).map_err(|e| declare_err(&hand_key, e))?;
+        Ok(Join {
+            zenoh,
+            participant,
+            name: name.to_string(),
+            hand_in: bus.inlet::<topics::Hand>()?,
+            hand_sender,
+            _world_subscriber: world_subscriber,
+            worlds,
+            world_out: bus.slice_outlet::<topics::World>()?,
+            elements: session.scene.blocks.len(),
+            wake,
+            queue_full,
+            message: Vec::new(),
+            sent: Box::new([(u64::MAX, 0); SENT_RING]),
+            hands_sent: 0,
+            hand_bytes_sent: 0,
+            worlds_taken: 0,
+            worlds_malformed: 0,
+            last_world_seq: None,
+            worlds_lost: 0,
+            hand_to_world: hdrhistogram::Histogram::new_with_bounds(1, 60_000_000_000, 3)
+                .expect("constant bounds are valid"),
+            first_world_ns: None,
+            joined_ns,
+            started_ns,
+            endpoint: link.endpoint.clone(),
+            key: link.key.clone(),
+            protection,
+            summary_file,
+        })
+    }
+
+    fn send_hands(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
+        while let Some(s) = self.hand_in.receive()? {
+            let received = monotonic_ns();
+            let mut hand: HandSample = *s.payload();
+            hand.participant = self.participant as u32;
+            pass.recorder.hop(&hand.stamp, received);
+            recording::encode_sample(&hand, &mut self.message);
+            if self.hand_sender.put(self.message.as_slice()).wait().is_ok() {
+                self.hands_sent += 1;
+                self.hand_bytes_sent += self.message.len() as u64;
+                self.sent[(hand.stamp.seq % SENT_RING as u64) as usize] =
+                    (hand.stamp.seq, hand.stamp.origin_ns);
+            }
+        }
+        Ok(())
+    }
+
+    fn take_worlds(&mut self, pass: &mut Pass<'_>) {
+        while let Ok(item) = self.worlds.try_recv() {
+            let bytes = item.bytes.to_bytes();
+            let decoded: Result<(common::WorldHeader, &[u8]), _> =
+                recording::decode_slice(Topic::World, &bytes);
+            let Ok((header, body)) = decoded else {
+                self.worlds_malformed += 1;
+                continue;
+            };
+            let size = std::mem::size_of::<common::BlockState>();
+            let n = body.len() / size;
+            if n != self.elements {
+                self.worlds_malformed += 1;
+                continue;
+            }
+            // The world's age on this machine: from this participant's own hand that its frame
+            // held (the attachment), else from its arrival.
+            let own_origin = item.acked_seq.and_then(|seq| {
+                let (kept, origin) = self.sent[(seq % SENT_RING as u64) as usize];
+                (kept == seq).then_some(origin)
+            });
+            if let Some(origin) = own_origin {
+                let _ = self
+                    .hand_to_world
+                    .record(item.arrived_ns.saturating_sub(origin).max(1));
+            }
+            let seq = header.stamp.seq;
+            if let Some(last) = self.last_world_seq {
+                if seq > last + 1 {
+                    self.worlds_lost += seq - last - 1;
+                }
+            }
+            self.last_world_seq = Some(seq);
+            let published = self.world_out.publish_with_as(
+                seq,
+                n,
+                |h| {
+                    *h = header;
+                    h.stamp.origin_ns = own_origin.unwrap_or(item.arrived_ns);
+                },
+                // SAFETY: `body` holds exactly `n` elements (checked above); a block state is
+                // plain old data (any bit pattern valid), read unaligned.
+                |i| unsafe {
+                    std::ptr::read_unaligned(body[i * size..].as_ptr() as *const common::BlockState)
+                },
+            );
+            if let Ok(stamp) = published {
+                pass.recorder.output(item.arrived_ns, &stamp);
+                self.worlds_taken += 1;
+                self.first_world_ns.get_or_insert(item.arrived_ns);
+            }
+        }
+    }
+
+    fn summary(&self) -> serde_json::Value {
+        use serde_json::json;
+        let seconds = (monotonic_ns().saturating_sub(self.joined_ns) as f64 / 1e9).max(1e-9);
+        let h = &self.hand_to_world;
+        let us = |q: f64| (!h.is_empty()).then(|| h.value_at_quantile(q) as f64 / 1e3);
+        json!({
+            "shared": {
+                "role": "join",
+                "endpoint": self.endpoint,
+                "key": self.key,
+                "protection": self.protection,
+                "participant": self.participant,
+                "name": self.name,
+                "join_s": (self.joined_ns - self.started_ns) as f64 / 1e9,
+                "first_world_after_join_s": self
+                    .first_world_ns
+                    .map(|t| t.saturating_sub(self.joined_ns) as f64 / 1e9),
+                "hands_sent": self.hands_sent,
+                "hand_bytes_out_per_s": self.hand_bytes_sent as f64 / seconds,
+                "worlds_taken_in": self.worlds_taken,
+                "worlds_lost": self.worlds_lost,
+                "worlds_malformed": self.worlds_malformed,
+                "queue_full": self.queue_full.load(Ordering::Relaxed),
+                "hand_to_world_us": {
+                    "count": h.len(),
+                    "p50": us(0.5),
+                    "p99": us(0.99),
+                    "max": us(1.0),
+                    "what": "this participant's hand (its origin, on its clock) to the host's \
+                             world whose frame held it, taken in here",
+                },
+            }
+        })
+    }
+}
+
+/// Asks the host at `KEY/join` until it answers (the host may start later), or the process is
+/// asked to stop; returns the participant's number and its secret key segment.
+fn join(
+    zenoh: &zenoh::Session,
+    key: &str,
+    token: &str,
+    name: &str,
+    endpoint: &str,
+) -> Result<(usize, String), BridgeError> {
+    let asked = serde_json::json!({ "token": token, "name": name }).to_string();
+    let join_key = format!("{key}/join");
+    let mut told = false;
+    while !common::shutdown::requested() {
+        let replies = zenoh
+            .get(join_key.as_str())
+            .payload(asked.as_str())
+            .timeout(Duration::from_secs(2))
+            .wait();
+        if let Ok(replies) = replies {
+            while let Ok(reply) = replies.recv() {
+                let Ok(sample) = reply.result() else { continue };
+                let answer: serde_json::Value =
+                    serde_json::from_slice(&sample.payload().to_bytes()).unwrap_or_default();
+                if let Some(why) = answer["refused"].as_str() {
+                    return Err(BridgeError::Shared(SharedError::Refused(why.to_string())));
+                }
+                if let (Some(k), Some(secret)) =
+                    (answer["participant"].as_u64(), answer["secret"].as_str())
+                {
+                    if (k as usize) < MAX_PARTICIPANTS
+                        && secret.len() == 32
+                        && secret.chars().all(|c| c.is_ascii_hexdigit())
+                    {
+                        return Ok((k as usize, secret.to_string()));
+                    }
+                }
+            }
+        }
+        if !told {
+            eprintln!(
+                "handblocks bridge: waiting for the shared world's host on {endpoint} \
+                 (asking every {} ms)",
+                JOIN_RETRY.as_millis()
+            );
+            told = true;
+        }
+        std::thread::sleep(JOIN_RETRY);
+    }
+    Err(BridgeError::Shared(SharedError::Refused(
+        "stopped before the host answered".into(),
+    )))
+}
+
+impl Task for Join {
+    type Error = BusError;
+
+    fn wait(&mut self, _: &mut Waiter, timeout: Duration) -> Result<(), BusError> {
+        let inlets = std::iter::once(&self.hand_in as &dyn common::bus::Wakeable);
+        wait_each(inlets, Some(self.wake.fd()), timeout.min(node::IDLE_WAIT))
+    }
+
+    fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
+        self.wake.clear();
+        self.send_hands(pass)?;
+        self.take_worlds(pass);
+        Ok(())
+    }
+
+    fn counters(&self) -> Counters {
+        [self.hand_in.counter(), self.world_out.counter()]
+            .into_iter()
+            .collect()
+    }
+
+    fn stop(&mut self, _: &mut Reporter) -> Result<(), BusError> {
+        write_summary(&self.summary_file, self.summary());
+        crate::link::close_bounded(self.zenoh.clone());
+        Ok(())
+    }
+}

@@ -1,0 +1,197 @@
+//! Issue 45: several people, each with their own source of hands, in one block world. A host
+//! session (config/sessions/shared-host.toml) and participants (shared-join.toml), each a whole
+//! `handblocks launch` with its own bus, over zenoh on loopback: every world a participant
+//! records is one the host stepped, bit for bit (`inspect --world-hashes`), every hand it sent
+//! is accounted for, a late joiner is in step within a second, and a participant with a wrong
+//! token is refused and counted by name while the others go on.
+
+mod support;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::Duration;
+
+use serde_json::Value;
+use support::{assert_nothing_left, both, carl_example, free_port, repo, Scratch, EXE};
+
+const TOKEN: &str = "shared-test-token-0123456789";
+
+fn launch(session: &str, id: &str, seconds: f64, scratch: &Scratch, sets: &[String]) -> Child {
+    let mut c = Command::new(EXE);
+    c.current_dir(repo())
+        .args(["launch", "--quiet", "--force", "--no-preview"])
+        .args(["--duration", &seconds.to_string()])
+        .args(["--bus-id", id, "--report"])
+        .arg(scratch.path(&format!("{id}.json")))
+        .arg("--record")
+        .arg(scratch.path(&format!("{id}.mcap")))
+        .args(["--set", "renderer.mode=off"]);
+    for s in sets {
+        c.args(["--set", s]);
+    }
+    c.arg(repo().join("config/sessions").join(session))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run handblocks")
+}
+
+fn link_sets(endpoint_key: &str, port: u16, token: &str) -> Vec<String> {
+    vec![
+        format!("shared.{endpoint_key}=tcp/127.0.0.1:{port}"),
+        "shared.allow_plain=true".into(),
+        format!("shared.token={token}"),
+        format!("shared.key=handblocks/test-{port}"),
+    ]
+}
+
+fn finish(child: Child, id: &str) -> Output {
+    let out = child.wait_with_output().expect("wait for handblocks");
+    assert_nothing_left(id);
+    out
+}
+
+fn report(scratch: &Scratch, id: &str) -> Value {
+    let path = scratch.path(&format!("{id}.json"));
+    serde_json::from_str(&std::fs::read_to_string(&path).unwrap_or_default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// `inspect FILE --world-hashes`, as (step, hash) lines in order.
+fn world_hashes(file: &Path) -> Vec<(u64, String)> {
+    let out = Command::new(EXE)
+        .arg("inspect")
+        .arg(file)
+        .arg("--world-hashes")
+        .output()
+        .expect("run inspect");
+    assert!(out.status.success(), "{}", both(&out));
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| {
+            let (step, hash) = l.split_once(' ').expect("STEP HASH");
+            (step.parse().expect("a step"), hash.to_string())
+        })
+        .collect()
+}
+
+#[test]
+fn three_participants_share_one_world_bit_for_bit_and_a_late_joiner_is_in_step_within_a_second() {
+    let scratch = Scratch::new("shared");
+    let port = free_port();
+    let tag = std::process::id();
+    let (host_id, alice_id, bob_id, carol_id, eve_id) = (
+        format!("shh{tag}"),
+        format!("sha{tag}"),
+        format!("shb{tag}"),
+        format!("shc{tag}"),
+        format!("she{tag}"),
+    );
+    let host = launch(
+        "shared-host.toml",
+        &host_id,
+        16.0,
+        &scratch,
+        &link_sets("listen", port, TOKEN),
+    );
+    let join = |id: &str, name: &str, seconds: f64, token: &str, extra: &[String]| {
+        let mut sets = link_sets("host", port, token);
+        sets.push(format!("shared.name={name}"));
+        sets.extend_from_slice(extra);
+        launch("shared-join.toml", id, seconds, &scratch, &sets)
+    };
+    // Alice: the scene's scripted hand. Bob: a real Quest recording, looped. Carol joins late.
+    let alice = join(&alice_id, "alice", 11.0, TOKEN, &[]);
+    let carl = carl_example("lift");
+    let bob_source = if carl.exists() {
+        vec![
+            "source.kind=replay".to_string(),
+            format!("source.file={}", carl.display()),
+            "source.offset=[0.0, -0.92, 0.0]".into(),
+            "source.loop=true".into(),
+        ]
+    } else {
+        eprintln!("{} is missing: bob's hand is scripted too", carl.display());
+        Vec::new()
+    };
+    let bob = join(&bob_id, "bob", 11.0, TOKEN, &bob_source);
+    std::thread::sleep(Duration::from_secs(4));
+    let carol = join(&carol_id, "carol", 6.0, TOKEN, &[]);
+    // Eve has the wrong token: refused by name, and nobody else notices.
+    let eve = join(&eve_id, "eve", 6.0, "not-the-token-0123456789", &[]);
+    let eve = finish(eve, &eve_id);
+    assert!(
+        !eve.status.success(),
+        "a wrong token joined:\n{}",
+        both(&eve)
+    );
+    assert!(both(&eve).contains("wrong token"), "{}", both(&eve));
+    let outs: BTreeMap<&str, Output> = [
+        ("alice", finish(alice, &alice_id)),
+        ("bob", finish(bob, &bob_id)),
+        ("carol", finish(carol, &carol_id)),
+        ("host", finish(host, &host_id)),
+    ]
+    .into_iter()
+    .collect();
+    for (who, out) in &outs {
+        assert!(out.status.success(), "{who}:\n{}", both(out));
+    }
+
+    // The host names every participant, and accounts for every hand each sent.
+    let host = report(&scratch, &host_id);
+    let shared = &host["bridge"]["shared"];
+    let people = shared["participants"].as_array().expect("participants");
+    let by_name = |name: &str| {
+        people
+            .iter()
+            .find(|p| p["name"] == name)
+            .unwrap_or_else(|| panic!("{name} not in the host's report: {shared}"))
+    };
+    assert!(
+        shared["refused"]["a join with a wrong token"].as_u64() >= Some(1),
+        "{shared}"
+    );
+    for (name, id) in [("alice", &alice_id), ("bob", &bob_id), ("carol", &carol_id)] {
+        let theirs = &report(&scratch, id)["bridge"]["shared"];
+        let ours = by_name(name);
+        let refused: u64 = ours["refused"]
+            .as_object()
+            .map_or(0, |m| m.values().filter_map(Value::as_u64).sum());
+        assert_eq!(
+            ours["hands_taken"].as_u64().unwrap() + ours["hands_lost"].as_u64().unwrap() + refused,
+            theirs["hands_sent"].as_u64().unwrap(),
+            "{name}: every hand sent is taken, lost or refused: host {ours}, participant {theirs}"
+        );
+        assert!(
+            theirs["hands_sent"].as_u64() > Some(100),
+            "{name}: {theirs}"
+        );
+        assert!(
+            theirs["hand_to_world_us"]["count"].as_u64() > Some(50),
+            "{name}: {theirs}"
+        );
+    }
+    let carol = &report(&scratch, &carol_id)["bridge"]["shared"];
+    let in_step = carol["first_world_after_join_s"].as_f64().expect("a world");
+    assert!(
+        in_step < 1.0,
+        "carol's first world {in_step} s after joining"
+    );
+
+    // Every world a participant recorded is the host's world of that step, bit for bit.
+    let host_worlds: BTreeMap<u64, String> =
+        world_hashes(&scratch.path(&format!("{host_id}.mcap")))
+            .into_iter()
+            .collect();
+    for (name, id) in [("alice", &alice_id), ("bob", &bob_id), ("carol", &carol_id)] {
+        let theirs = world_hashes(&scratch.path(&format!("{id}.mcap")));
+        assert!(theirs.len() > 300, "{name}: {} worlds", theirs.len());
+        let divergent = theirs
+            .iter()
+            .filter(|(step, hash)| host_worlds.get(step) != Some(hash))
+            .count();
+        assert_eq!(divergent, 0, "{name}: worlds not the host's");
+    }
+}
