@@ -62,6 +62,9 @@ const FUTURE_SLACK_NS: u64 = 1_000_000_000;
 /// Hands and worlds taken off the link and not yet handled: two seconds of four participants'
 /// two 120 Hz hands.
 const QUEUE: usize = 4096;
+/// The longest a world's send waits on a stalled participant's link before dropping it for
+/// that participant, microseconds (see [`run`]).
+pub const WORLD_SEND_WAIT_US: u64 = 1000;
 /// How often a participant asks to join until the host answers.
 const JOIN_RETRY: Duration = Duration::from_millis(500);
 /// A participant's own hands kept to read its hand -> world latency off the world's
@@ -96,7 +99,19 @@ pub fn run(session: &Session, bus: &Bus, link: &SharedLink) -> Result<(), Bridge
             reason,
         })
     };
-    let config = peer_config(&link.endpoint, role, identity.as_ref()).map_err(open_err)?;
+    let mut config = peer_config(&link.endpoint, role, identity.as_ref()).map_err(open_err)?;
+    if link.is_host() {
+        // A world put waits this long for room on a participant's queue before it drops the
+        // world for that participant (the bridge's default, 20 ms, is for one viewer): a
+        // stalled participant then costs the host's loop at most WORLD_SEND_WAIT_US per world,
+        // MAX_PARTICIPANTS of them under a tick, and never the others their worlds.
+        config
+            .insert_json5(
+                "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
+                &WORLD_SEND_WAIT_US.to_string(),
+            )
+            .map_err(|e| open_err(e.to_string()))?;
+    }
     let zenoh = zenoh::open(config)
         .wait()
         .map_err(|e| open_err(e.to_string()))?;
@@ -606,11 +621,12 @@ impl<'s> Host<'s> {
         // world, from its own origin, is measured on its side.
         hand.stamp.origin_ns = arrived_ns;
         let sent = self.hand_out.publish(&hand)?;
+        // The host waits for its first participant: its silence counts from its first frame
+        // (before the first origin is recorded, which marks the first output).
+        pass.recorder.delivered_after_waiting(sent.publish_ns);
         let ns = sent.publish_ns.saturating_sub(sent.origin_ns);
         pass.recorder.record(Metric::Process, ns);
         pass.recorder.record(Metric::Origin, ns);
-        // The host waits for its first participant: its silence counts from its first frame.
-        pass.recorder.delivered_after_waiting(sent.publish_ns);
         Ok(())
     }
 
