@@ -10,6 +10,7 @@
 //! * [`stability`]: every hard case under both models, with its figures.
 //! * [`stepper`]: a step's cost against the world's size, and each effect's cost on and off.
 //! * [`netem`]: a userspace UDP proxy that delays and drops, for shared worlds under a bad network.
+//! * [`shared`]: a shared world under a bad network (host and participants behind [`netem`] proxies).
 //! * [`plot`]: the figures (plotters into a PNG), shared by the reports.
 //! * [`page`]: the head of each report's markdown page (what, how to read it, where from).
 
@@ -22,6 +23,7 @@ pub mod load;
 pub mod netem;
 pub mod page;
 pub mod plot;
+pub mod shared;
 pub mod stability;
 pub mod stepper;
 pub mod tosses;

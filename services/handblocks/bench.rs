@@ -11,7 +11,7 @@ pub enum BenchError {
     /// The latency benchmark starts this executable as the session's services.
     #[error("cannot find my own executable: {0}")]
     OwnExecutable(std::io::Error),
-    /// The benchmark itself failed; `name` is `latency`, `accuracy`, `stability`, `stepper` or `hands`.
+    /// The benchmark itself failed; `name` is `latency`, `accuracy`, `stability`, `stepper`, `hands`, `tosses` or `shared`.
     #[error("{error}")]
     Run {
         name: &'static str,
@@ -160,6 +160,23 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
                 quick,
             };
             ("tosses", handblocks_bench::tosses::run(&b).map(drop))
+        }
+        BenchKind::Shared {
+            out,
+            quick,
+            seconds,
+            traces,
+        } => {
+            let exe = std::env::current_exe().map_err(BenchError::OwnExecutable)?;
+            let b = handblocks_bench::shared::SharedBench {
+                exe,
+                repo: std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")),
+                out_dir: out,
+                carl: traces_dir(traces).join("example_lift_0.carl"),
+                seconds: if quick { seconds.min(10.0) } else { seconds },
+                quick,
+            };
+            ("shared", handblocks_bench::shared::run(&b).map(drop))
         }
         BenchKind::Stepper { out, quick, runs } => {
             let b = handblocks_bench::stepper::StepperBench {

@@ -121,8 +121,13 @@ pub enum Command {
         #[arg(long, value_name = "SIDE", value_parser = ["left", "right", "both"], requires = "hand")]
         hands: Option<String>,
         /// Print {"frames", "blocks": [{"name", "position", "rotation", "mode"}], "events"}.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "world_hashes")]
         json: bool,
+        /// Print `STEP HASH` after every step instead of the report (as `inspect FILE
+        /// --world-hashes` prints a recording's): `--hand` a shared world's host recording
+        /// steps its world again from the hands it recorded, to compare line by line.
+        #[arg(long)]
+        world_hashes: bool,
         /// Override a key of the scene file, checked as the file's own keys are, e.g.
         /// --set world.hands=tracked (docs/model.md T1-T3 for tracked hands), --set
         /// tracked.grip_margin=0.03, --set effects.stacking=supported. Repeatable.
@@ -559,6 +564,28 @@ pub enum BenchKind {
         #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=20))]
         runs: u64,
     },
+    /// A shared world under a bad network (issue 45): a host and two participants on this
+    /// machine (the scripted hand; a CARL recording, looped), each behind its own UDP proxy
+    /// that delays and drops zenoh's QUIC datagrams, at 0/0, 20/1, 50/1, 100/1 and 100/5 (ms
+    /// each way / % loss). Per participant: hand -> world p50/p99 beside the injected round
+    /// trip, world-hash divergences from the host's recording, worlds lost, hands sent, taken,
+    /// lost and refused; per condition, the host's bridge CPU per participant and bytes a second.
+    Shared {
+        /// Where shared.json, shared.md and shared.png go.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+        /// Two conditions (0/0 and 20/1), 10 s each.
+        #[arg(long)]
+        quick: bool,
+        /// Seconds each condition runs (the host runs 4 s longer).
+        #[arg(long, value_name = "S", default_value_t = 30.0, value_parser = parse_bench_seconds)]
+        seconds: f64,
+        /// The CARL recordings: the second participant replays example_lift_0.carl from here
+        /// (the scripted hand where it is missing; a relative path not found here is also
+        /// looked for beside the repository this binary was built from).
+        #[arg(long, value_name = "DIR", default_value = "../shared/data/carl")]
+        traces: PathBuf,
+    },
     /// What a step costs as the world grows (16 to 4096 blocks: falling, resting, a hand
     /// sweeping a field) under both models, and what each `[effects]` effect costs on and off.
     ///
@@ -579,6 +606,13 @@ pub enum BenchKind {
         #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=20))]
         runs: u64,
     },
+}
+
+fn parse_bench_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (2.0..=3600.0).contains(&v) => Ok(v),
+        _ => Err(format!("{s:?}: give seconds from 2 to 3600")),
+    }
 }
 
 fn parse_vec3(s: &str) -> Result<[f64; 3], String> {

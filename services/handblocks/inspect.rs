@@ -256,6 +256,11 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                 "refused_messages": summary.refused_messages,
                 "first_refused": summary.first_refused,
                 "topics": topics,
+                "hands_by_participant": hands_by_participant(path).map(|by| {
+                    by.iter()
+                        .map(|((k, side), n)| serde_json::json!({"participant": k, "side": side, "hands": n}))
+                        .collect::<Vec<_>>()
+                }),
             })
         );
     } else {
@@ -294,6 +299,16 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                 t.seconds,
                 t.rate_hz,
                 t.schema,
+            );
+        }
+        if let Some(by) = hands_by_participant(path) {
+            let people: Vec<String> = by
+                .iter()
+                .map(|((k, side), n)| format!("participant {k} {side} {n}"))
+                .collect();
+            println!(
+                "hands by participant (a shared world's): {}",
+                people.join(", ")
             );
         }
         if summary.scene_messages > 0 {
@@ -376,4 +391,18 @@ fn print_segments(chain: &SegmentChain) {
         "(counted from the seqs: the dead recorder's unwritten chunk, at most [recorder] \
          flush_ms of samples, and those published while none ran)"
     );
+}
+
+/// A shared world's recording: its hands by participant and side (`HandSample::participant`);
+/// None for any other recording (every hand participant 0's) or one without hands.
+fn hands_by_participant(
+    path: &Path,
+) -> Option<std::collections::BTreeMap<(u32, &'static str), u64>> {
+    let rec = Recording::open_topics(path, &[common::Topic::Hand]).ok()?;
+    let mut by = std::collections::BTreeMap::new();
+    for h in rec.samples::<common::HandSample>(common::Topic::Hand) {
+        *by.entry((h.participant, common::HandSide::from_code(h.side).name()))
+            .or_insert(0u64) += 1;
+    }
+    by.keys().any(|(k, _)| *k > 0).then_some(by)
 }

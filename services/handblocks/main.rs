@@ -89,8 +89,10 @@ fn run() -> Result<ExitCode, CliError> {
             hand_offset,
             hands,
             json,
+            world_hashes,
             overrides,
         }) => simulate::run(simulate::SimulateArgs {
+            world_hashes,
             hands: hands
                 .as_deref()
                 .and_then(common::HandsUsed::parse)

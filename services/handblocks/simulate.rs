@@ -20,6 +20,8 @@ pub struct SimulateArgs {
     /// `--hands left|right|both`: which hands of the trace drive (default: the right).
     pub hands: common::HandsUsed,
     pub json: bool,
+    /// `--world-hashes`: `STEP HASH` after every step instead of the report.
+    pub world_hashes: bool,
     /// `--set KEY=VALUE`: scene keys given on the command line.
     pub overrides: Vec<common::config::session::Override>,
 }
@@ -49,6 +51,23 @@ pub fn run(args: SimulateArgs) -> Result<ExitCode, SimulateError> {
         hands: args.hands,
         frames: args.frames,
     };
+    if args.world_hashes {
+        // One line a step, as `inspect --world-hashes` prints a recording's worlds.
+        use std::io::Write as _;
+        let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+        let mut sample = common::WorldSample::default();
+        let (_, notes) = simulation::run_with_progress(&scene, &settings, &mut |_, world| {
+            world.write_sample(&mut sample);
+            let hash = common::world_hash::world_hash(&sample.header, &sample.blocks);
+            let _ = writeln!(out, "{} {hash:016x}", sample.header.step);
+            Ok(())
+        })?;
+        let _ = out.flush();
+        for line in &notes.lines {
+            eprintln!("handblocks simulate: {line}");
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
     let (report, notes) = simulation::run(&scene, &settings)?;
     for line in &notes.lines {
         eprintln!("handblocks simulate: {line}");

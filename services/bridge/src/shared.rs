@@ -231,6 +231,12 @@ struct Roster {
     joined: crossbeam_channel::Sender<Joined>,
 }
 
+/// A participant that says it leaves: its secret and the last seq it sent.
+struct Leaving {
+    secret: u128,
+    last_seq: Option<u64>,
+}
+
 /// One hand taken off the link: the secret of the key it came under, its bytes, when.
 struct HandIn {
     secret: Option<u128>,
@@ -245,8 +251,9 @@ struct Participant {
     secret: u128,
     /// Each side's newest hand (0 the right, 1 the left), when it arrived, and its seq.
     latest: [Option<(HandSample, u64)>; 2],
-    /// The newest seq taken (either side), and the source time and host time of its first.
-    last_seq: [Option<u64>; 2],
+    /// The newest seq taken (a participant's hands, both sides, count one seq), and the source
+    /// time and host time of its first.
+    last_seq: Option<u64>,
     first: Option<(u64, u64)>,
     taken: u64,
     /// Seqs skipped (hands the link lost), and hands refused, by name.
@@ -265,6 +272,9 @@ struct Participant {
     bytes_in: u64,
     /// Each side's seq the last frame sent (a hand sent again is held, not new).
     framed: [Option<u64>; 2],
+    /// It said it leaves (its session ended): its hands let go at once, and the hands it sent
+    /// that never came are counted lost.
+    left: bool,
 }
 
 impl Participant {
@@ -279,10 +289,12 @@ struct Host<'s> {
     zenoh: zenoh::Session,
     roster: Arc<Mutex<Roster>>,
     joined: crossbeam_channel::Receiver<Joined>,
+    leaving: crossbeam_channel::Receiver<Leaving>,
     hands: crossbeam_channel::Receiver<HandIn>,
     queue_full: Arc<AtomicU64>,
     wake: Arc<Wake>,
     _join_queryable: zenoh::query::Queryable<()>,
+    _leave_queryable: zenoh::query::Queryable<()>,
     _hand_subscriber: zenoh::pubsub::Subscriber<()>,
     world_sender: zenoh::pubsub::Publisher<'static>,
     world_in: AnyInlet,
@@ -352,6 +364,31 @@ impl<'s> Host<'s> {
             })
             .wait()
             .map_err(|e| declare_err(&join_key, e))?;
+        let (leave_tx, leaving) = crossbeam_channel::bounded(4 * MAX_PARTICIPANTS);
+        let leave_key = format!("{}/leave", link.key);
+        let leave_wake = wake.clone();
+        let leave_queryable = zenoh
+            .declare_queryable(leave_key.clone())
+            .callback(move |query| {
+                let said: serde_json::Value = query
+                    .payload()
+                    .and_then(|p| serde_json::from_slice(&p.to_bytes()).ok())
+                    .unwrap_or_default();
+                let secret = said["secret"]
+                    .as_str()
+                    .filter(|s| s.len() == 32)
+                    .and_then(|s| u128::from_str_radix(s, 16).ok());
+                if let Some(secret) = secret {
+                    let _ = leave_tx.try_send(Leaving {
+                        secret,
+                        last_seq: said["last_seq"].as_u64(),
+                    });
+                    leave_wake.wake();
+                }
+                let _ = query.reply(query.key_expr().clone(), "bye").wait();
+            })
+            .wait()
+            .map_err(|e| declare_err(&leave_key, e))?;
         let (hand_tx, hands) = crossbeam_channel::bounded(QUEUE);
         let queue_full = Arc::new(AtomicU64::new(0));
         let hand_key = format!("{}/hand/*", link.key);
@@ -395,10 +432,12 @@ impl<'s> Host<'s> {
             zenoh,
             roster,
             joined,
+            leaving,
             hands,
             queue_full,
             wake,
             _join_queryable: join_queryable,
+            _leave_queryable: leave_queryable,
             _hand_subscriber: hand_subscriber,
             world_sender,
             world_in: bus.any_inlet(Topic::World)?,
@@ -434,7 +473,8 @@ impl<'s> Host<'s> {
             p.name = j.name;
             p.secret = j.secret;
             p.joins += 1;
-            p.last_seq = [None; 2];
+            p.last_seq = None;
+            p.left = false;
             p.framed = [None; 2];
             self.frame_seqs[j.participant] = 0;
             p.first = None;
@@ -443,6 +483,36 @@ impl<'s> Host<'s> {
                 "handblocks bridge: {} joined the shared world as participant {}",
                 p.name, j.participant
             );
+        }
+    }
+
+    /// Takes the participants that said they leave: their hands let go from the next frame,
+    /// and what they sent that never came is counted lost (a later arrival is taken back).
+    fn take_leaves(&mut self) {
+        while let Ok(l) = self.leaving.try_recv() {
+            let Some(k) = self
+                .participants
+                .iter()
+                .position(|p| p.secret == l.secret && p.joins > 0)
+            else {
+                self.unknown_key += 1;
+                continue;
+            };
+            let p = &mut self.participants[k];
+            if !p.left {
+                p.left = true;
+                if let Some(last_sent) = l.last_seq {
+                    match p.last_seq {
+                        Some(last) => p.lost += last_sent.saturating_sub(last),
+                        None => p.lost += 1,
+                    }
+                }
+                eprintln!(
+                    "handblocks bridge: participant {k} ({}) left the shared world; its hands \
+                     let go",
+                    p.name
+                );
+            }
         }
     }
 
@@ -492,13 +562,9 @@ impl<'s> Host<'s> {
             }
             let side = usize::from(HandSide::from_code(hand.side) == HandSide::Left);
             let seq = hand.stamp.seq;
-            match p.last_seq[side] {
-                Some(last) if seq <= last => {
-                    p.refuse("a seq not after the last (duplicate or reordered)");
-                    continue;
-                }
-                Some(last) => p.lost += seq - last - 1,
-                None => {}
+            if p.last_seq.is_some_and(|last| seq <= last) {
+                p.refuse("a seq not after the last (duplicate or reordered)");
+                continue;
             }
             let (first_source, first_host) =
                 *p.first.get_or_insert((hand.stamp.source_time_ns, now));
@@ -511,7 +577,15 @@ impl<'s> Host<'s> {
                 p.refuse("a source time ahead of the host's clock (a future stamp)");
                 continue;
             }
-            p.last_seq[side] = Some(seq);
+            if let Some(last) = p.last_seq {
+                let gap = seq - last - 1;
+                if p.left {
+                    // Counted lost when it left (its last seq then); it came after all.
+                    p.lost = p.lost.saturating_sub(gap + 1);
+                }
+                p.lost += gap;
+            }
+            p.last_seq = Some(seq);
             p.latest[side] = Some((hand, now));
             p.last_heard_ns = now;
             p.taken += 1;
@@ -589,7 +663,7 @@ impl<'s> Host<'s> {
                 // (nothing new came) is this frame's own, from the tick.
                 let fresh = p.framed[side] != Some(newest.stamp.seq);
                 let origin = if fresh { arrived_ns } else { tick_ns };
-                if p.dropped {
+                if p.dropped || p.left {
                     hand.finger_count = 0;
                     hand.palm_vertex_count = 0;
                     hand.tracked = 0;
@@ -667,6 +741,7 @@ impl<'s> Host<'s> {
                     "hands_taken": p.taken,
                     "hands_lost": p.lost,
                     "refused": p.refused,
+                    "left": p.left,
                     "dropped": p.dropped,
                     "drops": p.drops,
                     "bytes_in_per_s": p.bytes_in as f64 / seconds,
@@ -764,6 +839,7 @@ impl Task for Host<'_> {
         self.wake.clear();
         self.take_joins();
         self.take_hands();
+        self.take_leaves();
         let now = monotonic_ns();
         if self.next_tick_ns == 0 {
             self.next_tick_ns = now;
@@ -826,7 +902,11 @@ struct Join {
     message: Vec<u8>,
     /// (seq, origin_ns) of the hands sent, by seq modulo the ring.
     sent: Box<[(u64, u64); SENT_RING]>,
+    /// Hands this machine made before the host answered its join: not sent (stale).
+    hands_before_join: u64,
     hands_sent: u64,
+    last_seq_sent: Option<u64>,
+    secret: String,
     hand_bytes_sent: u64,
     worlds_taken: u64,
     worlds_malformed: u64,
@@ -897,8 +977,17 @@ impl Join {
                     .into(),
             )));
         };
+        // The bus ports first: the session's processes attach within the launcher's bound
+        // however long the host takes to answer (a slow or lossy link, a host not up yet).
+        let hand_in = bus.inlet::<topics::Hand>()?;
+        let world_out = bus.slice_outlet::<topics::World>()?;
         let started_ns = monotonic_ns();
         let (participant, secret) = join(&zenoh, &link.key, &token, name, &link.endpoint)?;
+        // Hands from before the join are stale and have nowhere to go: let go of them, counted.
+        let mut hands_before_join = 0;
+        while hand_in.receive()?.is_some() {
+            hands_before_join += 1;
+        }
         participant_slot.store(participant as u64, Ordering::Relaxed);
         let joined_ns = monotonic_ns();
         eprintln!(
@@ -914,17 +1003,20 @@ impl Join {
             zenoh,
             participant,
             name: name.to_string(),
-            hand_in: bus.inlet::<topics::Hand>()?,
+            hand_in,
+            hands_before_join,
             hand_sender,
             _world_subscriber: world_subscriber,
             worlds,
-            world_out: bus.slice_outlet::<topics::World>()?,
+            world_out,
             elements: session.scene.blocks.len(),
             wake,
             queue_full,
             message: Vec::new(),
             sent: Box::new([(u64::MAX, 0); SENT_RING]),
             hands_sent: 0,
+            last_seq_sent: None,
+            secret: secret.clone(),
             hand_bytes_sent: 0,
             worlds_taken: 0,
             worlds_malformed: 0,
@@ -951,6 +1043,7 @@ impl Join {
             recording::encode_sample(&hand, &mut self.message);
             if self.hand_sender.put(self.message.as_slice()).wait().is_ok() {
                 self.hands_sent += 1;
+                self.last_seq_sent = Some(hand.stamp.seq);
                 self.hand_bytes_sent += self.message.len() as u64;
                 self.sent[(hand.stamp.seq % SENT_RING as u64) as usize] =
                     (hand.stamp.seq, hand.stamp.origin_ns);
@@ -1031,6 +1124,7 @@ impl Join {
                     .first_world_ns
                     .map(|t| t.saturating_sub(self.joined_ns) as f64 / 1e9),
                 "hands_sent": self.hands_sent,
+                "hands_before_join": self.hands_before_join,
                 "hand_bytes_out_per_s": self.hand_bytes_sent as f64 / seconds,
                 "worlds_taken_in": self.worlds_taken,
                 "worlds_lost": self.worlds_lost,
@@ -1124,6 +1218,18 @@ impl Task for Join {
     }
 
     fn stop(&mut self, _: &mut Reporter) -> Result<(), BusError> {
+        // Say goodbye (bounded): the host lets this participant's hands go at once, and counts
+        // what it sent that never came.
+        let said = serde_json::json!({ "secret": self.secret, "last_seq": self.last_seq_sent });
+        if let Ok(replies) = self
+            .zenoh
+            .get(format!("{}/leave", self.key))
+            .payload(said.to_string())
+            .timeout(Duration::from_secs(1))
+            .wait()
+        {
+            let _ = replies.recv_timeout(Duration::from_secs(1));
+        }
         write_summary(&self.summary_file, self.summary());
         crate::link::close_bounded(self.zenoh.clone());
         Ok(())

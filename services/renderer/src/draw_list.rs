@@ -104,19 +104,20 @@ pub const SKIN: [f32; 3] = [0.85, 0.60, 0.45];
 /// Radius used when a hand sample gives none (bare check-point hands).
 pub const DEFAULT_FINGER_RADIUS: f64 = 0.008;
 
-/// The hands a frame draws at most: the right (or a one-hand session's only hand) and the left.
-pub const HANDS: usize = 2;
+/// The hands a frame draws at most: every hand slot of a shared world (this person's right,
+/// or a one-hand session's only hand, and left; each other participant's two).
+pub const HANDS: usize = common::HAND_SLOTS;
 const SEGMENTS: usize = MAX_FINGERS * (MAX_FINGER_POINTS - 1);
 const JOINTS: usize = MAX_FINGERS * MAX_FINGER_POINTS;
 /// Instance slots for a scene of `blocks` blocks: floor, palm, blocks, finger segments and
-/// finger joints of both hands.
+/// finger joints of every hand ([`HANDS`]).
 pub const fn instance_capacity(blocks: usize) -> usize {
     2 + blocks + HANDS * (SEGMENTS + JOINTS)
 }
 /// One palm's hull: at most one triangle per point triple.
 const HAND_PALM_VERTICES: usize =
     3 * MAX_PALM_VERTICES * (MAX_PALM_VERTICES - 1) * (MAX_PALM_VERTICES - 2) / 6;
-/// Both palms' hulls.
+/// Every hand's palm hull.
 pub const PALM_VERTEX_CAPACITY: usize = HANDS * HAND_PALM_VERTICES;
 
 const FLOOR_INSTANCE: u32 = 0;
@@ -247,6 +248,21 @@ impl DrawList {
         in_static_layer: &[bool],
         draw_static: bool,
     ) {
+        self.build_people(world, hand, left, &[], in_static_layer, draw_static);
+    }
+
+    /// [`Self::build_hands`] with the hands of the other people in a shared world (`others`:
+    /// each as tracked, its own check points and palm, after this machine's hands): the host's
+    /// renderer draws every participant's.
+    pub fn build_people(
+        &mut self,
+        world: WorldView<'_>,
+        hand: &HandSample,
+        left: Option<&HandSample>,
+        others: &[HandSample],
+        in_static_layer: &[bool],
+        draw_static: bool,
+    ) {
         self.instances.clear();
         self.blocks.clear();
         self.static_blocks.clear();
@@ -319,16 +335,12 @@ impl DrawList {
             (count, counts, points),
             &hand.finger_radius,
         );
-        if let Some(left) = left {
+        for h in left.into_iter().chain(others) {
             push_fingers(
                 &mut self.instances,
                 &mut self.segment_scratch,
-                (
-                    left.finger_count,
-                    &left.finger_point_count,
-                    &left.finger_points,
-                ),
-                &left.finger_radius,
+                (h.finger_count, &h.finger_point_count, &h.finger_points),
+                &h.finger_radius,
             );
         }
         self.joints = joints_start..self.instances.len() as u32;
@@ -337,7 +349,7 @@ impl DrawList {
         self.segments = seg_start..self.instances.len() as u32;
 
         self.palm_vertices.clear();
-        for h in std::iter::once(hand).chain(left) {
+        for h in std::iter::once(hand).chain(left).chain(others) {
             self.palm_points.clear();
             self.palm_points.extend(
                 h.palm()
@@ -712,7 +724,7 @@ mod tests {
     }
 
     #[test]
-    fn two_full_hands_fit_the_buffers_and_allocate_nothing_once_warm() {
+    fn every_hand_slot_full_fits_the_buffers_and_allocates_nothing_once_warm() {
         let w = world_with(common::MAX_SCENE_BLOCKS);
         let full = |x: f64| {
             let mut h = HandSample {
@@ -737,6 +749,17 @@ mod tests {
         };
         let (right, mut left) = (full(0.0), full(-2.0));
         left.side = 1;
+        // The other participants of a shared world: both hands each.
+        let others: Vec<HandSample> = (1..common::MAX_PARTICIPANTS as u32)
+            .flat_map(|p| {
+                (0..2u32).map(move |side| HandSample {
+                    participant: p,
+                    side,
+                    ..full(2.0 * p as f64 + side as f64)
+                })
+            })
+            .collect();
+        assert_eq!(2 + others.len(), HANDS);
         let meshes: Vec<_> = (0..common::MAX_SCENE_BLOCKS as u32)
             .map(|i| i * 3..i * 3 + 3)
             .collect();
@@ -746,8 +769,8 @@ mod tests {
             d.palm_vertices.capacity(),
             d.segment_scratch.capacity(),
         );
-        d.build_hands(w.view(), &right, Some(&left), &[], false);
-        d.build_hands(w.view(), &right, Some(&left), &[], false);
+        d.build_people(w.view(), &right, Some(&left), &others, &[], false);
+        d.build_people(w.view(), &right, Some(&left), &others, &[], false);
         assert_eq!(
             (
                 d.instances.capacity(),

@@ -408,6 +408,18 @@ impl Renderer {
         hand: &HandSample,
         left: Option<&HandSample>,
     ) -> Result<FrameTimes, RenderError> {
+        self.render_people(world, hand, left, &[])
+    }
+
+    /// [`Self::render_hands`] with the other people's hands of a shared world (`others`, each
+    /// drawn as tracked).
+    pub fn render_people(
+        &mut self,
+        world: WorldView<'_>,
+        hand: &HandSample,
+        left: Option<&HandSample>,
+        others: &[HandSample],
+    ) -> Result<FrameTimes, RenderError> {
         let started_ns = monotonic_ns();
         let layer = if self.use_layer {
             self.layer.update_hands(world, hand, left)
@@ -418,8 +430,14 @@ impl Renderer {
             LayerFrame::Off => &[],
             _ => self.layer.members(),
         };
-        self.list
-            .build_hands(world, hand, left, members, layer == LayerFrame::Redraw);
+        self.list.build_people(
+            world,
+            hand,
+            left,
+            others,
+            members,
+            layer == LayerFrame::Redraw,
+        );
         self.upload_draw_list();
         let list = &self.list;
         let mut encoder = self

@@ -22,7 +22,7 @@ use common::latency::{Metric, Reporter};
 use common::node::{self, Counters, Pass, Task};
 use common::{
     monotonic_ns, shutdown, topics, FrameSample, HandSample, HandSide, Stage, Stamp, WorldHeader,
-    WorldView,
+    WorldView, HAND_SLOTS,
 };
 
 use crate::error::RenderError;
@@ -127,6 +127,8 @@ pub fn run_with_preview(
         hands: Box::new([HandSample::default(); HAND_HISTORY]),
         hand_next: 0,
         left: None,
+        others: Box::new([None; HAND_SLOTS]),
+        others_drawn: Box::new([HandSample::default(); HAND_SLOTS]),
         superseded: 0,
         frame_no: 0,
     };
@@ -157,6 +159,10 @@ struct RendererStage {
     hand_next: usize,
     /// A two-hand session's newest left hand (side 1); None until one came.
     left: Option<HandSample>,
+    /// A shared world's other people's hands, the newest per slot (participant 1 and up).
+    others: Box<[Option<HandSample>; HAND_SLOTS]>,
+    /// Where a frame gathers them for drawing (no allocation per frame).
+    others_drawn: Box<[HandSample; HAND_SLOTS]>,
     superseded: u64,
     frame_no: u64,
 }
@@ -197,6 +203,7 @@ impl Task for RendererStage {
                 &mut self.hands,
                 &mut self.hand_next,
                 &mut self.left,
+                &mut self.others,
                 s.payload(),
             );
         }
@@ -228,7 +235,13 @@ impl Task for RendererStage {
             };
             let hand = matching_hand(&self.hands[..self.hand_next.min(HAND_HISTORY)], view.header);
             let left = self.left.as_ref();
-            let times = r.render_hands(view, hand, left)?;
+            let mut drawn_others = 0;
+            for h in self.others.iter().flatten() {
+                self.others_drawn[drawn_others] = *h;
+                drawn_others += 1;
+            }
+            let others = &self.others_drawn[..drawn_others];
+            let times = r.render_people(view, hand, left, others)?;
             done = times.done_ns;
             if let (Some(w), Some(every)) = (&mut self.writer, self.frames_every) {
                 if self.frame_no.is_multiple_of(every) {
@@ -285,15 +298,23 @@ impl Task for RendererStage {
     }
 }
 
-/// Keeps `hand`: a left hand (side 1) as the newest `left`, any other into the right hands'
+/// Keeps `hand`: another person's of a shared world (participant 1 and up: on the host,
+/// whose bridge publishes every participant's hands) as the newest of its slot in `others`;
+/// this person's left hand (side 1) as the newest `left`, any other into the right hands'
 /// ring (`hands`, `next` the count so far). Allocates nothing.
 fn keep_hand(
     hands: &mut [HandSample; HAND_HISTORY],
     next: &mut usize,
     left: &mut Option<HandSample>,
+    others: &mut [Option<HandSample>; HAND_SLOTS],
     hand: &HandSample,
 ) {
-    if HandSide::from_code(hand.side) == HandSide::Left {
+    if hand.participant != 0 {
+        // A slot out of range (no bridge sends one) is not drawn.
+        if let Some(slot) = hand.slot().and_then(|k| others.get_mut(k)) {
+            *slot = Some(*hand);
+        }
+    } else if HandSide::from_code(hand.side) == HandSide::Left {
         *left = Some(*hand);
     } else {
         hands[*next % HAND_HISTORY] = *hand;
@@ -392,13 +413,14 @@ mod tests {
     #[test]
     fn left_hands_are_kept_apart_from_the_right_ones() {
         let mut hands = Box::new([HandSample::default(); HAND_HISTORY]);
+        let mut others = [None; HAND_SLOTS];
         let (mut next, mut left) = (0, None);
         for seq in 1..=6u64 {
             let mut h = HandSample::default();
             h.stamp.seq = seq;
             // Per frame, the right hand then the left (odd seq the right).
             h.side = if seq % 2 == 0 { 1 } else { 0 };
-            keep_hand(&mut hands, &mut next, &mut left, &h);
+            keep_hand(&mut hands, &mut next, &mut left, &mut others, &h);
         }
         assert_eq!(next, 3);
         assert_eq!(left.map(|h| h.stamp.seq), Some(6));
@@ -417,8 +439,56 @@ mod tests {
         assert_eq!(matching_hand(kept, &world).stamp.seq, 5);
         // A one-hand session has no left hand.
         let (mut next, mut left) = (0, None);
-        keep_hand(&mut hands, &mut next, &mut left, &HandSample::default());
+        keep_hand(
+            &mut hands,
+            &mut next,
+            &mut left,
+            &mut others,
+            &HandSample::default(),
+        );
         assert!(left.is_none());
         assert_eq!(next, 1);
+    }
+
+    /// On a shared world's host every participant's hands arrive on one topic: participant
+    /// 0's go to the ring and `left` as before, each other one's to its own slot, newest kept,
+    /// so that no two people's hands are ever drawn as one hand flickering between them.
+    #[test]
+    fn other_peoples_hands_are_kept_per_slot_apart_from_this_ones() {
+        let mut hands = Box::new([HandSample::default(); HAND_HISTORY]);
+        let mut others = [None; HAND_SLOTS];
+        let (mut next, mut left) = (0, None);
+        for seq in 1..=12u64 {
+            let h = HandSample {
+                participant: (seq % 3) as u32,
+                side: ((seq / 3) % 2) as u32,
+                stamp: common::Stamp {
+                    seq,
+                    ..Default::default()
+                },
+                ..HandSample::default()
+            };
+            keep_hand(&mut hands, &mut next, &mut left, &mut others, &h);
+        }
+        // Participant 0: seqs 3, 6, 9, 12 (sides 1, 0, 1, 0).
+        assert_eq!(next, 2);
+        assert!(hands[..next]
+            .iter()
+            .all(|h| h.participant == 0 && h.side == 0));
+        assert_eq!(left.map(|h| h.stamp.seq), Some(9));
+        let kept: Vec<(usize, u64)> = others
+            .iter()
+            .enumerate()
+            .filter_map(|(k, h)| h.map(|h| (k, h.stamp.seq)))
+            .collect();
+        // Participant 1 (slots 2, 3) and 2 (slots 4, 5), the newest of each side.
+        assert_eq!(kept, vec![(2, 7), (3, 10), (4, 8), (5, 11)]);
+        // A participant past the slots is not kept.
+        let stray = HandSample {
+            participant: 99,
+            ..HandSample::default()
+        };
+        keep_hand(&mut hands, &mut next, &mut left, &mut others, &stray);
+        assert_eq!(others.iter().flatten().count(), 4);
     }
 }

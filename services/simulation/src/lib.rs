@@ -184,6 +184,35 @@ fn simulate_scene(
     stepper::simulate_hands_with(scene, frames, hands, progress).map_err(run_error)
 }
 
+/// The `hand` samples of one of our recordings that holds hands but no source samples (no
+/// tracker, no joints): a shared world's host records its participants' hands so, as its
+/// stepper took them. None for a CARL file, or a recording with source samples (those are
+/// made into hands anew, as a live replay makes them).
+fn recorded_hands(trace: &Path) -> Result<Option<Vec<common::HandSample>>, SimulateError> {
+    use common::Topic;
+    let head = {
+        use std::io::Read;
+        let mut head = [0u8; 8];
+        let n = common::config::open_regular(trace)
+            .and_then(|mut f| f.read(&mut head).map_err(|e| e.to_string()))
+            .map_err(|e| SimulateError::Trace(format!("{}: {e}", trace.display())))?;
+        head[..n].to_vec()
+    };
+    if !recording::Recording::is_mcap(&head) {
+        return Ok(None);
+    }
+    let rec =
+        recording::Recording::open_topics(trace, &[Topic::Tracker, Topic::Joints, Topic::Hand])
+            .map_err(|e| SimulateError::Trace(e.to_string()))?;
+    let has = |t: Topic| rec.messages.iter().any(|m| m.topic == t);
+    if has(Topic::Tracker) || has(Topic::Joints) || !has(Topic::Hand) {
+        return Ok(None);
+    }
+    Ok(Some(
+        rec.samples::<common::HandSample>(Topic::Hand).collect(),
+    ))
+}
+
 /// A run's end: the world's error, or where the hook stopped it.
 fn run_error(e: stepper::RunError) -> SimulateError {
     match e {
@@ -214,6 +243,23 @@ fn simulate_trace(
     notes: &mut Notes,
     progress: &mut Progress<'_>,
 ) -> Result<Report, SimulateError> {
+    if let Some(recorded) = recorded_hands(trace)? {
+        if offset != [0.0; 3] {
+            return Err(SimulateError::Trace(format!(
+                "{}: holds hands as the stepper took them (in the world's frame), not a \
+                 source's: --hand-offset moves a source's hand; leave it out",
+                trace.display()
+            )));
+        }
+        notes.lines.push(format!(
+            "{}: no source samples; its {} recorded hands (a shared world's host records \
+             every participant's) step the world as its stepper took them",
+            trace.display(),
+            recorded.len()
+        ));
+        return stepper::simulate_samples_with(scene, &recorded, frames, progress)
+            .map_err(run_error);
+    }
     let trace =
         replay::HandTrace::load_hands(trace, offset, hands).map_err(SimulateError::Trace)?;
     let hands = hands_of(&trace, notes);
