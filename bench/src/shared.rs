@@ -51,10 +51,14 @@ struct Row {
     worlds: u64,
     divergent: u64,
     worlds_lost: u64,
+    /// Worlds the host did not send it (its link behind).
+    worlds_held_back: u64,
     hands_sent: u64,
     hands_taken: u64,
     hands_lost: u64,
     hands_refused: u64,
+    /// Superseded by a newer hand while the link was behind (the host counts them lost).
+    hands_held_back: u64,
     /// Sent and neither taken, lost nor refused when the host ended: still in the link.
     hands_in_flight: u64,
     /// What it sent: hands, bytes a second.
@@ -218,11 +222,14 @@ fn condition(
             worlds: worlds.len() as u64,
             divergent,
             worlds_lost: u(&theirs["worlds_lost"]),
+            worlds_held_back: u(&ours["worlds_held_back"]),
             hands_sent: u(&theirs["hands_sent"]),
             hands_taken: u(&ours["hands_taken"]),
             hands_lost: u(&ours["hands_lost"]),
             hands_refused,
-            hands_in_flight: u(&theirs["hands_sent"]).saturating_sub(accounted),
+            hands_held_back: u(&theirs["hands_held_back"]),
+            hands_in_flight: (u(&theirs["hands_sent"]) + u(&theirs["hands_held_back"]))
+                .saturating_sub(accounted),
             sent_kb_s: theirs["hand_bytes_out_per_s"].as_f64().unwrap_or(0.0) / 1e3,
             world_kb_s: shared["world_bytes_out_per_s_per_participant"]
                 .as_f64()
@@ -320,10 +327,12 @@ pub fn run(b: &SharedBench) -> Result<Value, Box<dyn std::error::Error>> {
             "worlds": r.worlds,
             "divergent_worlds": r.divergent,
             "worlds_lost": r.worlds_lost,
+            "worlds_held_back_by_the_host": r.worlds_held_back,
             "hands_sent": r.hands_sent,
             "hands_taken": r.hands_taken,
             "hands_lost": r.hands_lost,
             "hands_refused": r.hands_refused,
+            "hands_held_back": r.hands_held_back,
             "hands_in_flight_at_the_end": r.hands_in_flight,
             "its_hand_kb_per_s_sent": page::num(r.sent_kb_s),
             "reliable_link_bound_kb_per_s": page::num(mathis_kb_s(r.delay_ms, r.loss_pct)),
@@ -363,14 +372,15 @@ pub fn run(b: &SharedBench) -> Result<Value, Box<dyn std::error::Error>> {
     md.push_str(&page::figure("hand -> world per condition", "shared.png"));
     md.push_str(
         "| delay each way | loss | participant | hand -> world p50 | p99 | added p50 | worlds | \
-         divergent | worlds lost | hands sent / taken / lost / refused / in flight at the end | \
+         divergent | worlds missed (held back by the host) | hands sent / held back / taken / lost / refused / in flight at \
+         the end | \
          world KB/s to it | its hands KB/s sent / taken | reliable-link bound KB/s \
          |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in &rows {
         md.push_str(&format!(
             "| {} ms | {} % | {} | {:.1} ms | {:.1} ms | {:.1} ms | {} | {} | {} | {} / {} / {} \
-             / {} / {} | {:.1} | {:.1} / {:.1} | {} |\n",
+             / {} / {} / {} | {:.1} | {:.1} / {:.1} | {} |\n",
             r.delay_ms,
             r.loss_pct,
             r.participant,
@@ -379,8 +389,9 @@ pub fn run(b: &SharedBench) -> Result<Value, Box<dyn std::error::Error>> {
             r.p50_ms - 2.0 * r.delay_ms as f64,
             r.worlds,
             r.divergent,
-            r.worlds_lost,
+            format!("{} ({})", r.worlds_lost, r.worlds_held_back),
             r.hands_sent,
+            r.hands_held_back,
             r.hands_taken,
             r.hands_lost,
             r.hands_refused,
@@ -406,10 +417,13 @@ pub fn run(b: &SharedBench) -> Result<Value, Box<dyn std::error::Error>> {
          control carries over a round trip RTT at loss p is about MSS / RTT x sqrt(3/2) / \
          sqrt(p) (Mathis et al. 1997; MSS 1200 B, QUIC's datagram): the bound column, beside \
          what a participant sends. Where its hands' rate nears or passes the bound, hands queue \
-         in the link and hand -> world grows to seconds; those still queued when the host ends \
-         are the ones in flight. Each world is the whole state and each hand supersedes the \
-         last, so a best-effort, newest-only link (or smaller hands) would not queue: not built \
-         yet.\n",
+         in the link. A participant therefore sends newest-only: once its oldest unanswered hand \
+         is older than three of its quickest turns and 100 ms (its report's send_window_ms), \
+         it holds hands back and sends the newest when a world answers (held back: the host \
+         counts them lost). The host sends each participant its worlds the same way, on the \
+         participant's answers: a world held back is caught up by the next (each world is the \
+         whole state); a participant counts the worlds it missed, the host those it held back. Those still \
+         in the link when the host ends are the ones in flight.\n",
     );
     md.push_str(
         "\nWhat each participant costs the host (its bridge's CPU over the run, shared out per \

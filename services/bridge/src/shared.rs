@@ -70,6 +70,83 @@ const JOIN_RETRY: Duration = Duration::from_millis(500);
 /// A participant's own hands kept to read its hand -> world latency off the world's
 /// attachment (seconds of them at 120 Hz).
 const SENT_RING: usize = 1024;
+/// The most hands a participant keeps in flight (unanswered), whatever the window.
+const IN_FLIGHT_MAX: usize = SENT_RING / 2;
+
+/// Newest-only sending over a reliable link (issue 45): the samples sent and not yet answered,
+/// oldest first, and the quickest turn seen (sent -> answered). While the oldest unanswered is
+/// older than the window (three of the quickest turns and 100 ms), the link is behind: a
+/// reliable, congestion-controlled stream at a long round trip with loss carries less than the
+/// stream offered, and what is sent only queues. Then the next sample waits (a newer one
+/// supersedes it); a sample unanswered for four windows (at least 1 s) is given up on, so that
+/// no lost answer closes the window for good.
+#[derive(Debug)]
+struct SendWindow {
+    in_flight: std::collections::VecDeque<(u64, u64)>,
+    min_turn_ns: u64,
+}
+
+impl Default for SendWindow {
+    fn default() -> Self {
+        SendWindow {
+            in_flight: std::collections::VecDeque::with_capacity(IN_FLIGHT_MAX),
+            min_turn_ns: u64::MAX,
+        }
+    }
+}
+
+impl SendWindow {
+    /// The window: how long the oldest unanswered may wait before the link counts as behind.
+    fn window_ns(&self) -> u64 {
+        if self.min_turn_ns == u64::MAX {
+            return u64::MAX;
+        }
+        self.min_turn_ns
+            .saturating_mul(3)
+            .saturating_add(100_000_000)
+    }
+
+    /// Whether the link is behind at `now` (after giving up on the long unanswered).
+    fn behind(&mut self, now: u64) -> bool {
+        let window = self.window_ns();
+        let give_up = window.saturating_mul(4).max(1_000_000_000);
+        while self
+            .in_flight
+            .front()
+            .is_some_and(|&(_, sent)| now.saturating_sub(sent) > give_up)
+        {
+            self.in_flight.pop_front();
+        }
+        self.in_flight
+            .front()
+            .is_some_and(|&(_, sent)| now.saturating_sub(sent) > window)
+            || self.in_flight.len() >= IN_FLIGHT_MAX
+    }
+
+    fn sent(&mut self, seq: u64, now: u64) {
+        if self.in_flight.len() < IN_FLIGHT_MAX {
+            self.in_flight.push_back((seq, now));
+        }
+    }
+
+    /// Seq `answered` (and all before it) came, answered at `now`.
+    fn answered(&mut self, answered: u64, now: u64) {
+        while let Some(&(seq, sent)) = self.in_flight.front() {
+            if seq > answered {
+                break;
+            }
+            if seq == answered {
+                self.min_turn_ns = self.min_turn_ns.min(now.saturating_sub(sent));
+            }
+            self.in_flight.pop_front();
+        }
+    }
+
+    /// The window in ms, once a turn was seen.
+    fn window_ms(&self) -> Option<f64> {
+        (self.min_turn_ns != u64::MAX).then(|| self.window_ns() as f64 / 1e6)
+    }
+}
 
 /// Why a shared link's process stopped.
 #[derive(Debug, thiserror::Error)]
@@ -152,12 +229,11 @@ pub fn run(session: &Session, bus: &Bus, link: &SharedLink) -> Result<(), Bridge
         }
         SharedRole::Join { name } => {
             let mut join = Join::open(session, bus, zenoh, link, name, protection, summary_file)?;
-            Ok(node::run(
-                Stage::Bridge,
-                bus,
-                WaitStrategy::Event,
-                &mut join,
-            )?)
+            node::run(Stage::Bridge, bus, WaitStrategy::Event, &mut join)?;
+            match join.refused.take() {
+                Some(why) => Err(why),
+                None => Ok(()),
+            }
         }
     }
 }
@@ -231,6 +307,14 @@ struct Roster {
     joined: crossbeam_channel::Sender<Joined>,
 }
 
+/// A participant's answer to its worlds: the secret of the key it came under, the newest world
+/// seq it took in, when it arrived.
+struct AckIn {
+    secret: Option<u128>,
+    seq: Option<u64>,
+    arrived_ns: u64,
+}
+
 /// A participant that says it leaves: its secret and the last seq it sent.
 struct Leaving {
     secret: u128,
@@ -275,6 +359,15 @@ struct Participant {
     /// It said it leaves (its session ended): its hands let go at once, and the hands it sent
     /// that never came are counted lost.
     left: bool,
+    /// Its worlds go under its own key (`KEY/world/SECRET`), each when its link keeps up.
+    world_sender: Option<zenoh::pubsub::Publisher<'static>>,
+    /// The worlds it was sent and has not answered (`KEY/ack/SECRET`), and their sends' times.
+    world_window: SendWindow,
+    worlds_sent: u64,
+    /// Worlds not sent to it because its link was behind (the next world, the whole state,
+    /// catches it up).
+    worlds_held_back: u64,
+    world_bytes_sent: u64,
 }
 
 impl Participant {
@@ -296,7 +389,8 @@ struct Host<'s> {
     _join_queryable: zenoh::query::Queryable<()>,
     _leave_queryable: zenoh::query::Queryable<()>,
     _hand_subscriber: zenoh::pubsub::Subscriber<()>,
-    world_sender: zenoh::pubsub::Publisher<'static>,
+    acks: crossbeam_channel::Receiver<AckIn>,
+    _ack_subscriber: zenoh::pubsub::Subscriber<()>,
     world_in: AnyInlet,
     hand_out: Outlet<topics::Hand>,
     participants: Vec<Participant>,
@@ -311,8 +405,6 @@ struct Host<'s> {
     attachment: [u8; 8 * MAX_PARTICIPANTS],
     /// Per participant, the seq of its newest hand the last frame held (the attachment).
     frame_seqs: [u64; MAX_PARTICIPANTS],
-    worlds_sent: u64,
-    world_bytes_sent: u64,
     started_ns: u64,
     endpoint: String,
     key: String,
@@ -416,9 +508,31 @@ impl<'s> Host<'s> {
             })
             .wait()
             .map_err(|e| declare_err(&hand_key, e))?;
-        let world_key = format!("{}/world", link.key);
-        let world_sender =
-            declare_sender(&zenoh, world_key.clone()).map_err(|e| declare_err(&world_key, e))?;
+        let (ack_tx, acks) = crossbeam_channel::bounded(QUEUE);
+        let ack_key = format!("{}/ack/*", link.key);
+        let ack_wake = wake.clone();
+        let ack_prefix_len = link.key.len() + "/ack/".len();
+        let ack_subscriber = zenoh
+            .declare_subscriber(ack_key.clone())
+            .callback(move |sample| {
+                let key = sample.key_expr().as_str();
+                let secret = key
+                    .get(ack_prefix_len..)
+                    .filter(|s| s.len() == 32)
+                    .and_then(|s| u128::from_str_radix(s, 16).ok());
+                let bytes = sample.payload().to_bytes();
+                let seq = <[u8; 8]>::try_from(&bytes[..]).ok().map(u64::from_le_bytes);
+                let item = AckIn {
+                    secret,
+                    seq,
+                    arrived_ns: monotonic_ns(),
+                };
+                if ack_tx.try_send(item).is_ok() {
+                    ack_wake.wake();
+                }
+            })
+            .wait()
+            .map_err(|e| declare_err(&ack_key, e))?;
         let period_ns = (1e9 / session.scene.world.step_hz).round().max(1.0) as u64;
         let join = join_address(&link.endpoint);
         eprintln!(
@@ -439,7 +553,8 @@ impl<'s> Host<'s> {
             _join_queryable: join_queryable,
             _leave_queryable: leave_queryable,
             _hand_subscriber: hand_subscriber,
-            world_sender,
+            acks,
+            _ack_subscriber: ack_subscriber,
             world_in: bus.any_inlet(Topic::World)?,
             hand_out: bus.outlet::<topics::Hand>()?,
             participants: Vec::new(),
@@ -452,8 +567,6 @@ impl<'s> Host<'s> {
             message: Vec::new(),
             attachment: [0; 8 * MAX_PARTICIPANTS],
             frame_seqs: [0; MAX_PARTICIPANTS],
-            worlds_sent: 0,
-            world_bytes_sent: 0,
             started_ns: monotonic_ns(),
             endpoint: link.endpoint.clone(),
             key: link.key.clone(),
@@ -479,6 +592,18 @@ impl<'s> Host<'s> {
             self.frame_seqs[j.participant] = 0;
             p.first = None;
             p.last_heard_ns = monotonic_ns();
+            p.world_window = SendWindow::default();
+            let world_key = format!("{}/world/{}", self.key, secret_text(p.secret));
+            p.world_sender = match declare_sender(&self.zenoh, world_key.clone()) {
+                Ok(sender) => Some(sender),
+                Err(e) => {
+                    eprintln!(
+                        "handblocks bridge: cannot send {}'s worlds ({world_key}): {e}",
+                        p.name
+                    );
+                    None
+                }
+            };
             eprintln!(
                 "handblocks bridge: {} joined the shared world as participant {}",
                 p.name, j.participant
@@ -599,23 +724,51 @@ impl<'s> Host<'s> {
         }
     }
 
-    /// Sends every world the stepper made to the participants, each with the frame's seqs.
+    /// Takes the participants' answers to their worlds: each opens its world window again.
+    fn take_acks(&mut self) {
+        while let Ok(a) = self.acks.try_recv() {
+            let (Some(secret), Some(seq)) = (a.secret, a.seq) else {
+                continue;
+            };
+            if let Some(p) = self.participants.iter_mut().find(|p| p.secret == secret) {
+                p.world_window.answered(seq, a.arrived_ns);
+            }
+        }
+    }
+
+    /// Sends every world the stepper made to each participant, with the frame's seqs, while
+    /// its link keeps up ([`SendWindow`]); one whose link is behind gets a later world (the
+    /// whole state) once it answered the ones in flight.
     fn send_worlds(&mut self) -> Result<(), BusError> {
         while let Some(s) = self.world_in.receive()? {
             let view = s.view();
+            let seq = view.stamp().seq;
             recording::encode_view(&view, &mut self.message);
             for (k, seq) in self.frame_seqs.iter().enumerate() {
                 self.attachment[8 * k..8 * k + 8].copy_from_slice(&seq.to_le_bytes());
             }
-            if self
-                .world_sender
-                .put(self.message.as_slice())
-                .attachment(&self.attachment[..])
-                .wait()
-                .is_ok()
-            {
-                self.worlds_sent += 1;
-                self.world_bytes_sent += self.message.len() as u64;
+            let now = monotonic_ns();
+            for p in &mut self.participants {
+                let Some(sender) = &p.world_sender else {
+                    continue;
+                };
+                if p.left {
+                    continue;
+                }
+                if p.world_window.behind(now) {
+                    p.worlds_held_back += 1;
+                    continue;
+                }
+                if sender
+                    .put(self.message.as_slice())
+                    .attachment(&self.attachment[..])
+                    .wait()
+                    .is_ok()
+                {
+                    p.world_window.sent(seq, now);
+                    p.worlds_sent += 1;
+                    p.world_bytes_sent += self.message.len() as u64;
+                }
             }
         }
         Ok(())
@@ -745,6 +898,10 @@ impl<'s> Host<'s> {
                     "dropped": p.dropped,
                     "drops": p.drops,
                     "bytes_in_per_s": p.bytes_in as f64 / seconds,
+                    "worlds_sent": p.worlds_sent,
+                    "worlds_held_back": p.worlds_held_back,
+                    "world_window_ms": p.world_window.window_ms(),
+                    "world_bytes_out_per_s": p.world_bytes_sent as f64 / seconds,
                 })
             })
             .collect();
@@ -759,8 +916,13 @@ impl<'s> Host<'s> {
                 "step_hz": self.session.scene.world.step_hz,
                 "frames": self.frames,
                 "participants": participants,
-                "worlds_sent": self.worlds_sent,
-                "world_bytes_out_per_s_per_participant": self.world_bytes_sent as f64 / seconds,
+                "worlds_sent": self.participants.iter().map(|p| p.worlds_sent).sum::<u64>(),
+                "world_bytes_out_per_s_per_participant": self
+                    .participants
+                    .iter()
+                    .map(|p| p.world_bytes_sent as f64 / seconds)
+                    .sum::<f64>()
+                    / self.participants.len().max(1) as f64,
                 "queue_full": self.queue_full.load(Ordering::Relaxed),
                 "refused": refused,
             }
@@ -840,6 +1002,7 @@ impl Task for Host<'_> {
         self.take_joins();
         self.take_hands();
         self.take_leaves();
+        self.take_acks();
         let now = monotonic_ns();
         if self.next_tick_ns == 0 {
             self.next_tick_ns = now;
@@ -889,11 +1052,15 @@ struct WorldIn {
 /// A participant's side: its hands out, the host's worlds in.
 struct Join {
     zenoh: zenoh::Session,
+    /// The host's answer to the join, asked on its own thread; None once it came.
+    asking: Option<crossbeam_channel::Receiver<Result<(usize, String), BridgeError>>>,
+    /// Why the host refused this participant (the session stops, and says so).
+    refused: Option<BridgeError>,
     participant: usize,
     name: String,
     hand_in: Inlet<topics::Hand>,
-    hand_sender: zenoh::pubsub::Publisher<'static>,
-    _world_subscriber: zenoh::pubsub::Subscriber<()>,
+    /// Declared once joined (its key holds the secret the host gave).
+    hand_sender: Option<zenoh::pubsub::Publisher<'static>>,
     worlds: crossbeam_channel::Receiver<WorldIn>,
     world_out: Outlet<topics::World>,
     elements: usize,
@@ -904,6 +1071,22 @@ struct Join {
     sent: Box<[(u64, u64); SENT_RING]>,
     /// Hands this machine made before the host answered its join: not sent (stale).
     hands_before_join: u64,
+    /// The newest hand not sent yet (the link was behind).
+    pending: Option<HandSample>,
+    /// Hands superseded in `pending` since the last send.
+    superseded: u64,
+    /// Hands superseded before a newer one went (the host counts them lost: their seqs lie
+    /// between two it took).
+    held_back: u64,
+    /// The hands sent and not yet answered by a world.
+    hand_window: SendWindow,
+    /// The newest world seq taken in and not yet answered to the host (`KEY/ack/SECRET`).
+    world_to_ack: Option<u64>,
+    ack_sender: Option<zenoh::pubsub::Publisher<'static>>,
+    world_key: String,
+    world_subscriber: Option<zenoh::pubsub::Subscriber<()>>,
+    /// What the world subscriber's callback needs, kept for its declaration at the join.
+    world_tx: crossbeam_channel::Sender<WorldIn>,
     hands_sent: u64,
     last_seq_sent: Option<u64>,
     secret: String,
@@ -932,44 +1115,10 @@ impl Join {
         protection: String,
         summary_file: PathBuf,
     ) -> Result<Join, BridgeError> {
-        let declare_err = |key: &str, e: zenoh::Error| {
-            BridgeError::Link(crate::link::LinkError::Declare {
-                key: key.to_string(),
-                reason: e.to_string(),
-            })
-        };
         let wake = Arc::new(Wake::new().map_err(|e| BridgeError::Shared(SharedError::Wake(e)))?);
         let queue_full = Arc::new(AtomicU64::new(0));
-        // Subscribe to the worlds first: the first world after the join is then not missed.
+        // The worlds come under this participant's own key, subscribed to at the join.
         let (world_tx, worlds) = crossbeam_channel::bounded(QUEUE);
-        let world_key = format!("{}/world", link.key);
-        let (full, world_wake) = (queue_full.clone(), wake.clone());
-        let participant_slot = Arc::new(AtomicU64::new(u64::MAX));
-        let slot = participant_slot.clone();
-        let world_subscriber = zenoh
-            .declare_subscriber(world_key.clone())
-            .callback(move |sample| {
-                let k = slot.load(Ordering::Relaxed) as usize;
-                let acked_seq = sample.attachment().and_then(|a| {
-                    let a = a.to_bytes();
-                    a.get(8 * k..8 * k + 8)
-                        .and_then(|b| b.try_into().ok())
-                        .map(u64::from_le_bytes)
-                });
-                let item = WorldIn {
-                    arrived_ns: monotonic_ns(),
-                    acked_seq,
-                    bytes: sample.payload().clone(),
-                };
-                match world_tx.try_send(item) {
-                    Ok(()) => world_wake.wake(),
-                    Err(_) => {
-                        full.fetch_add(1, Ordering::Relaxed);
-                    }
-                }
-            })
-            .wait()
-            .map_err(|e| declare_err(&world_key, e))?;
         let Some(token) = link.token.clone() else {
             return Err(BridgeError::Shared(SharedError::Refused(
                 "this session names no token: give the one the host printed, --set \
@@ -982,31 +1131,43 @@ impl Join {
         let hand_in = bus.inlet::<topics::Hand>()?;
         let world_out = bus.slice_outlet::<topics::World>()?;
         let started_ns = monotonic_ns();
-        let (participant, secret) = join(&zenoh, &link.key, &token, name, &link.endpoint)?;
-        // Hands from before the join are stale and have nowhere to go: let go of them, counted.
-        let mut hands_before_join = 0;
-        while hand_in.receive()?.is_some() {
-            hands_before_join += 1;
+        // The join on its own thread: the stage runs (and reports, and stops when asked) however
+        // long the host takes to answer.
+        let (answer_tx, asking) = crossbeam_channel::bounded(1);
+        {
+            let (zenoh, key, name, endpoint, wake) = (
+                zenoh.clone(),
+                link.key.clone(),
+                name.to_string(),
+                link.endpoint.clone(),
+                wake.clone(),
+            );
+            std::thread::Builder::new()
+                .name("shared-join".into())
+                .spawn(move || {
+                    let _ = answer_tx.send(join(&zenoh, &key, &token, &name, &endpoint));
+                    wake.wake();
+                })
+                .map_err(|e| BridgeError::Shared(SharedError::Wake(e)))?;
         }
-        participant_slot.store(participant as u64, Ordering::Relaxed);
-        let joined_ns = monotonic_ns();
-        eprintln!(
-            "handblocks bridge: joined the shared world on {} as participant {participant} \
-             ({name}) after {:.2} s",
-            link.endpoint,
-            (joined_ns - started_ns) as f64 / 1e9
-        );
-        let hand_key = format!("{}/hand/{secret}", link.key);
-        let hand_sender =
-            declare_sender(&zenoh, hand_key.clone()).map_err(|e| declare_err(&hand_key, e))?;
         Ok(Join {
             zenoh,
-            participant,
+            asking: Some(asking),
+            refused: None,
+            participant: usize::MAX,
             name: name.to_string(),
             hand_in,
-            hands_before_join,
-            hand_sender,
-            _world_subscriber: world_subscriber,
+            hands_before_join: 0,
+            pending: None,
+            superseded: 0,
+            held_back: 0,
+            hand_window: SendWindow::default(),
+            world_to_ack: None,
+            ack_sender: None,
+            world_key: String::new(),
+            world_subscriber: None,
+            world_tx,
+            hand_sender: None,
             worlds,
             world_out,
             elements: session.scene.blocks.len(),
@@ -1016,7 +1177,7 @@ impl Join {
             sent: Box::new([(u64::MAX, 0); SENT_RING]),
             hands_sent: 0,
             last_seq_sent: None,
-            secret: secret.clone(),
+            secret: String::new(),
             hand_bytes_sent: 0,
             worlds_taken: 0,
             worlds_malformed: 0,
@@ -1025,7 +1186,7 @@ impl Join {
             hand_to_world: hdrhistogram::Histogram::new_with_bounds(1, 60_000_000_000, 3)
                 .expect("constant bounds are valid"),
             first_world_ns: None,
-            joined_ns,
+            joined_ns: started_ns,
             started_ns,
             endpoint: link.endpoint.clone(),
             key: link.key.clone(),
@@ -1034,22 +1195,137 @@ impl Join {
         })
     }
 
+    /// Takes the host's answer to the join when it came: the participant's number and the
+    /// key its hands go under. Until then hands are let go (stale by the time the host
+    /// answers), counted. A refusal stops the session, and `run` says why.
+    fn take_answer(&mut self) -> Result<(), BusError> {
+        let Some(asking) = &self.asking else {
+            return Ok(());
+        };
+        let answer = match asking.try_recv() {
+            Ok(answer) => answer,
+            Err(crossbeam_channel::TryRecvError::Empty) => {
+                while self.hand_in.receive()?.is_some() {
+                    self.hands_before_join += 1;
+                }
+                return Ok(());
+            }
+            Err(crossbeam_channel::TryRecvError::Disconnected) => Err(BridgeError::Shared(
+                SharedError::Refused("the join ended without an answer".into()),
+            )),
+        };
+        self.asking = None;
+        while self.hand_in.receive()?.is_some() {
+            self.hands_before_join += 1;
+        }
+        let declare_err = |key: String, e: zenoh::Error| {
+            BridgeError::Link(crate::link::LinkError::Declare {
+                key,
+                reason: e.to_string(),
+            })
+        };
+        let declared = answer.and_then(|(participant, secret)| {
+            let hand_key = format!("{}/hand/{secret}", self.key);
+            let sender = declare_sender(&self.zenoh, hand_key.clone())
+                .map_err(|e| declare_err(hand_key, e))?;
+            let ack_key = format!("{}/ack/{secret}", self.key);
+            let acks = declare_sender(&self.zenoh, ack_key.clone())
+                .map_err(|e| declare_err(ack_key, e))?;
+            let world_key = format!("{}/world/{secret}", self.key);
+            let (world_tx, full, world_wake) = (
+                self.world_tx.clone(),
+                self.queue_full.clone(),
+                self.wake.clone(),
+            );
+            let subscriber = self
+                .zenoh
+                .declare_subscriber(world_key.clone())
+                .callback(move |sample| {
+                    // The seq of this participant's newest hand the world's frame held.
+                    let acked_seq = sample.attachment().and_then(|a| {
+                        let a = a.to_bytes();
+                        a.get(8 * participant..8 * participant + 8)
+                            .and_then(|b| b.try_into().ok())
+                            .map(u64::from_le_bytes)
+                    });
+                    let item = WorldIn {
+                        arrived_ns: monotonic_ns(),
+                        acked_seq,
+                        bytes: sample.payload().clone(),
+                    };
+                    match world_tx.try_send(item) {
+                        Ok(()) => world_wake.wake(),
+                        Err(_) => {
+                            full.fetch_add(1, Ordering::Relaxed);
+                        }
+                    }
+                })
+                .wait()
+                .map_err(|e| declare_err(world_key.clone(), e))?;
+            Ok((participant, secret, sender, acks, subscriber, world_key))
+        });
+        match declared {
+            Ok((participant, secret, sender, acks, subscriber, world_key)) => {
+                self.participant = participant;
+                self.secret = secret;
+                self.hand_sender = Some(sender);
+                self.ack_sender = Some(acks);
+                self.world_subscriber = Some(subscriber);
+                self.world_key = world_key;
+                self.joined_ns = monotonic_ns();
+                eprintln!(
+                    "handblocks bridge: joined the shared world on {} as participant \
+                     {participant} ({}) after {:.2} s",
+                    self.endpoint,
+                    self.name,
+                    (self.joined_ns - self.started_ns) as f64 / 1e9
+                );
+            }
+            Err(e) => {
+                self.refused = Some(e);
+                common::shutdown::request();
+            }
+        }
+        Ok(())
+    }
+
     fn send_hands(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
+        if self.hand_sender.is_none() {
+            return Ok(());
+        }
         while let Some(s) = self.hand_in.receive()? {
             let received = monotonic_ns();
             let mut hand: HandSample = *s.payload();
             hand.participant = self.participant as u32;
             pass.recorder.hop(&hand.stamp, received);
-            recording::encode_sample(&hand, &mut self.message);
-            if self.hand_sender.put(self.message.as_slice()).wait().is_ok() {
-                self.hands_sent += 1;
-                self.last_seq_sent = Some(hand.stamp.seq);
-                self.hand_bytes_sent += self.message.len() as u64;
-                self.sent[(hand.stamp.seq % SENT_RING as u64) as usize] =
-                    (hand.stamp.seq, hand.stamp.origin_ns);
+            // Newest only: a hand not yet sent is superseded by this one.
+            if self.pending.replace(hand).is_some() {
+                self.superseded += 1;
             }
         }
+        self.send_pending(monotonic_ns());
         Ok(())
+    }
+
+    /// Sends the newest hand unless the link is behind ([`SendWindow`]).
+    fn send_pending(&mut self, now: u64) {
+        let behind = self.hand_window.behind(now);
+        let (Some(hand_sender), false) = (&self.hand_sender, behind) else {
+            return;
+        };
+        let Some(hand) = self.pending.take() else {
+            return;
+        };
+        recording::encode_sample(&hand, &mut self.message);
+        if hand_sender.put(self.message.as_slice()).wait().is_ok() {
+            self.hands_sent += 1;
+            self.held_back += std::mem::take(&mut self.superseded);
+            self.last_seq_sent = Some(hand.stamp.seq);
+            self.hand_bytes_sent += self.message.len() as u64;
+            self.sent[(hand.stamp.seq % SENT_RING as u64) as usize] =
+                (hand.stamp.seq, hand.stamp.origin_ns);
+            self.hand_window.sent(hand.stamp.seq, now);
+        }
     }
 
     fn take_worlds(&mut self, pass: &mut Pass<'_>) {
@@ -1078,6 +1354,11 @@ impl Join {
                     .hand_to_world
                     .record(item.arrived_ns.saturating_sub(origin).max(1));
             }
+            // The hands this world answers are no longer in flight; the quickest turn so far
+            // sets the send window.
+            if let Some(acked) = item.acked_seq {
+                self.hand_window.answered(acked, item.arrived_ns);
+            }
             let seq = header.stamp.seq;
             if let Some(last) = self.last_world_seq {
                 if seq > last + 1 {
@@ -1085,6 +1366,7 @@ impl Join {
                 }
             }
             self.last_world_seq = Some(seq);
+            self.world_to_ack = Some(self.world_to_ack.map_or(seq, |a| a.max(seq)));
             let published = self.world_out.publish_with_as(
                 seq,
                 n,
@@ -1101,7 +1383,9 @@ impl Join {
             if let Ok(stamp) = published {
                 pass.recorder.output(item.arrived_ns, &stamp);
                 self.worlds_taken += 1;
-                self.first_world_ns.get_or_insert(item.arrived_ns);
+                if self.hand_sender.is_some() {
+                    self.first_world_ns.get_or_insert(item.arrived_ns);
+                }
             }
         }
     }
@@ -1117,14 +1401,20 @@ impl Join {
                 "endpoint": self.endpoint,
                 "key": self.key,
                 "protection": self.protection,
-                "participant": self.participant,
+                "participant": (self.participant < MAX_PARTICIPANTS).then_some(self.participant),
                 "name": self.name,
-                "join_s": (self.joined_ns - self.started_ns) as f64 / 1e9,
+                "join_s": self
+                    .hand_sender
+                    .is_some()
+                    .then(|| (self.joined_ns - self.started_ns) as f64 / 1e9),
                 "first_world_after_join_s": self
                     .first_world_ns
                     .map(|t| t.saturating_sub(self.joined_ns) as f64 / 1e9),
                 "hands_sent": self.hands_sent,
                 "hands_before_join": self.hands_before_join,
+                "hands_held_back": self.held_back,
+                "hands_held_back_at_the_end": self.superseded + u64::from(self.pending.is_some()),
+                "send_window_ms": self.hand_window.window_ms(),
                 "hand_bytes_out_per_s": self.hand_bytes_sent as f64 / seconds,
                 "worlds_taken_in": self.worlds_taken,
                 "worlds_lost": self.worlds_lost,
@@ -1206,8 +1496,16 @@ impl Task for Join {
 
     fn work(&mut self, pass: &mut Pass<'_>) -> Result<(), BusError> {
         self.wake.clear();
+        self.take_answer()?;
         self.send_hands(pass)?;
         self.take_worlds(pass);
+        // The worlds' acks may have opened the window for a hand held back.
+        self.send_pending(monotonic_ns());
+        // The newest world taken in, answered: the host sends the next ones while this
+        // participant's link keeps up.
+        if let (Some(seq), Some(acks)) = (self.world_to_ack.take(), &self.ack_sender) {
+            let _ = acks.put(seq.to_le_bytes().to_vec()).wait();
+        }
         Ok(())
     }
 
@@ -1221,12 +1519,17 @@ impl Task for Join {
         // Say goodbye (bounded): the host lets this participant's hands go at once, and counts
         // what it sent that never came.
         let said = serde_json::json!({ "secret": self.secret, "last_seq": self.last_seq_sent });
-        if let Ok(replies) = self
-            .zenoh
-            .get(format!("{}/leave", self.key))
-            .payload(said.to_string())
-            .timeout(Duration::from_secs(1))
-            .wait()
+        let joined = self.hand_sender.is_some();
+        if let Some(replies) = joined
+            .then(|| {
+                self.zenoh
+                    .get(format!("{}/leave", self.key))
+                    .payload(said.to_string())
+                    .timeout(Duration::from_secs(1))
+                    .wait()
+                    .ok()
+            })
+            .flatten()
         {
             let _ = replies.recv_timeout(Duration::from_secs(1));
         }
