@@ -378,6 +378,7 @@ pub fn run(b: &SharedBench) -> Result<Value, Box<dyn std::error::Error>> {
          |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in &rows {
+        let missed = format!("{} ({})", r.worlds_lost, r.worlds_held_back);
         md.push_str(&format!(
             "| {} ms | {} % | {} | {:.1} ms | {:.1} ms | {:.1} ms | {} | {} | {} | {} / {} / {} \
              / {} / {} / {} | {:.1} | {:.1} / {:.1} | {} |\n",
@@ -389,7 +390,7 @@ pub fn run(b: &SharedBench) -> Result<Value, Box<dyn std::error::Error>> {
             r.p50_ms - 2.0 * r.delay_ms as f64,
             r.worlds,
             r.divergent,
-            format!("{} ({})", r.worlds_lost, r.worlds_held_back),
+            missed,
             r.hands_sent,
             r.hands_held_back,
             r.hands_taken,
