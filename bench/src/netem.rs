@@ -293,17 +293,29 @@ mod tests {
         let n = client.recv(&mut buf).unwrap();
         assert_eq!(&buf[..n], b"pong");
         assert!(sent.elapsed() >= 2 * delay, "a round trip crosses twice");
-        // 5 % loss over 2000 datagrams: about 100 lost.
+        // 5 % loss over 2000 datagrams: about 100 lost, of those the proxy took in. Sent in
+        // small bursts: a loaded machine's socket buffer may overflow under one burst of 2000,
+        // and what the kernel drops before the proxy is not the proxy's loss.
         proxy.set(Impairment {
             delay: Duration::ZERO,
             loss: 0.05,
         });
-        for _ in 0..2000 {
+        let forwarded_before = proxy.stats().forwarded.load(Ordering::Relaxed);
+        for k in 0..2000 {
             client.send_to(b"x", to).unwrap();
+            if k % 50 == 49 {
+                std::thread::sleep(Duration::from_millis(1));
+            }
         }
-        std::thread::sleep(Duration::from_millis(100));
+        std::thread::sleep(Duration::from_millis(200));
         let dropped = proxy.stats().dropped.load(Ordering::Relaxed);
-        assert!((50..200).contains(&dropped), "{dropped} of 2000 dropped");
+        let taken_in = dropped + proxy.stats().forwarded.load(Ordering::Relaxed) - forwarded_before;
+        assert!(taken_in >= 1000, "the proxy took in {taken_in} of 2000");
+        let share = dropped as f64 / taken_in as f64;
+        assert!(
+            (0.025..0.10).contains(&share),
+            "{dropped} of {taken_in} dropped"
+        );
         // A pause drops everything.
         proxy.pause(Duration::from_millis(200));
         client.send_to(b"y", to).unwrap();
