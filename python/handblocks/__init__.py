@@ -152,10 +152,12 @@ class World(_Stamps):
 @dataclass(frozen=True)
 class Hand(_Stamps):
     """The hand model: wrist, fingers' check points, palm. ``side``: 0 the right hand (or a
-    one-hand session's only hand), 1 the left of a two-hand session."""
+    one-hand session's only hand), 1 the left of a two-hand session. ``participant``: whose
+    hand in a shared world (0 the first to join; always 0 elsewhere)."""
 
     tracked: Bools
     side: U32
+    participant: U32
     wrist_position: F64
     wrist_rotation: F64
     finger_count: U32
@@ -327,12 +329,14 @@ class Recording:
 class Event:
     """A world event: ``kind`` (impact, rest, push, grasp, release, ...) of ``block`` at
     ``step``; ``hand``: in a two-hand world, the hand a grasp, release or push is by
-    (``"right"`` or ``"left"``), else None."""
+    (``"right"`` or ``"left"``), else None; ``participant``: in a shared world, whose hand
+    (0 the first to join; always 0 elsewhere)."""
 
     step: int
     kind: str
     block: str
     hand: Optional[str] = None
+    participant: int = 0
 
 
 @dataclass(frozen=True)
