@@ -107,18 +107,7 @@ fn three_participants_share_one_world_bit_for_bit_and_a_late_joiner_is_in_step_w
     };
     // Alice: the scene's scripted hand. Bob: a real Quest recording, looped. Carol joins late.
     let alice = join(&alice_id, "alice", 11.0, TOKEN, &[]);
-    let carl = carl_example("lift");
-    let bob_source = if carl.exists() {
-        vec![
-            "source.kind=replay".to_string(),
-            format!("source.file={}", carl.display()),
-            "source.offset=[0.0, -0.92, 0.0]".into(),
-            "source.loop=true".into(),
-        ]
-    } else {
-        eprintln!("{} is missing: bob's hand is scripted too", carl.display());
-        Vec::new()
-    };
+    let bob_source = carl_source();
     let bob = join(&bob_id, "bob", 11.0, TOKEN, &bob_source);
     std::thread::sleep(Duration::from_secs(4));
     let carol = join(&carol_id, "carol", 6.0, TOKEN, &[]);
@@ -131,17 +120,12 @@ fn three_participants_share_one_world_bit_for_bit_and_a_late_joiner_is_in_step_w
         both(&eve)
     );
     assert!(both(&eve).contains("wrong token"), "{}", both(&eve));
-    let outs: BTreeMap<&str, Output> = [
-        ("alice", finish(alice, &alice_id)),
-        ("bob", finish(bob, &bob_id)),
-        ("carol", finish(carol, &carol_id)),
-        ("host", finish(host, &host_id)),
-    ]
-    .into_iter()
-    .collect();
-    for (who, out) in &outs {
-        assert!(out.status.success(), "{who}:\n{}", both(out));
-    }
+    finish_all([
+        ("alice", alice, &alice_id),
+        ("bob", bob, &bob_id),
+        ("carol", carol, &carol_id),
+        ("host", host, &host_id),
+    ]);
 
     // The host names every participant, and accounts for every hand each sent.
     let host = report(&scratch, &host_id);
@@ -160,17 +144,7 @@ fn three_participants_share_one_world_bit_for_bit_and_a_late_joiner_is_in_step_w
     for (name, id) in [("alice", &alice_id), ("bob", &bob_id), ("carol", &carol_id)] {
         let theirs = &report(&scratch, id)["bridge"]["shared"];
         let ours = by_name(name);
-        let refused: u64 = ours["refused"]
-            .as_object()
-            .map_or(0, |m| m.values().filter_map(Value::as_u64).sum());
-        // A hand held back (the link behind, a newer one sent in its place) is one the host
-        // counts lost: its seq lies between two it took.
-        assert_eq!(
-            ours["hands_taken"].as_u64().unwrap() + ours["hands_lost"].as_u64().unwrap() + refused,
-            theirs["hands_sent"].as_u64().unwrap() + theirs["hands_held_back"].as_u64().unwrap(),
-            "{name}: every hand sent or held back is taken, lost or refused: host {ours}, \
-             participant {theirs}"
-        );
+        assert_every_hand_accounted_for(name, ours, theirs);
         assert!(
             theirs["hands_sent"].as_u64() > Some(100),
             "{name}: {theirs}"
@@ -296,33 +270,18 @@ fn under_20_ms_and_1_percent_loss_three_participants_for_60_s_never_diverge() {
         launch("shared-join.toml", id, seconds, &scratch, &sets)
     };
     let alice = join(&alice_id, "alice", 58.0, pa.port, &[]);
-    let carl = carl_example("lift");
-    let bob_source: Vec<String> = if carl.exists() {
-        vec![
-            "source.kind=replay".into(),
-            format!("source.file={}", carl.display()),
-            "source.offset=[0.0, -0.92, 0.0]".into(),
-            "source.loop=true".into(),
-        ]
-    } else {
-        Vec::new()
-    };
+    let bob_source = carl_source();
     let bob = join(&bob_id, "bob", 58.0, pb.port, &bob_source);
     std::thread::sleep(Duration::from_secs(20));
     pb.pause(Duration::from_secs(2));
     std::thread::sleep(Duration::from_secs(10));
     let carol = join(&carol_id, "carol", 28.0, pc.port, &[]);
-    let outs: BTreeMap<&str, Output> = [
-        ("alice", finish(alice, &alice_id)),
-        ("bob", finish(bob, &bob_id)),
-        ("carol", finish(carol, &carol_id)),
-        ("host", finish(host, &host_id)),
-    ]
-    .into_iter()
-    .collect();
-    for (who, out) in &outs {
-        assert!(out.status.success(), "{who}:\n{}", both(out));
-    }
+    finish_all([
+        ("alice", alice, &alice_id),
+        ("bob", bob, &bob_id),
+        ("carol", carol, &carol_id),
+        ("host", host, &host_id),
+    ]);
     let host = report(&scratch, &host_id);
     let shared = &host["bridge"]["shared"];
     eprintln!("host: {shared}");
@@ -342,17 +301,7 @@ fn under_20_ms_and_1_percent_loss_three_participants_for_60_s_never_diverge() {
             .iter()
             .find(|p| p["name"] == name)
             .unwrap_or_else(|| panic!("{name} not in the host's report: {shared}"));
-        let refused: u64 = ours["refused"]
-            .as_object()
-            .map_or(0, |m| m.values().filter_map(Value::as_u64).sum());
-        // A hand held back (the link behind, a newer one sent in its place) is one the host
-        // counts lost: its seq lies between two it took.
-        assert_eq!(
-            ours["hands_taken"].as_u64().unwrap() + ours["hands_lost"].as_u64().unwrap() + refused,
-            theirs["hands_sent"].as_u64().unwrap() + theirs["hands_held_back"].as_u64().unwrap(),
-            "{name}: every hand sent or held back is taken, lost or refused: host {ours}, \
-             participant {theirs}"
-        );
+        assert_every_hand_accounted_for(name, ours, theirs);
         assert_eq!(ours["drops"], 0, "{name} was dropped: {ours}");
         let worlds = world_hashes(&scratch.path(&format!("{id}.mcap")));
         let divergent = worlds
@@ -441,4 +390,46 @@ fn catch_up(file: &Path) -> (f64, f64, usize) {
         caught_up_ns as f64 / 1e9,
         worlds.len() - fresh_from,
     )
+}
+
+/// Bob's hands: the CARL lift recording, looped (the scene's scripted hand where it is missing).
+fn carl_source() -> Vec<String> {
+    let carl = carl_example("lift");
+    if carl.exists() {
+        vec![
+            "source.kind=replay".into(),
+            format!("source.file={}", carl.display()),
+            "source.offset=[0.0, -0.92, 0.0]".into(),
+            "source.loop=true".into(),
+        ]
+    } else {
+        eprintln!("{} is missing: bob's hand is scripted too", carl.display());
+        Vec::new()
+    }
+}
+
+/// Waits for each session (`who`, its process, its bus id) to end; each must succeed.
+fn finish_all<const N: usize>(sessions: [(&str, Child, &String); N]) {
+    let outs: BTreeMap<&str, Output> = sessions
+        .into_iter()
+        .map(|(who, child, id)| (who, finish(child, id)))
+        .collect();
+    for (who, out) in &outs {
+        assert!(out.status.success(), "{who}:\n{}", both(out));
+    }
+}
+
+/// Every hand a participant sent or held back is one the host took, counted lost or refused.
+/// A hand held back (the link behind, a newer one sent in its place) is one the host counts
+/// lost: its seq lies between two it took.
+fn assert_every_hand_accounted_for(name: &str, ours: &Value, theirs: &Value) {
+    let refused: u64 = ours["refused"]
+        .as_object()
+        .map_or(0, |m| m.values().filter_map(Value::as_u64).sum());
+    assert_eq!(
+        ours["hands_taken"].as_u64().unwrap() + ours["hands_lost"].as_u64().unwrap() + refused,
+        theirs["hands_sent"].as_u64().unwrap() + theirs["hands_held_back"].as_u64().unwrap(),
+        "{name}: every hand sent or held back is taken, lost or refused: host {ours}, \
+         participant {theirs}"
+    );
 }

@@ -88,14 +88,7 @@ pub fn world_hashes(path: &Path) -> Result<ExitCode, RecordingError> {
             path.display()
         );
     }
-    if let Some(d) = &rec.damage {
-        eprintln!("handblocks inspect: damage: {d}");
-    }
-    Ok(if rec.complete && rec.damage.is_none() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
-    })
+    Ok(said_damage(&rec))
 }
 
 /// `inspect FILE --samples TOPIC`: every sample of one topic, one JSON object a line, in file
@@ -133,14 +126,19 @@ fn topic_samples(path: &Path, topic: &str) -> Result<ExitCode, RecordingError> {
             break;
         }
     }
+    Ok(said_damage(&rec))
+}
+
+/// Says the recording's damage, if any: exit 0 for a complete, undamaged file, else 1.
+fn said_damage(rec: &Recording) -> ExitCode {
     if let Some(d) = &rec.damage {
         eprintln!("handblocks inspect: damage: {d}");
     }
-    Ok(if rec.complete && rec.damage.is_none() {
+    if rec.complete && rec.damage.is_none() {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
-    })
+    }
 }
 
 fn encode<T: common::bus::Stamped>(sample: Option<T>, out: &mut Vec<u8>) {

@@ -252,6 +252,13 @@ fn secret_text(secret: u128) -> String {
     format!("{secret:032x}")
 }
 
+/// A secret as [`secret_text`] writes it (32 hex digits), else None.
+fn parse_secret(text: &str) -> Option<u128> {
+    (text.len() == 32)
+        .then(|| u128::from_str_radix(text, 16).ok())
+        .flatten()
+}
+
 fn random_secret() -> std::io::Result<u128> {
     use std::io::Read;
     let mut bytes = [0u8; 16];
@@ -466,10 +473,7 @@ impl<'s> Host<'s> {
                     .payload()
                     .and_then(|p| serde_json::from_slice(&p.to_bytes()).ok())
                     .unwrap_or_default();
-                let secret = said["secret"]
-                    .as_str()
-                    .filter(|s| s.len() == 32)
-                    .and_then(|s| u128::from_str_radix(s, 16).ok());
+                let secret = said["secret"].as_str().and_then(parse_secret);
                 if let Some(secret) = secret {
                     let _ = leave_tx.try_send(Leaving {
                         secret,
@@ -489,11 +493,11 @@ impl<'s> Host<'s> {
         let hand_subscriber = zenoh
             .declare_subscriber(hand_key.clone())
             .callback(move |sample| {
-                let key = sample.key_expr().as_str();
-                let secret = key
+                let secret = sample
+                    .key_expr()
+                    .as_str()
                     .get(prefix_len..)
-                    .filter(|s| s.len() == 32)
-                    .and_then(|s| u128::from_str_radix(s, 16).ok());
+                    .and_then(parse_secret);
                 let item = HandIn {
                     secret,
                     arrived_ns: monotonic_ns(),
@@ -515,11 +519,11 @@ impl<'s> Host<'s> {
         let ack_subscriber = zenoh
             .declare_subscriber(ack_key.clone())
             .callback(move |sample| {
-                let key = sample.key_expr().as_str();
-                let secret = key
+                let secret = sample
+                    .key_expr()
+                    .as_str()
                     .get(ack_prefix_len..)
-                    .filter(|s| s.len() == 32)
-                    .and_then(|s| u128::from_str_radix(s, 16).ok());
+                    .and_then(parse_secret);
                 let bytes = sample.payload().to_bytes();
                 let seq = <[u8; 8]>::try_from(&bytes[..]).ok().map(u64::from_le_bytes);
                 let item = AckIn {
@@ -1504,7 +1508,7 @@ impl Task for Join {
         // The newest world taken in, answered: the host sends the next ones while this
         // participant's link keeps up.
         if let (Some(seq), Some(acks)) = (self.world_to_ack.take(), &self.ack_sender) {
-            let _ = acks.put(seq.to_le_bytes().to_vec()).wait();
+            let _ = acks.put(&seq.to_le_bytes()[..]).wait();
         }
         Ok(())
     }
