@@ -190,6 +190,48 @@ fn three_participants_share_one_world_bit_for_bit_and_a_late_joiner_is_in_step_w
         );
     }
 
+    // Each participant sees the others: its bridge took their hands from the host and its
+    // recording holds them (`peer_hand`) beside its own, each under the host's number.
+    let numbers: Vec<u64> = [&alice_id, &bob_id, &carol_id]
+        .iter()
+        .map(|id| {
+            report(&scratch, id)["bridge"]["shared"]["participant"]
+                .as_u64()
+                .expect("a participant number")
+        })
+        .collect();
+    for (k, (name, id)) in [("alice", &alice_id), ("bob", &bob_id), ("carol", &carol_id)]
+        .into_iter()
+        .enumerate()
+    {
+        let theirs = &report(&scratch, id)["bridge"]["shared"];
+        assert!(
+            theirs["peer_hands_taken"].as_u64() > Some(50),
+            "{name}: {theirs}"
+        );
+        assert_eq!(
+            theirs["peer_hands_refused"].as_object().map(|m| m.len()),
+            Some(0),
+            "{name}: {theirs}"
+        );
+        let listed = Command::new(EXE)
+            .arg("inspect")
+            .arg(scratch.path(&format!("{id}.mcap")))
+            .output()
+            .expect("run inspect");
+        let listed = both(&listed);
+        assert!(
+            listed.contains(&format!("participant {}'s recording", numbers[k])),
+            "{name}: {listed}"
+        );
+        for n in &numbers {
+            assert!(
+                listed.contains(&format!("participant {n} right")),
+                "{name} shows no participant {n}: {listed}"
+            );
+        }
+    }
+
     // Replayed as one: the host's recording holds every participant's hands as its stepper
     // took them, and `simulate --hand` of it steps the same worlds, step for step.
     let out = Command::new(EXE)

@@ -321,6 +321,25 @@ pub const MAX_PARTICIPANTS: usize = 4;
 /// Hand slots of a world: each participant's right (or only) hand and left hand.
 pub const HAND_SLOTS: usize = 2 * MAX_PARTICIPANTS;
 
+/// `peer_hand`: another participant's hand in a shared world, as a participant's bridge took
+/// it from the host (docs/sessions.md "Shared sessions"), for this machine's renderer and
+/// recorder. A topic of its own, not `hand`: the `hand` topic on a participant's bus is its
+/// own kinematics' stream, whose seqs every reader counts gaps in; a second publisher there
+/// would break that count. `stamp` is this machine's (the bridge's seq; `origin_ns` when the
+/// hand arrived here); `hand` is the other participant's hand as the host's frame held it
+/// (its participant's number in the host's numbering, its side; its stamp the host's frame's).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, Default)]
+#[type_name("handblocks::PeerHandSample")]
+pub struct PeerHandSample {
+    pub stamp: Stamp,
+    /// This machine's own participant number in the shared world (its own hands, on `hand`,
+    /// are participant 0 on its own bus, whatever the host numbered them).
+    pub own_participant: u32,
+    pub _reserved: u32,
+    pub hand: HandSample,
+}
+
 /// How far from the scene's origin a hand's check points and wrist may be, in x, y and z:
 /// 1000 km. A scene lies within 100 km of its origin (the loader's range); a sample beyond
 /// this is a device's or a file's garbage, and its coordinates (a joint at 1e20 m in a trace)
@@ -499,6 +518,12 @@ pub trait Counted {
 impl Counted for HandSample {
     fn check_counts(&self, _: usize) -> Result<(), CountError> {
         HandSample::check_counts(self)
+    }
+}
+
+impl Counted for PeerHandSample {
+    fn check_counts(&self, _: usize) -> Result<(), CountError> {
+        self.hand.check_counts()
     }
 }
 

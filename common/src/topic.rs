@@ -426,6 +426,17 @@ topic_table! {
                 histograms,
             ],
         },
+        /// Another participant's hand in a shared world (docs/sessions.md "Shared sessions"):
+        /// a participant's bridge publishes the others' hands the host sent it, for its
+        /// renderer and recorder (the host's own bus has every participant's on `hand`).
+        PeerHand: PeerHandSample {
+            name: "peer_hand",
+            buffer: 256,
+            max_publishers: 1,
+            publishers: [Bridge],
+            readers: [Renderer, Recorder, Bridge],
+            fields: [stamp, own_participant, _reserved, hand],
+        },
     }
 }
 
@@ -540,6 +551,7 @@ mod tests {
                 Topic::Hand,
                 Topic::World,
                 Topic::Frame,
+                Topic::PeerHand,
             ]
         );
         let outputs = |s: Stage| s.recorded_outputs().collect::<Vec<_>>();
@@ -550,6 +562,10 @@ mod tests {
         assert_eq!(outputs(Stage::Acquisition), [Topic::Glove, Topic::Tracker]);
         assert_eq!(Topic::Hand.schema_name(), "handblocks/msg/HandSample");
         assert_eq!(Topic::World.schema_name(), "handblocks/msg/WorldSample");
+        assert_eq!(
+            Topic::PeerHand.schema_name(),
+            "handblocks/msg/PeerHandSample"
+        );
         assert_eq!(Topic::Hand.element_size(), None);
         assert_eq!(
             Topic::World.element_size(),

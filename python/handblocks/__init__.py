@@ -69,6 +69,7 @@ __all__ = [
     "Glove",
     "Tracker",
     "Frame",
+    "PeerHand",
     "simulate",
     "Simulation",
     "Event",
@@ -213,6 +214,28 @@ class Frame(_Stamps):
     skipped_worlds: U64
 
 
+@dataclass(frozen=True)
+class PeerHand(_Stamps):
+    """Another participant's hand in a shared world, as a participant's recording holds it
+    (its own hands are in ``hand()``): the columns of ``Hand`` prefixed ``hand_``
+    (``hand_participant`` the host's number for it, ``hand_finger_points (n, 5, 5, 3)``), and
+    ``own_participant``, the number the host gave the recording's own participant. The stamp
+    is the participant's machine's: when the hand arrived there."""
+
+    own_participant: U32
+    hand_tracked: Bools
+    hand_side: U32
+    hand_participant: U32
+    hand_wrist_position: F64
+    hand_wrist_rotation: F64
+    hand_finger_count: U32
+    hand_finger_point_count: U32
+    hand_finger_points: F64
+    hand_finger_radius: F64
+    hand_palm_vertex_count: U32
+    hand_palm_vertices: F64
+
+
 class Recording:
     """One of our MCAP recordings, or a CARL trace, read into memory.
 
@@ -316,6 +339,9 @@ class Recording:
 
     def frame(self) -> Frame:
         return Frame(**self._native.arrays("frame"))
+
+    def peer_hand(self) -> PeerHand:
+        return PeerHand(**self._native.arrays("peer_hand"))
 
     def __repr__(self) -> str:
         counts = ", ".join(

@@ -19,6 +19,7 @@ CLASSES = {
     "glove": hb.Glove,
     "tracker": hb.Tracker,
     "frame": hb.Frame,
+    "peer_hand": hb.PeerHand,
 }
 
 

@@ -95,7 +95,9 @@ pub fn world_hashes(path: &Path) -> Result<ExitCode, RecordingError> {
 /// order, field by field as the recording's schema names them (what Python's
 /// `handblocks.Recording` arrays hold, from the reader every tool here uses).
 fn topic_samples(path: &Path, topic: &str) -> Result<ExitCode, RecordingError> {
-    use common::samples::{FrameSample, GloveSample, HandSample, JointsSample, TrackerSample};
+    use common::samples::{
+        FrameSample, GloveSample, HandSample, JointsSample, PeerHandSample, TrackerSample,
+    };
     use common::Topic;
     let Some(topic) = Topic::from_channel(topic).filter(|t| t.is_recorded()) else {
         eprintln!(
@@ -119,6 +121,7 @@ fn topic_samples(path: &Path, topic: &str) -> Result<ExitCode, RecordingError> {
             Topic::Joints => encode(rec.sample::<JointsSample>(m), &mut message),
             Topic::Hand => encode(rec.sample::<HandSample>(m), &mut message),
             Topic::Frame => encode(rec.sample::<FrameSample>(m), &mut message),
+            Topic::PeerHand => encode(rec.sample::<PeerHandSample>(m), &mut message),
             Topic::Latency => continue,
         }
         use std::io::Write as _;
@@ -197,6 +200,7 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
         Some((a, b)) => (Some(utc(a)), Some(utc(b))),
         None => (None, None),
     };
+    let hands = hands_by_participant(path);
     if json {
         let topics: Vec<serde_json::Value> = summary
             .topics
@@ -254,11 +258,17 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                 "refused_messages": summary.refused_messages,
                 "first_refused": summary.first_refused,
                 "topics": topics,
-                "hands_by_participant": hands_by_participant(path).map(|by| {
-                    by.iter()
-                        .map(|((k, side), n)| serde_json::json!({"participant": k, "side": side, "hands": n}))
+                "hands_by_participant": hands.as_ref().map(|h| {
+                    h.by.iter()
+                        .map(|((k, side), n)| serde_json::json!({
+                            "participant": k,
+                            "side": side,
+                            "hands": n,
+                            "own": h.own == Some(*k),
+                        }))
                         .collect::<Vec<_>>()
                 }),
+                "recorded_by_participant": hands.as_ref().and_then(|h| h.own),
             })
         );
     } else {
@@ -299,13 +309,19 @@ pub fn run(path: &Path, json: bool) -> Result<ExitCode, RecordingError> {
                 t.schema,
             );
         }
-        if let Some(by) = hands_by_participant(path) {
-            let people: Vec<String> = by
-                .iter()
-                .map(|((k, side), n)| format!("participant {k} {side} {n}"))
-                .collect();
+        if let Some(h) = &hands {
+            let people: Vec<String> =
+                h.by.iter()
+                    .map(|((k, side), n)| format!("participant {k} {side} {n}"))
+                    .collect();
+            let whose = match h.own {
+                Some(k) => format!(
+                    "participant {k}'s recording: its own on hand, the others' on peer_hand"
+                ),
+                None => "the host's recording".to_string(),
+            };
             println!(
-                "hands by participant (a shared world's): {}",
+                "hands by participant (a shared world's, {whose}): {}",
                 people.join(", ")
             );
         }
@@ -391,16 +407,32 @@ fn print_segments(chain: &SegmentChain) {
     );
 }
 
-/// A shared world's recording: its hands by participant and side (`HandSample::participant`);
-/// None for any other recording (every hand participant 0's) or one without hands.
-fn hands_by_participant(
-    path: &Path,
-) -> Option<std::collections::BTreeMap<(u32, &'static str), u64>> {
-    let rec = Recording::open_topics(path, &[common::Topic::Hand]).ok()?;
+/// A shared world's recording: its hands by participant and side (`HandSample::participant`),
+/// and whose recording it is. A host's holds every participant's on `hand` (None: the host's
+/// own). A participant's holds its own on `hand` (participant 0 on its own bus, counted here
+/// under the number the host gave it, `PeerHandSample::own_participant`) and the others' on
+/// `peer_hand`. None for any other recording (every hand participant 0's) or one without hands.
+fn hands_by_participant(path: &Path) -> Option<HandsByParticipant> {
+    use common::{HandSample, HandSide, PeerHandSample, Topic};
+    let rec = Recording::open_topics(path, &[Topic::Hand, Topic::PeerHand]).ok()?;
+    let mut peers = rec.samples::<PeerHandSample>(Topic::PeerHand).peekable();
+    let own = peers.peek().map(|p| p.own_participant);
     let mut by = std::collections::BTreeMap::new();
-    for h in rec.samples::<common::HandSample>(common::Topic::Hand) {
-        *by.entry((h.participant, common::HandSide::from_code(h.side).name()))
+    for h in rec.samples::<HandSample>(Topic::Hand) {
+        let participant = own.unwrap_or(h.participant);
+        *by.entry((participant, HandSide::from_code(h.side).name()))
             .or_insert(0u64) += 1;
     }
-    by.keys().any(|(k, _)| *k > 0).then_some(by)
+    for p in peers {
+        *by.entry((p.hand.participant, HandSide::from_code(p.hand.side).name()))
+            .or_insert(0u64) += 1;
+    }
+    (own.is_some() || by.keys().any(|(k, _)| *k > 0)).then_some(HandsByParticipant { own, by })
+}
+
+/// What [`hands_by_participant`] found.
+struct HandsByParticipant {
+    /// A participant's recording: its number (None: the host's).
+    own: Option<u32>,
+    by: std::collections::BTreeMap<(u32, &'static str), u64>,
 }

@@ -718,6 +718,9 @@ pub fn link(data: &[u8]) {
             }
         }
         Topic::Frame => drop(round_trip::<FrameSample>(topic, message, &mut out)),
+        Topic::PeerHand => drop(round_trip::<common::PeerHandSample>(
+            topic, message, &mut out,
+        )),
         Topic::World => {
             if let Ok((header, body)) = recording::decode_slice::<WorldHeader>(topic, message) {
                 let size = std::mem::size_of::<BlockState>();

@@ -18,6 +18,7 @@ pub mod clock;
 pub mod gate;
 pub mod identity;
 pub mod link;
+pub mod peer_wire;
 pub mod refusals;
 pub mod service;
 pub mod shared;

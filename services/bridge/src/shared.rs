@@ -19,9 +19,10 @@
 //! **Keys** (prefix `KEY`, `[shared] key`): `KEY/join` (a query: token and name in, the
 //! participant's number and a secret out), `KEY/hand/SECRET` (a participant's hands; the
 //! secret is known only to the host and that participant, so nobody else can put hands under
-//! its number), `KEY/world` (the host's worlds, with an attachment naming, per participant,
+//! its number), `KEY/world/SECRET` (the host's worlds, with an attachment naming, per participant,
 //! the seq of its newest hand the world's frame held: the participant's own hand -> world
-//! latency on its own clock, no clock estimate needed).
+//! latency on its own clock, no clock estimate needed), `KEY/peer/SECRET` (the other
+//! participants' hands, [`crate::peer_wire`], for the participant's `peer_hand` topic).
 //!
 //! **Never waiting on anyone.** The host's frames go out on its clock whatever arrives: a
 //! participant whose hands stop coming has them sent as lost (`tracked = 0`, holding what they
@@ -47,7 +48,10 @@ use common::config::shared::{SharedLink, SharedRole};
 use common::config::Session;
 use common::latency::{Metric, Reporter};
 use common::node::{self, Counters, Pass, Task};
-use common::{monotonic_ns, topics, HandSample, HandSide, Stage, Stamp, Topic, MAX_PARTICIPANTS};
+use common::{
+    monotonic_ns, topics, HandSample, HandSide, PeerHandSample, Stage, Stamp, Topic, HAND_SLOTS,
+    MAX_PARTICIPANTS,
+};
 use zenoh::Wait;
 
 use crate::identity::Identity;
@@ -70,6 +74,12 @@ const JOIN_RETRY: Duration = Duration::from_millis(500);
 /// A participant's own hands kept to read its hand -> world latency off the world's
 /// attachment (seconds of them at 120 Hz).
 const SENT_RING: usize = 1024;
+/// How often a participant is sent each other participant's hand, at most (a hand a second):
+/// drawn, never stepped, so half a 60 Hz display's rate is enough to see where another
+/// person's hand is, and it costs a participant's link about 17 KB a second per other hand
+/// ([`crate::peer_wire`]) beside its worlds and its own hands.
+pub const PEER_HZ: u64 = 30;
+
 /// The most hands a participant keeps in flight (unanswered), whatever the window.
 const IN_FLIGHT_MAX: usize = SENT_RING / 2;
 
@@ -375,6 +385,24 @@ struct Participant {
     /// catches it up).
     worlds_held_back: u64,
     world_bytes_sent: u64,
+    /// The other participants' hands go to it under `KEY/peer/SECRET`, each slot's when it
+    /// changed since the last sent to it ([`FramedHand::version`]), with its worlds.
+    peer_sender: Option<zenoh::pubsub::Publisher<'static>>,
+    peer_versions: [u64; HAND_SLOTS],
+    /// When each slot's hand was last sent to it (at most [`PEER_HZ`] a second each).
+    peer_sent_ns: [u64; HAND_SLOTS],
+    peer_hands_sent: u64,
+    peer_bytes_sent: u64,
+}
+
+/// A hand slot as the host's last frame published it, and how often it changed (a new hand, or
+/// one held as lost, or let go): a participant is sent another's hand when its version moved.
+#[derive(Clone, Copy, Default)]
+struct FramedHand {
+    hand: Option<HandSample>,
+    version: u64,
+    /// What the version was made of: the hand's seq, `tracked`, and its finger count.
+    key: (u64, u32, u32),
 }
 
 impl Participant {
@@ -412,6 +440,9 @@ struct Host<'s> {
     attachment: [u8; 8 * MAX_PARTICIPANTS],
     /// Per participant, the seq of its newest hand the last frame held (the attachment).
     frame_seqs: [u64; MAX_PARTICIPANTS],
+    /// Each hand slot as the last frame published it, for the other participants.
+    framed_hands: [FramedHand; HAND_SLOTS],
+    peer_message: Vec<u8>,
     started_ns: u64,
     endpoint: String,
     key: String,
@@ -571,6 +602,8 @@ impl<'s> Host<'s> {
             message: Vec::new(),
             attachment: [0; 8 * MAX_PARTICIPANTS],
             frame_seqs: [0; MAX_PARTICIPANTS],
+            framed_hands: [FramedHand::default(); HAND_SLOTS],
+            peer_message: Vec::new(),
             started_ns: monotonic_ns(),
             endpoint: link.endpoint.clone(),
             key: link.key.clone(),
@@ -608,6 +641,20 @@ impl<'s> Host<'s> {
                     None
                 }
             };
+            let peer_key = format!("{}/peer/{}", self.key, secret_text(p.secret));
+            p.peer_sender = match declare_sender(&self.zenoh, peer_key.clone()) {
+                Ok(sender) => Some(sender),
+                Err(e) => {
+                    eprintln!(
+                        "handblocks bridge: cannot send {} the others' hands ({peer_key}): {e}",
+                        p.name
+                    );
+                    None
+                }
+            };
+            // Everything it has not been sent yet: every slot's hand goes with its first world.
+            p.peer_versions = [0; HAND_SLOTS];
+            p.peer_sent_ns = [0; HAND_SLOTS];
             eprintln!(
                 "handblocks bridge: {} joined the shared world as participant {}",
                 p.name, j.participant
@@ -752,7 +799,7 @@ impl<'s> Host<'s> {
                 self.attachment[8 * k..8 * k + 8].copy_from_slice(&seq.to_le_bytes());
             }
             let now = monotonic_ns();
-            for p in &mut self.participants {
+            for (k, p) in self.participants.iter_mut().enumerate() {
                 let Some(sender) = &p.world_sender else {
                     continue;
                 };
@@ -772,6 +819,7 @@ impl<'s> Host<'s> {
                     p.world_window.sent(seq, now);
                     p.worlds_sent += 1;
                     p.world_bytes_sent += self.message.len() as u64;
+                    send_peers(p, k, &self.framed_hands, &mut self.peer_message, now);
                 }
             }
         }
@@ -852,6 +900,20 @@ impl<'s> Host<'s> {
         // world, from its own origin, is measured on its side.
         hand.stamp.origin_ns = arrived_ns;
         let sent = self.hand_out.publish(&hand)?;
+        // A slot's placeholder (participant 0's empty right hand before it sent any) is no
+        // one's hand to show.
+        if let Some(slot) = hand
+            .slot()
+            .filter(|_| self.participants[participant].taken > 0)
+        {
+            let framed = &mut self.framed_hands[slot];
+            let key = (hand.stamp.seq, hand.tracked, hand.finger_count);
+            if framed.hand.is_none() || framed.key != key {
+                framed.version += 1;
+                framed.key = key;
+            }
+            framed.hand = Some(hand);
+        }
         // The host waits for its first participant: its silence counts from its first frame
         // (before the first origin is recorded, which marks the first output).
         pass.recorder.delivered_after_waiting(sent.publish_ns);
@@ -906,6 +968,8 @@ impl<'s> Host<'s> {
                     "worlds_held_back": p.worlds_held_back,
                     "world_window_ms": p.world_window.window_ms(),
                     "world_bytes_out_per_s": p.world_bytes_sent as f64 / seconds,
+                    "peer_hands_sent": p.peer_hands_sent,
+                    "peer_bytes_out_per_s": p.peer_bytes_sent as f64 / seconds,
                 })
             })
             .collect();
@@ -931,6 +995,38 @@ impl<'s> Host<'s> {
                 "refused": refused,
             }
         })
+    }
+}
+
+/// Sends participant `p` (number `k`) the other participants' hands whose slots changed since
+/// it was last sent them (the frame's hands, as its world's frame held them), each at most
+/// [`PEER_HZ`] a second; one message a hand ([`crate::peer_wire`]).
+fn send_peers(
+    p: &mut Participant,
+    k: usize,
+    framed: &[FramedHand; HAND_SLOTS],
+    message: &mut Vec<u8>,
+    now: u64,
+) {
+    let Some(sender) = &p.peer_sender else {
+        return;
+    };
+    for (slot, f) in framed.iter().enumerate() {
+        let Some(hand) = &f.hand else {
+            continue;
+        };
+        let since_ns = now.saturating_sub(p.peer_sent_ns[slot]);
+        if slot / 2 == k || p.peer_versions[slot] == f.version || since_ns < 1_000_000_000 / PEER_HZ
+        {
+            continue;
+        }
+        crate::peer_wire::encode(hand, message);
+        if sender.put(message.as_slice()).wait().is_ok() {
+            p.peer_versions[slot] = f.version;
+            p.peer_sent_ns[slot] = now;
+            p.peer_hands_sent += 1;
+            p.peer_bytes_sent += message.len() as u64;
+        }
     }
 }
 
@@ -1073,7 +1169,9 @@ struct Join {
     message: Vec<u8>,
     /// (seq, origin_ns) of the hands sent, by seq modulo the ring.
     sent: Box<[(u64, u64); SENT_RING]>,
-    /// Hands this machine made before the host answered its join: not sent (stale).
+    /// Hands this machine made before its first hand went to the host (before the join's
+    /// answer, or superseded by a newer one before the first send): not sent (stale), and
+    /// not seen by the host, whose gap count starts at the first hand it takes.
     hands_before_join: u64,
     /// The newest hand not sent yet (the link was behind).
     pending: Option<HandSample>,
@@ -1091,6 +1189,15 @@ struct Join {
     world_subscriber: Option<zenoh::pubsub::Subscriber<()>>,
     /// What the world subscriber's callback needs, kept for its declaration at the join.
     world_tx: crossbeam_channel::Sender<WorldIn>,
+    /// The other participants' hands the host sends (`KEY/peer/SECRET`), published on this
+    /// bus's `peer_hand` for the renderer and recorder.
+    peer_subscriber: Option<zenoh::pubsub::Subscriber<()>>,
+    peer_tx: crossbeam_channel::Sender<zenoh::bytes::ZBytes>,
+    peers: crossbeam_channel::Receiver<zenoh::bytes::ZBytes>,
+    peer_out: Outlet<topics::PeerHand>,
+    peer_hands_taken: u64,
+    /// Peer hands refused, by why (a host that sent garbage, or this participant's own).
+    peer_hands_refused: BTreeMap<&'static str, u64>,
     hands_sent: u64,
     last_seq_sent: Option<u64>,
     secret: String,
@@ -1134,6 +1241,8 @@ impl Join {
         // however long the host takes to answer (a slow or lossy link, a host not up yet).
         let hand_in = bus.inlet::<topics::Hand>()?;
         let world_out = bus.slice_outlet::<topics::World>()?;
+        let peer_out = bus.outlet::<topics::PeerHand>()?;
+        let (peer_tx, peers) = crossbeam_channel::bounded(QUEUE);
         let started_ns = monotonic_ns();
         // The join on its own thread: the stage runs (and reports, and stops when asked) however
         // long the host takes to answer.
@@ -1171,6 +1280,12 @@ impl Join {
             world_key: String::new(),
             world_subscriber: None,
             world_tx,
+            peer_subscriber: None,
+            peer_tx,
+            peers,
+            peer_out,
+            peer_hands_taken: 0,
+            peer_hands_refused: BTreeMap::new(),
             hand_sender: None,
             worlds,
             world_out,
@@ -1266,10 +1381,37 @@ impl Join {
                 })
                 .wait()
                 .map_err(|e| declare_err(world_key.clone(), e))?;
-            Ok((participant, secret, sender, acks, subscriber, world_key))
+            let peer_key = format!("{}/peer/{secret}", self.key);
+            let (peer_tx, full, peer_wake) = (
+                self.peer_tx.clone(),
+                self.queue_full.clone(),
+                self.wake.clone(),
+            );
+            let peers = self
+                .zenoh
+                .declare_subscriber(peer_key.clone())
+                .callback(
+                    move |sample| match peer_tx.try_send(sample.payload().clone()) {
+                        Ok(()) => peer_wake.wake(),
+                        Err(_) => {
+                            full.fetch_add(1, Ordering::Relaxed);
+                        }
+                    },
+                )
+                .wait()
+                .map_err(|e| declare_err(peer_key, e))?;
+            Ok((
+                participant,
+                secret,
+                sender,
+                acks,
+                (subscriber, peers),
+                world_key,
+            ))
         });
         match declared {
-            Ok((participant, secret, sender, acks, subscriber, world_key)) => {
+            Ok((participant, secret, sender, acks, (subscriber, peers), world_key)) => {
+                self.peer_subscriber = Some(peers);
                 self.participant = participant;
                 self.secret = secret;
                 self.hand_sender = Some(sender);
@@ -1323,13 +1465,61 @@ impl Join {
         recording::encode_sample(&hand, &mut self.message);
         if hand_sender.put(self.message.as_slice()).wait().is_ok() {
             self.hands_sent += 1;
-            self.held_back += std::mem::take(&mut self.superseded);
+            let superseded = std::mem::take(&mut self.superseded);
+            if self.last_seq_sent.is_some() {
+                self.held_back += superseded;
+            } else {
+                // Before the first hand the host took: no gap it can see.
+                self.hands_before_join += superseded;
+            }
             self.last_seq_sent = Some(hand.stamp.seq);
             self.hand_bytes_sent += self.message.len() as u64;
             self.sent[(hand.stamp.seq % SENT_RING as u64) as usize] =
                 (hand.stamp.seq, hand.stamp.origin_ns);
             self.hand_window.sent(hand.stamp.seq, now);
+        } else {
+            // Not sent: kept for the next try, unless a newer hand comes first.
+            self.pending = Some(hand);
         }
+    }
+
+    /// Publishes the other participants' hands the host sent on this bus's `peer_hand`, each
+    /// checked as the host checks a hand (it is outside input here too); this participant's
+    /// own is refused (the host never sends it: its own hands are on `hand`).
+    fn take_peers(&mut self) -> Result<(), BusError> {
+        while let Ok(bytes) = self.peers.try_recv() {
+            let bytes = bytes.to_bytes();
+            let hand = match crate::peer_wire::decode(&bytes) {
+                Ok(h) => h,
+                Err(_) => {
+                    *self
+                        .peer_hands_refused
+                        .entry("not a peer hand")
+                        .or_default() += 1;
+                    continue;
+                }
+            };
+            let why = if hand.participant as usize == self.participant {
+                Some("this participant's own number")
+            } else if hand.slot().is_none() || hand.side > 1 {
+                Some("a participant or side out of range")
+            } else {
+                hand.unusable_because()
+            };
+            if let Some(why) = why {
+                *self.peer_hands_refused.entry(why).or_default() += 1;
+                continue;
+            }
+            let peer = PeerHandSample {
+                stamp: Stamp::at_origin(0, monotonic_ns()),
+                own_participant: self.participant as u32,
+                _reserved: 0,
+                hand,
+            };
+            self.peer_out.publish(&peer)?;
+            self.peer_hands_taken += 1;
+        }
+        Ok(())
     }
 
     fn take_worlds(&mut self, pass: &mut Pass<'_>) {
@@ -1423,6 +1613,8 @@ impl Join {
                 "worlds_taken_in": self.worlds_taken,
                 "worlds_lost": self.worlds_lost,
                 "worlds_malformed": self.worlds_malformed,
+                "peer_hands_taken": self.peer_hands_taken,
+                "peer_hands_refused": self.peer_hands_refused,
                 "queue_full": self.queue_full.load(Ordering::Relaxed),
                 "hand_to_world_us": {
                     "count": h.len(),
@@ -1503,6 +1695,7 @@ impl Task for Join {
         self.take_answer()?;
         self.send_hands(pass)?;
         self.take_worlds(pass);
+        self.take_peers()?;
         // The worlds' acks may have opened the window for a hand held back.
         self.send_pending(monotonic_ns());
         // The newest world taken in, answered: the host sends the next ones while this
@@ -1514,9 +1707,13 @@ impl Task for Join {
     }
 
     fn counters(&self) -> Counters {
-        [self.hand_in.counter(), self.world_out.counter()]
-            .into_iter()
-            .collect()
+        [
+            self.hand_in.counter(),
+            self.world_out.counter(),
+            self.peer_out.counter(),
+        ]
+        .into_iter()
+        .collect()
     }
 
     fn stop(&mut self, _: &mut Reporter) -> Result<(), BusError> {

@@ -101,6 +101,7 @@ pub fn run_with_preview(
     }
     let world_in = bus.inlet::<topics::World>()?;
     let hand_in = bus.inlet::<topics::Hand>()?;
+    let peer_in = bus.inlet::<topics::PeerHand>()?;
     let frame_out = bus.outlet::<topics::Frame>()?;
     let writer = match (&frames, &renderer) {
         (Some(f), Some(_)) => Some(FrameWriter::start(f.clone(), settings.output)?),
@@ -119,6 +120,7 @@ pub fn run_with_preview(
         frames_every: frames.as_ref().map(|f| u64::from(f.every_nth.max(1))),
         world_in,
         hand_in,
+        peer_in,
         frame_out,
         period_ns,
         next_frame: monotonic_ns() + period_ns,
@@ -147,6 +149,9 @@ struct RendererStage {
     frames_every: Option<u64>,
     world_in: Inlet<topics::World>,
     hand_in: Inlet<topics::Hand>,
+    /// A shared world's participant: the other participants' hands its bridge took from the
+    /// host (on a host they come on `hand`, every participant's).
+    peer_in: Inlet<topics::PeerHand>,
     frame_out: Outlet<topics::Frame>,
     period_ns: u64,
     next_frame: u64,
@@ -206,6 +211,9 @@ impl Task for RendererStage {
                 &mut self.others,
                 s.payload(),
             );
+        }
+        while let Some(s) = self.peer_in.receive()? {
+            keep_peer(&mut self.others, &s.hand);
         }
         if let (Some(w), Some(r)) = (&mut self.window, &mut self.renderer) {
             if w.pump(r) == WindowStatus::Closed {
@@ -277,6 +285,7 @@ impl Task for RendererStage {
         Counters::of([
             self.world_in.counter(),
             self.hand_in.counter(),
+            self.peer_in.counter(),
             self.frame_out.counter(),
         ])
     }
@@ -319,6 +328,15 @@ fn keep_hand(
     } else {
         hands[*next % HAND_HISTORY] = *hand;
         *next += 1;
+    }
+}
+
+/// Keeps another participant's hand (a shared world's participant, from its bridge's
+/// `peer_hand`) as the newest of its slot in `others`: every participant's, whatever its number,
+/// since this participant's own hands come on `hand`, not here.
+fn keep_peer(others: &mut [Option<HandSample>; HAND_SLOTS], hand: &HandSample) {
+    if let Some(slot) = hand.slot().and_then(|k| others.get_mut(k)) {
+        *slot = Some(*hand);
     }
 }
 
@@ -490,5 +508,28 @@ mod tests {
         };
         keep_hand(&mut hands, &mut next, &mut left, &mut others, &stray);
         assert_eq!(others.iter().flatten().count(), 4);
+    }
+
+    /// On a participant, the others' hands come on `peer_hand` with the host's numbers, the
+    /// host's first participant (0) among them: each kept in its own slot, apart from this
+    /// participant's own hands (on `hand`, participant 0 on its own bus).
+    #[test]
+    fn a_participants_peers_are_kept_per_slot_even_participant_zero() {
+        let mut hands = Box::new([HandSample::default(); HAND_HISTORY]);
+        let mut others = [None; HAND_SLOTS];
+        let (mut next, mut left) = (0, None);
+        let own = HandSample::default();
+        keep_hand(&mut hands, &mut next, &mut left, &mut others, &own);
+        for (participant, side) in [(0, 0), (0, 1), (2, 0), (99, 0)] {
+            let peer = HandSample {
+                participant,
+                side,
+                ..HandSample::default()
+            };
+            keep_peer(&mut others, &peer);
+        }
+        assert_eq!(next, 1);
+        let kept: Vec<usize> = (0..HAND_SLOTS).filter(|&k| others[k].is_some()).collect();
+        assert_eq!(kept, vec![0, 1, 4]);
     }
 }
