@@ -2,8 +2,9 @@
 //! session (config/sessions/shared-host.toml) and participants (shared-join.toml), each a whole
 //! `handblocks launch` with its own bus, over zenoh on loopback: every world a participant
 //! records is one the host stepped, bit for bit (`inspect --world-hashes`), every hand it sent
-//! is accounted for, a late joiner is in step within a second, and a participant with a wrong
-//! token is refused and counted by name while the others go on.
+//! is accounted for, a late joiner is in step within a second, a participant with a wrong
+//! token is refused and counted by name while the others go on, each participant records the
+//! others' hands, and the host's recording replays (offline and live) to the same worlds.
 
 mod support;
 
@@ -263,6 +264,42 @@ fn three_participants_share_one_world_bit_for_bit_and_a_late_joiner_is_in_step_w
         "of {} steps, {differ} replayed differently",
         stepped.len()
     );
+
+    // And live: `handblocks replay` of the host's recording plays its hands (no source
+    // samples in it) straight to a stepper, which steps the same worlds again, every one.
+    let replayed_file = scratch.path("replayed.mcap");
+    let out = Command::new(EXE)
+        .current_dir(repo())
+        .args([
+            "replay",
+            "--speed",
+            "0",
+            "--force",
+            "--no-preview",
+            "--record",
+        ])
+        .arg(&replayed_file)
+        .args(["--set", "renderer.mode=off"])
+        .arg(scratch.path(&format!("{host_id}.mcap")))
+        .output()
+        .expect("run replay");
+    assert!(out.status.success(), "{}", both(&out));
+    // Every world the host recorded, stepped again live (the replay may step one more: the
+    // host's last frame, whose world came after its recorder had stopped).
+    let live: BTreeMap<u64, String> = world_hashes(&replayed_file).into_iter().collect();
+    let differ = host_worlds
+        .iter()
+        .filter(|(step, hash)| live.get(step) != Some(hash))
+        .count();
+    assert_eq!(
+        differ,
+        0,
+        "of the host's {} worlds, {differ} not stepped the same live ({} live): {}",
+        host_worlds.len(),
+        live.len(),
+        both(&out)
+    );
+    assert!(live.len() <= host_worlds.len() + 2, "{} live", live.len());
 }
 
 /// Issue 45, item 7: three participants for 60 s, each behind its own proxy adding 20 ms each

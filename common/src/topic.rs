@@ -357,12 +357,14 @@ topic_table! {
             readers: [Kinematics, Recorder, Bridge],
             fields: [stamp, tracked (flag), side, wrist, joints],
         },
-        /// The hand model: finger check points and the palm, as the stepper reads them.
+        /// The hand model: finger check points and the palm, as the stepper reads them (a
+        /// replay publishes it only from a shared world host's recording, which holds hands
+        /// and no source samples).
         Hand: HandSample {
             name: "hand",
             buffer: 1024,
-            max_publishers: 2,
-            publishers: [Kinematics, Bridge],
+            max_publishers: 3,
+            publishers: [Kinematics, Bridge, Replay],
             readers: [Stepper, Renderer, Recorder, Bridge],
             fields: [
                 stamp,
@@ -557,7 +559,7 @@ mod tests {
         let outputs = |s: Stage| s.recorded_outputs().collect::<Vec<_>>();
         assert_eq!(
             outputs(Stage::Replay),
-            [Topic::Glove, Topic::Tracker, Topic::Joints]
+            [Topic::Glove, Topic::Tracker, Topic::Joints, Topic::Hand]
         );
         assert_eq!(outputs(Stage::Acquisition), [Topic::Glove, Topic::Tracker]);
         assert_eq!(Topic::Hand.schema_name(), "handblocks/msg/HandSample");

@@ -140,17 +140,19 @@ pub enum Command {
     /// file (OpenXR joints). The scene is the one the recording was made on, or, for a CARL
     /// trace, the one the configuration's session for that trace uses (--scene to choose).
     /// The pipeline makes the hand and the world anew from the trace; the session ends when
-    /// the trace does (--loop: never). Everything else is `launch`'s: the report, the
+    /// the trace does (--loop: never). A shared world host's recording holds no source
+    /// samples: its hands (every participant's, as its stepper took them) go straight to the
+    /// stepper, which steps the host's worlds again, bit for bit (`inspect --world-hashes`). Everything else is `launch`'s: the report, the
     /// preview (out/replay-NAME-preview.png), --record, --set.
     ///
     /// Example: handblocks replay ../shared/data/carl/example_push_0.carl --speed 0.5
     Replay(ReplayArgs),
     /// Print a topic's samples on a running session, field by field (as `ros2 topic echo`).
     ///
-    /// TOPIC is glove, tracker, joints, hand, world or frame (or /world, ...). The session is
-    /// the only one running, or --session ID (`handblocks sessions` lists them). A topic nobody
-    /// publishes in the session is said at once (`handblocks topics -v` lists who publishes
-    /// what); --wait waits for a publisher instead. Ends with the session, after --count
+    /// TOPIC is glove, tracker, joints, hand, world, frame or peer_hand (or /world, ...). The
+    /// session is the only one running, or --session ID (`handblocks sessions` lists them). A
+    /// topic nobody publishes in the session is said at once (`handblocks topics -v` lists who
+    /// publishes what); --wait waits for a publisher instead. Ends with the session, after --count
     /// samples, or on Ctrl-C.
     ///
     /// Example: handblocks echo hand -n 1
@@ -314,8 +316,8 @@ pub enum Command {
 #[derive(clap::Args, Debug, Clone)]
 #[group(multiple = false)]
 pub struct InspectLines {
-    /// Print every sample of TOPIC instead (glove, tracker, joints, hand, world, frame):
-    /// one JSON object a line, field by field as the recording's schema names them.
+    /// Print every sample of TOPIC instead (glove, tracker, joints, hand, world, frame,
+    /// peer_hand): one JSON object a line, field by field as the recording's schema names them.
     #[arg(long, value_name = "TOPIC", conflicts_with = "json")]
     pub samples: Option<String>,
     /// Print `STEP HASH` for each world sample instead, in recording order (HASH: 16 hex

@@ -146,9 +146,13 @@ pub fn summary(text: &str, json: Option<&Value>, print: WorldPrint) -> String {
         .iter()
         .filter(|e| EVENTS_THAT_MATTER.contains(&e["kind"].as_str().unwrap_or("")))
         .map(|e| {
-            let by = e["hand"]
-                .as_str()
-                .map_or(String::new(), |h| format!(" ({h} hand)"));
+            // A shared world's other participants are named (the first, 0, is not: as
+            // `simulate` prints them).
+            let by = match (e["hand"].as_str(), e["participant"].as_u64()) {
+                (Some(h), Some(p)) => format!(" (participant {p}'s {h} hand)"),
+                (Some(h), None) => format!(" ({h} hand)"),
+                (None, _) => String::new(),
+            };
             format!(
                 "  step {:6}  {:8} {}{by}",
                 e["step"].as_u64().unwrap_or(0),

@@ -1,6 +1,7 @@
 //! The replay process: publishes a recorded hand in place of acquisition, on the topics the
 //! recording's source used (`glove` + `tracker` for one of our recordings of a glove session,
-//! `joints` for a hand tracker or a CARL trace).
+//! `joints` for a hand tracker or a CARL trace), or, for a shared world host's recording (no
+//! source samples, every participant's hands), on `hand`, straight to the stepper.
 //!
 //! Each sample keeps its recorded source time (so the stepper's world is the same however fast
 //! it is replayed) and is stamped with a new origin when it enters the pipeline (so latency
@@ -73,6 +74,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), ReplayError> {
     let glove_out = bus.outlet::<topics::Glove>()?;
     let tracker_out = bus.outlet::<topics::Tracker>()?;
     let joints_out = bus.outlet::<topics::Joints>()?;
+    let hand_out = bus.outlet::<topics::Hand>()?;
     let world_in = bus.inlet::<topics::World>()?;
     let t0 = trace.first_source_time_ns();
     let span = trace
@@ -110,6 +112,7 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), ReplayError> {
         glove_out,
         tracker_out,
         joints_out,
+        hand_out,
         world_in,
     };
     // A source: it sleeps on its own deadlines, not by the session's wait strategy.
@@ -138,6 +141,8 @@ struct Replay<'t> {
     glove_out: Outlet<topics::Glove>,
     tracker_out: Outlet<topics::Tracker>,
     joints_out: Outlet<topics::Joints>,
+    /// A shared world host's recording: its hands, straight to the stepper.
+    hand_out: Outlet<topics::Hand>,
     world_in: Inlet<topics::World>,
 }
 
@@ -187,6 +192,7 @@ impl Task for Replay<'_> {
                         .skip_to(self.skipped[Topic::Tracker as usize]);
                     self.joints_out
                         .skip_to(self.skipped[Topic::Joints as usize]);
+                    self.hand_out.skip_to(self.skipped[Topic::Hand as usize]);
                 }
                 sleep_until_ns(self.start + after as u64);
             } else if sample.makes_a_hand() {
@@ -231,6 +237,10 @@ impl Task for Replay<'_> {
                 j.stamp = restamp(&j.stamp);
                 self.joints_out.publish(&j)?
             }
+            SourceSample::Hand(mut h) => {
+                h.stamp = restamp(&h.stamp);
+                self.hand_out.publish(&h)?
+            }
         };
         if sample.makes_a_hand() {
             pass.recorder.source_output(&sent);
@@ -245,6 +255,7 @@ impl Task for Replay<'_> {
             self.glove_out.counter(),
             self.tracker_out.counter(),
             self.joints_out.counter(),
+            self.hand_out.counter(),
         ])
     }
 }

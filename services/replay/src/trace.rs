@@ -1,5 +1,7 @@
 //! A hand trace of either kind, as the samples a source publishes: one of our MCAP recordings
-//! (its `glove` + `tracker` or `joints` topics) or a CARL file (its right hand as `joints`).
+//! (its `glove` + `tracker` or `joints` topics; or, where it holds none of them, its `hand`
+//! topic: a shared world's host records every participant's hands as its stepper took them)
+//! or a CARL file (its right hand as `joints`).
 //!
 //! The file's first bytes decide which reader runs. Whatever the kind, the samples come out
 //! ready to publish: recorded source times (from 0 for CARL), poses moved by the offset, and
@@ -12,8 +14,8 @@ use std::path::{Path, PathBuf};
 
 use common::stamp::MAX_SOURCE_GAP_NS;
 use common::{
-    GloveSample, JointFault, JointsSample, Pose, Stage, Topic, TrackerSample, MAX_GLOVE_SENSORS,
-    MAX_JOINT_DISTANCE_M,
+    GloveSample, HandSample, JointFault, JointsSample, Pose, Stage, Topic, TrackerSample,
+    MAX_GLOVE_SENSORS, MAX_JOINT_DISTANCE_M,
 };
 use recording::Recording;
 
@@ -28,6 +30,9 @@ pub enum SourceSample {
     Glove(GloveSample),
     Tracker(TrackerSample),
     Joints(JointsSample),
+    /// A hand as a stepper took it (a shared world host's recording: every participant's,
+    /// each marked with its participant), played to the stepper with no kinematics between.
+    Hand(HandSample),
 }
 
 impl SourceSample {
@@ -36,6 +41,7 @@ impl SourceSample {
             SourceSample::Glove(s) => s.stamp.source_time_ns,
             SourceSample::Tracker(s) => s.stamp.source_time_ns,
             SourceSample::Joints(s) => s.stamp.source_time_ns,
+            SourceSample::Hand(s) => s.stamp.source_time_ns,
         }
     }
 
@@ -44,6 +50,7 @@ impl SourceSample {
             SourceSample::Glove(s) => s.stamp.source_time_ns = t,
             SourceSample::Tracker(s) => s.stamp.source_time_ns = t,
             SourceSample::Joints(s) => s.stamp.source_time_ns = t,
+            SourceSample::Hand(s) => s.stamp.source_time_ns = t,
         }
     }
 
@@ -53,10 +60,12 @@ impl SourceSample {
             SourceSample::Glove(_) => Topic::Glove,
             SourceSample::Tracker(_) => Topic::Tracker,
             SourceSample::Joints(_) => Topic::Joints,
+            SourceSample::Hand(_) => Topic::Hand,
         }
     }
 
-    /// True for the samples that each make one hand sample downstream (tracker, joints).
+    /// True for the samples that each make one hand sample downstream (tracker, joints), or
+    /// are one (a hand).
     pub fn makes_a_hand(&self) -> bool {
         !matches!(self, SourceSample::Glove(_))
     }
@@ -179,7 +188,7 @@ impl HandTrace {
         if trace.hands() == 0 {
             let mut why = format!(
                 "{}: no hand samples to replay (an MCAP recording needs a `tracker` or `joints` \
-                 topic)",
+                 topic, or, a shared world host's, a `hand` topic)",
                 file.display()
             );
             for w in &trace.warnings {
@@ -207,7 +216,16 @@ impl HandTrace {
                 rec.first_refused.as_deref().unwrap_or("")
             ));
         }
-        let sources: Vec<Topic> = Stage::Replay.recorded_outputs().collect();
+        // A source's samples where the recording holds any; else its hands as the stepper took
+        // them (a shared world's host has no source samples: its hands are its participants').
+        let mut sources: Vec<Topic> = Stage::Replay.recorded_outputs().collect();
+        let has_source_samples = rec
+            .messages
+            .iter()
+            .any(|m| m.topic != Topic::Hand && sources.contains(&m.topic));
+        if has_source_samples {
+            sources.retain(|t| *t != Topic::Hand);
+        }
         let mut order: Vec<_> = rec
             .messages
             .iter()
@@ -309,6 +327,27 @@ impl HandTrace {
                     }
                     last_joints = Some(j);
                     trace.samples.push(SourceSample::Joints(j));
+                }
+                Topic::Hand => {
+                    let Some(h) = rec.sample::<HandSample>(m) else {
+                        continue;
+                    };
+                    // Hands are in the world's frame as the stepper took them: an offset
+                    // would move them off the worlds recorded beside them.
+                    if offset != [0.0; 3] {
+                        trace.warnings.push(format!(
+                            "{}: holds hands as a stepper took them (a shared world's host \
+                             recording), not a source's samples: the offset is not applied",
+                            rec.path.display()
+                        ));
+                        return trace;
+                    }
+                    // Played as recorded: the stepper refuses it, as it refused it live, and
+                    // its hand holds its last good pose.
+                    if let Some(why) = h.unusable_because() {
+                        warn(&mut trace, m.topic, h.stamp.seq, at, why);
+                    }
+                    trace.samples.push(SourceSample::Hand(h));
                 }
                 _ => {}
             }

@@ -287,6 +287,8 @@ fn hands_of(trace: &replay::HandTrace, notes: &mut Notes) -> Vec<common::HandSam
             }
             replay::SourceSample::Tracker(t) => stream.tracker(t),
             replay::SourceSample::Joints(j) => Some(stream.joints(j)),
+            // A shared world host's recording (`recorded_hands` takes those before here).
+            replay::SourceSample::Hand(h) => Some(h),
         };
         hands.extend(hand.copied());
     }
