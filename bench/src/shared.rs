@@ -65,6 +65,9 @@ struct Row {
     sent_kb_s: f64,
     world_kb_s: f64,
     hand_kb_s: f64,
+    /// The other participants' hands the host sent it, KB/s, and how many it took in.
+    peer_kb_s: f64,
+    peer_hands_taken: u64,
 }
 
 /// The host's cost in one condition.
@@ -236,6 +239,8 @@ fn condition(
                 .unwrap_or(0.0)
                 / 1e3,
             hand_kb_s: ours["bytes_in_per_s"].as_f64().unwrap_or(0.0) / 1e3,
+            peer_kb_s: ours["peer_bytes_out_per_s"].as_f64().unwrap_or(0.0) / 1e3,
+            peer_hands_taken: u(&theirs["peer_hands_taken"]),
         });
     }
     let cpu = |stage: &str| host["stages"][stage]["cpu_s"].as_f64().unwrap_or(f64::NAN);
@@ -338,6 +343,8 @@ pub fn run(b: &SharedBench) -> Result<Value, Box<dyn std::error::Error>> {
             "reliable_link_bound_kb_per_s": page::num(mathis_kb_s(r.delay_ms, r.loss_pct)),
             "host_world_kb_per_s_to_it": page::num(r.world_kb_s),
             "its_hand_kb_per_s_to_host": page::num(r.hand_kb_s),
+            "others_hands_kb_per_s_to_it": page::num(r.peer_kb_s),
+            "others_hands_taken": r.peer_hands_taken,
         })).collect::<Vec<_>>(),
         "failed": failed.iter().map(|(d, l, why)| json!({
             "delay_ms_each_way": d, "loss_pct": l, "why": why,
@@ -374,14 +381,14 @@ pub fn run(b: &SharedBench) -> Result<Value, Box<dyn std::error::Error>> {
         "| delay each way | loss | participant | hand -> world p50 | p99 | added p50 | worlds | \
          divergent | worlds missed (held back by the host) | hands sent / held back / taken / lost / refused / in flight at \
          the end | \
-         world KB/s to it | its hands KB/s sent / taken | reliable-link bound KB/s \
-         |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         world KB/s to it | its hands KB/s sent / taken | others' hands KB/s to it (taken) | \
+         reliable-link bound KB/s |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in &rows {
         let missed = format!("{} ({})", r.worlds_lost, r.worlds_held_back);
         md.push_str(&format!(
             "| {} ms | {} % | {} | {:.1} ms | {:.1} ms | {:.1} ms | {} | {} | {} | {} / {} / {} \
-             / {} / {} / {} | {:.1} | {:.1} / {:.1} | {} |\n",
+             / {} / {} / {} | {:.1} | {:.1} / {:.1} | {:.1} ({}) | {} |\n",
             r.delay_ms,
             r.loss_pct,
             r.participant,
@@ -400,6 +407,8 @@ pub fn run(b: &SharedBench) -> Result<Value, Box<dyn std::error::Error>> {
             r.world_kb_s,
             r.sent_kb_s,
             r.hand_kb_s,
+            r.peer_kb_s,
+            r.peer_hands_taken,
             if r.loss_pct > 0.0 {
                 format!("{:.0}", mathis_kb_s(r.delay_ms, r.loss_pct))
             } else {

@@ -51,7 +51,7 @@ pub fn layout(topic: Topic) -> String {
             );
         } else {
             let _ = writeln!(out, "{}", "=".repeat(80));
-            let _ = writeln!(out, "MSG: {name}");
+            let _ = writeln!(out, "MSG: {}", ros_type(name));
             let _ = writeln!(out, "# {size} bytes");
         }
         done.push(name);
@@ -59,7 +59,10 @@ pub fn layout(topic: Topic) -> String {
             let _ = writeln!(
                 out,
                 "{} {}  # @{}, {} bytes",
-                f.ty, f.name, f.offset, f.size
+                ros_type(f.ty),
+                f.name,
+                f.offset,
+                f.size
             );
             // An enumeration's names: ROS 2 constants of the field's type, which Foxglove
             // and the ROS 2 tools show by name beside the value.
@@ -96,6 +99,17 @@ pub fn layout(topic: Topic) -> String {
     out
 }
 
+/// A nested message's type as a ROS 2 field names it: `pkg/Name`. A sample type nested in
+/// another (a `peer_hand` holds a `handblocks/msg/HandSample`) loses its `msg/`, which the ROS 2
+/// parsers refuse in a field's type (a topic's own schema keeps its name).
+fn ros_type(ty: &str) -> std::borrow::Cow<'_, str> {
+    if ty.contains("/msg/") {
+        ty.replacen("/msg/", "/", 1).into()
+    } else {
+        ty.into()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -130,7 +144,8 @@ mod tests {
                     | "float64"
                     | "handblocks/Stamp"
                     | "handblocks/Pose"
-                    | "handblocks/BlockState" => 8,
+                    | "handblocks/BlockState"
+                    | "handblocks/msg/HandSample" => 8,
                     "uint32" | "int32" => 4,
                     other => panic!("{name}.{}: unexpected type {other}", f.name),
                 };
@@ -150,5 +165,9 @@ mod tests {
         assert!(text.contains("MSG: handblocks/Pose"));
         assert!(text.contains("MSG: handblocks/Stamp"));
         assert!(text.contains("uint32 held_by"));
+        // A sample nested in another (another participant's hand): its definition follows.
+        let text = layout(Topic::PeerHand);
+        assert!(text.contains("handblocks/HandSample hand"), "{text}");
+        assert!(text.contains("MSG: handblocks/HandSample"), "{text}");
     }
 }

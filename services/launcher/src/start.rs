@@ -347,6 +347,7 @@ mod tests {
                 (Topic::Hand, 3),
                 (Topic::World, 2),
                 (Topic::Frame, 1),
+                (Topic::PeerHand, 2),
             ]
         );
         assert_eq!(
