@@ -26,6 +26,7 @@ ARRAYS = {
     "hand": hb.Recording.hand,
     "world": hb.Recording.world,
     "frame": hb.Recording.frame,
+    "peer_hand": hb.Recording.peer_hand,
 }
 
 

@@ -707,52 +707,15 @@ impl<'s> Host<'s> {
             let bytes = item.bytes.to_bytes();
             let p = &mut self.participants[k];
             p.bytes_in += bytes.len() as u64;
-            let hand: HandSample = match recording::decode_sample(Topic::Hand, &bytes) {
-                Ok(h) => h,
-                Err(_) => {
-                    p.refuse("not a hand sample");
+            let now = item.arrived_ns;
+            let (hand, side) = match check_hand(p, k, &bytes, now) {
+                Ok(taken) => taken,
+                Err(why) => {
+                    p.refuse(why);
                     continue;
                 }
             };
-            let now = item.arrived_ns;
-            if now.saturating_sub(p.flood_window_ns) >= 1_000_000_000 {
-                p.flood_window_ns = now;
-                p.flood_count = 0;
-            }
-            p.flood_count += 1;
-            if p.flood_count > FLOOD_PER_S {
-                p.refuse("a flood (more hands a second than FLOOD_PER_S)");
-                continue;
-            }
-            if hand.participant as usize != k {
-                p.refuse("another participant's number");
-                continue;
-            }
-            if hand.side > 1 {
-                p.refuse("a side neither right nor left");
-                continue;
-            }
-            if hand.unusable_because().is_some() {
-                p.refuse("a hand the world cannot use (not finite, or out of range)");
-                continue;
-            }
-            let side = usize::from(HandSide::from_code(hand.side) == HandSide::Left);
             let seq = hand.stamp.seq;
-            if p.last_seq.is_some_and(|last| seq <= last) {
-                p.refuse("a seq not after the last (duplicate or reordered)");
-                continue;
-            }
-            let (first_source, first_host) =
-                *p.first.get_or_insert((hand.stamp.source_time_ns, now));
-            let ahead = hand
-                .stamp
-                .source_time_ns
-                .saturating_sub(first_source)
-                .saturating_sub(now.saturating_sub(first_host));
-            if ahead > FUTURE_SLACK_NS {
-                p.refuse("a source time ahead of the host's clock (a future stamp)");
-                continue;
-            }
             if let Some(last) = p.last_seq {
                 let gap = seq - last - 1;
                 if p.left {
@@ -996,6 +959,53 @@ impl<'s> Host<'s> {
             }
         })
     }
+}
+
+/// Participant `p`'s (number `k`) hand in `bytes`, arrived at `now` on the host's clock, with
+/// its side (0 the right, 1 the left); or why it is refused, by name (counted in the report):
+/// not a hand sample; past [`FLOOD_PER_S`] this second; another participant's number; a side
+/// neither right nor left; not usable by the world (NaN, out of range); a seq not after the
+/// last taken (a duplicate or reordered one); a source time ahead of the host's clock by more
+/// than [`FUTURE_SLACK_NS`] since its first hand. Nobody else's hands are touched.
+fn check_hand(
+    p: &mut Participant,
+    k: usize,
+    bytes: &[u8],
+    now: u64,
+) -> Result<(HandSample, usize), &'static str> {
+    let hand: HandSample =
+        recording::decode_sample(Topic::Hand, bytes).map_err(|_| "not a hand sample")?;
+    if now.saturating_sub(p.flood_window_ns) >= 1_000_000_000 {
+        p.flood_window_ns = now;
+        p.flood_count = 0;
+    }
+    p.flood_count += 1;
+    if p.flood_count > FLOOD_PER_S {
+        return Err("a flood (more hands a second than FLOOD_PER_S)");
+    }
+    if hand.participant as usize != k {
+        return Err("another participant's number");
+    }
+    if hand.side > 1 {
+        return Err("a side neither right nor left");
+    }
+    if hand.unusable_because().is_some() {
+        return Err("a hand the world cannot use (not finite, or out of range)");
+    }
+    if p.last_seq.is_some_and(|last| hand.stamp.seq <= last) {
+        return Err("a seq not after the last (duplicate or reordered)");
+    }
+    let (first_source, first_host) = *p.first.get_or_insert((hand.stamp.source_time_ns, now));
+    let ahead = hand
+        .stamp
+        .source_time_ns
+        .saturating_sub(first_source)
+        .saturating_sub(now.saturating_sub(first_host));
+    if ahead > FUTURE_SLACK_NS {
+        return Err("a source time ahead of the host's clock (a future stamp)");
+    }
+    let side = usize::from(HandSide::from_code(hand.side) == HandSide::Left);
+    Ok((hand, side))
 }
 
 /// Sends participant `p` (number `k`) the other participants' hands whose slots changed since
@@ -1737,5 +1747,89 @@ impl Task for Join {
         write_summary(&self.summary_file, self.summary());
         crate::link::close_bounded(self.zenoh.clone());
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bytes(hand: &HandSample) -> Vec<u8> {
+        let mut out = Vec::new();
+        recording::encode_sample(hand, &mut out);
+        out
+    }
+
+    fn hand(participant: u32, seq: u64, source_time_ns: u64) -> HandSample {
+        HandSample {
+            participant,
+            stamp: Stamp {
+                seq,
+                source_time_ns,
+                ..Stamp::default()
+            },
+            ..HandSample::default()
+        }
+    }
+
+    /// Issue 45, bad input: each kind of bad hand is refused by its own name, and the
+    /// participant's good hands around it are still taken.
+    #[test]
+    fn a_participants_bad_hands_are_refused_by_name_and_its_good_ones_taken() {
+        let mut p = Participant::default();
+        let k = 1;
+        let mut take = |p: &mut Participant, h: &HandSample, now: u64| {
+            let taken = check_hand(p, k, &bytes(h), now);
+            if let Ok((h, _)) = taken {
+                p.last_seq = Some(h.stamp.seq);
+            }
+            taken.map(|(h, side)| (h.stamp.seq, side))
+        };
+        let s = 1_000_000_000;
+        assert_eq!(take(&mut p, &hand(1, 1, 0), s), Ok((1, 0)));
+        let mut nan = hand(1, 2, 10_000_000);
+        nan.wrist.position[1] = f64::NAN;
+        assert_eq!(
+            take(&mut p, &nan, s + 10_000_000),
+            Err("a hand the world cannot use (not finite, or out of range)")
+        );
+        assert_eq!(
+            take(&mut p, &hand(1, 1, 10_000_000), s + 10_000_000),
+            Err("a seq not after the last (duplicate or reordered)")
+        );
+        assert_eq!(
+            take(&mut p, &hand(0, 3, 10_000_000), s + 10_000_000),
+            Err("another participant's number")
+        );
+        let mut sideways = hand(1, 3, 10_000_000);
+        sideways.side = 7;
+        assert_eq!(
+            take(&mut p, &sideways, s + 10_000_000),
+            Err("a side neither right nor left")
+        );
+        // 5 s of source time 20 ms after the first: a future stamp.
+        assert_eq!(
+            take(&mut p, &hand(1, 3, 5_000_000_000), s + 20_000_000),
+            Err("a source time ahead of the host's clock (a future stamp)")
+        );
+        assert_eq!(
+            check_hand(&mut p, k, b"\x00\x01garbage", s + 20_000_000).map(|_| ()),
+            Err("not a hand sample")
+        );
+        // A good one after all that; a left hand is side 1.
+        let mut left = hand(1, 4, 30_000_000);
+        left.side = 1;
+        assert_eq!(take(&mut p, &left, s + 30_000_000), Ok((4, 1)));
+        // A flood: past FLOOD_PER_S hands in one second the rest are refused.
+        let mut refused = 0;
+        for i in 0..u64::from(FLOOD_PER_S) + 50 {
+            let t = 40_000_000 + i * 100_000;
+            if take(&mut p, &hand(1, 5 + i, t), s + t)
+                == Err("a flood (more hands a second than FLOOD_PER_S)")
+            {
+                refused += 1;
+            }
+        }
+        assert!(refused >= 50, "{refused} refused as a flood");
     }
 }
