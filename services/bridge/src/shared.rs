@@ -1778,7 +1778,7 @@ mod tests {
     fn a_participants_bad_hands_are_refused_by_name_and_its_good_ones_taken() {
         let mut p = Participant::default();
         let k = 1;
-        let mut take = |p: &mut Participant, h: &HandSample, now: u64| {
+        let take = |p: &mut Participant, h: &HandSample, now: u64| {
             let taken = check_hand(p, k, &bytes(h), now);
             if let Ok((h, _)) = taken {
                 p.last_seq = Some(h.stamp.seq);
