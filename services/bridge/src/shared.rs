@@ -395,11 +395,12 @@ struct Participant {
     peer_bytes_sent: u64,
 }
 
-/// A hand slot as the host's last frame published it, and how often it changed (a new hand, or
+/// A hand slot as the host's last frame published it, encoded once for every participant
+/// ([`crate::peer_wire`]; empty: no one's hand yet), and how often it changed (a new hand, or
 /// one held as lost, or let go): a participant is sent another's hand when its version moved.
-#[derive(Clone, Copy, Default)]
+#[derive(Default)]
 struct FramedHand {
-    hand: Option<HandSample>,
+    encoded: Vec<u8>,
     version: u64,
     /// What the version was made of: the hand's seq, `tracked`, and its finger count.
     key: (u64, u32, u32),
@@ -442,7 +443,6 @@ struct Host<'s> {
     frame_seqs: [u64; MAX_PARTICIPANTS],
     /// Each hand slot as the last frame published it, for the other participants.
     framed_hands: [FramedHand; HAND_SLOTS],
-    peer_message: Vec<u8>,
     started_ns: u64,
     endpoint: String,
     key: String,
@@ -602,8 +602,7 @@ impl<'s> Host<'s> {
             message: Vec::new(),
             attachment: [0; 8 * MAX_PARTICIPANTS],
             frame_seqs: [0; MAX_PARTICIPANTS],
-            framed_hands: [FramedHand::default(); HAND_SLOTS],
-            peer_message: Vec::new(),
+            framed_hands: std::array::from_fn(|_| FramedHand::default()),
             started_ns: monotonic_ns(),
             endpoint: link.endpoint.clone(),
             key: link.key.clone(),
@@ -782,7 +781,7 @@ impl<'s> Host<'s> {
                     p.world_window.sent(seq, now);
                     p.worlds_sent += 1;
                     p.world_bytes_sent += self.message.len() as u64;
-                    send_peers(p, k, &self.framed_hands, &mut self.peer_message, now);
+                    send_peers(p, k, &self.framed_hands, now);
                 }
             }
         }
@@ -870,12 +869,14 @@ impl<'s> Host<'s> {
             .filter(|_| self.participants[participant].taken > 0)
         {
             let framed = &mut self.framed_hands[slot];
+            // A hand held from frame to frame differs only in its stamp, which the peer form
+            // leaves out: encoded again only when it changed.
             let key = (hand.stamp.seq, hand.tracked, hand.finger_count);
-            if framed.hand.is_none() || framed.key != key {
+            if framed.encoded.is_empty() || framed.key != key {
                 framed.version += 1;
                 framed.key = key;
+                crate::peer_wire::encode(&hand, &mut framed.encoded);
             }
-            framed.hand = Some(hand);
         }
         // The host waits for its first participant: its silence counts from its first frame
         // (before the first origin is recorded, which marks the first output).
@@ -1011,31 +1012,24 @@ fn check_hand(
 /// Sends participant `p` (number `k`) the other participants' hands whose slots changed since
 /// it was last sent them (the frame's hands, as its world's frame held them), each at most
 /// [`PEER_HZ`] a second; one message a hand ([`crate::peer_wire`]).
-fn send_peers(
-    p: &mut Participant,
-    k: usize,
-    framed: &[FramedHand; HAND_SLOTS],
-    message: &mut Vec<u8>,
-    now: u64,
-) {
+fn send_peers(p: &mut Participant, k: usize, framed: &[FramedHand; HAND_SLOTS], now: u64) {
     let Some(sender) = &p.peer_sender else {
         return;
     };
     for (slot, f) in framed.iter().enumerate() {
-        let Some(hand) = &f.hand else {
+        if f.encoded.is_empty() {
             continue;
-        };
+        }
         let since_ns = now.saturating_sub(p.peer_sent_ns[slot]);
         if slot / 2 == k || p.peer_versions[slot] == f.version || since_ns < 1_000_000_000 / PEER_HZ
         {
             continue;
         }
-        crate::peer_wire::encode(hand, message);
-        if sender.put(message.as_slice()).wait().is_ok() {
+        if sender.put(f.encoded.as_slice()).wait().is_ok() {
             p.peer_versions[slot] = f.version;
             p.peer_sent_ns[slot] = now;
             p.peer_hands_sent += 1;
-            p.peer_bytes_sent += message.len() as u64;
+            p.peer_bytes_sent += f.encoded.len() as u64;
         }
     }
 }

@@ -319,10 +319,7 @@ fn keep_hand(
     hand: &HandSample,
 ) {
     if hand.participant != 0 {
-        // A slot out of range (no bridge sends one) is not drawn.
-        if let Some(slot) = hand.slot().and_then(|k| others.get_mut(k)) {
-            *slot = Some(*hand);
-        }
+        keep_peer(others, hand);
     } else if HandSide::from_code(hand.side) == HandSide::Left {
         *left = Some(*hand);
     } else {
@@ -333,7 +330,8 @@ fn keep_hand(
 
 /// Keeps another participant's hand (a shared world's participant, from its bridge's
 /// `peer_hand`) as the newest of its slot in `others`: every participant's, whatever its number,
-/// since this participant's own hands come on `hand`, not here.
+/// since this participant's own hands come on `hand`, not here. A slot out of range (no bridge
+/// sends one) is not drawn.
 fn keep_peer(others: &mut [Option<HandSample>; HAND_SLOTS], hand: &HandSample) {
     if let Some(slot) = hand.slot().and_then(|k| others.get_mut(k)) {
         *slot = Some(*hand);
