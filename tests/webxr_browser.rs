@@ -420,6 +420,26 @@ fn the_pages_own_decoders_and_encoders_speak_the_protocol_as_declared() {
     page::encode_world(77, 12.5, &view, &mut world);
     let mut ping = Vec::new();
     page::encode_ping(9, 5_000.125, &mut ping);
+    // The others' hands in a shared world: participant 2's right hand of the joints model's
+    // 19 points (drawn), participant 3's left of 3 points (a count no hand has: kept, not
+    // drawn).
+    let right: Vec<[f32; 3]> = (0..19)
+        .map(|i| {
+            let finger = if i < 3 { 0 } else { 1 + (i - 3) / 4 };
+            let along = if i < 3 { i } else { (i - 3) % 4 };
+            [
+                0.02 * finger as f32 - 0.04,
+                1.0 + 0.02 * along as f32,
+                -0.25 + if finger == 0 { 0.03 } else { 0.0 },
+            ]
+        })
+        .collect();
+    let left = vec![[0.5f32, 1.0, -0.125]; 3];
+    let mut peers = Vec::new();
+    page::encode_peers(
+        [(2u32, 0u16, &right[..]), (3, 1, &left[..])].into_iter(),
+        &mut peers,
+    );
     // Hands frames: both hands, the right alone, none; every value an f32, as sent.
     let frame = |seq: u32, present: [bool; 2]| {
         let mut f = HandsFrame {
@@ -478,6 +498,7 @@ fn the_pages_own_decoders_and_encoders_speak_the_protocol_as_declared() {
         "ready": ready.encode(),
         "world": world,
         "ping": ping,
+        "peers": peers,
         "arrived": 2_500.5,
         "hands": frames.iter().map(|f| serde_json::json!({
             "seq": f.seq,
@@ -518,6 +539,19 @@ fn the_pages_own_decoders_and_encoders_speak_the_protocol_as_declared() {
     assert!(
         v["unknownOp"].is_null(),
         "an op it does not know is passed over"
+    );
+    let read: Vec<page::PeerHand> = serde_json::from_value(v["peers"].clone()).unwrap();
+    assert_eq!(
+        read,
+        page::decode_peers(&peers).unwrap(),
+        "the others' hands"
+    );
+    assert_eq!(read[0].points, right);
+    assert_eq!(
+        (v["peerHands"].as_u64(), v["peerBones"].as_u64()),
+        (Some(2), Some(19)),
+        "the page draws the others' hands it was sent: the right as a hand of 19 bones (the \
+         wrist to each of 19 points), the left of 3 points as none: {v}"
     );
     // What the page wrote.
     let bytes = |v: &serde_json::Value| -> Vec<u8> { serde_json::from_value(v.clone()).unwrap() };

@@ -7,10 +7,11 @@
 //
 //   NODE_PATH=target/webxr-node/node_modules node tests/webxr_page_check.js PAGE_DIR MESSAGES.json
 //
-// MESSAGES.json: { scene, ready (text), world, ping (bytes as arrays of numbers), arrived (the
+// MESSAGES.json: { scene, ready (text), world, peers, ping (bytes as arrays of numbers), arrived (the
 // pong's page time), hands: [{ seq, frameTime, mask, joints: [left 200 numbers, right 200] }],
 // stats: [{ seq, jsMs, roundTripMs }] }. Prints one JSON line: { scene (page::Scene's JSON),
-// ready (page::Ready's), world (page::World's), pong, hands, stats (bytes) } or { error }.
+// ready (page::Ready's), world (page::World's), peers ([page::PeerHand]), peerHands and
+// peerBones (what the page drew of them), pong, hands, stats (bytes) } or { error }.
 'use strict';
 
 const fs = require('fs');
@@ -50,7 +51,7 @@ async function main() {
     });
     await page.goto('http://handblocks.test/?token=page-check', { waitUntil: 'load' });
     await page.waitForFunction(() => window.handblocks && window.handblocks.wire, null, { timeout: 30000 });
-    const out = await page.evaluate((m) => {
+    const out = await page.evaluate(async (m) => {
       const wire = window.handblocks.wire;
       const buffer = (bytes) => new Uint8Array(bytes).buffer;
       const bytes = (buf) => Array.from(new Uint8Array(buf));
@@ -76,8 +77,17 @@ async function main() {
         })),
         finger_points: Array.from({ length: w.points }, (_, i) => Array.from(w.fingers.subarray(i * 3, i * 3 + 3))),
       };
+      // The others' hands as the page keeps them (page::PeerHand's terms), then as it draws
+      // them: the message through the page's own socket handler, and two frames drawn.
+      const peers = wire.peers(buffer(m.peers)).map((h) => ({ participant: h.participant,
+        side: h.side, points: Array.from({ length: h.points }, (_, i) => Array.from(h.pts.subarray(i * 3, i * 3 + 3))) }));
+      wire.receive(buffer(m.peers));
+      const frame = () => new Promise((resolve) => window.requestAnimationFrame(resolve));
+      await frame();
+      await frame();
+      const hb = window.handblocks;
       return {
-        scene, ready, world,
+        scene, ready, world, peers, peerHands: hb.peerHands, peerBones: hb.peerBones,
         unknownOp: wire.text('{"op":"error","message":"x"}'),
         pong: bytes(wire.pong(buffer(m.ping), m.arrived)),
         hands: m.hands.map((h) => bytes(wire.hands(h.seq, h.frameTime, h.mask,

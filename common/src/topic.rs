@@ -430,13 +430,13 @@ topic_table! {
         },
         /// Another participant's hand in a shared world (docs/sessions.md "Shared sessions"):
         /// a participant's bridge publishes the others' hands the host sent it, for its
-        /// renderer and recorder (the host's own bus has every participant's on `hand`).
+        /// renderer, its headset's page (the webxr stage) and its recorder (the host's own bus has every participant's on `hand`).
         PeerHand: PeerHandSample {
             name: "peer_hand",
             buffer: 256,
             max_publishers: 1,
             publishers: [Bridge],
-            readers: [Renderer, Recorder, Bridge],
+            readers: [Renderer, Recorder, Bridge, Webxr],
             fields: [stamp, own_participant, _reserved, hand],
         },
     }

@@ -10,6 +10,11 @@
 //! kind 4, pong (page -> us), 32 bytes: u32 the ping's seq; f64 the ping's server time (ms,
 //!         echoed); f64 the page's clock (ms, performance.now()) when the ping arrived
 //! kind 5, ping (us -> page), 24 bytes: u32 seq; f64 the server's time (ms)
+//! kind 6, peers (us -> page), 16 + per hand 8 + 12 points bytes: u32 hands (0 to
+//!         [`MAX_PEER_HANDS`]); u32 0; per hand u32 its participant, u16 its side (0 the right
+//!         or only hand, 1 the left), u16 its points (0 to [`PEER_HAND_POINTS`]), then each
+//!         point 3 f32: the other participants' hands in a shared world, as their finger
+//!         points (the world's frame), the newest of each; a hand no longer in it is left out
 //! kind 3, world (us -> page), 32 + 32 blocks + 12 points bytes: u32 the hands frame's seq this
 //!         world answers (u32::MAX: none of this page's); u32 blocks; f64 world time (s); i32
 //!         the grasped block (-1: none; the first grasped); u32 finger points; per block 7 f32
@@ -39,6 +44,16 @@ pub const KIND_WORLD: u8 = 3;
 pub const KIND_PONG: u8 = 4;
 /// `kind` of a clock ping sent to the page.
 pub const KIND_PING: u8 = 5;
+/// `kind` of the other participants' hands sent to the page.
+pub const KIND_PEERS: u8 = 6;
+/// Bytes of a peers message before its hands.
+pub const PEERS_HEADER_BYTES: usize = 16;
+/// Bytes of one hand's head in a peers message (before its points).
+pub const PEER_HAND_HEAD_BYTES: usize = 8;
+/// The most hands one peers message holds: two for each other participant.
+pub const MAX_PEER_HANDS: usize = 2 * (common::MAX_PARTICIPANTS - 1);
+/// The most points one hand of a peers message holds (every finger's check points).
+pub const PEER_HAND_POINTS: usize = MAX_FINGERS * MAX_FINGER_POINTS;
 /// Bytes of a stats or pong message.
 pub const STATS_BYTES: usize = 32;
 /// Bytes of a ping.
@@ -312,6 +327,116 @@ pub fn decode_world(bytes: &[u8]) -> Result<World, WireError> {
     })
 }
 
+/// Another participant's hand as a peers message (kind 6) carries it and the page reads it:
+/// its finger points in the world's frame, one finger after another.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PeerHand {
+    /// The host's number for its participant.
+    pub participant: u32,
+    /// 0 the right (or a one-hand session's only) hand, 1 the left.
+    pub side: u16,
+    pub points: Vec<[f32; 3]>,
+}
+
+/// A peers message (kind 6) of `hands` into `out` (cleared first): at most
+/// [`MAX_PEER_HANDS`] hands of at most [`PEER_HAND_POINTS`] points each (those beyond are
+/// left out). `hands` gives each hand's participant, side and points.
+pub fn encode_peers<'a>(
+    hands: impl Iterator<Item = (u32, u16, &'a [[f32; 3]])> + Clone,
+    out: &mut Vec<u8>,
+) {
+    let count = hands.clone().take(MAX_PEER_HANDS).count();
+    head(out, KIND_PEERS, count as u32, 0);
+    for (participant, side, points) in hands.take(MAX_PEER_HANDS) {
+        let points = &points[..points.len().min(PEER_HAND_POINTS)];
+        out.extend_from_slice(&participant.to_le_bytes());
+        out.extend_from_slice(&side.to_le_bytes());
+        out.extend_from_slice(&(points.len() as u16).to_le_bytes());
+        for v in points.iter().flatten() {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+}
+
+/// Decodes a peers message (kind 6): every count in its range and the length the counts
+/// imply. The points are passed as they travelled (NaN included: the page draws what is
+/// finite, and the bridge refused a NaN hand before it came here).
+pub fn decode_peers(bytes: &[u8]) -> Result<Vec<PeerHand>, WireError> {
+    let k = kind_of(bytes)?;
+    if k != KIND_PEERS {
+        return Err(WireError::Kind(k));
+    }
+    if bytes.len() < PEERS_HEADER_BYTES {
+        return Err(WireError::Length {
+            expected: PEERS_HEADER_BYTES,
+            got: bytes.len(),
+        });
+    }
+    if bytes[5..8] != [0, 0, 0] || bytes[12..16] != [0, 0, 0, 0] {
+        return Err(WireError::Reserved);
+    }
+    let count = u32_at(bytes, 8) as usize;
+    if count > MAX_PEER_HANDS {
+        return Err(WireError::Value {
+            field: "peer hands",
+            value: count as f64,
+        });
+    }
+    let mut hands = Vec::with_capacity(count);
+    let mut at = PEERS_HEADER_BYTES;
+    for _ in 0..count {
+        if bytes.len() < at + PEER_HAND_HEAD_BYTES {
+            return Err(WireError::Length {
+                expected: at + PEER_HAND_HEAD_BYTES,
+                got: bytes.len(),
+            });
+        }
+        let participant = u32_at(bytes, at);
+        let side = u16_at(bytes, at + 4);
+        let points = u16_at(bytes, at + 6) as usize;
+        if participant as usize >= common::MAX_PARTICIPANTS {
+            return Err(WireError::Value {
+                field: "participant",
+                value: f64::from(participant),
+            });
+        }
+        if side > 1 {
+            return Err(WireError::Value {
+                field: "side",
+                value: f64::from(side),
+            });
+        }
+        if points > PEER_HAND_POINTS {
+            return Err(WireError::Value {
+                field: "peer hand points",
+                value: points as f64,
+            });
+        }
+        at += PEER_HAND_HEAD_BYTES;
+        let end = at + points * WORLD_POINT_BYTES;
+        if bytes.len() < end {
+            return Err(WireError::Length {
+                expected: end,
+                got: bytes.len(),
+            });
+        }
+        let point = |i: usize| std::array::from_fn(|k| f32_at(bytes, at + 12 * i + 4 * k));
+        hands.push(PeerHand {
+            participant,
+            side,
+            points: (0..points).map(point).collect(),
+        });
+        at = end;
+    }
+    if at != bytes.len() {
+        return Err(WireError::Length {
+            expected: at,
+            got: bytes.len(),
+        });
+    }
+    Ok(hands)
+}
+
 /// The hands a session takes from the page, as the scene names them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -503,6 +628,83 @@ mod tests {
                 got: 3
             })
         );
+    }
+
+    #[test]
+    fn a_peers_message_round_trips_and_every_bad_count_or_length_is_refused() {
+        let right: Vec<[f32; 3]> = (0..19).map(|i| [i as f32, 1.5, -0.25]).collect();
+        let left = vec![[0.5f32, 1.0, 2.0]; 3];
+        let hands = [(2u32, 0u16, &right[..]), (3, 1, &left[..])];
+        let mut b = Vec::new();
+        encode_peers(hands.iter().copied(), &mut b);
+        assert_eq!(
+            b.len(),
+            PEERS_HEADER_BYTES + 2 * PEER_HAND_HEAD_BYTES + 22 * 12
+        );
+        let back = decode_peers(&b).unwrap();
+        assert_eq!(back.len(), 2);
+        assert_eq!((back[0].participant, back[0].side), (2, 0));
+        assert_eq!(back[0].points, right);
+        assert_eq!(
+            (back[1].participant, back[1].side, &back[1].points),
+            (3, 1, &left)
+        );
+        // None: a message of no hands (everyone else left).
+        let mut none = Vec::new();
+        encode_peers(std::iter::empty(), &mut none);
+        assert_eq!(decode_peers(&none).unwrap(), vec![]);
+        // Every truncation, and a byte more, is refused by its length.
+        for len in 0..b.len() {
+            assert!(decode_peers(&b[..len]).is_err(), "{len} bytes taken");
+        }
+        let mut long = b.clone();
+        long.push(0);
+        assert_eq!(decode_peers(&long).unwrap_err().kind(), "length");
+        // Counts out of range, each by name.
+        let mut bad = b.clone();
+        bad[8] = MAX_PEER_HANDS as u8 + 1;
+        assert_eq!(
+            decode_peers(&bad),
+            Err(WireError::Value {
+                field: "peer hands",
+                value: (MAX_PEER_HANDS + 1) as f64
+            })
+        );
+        let mut bad = b.clone();
+        bad[PEERS_HEADER_BYTES] = common::MAX_PARTICIPANTS as u8;
+        assert!(matches!(
+            decode_peers(&bad),
+            Err(WireError::Value {
+                field: "participant",
+                ..
+            })
+        ));
+        let mut bad = b.clone();
+        bad[PEERS_HEADER_BYTES + 4] = 2;
+        assert!(matches!(
+            decode_peers(&bad),
+            Err(WireError::Value { field: "side", .. })
+        ));
+        let mut bad = b.clone();
+        bad[PEERS_HEADER_BYTES + 6] = PEER_HAND_POINTS as u8 + 1;
+        assert!(matches!(
+            decode_peers(&bad),
+            Err(WireError::Value {
+                field: "peer hand points",
+                ..
+            })
+        ));
+        let mut bad = b.clone();
+        bad[13] = 1;
+        assert_eq!(decode_peers(&bad), Err(WireError::Reserved));
+        // More hands than a message holds, or points than a hand holds, are left out.
+        let many: Vec<[f32; 3]> = vec![[0.0; 3]; PEER_HAND_POINTS + 4];
+        let lots = [(1u32, 0u16, &many[..]); MAX_PEER_HANDS + 2];
+        encode_peers(lots.iter().copied(), &mut b);
+        let back = decode_peers(&b).unwrap();
+        assert_eq!(back.len(), MAX_PEER_HANDS);
+        assert!(back.iter().all(|h| h.points.len() == PEER_HAND_POINTS));
+        assert_eq!(decode_world(&b).unwrap_err().kind(), "kind");
     }
 
     #[test]

@@ -40,6 +40,7 @@ import {
   // ---------------------------------------------------------------- constants
   const MAGIC = [0x48, 0x42, 0x58, 0x31]; // "HBX1"
   const KIND_HANDS = 1, KIND_STATS = 2, KIND_WORLD = 3, KIND_PONG = 4, KIND_PING = 5;
+  const KIND_PEERS = 6;
   const JOINTS = [
     'wrist',
     'thumb-metacarpal', 'thumb-phalanx-proximal', 'thumb-phalanx-distal', 'thumb-tip',
@@ -559,6 +560,9 @@ import {
   Object.defineProperty(HB, 'wire', {
     value: {
       text: decodeText, world: (buf) => parseWorld(new DataView(buf), buf),
+      peers: (buf) => parsePeers(new DataView(buf), buf),
+      // a message as if from the server's socket (tests feed the page through it)
+      receive: (data) => onMessage(data),
       pong: encodePong, hands: encodeHands, stats: encodeStats,
     },
   });
@@ -636,6 +640,12 @@ import {
       HB.worldsReceived++;
       HB.lastWorldTime = world.time;
       worldsThisSecond++;
+    } else if (kind === KIND_PEERS && data.byteLength >= 16) {
+      try {
+        peers = parsePeers(dv, data);
+      } catch (e) {
+        showMessage(e.message);
+      }
     }
   }
 
@@ -701,8 +711,12 @@ import {
     HB.handBones = 0;
     if (opts.worldHand && worldHand.ready) {
       gl.uniformMatrix4fv(litProg.u.u_viewProj, false, worldViewProj);
-      HB.handBones = drawHand(worldHand.pts, 3, worldHand.chains, worldHand.palm, WORLD_BONE_R, WORLD_JOINT_R, SKIN);
+      HB.handBones = drawHand(worldHand.pts, 3, worldHand.layout.chains, worldHand.layout.palm, WORLD_BONE_R, WORLD_JOINT_R, SKIN);
     }
+    // the other participants' hands, in the world's frame
+    gl.uniformMatrix4fv(litProg.u.u_viewProj, false, worldViewProj);
+    HB.peerHands = peers.length;
+    HB.peerBones = drawPeers();
     // grid and finger points
     gl.useProgram(flatProg.p);
     gl.uniformMatrix4fv(flatProg.u.u_viewProj, false, worldViewProj);
@@ -803,39 +817,39 @@ import {
   // knuckle, away from the fingers, by the palm's length (1.55 times the knuckles' span), in
   // the direction of the thumb's base knuckle across the knuckles' line.
   const worldHand = {
-    points: -1,             // the layout below is for this many points (-1: none yet)
-    chains: null, palm: null, wrist: 0,
+    layout: null,           // handLayout(its points), or null: none drawable
     pts: new Float32Array(3 * 64),
     ready: false,           // pts holds the newest world's hand
   };
-  function worldLayout(points) {
-    if (worldHand.points === points) return worldHand.chains !== null;
-    worldHand.points = points;
-    worldHand.chains = null;
+  // The chains and palm of a hand of `points` finger points (19: the joints model's; 5 equal
+  // fingers of up to 5: a glove's), the wrist one point past them; null for another count.
+  // Made once per count.
+  const layouts = new Map();
+  function handLayout(points) {
+    if (layouts.has(points)) return layouts.get(points);
     const counts = points === 19 ? [3, 4, 4, 4, 4] : points > 0 && points % 5 === 0 && points <= 25
       ? [points / 5, points / 5, points / 5, points / 5, points / 5] : null;
-    if (!counts) return false;
-    const wrist = points, starts = [];
-    let at = 0;
-    worldHand.chains = counts.map((c) => {
-      starts.push(at);
-      const chain = [wrist];
-      for (let k = 0; k < c; k++) chain.push(at + k);
-      at += c;
-      return chain;
-    });
-    worldHand.palm = [wrist, starts[0], starts[1], starts[2], starts[3], starts[4]];
-    worldHand.wrist = wrist;
-    return true;
+    let layout = null;
+    if (counts) {
+      const wrist = points, starts = [];
+      let at = 0;
+      const chains = counts.map((c) => {
+        starts.push(at);
+        const chain = [wrist];
+        for (let k = 0; k < c; k++) chain.push(at + k);
+        at += c;
+        return chain;
+      });
+      layout = { points, chains, palm: [wrist, starts[0], starts[1], starts[2], starts[3], starts[4]], wrist };
+    }
+    layouts.set(points, layout);
+    return layout;
   }
-  function prepareWorldHand() {
-    worldHand.ready = false;
-    if (!world || !worldLayout(world.points)) return;
-    const p = worldHand.pts, f = world.fingers, n = world.points;
-    if (3 * (n + 1) > p.length) return;
-    for (let i = 0; i < 3 * n; i++) p[i] = f[i];
-    // the palm's outline: the wrist, the thumb's base knuckle, then index ... pinky knuckles
-    const pal = worldHand.palm;
+  // Puts the wrist into `p` (x y z per point, the finger points first) for `layout`: the
+  // palm's outline is the wrist, the thumb's base knuckle, then index ... pinky knuckles.
+  // False when the knuckles give no direction (then the hand is not drawn).
+  function placeWrist(p, layout) {
+    const pal = layout.palm;
     const t = pal[1] * 3, ix = pal[2] * 3, mx = pal[3] * 3, px = pal[5] * 3;
     // across the knuckles, and the thumb's base knuckle's offset from the middle one square
     // to that line: the way to the wrist
@@ -846,11 +860,63 @@ import {
     const along = bx * ax + by * ay + bz * az;
     bx -= along * ax; by -= along * ay; bz -= along * az;
     const bl = Math.hypot(bx, by, bz);
-    if (!(bl > 1e-6)) return;
+    if (!(bl > 1e-6)) return false;
     const len = Math.min(0.12, Math.max(0.06, 1.55 * span));
-    const w = worldHand.wrist * 3;
+    const w = layout.wrist * 3;
     p[w] = p[mx] + bx / bl * len; p[w + 1] = p[mx + 1] + by / bl * len; p[w + 2] = p[mx + 2] + bz / bl * len;
-    worldHand.ready = true;
+    return true;
+  }
+  function prepareWorldHand() {
+    worldHand.ready = false;
+    const layout = world ? handLayout(world.points) : null;
+    worldHand.layout = layout;
+    if (!layout) return;
+    const p = worldHand.pts, f = world.fingers, n = world.points;
+    if (3 * (n + 1) > p.length) return;
+    for (let i = 0; i < 3 * n; i++) p[i] = f[i];
+    worldHand.ready = placeWrist(p, layout);
+  }
+
+  // ---------------------------------------------------------------- the other participants' hands
+  // In a shared world (docs/sessions.md "Shared sessions"), the others' hands as the server
+  // sends them (kind 6): each drawn as a hand in its participant's colour, in the world's
+  // frame, as the stepper's hand is. A message replaces the last; one with no hands clears.
+  const PEER_COLORS = [[0.55, 0.85, 0.45], [0.95, 0.55, 0.75], [0.7, 0.6, 0.95], [0.95, 0.85, 0.4]];
+  // the left hand a little darker
+  const PEER_COLORS_LEFT = PEER_COLORS.map((c) => c.map((v) => v * 0.85));
+  let peers = [];
+  function parsePeers(dv, buf) {
+    const count = dv.getUint32(8, true);
+    if (count > 6) throw new Error(`peers message of ${count} hands, at most 6`);
+    const hands = [];
+    let at = 16;
+    for (let h = 0; h < count; h++) {
+      if (buf.byteLength < at + 8) throw new Error(`peers message of ${buf.byteLength} bytes, cut short`);
+      const participant = dv.getUint32(at, true), side = dv.getUint16(at + 4, true);
+      const points = dv.getUint16(at + 6, true);
+      if (points > 25) throw new Error(`peer hand of ${points} points, at most 25`);
+      at += 8;
+      if (buf.byteLength < at + 12 * points) throw new Error(`peers message of ${buf.byteLength} bytes, cut short`);
+      // the finger points, then room for the wrist (placeWrist)
+      const pts = new Float32Array(3 * (points + 1));
+      for (let i = 0; i < 3 * points; i++) pts[i] = dv.getFloat32(at + 4 * i, true);
+      at += 12 * points;
+      const layout = handLayout(points);
+      const drawable = layout !== null && pts.every(Number.isFinite) && placeWrist(pts, layout);
+      hands.push({ participant, side, points, pts, layout: drawable ? layout : null });
+    }
+    if (at !== buf.byteLength) throw new Error(`peers message of ${buf.byteLength} bytes, expected ${at}`);
+    return hands;
+  }
+  // Draws the others' hands (the lit program in use, the world's viewProj set): the bones drawn.
+  function drawPeers() {
+    let bones = 0;
+    for (const h of peers) {
+      if (!h.layout) continue;
+      const color = (h.side === 1 ? PEER_COLORS_LEFT : PEER_COLORS)[h.participant % PEER_COLORS.length];
+      bones += drawHand(h.pts, 3, h.layout.chains, h.layout.palm, WORLD_BONE_R, WORLD_JOINT_R, color);
+    }
+    return bones;
   }
 
   // Upload the newest world's finger points (points, and short crosses so they read at any size).

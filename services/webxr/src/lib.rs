@@ -31,6 +31,7 @@ pub mod console;
 pub mod driver;
 pub mod driving;
 pub mod page;
+pub mod peers;
 pub mod scene;
 pub mod server;
 pub mod service;

@@ -11,7 +11,7 @@
 //!
 //! Per socket: the scene (text, once), a clock ping every 100 ms for the first second and every
 //! second after, and the newest world whenever there is one (a slow page skips worlds, never
-//! queues them). What the page sends is decoded here ([`webxr_wire`]); a refused message is
+//! queues them); in a shared world, the other participants' hands the same way. What the page sends is decoded here ([`webxr_wire`]); a refused message is
 //! counted by its kind in [`Tally`] and the socket stays open; a message over
 //! [`MAX_MESSAGE_BYTES`] closes it (counted `oversized`); hands frames beyond
 //! [`MAX_FRAMES_PER_S`] are dropped (counted `flood`); a hands frame timed more than
@@ -193,6 +193,7 @@ pub struct Server {
     pub inbound: crossbeam_channel::Receiver<Inbound>,
     wake: Arc<Wake>,
     world: watch::Sender<Bytes>,
+    peers: watch::Sender<Bytes>,
     stop: watch::Sender<bool>,
     pub tally: Arc<Tally>,
     pub local_addr: SocketAddr,
@@ -206,6 +207,9 @@ struct Shared {
     wake: Arc<Wake>,
     tally: Arc<Tally>,
     world: watch::Receiver<Bytes>,
+    /// The other participants' hands (a shared world's), newest only; a page that opens
+    /// gets the current ones at once (never marked seen here).
+    peers: watch::Receiver<Bytes>,
     stop: watch::Receiver<bool>,
     next_page: AtomicU64,
 }
@@ -218,6 +222,7 @@ impl Server {
         let wake = Arc::new(Wake::new().map_err(ServerError::Runtime)?);
         let tally = Arc::new(Tally::default());
         let (world, world_rx) = watch::channel(Bytes::new());
+        let (peers, peers_rx) = watch::channel(Bytes::new());
         let (stop, stop_rx) = watch::channel(false);
         let shared = Shared {
             token: settings.token,
@@ -226,6 +231,7 @@ impl Server {
             wake: wake.clone(),
             tally: tally.clone(),
             world: world_rx,
+            peers: peers_rx,
             stop: stop_rx,
             next_page: AtomicU64::new(1),
         };
@@ -250,6 +256,7 @@ impl Server {
             inbound,
             wake,
             world,
+            peers,
             stop,
             tally,
             local_addr,
@@ -270,6 +277,12 @@ impl Server {
     /// send the newest they have not sent.
     pub fn send_world(&self, message: &[u8]) {
         self.world.send_replace(Bytes::copy_from_slice(message));
+    }
+
+    /// Sends `message` (the other participants' hands, [`page::encode_peers`]) to every page,
+    /// as [`Server::send_world`] does: each sends the newest it has not sent.
+    pub fn send_peers(&self, message: &[u8]) {
+        self.peers.send_replace(Bytes::copy_from_slice(message));
     }
 
     /// Closes every socket and stops the server's threads.
@@ -468,6 +481,7 @@ async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
     }
     let mut world = shared.world.clone();
     world.mark_unchanged();
+    let mut peers = shared.peers.clone();
     let mut stop = shared.stop.clone();
     let mut clock = PageClock::default();
     let mut ping_seq: u32 = 0;
@@ -571,6 +585,15 @@ async fn page_loop<S: AsyncRead + AsyncWrite + Unpin + Send>(
                     return;
                 }
                 let message = world.borrow_and_update().clone();
+                if !message.is_empty() && !send_within(ws, Message::Binary(message), tally).await {
+                    return;
+                }
+            }
+            changed = peers.changed() => {
+                if changed.is_err() {
+                    return;
+                }
+                let message = peers.borrow_and_update().clone();
                 if !message.is_empty() && !send_within(ws, Message::Binary(message), tally).await {
                     return;
                 }

@@ -3,7 +3,8 @@
 //! ([`crate::server`]), lets [`crate::driving`] decide which page drives and what each frame
 //! publishes, publishes that as `joints`, and sends every world the stepper publishes back
 //! to every page ([`webxr_wire::page::encode_world`]) with the seq of the driving page's frame
-//! it answers. The page's timing comes back as statistics, recorded here as the webxr
+//! it answers; in a shared world, the other participants' hands too ([`crate::peers`]). The
+//! page's timing comes back as statistics, recorded here as the webxr
 //! stage's `sent->drawn` and `page js` latencies.
 
 use std::time::Duration;
@@ -19,6 +20,7 @@ use crate::address;
 use crate::certificate::{self, CertificateError};
 use crate::console;
 use crate::driving::{driver_silence_ns, Driving, Hands};
+use crate::peers::Peers;
 use crate::scene::{self, SceneError};
 use crate::server::{Inbound, Server, ServerError, ServerSettings};
 
@@ -94,6 +96,14 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), WebxrError> {
     let mut headset = Headset {
         joints_out: bus.outlet()?,
         world_in: bus.inlet()?,
+        peer_in: bus.inlet()?,
+        peers: Peers::default(),
+        peers_message: Vec::with_capacity(
+            webxr_wire::page::PEERS_HEADER_BYTES
+                + webxr_wire::page::MAX_PEER_HANDS
+                    * (webxr_wire::page::PEER_HAND_HEAD_BYTES
+                        + webxr_wire::page::WORLD_POINT_BYTES * webxr_wire::page::PEER_HAND_POINTS),
+        ),
         hands: settings.hand,
         server,
         driving: Driving::new(
@@ -115,6 +125,10 @@ pub fn run(session: &Session, bus: &Bus) -> Result<(), WebxrError> {
 struct Headset {
     joints_out: Outlet<topics::Joints>,
     world_in: Inlet<topics::World>,
+    /// The other participants' hands, in a shared world (published by this machine's bridge).
+    peer_in: Inlet<topics::PeerHand>,
+    peers: Peers,
+    peers_message: Vec<u8>,
     hands: HandsUsed,
     server: Server,
     driving: Driving,
@@ -197,6 +211,19 @@ impl Headset {
         }
         Ok(())
     }
+
+    /// Keeps the other participants' hands and sends the page them when they changed.
+    fn peers(&mut self) -> Result<(), BusError> {
+        let now = monotonic_ns();
+        while let Some(s) = self.peer_in.receive()? {
+            self.peers.take(&s.hand, now);
+        }
+        self.peers.forget_silent(now);
+        if self.peers.encode(&mut self.peers_message) {
+            self.server.send_peers(&self.peers_message);
+        }
+        Ok(())
+    }
 }
 
 impl Task for Headset {
@@ -204,7 +231,7 @@ impl Task for Headset {
 
     fn wait(&mut self, _: &mut Waiter, timeout: Duration) -> Result<(), BusError> {
         let look_again = Duration::from_nanos(self.driving.look_again_in_ns(monotonic_ns()));
-        let inlets: [&dyn Wakeable; 1] = [&self.world_in];
+        let inlets: [&dyn Wakeable; 2] = [&self.world_in, &self.peer_in];
         wait_each(
             inlets.into_iter(),
             Some(self.server.wake_fd()),
@@ -221,11 +248,16 @@ impl Task for Headset {
             let gap = self.driving.keep_time(monotonic_ns());
             self.publish(&gap, pass)?;
         }
+        self.peers()?;
         self.worlds(pass)
     }
 
     fn counters(&self) -> Counters {
-        Counters::of([self.joints_out.counter(), self.world_in.counter()])
+        Counters::of([
+            self.joints_out.counter(),
+            self.world_in.counter(),
+            self.peer_in.counter(),
+        ])
     }
 
     fn stop(&mut self, reporter: &mut Reporter) -> Result<(), BusError> {
