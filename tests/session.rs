@@ -694,7 +694,15 @@ fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() 
     let dir = Scratch::new("transport");
     let out = dir.path("out");
     let run = Command::new(EXE)
-        .args(["bench", "latency", "transport", "--quick", "--out"])
+        .args([
+            "bench",
+            "latency",
+            "transport",
+            "--quick",
+            "--runs",
+            "1",
+            "--out",
+        ])
         .arg(&out)
         .output()
         .unwrap();
@@ -707,12 +715,26 @@ fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() 
         serde_json::from_str(&std::fs::read_to_string(out.join("transport.json")).unwrap())
             .unwrap();
     let rows = v["transport"].as_array().unwrap();
-    assert_eq!(rows.len(), 5 * 5 * 2);
+    let transports = [
+        "iceoryx2",
+        "iceoryx2-semaphore",
+        "iceoryx2-poll",
+        "futex",
+        "eventfd",
+        "uds",
+        "tcp",
+        "zenoh",
+    ];
+    assert_eq!(rows.len(), transports.len() * 5 * 2);
+    // Issue 46: the wake-up the pipeline uses is marked, and only it.
+    assert!(rows
+        .iter()
+        .all(|r| (r["pipeline"] == true) == (r["transport"] == "iceoryx2")));
     assert_eq!(
         v["zenoh_over_iceoryx2"].as_array().map(|a| a.len()),
         Some(5 * 2)
     );
-    for t in ["iceoryx2", "iceoryx2-poll", "uds", "tcp", "zenoh"] {
+    for t in transports {
         for bytes in [64u64, 1024, 65536, 1 << 20, 4 << 20] {
             for rate in [120.0, 0.0] {
                 let row = rows
@@ -761,6 +783,11 @@ fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() 
     );
     let md = std::fs::read_to_string(out.join("transport.md")).unwrap();
     assert!(md.contains("| iceoryx2-poll | 4 MiB | flat out |"), "{md}");
+    assert!(md.contains("| futex | 64 B | 120 Hz |"), "{md}");
+    assert!(
+        md.contains("## The pipeline's wake-up (iceoryx2) against a Unix socket"),
+        "{md}"
+    );
     assert!(std::fs::metadata(out.join("transport.png")).unwrap().len() > 10_000);
 }
 

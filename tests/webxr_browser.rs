@@ -434,7 +434,7 @@ fn the_pages_own_decoders_and_encoders_speak_the_protocol_as_declared() {
             ]
         })
         .collect();
-    let left = vec![[0.5f32, 1.0, -0.125]; 3];
+    let left = [[0.5f32, 1.0, -0.125]; 3];
     let mut peers = Vec::new();
     page::encode_peers(
         [(2u32, 0u16, &right[..]), (3, 1, &left[..])].into_iter(),

@@ -4,7 +4,16 @@
 //!
 //! * `iceoryx2`: a zero-copy publish-subscribe service of byte slices, the reader woken by an
 //!   event service and sleeping in `ppoll` on its listener (what the pipeline does);
+//! * `iceoryx2-semaphore`: the same service, the reader woken by an event service of
+//!   `common::bus::semaphore::SemaphoreIpc` (iceoryx2's semaphore event: a futex in shared
+//!   memory, no socket) and sleeping on its listener (issue 46);
 //! * `iceoryx2-poll`: the same service, the reader spinning on `receive` (no wake-up);
+//! * `futex`: the floor of a woken hop: a ring of 8 payloads in shared memory written in
+//!   place, the published count a futex word the reader sleeps on (`FUTEX_WAIT`) and the
+//!   writer wakes (`FUTEX_WAKE`); no library at all;
+//! * `eventfd`: the same ring, the reader sleeping in `ppoll` on an eventfd the writer
+//!   inherited and writes (the cheapest wake-up that is a descriptor, so it joins a wait on
+//!   other descriptors);
 //! * `uds`: a Unix domain stream socket, the reader blocking in `read` (copies in and out of
 //!   the kernel);
 //! * `tcp`: TCP over loopback, `TCP_NODELAY`, the same framing;
@@ -56,16 +65,22 @@ pub const PACED_HZ: f64 = 120.0;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Transport {
     Iceoryx2,
+    Iceoryx2Semaphore,
     Iceoryx2Poll,
+    Futex,
+    Eventfd,
     Uds,
     Tcp,
     Zenoh,
 }
 
 impl Transport {
-    pub const ALL: [Transport; 5] = [
+    pub const ALL: [Transport; 8] = [
         Transport::Iceoryx2,
+        Transport::Iceoryx2Semaphore,
         Transport::Iceoryx2Poll,
+        Transport::Futex,
+        Transport::Eventfd,
         Transport::Uds,
         Transport::Tcp,
         Transport::Zenoh,
@@ -75,7 +90,10 @@ impl Transport {
     pub fn name(self) -> &'static str {
         match self {
             Transport::Iceoryx2 => "iceoryx2",
+            Transport::Iceoryx2Semaphore => "iceoryx2-semaphore",
             Transport::Iceoryx2Poll => "iceoryx2-poll",
+            Transport::Futex => "futex",
+            Transport::Eventfd => "eventfd",
             Transport::Uds => "uds",
             Transport::Tcp => "tcp",
             Transport::Zenoh => "zenoh",
@@ -87,7 +105,15 @@ impl Transport {
     }
 
     fn is_iceoryx2(self) -> bool {
-        matches!(self, Transport::Iceoryx2 | Transport::Iceoryx2Poll)
+        matches!(
+            self,
+            Transport::Iceoryx2 | Transport::Iceoryx2Semaphore | Transport::Iceoryx2Poll
+        )
+    }
+
+    /// A bare wake-up, no library: the floor the others are measured against.
+    pub fn is_bare(self) -> bool {
+        matches!(self, Transport::Futex | Transport::Eventfd)
     }
 }
 
@@ -111,12 +137,62 @@ pub struct Row {
     pub rate_hz: f64,
     /// Samples the writer sent (`count` in the JSON is those delivered).
     pub sent: u64,
+    /// Every run's latencies together.
     pub histogram: Histogram<u64>,
-    /// Samples delivered per second over the run.
+    /// Samples delivered per second over the run (the median run's, after [`Row::merge`]).
     pub throughput_hz: f64,
+    /// Each run's p50 and p99, us (one per run; [`Row::p50`] and [`Row::p99`] are their medians).
+    pub runs: Vec<(f64, f64)>,
+    throughputs: Vec<f64>,
+}
+
+/// The median of `v` (the mean of the middle two for an even count); NaN for none.
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
 }
 
 impl Row {
+    /// Adds another run of the same transport, payload and rate.
+    fn merge(&mut self, other: Row) {
+        let _ = self.histogram.add(&other.histogram);
+        self.sent += other.sent;
+        self.runs.extend(other.runs);
+        self.throughputs.extend(other.throughputs);
+        self.throughput_hz = median(self.throughputs.clone());
+    }
+
+    /// The median of the runs' p50, us.
+    pub fn p50(&self) -> f64 {
+        median(self.runs.iter().map(|r| r.0).collect())
+    }
+
+    /// The median of the runs' p99, us.
+    pub fn p99(&self) -> f64 {
+        median(self.runs.iter().map(|r| r.1).collect())
+    }
+
+    /// The runs' lowest and highest p50 and p99, us: the spread beside the medians.
+    fn spread(&self) -> ((f64, f64), (f64, f64)) {
+        let lo_hi = |f: fn(&(f64, f64)) -> f64| {
+            self.runs
+                .iter()
+                .map(f)
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                    (lo.min(v), hi.max(v))
+                })
+        };
+        (lo_hi(|r| r.0), lo_hi(|r| r.1))
+    }
+
     fn rate_name(&self) -> String {
         if self.rate_hz > 0.0 {
             format!("{:.0}hz", self.rate_hz)
@@ -135,17 +211,27 @@ impl Row {
         )
     }
 
+    /// Its JSON: p50 and p99 the medians of the runs' (each run's beside them); p90, p99.9
+    /// and max of every run's latencies together. The row of the wake-up the pipeline's
+    /// stages use carries `"pipeline": true`.
     pub fn json(&self) -> Value {
         let s = Summary::of(&self.histogram);
-        json!({
+        let round1 = |v: f64| (v * 10.0).round() / 10.0;
+        let mut v = json!({
             "transport": self.transport.name(),
             "payload_bytes": self.payload_bytes,
             "rate_hz": self.rate_hz,
-            "p50_us": s.p50, "p90_us": s.p90, "p99_us": s.p99, "p999_us": s.p999,
+            "p50_us": round1(self.p50()), "p90_us": s.p90, "p99_us": round1(self.p99()), "p999_us": s.p999,
+            "p50_runs_us": self.runs.iter().map(|r| r.0).collect::<Vec<_>>(),
+            "p99_runs_us": self.runs.iter().map(|r| r.1).collect::<Vec<_>>(),
             "max_us": s.max, "count": s.count, "sent": self.sent,
             "throughput_hz": (self.throughput_hz * 10.0).round() / 10.0,
             "throughput_mib_s": (self.throughput_hz * self.payload_bytes as f64 / 1048576.0 * 10.0).round() / 10.0,
-        })
+        });
+        if self.transport == PIPELINE_WAKE {
+            v["pipeline"] = json!(true);
+        }
+        v
     }
 }
 
@@ -156,7 +242,16 @@ pub struct TransportBench {
     pub out_dir: PathBuf,
     /// 1 s paced runs and short flat-out runs (well under a minute on 2 cores).
     pub quick: bool,
+    /// Whole sweeps, one after another (every transport once per payload and rate in each):
+    /// a p50 or p99 published is the median of the runs', with their spread.
+    pub runs: u64,
+    /// The transports measured (empty: every one).
+    pub only: Vec<Transport>,
 }
+
+/// The wake-up the pipeline's stages use: iceoryx2's event (a Unix datagram beside a bit set
+/// in shared memory), slept on in `ppoll` with the stage's other descriptors.
+pub const PIPELINE_WAKE: Transport = Transport::Iceoryx2;
 
 // ---------------------------------------------------------------------------------------------
 // The writer (a process of its own)
@@ -196,6 +291,58 @@ pub fn peer(a: &PeerArgs) -> Result<(), Box<dyn std::error::Error>> {
         .into());
     }
     match a.transport {
+        Transport::Futex | Transport::Eventfd => {
+            let (path, eventfd) = ring_endpoint(&a.endpoint)?;
+            let ring = Ring::open(Path::new(path), a.bytes)?;
+            let start = monotonic_ns();
+            for k in 0..a.count {
+                pace(start, k, a.rate_hz);
+                // Written in place, as into a loaned iceoryx2 sample.
+                stamp(ring.slot(k), k);
+                ring.publish(k + 1);
+                match eventfd {
+                    Some(fd) => {
+                        let one = 1u64.to_ne_bytes();
+                        // SAFETY: 8 bytes from the stack to the inherited eventfd.
+                        unsafe { libc::write(fd, one.as_ptr().cast(), 8) };
+                    }
+                    None => ring.wake(),
+                }
+            }
+            // Stay until the reader has everything (it reads our memory).
+            common::shutdown::watch_parent_pipe();
+            common::shutdown::wait_for_release(Duration::from_secs(10));
+        }
+        Transport::Iceoryx2Semaphore => {
+            let config = BusConfig::for_session(&a.endpoint)?;
+            let (_node, pubsub, _) = services(&config, a.bytes)?;
+            let (_doorbell_node, event) = semaphore_event(&config, a.bytes)?;
+            let publisher = pubsub
+                .publisher_builder()
+                .initial_max_slice_len(a.bytes)
+                .max_loaned_samples(2)
+                .create()
+                .map_err(|e| format!("{e:?}"))?;
+            let notifier = event
+                .notifier_builder()
+                .create()
+                .map_err(|e| format!("{e:?}"))?;
+            let start = monotonic_ns();
+            for k in 0..a.count {
+                pace(start, k, a.rate_hz);
+                let sample = publisher
+                    .loan_slice_uninit(a.bytes)
+                    .map_err(|e| format!("{e:?}"))?;
+                let mut sample = sample.write_from_fn(|i| (i as u64 ^ k) as u8);
+                let payload = sample.payload_mut();
+                payload[8..16].copy_from_slice(&k.to_le_bytes());
+                payload[..8].copy_from_slice(&monotonic_ns().to_le_bytes());
+                sample.send().map_err(|e| format!("{e:?}"))?;
+                notifier.notify().map_err(|e| format!("{e:?}"))?;
+            }
+            common::shutdown::watch_parent_pipe();
+            common::shutdown::wait_for_release(Duration::from_secs(10));
+        }
         Transport::Iceoryx2 | Transport::Iceoryx2Poll => {
             let config = BusConfig::for_session(&a.endpoint)?;
             let (_node, pubsub, event) = services(&config, a.bytes)?;
@@ -328,6 +475,176 @@ fn services(
     Ok((node, pubsub, event))
 }
 
+type SemaphoreEventService =
+    iceoryx2::service::port_factory::event::PortFactory<common::bus::semaphore::SemaphoreIpc>;
+
+/// The event service of the `iceoryx2-semaphore` rows: the same name and bus as
+/// [`services`]' pub-sub service, on a node of the semaphore service type.
+fn semaphore_event(
+    config: &BusConfig,
+    bytes: usize,
+) -> Result<
+    (
+        Node<common::bus::semaphore::SemaphoreIpc>,
+        SemaphoreEventService,
+    ),
+    Box<dyn std::error::Error>,
+> {
+    let node = NodeBuilder::new()
+        .config(&config.iceoryx()?)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<common::bus::semaphore::SemaphoreIpc>()
+        .map_err(|e| format!("{e:?}"))?;
+    let name = ServiceName::new(&format!("transport-{bytes}")).map_err(|e| format!("{e:?}"))?;
+    let event = node
+        .service_builder(&name)
+        .event()
+        .open_or_create()
+        .map_err(|e| format!("{e:?}"))?;
+    Ok((node, event))
+}
+
+/// The `futex` and `eventfd` rows' endpoint: the ring's file, and after a `|` the eventfd the
+/// writer inherited (eventfd only).
+fn ring_endpoint(endpoint: &str) -> Result<(&str, Option<i32>), Box<dyn std::error::Error>> {
+    match endpoint.split_once('|') {
+        Some((path, fd)) => Ok((path, Some(fd.parse()?))),
+        None => Ok((endpoint, None)),
+    }
+}
+
+/// Slots of a [`Ring`]: as deep as the iceoryx2 rows' subscriber buffer.
+const RING_SLOTS: u64 = 8;
+/// Bytes before the ring's slots: the futex word (u32, at 0) and the published count (u64, at 8).
+const RING_HEAD: usize = 64;
+
+/// The bare rows' shared memory: [`RING_SLOTS`] payloads in a file in /dev/shm mapped by
+/// both processes, and the count of payloads published, whose low 32 bits are the futex
+/// word. The writer writes payload `k` in place in slot `k % 8`, then publishes `k + 1`.
+struct Ring {
+    base: *mut u8,
+    len: usize,
+    bytes: usize,
+}
+
+impl Ring {
+    fn map(file: &std::fs::File, len: usize) -> Result<*mut u8, Box<dyn std::error::Error>> {
+        use std::os::fd::AsRawFd;
+        // SAFETY: a shared mapping of `len` bytes of an open file of that length.
+        let p = unsafe {
+            libc::mmap(
+                std::ptr::null_mut(),
+                len,
+                libc::PROT_READ | libc::PROT_WRITE,
+                libc::MAP_SHARED,
+                file.as_raw_fd(),
+                0,
+            )
+        };
+        if p == libc::MAP_FAILED {
+            return Err(format!("mmap: {}", std::io::Error::last_os_error()).into());
+        }
+        Ok(p.cast())
+    }
+
+    fn create(path: &Path, bytes: usize) -> Result<Ring, Box<dyn std::error::Error>> {
+        let len = RING_HEAD + RING_SLOTS as usize * bytes;
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create_new(true)
+            .open(path)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        file.set_len(len as u64)?;
+        Ok(Ring {
+            base: Ring::map(&file, len)?,
+            len,
+            bytes,
+        })
+    }
+
+    fn open(path: &Path, bytes: usize) -> Result<Ring, Box<dyn std::error::Error>> {
+        let len = RING_HEAD + RING_SLOTS as usize * bytes;
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(path)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok(Ring {
+            base: Ring::map(&file, len)?,
+            len,
+            bytes,
+        })
+    }
+
+    fn word(&self) -> &std::sync::atomic::AtomicU32 {
+        // SAFETY: the first 4 bytes of the mapping, aligned (page-aligned base).
+        unsafe { &*self.base.cast::<std::sync::atomic::AtomicU32>() }
+    }
+
+    fn count(&self) -> &std::sync::atomic::AtomicU64 {
+        // SAFETY: bytes 8..16 of the mapping, aligned.
+        unsafe { &*self.base.add(8).cast::<std::sync::atomic::AtomicU64>() }
+    }
+
+    #[allow(clippy::mut_from_ref)]
+    fn slot(&self, k: u64) -> &mut [u8] {
+        let at = RING_HEAD + (k % RING_SLOTS) as usize * self.bytes;
+        // SAFETY: inside the mapping; one writer process writes a slot while the reader may
+        // read it only after it was published (a reader 8 behind checks the number it reads).
+        unsafe { std::slice::from_raw_parts_mut(self.base.add(at), self.bytes) }
+    }
+
+    fn publish(&self, count: u64) {
+        use std::sync::atomic::Ordering;
+        self.count().store(count, Ordering::Release);
+        self.word().store(count as u32, Ordering::Release);
+    }
+
+    fn published(&self) -> u64 {
+        self.count().load(std::sync::atomic::Ordering::Acquire)
+    }
+
+    /// Wakes the reader sleeping on the word.
+    fn wake(&self) {
+        // SAFETY: FUTEX_WAKE on the mapped word (shared: another process sleeps on it).
+        unsafe {
+            libc::syscall(
+                libc::SYS_futex,
+                self.word().as_ptr(),
+                libc::FUTEX_WAKE,
+                1,
+                std::ptr::null::<libc::timespec>(),
+            )
+        };
+    }
+
+    /// Sleeps while the word still reads `seen` (as far as `timeout`).
+    fn sleep(&self, seen: u64, timeout: Duration) {
+        let ts = libc::timespec {
+            tv_sec: timeout.as_secs() as libc::time_t,
+            tv_nsec: timeout.subsec_nanos() as libc::c_long,
+        };
+        // SAFETY: FUTEX_WAIT on the mapped word with a relative timeout on the stack.
+        unsafe {
+            libc::syscall(
+                libc::SYS_futex,
+                self.word().as_ptr(),
+                libc::FUTEX_WAIT,
+                seen as u32,
+                &ts as *const libc::timespec,
+            )
+        };
+    }
+}
+
+impl Drop for Ring {
+    fn drop(&mut self) {
+        // SAFETY: the mapping this ring made.
+        unsafe { libc::munmap(self.base.cast(), self.len) };
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // The reader (this process)
 
@@ -387,6 +704,110 @@ fn measure(exe: &Path, a: &PeerArgs) -> Result<Row, Box<dyn std::error::Error>> 
     let started = Instant::now();
     let mut first: Option<Instant> = None;
     match a.transport {
+        Transport::Futex | Transport::Eventfd => {
+            let path = PathBuf::from(format!("/dev/shm/{}", a.endpoint));
+            let ring = Ring::create(&path, a.bytes)?;
+            let result = (|| -> Result<(), Box<dyn std::error::Error>> {
+                let eventfd = if a.transport == Transport::Eventfd {
+                    // SAFETY: a new descriptor, without CLOEXEC so that the writer inherits it.
+                    let fd = unsafe { libc::eventfd(0, 0) };
+                    if fd < 0 {
+                        return Err(format!("eventfd: {}", std::io::Error::last_os_error()).into());
+                    }
+                    Some(fd)
+                } else {
+                    None
+                };
+                let endpoint = match eventfd {
+                    Some(fd) => format!("{}|{fd}", path.display()),
+                    None => path.display().to_string(),
+                };
+                let mut child = spawn_peer(
+                    exe,
+                    &PeerArgs {
+                        endpoint,
+                        ..a.clone()
+                    },
+                )?;
+                let outcome = (|| -> Result<(), Box<dyn std::error::Error>> {
+                    let mut read = 0u64;
+                    while read < a.count {
+                        if Instant::now() > deadline {
+                            return Err(late().into());
+                        }
+                        let published = ring.published();
+                        if published == read {
+                            match eventfd {
+                                Some(fd) => {
+                                    wait_readable(fd, Duration::from_millis(50));
+                                    let mut b = [0u8; 8];
+                                    // SAFETY: 8 bytes into the stack; clears the count.
+                                    unsafe { libc::read(fd, b.as_mut_ptr().cast(), 8) };
+                                }
+                                None => ring.sleep(published, Duration::from_millis(50)),
+                            }
+                            continue;
+                        }
+                        // A reader more than the ring behind lost the oldest, as iceoryx2's.
+                        for k in read.max(published.saturating_sub(RING_SLOTS))..published {
+                            let slot = ring.slot(k);
+                            let t0 = read_u64(slot, 0);
+                            if read_u64(slot, 8) == k {
+                                record(t0);
+                                first.get_or_insert_with(Instant::now);
+                            }
+                        }
+                        read = published;
+                    }
+                    Ok(())
+                })();
+                drop(child.stdin.take());
+                let _ = child.wait();
+                if let Some(fd) = eventfd {
+                    // SAFETY: ours, no longer used (the writer had its own copy).
+                    unsafe { libc::close(fd) };
+                }
+                outcome
+            })();
+            let _ = std::fs::remove_file(&path);
+            result?;
+        }
+        Transport::Iceoryx2Semaphore => {
+            let config = BusConfig::for_session(&a.endpoint)?;
+            let result = (|| -> Result<(), Box<dyn std::error::Error>> {
+                let (_node, pubsub, _) = services(&config, a.bytes)?;
+                let (_doorbell_node, event) = semaphore_event(&config, a.bytes)?;
+                let subscriber = pubsub
+                    .subscriber_builder()
+                    .buffer_size(8)
+                    .create()
+                    .map_err(|e| format!("{e:?}"))?;
+                let listener = event
+                    .listener_builder()
+                    .create()
+                    .map_err(|e| format!("{e:?}"))?;
+                let mut child = spawn_peer(exe, a)?;
+                let mut last = false;
+                while !last {
+                    if Instant::now() > deadline {
+                        return Err(late().into());
+                    }
+                    listener
+                        .timed_wait(|_| {}, Duration::from_millis(50))
+                        .map_err(|e| format!("{e:?}"))?;
+                    while let Some(s) = subscriber.receive().map_err(|e| format!("{e:?}"))? {
+                        record(read_u64(s.payload(), 0));
+                        first.get_or_insert_with(Instant::now);
+                        last |= read_u64(s.payload(), 8) + 1 == a.count;
+                    }
+                }
+                drop(child.stdin.take());
+                let _ = child.wait();
+                Ok(())
+            })();
+            let _ = config.remove_resources();
+            result?;
+        }
         Transport::Iceoryx2 | Transport::Iceoryx2Poll => {
             let config = BusConfig::for_session(&a.endpoint)?;
             let result = (|| -> Result<(), Box<dyn std::error::Error>> {
@@ -523,8 +944,13 @@ fn measure(exe: &Path, a: &PeerArgs) -> Result<Row, Box<dyn std::error::Error>> 
         payload_bytes: a.bytes,
         rate_hz: a.rate_hz,
         sent: a.count,
+        runs: vec![{
+            let s = Summary::of(&hist);
+            (s.p50, s.p99)
+        }],
         histogram: hist,
         throughput_hz,
+        throughputs: vec![throughput_hz],
     })
 }
 
@@ -546,7 +972,7 @@ fn count_for(bytes: usize, rate_hz: f64, quick: bool) -> u64 {
 /// Runs every transport at every payload, paced and flat out; writes the outputs.
 pub fn run(b: &TransportBench) -> Result<Value, Box<dyn std::error::Error>> {
     let rates = [PACED_HZ, 0.0];
-    let total = Transport::ALL.len() * PAYLOADS.len() * rates.len();
+    let total = b.transports().len() * PAYLOADS.len() * rates.len() * b.runs.max(1) as usize;
     let scratch = std::env::temp_dir().join(format!("hb-transport-{}", std::process::id()));
     std::fs::create_dir_all(&scratch)?;
     let measured = measure_all(b, &rates, total, &scratch);
@@ -561,31 +987,34 @@ fn measure_all(
     total: usize,
     scratch: &Path,
 ) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
-    let mut rows: Vec<Row> = Vec::with_capacity(total);
+    let mut rows: Vec<Row> = Vec::new();
+    let mut done = 0usize;
     let t0 = Instant::now();
-    for &rate in rates {
-        for &bytes in &PAYLOADS {
-            for t in Transport::ALL {
-                let endpoint = if t.is_iceoryx2() {
-                    format!("tr{}_{}", std::process::id(), rows.len())
-                } else {
-                    scratch
-                        .join(format!("s{}", rows.len()))
-                        .to_string_lossy()
-                        .into_owned()
-                };
-                let a = PeerArgs {
-                    transport: t,
-                    endpoint,
-                    bytes,
-                    rate_hz: rate,
-                    count: count_for(bytes, rate, b.quick),
-                };
-                let row = measure(&b.exe, &a)?;
-                let s = Summary::of(&row.histogram);
-                eprintln!(
-                    "bench latency transport: [{}/{total}] {:<13} {:>8} B {:>6}: p50 {:.1} us, p99 {:.1} us ({:.0} s so far)",
-                    rows.len() + 1,
+    for run in 0..b.runs.max(1) {
+        for &rate in rates {
+            for &bytes in &PAYLOADS {
+                for t in b.transports() {
+                    let endpoint = if t.is_iceoryx2() || t.is_bare() {
+                        format!("tr{}_{}", std::process::id(), done)
+                    } else {
+                        scratch
+                            .join(format!("s{}", done))
+                            .to_string_lossy()
+                            .into_owned()
+                    };
+                    let a = PeerArgs {
+                        transport: t,
+                        endpoint,
+                        bytes,
+                        rate_hz: rate,
+                        count: count_for(bytes, rate, b.quick),
+                    };
+                    let row = measure(&b.exe, &a)?;
+                    let s = Summary::of(&row.histogram);
+                    done += 1;
+                    eprintln!(
+                    "bench latency transport: [{done}/{total}] run {} {:<18} {:>8} B {:>6}: p50 {:.1} us, p99 {:.1} us ({:.0} s so far)",
+                    run + 1,
                     t.name(),
                     bytes,
                     row.rate_name(),
@@ -593,11 +1022,28 @@ fn measure_all(
                     s.p99,
                     t0.elapsed().as_secs_f64()
                 );
-                rows.push(row);
+                    match rows
+                        .iter_mut()
+                        .find(|r| r.transport == t && r.payload_bytes == bytes && r.rate_hz == rate)
+                    {
+                        Some(kept) => kept.merge(row),
+                        None => rows.push(row),
+                    }
+                }
             }
         }
     }
     Ok(rows)
+}
+
+impl TransportBench {
+    /// The transports this run measures, in [`Transport::ALL`]'s order.
+    fn transports(&self) -> Vec<Transport> {
+        Transport::ALL
+            .into_iter()
+            .filter(|t| self.only.is_empty() || self.only.contains(t))
+            .collect()
+    }
 }
 
 fn find(rows: &[Row], t: Transport, bytes: usize, rate: f64) -> Option<&Row> {
@@ -657,7 +1103,7 @@ fn write_outputs(rows: &[Row], b: &TransportBench) -> Result<Value, Box<dyn std:
     let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
     std::fs::write(
         b.out_dir.join("transport.md"),
-        markdown(rows, b.quick, &provenance),
+        markdown(rows, b, &provenance),
     )?;
     let png = b.out_dir.join("transport.png");
     let drawn = figure(rows).write_png(&png)?;
@@ -681,8 +1127,7 @@ fn over_iceoryx2(rows: &[Row], t: Transport) -> Vec<(usize, f64, f64, f64)> {
                 find(rows, Transport::Iceoryx2, bytes, rate),
                 find(rows, t, bytes, rate),
             ) {
-                let (si, so) = (Summary::of(&i.histogram), Summary::of(&o.histogram));
-                out.push((bytes, rate, so.p50 / si.p50, so.p99 / si.p99));
+                out.push((bytes, rate, o.p50() / i.p50(), o.p99() / i.p99()));
             }
         }
     }
@@ -697,29 +1142,42 @@ fn round2(v: f64) -> f64 {
     }
 }
 
-fn markdown(rows: &[Row], quick: bool, provenance: &Provenance) -> String {
+fn markdown(rows: &[Row], b: &TransportBench, provenance: &Provenance) -> String {
     let what = format!(
         "One hop between two processes, publish -> receive: from the writer's clock when the \
          payload is complete to the reader's clock when it is the reader's to read \
          (`CLOCK_MONOTONIC`, one clock for both), over the transports a user would weigh \
          against each other, at payloads of 64 B to 4 MiB, paced at 120 Hz and flat out \
-         ({}). `iceoryx2`: zero-copy shared memory, the reader woken by an event and sleeping \
-         in `ppoll` (what the pipeline does); `iceoryx2-poll`: the same, the reader spinning \
-         on `receive`; `uds`: a Unix stream socket; `tcp`: loopback, `TCP_NODELAY`; `zenoh`: \
-         the bridge's hop across machines, here over loopback (TCP, express, dropping when \
-         the link is full). Flat out, the writer sends back to back: a socket blocks the \
-         writer (the queueing counts), iceoryx2 overwrites the oldest unread sample 8 behind \
-         (the pipeline's setting), so it may deliver fewer than were sent.\n\n\
-         How to read it: lower is better; the two ratio tables divide a transport's \
-         percentile by iceoryx2's (woken) at the same payload and rate, measured in this run \
-         on this machine, so 3.00x means three times as long as the shared-memory hop. The \
+         ({}; {} whole sweeps, one after another: each p50 and p99 is the median of the \
+         runs', with the lowest and highest run beside it). \
+         `iceoryx2`: zero-copy shared memory, the reader woken by iceoryx2's event (a Unix \
+         datagram beside a bit set) and sleeping in `ppoll` (what the pipeline does, marked \
+         `\"pipeline\": true` in the JSON); `iceoryx2-semaphore`: the same, woken by iceoryx2's \
+         semaphore event (`common::bus::semaphore::SemaphoreIpc`; its timed wait is iceoryx2's \
+         adaptive wait: it polls the semaphore, yielding, then sleeping in steps, so it is no \
+         futex sleep); `iceoryx2-poll`: the reader spinning on `receive`; `futex` and \
+         `eventfd`: the floor of a woken hop, no library: a ring of payloads in shared memory \
+         written in place, the reader asleep in `FUTEX_WAIT` on the published count, or in \
+         `ppoll` on an eventfd the writer writes; `uds`: a Unix stream socket; `tcp`: \
+         loopback, `TCP_NODELAY`; `zenoh`: the bridge's hop across machines, here over \
+         loopback (TCP, express, dropping when the link is full). Flat out, the writer sends \
+         back to back: a socket blocks the writer (the queueing counts), shared memory \
+         overwrites the oldest unread sample 8 behind (the pipeline's setting), so it may \
+         deliver fewer than were sent.\n\n\
+         How to read it: lower is better; the ratio tables divide a transport's percentile \
+         by iceoryx2's (woken) at the same payload and rate, measured in this run on this \
+         machine, so 3.00x means three times as long as the pipeline's hop. Paced at 120 Hz, \
+         the reader's CPU is idle between samples: a woken hop then includes this machine's \
+         wake from idle, which no transport can avoid and which flat-out runs do not pay. The \
          figure draws each payload's latency by percentile (p50 to the tail, HdrHistogram's \
-         log axis) at 120 Hz; every histogram is also an `.hgrm` file under `hgrm/`.",
-        if quick {
+         log axis) at 120 Hz, every run together; every histogram is also an `.hgrm` file \
+         under `hgrm/`.",
+        if b.quick {
             "quick run: 1 s paced, up to 500 samples flat out"
         } else {
             "5 s paced, up to 5000 samples (1 GiB) flat out"
-        }
+        },
+        b.runs.max(1)
     );
     let mut md = page::head(
         "Benchmark: one hop between two processes, by transport",
@@ -730,41 +1188,103 @@ fn markdown(rows: &[Row], quick: bool, provenance: &Provenance) -> String {
         "latency by percentile per payload at 120 Hz, one line per transport",
         "transport.png",
     ));
+    let rate_name = |rate: f64| if rate > 0.0 { "120 Hz" } else { "flat out" };
+    // The goal of issue 46: the pipeline's woken hop at or below a Unix socket's.
+    md.push_str(&format!(
+        "## The pipeline's wake-up ({}) against a Unix socket, and the floor\n\n\
+         At or below the socket is the goal, p50 and p99, at every payload at 120 Hz. The \
+         floor is the fastest bare wake-up measured (futex or eventfd) at that payload.\n\n\
+         | payload | rate | pipeline p50 / uds p50 | pipeline p99 / uds p99 | goal | floor p50 / p99 (us) |\n|---|---|---|---|---|---|\n",
+        PIPELINE_WAKE.name()
+    ));
+    for &bytes in &PAYLOADS {
+        for rate in [PACED_HZ, 0.0] {
+            let (Some(p), Some(u)) = (
+                find(rows, PIPELINE_WAKE, bytes, rate),
+                find(rows, Transport::Uds, bytes, rate),
+            ) else {
+                continue;
+            };
+            let (r50, r99) = (p.p50() / u.p50(), p.p99() / u.p99());
+            let floor = [Transport::Futex, Transport::Eventfd]
+                .into_iter()
+                .filter_map(|t| find(rows, t, bytes, rate))
+                .min_by(|a, b| a.p99().total_cmp(&b.p99()))
+                .map_or("-".to_string(), |f| {
+                    format!("{} {:.1} / {:.1}", f.transport.name(), f.p50(), f.p99())
+                });
+            md.push_str(&format!(
+                "| {} | {} | {r50:.2}x | {r99:.2}x | {} | {floor} |\n",
+                size_name(bytes),
+                rate_name(rate),
+                if rate == 0.0 {
+                    "-"
+                } else if r50 <= 1.0 && r99 <= 1.0 {
+                    "met"
+                } else {
+                    "not met"
+                },
+            ));
+        }
+    }
+    md.push('\n');
     for (t, title) in [
         (Transport::Uds, "The Unix socket's latency as a multiple of iceoryx2's (same run)"),
+        (
+            Transport::Iceoryx2Semaphore,
+            "iceoryx2 with its semaphore event as a multiple of its datagram event (same run)",
+        ),
+        (
+            Transport::Futex,
+            "The bare futex wake-up as a multiple of iceoryx2's (same run)",
+        ),
+        (
+            Transport::Eventfd,
+            "The bare eventfd wake-up as a multiple of iceoryx2's (same run)",
+        ),
         (
             Transport::Zenoh,
             "The bridged hop (zenoh, loopback) as a multiple of the local one (iceoryx2, woken; same run)",
         ),
     ] {
+        let ratios = over_iceoryx2(rows, t);
+        if ratios.is_empty() {
+            continue;
+        }
         md.push_str(&format!(
             "## {title}\n\n| payload | rate | p50 | p99 |\n|---|---|---|---|\n"
         ));
-        for (bytes, rate, p50, p99) in over_iceoryx2(rows, t) {
+        for (bytes, rate, p50, p99) in ratios {
             md.push_str(&format!(
                 "| {} | {} | {p50:.2}x | {p99:.2}x |\n",
                 size_name(bytes),
-                if rate > 0.0 { "120 Hz" } else { "flat out" },
+                rate_name(rate),
             ));
         }
         md.push('\n');
     }
     md.push_str("## Every hop\n\n");
+    md.push_str(
+        "p50 and p99: the median of the runs' (the lowest and highest run in brackets); p90, \
+         p99.9 and max of every run's latencies together.\n\n",
+    );
     md.push_str("| transport | payload | rate | p50 (us) | p90 | p99 | p99.9 | max | delivered / sent | throughput (/s) |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let s = Summary::of(&r.histogram);
+        let ((p50_lo, p50_hi), (p99_lo, p99_hi)) = r.spread();
         md.push_str(&format!(
-            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} / {} | {:.0} |\n",
+            "| {}{} | {} | {} | {:.1} ({p50_lo:.1}-{p50_hi:.1}) | {:.1} | {:.1} ({p99_lo:.1}-{p99_hi:.1}) | {:.1} | {:.1} | {} / {} | {:.0} |\n",
             r.transport.name(),
+            if r.transport == PIPELINE_WAKE { " (pipeline)" } else { "" },
             size_name(r.payload_bytes),
             if r.rate_hz > 0.0 {
                 format!("{:.0} Hz", r.rate_hz)
             } else {
                 "flat out".into()
             },
-            s.p50,
+            r.p50(),
             s.p90,
-            s.p99,
+            r.p99(),
             s.p999,
             s.max,
             s.count,
@@ -804,6 +1324,43 @@ fn figure(rows: &[Row]) -> Figure {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn runs_merge_into_one_row_whose_percentiles_are_the_medians_of_the_runs() {
+        let row = |p50: f64, p99: f64, throughput: f64| {
+            let mut histogram = new_histogram();
+            histogram.record((p50 * 1000.0) as u64).unwrap();
+            Row {
+                transport: Transport::Futex,
+                payload_bytes: 64,
+                rate_hz: PACED_HZ,
+                sent: 10,
+                histogram,
+                throughput_hz: throughput,
+                runs: vec![(p50, p99)],
+                throughputs: vec![throughput],
+            }
+        };
+        let mut r = row(40.0, 200.0, 120.0);
+        r.merge(row(45.0, 900.0, 119.0));
+        r.merge(row(42.0, 250.0, 118.0));
+        assert_eq!((r.p50(), r.p99()), (42.0, 250.0), "the middle run of three");
+        assert_eq!(r.spread(), ((40.0, 45.0), (200.0, 900.0)));
+        assert_eq!(
+            (r.sent, r.histogram.len()),
+            (30, 3),
+            "every run's samples together"
+        );
+        assert_eq!(r.throughput_hz, 119.0);
+        assert_eq!(median(vec![1.0, 3.0]), 2.0);
+        assert!(median(vec![]).is_nan());
+        let v = r.json();
+        assert_eq!(v["p50_runs_us"], json!([40.0, 45.0, 42.0]));
+        assert!(
+            v.get("pipeline").is_none(),
+            "futex is not the pipeline's wake-up"
+        );
+    }
+
     use super::*;
 
     #[test]

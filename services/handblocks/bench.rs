@@ -33,6 +33,12 @@ impl BenchError {
     }
 }
 
+/// `bench latency transport`'s sweep: how many runs, of which transports.
+struct Sweep {
+    runs: u64,
+    only: Vec<handblocks_bench::transport::Transport>,
+}
+
 /// `bench latency PART`: each part writes its own files and its key of `latency.json`; `all`
 /// runs transport, pipeline and load in turn (with `--quick`, the pipeline for 2 s).
 fn latency(
@@ -41,6 +47,7 @@ fn latency(
     exe: std::path::PathBuf,
     session: std::path::PathBuf,
     seconds: std::time::Duration,
+    sweep: Sweep,
     out: std::path::PathBuf,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let all = part == LatencyPart::All;
@@ -49,6 +56,8 @@ fn latency(
             exe: exe.clone(),
             out_dir: out.clone(),
             quick,
+            runs: sweep.runs,
+            only: sweep.only,
         })?;
     }
     if all || part == LatencyPart::Pipeline {
@@ -99,6 +108,8 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
             quick,
             session,
             seconds,
+            runs,
+            transports,
             out,
         } => {
             let exe = std::env::current_exe().map_err(BenchError::OwnExecutable)?;
@@ -108,7 +119,14 @@ pub fn run(which: BenchKind) -> Result<ExitCode, BenchError> {
                 LatencyPart::Load => "latency load",
                 LatencyPart::All => "latency all",
             };
-            (name, latency(part, quick, exe, session, seconds, out))
+            let sweep = Sweep {
+                runs,
+                only: transports,
+            };
+            (
+                name,
+                latency(part, quick, exe, session, seconds, sweep, out),
+            )
         }
         BenchKind::Accuracy { out, quick, runs } => {
             let b = handblocks_bench::accuracy::AccuracyBench {

@@ -465,8 +465,10 @@ pub enum BenchKind {
     /// set against a bare two-process iceoryx2 hop measured in the same run; `load`, the
     /// scripted hand at 1 kHz for 60 s with every topic recorded (drops, gaps, recording
     /// completeness and each stage's latency under that load); `transport`, one
-    /// hop between two processes over iceoryx2 (woken and polled), a Unix socket and TCP, at
-    /// 64 B to 4 MiB, 120 Hz and flat out, with .hgrm files and a plot.
+    /// hop between two processes over iceoryx2 (woken by its datagram or its semaphore event,
+    /// and polled), a bare futex and eventfd wake-up (the floor), a Unix socket, TCP and
+    /// zenoh, at 64 B to 4 MiB, 120 Hz and flat out, the median of --runs sweeps, with .hgrm
+    /// files and a plot.
     Latency {
         /// What to measure.
         #[arg(value_enum, default_value = "pipeline")]
@@ -482,6 +484,14 @@ pub enum BenchKind {
         /// `pipeline` only: seconds for the peer, and again for the session.
         #[arg(long, default_value = "10", value_parser = parse_seconds)]
         seconds: Duration,
+        /// `transport` only: whole sweeps, one after another; each p50 and p99 published is
+        /// the median of the runs', with their spread.
+        #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=20))]
+        runs: u64,
+        /// `transport` only: the transports to measure, comma-separated (default: all):
+        /// iceoryx2, iceoryx2-semaphore, iceoryx2-poll, futex, eventfd, uds, tcp, zenoh.
+        #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = parse_transport)]
+        transports: Vec<handblocks_bench::transport::Transport>,
         /// Where the parts' files go (pipeline.json, transport.json, load.json, .md, .png,
         /// hgrm/), and latency.json: {"transport": [...], "pipeline": [...], "load": {...}}
         /// with every part run into this folder.
@@ -678,6 +688,16 @@ fn parse_steps(s: &str) -> Result<u64, String> {
 fn parse_count(s: &str) -> Result<u64, String> {
     s.parse::<u64>().ok().filter(|n| *n >= 1).ok_or_else(|| {
         format!("{s}: allowed: a whole number of samples, 1 or more (leave -n out to print until Ctrl-C)")
+    })
+}
+
+fn parse_transport(s: &str) -> Result<handblocks_bench::transport::Transport, String> {
+    handblocks_bench::transport::Transport::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = handblocks_bench::transport::Transport::ALL
+            .iter()
+            .map(|t| t.name())
+            .collect();
+        format!("{s:?} is not a transport (allowed: {})", names.join(", "))
     })
 }
 

@@ -46,6 +46,7 @@ use crate::topic::{SliceTopicSpec, Stage, Topic, TopicLayout, TopicSpec, TopicVi
 mod any;
 mod folder;
 mod ports;
+pub mod semaphore;
 mod wait;
 
 pub use any::{AnyInlet, AnySample};
