@@ -1,17 +1,24 @@
 //! `handblocks bench latency`: what the pipeline adds to the transport.
 //!
-//! The peer is the floor any stage could reach on this machine at this moment: a second
-//! process publishes hand-sized samples at the session's rate and notifies, and this process
-//! sleeps on the listener, wakes, receives and records the hop — no processing at all. Then the
-//! real session runs (five processes, scripted hand at 120 Hz), and each stage's hop is reported
-//! as a ratio to the peer's. Origin -> world is reported with its absolute target, and as a
-//! ratio to the peer hop (it spans three hops and two stages' work).
+//! The peer is the floor any stage could reach on this machine at this moment: the fastest
+//! bare wake-up measured in this run (issue 46). Three bare hops run at the session's rate
+//! with hand-sized samples: iceoryx2 (a second process publishes and notifies; this one
+//! sleeps on the listener, wakes, receives and records the hop), and `bench latency
+//! transport`'s `futex` and `eventfd` (shared memory written in place, a futex word or an
+//! eventfd to wake on, no library). The one with the lowest p99 is the peer, so no ratio
+//! flatters the pipeline by comparing it with its own transport. Then the real session runs
+//! (five processes, scripted hand at 120 Hz), and each stage's hop is reported as a ratio to
+//! the peer's. Origin -> world is reported with its absolute target, and as a ratio to the
+//! peer hop (it spans three hops and two stages' work). Then the session again under each
+//! other `[pipeline] wait`, and under `wake = "event"` (iceoryx2's event, the wake-up before
+//! the doorbell).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::bus::{Bus, BusConfig, WaitStrategy};
+use common::config::session::WakeUp;
 use common::latency::{new_histogram, Metric, Summary};
 use common::{monotonic_ns, topics, HandSample, Stage, Stamp};
 use hdrhistogram::Histogram;
@@ -110,10 +117,40 @@ fn ratio(a: f64, b: f64) -> f64 {
 /// Runs the benchmark; prints a table and writes `latency.json` into the output folder.
 pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
     eprintln!(
-        "bench latency: peer (bare two-process hop, 120 Hz) for {:.0} s ...",
+        "bench latency: bare two-process hops (iceoryx2, futex, eventfd; hand-sized, 120 Hz) for {:.0} s each ...",
         b.seconds
     );
-    let peer_histogram = peer(&b.exe, b.seconds)?;
+    let iceoryx2_histogram = peer(&b.exe, b.seconds)?;
+    let mut bare: Vec<(&'static str, Histogram<u64>)> = vec![("iceoryx2", iceoryx2_histogram)];
+    for t in [
+        crate::transport::Transport::Futex,
+        crate::transport::Transport::Eventfd,
+    ] {
+        let row = crate::transport::measure(
+            &b.exe,
+            &crate::transport::PeerArgs {
+                transport: t,
+                endpoint: format!("pl{}_{}", std::process::id(), t.name()),
+                bytes: std::mem::size_of::<HandSample>(),
+                rate_hz: 120.0,
+                count: (b.seconds * 120.0) as u64,
+            },
+        )?;
+        bare.push((t.name(), row.histogram));
+    }
+    for (name, h) in &bare {
+        let s = Summary::of(h);
+        eprintln!(
+            "bench latency: bare hop {name}: p50 {:.1} us, p99 {:.1} us",
+            s.p50, s.p99
+        );
+    }
+    // The peer: the fastest bare wake-up (futex or eventfd), by p99.
+    let (peer_name, peer_histogram) = bare[1..]
+        .iter()
+        .min_by(|a, b| Summary::of(&a.1).p99.total_cmp(&Summary::of(&b.1).p99))
+        .map(|(n, h)| (*n, h.clone()))
+        .ok_or("no bare hop measured")?;
     let peer = Summary::of(&peer_histogram);
     eprintln!(
         "bench latency: the session {} for {:.0} s ...",
@@ -138,7 +175,7 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         "hop into", "p50", "p99", "p99 / peer"
     );
     table.push_str(&format!(
-        "{:<12} {:>10.1} {:>10.1} {:>12}\n",
+        "{:<12} {:>10.1} {:>10.1} {:>12}   ({peer_name})\n",
         "peer", peer.p50, peer.p99, "1.00"
     ));
     for s in &report.stages {
@@ -170,19 +207,29 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
     // The wait strategies ([pipeline] wait), each a session of its own after the first
     // (which ran the session's own setting): origin -> world and CPU per stage.
     // The first session ran with its own strategy; the others run once each.
-    let own = common::config::Session::load(&b.session)?.wait;
-    let mut waits = vec![wait_row(own.name(), report)];
-    for wait in [
+    let own_session = common::config::Session::load(&b.session)?;
+    let (own, own_wake) = (own_session.wait, own_session.wake);
+    let mut waits = vec![wait_row(own.name(), own_wake.name(), report)];
+    // Each other wait under the session's wake-up, and the default wait under the other
+    // wake-up (the doorbell against iceoryx2's event: issue 46's before and after).
+    let other_wake = match own_wake {
+        WakeUp::Doorbell => WakeUp::Event,
+        WakeUp::Event => WakeUp::Doorbell,
+    };
+    let mut runs: Vec<(WaitStrategy, WakeUp)> = [
         WaitStrategy::Event,
         WaitStrategy::Adaptive,
         WaitStrategy::Spin,
-    ] {
-        if wait == own {
-            continue;
-        }
-        let wait = wait.name();
+    ]
+    .into_iter()
+    .filter(|&w| w != own)
+    .map(|w| (w, own_wake))
+    .collect();
+    runs.insert(0, (WaitStrategy::Event, other_wake));
+    for (wait, wake) in runs {
+        let (wait, wake) = (wait.name(), wake.name());
         eprintln!(
-            "bench latency: the session with [pipeline] wait = {wait:?} for {:.0} s ...",
+            "bench latency: the session with [pipeline] wait = {wait:?}, wake = {wake:?} for {:.0} s ...",
             b.seconds
         );
         // The adaptive stages keep a record per arrival (where the publish fell against the
@@ -197,26 +244,28 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
             session: b.session.clone(),
             duration: Some(Duration::from_secs_f64(b.seconds)),
             exe: b.exe.clone(),
-            overrides: vec![common::config::session::Override::parse(&format!(
-                "pipeline.wait=\"{wait}\""
-            ))?],
+            overrides: vec![
+                common::config::session::Override::parse(&format!("pipeline.wait=\"{wait}\""))?,
+                common::config::session::Override::parse(&format!("pipeline.wake=\"{wake}\""))?,
+            ],
             ..launcher::LaunchOptions::default()
         });
         std::env::remove_var(common::bus::Waiter::TRACE_ENV);
-        let mut row = wait_row(wait, &o?.report);
+        let mut row = wait_row(wait, wake, &o?.report);
         if wait == "adaptive" {
             row["trace"] = wait_traces(&traces);
         }
         waits.push(row);
     }
     table.push_str(&format!(
-        "\n{:<20} {:>10} {:>10}   CPU seconds per stage\n",
-        "[pipeline] wait", "o->w p50", "o->w p99"
+        "\n{:<20} {:<10} {:>10} {:>10}   CPU seconds per stage\n",
+        "[pipeline] wait", "wake", "o->w p50", "o->w p99"
     ));
     for w in &waits {
         table.push_str(&format!(
-            "{:<20} {:>10.1} {:>10.1}   {}\n",
+            "{:<20} {:<10} {:>10.1} {:>10.1}   {}\n",
             w["wait"].as_str().unwrap_or(""),
+            w["wake"].as_str().unwrap_or(""),
             w["origin_to_world_us"]["p50"].as_f64().unwrap_or(f64::NAN),
             w["origin_to_world_us"]["p99"].as_f64().unwrap_or(f64::NAN),
             w["cpu_s"]
@@ -236,6 +285,12 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
     let value = json!({
         "seconds": b.seconds,
         "peer_hop_us": summary_json(peer),
+        "peer": peer_name,
+        "bare_hops_us": bare
+            .iter()
+            .map(|(n, h)| (n.to_string(), summary_json(Summary::of(h))))
+            .collect::<serde_json::Map<_, _>>(),
+        "wake": own_wake.name(),
         "stages": stages,
         "origin_to_world_us": summary_json(world),
         "origin_to_world_p99_over_peer_hop_p99": ratio(world.p99, peer.p99),
@@ -271,6 +326,11 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
     }
     rows.push(row("stepper", "origin->world", world));
     rows.push(row("bare hop", "hop", peer));
+    for (name, h) in &bare {
+        let mut r = row("bare hop", name, Summary::of(h));
+        r["transport"] = json!(name);
+        rows.push(r);
+    }
     let merged = merge_into_latency_json(&b.out_dir, "pipeline", Value::Array(rows))?;
     let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
     std::fs::write(b.out_dir.join("pipeline.md"), markdown(&value, &provenance))?;
@@ -290,18 +350,24 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
     let us = |x: &Value| x.as_f64().map_or("-".to_string(), |x| format!("{x:.1}"));
     let what = format!(
         "What the pipeline adds to the transport. The peer is the floor any stage could reach \
-         on this machine at this moment: a second process publishes hand-sized samples at \
-         120 Hz over iceoryx2 and notifies, and this process sleeps on the listener, wakes, \
-         receives and records the hop, with no processing at all ({s:.0} s). Then the real \
-         session runs ({s:.0} s: its processes, the scripted hand at 120 Hz), and each stage's \
-         hop (the stage before's publish to its receive) is reported as a ratio to the \
-         peer's; then the session again with each other `[pipeline] wait` strategy.\n\n\
+         on this machine at this moment: the fastest of two bare wake-ups between two \
+         processes (a futex word, an eventfd; hand-sized samples written in shared memory at \
+         120 Hz, no library, no processing; {s:.0} s each), measured in this run beside \
+         iceoryx2's own hop; here the peer is `{peer}`. Then the real session runs ({s:.0} s: \
+         its processes, the scripted hand at 120 Hz, `[pipeline] wake = \"{wake}\"`), and each \
+         stage's hop (the stage before's publish to its receive) is reported as a ratio to \
+         the peer's; then the session again with each other `[pipeline] wait` strategy, and \
+         with the other wake-up (`doorbell`: kinematics and the stepper sleep on a futex word \
+         their publishers ring; `event`: every stage on iceoryx2's event, as before issue \
+         46).\n\n\
          How to read it: a ratio of 1.00 means the stage wakes as fast as a bare hop; 2.00, \
          twice as slow at p99. Origin -> world is the age of the world a stage sends (from \
          when the hand sample entered the pipeline: three hops and two stages' work), with \
          its target p99 <= 200 us. The figure draws the same histograms by percentile (p50 \
          to the tail, HdrHistogram's log axis).",
         s = v["seconds"].as_f64().unwrap_or(0.0),
+        peer = v["peer"].as_str().unwrap_or("-"),
+        wake = v["wake"].as_str().unwrap_or("-"),
     );
     let mut md = page::head(
         "Benchmark: the pipeline's latency against a bare hop",
@@ -337,7 +403,20 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
             h["count"]
         )
     };
-    md.push_str(&row("bare hop (peer)", peer, "1.00".into()));
+    md.push_str(&row(
+        &format!("bare hop (peer: {})", v["peer"].as_str().unwrap_or("-")),
+        peer,
+        "1.00".into(),
+    ));
+    for (name, h) in v["bare_hops_us"].as_object().into_iter().flatten() {
+        if Some(name.as_str()) != v["peer"].as_str() {
+            let r = match (h["p99"].as_f64(), peer["p99"].as_f64()) {
+                (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
+                _ => "-".into(),
+            };
+            md.push_str(&row(&format!("bare hop ({name})"), h, r));
+        }
+    }
     for (stage, x) in v["stages"].as_object().into_iter().flatten() {
         md.push_str(&row(
             stage,
@@ -348,12 +427,13 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
         ));
     }
     md.push_str(
-        "\n## Each `[pipeline] wait` strategy, a session each\n\n| wait | origin -> world p50 (us) | p99 | dropped | CPU seconds per stage |\n|---|---|---|---|---|\n",
+        "\n## Each `[pipeline] wait` strategy and wake-up, a session each\n\n| wait | wake | origin -> world p50 (us) | p99 | dropped | CPU seconds per stage |\n|---|---|---|---|---|---|\n",
     );
     for w in v["wait_strategies"].as_array().into_iter().flatten() {
         md.push_str(&format!(
-            "| {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} |\n",
             w["wait"].as_str().unwrap_or(""),
+            w["wake"].as_str().unwrap_or(""),
             us(&w["origin_to_world_us"]["p50"]),
             us(&w["origin_to_world_us"]["p99"]),
             w["dropped"],
@@ -488,14 +568,14 @@ adaptive, per arrival (DIR/wait-trace): found by polling / published before, ins
 }
 
 /// One wait strategy's session: origin -> world, and each stage's CPU seconds.
-fn wait_row(wait: &str, report: &launcher::report::Report) -> Value {
+fn wait_row(wait: &str, wake: &str, report: &launcher::report::Report) -> Value {
     let world = report.summary_of(Stage::Stepper, Metric::Origin);
     let cpu: serde_json::Map<String, Value> = report
         .stages
         .iter()
         .map(|s| (s.stage.name().to_string(), json!(s.cpu_s)))
         .collect();
-    json!({"wait": wait, "origin_to_world_us": summary_json(world), "cpu_s": cpu,
+    json!({"wait": wait, "wake": wake, "origin_to_world_us": summary_json(world), "cpu_s": cpu,
         "dropped": report.topics.values().map(|f| f.dropped()).sum::<u64>()})
 }
 

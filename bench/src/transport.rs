@@ -683,7 +683,8 @@ fn wait_readable(fd: i32, timeout: Duration) {
 }
 
 /// One hop measured: starts the writer, reads `count` payloads, returns their latencies.
-fn measure(exe: &Path, a: &PeerArgs) -> Result<Row, Box<dyn std::error::Error>> {
+/// `bench latency pipeline` measures its bare hops with it (`endpoint` a name of its own).
+pub fn measure(exe: &Path, a: &PeerArgs) -> Result<Row, Box<dyn std::error::Error>> {
     let mut hist = new_histogram();
     let deadline = Instant::now()
         + Duration::from_secs_f64(if a.rate_hz > 0.0 {

@@ -76,7 +76,8 @@ macro_rules! stage_table {
                     on_restart: $on_restart:ident,
                     exit_wait_s: $exit_wait_s:literal,
                     devices: [$($device:ident),* $(,)?],
-                    photon_label: $photon_label:literal $(,)?
+                    photon_label: $photon_label:literal,
+                    wakes_by: $wakes_by:ident $(,)?
                 }
             ),* $(,)?
         }
@@ -158,6 +159,13 @@ macro_rules! stage_table {
                     $(Stage::$stage => $photon_label,)*
                 }
             }
+
+            /// What wakes it for a sample on its inlets ([`WakesBy`]).
+            pub const fn wakes_by(self) -> WakesBy {
+                match self {
+                    $(Stage::$stage => WakesBy::$wakes_by,)*
+                }
+            }
         }
     };
 }
@@ -176,24 +184,28 @@ stage_table! {
             name: "acquisition", role: Source, selected_by: ["scripted", "devices"],
             cores: Pipeline, priority: Normal, on_restart: Resume, exit_wait_s: 5,
             devices: [Glove, Tracker], photon_label: "origin->px",
+            wakes_by: Event,
         },
         /// A recorded hand (one of our recordings, or a CARL trace).
         Replay = 1 {
             name: "replay", role: Source, selected_by: ["replay"],
             cores: Pipeline, priority: Normal, on_restart: Resume, exit_wait_s: 5,
             devices: [], photon_label: "origin->px",
+            wakes_by: Event,
         },
         /// Glove + tracker (or joints) to the hand model.
         Kinematics = 2 {
             name: "kinematics", role: Reader, selected_by: [],
             cores: Pipeline, priority: Normal, on_restart: Resume, exit_wait_s: 5,
             devices: [], photon_label: "origin->px",
+            wakes_by: Doorbell,
         },
         /// The block world.
         Stepper = 3 {
             name: "stepper", role: Reader, selected_by: [],
             cores: Pipeline, priority: Normal, on_restart: Resume, exit_wait_s: 5,
             devices: [], photon_label: "origin->px",
+            wakes_by: Doorbell,
         },
         /// The stereo view. After its final report it draws its preview again with the
         /// preview's own camera and encodes it (seconds on a loaded machine).
@@ -201,12 +213,14 @@ stage_table! {
             name: "renderer", role: Reader, selected_by: [],
             cores: Consumers, priority: Idle, on_restart: OwnFolder, exit_wait_s: 60,
             devices: [], photon_label: "origin->px",
+            wakes_by: Event,
         },
         /// The MCAP recording.
         Recorder = 5 {
             name: "recorder", role: Reader, selected_by: [],
             cores: Consumers, priority: Lowered, on_restart: NextSegment, exit_wait_s: 5,
             devices: [], photon_label: "origin->px",
+            wakes_by: Event,
         },
         /// Forwards chosen topics between this session's bus and other machines (zenoh) or a
         /// live Foxglove view: a reader of what it sends out, the publisher of what it takes
@@ -217,6 +231,7 @@ stage_table! {
             name: "bridge", role: Bridge, selected_by: ["remote", "shared"],
             cores: Consumers, priority: Normal, on_restart: Resume, exit_wait_s: 5,
             devices: [], photon_label: "origin->px",
+            wakes_by: Event,
         },
         /// A headset's browser (WebXR hand input): serves the page, publishes the hand it
         /// sends as joints, and sends it the world to draw. Its photon metric is the page's
@@ -225,6 +240,7 @@ stage_table! {
             name: "webxr", role: Source, selected_by: ["webxr"],
             cores: Pipeline, priority: Normal, on_restart: Resume, exit_wait_s: 5,
             devices: [Headset], photon_label: "sent->drawn",
+            wakes_by: Event,
         },
         /// A program of the user's (Python's `handblocks.Source`): started by the launcher
         /// as the session's source, it publishes OpenXR hand joints it made itself (a
@@ -235,6 +251,7 @@ stage_table! {
             name: "external", role: Source, selected_by: ["external"],
             cores: Consumers, priority: Normal, on_restart: Resume, exit_wait_s: 5,
             devices: [External], photon_label: "origin->px",
+            wakes_by: Event,
         },
         /// A flat hand held still (`services/null`), for tests and for measuring a pipeline
         /// whose hand never moves.
@@ -242,8 +259,22 @@ stage_table! {
             name: "null", role: Source, selected_by: ["null"],
             cores: Pipeline, priority: Normal, on_restart: Resume, exit_wait_s: 5,
             devices: [], photon_label: "origin->px",
+            wakes_by: Event,
         },
     }
+}
+
+/// What wakes a stage when a sample comes on one of its inlets (issue 46).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WakesBy {
+    /// Its own doorbell ([`crate::bus::Doorbell`]): one futex word every publisher of a topic
+    /// it reads rings; the cheapest wake-up measured, for a stage that sleeps on its inlets
+    /// and a deadline only.
+    Doorbell,
+    /// iceoryx2's event, a descriptor per inlet slept on in `ppoll`, beside the stage's other
+    /// descriptors (a device, a server's or a zenoh callback's wake), or because it reads
+    /// topics chosen at run time (the recorder, the bridge).
+    Event,
 }
 
 impl Stage {

@@ -14,7 +14,7 @@
 //! a reader of a topic named at run time, which receives its samples as [`SampleView`]s).
 
 use crate::samples::*;
-pub use crate::stage::{Role, Stage};
+pub use crate::stage::{Role, Stage, WakesBy};
 use crate::stamp::{Stamp, Stamped};
 
 pub mod fields;

@@ -241,9 +241,14 @@ impl Subscription {
             };
             // Asleep with the interpreter's lock released: the program's other threads (a
             // GUI, a plot) run meanwhile.
-            let fd = common::bus::wake_fd(&self.inlet);
-            py.detach(|| common::bus::wait_fd(fd, wait))
-                .map_err(bus_err)?;
+            // (A Python program's bus is no stage's, so its inlets always have a descriptor;
+            // without one it would look again every millisecond.)
+            match common::bus::wake_fd(&self.inlet) {
+                Some(fd) => py
+                    .detach(|| common::bus::wait_fd(fd, wait))
+                    .map_err(bus_err)?,
+                None => py.detach(|| std::thread::sleep(wait.min(Duration::from_millis(1)))),
+            }
             common::bus::take_wake_ups(&self.inlet);
         }
     }

@@ -148,6 +148,9 @@ fn run_stage(
     // Every process of a session opens the bus as the session says (world sizes, loss).
     let config = BusConfig::for_session_of(bus_id, &session).map_err(StageError::Bus)?;
     let mut bus = Bus::for_stage(&config, stage).map_err(StageError::Bus)?;
+    if session.wake == common::config::session::WakeUp::Event {
+        bus = bus.woken_by_events();
+    }
     if session.supervise.restart == RestartPolicy::OnFailure {
         bus = bus.supervised(args.restart);
     }

@@ -142,8 +142,8 @@ macro_rules! any_ports {
 crate::topic::each_topic!(any_ports);
 
 impl Wakeable for AnyInlet {
-    fn listener(&self) -> &Listener<ipc::Service> {
-        self.wakeable().listener()
+    fn wake_source(&self) -> WakeSource<'_> {
+        self.wakeable().wake_source()
     }
     fn has_samples(&self) -> bool {
         self.wakeable().has_samples()

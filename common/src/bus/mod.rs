@@ -44,12 +44,14 @@ use crate::stamp::{monotonic_ns, Stamp};
 use crate::topic::{SliceTopicSpec, Stage, Topic, TopicLayout, TopicSpec, TopicVisitor};
 
 mod any;
+mod doorbell;
 mod folder;
 mod ports;
 pub mod semaphore;
 mod wait;
 
 pub use any::{AnyInlet, AnySample};
+pub use doorbell::Doorbell;
 use folder::*;
 pub use folder::{BusConfig, RunningSession};
 use ports::*;
@@ -57,7 +59,7 @@ pub use ports::{Inlet, Outlet, PayloadKind, PubSubBuilder, PubSubService};
 use wait::*;
 pub use wait::{
     take_wake_ups, wait_any, wait_any_or, wait_each, wait_fd, wake_fd, WaitOutcome, WaitRecord,
-    Waiter, Wake, Wakeable, MAX_WAIT,
+    Waiter, Wake, WakeSource, Wakeable, MAX_WAIT,
 };
 
 /// A sample read from an [`Inlet`] of topic `P`: of a fixed-size topic, `payload()` is the
@@ -198,6 +200,9 @@ pub struct Bus {
     /// Set by [`Bus::for_stage`]: this node is a stage of the graph, and may open only the
     /// ports the topic table grants it.
     stage: Option<Stage>,
+    /// Set by [`Bus::for_stage`] for a stage woken by its doorbell
+    /// ([`crate::topic::WakesBy::Doorbell`]): every inlet it opens sleeps on it.
+    doorbell: Option<std::sync::Arc<Doorbell>>,
 }
 
 /// What a stage the launcher may restart does differently ([`Bus::supervised`]).
@@ -240,6 +245,7 @@ impl Bus {
             node_name: node_name.to_string(),
             supervised: None,
             stage: None,
+            doorbell: None,
         })
     }
 
@@ -250,6 +256,10 @@ impl Bus {
     pub fn for_stage(config: &BusConfig, stage: Stage) -> Result<Bus, BusError> {
         let mut bus = Bus::open(config, stage.name())?;
         bus.stage = Some(stage);
+        if stage.wakes_by() == crate::topic::WakesBy::Doorbell {
+            let doorbell = bus.open_doorbell(stage).map_err(BusError::config)?;
+            bus.doorbell = Some(std::sync::Arc::new(doorbell));
+        }
         Ok(bus)
     }
 
@@ -349,6 +359,30 @@ impl Bus {
     }
 
     /// Where this node keeps `topic`'s next seq, when it is supervised.
+    /// This stage's inlets sleep on iceoryx2's event, not on its doorbell, whatever the stage
+    /// table says (`[pipeline] wake = "event"`). Before any inlet is opened.
+    pub fn woken_by_events(mut self) -> Bus {
+        self.doorbell = None;
+        self
+    }
+
+    /// `stage`'s doorbell, in the session's folder (made when it is not there yet).
+    fn open_doorbell(&self, stage: Stage) -> Result<Doorbell, String> {
+        let path = self.root.join(format!("doorbell.{}", stage.name()));
+        Doorbell::open(&path)
+            .map_err(|e| format!("cannot open the doorbell {}: {e}", path.display()))
+    }
+
+    /// The doorbells an outlet of `topic` rings: those of its readers woken by one.
+    fn doorbells(&self, topic: Topic) -> Result<Vec<Doorbell>, BusError> {
+        topic
+            .readers()
+            .iter()
+            .filter(|s| s.wakes_by() == crate::topic::WakesBy::Doorbell)
+            .map(|&s| self.open_doorbell(s).map_err(|e| BusError::port(topic, e)))
+            .collect()
+    }
+
     fn seq_store(&self, topic: Topic) -> Result<Option<SeqStore>, BusError> {
         if self.supervised.is_none() {
             return Ok(None);
@@ -568,11 +602,14 @@ impl Bus {
     ) -> Result<Outlet<P>, BusError> {
         let topic = P::TOPIC;
         let notifier = self.notifier(topic)?;
+        let doorbells = self.doorbells(topic)?;
         let kept = self.seq_store(topic)?;
         let gate = self.connect_gate(topic, self.buffer(topic), move || {
             service.dynamic_config().number_of_subscribers()
         });
-        Ok(Outlet::new(publisher, notifier, capacity, kept, gate))
+        Ok(Outlet::new(
+            publisher, notifier, doorbells, capacity, kept, gate,
+        ))
     }
 
     /// A subscriber on topic `P` (a marker of [`crate::topics`], fixed-size or slice) with its
@@ -597,8 +634,11 @@ impl Bus {
             .buffer_size(self.buffer(topic))
             .create()
             .map_err(|e| BusError::port(topic, e))?;
-        let listener = self.listener(topic)?;
-        Ok(Inlet::new(subscriber, listener, self.seq_count(topic)))
+        let wake = match &self.doorbell {
+            Some(doorbell) => InletWake::Doorbell(doorbell.clone()),
+            None => InletWake::Listener(Box::new(self.listener(topic)?)),
+        };
+        Ok(Inlet::new(subscriber, wake, self.seq_count(topic)))
     }
 }
 

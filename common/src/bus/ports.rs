@@ -69,6 +69,9 @@ pub type PubSubService<Payload, Header> =
 pub struct Outlet<P: TopicLayout> {
     publisher: Publisher<ipc::Service, P::Payload, P::Header>,
     notifier: Notifier<ipc::Service>,
+    /// The doorbells of the stages that read this topic and sleep on one
+    /// ([`crate::topic::WakesBy::Doorbell`]), rung after each send.
+    doorbells: Vec<Doorbell>,
     /// The most elements a sample holds (1 for a fixed-size topic).
     capacity: usize,
     next_seq: u64,
@@ -93,6 +96,7 @@ impl<P: TopicLayout> Outlet<P> {
     pub(super) fn new(
         publisher: Publisher<ipc::Service, P::Payload, P::Header>,
         notifier: Notifier<ipc::Service>,
+        doorbells: Vec<Doorbell>,
         capacity: usize,
         kept: Option<SeqStore>,
         gate: Option<ConnectGate>,
@@ -100,6 +104,7 @@ impl<P: TopicLayout> Outlet<P> {
         Outlet {
             publisher,
             notifier,
+            doorbells,
             capacity,
             next_seq: kept.as_ref().map_or(0, |k| k.load(0)),
             skipped: kept.as_ref().map_or(0, |k| k.load(1)),
@@ -151,6 +156,9 @@ impl<P: TopicLayout> Outlet<P> {
         self.notifier
             .notify()
             .map_err(|e| BusError::send(P::TOPIC, e))?;
+        for doorbell in &self.doorbells {
+            doorbell.ring();
+        }
         self.next_seq += 1;
         Ok(sent)
     }
@@ -469,11 +477,20 @@ impl Drop for SeqStore {
     }
 }
 
-/// A subscriber with its listener, of any topic: counts what arrives and the gaps in `seq`.
+/// A subscriber with what wakes it (iceoryx2's listener, or its stage's doorbell), of any
+/// topic: counts what arrives and the gaps in `seq`.
 pub struct Inlet<P: TopicLayout> {
     subscriber: Subscriber<ipc::Service, P::Payload, P::Header>,
-    listener: Listener<ipc::Service>,
+    wake: InletWake,
     seqs: SeqCount,
+}
+
+/// What an inlet sleeps on: iceoryx2's event listener (a descriptor), or the doorbell of the
+/// stage that opened it, shared by its inlets ([`crate::topic::WakesBy`]).
+pub(super) enum InletWake {
+    /// Boxed: a listener is about 1.4 KB, the doorbell's handle a pointer.
+    Listener(Box<Listener<ipc::Service>>),
+    Doorbell(std::sync::Arc<Doorbell>),
 }
 
 impl<P: TopicLayout> Inlet<P>
@@ -482,12 +499,12 @@ where
 {
     pub(super) fn new(
         subscriber: Subscriber<ipc::Service, P::Payload, P::Header>,
-        listener: Listener<ipc::Service>,
+        wake: InletWake,
         seqs: SeqCount,
     ) -> Inlet<P> {
         Inlet {
             subscriber,
-            listener,
+            wake,
             seqs,
         }
     }
@@ -509,7 +526,13 @@ where
     /// Sleeps until a sample may have arrived, or `timeout` passes, to the nanosecond;
     /// consumes the wake-ups.
     pub fn wait(&self, timeout: Duration) -> Result<(), BusError> {
-        wait_on(&self.listener, timeout)
+        match &self.wake {
+            InletWake::Listener(listener) => wait_on(listener, timeout),
+            InletWake::Doorbell(doorbell) => {
+                doorbell.wait_unless(|| self.has_samples(), timeout);
+                Ok(())
+            }
+        }
     }
 
     pub fn received(&self) -> u64 {
@@ -526,8 +549,11 @@ where
     }
 
     /// What [`Wakeable`] sleeps on.
-    pub(super) fn listener(&self) -> &Listener<ipc::Service> {
-        &self.listener
+    pub(super) fn wake_source(&self) -> WakeSource<'_> {
+        match &self.wake {
+            InletWake::Listener(listener) => WakeSource::Listener(listener),
+            InletWake::Doorbell(doorbell) => WakeSource::Doorbell(doorbell),
+        }
     }
 
     /// True when a sample waits (an error counts as one: the receive will say what it is).

@@ -2,20 +2,37 @@
 
 use super::*;
 
-/// Something a process can sleep on: an inlet's wake-up listener; and poll: whether a
-/// sample waits in it.
+/// Something a process can sleep on: an inlet's wake-up listener or its stage's doorbell; and
+/// poll: whether a sample waits in it.
 pub trait Wakeable {
-    fn listener(&self) -> &Listener<ipc::Service>;
+    fn wake_source(&self) -> WakeSource<'_>;
     /// True when a sample is there to receive (a poll that takes nothing).
     fn has_samples(&self) -> bool;
+}
+
+/// What an inlet sleeps on ([`crate::topic::WakesBy`]).
+pub enum WakeSource<'a> {
+    /// iceoryx2's event listener: a descriptor, slept on in `ppoll` with any others.
+    Listener(&'a Listener<ipc::Service>),
+    /// The doorbell of the stage that opened the inlet: one futex word for all its inlets.
+    Doorbell(&'a Doorbell),
+}
+
+impl WakeSource<'_> {
+    fn listener(&self) -> Option<&Listener<ipc::Service>> {
+        match self {
+            WakeSource::Listener(l) => Some(l),
+            WakeSource::Doorbell(_) => None,
+        }
+    }
 }
 
 impl<P: TopicLayout> Wakeable for Inlet<P>
 where
     P::Payload: PayloadKind,
 {
-    fn listener(&self) -> &Listener<ipc::Service> {
-        Inlet::listener(self)
+    fn wake_source(&self) -> WakeSource<'_> {
+        Inlet::wake_source(self)
     }
     fn has_samples(&self) -> bool {
         Inlet::has_samples(self)
@@ -331,7 +348,7 @@ impl Waiter {
 
     fn drain_wakeups(&self, inlets: &[&dyn Wakeable]) {
         for inlet in inlets {
-            let _ = inlet.listener().try_wait(|_| {});
+            take_wake_ups(*inlet);
         }
     }
 }
@@ -404,18 +421,34 @@ pub fn wait_each<'a>(
     timeout: Duration,
 ) -> Result<(), BusError> {
     use iceoryx2::prelude::FileDescriptorBased;
+    // Inlets of a stage woken by its doorbell share it: with no other descriptor to watch,
+    // the stage sleeps on the doorbell alone.
+    let doorbell = inlets.clone().find_map(|i| match i.wake_source() {
+        WakeSource::Doorbell(d) => Some(d),
+        WakeSource::Listener(_) => None,
+    });
+    let listeners = inlets
+        .clone()
+        .filter(|i| i.wake_source().listener().is_some())
+        .count();
+    if let (Some(doorbell), 0, None) = (doorbell, listeners, other) {
+        doorbell.wait_unless(|| inlets.clone().any(|i| i.has_samples()), timeout);
+        return Ok(());
+    }
     let mut fds = [libc::pollfd {
         fd: -1,
         events: 0,
         revents: 0,
     }; MAX_WAIT + 1];
     let mut n = 0;
-    for (slot, inlet) in fds[..MAX_WAIT].iter_mut().zip(inlets.clone()) {
-        // SAFETY: the descriptor stays owned by the listener, which outlives this call; we only
-        // poll it.
-        slot.fd = unsafe { inlet.listener().file_descriptor().native_handle() };
-        slot.events = libc::POLLIN;
-        n += 1;
+    for inlet in inlets.clone() {
+        if let (Some(listener), true) = (inlet.wake_source().listener(), n < MAX_WAIT) {
+            // SAFETY: the descriptor stays owned by the listener, which outlives this call; we
+            // only poll it.
+            fds[n].fd = unsafe { listener.file_descriptor().native_handle() };
+            fds[n].events = libc::POLLIN;
+            n += 1;
+        }
     }
     let mut watched = n;
     if let Some(fd) = other {
@@ -423,9 +456,18 @@ pub fn wait_each<'a>(
         fds[n].events = libc::POLLIN;
         watched += 1;
     }
+    // A doorbell cannot join a `ppoll`: a stage that mixes one with descriptors (none of the
+    // table's does) looks at its doorbell's inlets every millisecond.
+    let timeout = if doorbell.is_some() && !inlets.clone().any(|i| i.has_samples()) {
+        timeout.min(Duration::from_millis(1))
+    } else if doorbell.is_some() {
+        Duration::ZERO
+    } else {
+        timeout
+    };
     poll_readable(&mut fds[..watched], timeout)?;
-    for inlet in inlets.take(n) {
-        let _ = inlet.listener().try_wait(|_| {});
+    for inlet in inlets {
+        take_wake_ups(inlet);
     }
     Ok(())
 }
@@ -434,10 +476,16 @@ pub fn wait_each<'a>(
 /// on it without holding something else (Python's reader sleeps with the interpreter's lock
 /// released, so its other threads run): [`wait_fd`], then [`take_wake_ups`]. The listener
 /// owns it; it is valid while the inlet is.
-pub fn wake_fd(inlet: &dyn Wakeable) -> std::os::fd::RawFd {
+///
+/// None for an inlet of a stage woken by its doorbell, which has no descriptor (sleep on it
+/// with [`Inlet::wait`] or [`wait_any`]).
+pub fn wake_fd(inlet: &dyn Wakeable) -> Option<std::os::fd::RawFd> {
     use iceoryx2::prelude::FileDescriptorBased;
     // SAFETY: the descriptor stays owned by the listener; the caller only polls it.
-    unsafe { inlet.listener().file_descriptor().native_handle() }
+    inlet
+        .wake_source()
+        .listener()
+        .map(|l| unsafe { l.file_descriptor().native_handle() })
 }
 
 /// Sleeps until `fd` (a [`wake_fd`]) is readable, or `timeout` passes, to the nanosecond.
@@ -452,7 +500,9 @@ pub fn wait_fd(fd: std::os::fd::RawFd, timeout: Duration) -> Result<(), BusError
 
 /// Takes the wake-ups `inlet` has had, so that its descriptor sleeps again.
 pub fn take_wake_ups(inlet: &dyn Wakeable) {
-    let _ = inlet.listener().try_wait(|_| {});
+    if let Some(listener) = inlet.wake_source().listener() {
+        let _ = listener.try_wait(|_| {});
+    }
 }
 
 /// Sleeps on `listener` until a sample may have arrived, or `timeout` passes, to the

@@ -478,6 +478,13 @@ pub(crate) const DOCS: &[Doc] = &[
          until shortly before the next sample is due, then poll a bounded window.",
     ),
     session(
+        "pipeline.wake",
+        "",
+        "What wakes a sleeping stage: \"doorbell\": kinematics and the stepper each sleep on a \
+         futex word every publisher of what they read rings (the cheapest wake-up measured); \
+         \"event\": every stage on iceoryx2's event (a Unix datagram per inlet), as before.",
+    ),
+    session(
         "supervise",
         "",
         "What the launcher does when a process dies mid-session (a crash, SIGKILL).",

@@ -26,6 +26,8 @@ pub struct Session {
     pub hand_model: HandModelSpec,
     /// `[pipeline]`: how the pipeline's stages wait for their next sample.
     pub wait: WaitStrategy,
+    /// `[pipeline] wake`: what wakes a stage that sleeps for its next sample.
+    pub wake: WakeUp,
     /// `[supervise]`: what the launcher does when a process dies mid-session.
     pub supervise: Supervise,
     /// `[remote]`, `[source] kind = "remote"` and `[viewer]`: what the bridge process forwards
@@ -268,6 +270,29 @@ impl WaitStrategy {
             WaitStrategy::Event => "event",
             WaitStrategy::Spin => "spin",
             WaitStrategy::Adaptive => "adaptive",
+        }
+    }
+}
+
+/// What wakes a sleeping stage when a sample comes (`[pipeline] wake`, issue 46).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WakeUp {
+    /// The stages the stage table marks (kinematics, the stepper) sleep on a doorbell of
+    /// their own, a futex word every publisher of what they read rings
+    /// ([`crate::bus::Doorbell`]); the others on iceoryx2's event.
+    #[default]
+    Doorbell,
+    /// Every stage sleeps on iceoryx2's event (a Unix datagram per inlet, slept on in
+    /// `ppoll`): the wake-up before issue 46, kept to measure against.
+    Event,
+}
+
+impl WakeUp {
+    /// Its name as the session key `[pipeline] wake` gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            WakeUp::Doorbell => "doorbell",
+            WakeUp::Event => "event",
         }
     }
 }
@@ -610,6 +635,7 @@ impl Session {
                  render (mode = \"headless\" or \"window\")",
             ));
         }
+        let (wait, wake) = pipeline(r.table("pipeline")?)?;
         let session = Session {
             file: file.to_path_buf(),
             scene_file,
@@ -622,7 +648,8 @@ impl Session {
                 Some(f) => HandModelSpec::load(&dir.join(f))?,
                 None => HandModelSpec::default(),
             },
-            wait: pipeline(r.table("pipeline")?)?,
+            wait,
+            wake,
             supervise: supervise(r.table("supervise")?)?,
             bridge,
         };
@@ -642,17 +669,21 @@ impl Session {
 /// `[pipeline] wait`: "event" (sleep until woken, the default), "spin" (poll always, for
 /// machines with cores to spare) or "adaptive" (sleep until shortly before the next sample is
 /// due, then poll a bounded window, then sleep on the event).
-fn pipeline(r: Option<Reader>) -> Result<WaitStrategy, ConfigError> {
+fn pipeline(r: Option<Reader>) -> Result<(WaitStrategy, WakeUp), ConfigError> {
     let Some(r) = r else {
-        return Ok(WaitStrategy::default());
+        return Ok((WaitStrategy::default(), WakeUp::default()));
     };
     let wait = match r.choice("wait", &["event", "spin", "adaptive"])? {
         "spin" => WaitStrategy::Spin,
         "adaptive" => WaitStrategy::Adaptive,
         _ => WaitStrategy::Event,
     };
+    let wake = match r.choice("wake", &["doorbell", "event"])? {
+        "event" => WakeUp::Event,
+        _ => WakeUp::Doorbell,
+    };
     r.finish()?;
-    Ok(wait)
+    Ok((wait, wake))
 }
 
 /// `[supervise]`: restarting a process that dies mid-session ([`Supervise`]).
@@ -1023,6 +1054,11 @@ mod tests {
         assert_eq!(s.wait, WaitStrategy::Adaptive);
         let s = load("scene = \"scene.toml\"\n[pipeline]\nwait = \"spin\"\n").unwrap();
         assert_eq!(s.wait, WaitStrategy::Spin);
+        assert_eq!(s.wake, WakeUp::Doorbell, "the doorbell unless asked");
+        let s = load("scene = \"scene.toml\"\n[pipeline]\nwake = \"event\"\n").unwrap();
+        assert_eq!((s.wait, s.wake), (WaitStrategy::Event, WakeUp::Event));
+        let e = load("scene = \"scene.toml\"\n[pipeline]\nwake = \"bell\"\n").unwrap_err();
+        assert_eq!(e.key, "pipeline.wake");
         let e = load("scene = \"scene.toml\"\n[pipeline]\nwait = \"nap\"\n").unwrap_err();
         assert_eq!(e.key, "pipeline.wait");
         assert!(

@@ -76,6 +76,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         },
         hand_model: HandModelSpec::default(),
         wait: common::bus::WaitStrategy::Event,
+        wake: common::config::session::WakeUp::Doorbell,
         supervise: Default::default(),
         bridge: Default::default(),
     };

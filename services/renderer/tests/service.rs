@@ -53,6 +53,7 @@ fn session() -> Session {
         },
         hand_model: HandModelSpec::default(),
         wait: common::bus::WaitStrategy::Event,
+        wake: common::config::session::WakeUp::Doorbell,
         supervise: Default::default(),
         bridge: Default::default(),
     }
