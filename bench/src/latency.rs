@@ -35,6 +35,9 @@ pub struct LatencyBench {
     pub out_dir: PathBuf,
     /// A shortened run (`bench latency all --quick`); the page says so.
     pub quick: bool,
+    /// Whole runs, one after another (each the bare hops and every session); each figure
+    /// published is the median of the runs', their spread beside it.
+    pub runs: u64,
 }
 
 /// The publishing half of the peer, run as its own process by the benchmark.
@@ -114,8 +117,139 @@ fn ratio(a: f64, b: f64) -> f64 {
     }
 }
 
-/// Runs the benchmark; prints a table and writes `latency.json` into the output folder.
+/// Runs the benchmark `b.runs` times; writes `pipeline.json` (every number the median of the
+/// runs', and each run whole under `runs`), `pipeline.md` (medians with their spread) and
+/// `latency.json`'s `pipeline` rows (medians); `pipeline.png` is the last run's.
 pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
+    let n = b.runs.max(1);
+    let mut values = Vec::new();
+    let mut rows = Vec::new();
+    for k in 0..n {
+        if n > 1 {
+            eprintln!("bench latency: run {} of {n}", k + 1);
+        }
+        let (v, r) = run_once(b)?;
+        values.push(v);
+        rows.push(r);
+    }
+    let mut value = median_of(&values.iter().collect::<Vec<_>>());
+    // The adaptive waits' per-arrival traces are the last run's (counts of one run).
+    if let (Some(waits), Some(last)) = (
+        value["wait_strategies"].as_array_mut(),
+        values.last().and_then(|l| l["wait_strategies"].as_array()),
+    ) {
+        for (w, l) in waits.iter_mut().zip(last) {
+            if let (Some(o), Some(t)) = (w.as_object_mut(), l.get("trace")) {
+                o.insert("trace".into(), t.clone());
+            }
+        }
+    }
+    value["runs"] = Value::Array(values);
+    let rows = median_of(&rows.iter().collect::<Vec<_>>());
+    let file = b.out_dir.join("pipeline.json");
+    std::fs::write(&file, serde_json::to_string_pretty(&value)? + "\n")?;
+    let merged = merge_into_latency_json(&b.out_dir, "pipeline", rows)?;
+    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
+    std::fs::write(b.out_dir.join("pipeline.md"), markdown(&value, &provenance))?;
+    eprintln!(
+        "bench latency: wrote {}, pipeline.md and {} ({n} run{}: each figure the median)",
+        file.display(),
+        merged.display(),
+        if n == 1 { "" } else { "s" }
+    );
+    Ok(value)
+}
+
+/// `values` (the same shape: one run's JSON each) with every number the median of theirs at
+/// the same place (arrays matched by index; a place a run lacks is left out of its median).
+fn median_of(values: &[&Value]) -> Value {
+    let Some(first) = values.first() else {
+        return Value::Null;
+    };
+    match first {
+        Value::Number(_) => {
+            let mut xs: Vec<f64> = values.iter().filter_map(|v| v.as_f64()).collect();
+            xs.sort_by(f64::total_cmp);
+            let m = match xs.len() {
+                0 => return (*first).clone(),
+                n if n % 2 == 1 => xs[n / 2],
+                n => (xs[n / 2 - 1] + xs[n / 2]) / 2.0,
+            };
+            if values.iter().all(|v| v.is_u64()) && m.fract() == 0.0 {
+                json!(m as u64)
+            } else {
+                json!((m * 1000.0).round() / 1000.0)
+            }
+        }
+        Value::Object(o) => Value::Object(
+            o.keys()
+                .map(|k| {
+                    let at: Vec<&Value> = values.iter().filter_map(|v| v.get(k)).collect();
+                    (k.clone(), median_of(&at))
+                })
+                .collect(),
+        ),
+        Value::Array(a) => Value::Array(
+            a.iter()
+                .enumerate()
+                .map(|(i, x)| {
+                    // Rows (a stage's metric, a wait's session) are matched by what names
+                    // them; anything else by its place.
+                    let at: Vec<&Value> = match row_key(x) {
+                        Some(key) => values
+                            .iter()
+                            .filter_map(|v| {
+                                v.as_array()?
+                                    .iter()
+                                    .find(|y| row_key(y).as_ref() == Some(&key))
+                            })
+                            .collect(),
+                        None => values.iter().filter_map(|v| v.get(i)).collect(),
+                    };
+                    median_of(&at)
+                })
+                .collect(),
+        ),
+        other => (*other).clone(),
+    }
+}
+
+/// What names a row of a run's JSON: its stage, metric, transport, wait and wake, where it
+/// has any.
+fn row_key(v: &Value) -> Option<String> {
+    let o = v.as_object()?;
+    let key: Vec<&str> = ["stage", "metric", "transport", "wait", "wake"]
+        .iter()
+        .filter_map(|k| o.get(*k).and_then(Value::as_str))
+        .collect();
+    (!key.is_empty()).then(|| key.join("/"))
+}
+
+/// The runs' lowest and highest number at `path` in `v["runs"]` (None with fewer than two).
+fn spread(v: &Value, path: &[&str]) -> Option<(f64, f64)> {
+    let xs: Vec<f64> = v["runs"]
+        .as_array()?
+        .iter()
+        .filter_map(|r| {
+            path.iter()
+                .try_fold(r, |at, key| match key.parse::<usize>() {
+                    Ok(i) => at.get(i),
+                    Err(_) => at.get(*key),
+                })
+                .and_then(Value::as_f64)
+        })
+        .collect();
+    (xs.len() > 1).then(|| {
+        xs.iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+                (lo.min(x), hi.max(x))
+            })
+    })
+}
+
+/// One run: the bare hops and every session. Its JSON (`pipeline.json`'s shape) and its
+/// `latency.json` rows; writes `pipeline.png`.
+fn run_once(b: &LatencyBench) -> Result<(Value, Value), Box<dyn std::error::Error>> {
     eprintln!(
         "bench latency: bare two-process hops (iceoryx2, futex, eventfd; hand-sized, 120 Hz) for {:.0} s each ...",
         b.seconds
@@ -299,8 +433,6 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         "session": report.json(),
     });
     std::fs::create_dir_all(&b.out_dir)?;
-    let file = b.out_dir.join("pipeline.json");
-    std::fs::write(&file, serde_json::to_string_pretty(&value)? + "\n")?;
     // The suite's file: per stage its hop, processing and origin -> out, origin -> world and
     // origin -> photon, and the bare hop, each with its p99 as a ratio to the bare hop's.
     let row = |stage: &str, metric: &str, x: Summary| {
@@ -331,17 +463,8 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         r["transport"] = json!(name);
         rows.push(r);
     }
-    let merged = merge_into_latency_json(&b.out_dir, "pipeline", Value::Array(rows))?;
-    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
-    std::fs::write(b.out_dir.join("pipeline.md"), markdown(&value, &provenance))?;
-    let drawn = figure(report, &peer_histogram).write_png(&b.out_dir.join("pipeline.png"))?;
-    eprintln!(
-        "bench latency: wrote {}, pipeline.md, {}{}",
-        file.display(),
-        merged.display(),
-        if drawn { " and pipeline.png" } else { "" }
-    );
-    Ok(value)
+    figure(report, &peer_histogram).write_png(&b.out_dir.join("pipeline.png"))?;
+    Ok((value, Value::Array(rows)))
 }
 
 /// `pipeline.md`: what was measured, how to read it, the run, the figure and the tables, from
@@ -363,8 +486,12 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
          How to read it: a ratio of 1.00 means the stage wakes as fast as a bare hop; 2.00, \
          twice as slow at p99. Origin -> world is the age of the world a stage sends (from \
          when the hand sample entered the pipeline: three hops and two stages' work), with \
-         its target p99 <= 200 us. The figure draws the same histograms by percentile (p50 \
-         to the tail, HdrHistogram's log axis).",
+         its target p99 <= 200 us and <= 3x the bare hop's p99. {runs} whole runs, one \
+         after another: every figure is the median of the runs' (the peer too, which may be \
+         a different bare hop in each run), the lowest and highest run in brackets; \
+         `pipeline.json` keeps each run whole under `runs`. The figure draws the last run's \
+         histograms by percentile (p50 to the tail, HdrHistogram's log axis).",
+        runs = v["runs"].as_array().map_or(1, |r| r.len()),
         s = v["seconds"].as_f64().unwrap_or(0.0),
         peer = v["peer"].as_str().unwrap_or("-"),
         wake = v["wake"].as_str().unwrap_or("-"),
@@ -374,14 +501,33 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
         &what,
         provenance,
     );
+    // A median with its runs' spread: "91.6 (85.0-107.5)".
+    let spread_of = |path: &[&str]| {
+        spread(v, path).map_or(String::new(), |(lo, hi)| format!(" ({lo:.1}-{hi:.1})"))
+    };
+    let at = |path: &[&str]| {
+        let x = path
+            .iter()
+            .try_fold(v, |at, key| match key.parse::<usize>() {
+                Ok(i) => at.get(i),
+                Err(_) => at.get(*key),
+            });
+        format!("{}{}", x.map_or("-".to_string(), us), spread_of(path))
+    };
+    let world_p99 = v["origin_to_world_us"]["p99"].as_f64().unwrap_or(f64::NAN);
+    let over = v["origin_to_world_p99_over_peer_hop_p99"]
+        .as_f64()
+        .unwrap_or(f64::NAN);
     md.push_str(&format!(
-        "**origin -> world p50 {} us, p99 {} us** (target p99 <= 200 us; {}x the bare hop's p99); \
-         **{} samples dropped**.\n\n",
-        us(&v["origin_to_world_us"]["p50"]),
-        us(&v["origin_to_world_us"]["p99"]),
-        v["origin_to_world_p99_over_peer_hop_p99"]
-            .as_f64()
-            .map_or("-".to_string(), |r| format!("{r:.2}")),
+        "**origin -> world p50 {} us, p99 {} us** under `[pipeline] wait = \"event\"`, wake \
+         `{}` (goals: p99 <= 200 us, {}; p99 <= 3x the bare hop's p99, {}: {over:.2}x, the \
+         bare hop's p99 {} us); **{} samples dropped**.\n\n",
+        at(&["origin_to_world_us", "p50"]),
+        at(&["origin_to_world_us", "p99"]),
+        v["wake"].as_str().unwrap_or("-"),
+        if world_p99 <= 200.0 { "met" } else { "not met" },
+        if over <= 3.0 { "met" } else { "not met" },
+        at(&["peer_hop_us", "p99"]),
         v["dropped"],
     ));
     md.push_str(&page::figure(
@@ -392,12 +538,22 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
         "## Hop into each stage\n\n| hop into | p50 (us) | p90 | p99 | p99.9 | max | count | p99 / bare hop p99 |\n|---|---|---|---|---|---|---|---|\n",
     );
     let peer = &v["peer_hop_us"];
-    let row = |name: &str, h: &Value, ratio: String| {
+    // A row of histogram figures at `path`, p50 and p99 with their runs' spread.
+    let row = |name: &str, path: &[&str], ratio: String| {
+        let h = path
+            .iter()
+            .try_fold(v, |at, key| at.get(*key))
+            .unwrap_or(&Value::Null);
+        let with = |k: &str| {
+            let mut p = path.to_vec();
+            p.push(k);
+            at(&p)
+        };
         format!(
             "| {name} | {} | {} | {} | {} | {} | {} | {ratio} |\n",
-            us(&h["p50"]),
+            with("p50"),
             us(&h["p90"]),
-            us(&h["p99"]),
+            with("p99"),
             us(&h["p999"]),
             us(&h["max"]),
             h["count"]
@@ -405,22 +561,24 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
     };
     md.push_str(&row(
         &format!("bare hop (peer: {})", v["peer"].as_str().unwrap_or("-")),
-        peer,
+        &["peer_hop_us"],
         "1.00".into(),
     ));
     for (name, h) in v["bare_hops_us"].as_object().into_iter().flatten() {
-        if Some(name.as_str()) != v["peer"].as_str() {
-            let r = match (h["p99"].as_f64(), peer["p99"].as_f64()) {
-                (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
-                _ => "-".into(),
-            };
-            md.push_str(&row(&format!("bare hop ({name})"), h, r));
-        }
+        let r = match (h["p99"].as_f64(), peer["p99"].as_f64()) {
+            (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
+            _ => "-".into(),
+        };
+        md.push_str(&row(
+            &format!("bare hop ({name})"),
+            &["bare_hops_us", name],
+            r,
+        ));
     }
     for (stage, x) in v["stages"].as_object().into_iter().flatten() {
         md.push_str(&row(
             stage,
-            &x["hop_us"],
+            &["stages", stage, "hop_us"],
             x["hop_p99_over_peer_p99"]
                 .as_f64()
                 .map_or("-".into(), |r| format!("{r:.2}")),
@@ -429,13 +587,19 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
     md.push_str(
         "\n## Each `[pipeline] wait` strategy and wake-up, a session each\n\n| wait | wake | origin -> world p50 (us) | p99 | dropped | CPU seconds per stage |\n|---|---|---|---|---|---|\n",
     );
-    for w in v["wait_strategies"].as_array().into_iter().flatten() {
+    for (i, w) in v["wait_strategies"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .enumerate()
+    {
+        let i = i.to_string();
         md.push_str(&format!(
             "| {} | {} | {} | {} | {} | {} |\n",
             w["wait"].as_str().unwrap_or(""),
             w["wake"].as_str().unwrap_or(""),
-            us(&w["origin_to_world_us"]["p50"]),
-            us(&w["origin_to_world_us"]["p99"]),
+            at(&["wait_strategies", &i, "origin_to_world_us", "p50"]),
+            at(&["wait_strategies", &i, "origin_to_world_us", "p99"]),
             w["dropped"],
             w["cpu_s"]
                 .as_object()

@@ -72,6 +72,7 @@ fn latency(
             seconds,
             out_dir: out.clone(),
             quick: all && quick,
+            runs: sweep.runs,
         })?;
     }
     if all || part == LatencyPart::Load {

@@ -484,7 +484,7 @@ pub enum BenchKind {
         /// `pipeline` only: seconds for the peer, and again for the session.
         #[arg(long, default_value = "10", value_parser = parse_seconds)]
         seconds: Duration,
-        /// `transport` only: whole sweeps, one after another; each p50 and p99 published is
+        /// `transport` and `pipeline`: whole runs, one after another; each figure published is
         /// the median of the runs', with their spread.
         #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=20))]
         runs: u64,
