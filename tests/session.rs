@@ -717,6 +717,7 @@ fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() 
     let rows = v["transport"].as_array().unwrap();
     let transports = [
         "iceoryx2",
+        "iceoryx2-doorbell",
         "iceoryx2-semaphore",
         "iceoryx2-poll",
         "futex",
@@ -729,7 +730,7 @@ fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() 
     // Issue 46: the wake-up the pipeline uses is marked, and only it.
     assert!(rows
         .iter()
-        .all(|r| (r["pipeline"] == true) == (r["transport"] == "iceoryx2")));
+        .all(|r| (r["pipeline"] == true) == (r["transport"] == "iceoryx2-doorbell")));
     assert_eq!(
         v["zenoh_over_iceoryx2"].as_array().map(|a| a.len()),
         Some(5 * 2)

@@ -2372,6 +2372,7 @@ mod tests {
                 commit: "abc1234".into(),
                 machine: "a CPU, 2 CPUs available to the run".into(),
                 quick: true,
+                quietness: None,
             },
         );
         assert!(md.contains("| push | paper | 60 Hz | - | mm |"), "{md}");

@@ -122,6 +122,7 @@ fn ratio(a: f64, b: f64) -> f64 {
 /// `latency.json`'s `pipeline` rows (medians); `pipeline.png` is the last run's.
 pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
     let n = b.runs.max(1);
+    let quiet = crate::page::Quietness::start();
     let mut values = Vec::new();
     let mut rows = Vec::new();
     for k in 0..n {
@@ -145,11 +146,12 @@ pub fn run(b: &LatencyBench) -> Result<Value, Box<dyn std::error::Error>> {
         }
     }
     value["runs"] = Value::Array(values);
+    value["how_quiet"] = json!(quiet.line());
     let rows = median_of(&rows.iter().collect::<Vec<_>>());
     let file = b.out_dir.join("pipeline.json");
     std::fs::write(&file, serde_json::to_string_pretty(&value)? + "\n")?;
     let merged = merge_into_latency_json(&b.out_dir, "pipeline", rows)?;
-    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
+    let provenance = Provenance::of_this_run(b.quick, &b.out_dir).with_quietness(&quiet);
     std::fs::write(b.out_dir.join("pipeline.md"), markdown(&value, &provenance))?;
     eprintln!(
         "bench latency: wrote {}, pipeline.md and {} ({n} run{}: each figure the median)",
@@ -470,6 +472,11 @@ fn run_once(b: &LatencyBench) -> Result<(Value, Value), Box<dyn std::error::Erro
 /// `pipeline.md`: what was measured, how to read it, the run, the figure and the tables, from
 /// the JSON this run wrote (so the page and `pipeline.json` cannot disagree).
 fn markdown(v: &Value, provenance: &Provenance) -> String {
+    // Each session's length, for CPU per second.
+    let seconds = v["seconds"]
+        .as_f64()
+        .filter(|s| *s > 0.0)
+        .unwrap_or(f64::NAN);
     let us = |x: &Value| x.as_f64().map_or("-".to_string(), |x| format!("{x:.1}"));
     let what = format!(
         "What the pipeline adds to the transport. The peer is the floor any stage could reach \
@@ -585,7 +592,7 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
         ));
     }
     md.push_str(
-        "\n## Each `[pipeline] wait` strategy and wake-up, a session each\n\n| wait | wake | origin -> world p50 (us) | p99 | dropped | CPU seconds per stage |\n|---|---|---|---|---|---|\n",
+        "\n## Each `[pipeline] wait` strategy and wake-up, a session each\n\n| wait | wake | origin -> world p50 (us) | p99 | dropped | CPU ms per second, per stage |\n|---|---|---|---|---|---|\n",
     );
     for (i, w) in v["wait_strategies"]
         .as_array()
@@ -605,7 +612,10 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
                 .as_object()
                 .map(|m| m
                     .iter()
-                    .map(|(k, v)| format!("{k} {v}"))
+                    .map(|(k, v)| format!(
+                        "{k} {:.1}",
+                        v.as_f64().unwrap_or(f64::NAN) / seconds * 1000.0
+                    ))
                     .collect::<Vec<_>>()
                     .join(", "))
                 .unwrap_or_default()

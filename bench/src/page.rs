@@ -23,6 +23,8 @@ pub struct Provenance {
     /// The CPU model (`/proc/cpuinfo`) and the CPUs this process may use.
     pub machine: String,
     pub quick: bool,
+    /// How quiet the machine was ([`Quietness::line`]), where the bench measured it.
+    pub quietness: Option<String>,
 }
 
 impl Provenance {
@@ -35,8 +37,88 @@ impl Provenance {
             commit: commit(out_dir),
             machine: machine(),
             quick,
+            quietness: None,
         }
     }
+
+    /// The same, with how quiet the machine was since `q` started.
+    pub fn with_quietness(mut self, q: &Quietness) -> Provenance {
+        self.quietness = Some(q.line());
+        self
+    }
+}
+
+/// How busy the machine was with other work during a run: the CPU time every process used
+/// (`/proc/stat`) less this process's and its waited-for children's (`getrusage`), and the
+/// time the hypervisor took (steal). A latency figure from a machine that was doing something
+/// else is not the machine's.
+pub struct Quietness {
+    started: std::time::Instant,
+    busy_s: f64,
+    steal_s: f64,
+    own_s: f64,
+}
+
+impl Quietness {
+    pub fn start() -> Quietness {
+        let (busy_s, steal_s) = machine_cpu_s();
+        Quietness {
+            started: std::time::Instant::now(),
+            busy_s,
+            steal_s,
+            own_s: own_cpu_s(),
+        }
+    }
+
+    /// "other processes 1.2 CPU-s in 605 s (0.1 % of 2 CPUs); steal 0.0 %".
+    pub fn line(&self) -> String {
+        let (busy_s, steal_s) = machine_cpu_s();
+        let wall = self.started.elapsed().as_secs_f64();
+        let cpus = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
+        let others = ((busy_s - self.busy_s) - (own_cpu_s() - self.own_s)).max(0.0);
+        let share = |x: f64| {
+            if wall > 0.0 {
+                100.0 * x / (wall * cpus)
+            } else {
+                0.0
+            }
+        };
+        format!(
+            "other processes {others:.1} CPU-s in {wall:.0} s ({:.1} % of {cpus:.0} CPUs); \
+             steal {:.1} %",
+            share(others),
+            share(steal_s - self.steal_s)
+        )
+    }
+}
+
+/// Every CPU's busy time (user, nice, system, irq, softirq) and steal, seconds, since boot.
+fn machine_cpu_s() -> (f64, f64) {
+    let text = std::fs::read_to_string("/proc/stat").unwrap_or_default();
+    let fields: Vec<f64> = text
+        .lines()
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .skip(1)
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    // SAFETY: sysconf reads a constant.
+    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
+    let at = |i: usize| fields.get(i).copied().unwrap_or(0.0);
+    ((at(0) + at(1) + at(2) + at(5) + at(6)) / hz, at(7) / hz)
+}
+
+/// This process's CPU time and its waited-for children's, seconds.
+fn own_cpu_s() -> f64 {
+    let of = |who| {
+        // SAFETY: getrusage fills the struct on the stack.
+        let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+        unsafe { libc::getrusage(who, &mut u) };
+        let t = |tv: libc::timeval| tv.tv_sec as f64 + tv.tv_usec as f64 * 1e-6;
+        t(u.ru_utime) + t(u.ru_stime)
+    };
+    of(libc::RUSAGE_SELF) + of(libc::RUSAGE_CHILDREN)
 }
 
 /// The arguments, quoted for a shell where needed, after `handblocks`.
@@ -141,6 +223,9 @@ pub fn head(title: &str, what: &str, p: &Provenance) -> String {
     let _ = writeln!(s, "- when: {}", p.date_utc);
     let _ = writeln!(s, "- commit: {}", p.commit);
     let _ = writeln!(s, "- machine: {}", p.machine);
+    if let Some(q) = &p.quietness {
+        let _ = writeln!(s, "- how quiet: {q}");
+    }
     s.push('\n');
     s
 }
@@ -179,6 +264,7 @@ mod tests {
             commit: "abc1234".into(),
             machine: "a CPU, 2 CPUs available to the run".into(),
             quick: true,
+            quietness: None,
         };
         let h = head("T", "What.", &p);
         assert!(h.starts_with("# T\n\nWhat.\n\n"));

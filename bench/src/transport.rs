@@ -4,6 +4,9 @@
 //!
 //! * `iceoryx2`: a zero-copy publish-subscribe service of byte slices, the reader woken by an
 //!   event service and sleeping in `ppoll` on its listener (what the pipeline does);
+//! * `iceoryx2-doorbell`: the same service, the reader woken by a doorbell
+//!   (`common::bus::Doorbell`: a futex word the writer rings after each send), as the
+//!   pipeline's kinematics and stepper are (issue 46);
 //! * `iceoryx2-semaphore`: the same service, the reader woken by an event service of
 //!   `common::bus::semaphore::SemaphoreIpc` (iceoryx2's semaphore event: a futex in shared
 //!   memory, no socket) and sleeping on its listener (issue 46);
@@ -65,6 +68,7 @@ pub const PACED_HZ: f64 = 120.0;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Transport {
     Iceoryx2,
+    Iceoryx2Doorbell,
     Iceoryx2Semaphore,
     Iceoryx2Poll,
     Futex,
@@ -75,8 +79,9 @@ pub enum Transport {
 }
 
 impl Transport {
-    pub const ALL: [Transport; 8] = [
+    pub const ALL: [Transport; 9] = [
         Transport::Iceoryx2,
+        Transport::Iceoryx2Doorbell,
         Transport::Iceoryx2Semaphore,
         Transport::Iceoryx2Poll,
         Transport::Futex,
@@ -90,6 +95,7 @@ impl Transport {
     pub fn name(self) -> &'static str {
         match self {
             Transport::Iceoryx2 => "iceoryx2",
+            Transport::Iceoryx2Doorbell => "iceoryx2-doorbell",
             Transport::Iceoryx2Semaphore => "iceoryx2-semaphore",
             Transport::Iceoryx2Poll => "iceoryx2-poll",
             Transport::Futex => "futex",
@@ -107,7 +113,10 @@ impl Transport {
     fn is_iceoryx2(self) -> bool {
         matches!(
             self,
-            Transport::Iceoryx2 | Transport::Iceoryx2Semaphore | Transport::Iceoryx2Poll
+            Transport::Iceoryx2
+                | Transport::Iceoryx2Doorbell
+                | Transport::Iceoryx2Semaphore
+                | Transport::Iceoryx2Poll
         )
     }
 
@@ -249,9 +258,10 @@ pub struct TransportBench {
     pub only: Vec<Transport>,
 }
 
-/// The wake-up the pipeline's stages use: iceoryx2's event (a Unix datagram beside a bit set
-/// in shared memory), slept on in `ppoll` with the stage's other descriptors.
-pub const PIPELINE_WAKE: Transport = Transport::Iceoryx2;
+/// The hop the pipeline's stages on its path (kinematics, the stepper) make: iceoryx2's
+/// publish-subscribe, woken by the stage's doorbell (`[pipeline] wake = "doorbell"`, the
+/// default). The stages that sleep on other descriptors too use `iceoryx2`'s event.
+pub const PIPELINE_WAKE: Transport = Transport::Iceoryx2Doorbell;
 
 // ---------------------------------------------------------------------------------------------
 // The writer (a process of its own)
@@ -310,6 +320,32 @@ pub fn peer(a: &PeerArgs) -> Result<(), Box<dyn std::error::Error>> {
                 }
             }
             // Stay until the reader has everything (it reads our memory).
+            common::shutdown::watch_parent_pipe();
+            common::shutdown::wait_for_release(Duration::from_secs(10));
+        }
+        Transport::Iceoryx2Doorbell => {
+            let config = BusConfig::for_session(&a.endpoint)?;
+            let (_node, pubsub, _) = services(&config, a.bytes)?;
+            let doorbell = common::bus::Doorbell::open(&doorbell_path(&a.endpoint))?;
+            let publisher = pubsub
+                .publisher_builder()
+                .initial_max_slice_len(a.bytes)
+                .max_loaned_samples(2)
+                .create()
+                .map_err(|e| format!("{e:?}"))?;
+            let start = monotonic_ns();
+            for k in 0..a.count {
+                pace(start, k, a.rate_hz);
+                let sample = publisher
+                    .loan_slice_uninit(a.bytes)
+                    .map_err(|e| format!("{e:?}"))?;
+                let mut sample = sample.write_from_fn(|i| (i as u64 ^ k) as u8);
+                let payload = sample.payload_mut();
+                payload[8..16].copy_from_slice(&k.to_le_bytes());
+                payload[..8].copy_from_slice(&monotonic_ns().to_le_bytes());
+                sample.send().map_err(|e| format!("{e:?}"))?;
+                doorbell.ring();
+            }
             common::shutdown::watch_parent_pipe();
             common::shutdown::wait_for_release(Duration::from_secs(10));
         }
@@ -502,6 +538,11 @@ fn semaphore_event(
         .open_or_create()
         .map_err(|e| format!("{e:?}"))?;
     Ok((node, event))
+}
+
+/// The `iceoryx2-doorbell` rows' doorbell: a file in /dev/shm named for the run.
+fn doorbell_path(endpoint: &str) -> PathBuf {
+    PathBuf::from(format!("/dev/shm/{endpoint}-doorbell"))
 }
 
 /// The `futex` and `eventfd` rows' endpoint: the ring's file, and after a `|` the eventfd the
@@ -773,6 +814,41 @@ pub fn measure(exe: &Path, a: &PeerArgs) -> Result<Row, Box<dyn std::error::Erro
             let _ = std::fs::remove_file(&path);
             result?;
         }
+        Transport::Iceoryx2Doorbell => {
+            let config = BusConfig::for_session(&a.endpoint)?;
+            let bell = doorbell_path(&a.endpoint);
+            let result = (|| -> Result<(), Box<dyn std::error::Error>> {
+                let (_node, pubsub, _) = services(&config, a.bytes)?;
+                let doorbell = common::bus::Doorbell::open(&bell)?;
+                let subscriber = pubsub
+                    .subscriber_builder()
+                    .buffer_size(8)
+                    .create()
+                    .map_err(|e| format!("{e:?}"))?;
+                let mut child = spawn_peer(exe, a)?;
+                let mut last = false;
+                while !last {
+                    if Instant::now() > deadline {
+                        return Err(late().into());
+                    }
+                    doorbell.wait_unless(
+                        || subscriber.has_samples().unwrap_or(true),
+                        Duration::from_millis(50),
+                    );
+                    while let Some(s) = subscriber.receive().map_err(|e| format!("{e:?}"))? {
+                        record(read_u64(s.payload(), 0));
+                        first.get_or_insert_with(Instant::now);
+                        last |= read_u64(s.payload(), 8) + 1 == a.count;
+                    }
+                }
+                drop(child.stdin.take());
+                let _ = child.wait();
+                Ok(())
+            })();
+            let _ = std::fs::remove_file(&bell);
+            let _ = config.remove_resources();
+            result?;
+        }
         Transport::Iceoryx2Semaphore => {
             let config = BusConfig::for_session(&a.endpoint)?;
             let result = (|| -> Result<(), Box<dyn std::error::Error>> {
@@ -976,10 +1052,11 @@ pub fn run(b: &TransportBench) -> Result<Value, Box<dyn std::error::Error>> {
     let total = b.transports().len() * PAYLOADS.len() * rates.len() * b.runs.max(1) as usize;
     let scratch = std::env::temp_dir().join(format!("hb-transport-{}", std::process::id()));
     std::fs::create_dir_all(&scratch)?;
+    let quiet = page::Quietness::start();
     let measured = measure_all(b, &rates, total, &scratch);
     // The sockets' folder goes whatever happened.
     let _ = std::fs::remove_dir_all(&scratch);
-    write_outputs(&measured?, b)
+    write_outputs(&measured?, b, &quiet)
 }
 
 fn measure_all(
@@ -1060,7 +1137,11 @@ fn size_name(bytes: usize) -> String {
     }
 }
 
-fn write_outputs(rows: &[Row], b: &TransportBench) -> Result<Value, Box<dyn std::error::Error>> {
+fn write_outputs(
+    rows: &[Row],
+    b: &TransportBench,
+    quiet: &page::Quietness,
+) -> Result<Value, Box<dyn std::error::Error>> {
     std::fs::create_dir_all(&b.out_dir)?;
     let hgrm_dir = b.out_dir.join("hgrm");
     std::fs::create_dir_all(&hgrm_dir)?;
@@ -1092,6 +1173,8 @@ fn write_outputs(rows: &[Row], b: &TransportBench) -> Result<Value, Box<dyn std:
     );
     let value = json!({
         "quick": b.quick,
+        "runs": b.runs.max(1),
+        "how_quiet": quiet.line(),
         "transport": rows.iter().map(Row::json).collect::<Vec<_>>(),
         "uds_over_iceoryx2": ratios,
         "zenoh_over_iceoryx2": bridged,
@@ -1101,7 +1184,7 @@ fn write_outputs(rows: &[Row], b: &TransportBench) -> Result<Value, Box<dyn std:
         serde_json::to_string_pretty(&value)? + "\n",
     )?;
     crate::latency::merge_into_latency_json(&b.out_dir, "transport", value["transport"].clone())?;
-    let provenance = Provenance::of_this_run(b.quick, &b.out_dir);
+    let provenance = Provenance::of_this_run(b.quick, &b.out_dir).with_quietness(quiet);
     std::fs::write(
         b.out_dir.join("transport.md"),
         markdown(rows, b, &provenance),
@@ -1152,7 +1235,10 @@ fn markdown(rows: &[Row], b: &TransportBench, provenance: &Provenance) -> String
          ({}; {} whole sweeps, one after another: each p50 and p99 is the median of the \
          runs', with the lowest and highest run beside it). \
          `iceoryx2`: zero-copy shared memory, the reader woken by iceoryx2's event (a Unix \
-         datagram beside a bit set) and sleeping in `ppoll` (what the pipeline does, marked \
+         datagram beside a bit set) and sleeping in `ppoll` (what the pipeline did \
+         before issue 46, and still of the stages that sleep on other descriptors too); \
+         `iceoryx2-doorbell`: the same, woken by a doorbell, a futex word the writer rings \
+         (`common::bus::Doorbell`: what kinematics and the stepper do, marked \
          `\"pipeline\": true` in the JSON); `iceoryx2-semaphore`: the same, woken by iceoryx2's \
          semaphore event (`common::bus::semaphore::SemaphoreIpc`; its timed wait is iceoryx2's \
          adaptive wait: it polls the semaphore, yielding, then sleeping in steps, so it is no \
@@ -1166,8 +1252,8 @@ fn markdown(rows: &[Row], b: &TransportBench, provenance: &Provenance) -> String
          overwrites the oldest unread sample 8 behind (the pipeline's setting), so it may \
          deliver fewer than were sent.\n\n\
          How to read it: lower is better; the ratio tables divide a transport's percentile \
-         by iceoryx2's (woken) at the same payload and rate, measured in this run on this \
-         machine, so 3.00x means three times as long as the pipeline's hop. Paced at 120 Hz, \
+         by iceoryx2's (woken by its event) at the same payload and rate, measured in this \
+         run on this machine, so 3.00x means three times as long. Paced at 120 Hz, \
          the reader's CPU is idle between samples: a woken hop then includes this machine's \
          wake from idle, which no transport can avoid and which flat-out runs do not pay. The \
          figure draws each payload's latency by percentile (p50 to the tail, HdrHistogram's \
@@ -1231,6 +1317,10 @@ fn markdown(rows: &[Row], b: &TransportBench, provenance: &Provenance) -> String
     md.push('\n');
     for (t, title) in [
         (Transport::Uds, "The Unix socket's latency as a multiple of iceoryx2's (same run)"),
+        (
+            Transport::Iceoryx2Doorbell,
+            "iceoryx2 woken by a doorbell (the pipeline's) as a multiple of its own event (same run)",
+        ),
         (
             Transport::Iceoryx2Semaphore,
             "iceoryx2 with its semaphore event as a multiple of its datagram event (same run)",

@@ -489,7 +489,7 @@ pub enum BenchKind {
         #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=20))]
         runs: u64,
         /// `transport` only: the transports to measure, comma-separated (default: all):
-        /// iceoryx2, iceoryx2-semaphore, iceoryx2-poll, futex, eventfd, uds, tcp, zenoh.
+        /// iceoryx2, iceoryx2-doorbell, iceoryx2-semaphore, iceoryx2-poll, futex, eventfd, uds, tcp, zenoh.
         #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = parse_transport)]
         transports: Vec<handblocks_bench::transport::Transport>,
         /// Where the parts' files go (pipeline.json, transport.json, load.json, .md, .png,

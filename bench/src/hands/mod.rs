@@ -1627,6 +1627,7 @@ mod tests {
                 commit: "abc".into(),
                 machine: "test".into(),
                 quick: true,
+                quietness: None,
             },
             0.0,
         );
