@@ -786,7 +786,7 @@ fn the_transport_benchmark_writes_every_transport_and_payload_with_hgrm_files() 
     assert!(md.contains("| iceoryx2-poll | 4 MiB | flat out |"), "{md}");
     assert!(md.contains("| futex | 64 B | 120 Hz |"), "{md}");
     assert!(
-        md.contains("## The pipeline's wake-up (iceoryx2) against a Unix socket"),
+        md.contains("## The pipeline's wake-up (iceoryx2-doorbell) against a Unix socket"),
         "{md}"
     );
     assert!(std::fs::metadata(out.join("transport.png")).unwrap().len() > 10_000);
