@@ -332,6 +332,39 @@ fn run_once(b: &LatencyBench) -> Result<(Value, Value), Box<dyn std::error::Erro
         );
     }
     let world = report.summary_of(Stage::Stepper, Metric::Origin);
+    // Where origin -> world goes, stage by stage: the source's origin -> publish (its own
+    // work after the origin stamp), then each hop (the wake-up) and each stage's work.
+    let source_stage = report
+        .stages
+        .iter()
+        .find(|s| s.stage.role() == common::topic::Role::Source)
+        .map_or(Stage::Acquisition, |s| s.stage);
+    let parts = [
+        (
+            "source origin -> publish",
+            report.summary_of(source_stage, Metric::Origin),
+        ),
+        (
+            "hop into kinematics",
+            report.summary_of(Stage::Kinematics, Metric::Hop),
+        ),
+        (
+            "kinematics work",
+            report.summary_of(Stage::Kinematics, Metric::Process),
+        ),
+        (
+            "hop into the stepper",
+            report.summary_of(Stage::Stepper, Metric::Hop),
+        ),
+        (
+            "stepper work",
+            report.summary_of(Stage::Stepper, Metric::Process),
+        ),
+    ];
+    let budget: Vec<Value> = parts
+        .iter()
+        .map(|(part, x)| json!({"part": part, "p50_us": x.p50, "p99_us": x.p99}))
+        .collect();
     table.push_str(&format!(
         "\norigin -> world  p50 {:.1} us  p99 {:.1} us  (target p99 <= 200 us; p99 / peer hop p99 = {:.2})\n",
         world.p50,
@@ -430,6 +463,7 @@ fn run_once(b: &LatencyBench) -> Result<(Value, Value), Box<dyn std::error::Erro
         "stages": stages,
         "origin_to_world_us": summary_json(world),
         "origin_to_world_p99_over_peer_hop_p99": ratio(world.p99, peer.p99),
+        "origin_to_world_parts": budget,
         "dropped": dropped,
         "wait_strategies": waits,
         "session": report.json(),
@@ -491,7 +525,9 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
          their publishers ring; `event`: every stage on iceoryx2's event, as before issue \
          46).\n\n\
          How to read it: a ratio of 1.00 means the stage wakes as fast as a bare hop; 2.00, \
-         twice as slow at p99. Origin -> world is the age of the world a stage sends (from \
+         twice as slow at p99. The bare hops run on an idle machine, so each sample wakes a \
+         CPU from idle, whose tail on a VM is long; the session's hops run while its renderer \
+         keeps the CPUs busy, so they may come out faster than the bare hop. Origin -> world is the age of the world a stage sends (from \
          when the hand sample entered the pipeline: three hops and two stages' work), with \
          its target p99 <= 200 us and <= 3x the bare hop's p99. {runs} whole runs, one \
          after another: every figure is the median of the runs' (the peer too, which may be \
@@ -537,6 +573,48 @@ fn markdown(v: &Value, provenance: &Provenance) -> String {
         at(&["peer_hop_us", "p99"]),
         v["dropped"],
     ));
+    // Where the time goes: the p50s add up to origin -> world's; the wake-ups are the hops.
+    if let Some(parts) = v["origin_to_world_parts"].as_array() {
+        md.push_str(
+            "## Where origin -> world goes\n\nThe p50s add up to origin -> world's p50 (p99s do \
+             not add: each part's worst samples are not the same samples). The wake-ups are the \
+             two hops; the rest is work: the source's own, from its origin stamp to its \
+             publish, and each stage's.\n\n| part | p50 (us) | p99 |\n|---|---|---|\n",
+        );
+        let (mut p50_sum, mut hops_p50) = (0.0, 0.0);
+        for (i, p) in parts.iter().enumerate() {
+            let i = i.to_string();
+            let name = p["part"].as_str().unwrap_or("");
+            let p50 = p["p50_us"].as_f64().unwrap_or(0.0);
+            p50_sum += p50;
+            if name.starts_with("hop") {
+                hops_p50 += p50;
+            }
+            md.push_str(&format!(
+                "| {name} | {} | {} |\n",
+                at(&["origin_to_world_parts", &i, "p50_us"]),
+                at(&["origin_to_world_parts", &i, "p99_us"]),
+            ));
+        }
+        md.push_str(&format!(
+            "| sum | {p50_sum:.1} | - |\n| origin -> world | {} | {} |\n\n\
+             The two wake-ups are {hops_p50:.1} us of the {p50_sum:.1} us p50 ({:.0} %).{}\n\n",
+            at(&["origin_to_world_us", "p50"]),
+            at(&["origin_to_world_us", "p99"]),
+            if p50_sum > 0.0 {
+                100.0 * hops_p50 / p50_sum
+            } else {
+                0.0
+            },
+            if world_p99 > 200.0 {
+                " Where origin -> world's p99 is over 200 us, the hops' own p99s (in the table \
+                 above) show how much of it a wake-up could still win; the rest is the \
+                 stages' work and the source's, which no wake-up removes."
+            } else {
+                ""
+            },
+        ));
+    }
     md.push_str(&page::figure(
         "hop into each stage beside the bare hop, and origin to world and to photon, by percentile",
         "pipeline.png",
