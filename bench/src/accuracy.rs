@@ -1164,7 +1164,7 @@ fn reading(case: &Case, setting: Setting) -> Result<f64, String> {
 
 /// The median of the finite values; NaN when there are none (not 0: a time never measured
 /// is not a free one).
-fn median(values: &[f64]) -> f64 {
+pub(crate) fn median(values: &[f64]) -> f64 {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
     if v.is_empty() {
         return f64::NAN;

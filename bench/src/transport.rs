@@ -156,17 +156,8 @@ pub struct Row {
 }
 
 /// The median of `v` (the mean of the middle two for an even count); NaN for none.
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
+fn median(v: Vec<f64>) -> f64 {
+    crate::accuracy::median(&v)
 }
 
 impl Row {
@@ -327,90 +318,42 @@ pub fn peer(a: &PeerArgs) -> Result<(), Box<dyn std::error::Error>> {
             let config = BusConfig::for_session(&a.endpoint)?;
             let (_node, pubsub, _) = services(&config, a.bytes)?;
             let doorbell = common::bus::Doorbell::open(&doorbell_path(&a.endpoint))?;
-            let publisher = pubsub
-                .publisher_builder()
-                .initial_max_slice_len(a.bytes)
-                .max_loaned_samples(2)
-                .create()
-                .map_err(|e| format!("{e:?}"))?;
-            let start = monotonic_ns();
-            for k in 0..a.count {
-                pace(start, k, a.rate_hz);
-                let sample = publisher
-                    .loan_slice_uninit(a.bytes)
-                    .map_err(|e| format!("{e:?}"))?;
-                let mut sample = sample.write_from_fn(|i| (i as u64 ^ k) as u8);
-                let payload = sample.payload_mut();
-                payload[8..16].copy_from_slice(&k.to_le_bytes());
-                payload[..8].copy_from_slice(&monotonic_ns().to_le_bytes());
-                sample.send().map_err(|e| format!("{e:?}"))?;
+            write_iceoryx2(a, &pubsub, || {
                 doorbell.ring();
-            }
-            common::shutdown::watch_parent_pipe();
-            common::shutdown::wait_for_release(Duration::from_secs(10));
+                Ok(())
+            })?;
         }
         Transport::Iceoryx2Semaphore => {
             let config = BusConfig::for_session(&a.endpoint)?;
             let (_node, pubsub, _) = services(&config, a.bytes)?;
             let (_doorbell_node, event) = semaphore_event(&config, a.bytes)?;
-            let publisher = pubsub
-                .publisher_builder()
-                .initial_max_slice_len(a.bytes)
-                .max_loaned_samples(2)
-                .create()
-                .map_err(|e| format!("{e:?}"))?;
             let notifier = event
                 .notifier_builder()
                 .create()
                 .map_err(|e| format!("{e:?}"))?;
-            let start = monotonic_ns();
-            for k in 0..a.count {
-                pace(start, k, a.rate_hz);
-                let sample = publisher
-                    .loan_slice_uninit(a.bytes)
-                    .map_err(|e| format!("{e:?}"))?;
-                let mut sample = sample.write_from_fn(|i| (i as u64 ^ k) as u8);
-                let payload = sample.payload_mut();
-                payload[8..16].copy_from_slice(&k.to_le_bytes());
-                payload[..8].copy_from_slice(&monotonic_ns().to_le_bytes());
-                sample.send().map_err(|e| format!("{e:?}"))?;
-                notifier.notify().map_err(|e| format!("{e:?}"))?;
-            }
-            common::shutdown::watch_parent_pipe();
-            common::shutdown::wait_for_release(Duration::from_secs(10));
+            write_iceoryx2(a, &pubsub, || {
+                notifier
+                    .notify()
+                    .map(drop)
+                    .map_err(|e| format!("{e:?}").into())
+            })?;
         }
         Transport::Iceoryx2 | Transport::Iceoryx2Poll => {
             let config = BusConfig::for_session(&a.endpoint)?;
             let (_node, pubsub, event) = services(&config, a.bytes)?;
-            let publisher = pubsub
-                .publisher_builder()
-                .initial_max_slice_len(a.bytes)
-                .max_loaned_samples(2)
-                .create()
-                .map_err(|e| format!("{e:?}"))?;
             let notifier = event
                 .notifier_builder()
                 .create()
                 .map_err(|e| format!("{e:?}"))?;
-            let start = monotonic_ns();
-            for k in 0..a.count {
-                pace(start, k, a.rate_hz);
-                let sample = publisher
-                    .loan_slice_uninit(a.bytes)
-                    .map_err(|e| format!("{e:?}"))?;
-                // Written once, in place, as `stamp` writes a socket's buffer.
-                let mut sample = sample.write_from_fn(|i| (i as u64 ^ k) as u8);
-                let payload = sample.payload_mut();
-                payload[8..16].copy_from_slice(&k.to_le_bytes());
-                payload[..8].copy_from_slice(&monotonic_ns().to_le_bytes());
-                sample.send().map_err(|e| format!("{e:?}"))?;
-                if a.transport == Transport::Iceoryx2 {
-                    notifier.notify().map_err(|e| format!("{e:?}"))?;
+            write_iceoryx2(a, &pubsub, || {
+                if a.transport == Transport::Iceoryx2Poll {
+                    return Ok(());
                 }
-            }
-            // Stay until the reader has everything (it reads our memory).
-            common::shutdown::watch_parent_pipe();
-            common::shutdown::wait_for_release(Duration::from_secs(10));
+                notifier
+                    .notify()
+                    .map(drop)
+                    .map_err(|e| format!("{e:?}").into())
+            })?;
         }
         Transport::Zenoh => {
             use zenoh::Wait;
@@ -467,6 +410,38 @@ pub fn peer(a: &PeerArgs) -> Result<(), Box<dyn std::error::Error>> {
             stream.flush()?;
         }
     }
+    Ok(())
+}
+
+/// The iceoryx2 rows' writer: each payload written once, in place in the loaned sample (as
+/// `stamp` writes a socket's buffer), sent, then `wake` (the row's wake-up: its event, its
+/// doorbell, none); then it stays until the reader has everything (it reads our memory).
+fn write_iceoryx2(
+    a: &PeerArgs,
+    pubsub: &ByteService,
+    wake: impl Fn() -> Result<(), Box<dyn std::error::Error>>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let publisher = pubsub
+        .publisher_builder()
+        .initial_max_slice_len(a.bytes)
+        .max_loaned_samples(2)
+        .create()
+        .map_err(|e| format!("{e:?}"))?;
+    let start = monotonic_ns();
+    for k in 0..a.count {
+        pace(start, k, a.rate_hz);
+        let sample = publisher
+            .loan_slice_uninit(a.bytes)
+            .map_err(|e| format!("{e:?}"))?;
+        let mut sample = sample.write_from_fn(|i| (i as u64 ^ k) as u8);
+        let payload = sample.payload_mut();
+        payload[8..16].copy_from_slice(&k.to_le_bytes());
+        payload[..8].copy_from_slice(&monotonic_ns().to_le_bytes());
+        sample.send().map_err(|e| format!("{e:?}"))?;
+        wake()?;
+    }
+    common::shutdown::watch_parent_pipe();
+    common::shutdown::wait_for_release(Duration::from_secs(10));
     Ok(())
 }
 
