@@ -65,11 +65,12 @@ fn a_doorbell_stage_wakes_for_any_of_its_inlets_and_at_its_deadline() {
                 t.elapsed()
             );
 
-            // Each inlet wakes it, long before a 5 s deadline, and what woke it is there to
-            // take (the publisher holds it 300 ms more).
+            // Each inlet wakes it, long before a 60 s deadline (only a wake-up that never
+            // comes reaches it), and what woke it is there to take (the publisher holds it
+            // 300 ms more).
             for topic in ["tracker", "joints"] {
                 let c = config.clone();
-                let woke = woken_within(&mut waiter, &inlets, Duration::from_secs(5), move || {
+                let woke = woken_within(&mut waiter, &inlets, Duration::from_secs(60), move || {
                     let bus = Bus::open(&c, "source").unwrap();
                     if topic == "tracker" {
                         let mut out = bus.outlet::<topics::Tracker>().unwrap();
@@ -82,7 +83,7 @@ fn a_doorbell_stage_wakes_for_any_of_its_inlets_and_at_its_deadline() {
                     }
                 });
                 assert!(
-                    woke < Duration::from_secs(2),
+                    woke < Duration::from_secs(30),
                     "by events {by_events}: {topic} woke it after {woke:?}"
                 );
             }
@@ -91,8 +92,8 @@ fn a_doorbell_stage_wakes_for_any_of_its_inlets_and_at_its_deadline() {
             let mut out = source.outlet::<topics::Joints>().unwrap();
             out.publish(&JointsSample::default()).unwrap();
             let t = Instant::now();
-            waiter.wait(&inlets, Duration::from_secs(5)).unwrap();
-            assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
+            waiter.wait(&inlets, Duration::from_secs(60)).unwrap();
+            assert!(t.elapsed() < Duration::from_secs(30), "{:?}", t.elapsed());
             assert!(
                 joints_in.receive().unwrap().is_some(),
                 "what woke it is there"
